@@ -1,0 +1,281 @@
+//! Control allocation for a flat multirotor (doc `model-and-control.md` section 3).
+//!
+//! Effectiveness: `[u_T, tau_x, tau_y, tau_z]^T = B w`, `w_i = omega_i^2`, with
+//! column `B_i = [c_T, -l_i c_T sin a_i, l_i c_T cos a_i, s_i c_Q]^T`.
+//! Inverse: minimum-norm `w = B^+ v`, `B^+ = B^T (B B^T)^-1`, then
+//! desaturation with priority roll/pitch > thrust > yaw:
+//! 1. if `w_T + w_rp + w_y` is within `[w_min, w_max]`, use it;
+//! 2. otherwise the largest `sigma` in `[0, 1]` for which a collective shift
+//!    `delta n_T` with `|delta| <= 0.3 u_T` fits `w_T + sigma w_rp` in bounds
+//!    (bisection; smallest `|delta|`);
+//! 3. then the largest `lambda` in `[0, 1]` that keeps `+ lambda w_y` in bounds;
+//! 4. clamp; what was not delivered is reported.
+
+use nalgebra::{DMatrix, SMatrix, SVector, Vector3, Vector4};
+use serde::Serialize;
+
+use super::RotorGeometry;
+
+/// Largest rotor count supported (fixed-size vectors keep the hot path free of allocation).
+pub const MAX_ROTORS: usize = 12;
+
+/// Per-rotor values, rotor 1 first, zero beyond the vehicle's rotor count.
+pub type RotorVector = SVector<f64, MAX_ROTORS>;
+
+/// The four virtual inputs of a flat multirotor.
+#[derive(Clone, Copy, Debug, PartialEq, Default, Serialize)]
+pub struct ControlWrench {
+    /// Total thrust `u_T` [N] along `-z_b`.
+    pub thrust_n: f64,
+    /// Body torque `tau^b` [N m], FRD.
+    pub torque_frd: Vector3<f64>,
+}
+
+impl ControlWrench {
+    /// A wrench from thrust [N] and body FRD torque [N m].
+    #[must_use]
+    pub fn new(thrust_n: f64, torque_frd: Vector3<f64>) -> Self {
+        Self { thrust_n, torque_frd }
+    }
+
+    /// `[u_T, tau_x, tau_y, tau_z]`.
+    #[must_use]
+    pub fn to_vector(&self) -> Vector4<f64> {
+        Vector4::new(self.thrust_n, self.torque_frd.x, self.torque_frd.y, self.torque_frd.z)
+    }
+
+    /// From `[u_T, tau_x, tau_y, tau_z]`.
+    #[must_use]
+    pub fn from_vector(v: &Vector4<f64>) -> Self {
+        Self::new(v[0], Vector3::new(v[1], v[2], v[3]))
+    }
+}
+
+/// The 4 x n effectiveness matrix `B` (doc section 3).
+///
+/// Sines and cosines of multiples of 90 degrees come out as `1e-16`-sized
+/// dust (`cos 90 deg`); snap it to the exact zero the geometry means.
+pub fn effectiveness(rotors: &[RotorGeometry], c_t: f64, c_q: f64) -> DMatrix<f64> {
+    let snap = |x: f64| if x.abs() < 1e-12 { 0.0 } else { x };
+    DMatrix::from_fn(4, rotors.len(), |row, i| {
+        let r = &rotors[i];
+        match row {
+            0 => c_t,
+            1 => -r.arm_m * c_t * snap(r.angle_rad.sin()),
+            2 => r.arm_m * c_t * snap(r.angle_rad.cos()),
+            _ => r.spin.sign() * c_q,
+        }
+    })
+}
+
+/// The full 6 x n body wrench map `[f^b; tau^b] = B_bar w`: rows `f_x = f_y = 0`,
+/// `f_z = -u_T`, then the torque rows of `B`.
+#[must_use]
+pub fn wrench_map(b: &DMatrix<f64>) -> DMatrix<f64> {
+    DMatrix::from_fn(6, b.ncols(), |row, i| match row {
+        0 | 1 => 0.0,
+        2 => -b[(0, i)],
+        _ => b[(row - 2, i)],
+    })
+}
+
+/// Numerical rank: singular values above `1e-9` times the largest, after
+/// scaling each row to unit norm (rows mix N and N m with very different sizes).
+#[must_use]
+pub fn rank(m: &DMatrix<f64>) -> usize {
+    let mut scaled = m.clone();
+    for mut row in scaled.row_iter_mut() {
+        let n = row.norm();
+        if n > 0.0 {
+            row /= n;
+        }
+    }
+    let sv = scaled.singular_values();
+    let max = sv.max();
+    if max <= 0.0 {
+        return 0;
+    }
+    sv.iter().filter(|s| **s > 1e-9 * max).count()
+}
+
+/// Minimum-norm allocator with priority desaturation.
+#[derive(Clone, Debug)]
+pub struct Allocator {
+    n: usize,
+    /// `B`, zero-padded to `MAX_ROTORS` columns.
+    b: SMatrix<f64, 4, MAX_ROTORS>,
+    /// `B^+`, zero-padded rows.
+    b_pinv: SMatrix<f64, MAX_ROTORS, 4>,
+    w_min: f64,
+    w_max: f64,
+    /// Largest collective shift as a fraction of the requested thrust.
+    delta_max_fraction: f64,
+}
+
+/// The result of one allocation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Allocation {
+    /// Squared rotor speeds `w = omega^2` [rad^2/s^2], within bounds.
+    pub speed_sq: RotorVector,
+    /// Rotor speed commands `omega = sqrt(w)` [rad/s].
+    pub speed_cmd_rad_s: RotorVector,
+    /// What the rotors deliver: `B w`.
+    pub achieved: ControlWrench,
+    /// Requested minus achieved.
+    pub unallocated: ControlWrench,
+    /// Roll/pitch scale `sigma` in `[0, 1]`.
+    pub roll_pitch_scale: f64,
+    /// Collective shift `delta` [N of thrust].
+    pub thrust_shift_n: f64,
+    /// Yaw scale `lambda` in `[0, 1]`.
+    pub yaw_scale: f64,
+    /// Whether the unconstrained inverse was out of bounds.
+    pub saturated: bool,
+}
+
+impl Allocator {
+    /// Build from `B` (4 x n) and squared-speed bounds `[w_min, w_max]`.
+    ///
+    /// # Errors
+    /// The rank of `B` when it is below 4 (no inverse), or when `n` is out of range.
+    pub fn new(b: &DMatrix<f64>, w_min: f64, w_max: f64) -> Result<Self, usize> {
+        let n = b.ncols();
+        let r = rank(b);
+        if b.nrows() != 4 || n > MAX_ROTORS || r < 4 {
+            return Err(r);
+        }
+        let bbt = b * b.transpose();
+        let inv = bbt.try_inverse().ok_or(r)?;
+        let pinv = b.transpose() * inv;
+        let mut bp = SMatrix::<f64, 4, MAX_ROTORS>::zeros();
+        let mut pp = SMatrix::<f64, MAX_ROTORS, 4>::zeros();
+        for i in 0..n {
+            for k in 0..4 {
+                bp[(k, i)] = b[(k, i)];
+                pp[(i, k)] = pinv[(i, k)];
+            }
+        }
+        Ok(Self {
+            n,
+            b: bp,
+            b_pinv: pp,
+            w_min,
+            w_max,
+            delta_max_fraction: 0.3,
+        })
+    }
+
+    /// Number of rotors.
+    #[must_use]
+    pub fn rotor_count(&self) -> usize {
+        self.n
+    }
+
+    /// `B`, zero-padded.
+    #[must_use]
+    pub fn b(&self) -> &SMatrix<f64, 4, MAX_ROTORS> {
+        &self.b
+    }
+
+    /// `B^+`, zero-padded.
+    #[must_use]
+    pub fn b_pinv(&self) -> &SMatrix<f64, MAX_ROTORS, 4> {
+        &self.b_pinv
+    }
+
+    /// The wrench `B w` of squared speeds `w`.
+    #[must_use]
+    pub fn forward(&self, speed_sq: &RotorVector) -> ControlWrench {
+        ControlWrench::from_vector(&(self.b * speed_sq))
+    }
+
+    /// Unconstrained minimum-norm squared speeds `B^+ v` (may leave the bounds).
+    #[must_use]
+    pub fn inverse(&self, v: &ControlWrench) -> RotorVector {
+        self.b_pinv * v.to_vector()
+    }
+
+    fn in_bounds(&self, w: &RotorVector) -> bool {
+        w.iter().take(self.n).all(|x| *x >= self.w_min && *x <= self.w_max)
+    }
+
+    /// Feasible collective-shift interval `[lo, hi]` for `base + delta n_T`.
+    fn shift_interval(&self, base: &RotorVector, n_t: &RotorVector) -> (f64, f64) {
+        let mut lo = f64::NEG_INFINITY;
+        let mut hi = f64::INFINITY;
+        for i in 0..self.n {
+            // n_T entries are > 0 for any flat frame (every column has c_T > 0 in row 1).
+            lo = lo.max((self.w_min - base[i]) / n_t[i]);
+            hi = hi.min((self.w_max - base[i]) / n_t[i]);
+        }
+        (lo, hi)
+    }
+
+    /// Allocate a requested wrench to rotor speeds within limits (module doc).
+    #[must_use]
+    pub fn allocate(&self, req: &ControlWrench) -> Allocation {
+        let w_t = self.b_pinv.column(0) * req.thrust_n;
+        let w_rp = self.b_pinv.column(1) * req.torque_frd.x + self.b_pinv.column(2) * req.torque_frd.y;
+        let w_y = self.b_pinv.column(3) * req.torque_frd.z;
+        let full = w_t + w_rp + w_y;
+        let (sigma, delta, lambda, saturated, w) = if self.in_bounds(&full) {
+            (1.0, 0.0, 1.0, false, full)
+        } else {
+            let n_t: RotorVector = self.b_pinv.column(0).into_owned();
+            let delta_max = self.delta_max_fraction * req.thrust_n.abs();
+            let feasible = |sigma: f64| -> Option<f64> {
+                let (lo, hi) = self.shift_interval(&(w_t + w_rp * sigma), &n_t);
+                let (lo, hi) = (lo.max(-delta_max), hi.min(delta_max));
+                (lo <= hi).then(|| 0.0f64.clamp(lo, hi))
+            };
+            let (sigma, delta) = if let Some(d) = feasible(1.0) {
+                (1.0, d)
+            } else if let Some(d0) = feasible(0.0) {
+                // The feasible (sigma, delta) set is convex, so feasibility is an interval [0, sigma*].
+                let (mut a, mut b, mut d) = (0.0, 1.0, d0);
+                for _ in 0..40 {
+                    let m = 0.5 * (a + b);
+                    if let Some(dm) = feasible(m) {
+                        a = m;
+                        d = dm;
+                    } else {
+                        b = m;
+                    }
+                }
+                (a, d)
+            } else {
+                // Thrust alone does not fit: shift as far as allowed towards the bounds.
+                let (lo, hi) = self.shift_interval(&w_t, &n_t);
+                (0.0, (0.5 * (lo + hi)).clamp(-delta_max, delta_max))
+            };
+            let base = w_t + w_rp * sigma + n_t * delta;
+            let mut lambda: f64 = 1.0;
+            for i in 0..self.n {
+                if w_y[i] > 0.0 {
+                    lambda = lambda.min((self.w_max - base[i]) / w_y[i]);
+                } else if w_y[i] < 0.0 {
+                    lambda = lambda.min((self.w_min - base[i]) / w_y[i]);
+                }
+            }
+            let lambda = lambda.max(0.0);
+            (sigma, delta, lambda, true, base + w_y * lambda)
+        };
+        let mut speed_sq = RotorVector::zeros();
+        let mut speed_cmd = RotorVector::zeros();
+        for i in 0..self.n {
+            speed_sq[i] = w[i].clamp(self.w_min, self.w_max);
+            speed_cmd[i] = speed_sq[i].sqrt();
+        }
+        let achieved = self.forward(&speed_sq);
+        Allocation {
+            speed_sq,
+            speed_cmd_rad_s: speed_cmd,
+            achieved,
+            unallocated: ControlWrench::from_vector(&(req.to_vector() - achieved.to_vector())),
+            roll_pitch_scale: sigma,
+            thrust_shift_n: delta,
+            yaw_scale: lambda,
+            saturated,
+        }
+    }
+}

@@ -1,0 +1,326 @@
+//! The airframe TOML schema and its validation.
+//!
+//! Every key carries its unit in its name; unknown keys are refused. Errors
+//! name the file, the field (`body.mass_kg`, `rotors[3].angle_deg`, rotors
+//! counted from 1 as they are labelled) and the problem.
+
+use super::{
+    Actuation, Airframe, CeilingEffectParams, GRAVITY, GroundEffectParams, MAX_ROTORS, RotorGeometry, RotorParams,
+    Spin,
+};
+use nalgebra::Matrix3;
+use serde::Deserialize;
+
+/// Why an airframe could not be loaded.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum AirframeError {
+    /// The file could not be read.
+    #[error("{file}: cannot read: {message}")]
+    Io {
+        /// Path as given.
+        file: String,
+        /// OS message.
+        message: String,
+    },
+    /// Not valid TOML, or a key is unknown, missing or of the wrong type.
+    #[error("{file}:{line}:{column}: {message}")]
+    Syntax {
+        /// Path or built-in label.
+        file: String,
+        /// 1-based line of the offending text.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// The parser's message, which names the key.
+        message: String,
+    },
+    /// A value is out of its physical range or inconsistent with others.
+    #[error("{file}: {field}: {problem}")]
+    Invalid {
+        /// Path or built-in label.
+        file: String,
+        /// Dotted field name.
+        field: String,
+        /// What is wrong.
+        problem: String,
+    },
+    /// Neither a file nor a built-in airframe.
+    #[error("unknown airframe `{name}`: not a file and not a built-in airframe ({builtin})")]
+    Unknown {
+        /// What was asked for.
+        name: String,
+        /// Built-in names.
+        builtin: String,
+    },
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileAirframe {
+    name: String,
+    #[serde(default)]
+    description: String,
+    actuation: FileActuation,
+    body: FileBody,
+    rotor: FileRotor,
+    rotors: Vec<FileRotorGeometry>,
+    ground_effect: FileGroundEffect,
+    ceiling_effect: FileCeilingEffect,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum FileActuation {
+    Rotors,
+    Ideal,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileBody {
+    mass_kg: f64,
+    inertia_diag_kg_m2: [f64; 3],
+    gear_height_m: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileRotor {
+    thrust_coefficient_n_s2: f64,
+    torque_coefficient_n_m_s2: f64,
+    radius_m: f64,
+    time_constant_s: f64,
+    speed_min_rad_s: f64,
+    speed_max_rad_s: f64,
+    #[serde(default)]
+    inertia_kg_m2: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileRotorGeometry {
+    angle_deg: f64,
+    arm_m: f64,
+    spin: Spin,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileGroundEffect {
+    body_coefficient: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileCeilingEffect {
+    k1: f64,
+    k2_m: f64,
+}
+
+/// Line and column (1-based) of a byte offset.
+fn line_column(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, str::len) + 1;
+    (line, column)
+}
+
+pub(super) fn parse(text: &str, file: &str) -> Result<Airframe, AirframeError> {
+    let raw: FileAirframe = toml::from_str(text).map_err(|e| {
+        let (line, column) = e.span().map_or((0, 0), |s| line_column(text, s.start));
+        AirframeError::Syntax {
+            file: file.to_string(),
+            line,
+            column,
+            message: e.message().trim().to_string(),
+        }
+    })?;
+    validate(raw, file)
+}
+
+struct Checker<'a> {
+    file: &'a str,
+}
+
+impl Checker<'_> {
+    fn fail(&self, field: impl Into<String>, problem: impl Into<String>) -> AirframeError {
+        AirframeError::Invalid {
+            file: self.file.to_string(),
+            field: field.into(),
+            problem: problem.into(),
+        }
+    }
+
+    /// `value` must be finite and strictly positive.
+    fn positive(&self, field: &str, value: f64) -> Result<f64, AirframeError> {
+        if value.is_finite() && value > 0.0 {
+            Ok(value)
+        } else {
+            Err(self.fail(field, format!("must be a finite number > 0, got {value}")))
+        }
+    }
+
+    /// `value` must be finite and not negative.
+    fn non_negative(&self, field: &str, value: f64) -> Result<f64, AirframeError> {
+        if value.is_finite() && value >= 0.0 {
+            Ok(value)
+        } else {
+            Err(self.fail(field, format!("must be a finite number >= 0, got {value}")))
+        }
+    }
+}
+
+#[allow(clippy::too_many_lines)]
+fn validate(raw: FileAirframe, file: &str) -> Result<Airframe, AirframeError> {
+    let c = Checker { file };
+    if raw.name.trim().is_empty() {
+        return Err(c.fail("name", "must not be empty"));
+    }
+    let mass_kg = c.positive("body.mass_kg", raw.body.mass_kg)?;
+    let [ixx, iyy, izz] = raw.body.inertia_diag_kg_m2;
+    for (axis, v) in ["x", "y", "z"].iter().zip([ixx, iyy, izz]) {
+        c.positive(&format!("body.inertia_diag_kg_m2 ({axis})"), v)?;
+    }
+    // Principal moments of a real body obey the triangle inequality.
+    let slack = 1e-12 * (ixx + iyy + izz);
+    if ixx + iyy + slack < izz || iyy + izz + slack < ixx || izz + ixx + slack < iyy {
+        return Err(c.fail(
+            "body.inertia_diag_kg_m2",
+            format!("[{ixx}, {iyy}, {izz}] violates the triangle inequality of a rigid body (each moment <= sum of the other two)"),
+        ));
+    }
+    let gear_height_m = c.non_negative("body.gear_height_m", raw.body.gear_height_m)?;
+
+    let r = &raw.rotor;
+    let rotor = RotorParams {
+        c_t: c.positive("rotor.thrust_coefficient_n_s2", r.thrust_coefficient_n_s2)?,
+        c_q: c.positive("rotor.torque_coefficient_n_m_s2", r.torque_coefficient_n_m_s2)?,
+        radius_m: c.positive("rotor.radius_m", r.radius_m)?,
+        time_constant_s: c.positive("rotor.time_constant_s", r.time_constant_s)?,
+        speed_min_rad_s: c.non_negative("rotor.speed_min_rad_s", r.speed_min_rad_s)?,
+        speed_max_rad_s: c.positive("rotor.speed_max_rad_s", r.speed_max_rad_s)?,
+        inertia_kg_m2: c.non_negative("rotor.inertia_kg_m2", r.inertia_kg_m2)?,
+    };
+    if rotor.speed_max_rad_s <= rotor.speed_min_rad_s {
+        return Err(c.fail(
+            "rotor.speed_max_rad_s",
+            format!(
+                "must exceed rotor.speed_min_rad_s ({} <= {})",
+                rotor.speed_max_rad_s, rotor.speed_min_rad_s
+            ),
+        ));
+    }
+
+    let n = raw.rotors.len();
+    if !(3..=MAX_ROTORS).contains(&n) {
+        return Err(c.fail("rotors", format!("a flat multirotor needs 3 to {MAX_ROTORS} rotors, found {n}")));
+    }
+    let mut rotors = Vec::with_capacity(n);
+    for (i, g) in raw.rotors.iter().enumerate() {
+        let label = i + 1;
+        if !g.angle_deg.is_finite() {
+            return Err(c.fail(format!("rotors[{label}].angle_deg"), format!("must be finite, got {}", g.angle_deg)));
+        }
+        let arm_m = c.positive(&format!("rotors[{label}].arm_m"), g.arm_m)?;
+        let wrapped = g.angle_deg.rem_euclid(360.0);
+        for (j, prev) in raw.rotors[..i].iter().enumerate() {
+            let d = (prev.angle_deg.rem_euclid(360.0) - wrapped).abs();
+            if d < 1e-6 || (360.0 - d) < 1e-6 {
+                return Err(c.fail(
+                    format!("rotors[{label}].angle_deg"),
+                    format!("duplicate rotor angle {} deg (same as rotors[{}])", g.angle_deg, j + 1),
+                ));
+            }
+        }
+        rotors.push(RotorGeometry {
+            angle_rad: g.angle_deg.to_radians(),
+            arm_m,
+            spin: g.spin,
+        });
+    }
+    for i in 0..n {
+        for j in i + 1..n {
+            let d = (rotors[i].position_frd() - rotors[j].position_frd()).norm();
+            if d < 2.0 * rotor.radius_m {
+                return Err(c.fail(
+                    "rotor.radius_m",
+                    format!(
+                        "rotor disks of rotors[{}] and rotors[{}] overlap: hubs {d:.4} m apart, 2 x radius = {:.4} m",
+                        i + 1,
+                        j + 1,
+                        2.0 * rotor.radius_m
+                    ),
+                ));
+            }
+        }
+    }
+
+    let ground_effect = GroundEffectParams {
+        body_coefficient: c.non_negative("ground_effect.body_coefficient", raw.ground_effect.body_coefficient)?,
+    };
+    let ceiling_effect = CeilingEffectParams {
+        k1: c.positive("ceiling_effect.k1", raw.ceiling_effect.k1)?,
+        k2_m: c.positive("ceiling_effect.k2_m", raw.ceiling_effect.k2_m)?,
+    };
+    // Finite gain at contact needs k1 k2^2 > rho^2 (doc section 8).
+    if ceiling_effect.k1 * ceiling_effect.k2_m.powi(2) <= rotor.radius_m.powi(2) {
+        return Err(c.fail(
+            "ceiling_effect.k2_m",
+            format!(
+                "k1 * k2_m^2 = {:.4e} must exceed rotor.radius_m^2 = {:.4e}, or the ceiling gain is infinite at contact",
+                ceiling_effect.k1 * ceiling_effect.k2_m.powi(2),
+                rotor.radius_m.powi(2)
+            ),
+        ));
+    }
+
+    let airframe = Airframe {
+        name: raw.name.trim().to_string(),
+        description: raw.description,
+        source: file.to_string(),
+        actuation: match raw.actuation {
+            FileActuation::Rotors => Actuation::Rotors,
+            FileActuation::Ideal => Actuation::Ideal,
+        },
+        mass_kg,
+        inertia_kg_m2: Matrix3::from_diagonal(&nalgebra::Vector3::new(ixx, iyy, izz)),
+        gear_height_m,
+        rotor,
+        rotors,
+        ground_effect,
+        ceiling_effect,
+    };
+
+    let b = airframe.effectiveness();
+    let rank = super::rank(&b);
+    if rank < 4 {
+        return Err(c.fail(
+            "rotors",
+            format!("the allocation matrix has rank {rank} < 4: this layout cannot command thrust, roll, pitch and yaw independently (check spins and angles)"),
+        ));
+    }
+    if airframe.actuation == Actuation::Rotors {
+        let max_thrust = n as f64 * rotor.c_t * rotor.speed_max_rad_s.powi(2);
+        if max_thrust <= mass_kg * GRAVITY {
+            return Err(c.fail(
+                "body.mass_kg",
+                format!(
+                    "{mass_kg} kg weighs {:.2} N but all rotors at rotor.speed_max_rad_s give only {max_thrust:.2} N: the vehicle cannot hover",
+                    mass_kg * GRAVITY
+                ),
+            ));
+        }
+    }
+    Ok(airframe)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::line_column;
+
+    #[test]
+    fn line_column_counts_from_one() {
+        assert_eq!(line_column("a\nbc\nd", 3), (2, 2));
+        assert_eq!(line_column("abc", 0), (1, 1));
+    }
+}

@@ -1,0 +1,239 @@
+//! Vehicle description: mass, inertia, rotor geometry and coefficients, read
+//! from a TOML file (`params/airframes/*.toml`, or any file given by path).
+//!
+//! A flat multirotor's rotor `i` sits at `r_i = l_i [cos a_i, sin a_i, 0]` in
+//! FRD, with the arm angle `a_i` measured from `x_b` towards `y_b` (clockwise
+//! seen from above) and spin sign `s_i = +1` for counter-clockwise seen from
+//! above (doc `model-and-control.md` sections 2-3). Thrust `T_i = c_T w_i^2`
+//! along `-z_b`, drag torque `s_i c_Q w_i^2` about `+z_b`.
+//!
+//! The mass and inertia here are the *nominal* ones that controllers and
+//! estimators see; the plant ([`crate::model::Plant`]) starts from them and may
+//! be given a different true mass and inertia.
+
+mod allocation;
+mod failure;
+mod file;
+mod report;
+
+pub use allocation::{Allocation, Allocator, ControlWrench, MAX_ROTORS, RotorVector, effectiveness, rank, wrench_map};
+pub use failure::{FailureAnalysis, HoverVerdict, TorqueMargins, analyse_failures, hover_margins, intact_verdict};
+pub use file::AirframeError;
+pub use report::AirframeReport;
+
+use nalgebra::{Matrix3, Vector3};
+use serde::Serialize;
+
+/// Standard gravity [m/s^2] used everywhere (doc section 1: use 9.81 in tests).
+pub const GRAVITY: f64 = 9.81;
+
+/// How commands reach the rigid body.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Actuation {
+    /// Rotor speeds go through first-order motor lag and speed limits; the
+    /// wrench is `B w` with `w = omega^2`.
+    Rotors,
+    /// The commanded total thrust and body torque act directly (the origin
+    /// report's Simulink model); rotor geometry is used only for ground and
+    /// ceiling effect.
+    Ideal,
+}
+
+/// Rotor spin direction seen from above.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Spin {
+    /// Clockwise seen from above: `s = -1` (yaws the body counter-clockwise).
+    Cw,
+    /// Counter-clockwise seen from above: `s = +1` (yaws the body clockwise, positive FRD yaw).
+    Ccw,
+}
+
+impl Spin {
+    /// The sign `s_i` of the drag reaction `s_i c_Q w_i^2` about `+z_b`.
+    #[must_use]
+    pub fn sign(self) -> f64 {
+        match self {
+            Spin::Cw => -1.0,
+            Spin::Ccw => 1.0,
+        }
+    }
+}
+
+/// Where one rotor sits and which way it spins.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct RotorGeometry {
+    /// Arm angle `a_i` [rad] from `x_b` towards `y_b`.
+    pub angle_rad: f64,
+    /// Arm length `l_i` [m] from the centre of mass.
+    pub arm_m: f64,
+    /// Spin direction.
+    pub spin: Spin,
+}
+
+impl RotorGeometry {
+    /// Rotor hub position `r_i = l_i [cos a_i, sin a_i, 0]` [m], body FRD.
+    #[must_use]
+    pub fn position_frd(&self) -> Vector3<f64> {
+        Vector3::new(self.arm_m * self.angle_rad.cos(), self.arm_m * self.angle_rad.sin(), 0.0)
+    }
+}
+
+/// Properties shared by all rotors of a vehicle.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct RotorParams {
+    /// Thrust coefficient `c_T` [N s^2]: `T = c_T omega^2`.
+    pub c_t: f64,
+    /// Drag-torque coefficient `c_Q` [N m s^2]: `Q = c_Q omega^2`.
+    pub c_q: f64,
+    /// Rotor radius `rho` [m] (ground and ceiling effect).
+    pub radius_m: f64,
+    /// Motor first-order time constant `tau_m` [s].
+    pub time_constant_s: f64,
+    /// Lowest commandable speed (idle) [rad/s].
+    pub speed_min_rad_s: f64,
+    /// Highest speed [rad/s].
+    pub speed_max_rad_s: f64,
+    /// Rotor + motor-bell inertia about the spin axis `J_r` [kg m^2] (gyroscopic torque).
+    pub inertia_kg_m2: f64,
+}
+
+/// Ground-effect model constants (doc section 8).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct GroundEffectParams {
+    /// Empirical body-lift coefficient `K_b` (0 = pure rotor-image model).
+    pub body_coefficient: f64,
+}
+
+/// Ceiling-effect model constants: `T/T_oce = 1 / (1 - (rho/(z + k2))^2 / k1)` (doc section 8).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct CeilingEffectParams {
+    /// `k1` (dimensionless, > 0).
+    pub k1: f64,
+    /// `k2` [m] (> 0).
+    pub k2_m: f64,
+}
+
+/// A validated vehicle description.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Airframe {
+    /// Short name (`quad`, `octo`, ...).
+    pub name: String,
+    /// One-line description.
+    pub description: String,
+    /// Where it was read from (a path, or `built-in NAME`).
+    pub source: String,
+    /// How commands act on the body.
+    pub actuation: Actuation,
+    /// Nominal mass [kg].
+    pub mass_kg: f64,
+    /// Nominal inertia about the centre of mass [kg m^2], body FRD.
+    #[serde(serialize_with = "serialize_matrix3")]
+    pub inertia_kg_m2: Matrix3<f64>,
+    /// Height of the centre of mass above flat ground when resting on it [m].
+    pub gear_height_m: f64,
+    /// Rotor coefficients and limits.
+    pub rotor: RotorParams,
+    /// Rotor layout, in label order (rotor 1 first).
+    pub rotors: Vec<RotorGeometry>,
+    /// Ground-effect constants.
+    pub ground_effect: GroundEffectParams,
+    /// Ceiling-effect constants.
+    pub ceiling_effect: CeilingEffectParams,
+}
+
+fn serialize_matrix3<S: serde::Serializer>(m: &Matrix3<f64>, s: S) -> Result<S::Ok, S::Error> {
+    let rows: [[f64; 3]; 3] = [
+        [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
+        [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
+        [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
+    ];
+    rows.serialize(s)
+}
+
+/// The airframes shipped with rotorpilot, embedded in the binary: `(name, TOML text)`.
+pub const BUILTIN: &[(&str, &str)] = &[
+    ("quad", include_str!("../../params/airframes/quad.toml")),
+    ("hexa", include_str!("../../params/airframes/hexa.toml")),
+    ("octo", include_str!("../../params/airframes/octo.toml")),
+    ("fsr-quad", include_str!("../../params/airframes/fsr-quad.toml")),
+];
+
+/// The default vehicle.
+pub const DEFAULT_AIRFRAME: &str = "quad";
+
+impl Airframe {
+    /// Load a built-in airframe by name, or a file by path.
+    ///
+    /// # Errors
+    /// [`AirframeError`] naming the file, the field and the problem.
+    pub fn load(name_or_path: &str) -> Result<Self, AirframeError> {
+        let path = std::path::Path::new(name_or_path);
+        if path.is_file() {
+            return Self::from_file(path);
+        }
+        if let Some((name, text)) = BUILTIN.iter().find(|(n, _)| *n == name_or_path) {
+            return Self::from_toml(text, &format!("built-in {name} (params/airframes/{name}.toml)"));
+        }
+        if name_or_path.contains('/') || name_or_path.ends_with(".toml") {
+            return Err(AirframeError::Io {
+                file: name_or_path.to_string(),
+                message: "no such file".into(),
+            });
+        }
+        Err(AirframeError::Unknown {
+            name: name_or_path.to_string(),
+            builtin: BUILTIN.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", "),
+        })
+    }
+
+    /// Read and validate an airframe file.
+    ///
+    /// # Errors
+    /// [`AirframeError`] naming the file, the field and the problem.
+    pub fn from_file(path: &std::path::Path) -> Result<Self, AirframeError> {
+        let label = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| AirframeError::Io {
+            file: label.clone(),
+            message: e.to_string(),
+        })?;
+        Self::from_toml(&text, &label)
+    }
+
+    /// Parse and validate airframe TOML; `file` labels error messages.
+    ///
+    /// # Errors
+    /// [`AirframeError`] naming the file, the field and the problem.
+    pub fn from_toml(text: &str, file: &str) -> Result<Self, AirframeError> {
+        file::parse(text, file)
+    }
+
+    /// Number of rotors.
+    #[must_use]
+    pub fn rotor_count(&self) -> usize {
+        self.rotors.len()
+    }
+
+    /// The 4 x n effectiveness matrix `B` of this airframe (doc section 3).
+    #[must_use]
+    pub fn effectiveness(&self) -> nalgebra::DMatrix<f64> {
+        effectiveness(&self.rotors, self.rotor.c_t, self.rotor.c_q)
+    }
+
+    /// Bounds on the squared rotor speed `w = omega^2` [rad^2/s^2].
+    #[must_use]
+    pub fn speed_sq_bounds(&self) -> (f64, f64) {
+        (self.rotor.speed_min_rad_s.powi(2), self.rotor.speed_max_rad_s.powi(2))
+    }
+
+    /// The allocator (minimum-norm inverse with desaturation) for all rotors.
+    ///
+    /// # Panics
+    /// Never for a validated airframe (validation checks rank 4).
+    #[must_use]
+    pub fn allocator(&self) -> Allocator {
+        let (lo, hi) = self.speed_sq_bounds();
+        Allocator::new(&self.effectiveness(), lo, hi).expect("validated airframe has rank 4")
+    }
+}

@@ -1,0 +1,26 @@
+//! rotorpilot: a software-in-the-loop autopilot for multirotors.
+//!
+//! # Layout
+//!
+//! | module | job | may import |
+//! |---|---|---|
+//! | [`math`] | SO(3) helpers (hat, vee, ZYX Euler angles) | nalgebra |
+//! | [`airframe`] | vehicle description from `params/airframes/*.toml`, allocation (effectiveness matrix, inverse, desaturation), rotor-failure analysis, the `airframe` report | `math` |
+//! | [`cli`] | the `rotorpilot` command line (thin: parses, calls the modules, prints) | everything |
+//! | [`model`] | the plant: 6-DoF rigid body (NED/FRD), rotors with lag and limits, ground and ceiling effect, external wrench, ground contact, seeded sensor noise | `math`, `airframe` |
+//!
+//! Everything here is pure and deterministic: no sockets, no tokio, no wall
+//! clock, no global RNG. The same inputs and seed give a bit-identical
+//! trajectory.
+//!
+//! # Conventions
+//! SI units. World frame NED (`_ned`), body frame FRD (`_frd`), gravity
+//! `+g e3` with `g` = [`model::GRAVITY`]. Attitude is the unit quaternion
+//! taking FRD body vectors into NED. Rotor thrust points along `-z_b`.
+#![forbid(unsafe_code)]
+#![warn(missing_docs, missing_debug_implementations, unreachable_pub)]
+
+pub mod airframe;
+pub mod cli;
+pub mod math;
+pub mod model;

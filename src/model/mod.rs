@@ -1,0 +1,592 @@
+//! The plant: a multirotor as a 6-DoF rigid body in NED/FRD, stepped by
+//! simulated time only (doc `model-and-control.md` section 2).
+//!
+//! ```text
+//! p' = v
+//! m v' = m g e3 - u_T R e3 + f_e                  (f_e world NED)
+//! q'  = 1/2 q (x) [0, w]                           (R = R(q): FRD -> NED)
+//! I w' = -w x I w + tau + tau_e - w x sum_i h_i    (tau_e body FRD, h_i = -s_i J_r omega_i e3)
+//! [u_T, tau] = B (r (x) omega^2)                   (r: ground/ceiling ratio per rotor, yaw row unscaled)
+//! omega_i' = (clamp(omega_cmd_i, omega_min, omega_max) - omega_i) / tau_m
+//! ```
+//!
+//! Integration: fixed-step RK4 (1 ms by default) with the command held over the
+//! step; the motor lag is integrated exactly (`omega(t) = w_bar + (omega_0 - w_bar) e^{-t/tau_m}`)
+//! and evaluated at the RK4 stage times, as is the external wrench. The
+//! quaternion is renormalised after every step. Ground and ceiling ratios are
+//! evaluated once per step, at its start.
+//!
+//! Ground contact: flat ground at `world.ground_z_ned`. When a step ends with
+//! the centre of mass at or below its resting height (`gear_height_m` above the
+//! ground) the vehicle rests: height clamped, velocity and angular velocity
+//! zeroed, roll and pitch levelled, yaw kept. A resting vehicle therefore stays
+//! exactly put (no sinking, bouncing or drift) until its thrust exceeds its
+//! weight. The step reports touchdown and liftoff.
+
+pub mod aero;
+mod sensors;
+
+pub use crate::airframe::GRAVITY;
+pub use sensors::{Measurement, SensorNoise, Sensors};
+
+use nalgebra::{Matrix3, Quaternion, SMatrix, UnitQuaternion, Vector3};
+use serde::{Deserialize, Serialize};
+
+use crate::airframe::{Actuation, Airframe, Allocator, ControlWrench, MAX_ROTORS, RotorVector};
+use aero::AeroEffects;
+
+/// What drives the rotors during one step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ActuatorCommand {
+    /// Rotors stopped (disarmed): every speed decays towards 0.
+    Stop,
+    /// Rotor speed commands [rad/s], clamped to the rotor limits. On an
+    /// ideal-actuation airframe the wrench `B omega^2` acts directly.
+    RotorSpeeds(RotorVector),
+    /// Total thrust and body torque. On an ideal-actuation airframe it acts
+    /// directly; on a rotor airframe it is allocated (with desaturation) to
+    /// rotor speed commands first.
+    Wrench(ControlWrench),
+}
+
+/// External wrench acting on the body.
+#[derive(Clone, Copy, Debug, PartialEq, Default, Serialize, Deserialize)]
+pub struct ExternalWrench {
+    /// Force [N], world NED.
+    pub force_ned: Vector3<f64>,
+    /// Torque [N m], body FRD.
+    pub torque_frd: Vector3<f64>,
+}
+
+/// An external wrench that may change with simulated time; evaluated at the RK4 stage times.
+pub trait Disturbance {
+    /// The wrench at simulated time `t_s` [s].
+    fn wrench_at(&self, t_s: f64) -> ExternalWrench;
+}
+
+impl Disturbance for ExternalWrench {
+    fn wrench_at(&self, _t_s: f64) -> ExternalWrench {
+        *self
+    }
+}
+
+impl<F: Fn(f64) -> ExternalWrench> Disturbance for F {
+    fn wrench_at(&self, t_s: f64) -> ExternalWrench {
+        self(t_s)
+    }
+}
+
+/// The environment.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct World {
+    /// NED z of the flat ground surface [m] (0: the home altitude).
+    pub ground_z_ned: f64,
+    /// NED z of a flat ceiling [m], if any (must be above the vehicle: smaller z).
+    pub ceiling_z_ned: Option<f64>,
+    /// Apply ground effect.
+    pub ground_effect: bool,
+    /// Apply ceiling effect (when a ceiling exists).
+    pub ceiling_effect: bool,
+}
+
+impl Default for World {
+    fn default() -> Self {
+        Self {
+            ground_z_ned: 0.0,
+            ceiling_z_ned: None,
+            ground_effect: true,
+            ceiling_effect: true,
+        }
+    }
+}
+
+/// Rigid-body state.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RigidBodyState {
+    /// Position of the centre of mass [m], NED.
+    pub position_ned: Vector3<f64>,
+    /// Velocity [m/s], NED.
+    pub velocity_ned: Vector3<f64>,
+    /// Attitude, body FRD to NED.
+    pub attitude: UnitQuaternion<f64>,
+    /// Angular velocity [rad/s], body FRD.
+    pub rate_frd: Vector3<f64>,
+}
+
+impl RigidBodyState {
+    /// At rest at `position_ned`, level, heading north.
+    #[must_use]
+    pub fn at_rest(position_ned: Vector3<f64>) -> Self {
+        Self {
+            position_ned,
+            velocity_ned: Vector3::zeros(),
+            attitude: UnitQuaternion::identity(),
+            rate_frd: Vector3::zeros(),
+        }
+    }
+}
+
+/// Whether the vehicle rests on the ground.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Contact {
+    /// Flying.
+    Airborne,
+    /// Resting on the ground.
+    OnGround,
+}
+
+/// What happened during a step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum StepEvent {
+    /// Nothing noteworthy.
+    None,
+    /// The vehicle came down on the ground with this downward speed [m/s].
+    Touchdown {
+        /// Vertical speed at contact [m/s], positive down.
+        speed_m_s: f64,
+    },
+    /// The vehicle left the ground.
+    Liftoff,
+}
+
+/// Why a step was refused; the state is left unchanged.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum SimFault {
+    /// A command held NaN or infinity.
+    #[error("actuator command is not finite")]
+    NonFiniteCommand,
+    /// Integration produced NaN or infinity (the state was kept).
+    #[error("state became non-finite during integration")]
+    NonFiniteState,
+}
+
+/// Plant options beyond the airframe.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlantConfig {
+    /// Integration step [s].
+    pub dt_s: f64,
+    /// Environment.
+    pub world: World,
+    /// Measurement noise.
+    pub noise: SensorNoise,
+    /// Seed of the measurement noise.
+    pub seed: u64,
+}
+
+impl Default for PlantConfig {
+    fn default() -> Self {
+        Self {
+            dt_s: 0.001,
+            world: World::default(),
+            noise: SensorNoise::default(),
+            seed: 0,
+        }
+    }
+}
+
+/// The simulated vehicle.
+#[derive(Clone, Debug)]
+pub struct Plant {
+    actuation: Actuation,
+    n: usize,
+    /// `B`, zero-padded.
+    b: SMatrix<f64, 4, MAX_ROTORS>,
+    allocator: Allocator,
+    rotor_positions_frd: [Vector3<f64>; MAX_ROTORS],
+    spin: RotorVector,
+    rotor_inertia: f64,
+    speed_min: f64,
+    speed_max: f64,
+    gear_height_m: f64,
+    aero: AeroEffects,
+    world: World,
+    dt: f64,
+    /// `e^{-h/(2 tau_m)}`, `e^{-h/tau_m}`.
+    decay: (f64, f64),
+    mass: f64,
+    inertia: Matrix3<f64>,
+    inertia_inv: Matrix3<f64>,
+    state: RigidBodyState,
+    rotor_speed: RotorVector,
+    contact: Contact,
+    steps: u64,
+    sensors: Sensors,
+    last_wrench: ControlWrench,
+    last_external: ExternalWrench,
+}
+
+/// Time derivative of the rigid-body part.
+struct Deriv {
+    p: Vector3<f64>,
+    v: Vector3<f64>,
+    q: Quaternion<f64>,
+    w: Vector3<f64>,
+}
+
+impl Plant {
+    /// A plant for `airframe`, resting on the ground at the NED origin, rotors stopped.
+    /// True mass and inertia start at the airframe's nominal values.
+    #[must_use]
+    pub fn new(airframe: &Airframe, config: PlantConfig) -> Self {
+        let n = airframe.rotor_count();
+        let mut positions = [Vector3::zeros(); MAX_ROTORS];
+        let mut spin = RotorVector::zeros();
+        for (i, r) in airframe.rotors.iter().enumerate() {
+            positions[i] = r.position_frd();
+            spin[i] = r.spin.sign();
+        }
+        let allocator = airframe.allocator();
+        let tau_m = airframe.rotor.time_constant_s;
+        let dt = config.dt_s;
+        let rest = Vector3::new(0.0, 0.0, config.world.ground_z_ned - airframe.gear_height_m);
+        let inertia = airframe.inertia_kg_m2;
+        Self {
+            actuation: airframe.actuation,
+            n,
+            b: *allocator.b(),
+            allocator,
+            rotor_positions_frd: positions,
+            spin,
+            rotor_inertia: airframe.rotor.inertia_kg_m2,
+            speed_min: airframe.rotor.speed_min_rad_s,
+            speed_max: airframe.rotor.speed_max_rad_s,
+            gear_height_m: airframe.gear_height_m,
+            aero: AeroEffects::new(airframe),
+            world: config.world,
+            dt,
+            decay: ((-0.5 * dt / tau_m).exp(), (-dt / tau_m).exp()),
+            mass: airframe.mass_kg,
+            inertia,
+            inertia_inv: inertia.try_inverse().unwrap_or_else(Matrix3::zeros),
+            state: RigidBodyState::at_rest(rest),
+            rotor_speed: RotorVector::zeros(),
+            contact: Contact::OnGround,
+            steps: 0,
+            sensors: Sensors::new(config.noise, config.seed),
+            last_wrench: ControlWrench::default(),
+            last_external: ExternalWrench::default(),
+        }
+    }
+
+    /// Simulated time [s] (`steps x dt`).
+    #[must_use]
+    pub fn time_s(&self) -> f64 {
+        self.steps as f64 * self.dt
+    }
+
+    /// Integration step [s].
+    #[must_use]
+    pub fn dt_s(&self) -> f64 {
+        self.dt
+    }
+
+    /// True state.
+    #[must_use]
+    pub fn state(&self) -> &RigidBodyState {
+        &self.state
+    }
+
+    /// Replace the true state (initial conditions). The contact flag follows the new height.
+    pub fn set_state(&mut self, state: RigidBodyState) {
+        self.state = state;
+        self.contact = if state.position_ned.z >= self.rest_z() - 1e-12 {
+            Contact::OnGround
+        } else {
+            Contact::Airborne
+        };
+    }
+
+    /// Rotor speeds [rad/s].
+    #[must_use]
+    pub fn rotor_speeds(&self) -> &RotorVector {
+        &self.rotor_speed
+    }
+
+    /// Set rotor speeds [rad/s] (initial conditions, e.g. spinning at hover).
+    pub fn set_rotor_speeds(&mut self, speeds: &RotorVector) {
+        self.rotor_speed = *speeds;
+    }
+
+    /// Number of rotors.
+    #[must_use]
+    pub fn rotor_count(&self) -> usize {
+        self.n
+    }
+
+    /// Ground contact.
+    #[must_use]
+    pub fn contact(&self) -> Contact {
+        self.contact
+    }
+
+    /// True mass [kg].
+    #[must_use]
+    pub fn true_mass_kg(&self) -> f64 {
+        self.mass
+    }
+
+    /// Change the true mass [kg] (payload drop, wrong nominal mass). Ignored unless finite and > 0.
+    pub fn set_true_mass(&mut self, mass_kg: f64) {
+        if mass_kg.is_finite() && mass_kg > 0.0 {
+            self.mass = mass_kg;
+        }
+    }
+
+    /// True inertia [kg m^2], FRD.
+    #[must_use]
+    pub fn true_inertia(&self) -> &Matrix3<f64> {
+        &self.inertia
+    }
+
+    /// Change the true inertia. Ignored unless invertible and finite.
+    pub fn set_true_inertia(&mut self, inertia: Matrix3<f64>) {
+        if inertia.iter().all(|x| x.is_finite())
+            && let Some(inv) = inertia.try_inverse()
+        {
+            self.inertia = inertia;
+            self.inertia_inv = inv;
+        }
+    }
+
+    /// Environment.
+    #[must_use]
+    pub fn world(&self) -> &World {
+        &self.world
+    }
+
+    /// Change the environment (effects on/off, ceiling height).
+    pub fn set_world(&mut self, world: World) {
+        self.world = world;
+    }
+
+    /// The thrust and body torque the rotors applied at the start of the last step.
+    #[must_use]
+    pub fn last_wrench(&self) -> ControlWrench {
+        self.last_wrench
+    }
+
+    /// The external wrench at the start of the last step.
+    #[must_use]
+    pub fn last_external_wrench(&self) -> ExternalWrench {
+        self.last_external
+    }
+
+    /// The true state as a noiseless measurement.
+    #[must_use]
+    pub fn truth(&self) -> Measurement {
+        Measurement {
+            time_s: self.time_s(),
+            position_ned: self.state.position_ned,
+            velocity_ned: self.state.velocity_ned,
+            attitude: self.state.attitude,
+            rate_frd: self.state.rate_frd,
+        }
+    }
+
+    /// A measurement with the configured (seeded) noise.
+    pub fn measure(&mut self) -> Measurement {
+        let truth = self.truth();
+        self.sensors.measure(&truth)
+    }
+
+    fn rest_z(&self) -> f64 {
+        self.world.ground_z_ned - self.gear_height_m
+    }
+
+    /// Per-rotor thrust ratio from ground and ceiling effect at the current state.
+    fn thrust_ratios(&self) -> Option<RotorVector> {
+        let ground = self.world.ground_effect;
+        let ceiling = self.world.ceiling_effect && self.world.ceiling_z_ned.is_some();
+        if !ground && !ceiling {
+            return None;
+        }
+        let r = self.state.attitude.to_rotation_matrix();
+        let mut rotor_z = [0.0; MAX_ROTORS];
+        for (i, z) in rotor_z.iter_mut().enumerate().take(self.n) {
+            *z = self.state.position_ned.z + (r * self.rotor_positions_frd[i]).z;
+        }
+        let mut ratio: Option<RotorVector> = None;
+        if ground {
+            let heights = rotor_z.map(|z| self.world.ground_z_ned - z);
+            ratio = self.aero.ground_ratios_if_near(&heights);
+        }
+        if ceiling && let Some(zc) = self.world.ceiling_z_ned {
+            let gaps = rotor_z.map(|z| z - zc);
+            if let Some(c) = self.aero.ceiling_ratios_if_near(&gaps) {
+                ratio = Some(ratio.map_or(c, |g| g.component_mul(&c)));
+            }
+        }
+        ratio
+    }
+
+    /// Rotor wrench `B (r (x) w)` with the yaw row on unscaled `w`.
+    fn rotor_wrench(&self, speed_sq: &RotorVector, ratio: Option<&RotorVector>) -> ControlWrench {
+        match ratio {
+            None => ControlWrench::from_vector(&(self.b * speed_sq)),
+            Some(r) => {
+                let scaled = self.b * speed_sq.component_mul(r);
+                let yaw = self.b.row(3).dot(&speed_sq.transpose());
+                ControlWrench::new(scaled[0], Vector3::new(scaled[1], scaled[2], yaw))
+            }
+        }
+    }
+
+    fn deriv(&self, s: &RigidBodyState, w: &ControlWrench, ext: &ExternalWrench, gyro_h: f64) -> Deriv {
+        let q = s.attitude;
+        // thrust along -z_b, expressed in NED
+        let thrust_ned = q * Vector3::new(0.0, 0.0, -w.thrust_n);
+        let acc = Vector3::new(0.0, 0.0, GRAVITY) + (thrust_ned + ext.force_ned) / self.mass;
+        let om = s.rate_frd;
+        // rotor gyroscopics: -w x sum h_i with sum h_i = [0, 0, gyro_h]
+        let gyro = -om.cross(&Vector3::new(0.0, 0.0, gyro_h));
+        let alpha = self.inertia_inv * (w.torque_frd + ext.torque_frd - om.cross(&(self.inertia * om)) + gyro);
+        let qd = q.quaternion() * Quaternion::new(0.0, om.x, om.y, om.z) * 0.5;
+        Deriv {
+            p: s.velocity_ned,
+            v: acc,
+            q: qd,
+            w: alpha,
+        }
+    }
+
+    fn advance(s: &RigidBodyState, d: &Deriv, h: f64) -> RigidBodyState {
+        RigidBodyState {
+            position_ned: s.position_ned + d.p * h,
+            velocity_ned: s.velocity_ned + d.v * h,
+            // intermediate stages use the unnormalised sum (RK4 on R^4), renormalised at the end
+            attitude: UnitQuaternion::new_unchecked(s.attitude.quaternion() + d.q * h),
+            rate_frd: s.rate_frd + d.w * h,
+        }
+    }
+
+    /// Clamp the vehicle's rotor commands to `[omega_min, omega_max]`; unused slots stay 0.
+    fn clamp_speeds(&self, w: &RotorVector) -> RotorVector {
+        let mut out = RotorVector::zeros();
+        for i in 0..self.n {
+            out[i] = w[i].clamp(self.speed_min, self.speed_max);
+        }
+        out
+    }
+
+    /// Advance one step of `dt` under `cmd` and `disturbance`.
+    ///
+    /// # Errors
+    /// [`SimFault`] when the command or the result is not finite; the state is then unchanged.
+    pub fn step<D: Disturbance + ?Sized>(&mut self, cmd: &ActuatorCommand, disturbance: &D) -> Result<StepEvent, SimFault> {
+        let h = self.dt;
+        let t = self.time_s();
+        let ratio = self.thrust_ratios();
+
+        // Rotor speed targets, or a directly acting wrench.
+        let target: Option<RotorVector> = match (self.actuation, cmd) {
+            (Actuation::Ideal, _) => None,
+            (Actuation::Rotors, ActuatorCommand::Stop) => Some(RotorVector::zeros()),
+            (Actuation::Rotors, ActuatorCommand::RotorSpeeds(w)) => {
+                if !w.iter().all(|x| x.is_finite()) {
+                    return Err(SimFault::NonFiniteCommand);
+                }
+                Some(self.clamp_speeds(w))
+            }
+            (Actuation::Rotors, ActuatorCommand::Wrench(wr)) => {
+                if !wr.to_vector().iter().all(|x| x.is_finite()) {
+                    return Err(SimFault::NonFiniteCommand);
+                }
+                Some(self.allocator.allocate(wr).speed_cmd_rad_s)
+            }
+        };
+
+        let (w0, wmid, w1, spin_mom, rotor_speed_next) = if let Some(bar) = target {
+            // exact first-order lag at the stage times t, t + h/2, t + h
+            let om0 = self.rotor_speed;
+            let om_mid = bar + (om0 - bar) * self.decay.0;
+            let om1 = bar + (om0 - bar) * self.decay.1;
+            let sq = |v: &RotorVector| v.component_mul(v);
+            let spin_momentum = |om: &RotorVector| -self.rotor_inertia * self.spin.dot(om);
+            (
+                self.rotor_wrench(&sq(&om0), ratio.as_ref()),
+                self.rotor_wrench(&sq(&om_mid), ratio.as_ref()),
+                self.rotor_wrench(&sq(&om1), ratio.as_ref()),
+                [spin_momentum(&om0), spin_momentum(&om_mid), spin_momentum(&om1)],
+                om1,
+            )
+        } else {
+            let direct = match cmd {
+                ActuatorCommand::Stop => ControlWrench::default(),
+                ActuatorCommand::RotorSpeeds(w) => ControlWrench::from_vector(&(self.b * w.component_mul(w))),
+                ActuatorCommand::Wrench(wr) => *wr,
+            };
+            if !direct.to_vector().iter().all(|x| x.is_finite()) {
+                return Err(SimFault::NonFiniteCommand);
+            }
+            let direct = match ratio {
+                // ideal actuation near a surface: spread over the rotors, scale, recombine
+                Some(r) => self.rotor_wrench(&self.allocator.inverse(&direct), Some(&r)),
+                None => direct,
+            };
+            (direct, direct, direct, [0.0; 3], self.rotor_speed)
+        };
+
+        let e0 = disturbance.wrench_at(t);
+        let emid = disturbance.wrench_at(t + 0.5 * h);
+        let e1 = disturbance.wrench_at(t + h);
+
+        let s = self.state;
+        let k1 = self.deriv(&s, &w0, &e0, spin_mom[0]);
+        let s2 = Self::advance(&s, &k1, 0.5 * h);
+        let k2 = self.deriv(&s2, &wmid, &emid, spin_mom[1]);
+        let s3 = Self::advance(&s, &k2, 0.5 * h);
+        let k3 = self.deriv(&s3, &wmid, &emid, spin_mom[1]);
+        let s4 = Self::advance(&s, &k3, h);
+        let k4 = self.deriv(&s4, &w1, &e1, spin_mom[2]);
+        let sixth = h / 6.0;
+        let q = s.attitude.quaternion() + (k1.q + (k2.q + k3.q) * 2.0 + k4.q) * sixth;
+        let mut next = RigidBodyState {
+            position_ned: s.position_ned + (k1.p + (k2.p + k3.p) * 2.0 + k4.p) * sixth,
+            velocity_ned: s.velocity_ned + (k1.v + (k2.v + k3.v) * 2.0 + k4.v) * sixth,
+            attitude: UnitQuaternion::new_normalize(q),
+            rate_frd: s.rate_frd + (k1.w + (k2.w + k3.w) * 2.0 + k4.w) * sixth,
+        };
+        let finite = next.position_ned.iter().chain(next.velocity_ned.iter()).chain(next.rate_frd.iter()).all(|x| x.is_finite())
+            && next.attitude.coords.iter().all(|x| x.is_finite());
+        if !finite {
+            return Err(SimFault::NonFiniteState);
+        }
+
+        // Ground contact.
+        let rest_z = self.rest_z();
+        let mut event = StepEvent::None;
+        if next.position_ned.z >= rest_z {
+            // Resting: a vehicle already on the ground keeps its exact pose (no
+            // drift, no creep); one touching down keeps where it arrived, levelled.
+            let (x, y, attitude) = match self.contact {
+                Contact::OnGround => (s.position_ned.x, s.position_ned.y, s.attitude),
+                Contact::Airborne => {
+                    event = StepEvent::Touchdown {
+                        speed_m_s: next.velocity_ned.z.max(0.0),
+                    };
+                    let yaw = crate::math::euler_zyx(&next.attitude).z;
+                    (next.position_ned.x, next.position_ned.y, UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw))
+                }
+            };
+            next = RigidBodyState {
+                position_ned: Vector3::new(x, y, rest_z),
+                velocity_ned: Vector3::zeros(),
+                attitude,
+                rate_frd: Vector3::zeros(),
+            };
+            self.contact = Contact::OnGround;
+        } else if self.contact == Contact::OnGround {
+            event = StepEvent::Liftoff;
+            self.contact = Contact::Airborne;
+        }
+
+        self.state = next;
+        self.rotor_speed = rotor_speed_next;
+        self.last_wrench = w0;
+        self.last_external = e0;
+        self.steps += 1;
+        Ok(event)
+    }
+}

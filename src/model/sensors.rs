@@ -1,0 +1,91 @@
+//! What controllers and estimators are allowed to see: a measurement of the
+//! state, optionally with seeded white Gaussian noise.
+//!
+//! `p~ = p + n_p`, `v~ = v + n_v` (NED), `q~ = q exp(n_att)` (a small body-frame
+//! rotation), `w~ = w + n_w` (FRD), each `n ~ N(0, sigma^2)` per axis, drawn
+//! from a ChaCha8 stream seeded by the caller: no global RNG, so the same seed
+//! gives the same noise.
+
+use nalgebra::{UnitQuaternion, Vector3};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+use serde::{Deserialize, Serialize};
+
+/// A measurement of the vehicle state at one instant.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Measurement {
+    /// Simulated time [s].
+    pub time_s: f64,
+    /// Position [m], NED.
+    pub position_ned: Vector3<f64>,
+    /// Velocity [m/s], NED.
+    pub velocity_ned: Vector3<f64>,
+    /// Attitude, body FRD to NED.
+    pub attitude: UnitQuaternion<f64>,
+    /// Angular velocity [rad/s], body FRD.
+    pub rate_frd: Vector3<f64>,
+}
+
+/// Standard deviations of the measurement noise (0 = exact).
+#[derive(Clone, Copy, Debug, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SensorNoise {
+    /// Position noise [m] per NED axis.
+    pub position_m: f64,
+    /// Velocity noise [m/s] per NED axis.
+    pub velocity_m_s: f64,
+    /// Attitude noise [rad] per body axis.
+    pub attitude_rad: f64,
+    /// Angular-rate noise [rad/s] per FRD axis.
+    pub rate_rad_s: f64,
+}
+
+impl SensorNoise {
+    /// Whether every standard deviation is zero.
+    #[must_use]
+    pub fn is_zero(&self) -> bool {
+        self.position_m == 0.0 && self.velocity_m_s == 0.0 && self.attitude_rad == 0.0 && self.rate_rad_s == 0.0
+    }
+}
+
+/// Noise source with its own seeded random stream.
+#[derive(Clone, Debug)]
+pub struct Sensors {
+    noise: SensorNoise,
+    rng: ChaCha8Rng,
+}
+
+impl Sensors {
+    /// Sensors with the given noise, seeded.
+    #[must_use]
+    pub fn new(noise: SensorNoise, seed: u64) -> Self {
+        Self {
+            noise,
+            rng: ChaCha8Rng::seed_from_u64(seed),
+        }
+    }
+
+    fn gauss3(&mut self, sigma: f64) -> Vector3<f64> {
+        if sigma == 0.0 {
+            return Vector3::zeros();
+        }
+        let mut draw = || -> f64 { StandardNormal.sample(&mut self.rng) };
+        Vector3::new(draw(), draw(), draw()) * sigma
+    }
+
+    /// Measure a true state.
+    pub fn measure(&mut self, truth: &Measurement) -> Measurement {
+        if self.noise.is_zero() {
+            return *truth;
+        }
+        let n = self.noise;
+        Measurement {
+            time_s: truth.time_s,
+            position_ned: truth.position_ned + self.gauss3(n.position_m),
+            velocity_ned: truth.velocity_ned + self.gauss3(n.velocity_m_s),
+            attitude: truth.attitude * UnitQuaternion::from_scaled_axis(self.gauss3(n.attitude_rad)),
+            rate_frd: truth.rate_frd + self.gauss3(n.rate_rad_s),
+        }
+    }
+}

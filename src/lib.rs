@@ -7,6 +7,9 @@
 //! | [`math`] | SO(3) helpers (hat, vee, ZYX Euler angles) | nalgebra |
 //! | [`airframe`] | vehicle description from `params/airframes/*.toml`, allocation (effectiveness matrix, inverse, desaturation), rotor-failure analysis, the `airframe` report | `math` |
 //! | [`cli`] | the `rotorpilot` command line (thin: parses, calls the modules, prints) | everything |
+//! | [`signals`] | values passed between blocks: measurement, nominal model, wrench estimate | nalgebra |
+//! | [`control`] | the three controllers (hierarchical, geometric, passivity-based) and the reference shaper | `math`, `signals`, `airframe` (types) |
+//! | [`estimation`] | momentum-based external-wrench estimator of order r, real mass | `math`, `signals`, `airframe` (types) |
 //! | [`model`] | the plant: 6-DoF rigid body (NED/FRD), rotors with lag and limits, ground and ceiling effect, external wrench, ground contact, seeded sensor noise | `math`, `airframe` |
 //!
 //! Everything here is pure and deterministic: no sockets, no tokio, no wall
@@ -22,5 +25,8 @@
 
 pub mod airframe;
 pub mod cli;
+pub mod control;
+pub mod estimation;
 pub mod math;
 pub mod model;
+pub mod signals;

@@ -209,6 +209,15 @@ impl Airframe {
         file::parse(text, file)
     }
 
+    /// The nominal model controllers and estimators see.
+    #[must_use]
+    pub fn nominal(&self) -> crate::signals::NominalModel {
+        crate::signals::NominalModel {
+            mass_kg: self.mass_kg,
+            inertia_kg_m2: self.inertia_kg_m2,
+        }
+    }
+
     /// Number of rotors.
     #[must_use]
     pub fn rotor_count(&self) -> usize {

@@ -7,25 +7,12 @@
 //! gives the same noise.
 
 use nalgebra::{UnitQuaternion, Vector3};
+
+pub use crate::signals::Measurement;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use serde::{Deserialize, Serialize};
-
-/// A measurement of the vehicle state at one instant.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Measurement {
-    /// Simulated time [s].
-    pub time_s: f64,
-    /// Position [m], NED.
-    pub position_ned: Vector3<f64>,
-    /// Velocity [m/s], NED.
-    pub velocity_ned: Vector3<f64>,
-    /// Attitude, body FRD to NED.
-    pub attitude: UnitQuaternion<f64>,
-    /// Angular velocity [rad/s], body FRD.
-    pub rate_frd: Vector3<f64>,
-}
 
 /// Standard deviations of the measurement noise (0 = exact).
 #[derive(Clone, Copy, Debug, PartialEq, Default, Serialize, Deserialize)]

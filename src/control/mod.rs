@@ -1,0 +1,1 @@
+//! Flight control: the three control laws and the reference shaper (being written).

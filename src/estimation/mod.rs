@@ -1,0 +1,1 @@
+//! Momentum-based external-wrench estimator of order r (being written).

@@ -16,11 +16,7 @@ pub fn hat(a: &Vector3<f64>) -> Matrix3<f64> {
 /// `X^vee` of the skew part of `X`: `1/2 [X32 - X23, X13 - X31, X21 - X12]`.
 #[must_use]
 pub fn vee(x: &Matrix3<f64>) -> Vector3<f64> {
-    0.5 * Vector3::new(
-        x[(2, 1)] - x[(1, 2)],
-        x[(0, 2)] - x[(2, 0)],
-        x[(1, 0)] - x[(0, 1)],
-    )
+    0.5 * Vector3::new(x[(2, 1)] - x[(1, 2)], x[(0, 2)] - x[(2, 0)], x[(1, 0)] - x[(0, 1)])
 }
 
 /// ZYX Euler angles `[phi, theta, psi]` [rad] of the body-to-NED rotation:
@@ -129,11 +125,18 @@ mod tests {
         let q_doc = Matrix3::new(1.0, 0.0, 0.198669, 0.0, 0.995004, 0.097843, 0.0, -0.099833, 0.975170);
         assert!((q - q_doc).abs().max() < 1e-6);
         let m = rpy_inertia(&i_b, &eta);
-        let m_doc = Matrix3::new(1.2416, 0.0, 0.246668, 0.0, 1.253975, -0.120875, 0.246668, -0.120875, 2.422308);
+        let m_doc = Matrix3::new(
+            1.2416, 0.0, 0.246668, 0.0, 1.253975, -0.120875, 0.246668, -0.120875, 2.422308,
+        );
         assert!((m - m_doc).abs().max() < 1e-6);
         let c = rpy_coriolis(&i_b, &eta, &eta_dot);
         assert!((c * eta_dot - Vector3::new(0.019091, -0.129675, 0.275295)).abs().max() < 1e-6);
-        assert!((c.transpose() * eta_dot - Vector3::new(0.345964, -0.198530, 0.0)).abs().max() < 1e-6);
+        assert!(
+            (c.transpose() * eta_dot - Vector3::new(0.345964, -0.198530, 0.0))
+                .abs()
+                .max()
+                < 1e-6
+        );
         // M_dot by central difference along eta_dot; M_dot - 2C must be skew
         let h = 1e-6;
         let m_dot = (rpy_inertia(&i_b, &(eta + eta_dot * h)) - rpy_inertia(&i_b, &(eta - eta_dot * h))) / (2.0 * h);

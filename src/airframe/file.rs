@@ -5,8 +5,7 @@
 //! counted from 1 as they are labelled) and the problem.
 
 use super::{
-    Actuation, Airframe, CeilingEffectParams, GRAVITY, GroundEffectParams, MAX_ROTORS, RotorGeometry, RotorParams,
-    Spin,
+    Actuation, Airframe, CeilingEffectParams, GRAVITY, GroundEffectParams, MAX_ROTORS, RotorGeometry, RotorParams, Spin,
 };
 use nalgebra::Matrix3;
 use serde::Deserialize;
@@ -213,13 +212,19 @@ fn validate(raw: FileAirframe, file: &str) -> Result<Airframe, AirframeError> {
 
     let n = raw.rotors.len();
     if !(3..=MAX_ROTORS).contains(&n) {
-        return Err(c.fail("rotors", format!("a flat multirotor needs 3 to {MAX_ROTORS} rotors, found {n}")));
+        return Err(c.fail(
+            "rotors",
+            format!("a flat multirotor needs 3 to {MAX_ROTORS} rotors, found {n}"),
+        ));
     }
     let mut rotors = Vec::with_capacity(n);
     for (i, g) in raw.rotors.iter().enumerate() {
         let label = i + 1;
         if !g.angle_deg.is_finite() {
-            return Err(c.fail(format!("rotors[{label}].angle_deg"), format!("must be finite, got {}", g.angle_deg)));
+            return Err(c.fail(
+                format!("rotors[{label}].angle_deg"),
+                format!("must be finite, got {}", g.angle_deg),
+            ));
         }
         let arm_m = c.positive(&format!("rotors[{label}].arm_m"), g.arm_m)?;
         let wrapped = g.angle_deg.rem_euclid(360.0);

@@ -76,7 +76,11 @@ impl RotorGeometry {
     /// Rotor hub position `r_i = l_i [cos a_i, sin a_i, 0]` [m], body FRD.
     #[must_use]
     pub fn position_frd(&self) -> Vector3<f64> {
-        Vector3::new(self.arm_m * self.angle_rad.cos(), self.arm_m * self.angle_rad.sin(), 0.0)
+        Vector3::new(
+            self.arm_m * self.angle_rad.cos(),
+            self.arm_m * self.angle_rad.sin(),
+            0.0,
+        )
     }
 }
 

@@ -112,12 +112,19 @@ impl AirframeReport {
             self.mass_kg,
             self.rotor_count
         );
-        let _ = writeln!(s, "\nallocation matrix B ([u_T; tau_x; tau_y; tau_z] = B [w_1^2 .. w_n^2]):");
+        let _ = writeln!(
+            s,
+            "\nallocation matrix B ([u_T; tau_x; tau_y; tau_z] = B [w_1^2 .. w_n^2]):"
+        );
         for (label, row) in ["u_T  ", "tau_x", "tau_y", "tau_z"].iter().zip(&self.allocation) {
             let cells: Vec<String> = row.iter().map(|v| format!("{v:>13.6e}")).collect();
             let _ = writeln!(s, "  {label} [{}]", cells.join(" "));
         }
-        let _ = writeln!(s, "\nrank B = {}   rank of the 6-D wrench map = {}", self.rank, self.wrench_rank);
+        let _ = writeln!(
+            s,
+            "\nrank B = {}   rank of the 6-D wrench map = {}",
+            self.rank, self.wrench_rank
+        );
         let _ = writeln!(
             s,
             "degrees of freedom: {} on the ground with spinning rotors ({}), {} flying ({})",
@@ -130,7 +137,12 @@ impl AirframeReport {
             self.underactuated_reason
         );
         let speeds: Vec<String> = self.hover_rotor_speeds.iter().map(|w| format!("{w:.3}")).collect();
-        let _ = writeln!(s, "\nhover: thrust {:.4} N, rotor speeds [{}] rad/s", self.hover_thrust_n, speeds.join(", "));
+        let _ = writeln!(
+            s,
+            "\nhover: thrust {:.4} N, rotor speeds [{}] rad/s",
+            self.hover_thrust_n,
+            speeds.join(", ")
+        );
         if let Some(m) = &self.hover_margins {
             let _ = writeln!(s, "  torque margins at hover: {}", margins_text(m));
         }
@@ -138,8 +150,13 @@ impl AirframeReport {
         for f in &self.rotor_failure {
             let what = match f.verdict {
                 HoverVerdict::Feasible => "hover feasible, full attitude control".to_string(),
-                HoverVerdict::Boundary => "hover only on the boundary: some torque direction has no margin (yaw or roll/pitch cannot be held)".to_string(),
-                HoverVerdict::RankDeficient => "rank deficient: give up yaw and control the thrust direction only".to_string(),
+                HoverVerdict::Boundary => {
+                    "hover only on the boundary: some torque direction has no margin (yaw or roll/pitch cannot be held)"
+                        .to_string()
+                }
+                HoverVerdict::RankDeficient => {
+                    "rank deficient: give up yaw and control the thrust direction only".to_string()
+                }
                 HoverVerdict::Infeasible => "hover infeasible within the rotor speed limits".to_string(),
             };
             let _ = write!(s, "  rotor {:>2}: rank {}, {what}", f.rotor, f.rank);

@@ -91,7 +91,12 @@ impl AeroEffects {
             ceiling_cutoff_m: f64::INFINITY,
         };
         // Both ratios fall monotonically with distance: bisect for the cutoff.
-        let level = |s: &Self, z: f64| s.ground_ratios(&[z; MAX_ROTORS]).iter().take(n).fold(1.0f64, |m, r| m.max(*r));
+        let level = |s: &Self, z: f64| {
+            s.ground_ratios(&[z; MAX_ROTORS])
+                .iter()
+                .take(n)
+                .fold(1.0f64, |m, r| m.max(*r))
+        };
         s.ground_cutoff_m = bisect_cutoff(|z| level(&s, z) - 1.0, s.radius_m);
         s.ceiling_cutoff_m = bisect_cutoff(|z| ceiling_ratio(s.radius_m, s.k1, s.k2_m, z) - 1.0, s.radius_m);
         s
@@ -127,7 +132,11 @@ impl AeroEffects {
         for i in 0..self.n {
             let body = 2.0 * self.k_b * rho2 * z[i] / (self.b2[i] + 4.0 * z[i] * z[i]).powf(1.5);
             let den = 1.0 - sum[i] - body;
-            out[i] = if den > 1.0 / GROUND_RATIO_CAP { 1.0 / den } else { GROUND_RATIO_CAP };
+            out[i] = if den > 1.0 / GROUND_RATIO_CAP {
+                1.0 / den
+            } else {
+                GROUND_RATIO_CAP
+            };
         }
         out
     }

@@ -474,7 +474,11 @@ impl Plant {
     ///
     /// # Errors
     /// [`SimFault`] when the command or the result is not finite; the state is then unchanged.
-    pub fn step<D: Disturbance + ?Sized>(&mut self, cmd: &ActuatorCommand, disturbance: &D) -> Result<StepEvent, SimFault> {
+    pub fn step<D: Disturbance + ?Sized>(
+        &mut self,
+        cmd: &ActuatorCommand,
+        disturbance: &D,
+    ) -> Result<StepEvent, SimFault> {
         let h = self.dt;
         let t = self.time_s();
         let ratio = self.thrust_ratios();
@@ -548,7 +552,12 @@ impl Plant {
             attitude: UnitQuaternion::new_normalize(q),
             rate_frd: s.rate_frd + (k1.w + (k2.w + k3.w) * 2.0 + k4.w) * sixth,
         };
-        let finite = next.position_ned.iter().chain(next.velocity_ned.iter()).chain(next.rate_frd.iter()).all(|x| x.is_finite())
+        let finite = next
+            .position_ned
+            .iter()
+            .chain(next.velocity_ned.iter())
+            .chain(next.rate_frd.iter())
+            .all(|x| x.is_finite())
             && next.attitude.coords.iter().all(|x| x.is_finite());
         if !finite {
             return Err(SimFault::NonFiniteState);
@@ -567,7 +576,11 @@ impl Plant {
                         speed_m_s: next.velocity_ned.z.max(0.0),
                     };
                     let yaw = crate::math::euler_zyx(&next.attitude).z;
-                    (next.position_ned.x, next.position_ned.y, UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw))
+                    (
+                        next.position_ned.x,
+                        next.position_ned.y,
+                        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw),
+                    )
                 }
             };
             next = RigidBodyState {

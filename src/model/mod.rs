@@ -200,6 +200,8 @@ pub struct Plant {
     speed_min: f64,
     speed_max: f64,
     gear_height_m: f64,
+    /// Longest arm [m] (bounds how far a rotor can be from the centre vertically).
+    max_arm_m: f64,
     aero: AeroEffects,
     world: World,
     dt: f64,
@@ -253,6 +255,7 @@ impl Plant {
             speed_min: airframe.rotor.speed_min_rad_s,
             speed_max: airframe.rotor.speed_max_rad_s,
             gear_height_m: airframe.gear_height_m,
+            max_arm_m: airframe.rotors.iter().fold(0.0, |m, r| r.arm_m.max(m)),
             aero: AeroEffects::new(airframe),
             world: config.world,
             dt,
@@ -400,6 +403,18 @@ impl Plant {
         let ground = self.world.ground_effect;
         let ceiling = self.world.ceiling_effect && self.world.ceiling_z_ned.is_some();
         if !ground && !ceiling {
+            return None;
+        }
+        // Cheap reject before any per-rotor transform: no rotor is nearer a
+        // surface than the centre's distance minus the longest arm.
+        let z = self.state.position_ned.z;
+        let ground_far = !ground || self.world.ground_z_ned - z - self.max_arm_m > self.aero.ground_cutoff_m();
+        let ceiling_far = !ceiling
+            || self
+                .world
+                .ceiling_z_ned
+                .is_none_or(|zc| z - zc - self.max_arm_m > self.aero.ceiling_cutoff_m());
+        if ground_far && ceiling_far {
             return None;
         }
         let r = self.state.attitude.to_rotation_matrix();

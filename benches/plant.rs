@@ -37,7 +37,7 @@ fn plant_step(c: &mut Criterion) {
             b.iter(|| {
                 // keep the vehicle where the case says (drift under the disturbance is slow)
                 k += 1;
-                if k % 4096 == 0 {
+                if k.is_multiple_of(4096) {
                     p.set_state(start);
                 }
                 black_box(p.step(black_box(&cmd), &wind)).ok();

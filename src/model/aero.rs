@@ -73,10 +73,10 @@ impl AeroEffects {
         let n = a.rotor_count();
         let mut d2 = [[0.0; MAX_ROTORS]; MAX_ROTORS];
         let mut b2 = [0.0; MAX_ROTORS];
-        for i in 0..n {
-            b2[i] = a.rotors[i].arm_m.powi(2);
-            for j in 0..n {
-                d2[i][j] = (a.rotors[i].position_frd() - a.rotors[j].position_frd()).norm_squared();
+        for (i, ri) in a.rotors.iter().enumerate() {
+            b2[i] = ri.arm_m.powi(2);
+            for (j, rj) in a.rotors.iter().enumerate() {
+                d2[i][j] = (ri.position_frd() - rj.position_frd()).norm_squared();
             }
         }
         let mut s = Self {

@@ -6,6 +6,9 @@
 //! |---|---|---|
 //! | [`math`] | SO(3) helpers (hat, vee, ZYX Euler angles) | nalgebra |
 //! | [`airframe`] | vehicle description from `params/airframes/*.toml`, allocation (effectiveness matrix, inverse, desaturation), rotor-failure analysis, the `airframe` report | `math` |
+//! | [`vehicle`] | the lockstep loop: measure, estimate, control, allocate, integrate | all pure modules |
+//! | [`scenario`] | scenario files and the flat-out runner behind `rotorpilot simulate` | `vehicle` |
+//! | [`flightlog`] | flight-log CSV reading and the offline estimator sweep of `rotorpilot estimate` | `estimation` |
 //! | [`cli`] | the `rotorpilot` command line (thin: parses, calls the modules, prints) | everything |
 //! | [`signals`] | values passed between blocks: measurement, nominal model, wrench estimate | nalgebra |
 //! | [`control`] | the three controllers (hierarchical, geometric, passivity-based) and the reference shaper | `math`, `signals`, `airframe` (types) |
@@ -21,12 +24,18 @@
 //! `+g e3` with `g` = [`model::GRAVITY`]. Attitude is the unit quaternion
 //! taking FRD body vectors into NED. Rotor thrust points along `-z_b`.
 #![forbid(unsafe_code)]
+// Units sit in brackets in doc comments (`[m/s]`, PX4's habit), which rustdoc
+// would otherwise read as links.
+#![allow(rustdoc::broken_intra_doc_links)]
 #![warn(missing_docs, missing_debug_implementations, unreachable_pub)]
 
 pub mod airframe;
 pub mod cli;
 pub mod control;
 pub mod estimation;
+pub mod flightlog;
 pub mod math;
 pub mod model;
+pub mod scenario;
 pub mod signals;
+pub mod vehicle;

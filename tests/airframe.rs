@@ -181,6 +181,28 @@ fn saturation_keeps_roll_pitch_before_yaw() {
     }
 }
 
+/// GIVEN thrust far beyond what the rotors give WHEN a roll torque is also asked
+/// THEN thrust is cut, not roll: attitude control survives an absurd thrust request.
+#[test]
+fn impossible_thrust_gives_way_to_roll_and_pitch() {
+    let a = Airframe::load("quad").unwrap();
+    let max_thrust = 4.0 * a.rotor.c_t * a.rotor.speed_max_rad_s.powi(2);
+    let req = ControlWrench::new(1.6 * max_thrust, Vector3::new(0.5, -0.3, 0.0));
+    let sol = a.allocator().allocate(&req);
+    assert!(sol.saturated);
+    assert!(
+        (sol.roll_pitch_scale - 1.0).abs() < 1e-12,
+        "sigma {}",
+        sol.roll_pitch_scale
+    );
+    assert!((sol.achieved.torque_frd.x - 0.5).abs() < 1e-9 && (sol.achieved.torque_frd.y + 0.3).abs() < 1e-9);
+    assert!(
+        sol.achieved.thrust_n < max_thrust && sol.achieved.thrust_n > 0.8 * max_thrust,
+        "{:?}",
+        sol.achieved
+    );
+}
+
 /// Doc section 3 failure oracle (m = 1.25 kg, omega in [0, 1000]).
 #[test]
 fn rotor_failure_verdicts_match_doc_section_3() {

@@ -7,7 +7,9 @@
 //! 1. if `w_T + w_rp + w_y` is within `[w_min, w_max]`, use it;
 //! 2. otherwise the largest `sigma` in `[0, 1]` for which a collective shift
 //!    `delta n_T` with `|delta| <= 0.3 u_T` fits `w_T + sigma w_rp` in bounds
-//!    (bisection; smallest `|delta|`);
+//!    (bisection; smallest `|delta|`); if even `sigma = 0` needs a larger
+//!    shift (thrust far beyond the rotors), the shift is unbounded: roll and
+//!    pitch still come before thrust;
 //! 3. then the largest `lambda` in `[0, 1]` that keeps `+ lambda w_y` in bounds;
 //! 4. clamp; what was not delivered is reported.
 
@@ -223,31 +225,37 @@ impl Allocator {
         } else {
             let n_t: RotorVector = self.b_pinv.column(0).into_owned();
             let delta_max = self.delta_max_fraction * req.thrust_n.abs();
-            let feasible = |sigma: f64| -> Option<f64> {
+            // For a fixed sigma the feasible shifts form an interval; the feasible
+            // (sigma, delta) set is convex, so feasibility in sigma is an interval
+            // [0, sigma*] found by bisection.
+            let feasible = |sigma: f64, delta_max: f64| -> Option<f64> {
                 let (lo, hi) = self.shift_interval(&(w_t + w_rp * sigma), &n_t);
                 let (lo, hi) = (lo.max(-delta_max), hi.min(delta_max));
                 (lo <= hi).then(|| 0.0f64.clamp(lo, hi))
             };
-            let (sigma, delta) = if let Some(d) = feasible(1.0) {
-                (1.0, d)
-            } else if let Some(d0) = feasible(0.0) {
-                // The feasible (sigma, delta) set is convex, so feasibility is an interval [0, sigma*].
-                let (mut a, mut b, mut d) = (0.0, 1.0, d0);
+            let largest_sigma = |delta_max: f64| -> Option<(f64, f64)> {
+                if let Some(d) = feasible(1.0, delta_max) {
+                    return Some((1.0, d));
+                }
+                let mut d = feasible(0.0, delta_max)?;
+                let (mut a, mut b) = (0.0, 1.0);
                 for _ in 0..40 {
                     let m = 0.5 * (a + b);
-                    if let Some(dm) = feasible(m) {
+                    if let Some(dm) = feasible(m, delta_max) {
                         a = m;
                         d = dm;
                     } else {
                         b = m;
                     }
                 }
-                (a, d)
-            } else {
-                // Thrust alone does not fit: shift as far as allowed towards the bounds.
-                let (lo, hi) = self.shift_interval(&w_t, &n_t);
-                (0.0, (0.5 * (lo + hi)).clamp(-delta_max, delta_max))
+                Some((a, d))
             };
+            // Thrust gives way to roll/pitch within delta_max; when even hover
+            // thrust does not fit within it (a request far beyond the rotors),
+            // thrust gives way without limit so roll and pitch keep priority.
+            let (sigma, delta) = largest_sigma(delta_max)
+                .or_else(|| largest_sigma(f64::INFINITY))
+                .unwrap_or((0.0, 0.0));
             let base = w_t + w_rp * sigma + n_t * delta;
             let mut lambda: f64 = 1.0;
             for i in 0..self.n {

@@ -8,6 +8,8 @@ use super::{
     Actuation, Airframe, CeilingEffectParams, GRAVITY, GroundEffectParams, MAX_ROTORS, RotorGeometry, RotorParams, Spin,
 };
 use nalgebra::Matrix3;
+
+use crate::control::{ControlGains, GainOverrides};
 use serde::Deserialize;
 
 /// Why an airframe could not be loaded.
@@ -65,6 +67,9 @@ struct FileAirframe {
     rotors: Vec<FileRotorGeometry>,
     ground_effect: FileGroundEffect,
     ceiling_effect: FileCeilingEffect,
+    /// Optional controller gain overrides for this vehicle.
+    #[serde(default)]
+    control: GainOverrides,
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -117,7 +122,7 @@ struct FileCeilingEffect {
 }
 
 /// Line and column (1-based) of a byte offset.
-fn line_column(text: &str, offset: usize) -> (usize, usize) {
+pub(crate) fn line_column(text: &str, offset: usize) -> (usize, usize) {
     let before = &text[..offset.min(text.len())];
     let line = before.matches('\n').count() + 1;
     let column = before.rsplit('\n').next().map_or(0, str::len) + 1;
@@ -294,7 +299,14 @@ fn validate(raw: FileAirframe, file: &str) -> Result<Airframe, AirframeError> {
         rotors,
         ground_effect,
         ceiling_effect,
+        control: raw.control,
     };
+    // The vehicle's gains must be valid after its overrides.
+    let mut gains = ControlGains::for_airframe(&airframe);
+    gains.apply(&airframe.control);
+    gains
+        .validate()
+        .map_err(|e| c.fail(format!("control.{}", e.field), format!("{} {}", e.value, e.problem)))?;
 
     let b = airframe.effectiveness();
     let rank = super::rank(&b);

@@ -19,6 +19,7 @@ mod report;
 pub use allocation::{Allocation, Allocator, ControlWrench, MAX_ROTORS, RotorVector, effectiveness, rank, wrench_map};
 pub use failure::{FailureAnalysis, HoverVerdict, TorqueMargins, analyse_failures, hover_margins, intact_verdict};
 pub use file::AirframeError;
+pub(crate) use file::line_column;
 pub use report::AirframeReport;
 
 use nalgebra::{Matrix3, Vector3};
@@ -145,6 +146,9 @@ pub struct Airframe {
     pub ground_effect: GroundEffectParams,
     /// Ceiling-effect constants.
     pub ceiling_effect: CeilingEffectParams,
+    /// Controller gain overrides from the file's `[control]` table (applied over
+    /// `ControlGains::for_vehicle`).
+    pub control: crate::control::GainOverrides,
 }
 
 fn serialize_matrix3<S: serde::Serializer>(m: &Matrix3<f64>, s: S) -> Result<S::Ok, S::Error> {

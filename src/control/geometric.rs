@@ -1,0 +1,282 @@
+//! Geometric tracking controller on SE(3): Lee, Leok, McClamroch, "Geometric
+//! tracking control of a quadrotor UAV on SE(3)", IEEE CDC 2010, in the origin
+//! report's notation (report section 5.1; doc `model-and-control.md` section 5).
+//!
+//! NED world, FRD body, thrust along `-z_b`; `e_p = p - p_d`, `e_v = v - v_d`.
+//! ```text
+//! A     = -K_p e_p - K_v e_v - m g e3 + m a_d  (- f_hat)        [N], NED
+//! u_T   = -A^T R e3                                             [N]
+//! z_d   = -A / |A|,  x_c = [cos psi_d, sin psi_d, 0]
+//! y_d   = (z_d x x_c) / |z_d x x_c|,  R_d = [y_d x z_d, y_d, z_d]
+//! e_R   = 1/2 (R_d^T R - R^T R_d)^vee,  e_w = w - R^T R_d w_d
+//! tau   = -K_R e_R - K_w e_w + w x I w - I (w x R^T R_d w_d - R^T R_d w_d_dot)  (- tau_hat^b)
+//! ```
+//! `w_d`, `w_d_dot` come from `R_d` itself (doc section 5, "numerical"):
+//! `w_d,k = log(R_d,k-1^T R_d,k) / h`, `w_d_dot,k = (w_d,k - w_d,k-1) / h`, zero
+//! for the first two samples and after a reset or a jump of `R_d` (a step rate
+//! above [`JUMP_RATE_RAD_S`]); on the first sample `w_d` is the current rate
+//! expressed in the desired frame, so a law switched in does not kick. This matters: with the report's gains there is
+//! no time-scale separation between attitude and position, and the loop
+//! diverges unless `w_d, w_d_dot` carry the feedback part of `A` (doc section 5,
+//! seed erratum 4); derivatives of the reference alone are not enough.
+//!
+//! Guards: `A` non-finite becomes hover (`-m g e3`); `A_z <= -(1 - max_down_accel_g) m g`
+//! (never command thrust pointing down); the horizontal part of `A` is scaled
+//! so that `z_d` stays within `max_tilt` of vertical; the heading is taken
+//! from the previous `R_d` when `|z_d x x_c|` is tiny.
+
+use nalgebra::{Matrix3, Vector3};
+
+use super::Reference;
+use super::common::{LawOutput, e3, finite_m3, finite3, so3_attitude};
+use super::gains::{ControlLimits, GeometricGains};
+use crate::airframe::GRAVITY;
+use crate::math::vee;
+use crate::signals::{Measurement, NominalModel, WrenchEstimate};
+
+/// Desired-attitude step rate [rad/s] above which `R_d` is treated as having
+/// jumped (reference jump, guard switching): its derivatives restart at zero.
+pub const JUMP_RATE_RAD_S: f64 = 30.0;
+
+/// Internal state: the previous desired attitude and rate.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Geometric {
+    prev_rd: Option<Matrix3<f64>>,
+    prev_omega_d: Vector3<f64>,
+    /// Desired-attitude samples since the last reset or jump.
+    samples: u32,
+}
+
+/// `log(R)^vee` (rotation vector) of a rotation matrix; `None` near 180 deg,
+/// where the axis is ill-defined.
+fn log_so3(m: &Matrix3<f64>) -> Option<Vector3<f64>> {
+    let v = vee(m); // sin(angle) * axis
+    let s = v.norm();
+    let c = (0.5 * (m.trace() - 1.0)).clamp(-1.0, 1.0);
+    if s < 1e-9 {
+        return (c > 0.0).then_some(v);
+    }
+    let angle = s.atan2(c);
+    Some(v * (angle / s))
+}
+
+impl Geometric {
+    pub(super) fn reset(&mut self) {
+        *self = Self::default();
+    }
+
+    /// Desired rate and acceleration from the `R_d` sequence (module doc). On
+    /// the first sample after a reset or a jump there is no previous `R_d`: the
+    /// desired rate is then the current one, `w_now = R_d^T R w` (no damping
+    /// kick when a law is switched in).
+    fn desired_rates(
+        &mut self,
+        r_d: &Matrix3<f64>,
+        w_now: &Vector3<f64>,
+        dt: f64,
+        max_accel: f64,
+    ) -> (Vector3<f64>, Vector3<f64>, bool) {
+        let w_now = if finite3(w_now) && w_now.norm() <= JUMP_RATE_RAD_S {
+            *w_now
+        } else {
+            Vector3::zeros()
+        };
+        let mut jump = false;
+        let (w, w_dot) = match self.prev_rd {
+            Some(prev) if dt > 0.0 => match log_so3(&(prev.transpose() * r_d)).map(|v| v / dt) {
+                Some(w) if finite3(&w) && w.norm() <= JUMP_RATE_RAD_S => {
+                    let w_dot = if self.samples >= 2 {
+                        let a = (w - self.prev_omega_d) / dt;
+                        if a.norm() > max_accel {
+                            a * (max_accel / a.norm())
+                        } else {
+                            a
+                        }
+                    } else {
+                        Vector3::zeros()
+                    };
+                    self.samples = self.samples.saturating_add(1);
+                    (w, w_dot)
+                }
+                _ => {
+                    jump = true;
+                    self.samples = 1;
+                    (w_now, Vector3::zeros())
+                }
+            },
+            // same instant again: keep the rate, no new derivative
+            Some(_) => (self.prev_omega_d, Vector3::zeros()),
+            None => {
+                self.samples = 1;
+                (w_now, Vector3::zeros())
+            }
+        };
+        self.prev_rd = Some(*r_d);
+        self.prev_omega_d = w;
+        (w, w_dot, jump)
+    }
+
+    /// One step of the law (module doc).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn update(
+        &mut self,
+        gains: &GeometricGains,
+        limits: &ControlLimits,
+        model: &NominalModel,
+        meas: &Measurement,
+        reference: &Reference,
+        estimate: &WrenchEstimate,
+        dt: f64,
+    ) -> LawOutput {
+        let m = model.mass_kg;
+        let r = *meas.attitude.to_rotation_matrix().matrix();
+        let e_p = meas.position_ned - reference.position_ned;
+        let e_v = meas.velocity_ned - reference.velocity_ned;
+        let a = -gains.kp_n_per_m.component_mul(&e_p) - gains.kv_n_s_per_m.component_mul(&e_v) - e3() * (m * GRAVITY)
+            + reference.acceleration_ned * m
+            - estimate.force_ned;
+        let (a, limited) = guard_a(a, m, limits);
+        let thrust = -a.dot(&(r * e3()));
+        let r_d = self.desired_attitude(&a, reference.yaw_rad, &r);
+        let w_now = r_d.transpose() * (r * meas.rate_frd);
+        let (w_d, w_dot_d, jump) = self.desired_rates(&r_d, &w_now, dt, limits.max_angular_accel_rad_s2);
+        let out = so3_attitude(
+            &model.inertia_kg_m2,
+            &r,
+            &meas.rate_frd,
+            &r_d,
+            &w_d,
+            &w_dot_d,
+            &gains.kr_n_m_per_rad,
+            &gains.komega_n_m_s_per_rad,
+        );
+        LawOutput {
+            thrust_n: thrust,
+            torque_frd: out.torque - estimate.torque_frd,
+            attitude_sp: r_d,
+            rate_sp_frd: w_d,
+            attitude_error: out.e_r,
+            limited,
+            recovery: false,
+            reference_jump: jump,
+        }
+    }
+
+    /// `R_d = [y_d x z_d, y_d, z_d]` with `z_d = -A/|A|` and the heading `psi_d`.
+    fn desired_attitude(&self, a: &Vector3<f64>, yaw: f64, r: &Matrix3<f64>) -> Matrix3<f64> {
+        let z_d = -a / a.norm();
+        let (s, c) = yaw.sin_cos();
+        let mut y = z_d.cross(&Vector3::new(c, s, 0.0));
+        if y.norm() < 1e-6 {
+            // z_d along the heading: keep the previous desired (or current) x axis
+            let x_prev = self
+                .prev_rd
+                .map_or_else(|| r.column(0).into_owned(), |p| p.column(0).into_owned());
+            y = z_d.cross(&x_prev);
+            if y.norm() < 1e-6 {
+                // any axis normal to z_d
+                let other = if z_d.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+                y = z_d.cross(&other);
+            }
+        }
+        let y_d = y.normalize();
+        let x_d = y_d.cross(&z_d);
+        let r_d = Matrix3::from_columns(&[x_d, y_d, z_d]);
+        if finite_m3(&r_d) { r_d } else { Matrix3::identity() }
+    }
+}
+
+/// Guards on `A` (module doc); returns the guarded `A` and whether it changed.
+fn guard_a(mut a: Vector3<f64>, m: f64, limits: &ControlLimits) -> (Vector3<f64>, bool) {
+    let mut limited = false;
+    if !finite3(&a) {
+        a = -e3() * (m * GRAVITY);
+        limited = true;
+    }
+    let az_max = -(1.0 - limits.max_down_accel_g) * m * GRAVITY;
+    if a.z > az_max {
+        a.z = az_max;
+        limited = true;
+    }
+    let h = a.xy().norm();
+    let h_max = -a.z * limits.max_tilt_rad.tan();
+    if h > h_max {
+        let s = h_max / h;
+        a.x *= s;
+        a.y *= s;
+        limited = true;
+    }
+    (a, limited)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Rotation3, UnitQuaternion};
+
+    #[test]
+    fn log_map_is_the_rotation_vector() {
+        for v in [
+            Vector3::new(0.1, -0.2, 0.3),
+            Vector3::new(1e-7, 0.0, 2e-7),
+            Vector3::new(2.5, 0.3, -0.1),
+        ] {
+            let m = *Rotation3::new(v).matrix();
+            assert!((log_so3(&m).unwrap() - v).norm() < 1e-12, "{v}");
+        }
+        assert!(log_so3(&Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, -1.0))).is_none());
+    }
+
+    /// GIVEN hover on the reference WHEN the law runs THEN u_T = m g, R_d = I and no torque.
+    #[test]
+    fn hover_on_reference_is_an_equilibrium() {
+        let model = NominalModel {
+            mass_kg: 1.5,
+            inertia_kg_m2: Matrix3::from_diagonal(&Vector3::new(1.2416, 1.2416, 2.4832)),
+        };
+        let gains = super::super::ControlGains::report();
+        let meas = Measurement {
+            time_s: 0.0,
+            position_ned: Vector3::new(0.0, 0.0, -1.0),
+            velocity_ned: Vector3::zeros(),
+            attitude: UnitQuaternion::identity(),
+            rate_frd: Vector3::zeros(),
+        };
+        let reference = Reference::hold(meas.position_ned, 0.0);
+        let mut g = Geometric::default();
+        for _ in 0..3 {
+            let out = g.update(
+                &gains.geometric,
+                &gains.limits,
+                &model,
+                &meas,
+                &reference,
+                &WrenchEstimate::default(),
+                1e-3,
+            );
+            assert!((out.thrust_n - 1.5 * GRAVITY).abs() < 1e-12);
+            assert!(out.torque_frd.norm() < 1e-12);
+            assert!((out.attitude_sp - Matrix3::identity()).norm() < 1e-12);
+        }
+    }
+
+    /// GIVEN R_d rotating at a constant rate WHEN sampled THEN w_d is that rate,
+    /// w_d_dot is zero for the first two samples, and a 90-degree jump restarts both.
+    #[test]
+    fn numerical_rates_restart_after_a_jump() {
+        let mut g = Geometric::default();
+        let w = Vector3::new(0.2, -0.1, 0.5);
+        let h = 1e-3;
+        let mut outs = vec![];
+        for k in 0..4 {
+            let r = *Rotation3::new(w * (f64::from(k) * h)).matrix();
+            outs.push(g.desired_rates(&r, &Vector3::zeros(), h, 1e3));
+        }
+        assert_eq!(outs[0].0, Vector3::zeros());
+        assert!((outs[1].0 - w).norm() < 1e-9 && outs[1].1 == Vector3::zeros());
+        assert!((outs[3].0 - w).norm() < 1e-9 && outs[3].1.norm() < 1e-5);
+        let now = Vector3::new(0.1, 0.0, 0.0);
+        let jumped = g.desired_rates(Rotation3::new(Vector3::new(1.5, 0.0, 0.0)).matrix(), &now, h, 1e3);
+        assert!(jumped.2 && jumped.0 == now && jumped.1 == Vector3::zeros());
+    }
+}

@@ -1,0 +1,231 @@
+//! Hierarchical controller in ZYX Euler angles: outer position loop giving
+//! thrust and roll/pitch setpoints, inner attitude loop by partial feedback
+//! linearization (origin report section 2.2; doc `model-and-control.md`
+//! section 4; Siciliano, Sciavicco, Villani, Oriolo style two-loop control).
+//!
+//! NED world, FRD body, `eta = [phi, theta, psi]`, `omega = Q(eta) eta_dot`,
+//! `M = Q^T I_b Q`, `C` the Coriolis matrix with `M_dot - 2C` skew (doc section 1).
+//! ```text
+//! outer: mu = a_d - K_P e_p - K_D e_v (- f_hat / m)                     [m/s^2], NED
+//!        u_T = m sqrt(mu_x^2 + mu_y^2 + (mu_z - g)^2)
+//!        phi_d = asin(m (mu_y c_psi_d - mu_x s_psi_d) / u_T)
+//!        theta_d = atan2(-(mu_x c_psi_d + mu_y s_psi_d), g - mu_z)
+//! inner: nu = eta_d'' - K_D,eta e_eta' - K_P,eta e_eta                   e_eta = wrap(eta - eta_d)
+//!        tau^b = I_b Q nu + Q^-T (C eta' - tau_hat_eta)
+//! ```
+//! giving `e_eta'' + K_D,eta e_eta' + K_P,eta e_eta = M^-1 tau_tilde`. `phi_d, theta_d`
+//! derivatives come from a critically damped second-order filter (`w_n` =
+//! `eta_filter_rad_s`), yaw ones from the reference.
+//!
+//! Guards: `mu_z <= max_down_accel_g g`, tilt of the thrust setpoint within
+//! `max_tilt`, `asin` argument clamped. `Q` is singular at `theta = +-90 deg`, so
+//! the RPY inner loop is never used near it: above `recovery_tilt` of body
+//! tilt (`>= |theta|`) the attitude goes to the SO(3) loop of doc section 5
+//! with `K_R = I_b K_P,eta`, `K_w = I_b K_D,eta` (the same linearized poles)
+//! and the thrust is projected on the body axis, `u_T max(0, z_b . z_d)`,
+//! until the tilt is back below the midpoint of `max_tilt` and `recovery_tilt`.
+
+use nalgebra::Vector3;
+
+use super::Reference;
+use super::common::{LawOutput, RpyStage, inertia_diag, projected_thrust, rate_map_solve, rpy_setpoint_on_so3, wrap3};
+use super::gains::{ControlLimits, HierarchicalGains};
+use crate::math::{euler_zyx, rate_map, rpy_coriolis};
+use crate::signals::{Measurement, NominalModel, WrenchEstimate};
+
+/// Internal state: the attitude-setpoint stage.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Hierarchical {
+    stage: RpyStage,
+}
+
+impl Hierarchical {
+    pub(super) fn reset(&mut self) {
+        self.stage.reset();
+    }
+
+    /// One step of the law (module doc).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn update(
+        &mut self,
+        gains: &HierarchicalGains,
+        limits: &ControlLimits,
+        model: &NominalModel,
+        meas: &Measurement,
+        reference: &Reference,
+        estimate: &WrenchEstimate,
+        dt: f64,
+    ) -> LawOutput {
+        let m = model.mass_kg;
+        let inertia = &model.inertia_kg_m2;
+        let r = *meas.attitude.to_rotation_matrix().matrix();
+        let e_p = meas.position_ned - reference.position_ned;
+        let e_v = meas.velocity_ned - reference.velocity_ned;
+        let mu = reference.acceleration_ned
+            - gains.kp_pos_per_s2.component_mul(&e_p)
+            - gains.kd_pos_per_s.component_mul(&e_v)
+            - estimate.force_ned / m;
+        let eta = euler_zyx(&meas.attitude);
+        let q = rate_map(&eta);
+        let q_solved = rate_map_solve(&q);
+        // measured Euler rates to start the setpoint filter bumplessly (not near theta = 90 deg)
+        let eta_dot_now = match q_solved {
+            Some((q_inv, _)) if eta.y.cos() > 0.3 => q_inv * meas.rate_frd,
+            _ => Vector3::zeros(),
+        };
+        let sp = self
+            .stage
+            .setpoint(&mu, reference, m, limits, gains.eta_filter_rad_s, &r, &eta_dot_now, dt);
+        match (sp.recovery, q_solved) {
+            (false, Some((q_inv, q_inv_t))) => {
+                let eta_dot = q_inv * meas.rate_frd;
+                let e = wrap3(&(eta - sp.eta_d));
+                let e_dot = eta_dot - sp.eta_d_dot;
+                let nu =
+                    sp.eta_d_ddot - gains.kd_att_per_s.component_mul(&e_dot) - gains.kp_att_per_s2.component_mul(&e);
+                let c = rpy_coriolis(inertia, &eta, &eta_dot);
+                let torque = inertia * q * nu + q_inv_t * (c * eta_dot - estimate.torque_rpy);
+                let r_d = *crate::math::from_euler_zyx(&sp.eta_d).to_rotation_matrix().matrix();
+                LawOutput {
+                    thrust_n: sp.thrust_n,
+                    torque_frd: torque,
+                    attitude_sp: r_d,
+                    rate_sp_frd: rate_map(&sp.eta_d) * sp.eta_d_dot,
+                    attitude_error: e,
+                    limited: sp.limited,
+                    recovery: false,
+                    reference_jump: false,
+                }
+            }
+            _ => {
+                let i = inertia_diag(model);
+                let kr = i.component_mul(&gains.kp_att_per_s2);
+                let kw = i.component_mul(&gains.kd_att_per_s);
+                recovery_output(model, meas, &sp, &kr, &kw, estimate)
+            }
+        }
+    }
+}
+
+/// The RPY laws' recovery: SO(3) attitude loop on `R(eta_d)`, projected thrust.
+pub(super) fn recovery_output(
+    model: &NominalModel,
+    meas: &Measurement,
+    sp: &super::common::RpySetpoint,
+    kr: &Vector3<f64>,
+    kw: &Vector3<f64>,
+    estimate: &WrenchEstimate,
+) -> LawOutput {
+    let r = *meas.attitude.to_rotation_matrix().matrix();
+    let (out, r_d, w_d) = rpy_setpoint_on_so3(
+        &model.inertia_kg_m2,
+        &r,
+        &meas.rate_frd,
+        &sp.eta_d,
+        &sp.eta_d_dot,
+        &sp.eta_d_ddot,
+        kr,
+        kw,
+        &estimate.torque_frd,
+    );
+    LawOutput {
+        thrust_n: projected_thrust(sp.thrust_n, &r, &r_d),
+        torque_frd: out.torque,
+        attitude_sp: r_d,
+        rate_sp_frd: w_d,
+        attitude_error: out.e_r,
+        limited: sp.limited,
+        recovery: true,
+        reference_jump: false,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::ControlGains;
+    use super::*;
+    use crate::airframe::GRAVITY;
+    use crate::math::{from_euler_zyx, rate_map_dot};
+    use nalgebra::Matrix3;
+    use nalgebra::UnitQuaternion;
+
+    fn model() -> NominalModel {
+        NominalModel {
+            mass_kg: 2.0,
+            inertia_kg_m2: Matrix3::from_diagonal(&Vector3::new(0.0217, 0.0217, 0.04)),
+        }
+    }
+
+    /// GIVEN the vehicle tilted and rotating WHEN the inner loop computes tau THEN
+    /// Euler's equation with that tau gives exactly eta'' = nu (partial feedback
+    /// linearization, doc section 4).
+    #[test]
+    fn inner_loop_linearizes_the_angular_dynamics() {
+        let model = model();
+        let g = ControlGains::for_vehicle(&model);
+        let eta = Vector3::new(0.2, -0.3, 1.0);
+        let q = rate_map(&eta);
+        let eta_dot = Vector3::new(0.5, -0.4, 0.3);
+        let meas = Measurement {
+            time_s: 0.0,
+            position_ned: Vector3::new(0.0, 0.0, -2.0),
+            velocity_ned: Vector3::zeros(),
+            attitude: from_euler_zyx(&eta),
+            rate_frd: q * eta_dot,
+        };
+        let reference = Reference::hold(meas.position_ned, 0.0);
+        let mut law = Hierarchical::default();
+        let out = law.update(
+            &g.hierarchical,
+            &g.limits,
+            &model,
+            &meas,
+            &reference,
+            &WrenchEstimate::default(),
+            1e-3,
+        );
+        assert!(!out.recovery);
+        // nu from the reported setpoint: first sample, the filter starts at the measured rates
+        let eta_d = euler_zyx(&UnitQuaternion::from_rotation_matrix(
+            &nalgebra::Rotation3::from_matrix_unchecked(out.attitude_sp),
+        ));
+        let e = wrap3(&(eta - eta_d));
+        let e_dot = Vector3::new(0.0, 0.0, eta_dot.z);
+        let nu = -g.hierarchical.kd_att_per_s.component_mul(&e_dot) - g.hierarchical.kp_att_per_s2.component_mul(&e);
+        // M eta'' + C eta' = Q^T tau  =>  eta'' = M^-1 (Q^T tau - C eta')
+        let i = model.inertia_kg_m2;
+        let w = q * eta_dot;
+        let w_dot = i.try_inverse().unwrap() * (out.torque_frd - w.cross(&(i * w)));
+        let eta_ddot = q.try_inverse().unwrap() * (w_dot - rate_map_dot(&eta, &eta_dot) * eta_dot);
+        assert!((eta_ddot - nu).norm() < 1e-9 * nu.norm(), "{eta_ddot} vs {nu}");
+    }
+
+    /// GIVEN hover on the reference WHEN the law runs THEN u_T = m g and no torque.
+    #[test]
+    fn hover_on_reference_is_an_equilibrium() {
+        let model = model();
+        let g = ControlGains::for_vehicle(&model);
+        let meas = Measurement {
+            time_s: 0.0,
+            position_ned: Vector3::new(1.0, 2.0, -3.0),
+            velocity_ned: Vector3::zeros(),
+            attitude: UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.7),
+            rate_frd: Vector3::zeros(),
+        };
+        let reference = Reference::hold(meas.position_ned, 0.7);
+        let mut law = Hierarchical::default();
+        for _ in 0..3 {
+            let out = law.update(
+                &g.hierarchical,
+                &g.limits,
+                &model,
+                &meas,
+                &reference,
+                &WrenchEstimate::default(),
+                1e-3,
+            );
+            assert!((out.thrust_n - 2.0 * GRAVITY).abs() < 1e-12);
+            assert!(out.torque_frd.norm() < 1e-12, "{}", out.torque_frd);
+        }
+    }
+}

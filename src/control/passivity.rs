@@ -1,0 +1,166 @@
+//! Passivity-based controller: Ruggiero, Cacace, Sadeghian, Lippiello,
+//! "Passivity-based control of VToL UAVs with a momentum-based estimator of
+//! external wrench and unmodeled dynamics", Robotics and Autonomous Systems 72
+//! (2015); origin report section 2.4; doc `model-and-control.md` section 6.
+//!
+//! Slotine-Li style: the model is evaluated along reference signals
+//! `(.)_r`, not cancelled. NED world, FRD body, ZYX Euler angles, `M`, `C` as
+//! in doc section 1 (`M_dot - 2C` skew, which the passivity argument needs).
+//! ```text
+//! linear:  e_p = p - p_d,  v_r = v_d - sigma_p e_p,  a_r = a_d - sigma_p e_v,  nu_p = e_v + sigma_p e_p
+//!          mu_d = a_r - (D_p nu_p + K_p e_p (+ f_hat)) / m                      [m/s^2], NED
+//!          u_T, phi_d, theta_d from mu_d as in the hierarchical law (doc section 4, same guards)
+//! angular: e = wrap(eta - eta_d),  eta_r' = eta_d' - sigma e,  eta_r'' = eta_d'' - sigma e',  nu = e' + sigma e
+//!          tau^b = Q^-T (M eta_r'' + C(eta, eta') eta_r' - tau_hat_eta - D_o nu - K_o e)
+//! ```
+//! Closed loop `M nu' + (C + D_o) nu + K_o e = tau_tilde` is passive from
+//! `tau_tilde` to `nu`; linearized per axis
+//! `m e'' + (m sigma_p + D_p) e' + (D_p sigma_p + K_p) e = f_tilde` and the same with
+//! `I_b, sigma, D_o, K_o`. Near `theta = +-90 deg` the attitude goes to the SO(3)
+//! loop with the matching `K_R = D_o sigma + K_o`, `K_w = I_b sigma + D_o`
+//! (see the hierarchical module for the recovery rule).
+
+use nalgebra::Vector3;
+
+use super::Reference;
+use super::common::{LawOutput, RpyStage, inertia_diag, rate_map_solve, wrap3};
+use super::gains::{ControlLimits, PassivityGains};
+use super::hierarchical::recovery_output;
+use crate::math::{euler_zyx, from_euler_zyx, rate_map, rpy_coriolis, rpy_inertia};
+use crate::signals::{Measurement, NominalModel, WrenchEstimate};
+
+/// Internal state: the attitude-setpoint stage.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Passivity {
+    stage: RpyStage,
+}
+
+impl Passivity {
+    pub(super) fn reset(&mut self) {
+        self.stage.reset();
+    }
+
+    /// One step of the law (module doc).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn update(
+        &mut self,
+        gains: &PassivityGains,
+        limits: &ControlLimits,
+        model: &NominalModel,
+        meas: &Measurement,
+        reference: &Reference,
+        estimate: &WrenchEstimate,
+        dt: f64,
+    ) -> LawOutput {
+        let m = model.mass_kg;
+        let inertia = &model.inertia_kg_m2;
+        let r = *meas.attitude.to_rotation_matrix().matrix();
+        let e_p = meas.position_ned - reference.position_ned;
+        let e_v = meas.velocity_ned - reference.velocity_ned;
+        let sigma_p = gains.sigma_p_per_s;
+        let nu_p = e_v + e_p * sigma_p;
+        let a_r = reference.acceleration_ned - e_v * sigma_p;
+        let mu_d = a_r
+            - (gains.dp_n_s_per_m.component_mul(&nu_p) + gains.kp_n_per_m.component_mul(&e_p) + estimate.force_ned) / m;
+        let eta = euler_zyx(&meas.attitude);
+        let q = rate_map(&eta);
+        let q_solved = rate_map_solve(&q);
+        // measured Euler rates to start the setpoint filter bumplessly (not near theta = 90 deg)
+        let eta_dot_now = match q_solved {
+            Some((q_inv, _)) if eta.y.cos() > 0.3 => q_inv * meas.rate_frd,
+            _ => Vector3::zeros(),
+        };
+        let sp = self.stage.setpoint(
+            &mu_d,
+            reference,
+            m,
+            limits,
+            gains.eta_filter_rad_s,
+            &r,
+            &eta_dot_now,
+            dt,
+        );
+        let sigma = gains.sigma_per_s;
+        match (sp.recovery, q_solved) {
+            (false, Some((q_inv, q_inv_t))) => {
+                let eta_dot = q_inv * meas.rate_frd;
+                let e = wrap3(&(eta - sp.eta_d));
+                let e_dot = eta_dot - sp.eta_d_dot;
+                let eta_r_dot = sp.eta_d_dot - e * sigma;
+                let eta_r_ddot = sp.eta_d_ddot - e_dot * sigma;
+                let nu = e_dot + e * sigma;
+                let mm = rpy_inertia(inertia, &eta);
+                let c = rpy_coriolis(inertia, &eta, &eta_dot);
+                let generalized = mm * eta_r_ddot + c * eta_r_dot
+                    - estimate.torque_rpy
+                    - gains.do_n_m_s_per_rad.component_mul(&nu)
+                    - gains.ko_n_m_per_rad.component_mul(&e);
+                LawOutput {
+                    thrust_n: sp.thrust_n,
+                    torque_frd: q_inv_t * generalized,
+                    attitude_sp: *from_euler_zyx(&sp.eta_d).to_rotation_matrix().matrix(),
+                    rate_sp_frd: rate_map(&sp.eta_d) * sp.eta_d_dot,
+                    attitude_error: e,
+                    limited: sp.limited,
+                    recovery: false,
+                    reference_jump: false,
+                }
+            }
+            _ => {
+                let i = inertia_diag(model);
+                let kr = gains.do_n_m_s_per_rad * sigma + gains.ko_n_m_per_rad;
+                let kw = i * sigma + gains.do_n_m_s_per_rad;
+                recovery_output(model, meas, &sp, &kr, &kw, estimate)
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::ControlGains;
+    use super::super::hierarchical::Hierarchical;
+    use super::*;
+    use crate::airframe::GRAVITY;
+    use nalgebra::{Matrix3, UnitQuaternion};
+
+    /// GIVEN gains matched to the same linearized poles (doc section 10) and a
+    /// state near hover at rest WHEN both RPY laws run THEN thrust and torque agree
+    /// (the position parts are identical linear maps; the angular ones differ only
+    /// through `M(eta)` versus `I_b Q` at small angles).
+    #[test]
+    fn matched_passivity_equals_hierarchical_near_hover() {
+        let model = NominalModel {
+            mass_kg: 1.5,
+            inertia_kg_m2: Matrix3::from_diagonal(&nalgebra::Vector3::new(0.03, 0.03, 0.05)),
+        };
+        let g = ControlGains::for_vehicle(&model);
+        let meas = Measurement {
+            time_s: 0.0,
+            position_ned: nalgebra::Vector3::new(0.01, -0.02, -1.0),
+            velocity_ned: nalgebra::Vector3::new(0.02, 0.01, -0.01),
+            attitude: crate::math::from_euler_zyx(&nalgebra::Vector3::new(0.002, -0.001, 0.003)),
+            rate_frd: nalgebra::Vector3::zeros(),
+        };
+        let reference = Reference::hold(nalgebra::Vector3::new(0.0, 0.0, -1.0), 0.0);
+        let est = WrenchEstimate::default();
+        let h = Hierarchical::default().update(&g.hierarchical, &g.limits, &model, &meas, &reference, &est, 1e-3);
+        let p = Passivity::default().update(&g.passivity, &g.limits, &model, &meas, &reference, &est, 1e-3);
+        assert!((h.thrust_n - p.thrust_n).abs() < 1e-12 * model.mass_kg * GRAVITY);
+        assert!(
+            (h.torque_frd - p.torque_frd).norm() < 1e-3 * h.torque_frd.norm(),
+            "{} {}",
+            h.torque_frd,
+            p.torque_frd
+        );
+        // at hover on the reference both are at equilibrium
+        let hover = Measurement {
+            position_ned: reference.position_ned,
+            velocity_ned: nalgebra::Vector3::zeros(),
+            attitude: UnitQuaternion::identity(),
+            ..meas
+        };
+        let p = Passivity::default().update(&g.passivity, &g.limits, &model, &hover, &reference, &est, 1e-3);
+        assert!((p.thrust_n - model.mass_kg * GRAVITY).abs() < 1e-12 && p.torque_frd.norm() < 1e-15);
+    }
+}

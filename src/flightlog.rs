@@ -1,0 +1,414 @@
+//! Flight logs (the CSV that `rotorpilot simulate --csv` writes) and the
+//! offline estimator sweep behind `rotorpilot estimate`.
+//!
+//! Required columns, the report's inputs: `time_s`, `vel_n vel_e vel_d`
+//! [m/s] NED, `roll pitch yaw` [rad], `roll_rate pitch_rate yaw_rate`
+//! (Euler-angle rates) [rad/s], `thrust_n` [N] and `tau_x tau_y tau_z` [N m]
+//! FRD (the command held from that row to the next). Optional: `p_frd q_frd
+//! r_frd` (body rates; otherwise `Q(eta) eta_dot`), and the truth
+//! `fext_n fext_e fext_d`, `text_x text_y text_z`, `true_mass_kg` for error
+//! metrics. Other columns are ignored. Time must increase with a constant step.
+
+use nalgebra::Vector3;
+use serde::Serialize;
+
+use crate::airframe::GRAVITY;
+use crate::estimation::{Discretization, EstimatorConfig, EstimatorInput, MomentumEstimator, Polynomial, step_metrics};
+use crate::math::rate_map;
+use crate::signals::{NominalModel, WrenchEstimate};
+
+/// Why a log could not be read.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum LogError {
+    /// The file could not be read.
+    #[error("{file}: cannot read: {message}")]
+    Io {
+        /// Path.
+        file: String,
+        /// OS message.
+        message: String,
+    },
+    /// A required column is absent from the header.
+    #[error("{file}:1: missing column `{column}`")]
+    MissingColumn {
+        /// Path.
+        file: String,
+        /// Column name.
+        column: String,
+    },
+    /// A row has a different number of fields than the header.
+    #[error("{file}:{line}: {found} fields, the header has {expected}")]
+    Ragged {
+        /// Path.
+        file: String,
+        /// 1-based line.
+        line: usize,
+        /// Fields in the header.
+        expected: usize,
+        /// Fields in this row.
+        found: usize,
+    },
+    /// A field is not a finite number.
+    #[error("{file}:{line}: column `{column}`: `{text}` is not a finite number")]
+    NotANumber {
+        /// Path.
+        file: String,
+        /// 1-based line.
+        line: usize,
+        /// Column name.
+        column: String,
+        /// The text found.
+        text: String,
+    },
+    /// Time does not increase with a constant step.
+    #[error("{file}:{line}: column `time_s`: {problem}")]
+    Time {
+        /// Path.
+        file: String,
+        /// 1-based line.
+        line: usize,
+        /// What is wrong.
+        problem: String,
+    },
+    /// Fewer than two rows.
+    #[error("{file}: needs at least two rows of data")]
+    TooShort {
+        /// Path.
+        file: String,
+    },
+}
+
+/// The truth a simulated log carries.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LogTruth {
+    /// External force [N], NED.
+    pub force_ned: Vector3<f64>,
+    /// External torque [N m], FRD.
+    pub torque_frd: Vector3<f64>,
+    /// True mass [kg].
+    pub mass_kg: f64,
+}
+
+/// One row of a log.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LogRow {
+    /// Estimator inputs at this time; the wrench is the one of *this* row
+    /// (held until the next), see [`FlightLog::estimator_inputs`].
+    pub input: EstimatorInput,
+    /// Truth, when the log has it.
+    pub truth: Option<LogTruth>,
+}
+
+/// A read log.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FlightLog {
+    /// Rows in time order.
+    pub rows: Vec<LogRow>,
+    /// The constant time step [s].
+    pub step_s: f64,
+}
+
+const REQUIRED: [&str; 14] = [
+    "time_s",
+    "vel_n",
+    "vel_e",
+    "vel_d",
+    "roll",
+    "pitch",
+    "yaw",
+    "roll_rate",
+    "pitch_rate",
+    "yaw_rate",
+    "thrust_n",
+    "tau_x",
+    "tau_y",
+    "tau_z",
+];
+const RATES: [&str; 3] = ["p_frd", "q_frd", "r_frd"];
+const TRUTH: [&str; 7] = [
+    "fext_n",
+    "fext_e",
+    "fext_d",
+    "text_x",
+    "text_y",
+    "text_z",
+    "true_mass_kg",
+];
+
+impl FlightLog {
+    /// Read a log file.
+    ///
+    /// # Errors
+    /// [`LogError`] naming the file, the line and the column.
+    pub fn from_file(path: &std::path::Path) -> Result<Self, LogError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| LogError::Io {
+            file: file.clone(),
+            message: e.to_string(),
+        })?;
+        Self::parse(&text, &file)
+    }
+
+    /// Parse log text; `file` labels errors.
+    ///
+    /// # Errors
+    /// [`LogError`] naming the file, the line and the column.
+    pub fn parse(text: &str, file: &str) -> Result<Self, LogError> {
+        let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
+        let header: Vec<&str> = lines
+            .next()
+            .map(|(_, l)| l.split(',').map(str::trim).collect())
+            .unwrap_or_default();
+        let find = |name: &str| header.iter().position(|h| *h == name);
+        let mut required = [0usize; 14];
+        for (slot, name) in required.iter_mut().zip(REQUIRED) {
+            *slot = find(name).ok_or_else(|| LogError::MissingColumn {
+                file: file.to_string(),
+                column: name.to_string(),
+            })?;
+        }
+        let rates: Option<Vec<usize>> = RATES.iter().map(|n| find(n)).collect();
+        let truth: Option<Vec<usize>> = TRUTH.iter().map(|n| find(n)).collect();
+        let mut rows = Vec::new();
+        let mut step = None;
+        let mut previous_t = None;
+        for (index, line) in lines {
+            let number = index + 1;
+            let fields: Vec<&str> = line.split(',').collect();
+            if fields.len() != header.len() {
+                return Err(LogError::Ragged {
+                    file: file.to_string(),
+                    line: number,
+                    expected: header.len(),
+                    found: fields.len(),
+                });
+            }
+            let value = |col: usize| -> Result<f64, LogError> {
+                let t = fields[col].trim();
+                t.parse::<f64>()
+                    .ok()
+                    .filter(|v| v.is_finite())
+                    .ok_or_else(|| LogError::NotANumber {
+                        file: file.to_string(),
+                        line: number,
+                        column: header[col].to_string(),
+                        text: t.to_string(),
+                    })
+            };
+            let v = |i: usize| value(required[i]);
+            let t = v(0)?;
+            if let Some(p) = previous_t {
+                let dt: f64 = t - p;
+                if dt <= 0.0 {
+                    return Err(LogError::Time {
+                        file: file.to_string(),
+                        line: number,
+                        problem: format!("{t} does not increase (previous {p})"),
+                    });
+                }
+                match step {
+                    None => step = Some(dt),
+                    Some(h) if (dt - h).abs() > 1e-6 * h.max(1e-9) + 1e-9 => {
+                        return Err(LogError::Time {
+                            file: file.to_string(),
+                            line: number,
+                            problem: format!("step {dt} s differs from the log's step {h} s"),
+                        });
+                    }
+                    Some(_) => {}
+                }
+            }
+            previous_t = Some(t);
+            let eta = Vector3::new(v(4)?, v(5)?, v(6)?);
+            let eta_dot = Vector3::new(v(7)?, v(8)?, v(9)?);
+            let rate_frd = match &rates {
+                Some(c) => Vector3::new(value(c[0])?, value(c[1])?, value(c[2])?),
+                None => rate_map(&eta) * eta_dot,
+            };
+            let input = EstimatorInput {
+                time_s: t,
+                velocity_ned: Vector3::new(v(1)?, v(2)?, v(3)?),
+                eta,
+                eta_dot,
+                rate_frd,
+                thrust_n: v(10)?,
+                torque_frd: Vector3::new(v(11)?, v(12)?, v(13)?),
+            };
+            let truth = match &truth {
+                Some(c) => Some(LogTruth {
+                    force_ned: Vector3::new(value(c[0])?, value(c[1])?, value(c[2])?),
+                    torque_frd: Vector3::new(value(c[3])?, value(c[4])?, value(c[5])?),
+                    mass_kg: value(c[6])?,
+                }),
+                None => None,
+            };
+            rows.push(LogRow { input, truth });
+        }
+        match step {
+            Some(step_s) if rows.len() >= 2 => Ok(Self { rows, step_s }),
+            _ => Err(LogError::TooShort { file: file.to_string() }),
+        }
+    }
+
+    /// The inputs in the estimator's timing: sample `k` carries `x_k` and the
+    /// wrench of row `k - 1` (applied over `[t_{k-1}, t_k)`).
+    pub fn estimator_inputs(&self) -> impl Iterator<Item = EstimatorInput> + '_ {
+        self.rows.iter().enumerate().map(|(k, r)| {
+            let applied = if k == 0 { &r.input } else { &self.rows[k - 1].input };
+            EstimatorInput {
+                thrust_n: applied.thrust_n,
+                torque_frd: applied.torque_frd,
+                ..r.input
+            }
+        })
+    }
+}
+
+/// Run one estimator over a log; one estimate per row.
+///
+/// # Errors
+/// An invalid estimator configuration.
+pub fn estimate_log(
+    log: &FlightLog,
+    config: EstimatorConfig,
+    nominal: NominalModel,
+) -> Result<Vec<WrenchEstimate>, crate::estimation::EstimatorError> {
+    let mut est = MomentumEstimator::new(config, nominal)?;
+    Ok(log.estimator_inputs().map(|x| est.update(&x)).collect())
+}
+
+/// Step metrics of one estimator run against the log's truth.
+#[derive(Clone, Debug, Serialize)]
+pub struct SweepResult {
+    /// Order r.
+    pub order: usize,
+    /// Polynomial name.
+    pub poly: String,
+    /// Cutoff [rad/s].
+    pub cutoff_rad_s: f64,
+    /// Final force estimate [N], NED.
+    pub final_force_ned: [f64; 3],
+    /// Final torque estimate [N m], FRD.
+    pub final_torque_frd: [f64; 3],
+    /// Final torque estimate in Euler-angle coordinates [N m].
+    pub final_torque_rpy: [f64; 3],
+    /// Final real-mass estimate [kg].
+    pub mass_kg: f64,
+    /// Largest 2 % settling time over the channels with a step [s]; `None` without truth or if unsettled.
+    pub settle_s: Option<f64>,
+    /// Largest overshoot over those channels [%].
+    pub overshoot_pct: Option<f64>,
+    /// RMS force error against the effective disturbance [N] (`None` without truth).
+    pub rms_force_error_n: Option<f64>,
+    /// RMS body-torque error [N m].
+    pub rms_torque_error_n_m: Option<f64>,
+}
+
+/// The force the estimator should see at hover: `f_e + (m_true - m_nom) g e3` (doc section 7).
+fn effective_force(t: &LogTruth, nominal_mass: f64) -> Vector3<f64> {
+    t.force_ned + Vector3::new(0.0, 0.0, (t.mass_kg - nominal_mass) * GRAVITY)
+}
+
+/// Metrics of `estimates` against the log's truth.
+#[must_use]
+pub fn sweep_result(
+    log: &FlightLog,
+    config: &EstimatorConfig,
+    nominal: &NominalModel,
+    estimates: &[WrenchEstimate],
+) -> SweepResult {
+    let last = estimates.last().copied().unwrap_or_default();
+    let arr = |v: Vector3<f64>| [v.x, v.y, v.z];
+    let mut result = SweepResult {
+        order: config.order,
+        poly: match &config.polynomial {
+            Polynomial::Butterworth => "butterworth".into(),
+            Polynomial::Binomial => "binomial".into(),
+            Polynomial::Custom(_) => "custom".into(),
+        },
+        cutoff_rad_s: config.cutoff_rad_s,
+        final_force_ned: arr(last.force_ned),
+        final_torque_frd: arr(last.torque_frd),
+        final_torque_rpy: arr(last.torque_rpy),
+        mass_kg: last.mass_kg,
+        settle_s: None,
+        overshoot_pct: None,
+        rms_force_error_n: None,
+        rms_torque_error_n_m: None,
+    };
+    let truths: Option<Vec<LogTruth>> = log.rows.iter().map(|r| r.truth).collect();
+    let Some(truths) = truths else { return result };
+    let times: Vec<f64> = log.rows.iter().map(|r| r.input.time_s).collect();
+    let forces: Vec<Vector3<f64>> = truths.iter().map(|t| effective_force(t, nominal.mass_kg)).collect();
+    let n = estimates.len() as f64;
+    let rms = |f: &dyn Fn(usize) -> f64| ((0..estimates.len()).map(f).map(|e| e * e).sum::<f64>() / n).sqrt();
+    result.rms_force_error_n = Some(rms(&|k| (estimates[k].force_ned - forces[k]).norm()));
+    result.rms_torque_error_n_m = Some(rms(&|k| (estimates[k].torque_frd - truths[k].torque_frd).norm()));
+    // Settling and overshoot per channel whose final truth differs from the estimator's start (0).
+    let final_force = *forces.last().unwrap_or(&Vector3::zeros());
+    let final_torque = truths.last().map_or(Vector3::zeros(), |t| t.torque_frd);
+    let mut settle: Option<f64> = Some(0.0);
+    let mut overshoot: f64 = 0.0;
+    let mut any = false;
+    for (target, series) in (0..3)
+        .map(|i| {
+            (
+                final_force[i],
+                estimates.iter().map(|e| e.force_ned[i]).collect::<Vec<_>>(),
+            )
+        })
+        .chain((0..3).map(|i| {
+            (
+                final_torque[i],
+                estimates.iter().map(|e| e.torque_frd[i]).collect::<Vec<_>>(),
+            )
+        }))
+    {
+        if target.abs() < 1e-9 {
+            continue;
+        }
+        if let Ok(m) = step_metrics(&times, &series, times[0], 0.0, target) {
+            any = true;
+            settle = match (settle, m.settling_time_s) {
+                (Some(a), Some(b)) => Some(a.max(b)),
+                _ => None,
+            };
+            overshoot = overshoot.max(m.overshoot_percent);
+        }
+    }
+    if any {
+        result.settle_s = settle;
+        result.overshoot_pct = Some(overshoot);
+    }
+    result
+}
+
+/// Parse `butterworth`, `binomial` (comma lists are split by the caller).
+///
+/// # Errors
+/// The unknown name.
+pub fn parse_poly(name: &str) -> Result<Polynomial, String> {
+    match name.trim() {
+        "butterworth" => Ok(Polynomial::Butterworth),
+        "binomial" => Ok(Polynomial::Binomial),
+        other => Err(format!("unknown polynomial `{other}` (butterworth, binomial)")),
+    }
+}
+
+/// The estimator configuration for one sweep cell.
+#[must_use]
+pub fn sweep_config(
+    order: usize,
+    poly: Polynomial,
+    cutoff_rad_s: f64,
+    step_s: f64,
+    disc: Discretization,
+) -> EstimatorConfig {
+    EstimatorConfig {
+        order,
+        polynomial: poly,
+        cutoff_rad_s,
+        discretization: disc,
+        sample_time_s: step_s,
+    }
+}

@@ -1,0 +1,431 @@
+//! Scenarios: a whole flight described in TOML and flown flat out in lockstep
+//! by `rotorpilot simulate`.
+//!
+//! A scenario names an airframe, a controller and gain overrides, the initial
+//! state, a disturbance schedule (external force in NED, torque in FRD, true
+//! mass), either an analytic reference (`[reference]`) or timed setpoints
+//! shaped into smooth references (`[[setpoint]]`), controller switches, the
+//! estimator and whether it is fed back, sensor noise and its seed, and the
+//! duration. See `tools/scenarios/` for examples. Errors name the file, the
+//! field and the problem.
+
+mod run;
+mod trajectory;
+
+pub use run::{Summary, run};
+pub use trajectory::Trajectory;
+
+use nalgebra::Vector3;
+use serde::Deserialize;
+
+use crate::airframe::{Airframe, AirframeError};
+use crate::control::{ControlGains, ControllerKind, GainOverrides, Setpoint};
+use crate::estimation::{Discretization, EstimatorConfig, Polynomial};
+use crate::model::{SensorNoise, World};
+
+/// Why a scenario could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    /// The file could not be read.
+    #[error("{file}: cannot read: {message}")]
+    Io {
+        /// Path.
+        file: String,
+        /// OS message.
+        message: String,
+    },
+    /// Not valid TOML, or a key unknown, missing or mistyped.
+    #[error("{file}:{line}:{column}: {message}")]
+    Syntax {
+        /// Path.
+        file: String,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// Parser message naming the key.
+        message: String,
+    },
+    /// A value out of range or inconsistent.
+    #[error("{file}: {field}: {problem}")]
+    Invalid {
+        /// Path.
+        file: String,
+        /// Dotted field.
+        field: String,
+        /// What is wrong.
+        problem: String,
+    },
+    /// The airframe it names could not be loaded.
+    #[error("{file}: airframe: {source}")]
+    Airframe {
+        /// Scenario path.
+        file: String,
+        /// The airframe's own error.
+        source: AirframeError,
+    },
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct File {
+    airframe: String,
+    #[serde(default = "default_controller")]
+    controller: ControllerKind,
+    duration_s: f64,
+    #[serde(default = "default_step")]
+    step_s: f64,
+    #[serde(default)]
+    seed: u64,
+    #[serde(default)]
+    gains: GainOverrides,
+    initial: Option<FileInitial>,
+    #[serde(default)]
+    noise: SensorNoise,
+    #[serde(default)]
+    world: World,
+    #[serde(default)]
+    estimator: FileEstimator,
+    reference: Option<Trajectory>,
+    #[serde(default, rename = "setpoint")]
+    setpoints: Vec<FileSetpoint>,
+    #[serde(default, rename = "disturbance")]
+    disturbances: Vec<FileDisturbance>,
+    #[serde(default, rename = "switch")]
+    switches: Vec<FileSwitch>,
+}
+
+fn default_controller() -> ControllerKind {
+    ControllerKind::Geometric
+}
+
+fn default_step() -> f64 {
+    0.001
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileInitial {
+    position_ned: [f64; 3],
+    #[serde(default)]
+    velocity_ned: [f64; 3],
+    #[serde(default)]
+    euler_deg: [f64; 3],
+    #[serde(default)]
+    rate_frd_deg_s: [f64; 3],
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct FileEstimator {
+    order: usize,
+    polynomial: Polynomial,
+    cutoff_rad_s: f64,
+    discretization: Discretization,
+    feedback: bool,
+}
+
+impl Default for FileEstimator {
+    fn default() -> Self {
+        let c = EstimatorConfig::default();
+        Self {
+            order: c.order,
+            polynomial: c.polynomial,
+            cutoff_rad_s: c.cutoff_rad_s,
+            discretization: c.discretization,
+            feedback: false,
+        }
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileSetpoint {
+    at_s: f64,
+    position_ned: Option<[f64; 3]>,
+    velocity_ned: Option<[f64; 3]>,
+    #[serde(default)]
+    yaw_deg: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileDisturbance {
+    at_s: f64,
+    force_ned: Option<[f64; 3]>,
+    torque_frd: Option<[f64; 3]>,
+    true_mass_kg: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileSwitch {
+    at_s: f64,
+    controller: ControllerKind,
+}
+
+/// Where the reference comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ReferencePlan {
+    /// An analytic curve.
+    Trajectory(Trajectory),
+    /// Timed setpoints `(from time [s], setpoint)`, shaped.
+    Setpoints(Vec<(f64, Setpoint)>),
+}
+
+/// The disturbance state from a time on: values not given keep their previous value.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DisturbanceChange {
+    /// From this time [s].
+    pub at_s: f64,
+    /// New external force [N], NED.
+    pub force_ned: Option<Vector3<f64>>,
+    /// New external torque [N m], FRD.
+    pub torque_frd: Option<Vector3<f64>>,
+    /// New true mass [kg].
+    pub true_mass_kg: Option<f64>,
+}
+
+/// Initial state given explicitly.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct InitialState {
+    /// Position [m], NED.
+    pub position_ned: Vector3<f64>,
+    /// Velocity [m/s], NED.
+    pub velocity_ned: Vector3<f64>,
+    /// ZYX Euler angles [rad].
+    pub euler_rad: Vector3<f64>,
+    /// Angular velocity [rad/s], FRD.
+    pub rate_frd: Vector3<f64>,
+}
+
+/// A validated scenario.
+#[derive(Clone, Debug)]
+pub struct Scenario {
+    /// The file it came from.
+    pub source: String,
+    /// The vehicle.
+    pub airframe: Airframe,
+    /// The initial law.
+    pub controller: ControllerKind,
+    /// Gains after the airframe's defaults and the scenario's overrides.
+    pub gains: ControlGains,
+    /// Duration [s].
+    pub duration_s: f64,
+    /// Integration step [s].
+    pub step_s: f64,
+    /// Noise seed.
+    pub seed: u64,
+    /// Sensor noise.
+    pub noise: SensorNoise,
+    /// Environment.
+    pub world: World,
+    /// Estimator.
+    pub estimator: EstimatorConfig,
+    /// Feed the estimate back.
+    pub feedback: bool,
+    /// Initial state; `None` = on the reference at t = 0 with its feedforward attitude.
+    pub initial: Option<InitialState>,
+    /// The reference.
+    pub reference: ReferencePlan,
+    /// Disturbance schedule, sorted by time.
+    pub disturbances: Vec<DisturbanceChange>,
+    /// Controller switches `(time [s], law)`, sorted.
+    pub switches: Vec<(f64, ControllerKind)>,
+}
+
+impl Scenario {
+    /// Read and validate a scenario file; a relative airframe path is resolved
+    /// against the scenario's directory.
+    ///
+    /// # Errors
+    /// [`ScenarioError`] naming the file, the field and the problem.
+    pub fn from_file(path: &std::path::Path) -> Result<Self, ScenarioError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| ScenarioError::Io {
+            file: file.clone(),
+            message: e.to_string(),
+        })?;
+        Self::from_toml(&text, &file, path.parent())
+    }
+
+    /// Parse and validate scenario TOML (`file` labels errors; `dir` resolves a relative airframe path).
+    ///
+    /// # Errors
+    /// [`ScenarioError`] naming the file, the field and the problem.
+    #[allow(clippy::too_many_lines)]
+    pub fn from_toml(text: &str, file: &str, dir: Option<&std::path::Path>) -> Result<Self, ScenarioError> {
+        let raw: File = toml::from_str(text).map_err(|e| {
+            let (line, column) = e.span().map_or((0, 0), |s| crate::airframe::line_column(text, s.start));
+            ScenarioError::Syntax {
+                file: file.to_string(),
+                line,
+                column,
+                message: e.message().trim().to_string(),
+            }
+        })?;
+        let fail = |field: &str, problem: String| ScenarioError::Invalid {
+            file: file.to_string(),
+            field: field.to_string(),
+            problem,
+        };
+        let airframe_spec = match dir {
+            Some(d) if raw.airframe.ends_with(".toml") && !std::path::Path::new(&raw.airframe).is_absolute() => {
+                d.join(&raw.airframe).display().to_string()
+            }
+            _ => raw.airframe.clone(),
+        };
+        let airframe = Airframe::load(&airframe_spec).map_err(|source| ScenarioError::Airframe {
+            file: file.to_string(),
+            source,
+        })?;
+        if !(raw.duration_s.is_finite() && raw.duration_s > 0.0 && raw.duration_s <= 86_400.0) {
+            return Err(fail(
+                "duration_s",
+                format!("must be in (0, 86400] s, got {}", raw.duration_s),
+            ));
+        }
+        if !(raw.step_s.is_finite() && raw.step_s >= 1e-5 && raw.step_s <= 0.01) {
+            return Err(fail("step_s", format!("must be in [1e-5, 0.01] s, got {}", raw.step_s)));
+        }
+        let mut gains = ControlGains::for_airframe(&airframe);
+        gains.apply(&airframe.control);
+        gains.apply(&raw.gains);
+        gains
+            .validate()
+            .map_err(|e| fail(&format!("gains.{}", e.field), format!("{} {}", e.value, e.problem)))?;
+        let estimator = EstimatorConfig {
+            order: raw.estimator.order,
+            polynomial: raw.estimator.polynomial,
+            cutoff_rad_s: raw.estimator.cutoff_rad_s,
+            discretization: raw.estimator.discretization,
+            sample_time_s: raw.step_s,
+        };
+        estimator.gains().map_err(|e| fail("estimator", e.to_string()))?;
+        for (name, v) in [
+            ("noise.position_m", raw.noise.position_m),
+            ("noise.velocity_m_s", raw.noise.velocity_m_s),
+            ("noise.attitude_rad", raw.noise.attitude_rad),
+            ("noise.rate_rad_s", raw.noise.rate_rad_s),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(fail(name, format!("must be finite and >= 0, got {v}")));
+            }
+        }
+        if let Some(zc) = raw.world.ceiling_z_ned
+            && !(zc.is_finite() && zc < raw.world.ground_z_ned)
+        {
+            return Err(fail(
+                "world.ceiling_z_ned",
+                format!("must be above the ground (smaller NED z), got {zc}"),
+            ));
+        }
+        let finite3 = |field: &str, v: [f64; 3]| {
+            if v.iter().all(|x| x.is_finite()) {
+                Ok(Vector3::from(v))
+            } else {
+                Err(fail(field, format!("must be finite, got {v:?}")))
+            }
+        };
+        let initial = match raw.initial {
+            None => None,
+            Some(i) => Some(InitialState {
+                position_ned: finite3("initial.position_ned", i.position_ned)?,
+                velocity_ned: finite3("initial.velocity_ned", i.velocity_ned)?,
+                euler_rad: finite3("initial.euler_deg", i.euler_deg)?.map(f64::to_radians),
+                rate_frd: finite3("initial.rate_frd_deg_s", i.rate_frd_deg_s)?.map(f64::to_radians),
+            }),
+        };
+        let reference = match (raw.reference, raw.setpoints.is_empty()) {
+            (Some(_), false) => {
+                return Err(fail(
+                    "reference",
+                    "give either [reference] or [[setpoint]], not both".into(),
+                ));
+            }
+            (None, true) => {
+                return Err(fail(
+                    "reference",
+                    "missing: give [reference] or at least one [[setpoint]]".into(),
+                ));
+            }
+            (Some(t), true) => {
+                t.validate().map_err(|(f, p)| fail(&format!("reference.{f}"), p))?;
+                ReferencePlan::Trajectory(t)
+            }
+            (None, false) => {
+                let mut list = Vec::new();
+                for (i, s) in raw.setpoints.iter().enumerate() {
+                    let at = |f: &str| format!("setpoint[{}].{f}", i + 1);
+                    check_time(&at("at_s"), s.at_s, raw.duration_s).map_err(|p| fail(&at("at_s"), p))?;
+                    if !s.yaw_deg.is_finite() {
+                        return Err(fail(&at("yaw_deg"), format!("must be finite, got {}", s.yaw_deg)));
+                    }
+                    let yaw = s.yaw_deg.to_radians();
+                    let sp = match (s.position_ned, s.velocity_ned) {
+                        (Some(p), None) => Setpoint::position(finite3(&at("position_ned"), p)?, yaw),
+                        (None, Some(v)) => Setpoint::velocity(finite3(&at("velocity_ned"), v)?, yaw),
+                        _ => {
+                            return Err(fail(
+                                &at("position_ned"),
+                                "give exactly one of position_ned, velocity_ned".into(),
+                            ));
+                        }
+                    };
+                    list.push((s.at_s, sp));
+                }
+                list.sort_by(|a, b| a.0.total_cmp(&b.0));
+                ReferencePlan::Setpoints(list)
+            }
+        };
+        let mut disturbances = Vec::new();
+        for (i, d) in raw.disturbances.iter().enumerate() {
+            let at = |f: &str| format!("disturbance[{}].{f}", i + 1);
+            check_time(&at("at_s"), d.at_s, raw.duration_s).map_err(|p| fail(&at("at_s"), p))?;
+            if let Some(m) = d.true_mass_kg
+                && !(m.is_finite() && m > 0.0)
+            {
+                return Err(fail(&at("true_mass_kg"), format!("must be finite and > 0, got {m}")));
+            }
+            disturbances.push(DisturbanceChange {
+                at_s: d.at_s,
+                force_ned: d.force_ned.map(|v| finite3(&at("force_ned"), v)).transpose()?,
+                torque_frd: d.torque_frd.map(|v| finite3(&at("torque_frd"), v)).transpose()?,
+                true_mass_kg: d.true_mass_kg,
+            });
+        }
+        disturbances.sort_by(|a, b| a.at_s.total_cmp(&b.at_s));
+        let mut switches = Vec::new();
+        for (i, s) in raw.switches.iter().enumerate() {
+            let field = format!("switch[{}].at_s", i + 1);
+            check_time(&field, s.at_s, raw.duration_s).map_err(|p| fail(&field, p))?;
+            switches.push((s.at_s, s.controller));
+        }
+        switches.sort_by(|a, b| a.0.total_cmp(&b.0));
+        Ok(Self {
+            source: file.to_string(),
+            airframe,
+            controller: raw.controller,
+            gains,
+            duration_s: raw.duration_s,
+            step_s: raw.step_s,
+            seed: raw.seed,
+            noise: raw.noise,
+            world: raw.world,
+            estimator,
+            feedback: raw.estimator.feedback,
+            initial,
+            reference,
+            disturbances,
+            switches,
+        })
+    }
+}
+
+fn check_time(_field: &str, t: f64, duration: f64) -> Result<(), String> {
+    if t.is_finite() && t >= 0.0 && t <= duration {
+        Ok(())
+    } else {
+        Err(format!("must be within [0, duration_s = {duration}] s, got {t}"))
+    }
+}

@@ -9,6 +9,11 @@
 //! | [`vehicle`] | the lockstep loop: measure, estimate, control, allocate, integrate | all pure modules |
 //! | [`scenario`] | scenario files and the flat-out runner behind `rotorpilot simulate` | `vehicle` |
 //! | [`flightlog`] | flight-log CSV reading and the offline estimator sweep of `rotorpilot estimate` | `estimation` |
+//! | [`geo`] | flat-earth NED <-> latitude/longitude/AMSL around home | nalgebra |
+//! | [`params`] | the parameter table (PX4 style), typed store, validation, atomic persistence | (pure) |
+//! | [`autopilot`] | arming, flight modes, takeoff/land/RTL/hold/offboard, telemetry snapshot | `vehicle`, `params`, `geo` |
+//! | [`link`] | MAVLink 2 over UDP as PX4 SITL: peers, streams, handlers (protocol only, never physics) | `autopilot`, `params` (types) |
+//! | [`daemon`] | the tokio runtime: paces simulated time, owns sockets, shutdown | everything |
 //! | [`cli`] | the `rotorpilot` command line (thin: parses, calls the modules, prints) | everything |
 //! | [`signals`] | values passed between blocks: measurement, nominal model, wrench estimate | nalgebra |
 //! | [`control`] | the three controllers (hierarchical, geometric, passivity-based) and the reference shaper | `math`, `signals`, `airframe` (types) |
@@ -30,12 +35,17 @@
 #![warn(missing_docs, missing_debug_implementations, unreachable_pub)]
 
 pub mod airframe;
+pub mod autopilot;
 pub mod cli;
 pub mod control;
+pub mod daemon;
 pub mod estimation;
 pub mod flightlog;
+pub mod geo;
+pub mod link;
 pub mod math;
 pub mod model;
+pub mod params;
 pub mod scenario;
 pub mod signals;
 pub mod vehicle;

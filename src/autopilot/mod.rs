@@ -1,0 +1,211 @@
+//! The autopilot as clients see it: arming, flight modes, takeoff, landing,
+//! return, hold, position, offboard (and later missions), failsafes. Pure and
+//! stepped by simulated time: it owns the [`crate::vehicle::Vehicle`], turns
+//! the mode and its setpoints into references, and publishes [`Telemetry`].
+//! The MAVLink layer talks to it only through [`AutopilotCommand`],
+//! [`CommandOutcome`], [`Telemetry`] and the parameter store.
+//!
+//! (Types below are the contract with `link`; behaviour is being written.)
+
+use nalgebra::{UnitQuaternion, Vector3};
+use serde::Serialize;
+
+use crate::geo::GeoPoint;
+use crate::signals::WrenchEstimate;
+
+/// Flight modes, as PX4 names them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum FlightMode {
+    /// POSCTL: hold position, move with (offboard-free) velocity input; here: hold.
+    Position,
+    /// AUTO.LOITER (Hold): hold the current position; PX4's idle mode.
+    Hold,
+    /// AUTO.TAKEOFF: climb to the takeoff altitude, then Hold.
+    Takeoff,
+    /// AUTO.LAND: descend and land where it is, then disarm.
+    Land,
+    /// AUTO.RTL: climb to RTL_RETURN_ALT, fly home, land.
+    ReturnToLaunch,
+    /// OFFBOARD: follow the external setpoint stream.
+    Offboard,
+    /// AUTO.MISSION (filled by a later issue).
+    Mission,
+}
+
+/// What the vehicle reports as its landed state (MAV_LANDED_STATE).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum LandedState {
+    /// On the ground.
+    OnGround,
+    /// Flying.
+    InAir,
+    /// Taking off.
+    Takeoff,
+    /// Landing.
+    Landing,
+}
+
+/// An offboard setpoint (SET_POSITION_TARGET_* / SET_ATTITUDE_TARGET, already in NED/FRD SI units).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum OffboardSetpoint {
+    /// Position / velocity / acceleration targets in local NED; `None` = ignored by the mask.
+    Local {
+        /// Position [m], NED.
+        position_ned: Option<Vector3<f64>>,
+        /// Velocity [m/s], NED.
+        velocity_ned: Option<Vector3<f64>>,
+        /// Acceleration [m/s^2], NED.
+        acceleration_ned: Option<Vector3<f64>>,
+        /// Yaw [rad].
+        yaw_rad: Option<f64>,
+        /// Yaw rate [rad/s].
+        yaw_rate_rad_s: Option<f64>,
+    },
+    /// Attitude (or body rates) and normalised thrust.
+    Attitude {
+        /// Attitude, FRD to NED; `None` = rates only.
+        attitude: Option<UnitQuaternion<f64>>,
+        /// Body rates [rad/s], FRD; `None` = ignored.
+        rate_frd: Option<Vector3<f64>>,
+        /// Collective thrust, 0..1 of the maximum.
+        thrust_normalised: f64,
+    },
+}
+
+/// A command to the autopilot. NaN from MAVLink is mapped to `None` by the link.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AutopilotCommand {
+    /// Arm (prearm checks unless forced).
+    Arm {
+        /// MAV_CMD_COMPONENT_ARM_DISARM p2 = 21196.
+        force: bool,
+    },
+    /// Disarm (refused in flight unless forced).
+    Disarm {
+        /// MAV_CMD_COMPONENT_ARM_DISARM p2 = 21196.
+        force: bool,
+    },
+    /// Take off to this altitude AMSL [m], `None` = home + MIS_TAKEOFF_ALT (PX4 raises lower values to that).
+    Takeoff {
+        /// Target altitude AMSL [m].
+        altitude_amsl_m: Option<f64>,
+    },
+    /// Land where it is.
+    Land,
+    /// Return to launch.
+    ReturnToLaunch,
+    /// Switch mode.
+    SetMode(FlightMode),
+    /// Fly to a point and hold there (DO_REPOSITION): `None` parts keep the current value.
+    Reposition {
+        /// Latitude [deg].
+        lat_deg: Option<f64>,
+        /// Longitude [deg].
+        lon_deg: Option<f64>,
+        /// Altitude AMSL [m].
+        alt_amsl_m: Option<f64>,
+        /// Yaw [rad].
+        yaw_rad: Option<f64>,
+        /// Ground speed [m/s].
+        speed_m_s: Option<f64>,
+    },
+    /// Change the cruise speed [m/s] (DO_CHANGE_SPEED).
+    ChangeSpeed {
+        /// Ground speed [m/s].
+        speed_m_s: f64,
+    },
+    /// Set home here (`None`) or at a point.
+    SetHome(Option<GeoPoint>),
+    /// A new offboard setpoint.
+    Offboard(OffboardSetpoint),
+}
+
+/// The answer to a command (mapped to MAV_RESULT by the link).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CommandOutcome {
+    /// Done or started.
+    Accepted,
+    /// Not now (PX4's TEMPORARILY_REJECTED), with a reason for STATUSTEXT.
+    TemporarilyRejected(&'static str),
+    /// Never in this state (DENIED), with a reason.
+    Denied(&'static str),
+    /// Failed, with a reason.
+    Failed(&'static str),
+}
+
+/// STATUSTEXT severity (MAV_SEVERITY).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum Severity {
+    /// 0
+    Emergency,
+    /// 2
+    Critical,
+    /// 3
+    Error,
+    /// 4
+    Warning,
+    /// 5
+    Notice,
+    /// 6
+    Info,
+}
+
+/// An event to announce as STATUSTEXT.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct StatusText {
+    /// Severity.
+    pub severity: Severity,
+    /// Text (at most 50 characters fit one STATUSTEXT).
+    pub text: String,
+}
+
+/// A snapshot of everything telemetry needs, in SI units and NED/FRD.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Telemetry {
+    /// Simulated time since boot [s].
+    pub time_s: f64,
+    /// Armed.
+    pub armed: bool,
+    /// Mode.
+    pub mode: FlightMode,
+    /// Landed state.
+    pub landed: LandedState,
+    /// Position [m], NED from home's origin.
+    pub position_ned: Vector3<f64>,
+    /// Velocity [m/s], NED.
+    pub velocity_ned: Vector3<f64>,
+    /// Acceleration [m/s^2], NED (for VFR_HUD climb etc.).
+    pub acceleration_ned: Vector3<f64>,
+    /// Attitude, FRD to NED.
+    pub attitude: UnitQuaternion<f64>,
+    /// Body rates [rad/s], FRD.
+    pub rate_frd: Vector3<f64>,
+    /// Global position.
+    pub global: GeoPoint,
+    /// The NED origin (where the vehicle booted).
+    pub origin: GeoPoint,
+    /// Home.
+    pub home: GeoPoint,
+    /// Home in local NED [m].
+    pub home_ned: Vector3<f64>,
+    /// Battery voltage [V].
+    pub battery_voltage_v: f64,
+    /// Battery current [A].
+    pub battery_current_a: f64,
+    /// Charge used [mAh].
+    pub battery_consumed_mah: f64,
+    /// Remaining charge, 0..1.
+    pub battery_remaining: f64,
+    /// Normalised collective thrust 0..1 (VFR_HUD throttle).
+    pub throttle: f64,
+    /// The wrench estimate (force NED, torque FRD, real mass).
+    pub estimate: WrenchEstimate,
+    /// The injected truth, for tools that compare.
+    pub injected_force_ned: Vector3<f64>,
+    /// Injected torque [N m], FRD.
+    pub injected_torque_frd: Vector3<f64>,
+    /// True mass [kg].
+    pub true_mass_kg: f64,
+    /// Prearm checks pass.
+    pub prearm_ok: bool,
+}

@@ -1,0 +1,1 @@
+//! The tokio runtime: paces simulated time, owns the sockets (being written).

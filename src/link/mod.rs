@@ -1,0 +1,1 @@
+//! MAVLink 2 over UDP as PX4 SITL does (being written).

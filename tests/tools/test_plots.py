@@ -1,0 +1,57 @@
+"""The plotting tools turn real logs into PNG figures.
+
+Run by tools/test-all.sh with the pinned matplotlib; ROTORPILOT_BIN points at
+the release binary.
+"""
+import os
+import subprocess
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+BIN = os.environ.get("ROTORPILOT_BIN", os.path.join(ROOT, "target", "release", "rotorpilot"))
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def run(*args, **kw):
+    return subprocess.run(args, check=True, capture_output=True, text=True, timeout=120, **kw)
+
+
+def assert_pngs(paths):
+    assert paths, "no figure written"
+    for p in paths:
+        with open(p, "rb") as f:
+            head = f.read(8)
+        assert head == PNG_MAGIC, p
+        assert os.path.getsize(p) > 10_000, f"{p} is suspiciously small"
+
+
+def test_plot_flight_draws_the_reports_figures(tmp_path):
+    log = tmp_path / "ex5.csv"
+    run(BIN, "simulate", os.path.join(ROOT, "tools/scenarios/fsr-exercise5.toml"), "--csv", str(log))
+    out = run(sys.executable, os.path.join(ROOT, "tools/plot_flight.py"), str(log), "--out", str(tmp_path / "fig"))
+    written = out.stdout.split()
+    names = {os.path.basename(p) for p in written}
+    assert {"position_error.png", "velocity_error.png", "attitude_error.png", "angular_velocity.png",
+            "inputs.png"} <= names
+    assert_pngs(written)
+
+
+def test_plot_estimates_draws_three_figures_per_order_and_a_comparison(tmp_path):
+    log = tmp_path / "ex4.csv"
+    run(BIN, "simulate", os.path.join(ROOT, "tools/scenarios/fsr-exercise4.toml"), "--csv", str(log))
+    run(BIN, "estimate", str(log), "--order", "1,5,20", "--poly", "binomial")
+    out = run(sys.executable, os.path.join(ROOT, "tools/plot_estimates.py"), str(log),
+              str(tmp_path / "ex4-estimates.csv"), "--orders", "1,5,20", "--poly", "binomial",
+              "--out", str(tmp_path / "fig"))
+    written = out.stdout.split()
+    assert len(written) == 3 * 3 + 1
+    assert_pngs(written)
+
+
+def test_plot_flight_refuses_a_log_without_the_columns(tmp_path):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("time_s,x\n0,1\n0.001,2\n")
+    r = subprocess.run([sys.executable, os.path.join(ROOT, "tools/plot_flight.py"), str(bad)],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode != 0
+    assert "bad.csv:1: missing column" in r.stderr

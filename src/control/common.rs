@@ -70,7 +70,10 @@ pub(super) fn sanitize_reference(r: &Reference, meas: &Measurement) -> (Referenc
             bad = true;
         }
     };
-    fix_s(&mut out.yaw_rad, euler_zyx(&meas.attitude).z);
+    if !out.yaw_rad.is_finite() {
+        // only now pay for the Euler angles
+        fix_s(&mut out.yaw_rad, euler_zyx(&meas.attitude).z);
+    }
     fix_s(&mut out.yaw_rate_rad_s, 0.0);
     fix_s(&mut out.yaw_accel_rad_s2, 0.0);
     (out, bad)

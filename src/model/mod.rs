@@ -449,15 +449,23 @@ impl Plant {
     }
 
     fn deriv(&self, s: &RigidBodyState, w: &ControlWrench, ext: &ExternalWrench, gyro_h: f64) -> Deriv {
-        let q = s.attitude;
-        // thrust along -z_b, expressed in NED
-        let thrust_ned = q * Vector3::new(0.0, 0.0, -w.thrust_n);
+        // thrust along -z_b in NED: -u_T R e3, with R e3 the third column of
+        // R(q) = [2(xz + wy), 2(yz - wx), w^2 - x^2 - y^2 + z^2] / |q|^2 (RK4
+        // stages carry unnormalised quaternions)
+        let q = s.attitude.quaternion();
+        let (qw, qx, qy, qz) = (q.w, q.i, q.j, q.k);
+        let r_e3 = Vector3::new(
+            2.0 * (qx * qz + qw * qy),
+            2.0 * (qy * qz - qw * qx),
+            qw * qw - qx * qx - qy * qy + qz * qz,
+        ) / q.norm_squared();
+        let thrust_ned = r_e3 * (-w.thrust_n);
         let acc = Vector3::new(0.0, 0.0, GRAVITY) + (thrust_ned + ext.force_ned) / self.mass;
         let om = s.rate_frd;
         // rotor gyroscopics: -w x sum h_i with sum h_i = [0, 0, gyro_h]
         let gyro = -om.cross(&Vector3::new(0.0, 0.0, gyro_h));
         let alpha = self.inertia_inv * (w.torque_frd + ext.torque_frd - om.cross(&(self.inertia * om)) + gyro);
-        let qd = q.quaternion() * Quaternion::new(0.0, om.x, om.y, om.z) * 0.5;
+        let qd = q * Quaternion::new(0.0, om.x, om.y, om.z) * 0.5;
         Deriv {
             p: s.velocity_ned,
             v: acc,

@@ -10,41 +10,15 @@ use super::{
 use nalgebra::Matrix3;
 
 use crate::control::{ControlGains, GainOverrides};
+use crate::tomlfile::{self, FileError};
 use serde::Deserialize;
 
 /// Why an airframe could not be loaded.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum AirframeError {
-    /// The file could not be read.
-    #[error("{file}: cannot read: {message}")]
-    Io {
-        /// Path as given.
-        file: String,
-        /// OS message.
-        message: String,
-    },
-    /// Not valid TOML, or a key is unknown, missing or of the wrong type.
-    #[error("{file}:{line}:{column}: {message}")]
-    Syntax {
-        /// Path or built-in label.
-        file: String,
-        /// 1-based line of the offending text.
-        line: usize,
-        /// 1-based column.
-        column: usize,
-        /// The parser's message, which names the key.
-        message: String,
-    },
-    /// A value is out of its physical range or inconsistent with others.
-    #[error("{file}: {field}: {problem}")]
-    Invalid {
-        /// Path or built-in label.
-        file: String,
-        /// Dotted field name.
-        field: String,
-        /// What is wrong.
-        problem: String,
-    },
+    /// The file is unreadable, not valid TOML, or a value is wrong.
+    #[error(transparent)]
+    File(#[from] FileError),
     /// Neither a file nor a built-in airframe.
     #[error("unknown airframe `{name}`: not a file and not a built-in airframe ({builtin})")]
     Unknown {
@@ -121,25 +95,9 @@ struct FileCeilingEffect {
     k2_m: f64,
 }
 
-/// Line and column (1-based) of a byte offset.
-pub(crate) fn line_column(text: &str, offset: usize) -> (usize, usize) {
-    let before = &text[..offset.min(text.len())];
-    let line = before.matches('\n').count() + 1;
-    let column = before.rsplit('\n').next().map_or(0, str::len) + 1;
-    (line, column)
-}
-
 pub(super) fn parse(text: &str, file: &str) -> Result<Airframe, AirframeError> {
-    let raw: FileAirframe = toml::from_str(text).map_err(|e| {
-        let (line, column) = e.span().map_or((0, 0), |s| line_column(text, s.start));
-        AirframeError::Syntax {
-            file: file.to_string(),
-            line,
-            column,
-            message: e.message().trim().to_string(),
-        }
-    })?;
-    validate(raw, file)
+    let raw: FileAirframe = tomlfile::parse(text, file)?;
+    Ok(validate(raw, file)?)
 }
 
 struct Checker<'a> {
@@ -147,16 +105,12 @@ struct Checker<'a> {
 }
 
 impl Checker<'_> {
-    fn fail(&self, field: impl Into<String>, problem: impl Into<String>) -> AirframeError {
-        AirframeError::Invalid {
-            file: self.file.to_string(),
-            field: field.into(),
-            problem: problem.into(),
-        }
+    fn fail(&self, field: impl Into<String>, problem: impl Into<String>) -> FileError {
+        FileError::invalid(self.file, field, problem)
     }
 
     /// `value` must be finite and strictly positive.
-    fn positive(&self, field: &str, value: f64) -> Result<f64, AirframeError> {
+    fn positive(&self, field: &str, value: f64) -> Result<f64, FileError> {
         if value.is_finite() && value > 0.0 {
             Ok(value)
         } else {
@@ -165,7 +119,7 @@ impl Checker<'_> {
     }
 
     /// `value` must be finite and not negative.
-    fn non_negative(&self, field: &str, value: f64) -> Result<f64, AirframeError> {
+    fn non_negative(&self, field: &str, value: f64) -> Result<f64, FileError> {
         if value.is_finite() && value >= 0.0 {
             Ok(value)
         } else {
@@ -175,7 +129,7 @@ impl Checker<'_> {
 }
 
 #[allow(clippy::too_many_lines)]
-fn validate(raw: FileAirframe, file: &str) -> Result<Airframe, AirframeError> {
+fn validate(raw: FileAirframe, file: &str) -> Result<Airframe, FileError> {
     let c = Checker { file };
     if raw.name.trim().is_empty() {
         return Err(c.fail("name", "must not be empty"));
@@ -329,15 +283,4 @@ fn validate(raw: FileAirframe, file: &str) -> Result<Airframe, AirframeError> {
         }
     }
     Ok(airframe)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::line_column;
-
-    #[test]
-    fn line_column_counts_from_one() {
-        assert_eq!(line_column("a\nbc\nd", 3), (2, 2));
-        assert_eq!(line_column("abc", 0), (1, 1));
-    }
 }

@@ -19,7 +19,6 @@ mod report;
 pub use allocation::{Allocation, Allocator, ControlWrench, MAX_ROTORS, RotorVector, effectiveness, rank, wrench_map};
 pub use failure::{FailureAnalysis, HoverVerdict, TorqueMargins, analyse_failures, hover_margins, intact_verdict};
 pub use file::AirframeError;
-pub(crate) use file::line_column;
 pub use report::AirframeReport;
 
 use nalgebra::{Matrix3, Vector3};
@@ -185,10 +184,11 @@ impl Airframe {
             return Self::from_toml(text, &format!("built-in {name} (params/airframes/{name}.toml)"));
         }
         if name_or_path.contains('/') || name_or_path.ends_with(".toml") {
-            return Err(AirframeError::Io {
+            return Err(crate::tomlfile::FileError::Io {
                 file: name_or_path.to_string(),
                 message: "no such file".into(),
-            });
+            }
+            .into());
         }
         Err(AirframeError::Unknown {
             name: name_or_path.to_string(),
@@ -201,12 +201,8 @@ impl Airframe {
     /// # Errors
     /// [`AirframeError`] naming the file, the field and the problem.
     pub fn from_file(path: &std::path::Path) -> Result<Self, AirframeError> {
-        let label = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| AirframeError::Io {
-            file: label.clone(),
-            message: e.to_string(),
-        })?;
-        Self::from_toml(&text, &label)
+        let text = crate::tomlfile::read(path)?;
+        Self::from_toml(&text, &path.display().to_string())
     }
 
     /// Parse and validate airframe TOML; `file` labels error messages.

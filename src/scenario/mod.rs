@@ -22,40 +22,14 @@ use crate::airframe::{Airframe, AirframeError};
 use crate::control::{ControlGains, ControllerKind, GainOverrides, Setpoint};
 use crate::estimation::{Discretization, EstimatorConfig, Polynomial};
 use crate::model::{SensorNoise, World};
+use crate::tomlfile::{self, FileError};
 
 /// Why a scenario could not be loaded.
 #[derive(Debug, thiserror::Error)]
 pub enum ScenarioError {
-    /// The file could not be read.
-    #[error("{file}: cannot read: {message}")]
-    Io {
-        /// Path.
-        file: String,
-        /// OS message.
-        message: String,
-    },
-    /// Not valid TOML, or a key unknown, missing or mistyped.
-    #[error("{file}:{line}:{column}: {message}")]
-    Syntax {
-        /// Path.
-        file: String,
-        /// 1-based line.
-        line: usize,
-        /// 1-based column.
-        column: usize,
-        /// Parser message naming the key.
-        message: String,
-    },
-    /// A value out of range or inconsistent.
-    #[error("{file}: {field}: {problem}")]
-    Invalid {
-        /// Path.
-        file: String,
-        /// Dotted field.
-        field: String,
-        /// What is wrong.
-        problem: String,
-    },
+    /// The file is unreadable, not valid TOML, or a value is wrong.
+    #[error(transparent)]
+    File(#[from] FileError),
     /// The airframe it names could not be loaded.
     #[error("{file}: airframe: {source}")]
     Airframe {
@@ -241,12 +215,8 @@ impl Scenario {
     /// # Errors
     /// [`ScenarioError`] naming the file, the field and the problem.
     pub fn from_file(path: &std::path::Path) -> Result<Self, ScenarioError> {
-        let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| ScenarioError::Io {
-            file: file.clone(),
-            message: e.to_string(),
-        })?;
-        Self::from_toml(&text, &file, path.parent())
+        let text = tomlfile::read(path)?;
+        Self::from_toml(&text, &path.display().to_string(), path.parent())
     }
 
     /// Parse and validate scenario TOML (`file` labels errors; `dir` resolves a relative airframe path).
@@ -255,20 +225,8 @@ impl Scenario {
     /// [`ScenarioError`] naming the file, the field and the problem.
     #[allow(clippy::too_many_lines)]
     pub fn from_toml(text: &str, file: &str, dir: Option<&std::path::Path>) -> Result<Self, ScenarioError> {
-        let raw: File = toml::from_str(text).map_err(|e| {
-            let (line, column) = e.span().map_or((0, 0), |s| crate::airframe::line_column(text, s.start));
-            ScenarioError::Syntax {
-                file: file.to_string(),
-                line,
-                column,
-                message: e.message().trim().to_string(),
-            }
-        })?;
-        let fail = |field: &str, problem: String| ScenarioError::Invalid {
-            file: file.to_string(),
-            field: field.to_string(),
-            problem,
-        };
+        let raw: File = tomlfile::parse(text, file)?;
+        let fail = |field: &str, problem: String| ScenarioError::File(FileError::invalid(file, field, problem));
         let airframe_spec = match dir {
             Some(d) if raw.airframe.ends_with(".toml") && !std::path::Path::new(&raw.airframe).is_absolute() => {
                 d.join(&raw.airframe).display().to_string()

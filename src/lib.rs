@@ -14,6 +14,7 @@
 //! | [`autopilot`] | arming, flight modes, takeoff/land/RTL/hold/offboard, telemetry snapshot | `vehicle`, `params`, `geo` |
 //! | [`link`] | MAVLink 2 over UDP as PX4 SITL: peers, streams, handlers (protocol only, never physics) | `autopilot`, `params` (types) |
 //! | [`daemon`] | the tokio runtime: paces simulated time, owns sockets, shutdown | everything |
+//! | [`tomlfile`] | TOML files to typed values, errors naming file, line/field and problem | serde, toml |
 //! | [`cli`] | the `rotorpilot` command line (thin: parses, calls the modules, prints) | everything |
 //! | [`signals`] | values passed between blocks: measurement, nominal model, wrench estimate | nalgebra |
 //! | [`control`] | the three controllers (hierarchical, geometric, passivity-based) and the reference shaper | `math`, `signals`, `airframe` (types) |
@@ -48,4 +49,5 @@ pub mod model;
 pub mod params;
 pub mod scenario;
 pub mod signals;
+pub mod tomlfile;
 pub mod vehicle;

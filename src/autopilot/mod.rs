@@ -1,11 +1,44 @@
 //! The autopilot as clients see it: arming, flight modes, takeoff, landing,
 //! return, hold, position, offboard (and later missions), failsafes. Pure and
-//! stepped by simulated time: it owns the [`crate::vehicle::Vehicle`], turns
-//! the mode and its setpoints into references, and publishes [`Telemetry`].
-//! The MAVLink layer talks to it only through [`AutopilotCommand`],
-//! [`CommandOutcome`], [`Telemetry`] and the parameter store.
+//! stepped by simulated time: [`Autopilot`] owns the plant, controller,
+//! estimator and allocator (the lockstep loop of [`crate::vehicle`], plus a
+//! stopped and an idle path and attitude setpoints), turns the mode and its
+//! setpoints into references, and publishes [`Telemetry`]. The MAVLink layer
+//! talks to it only through [`AutopilotCommand`], [`CommandOutcome`],
+//! [`Telemetry`], [`StatusText`] and the parameter store.
 //!
-//! (Types below are the contract with `link`; behaviour is being written.)
+//! # Behaviour (PX4's, doc `mavlink-compat.md` sections 3, 5, 8, 12)
+//! * Boot: disarmed, on the ground at home (the NED origin; the ground is at
+//!   NED z = 0 and the centre of mass rests `gear_height_m` above it), Hold.
+//! * Arm: prearm checks (landed, estimator initialised, home valid, mode
+//!   armable); `force` skips them. Disarm refused in the air unless forced.
+//!   Auto-disarm `COM_DISARM_LAND` s after a landing, `COM_DISARM_PRFLT` s
+//!   after arming without a takeoff. Disarming selects Hold.
+//! * Armed on the ground in Hold, Position, Land or RTL the rotors idle.
+//! * Takeoff climbs at `MPC_TKO_SPEED` to home + `MIS_TAKEOFF_ALT` (or higher
+//!   AMSL target), then Hold there. Land descends at `MPC_Z_VEL_MAX_DN` above
+//!   `MPC_LAND_ALT1` and `MPC_LAND_SPEED` below; RTL climbs to
+//!   `RTL_RETURN_ALT`, returns at the cruise speed, descends to
+//!   `RTL_DESCEND_ALT`, lands. Reposition is Hold with a target.
+//! * Offboard: accepted with a setpoint younger than `COM_OF_LOSS_T`; left
+//!   for `COM_OBL_RC_ACT`'s action (Hold by default) when they stop. Landed,
+//!   the rotors idle until a setpoint asks to climb (a position 0.2 m above,
+//!   a climb rate above 0.3 m/s, an upward acceleration, or any attitude
+//!   setpoint), PX4's takeoff trigger: ground effect never hops it off.
+//! * Landing detector: ground contact for 0.25 s; liftoff at once.
+//! * References come from the jerk-limited shaper ([`crate::control::shaper`])
+//!   with the mode's speed limits; offboard attitude and rates go to
+//!   [`crate::control::Controller::update_attitude`].
+//!
+//! The estimator restarts on every step the vehicle rests on the ground (the
+//! ground's reaction is not a disturbance to learn) and estimates from liftoff on.
+
+mod battery;
+mod commands;
+mod pilot;
+mod settings;
+
+pub use pilot::{Autopilot, AutopilotError};
 
 use nalgebra::{UnitQuaternion, Vector3};
 use serde::Serialize;

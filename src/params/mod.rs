@@ -2,8 +2,25 @@
 //! type, default, range, unit and description in one table; MAVLink's
 //! PARAM_* protocol, the persisted file and the README table derive from it.
 //!
-//! (Types below are the contract with `link` and `autopilot`; the table,
-//! store and persistence are being written.)
+//! * [`PARAMS`] (`table.rs`): the table, in MAVLink index order.
+//! * [`ParamStore`] (`store.rs`): typed values with airframe-dependent
+//!   defaults, checked `set` that changes nothing on refusal ([`ParamError`]).
+//! * persistence (`file.rs`): [`ParamStore::save`] writes a small TOML file
+//!   (`NAME = value`, one per line) atomically; [`ParamStore::load`] reads it
+//!   line by line, skipping bad entries with a warning and keeping the rest.
+//!
+//! INT32 values travel *bytewise* in MAVLink's float field, as PX4 sends them
+//! ([`ParamValue::to_mavlink_float`], [`ParamValue::from_mavlink`]).
+//!
+//! Pure: no clock, no global state; only `save`/`load` touch the file system.
+
+mod file;
+mod store;
+mod table;
+
+pub use file::ParamFileError;
+pub use store::{ParamError, ParamStore};
+pub use table::{PARAMS, markdown_table};
 
 use serde::Serialize;
 
@@ -16,6 +33,42 @@ pub enum ParamType {
     Real32,
 }
 
+impl ParamType {
+    /// The MAV_PARAM_TYPE number: 6 for INT32, 9 for REAL32.
+    #[must_use]
+    pub fn mavlink_id(self) -> u8 {
+        match self {
+            ParamType::Int32 => 6,
+            ParamType::Real32 => 9,
+        }
+    }
+
+    /// The type of a MAV_PARAM_TYPE number (only 6 and 9 are used, as in PX4).
+    #[must_use]
+    pub fn from_mavlink_id(id: u8) -> Option<ParamType> {
+        match id {
+            6 => Some(ParamType::Int32),
+            9 => Some(ParamType::Real32),
+            _ => None,
+        }
+    }
+
+    /// `INT32` or `REAL32`.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            ParamType::Int32 => "INT32",
+            ParamType::Real32 => "REAL32",
+        }
+    }
+}
+
+impl std::fmt::Display for ParamType {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// A typed parameter value.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub enum ParamValue {
@@ -25,6 +78,57 @@ pub enum ParamValue {
     Real32(f32),
 }
 
+impl ParamValue {
+    /// The type of this value.
+    #[must_use]
+    pub fn kind(&self) -> ParamType {
+        match self {
+            ParamValue::Int32(_) => ParamType::Int32,
+            ParamValue::Real32(_) => ParamType::Real32,
+        }
+    }
+
+    /// The value as `f64` (exact for both types).
+    #[must_use]
+    pub fn as_f64(&self) -> f64 {
+        match *self {
+            ParamValue::Int32(i) => f64::from(i),
+            ParamValue::Real32(x) => f64::from(x),
+        }
+    }
+
+    /// The `param_value` float of PARAM_VALUE / PARAM_SET as PX4 sends it:
+    /// REAL32 as is, INT32 *bytewise* (`f32::from_bits(i as u32)`, so INT32 1
+    /// travels as about 1.4e-45).
+    #[must_use]
+    pub fn to_mavlink_float(&self) -> f32 {
+        match *self {
+            ParamValue::Int32(i) => f32::from_bits(i.cast_unsigned()),
+            ParamValue::Real32(x) => x,
+        }
+    }
+
+    /// Decode a `param_value` float with its MAV_PARAM_TYPE number (6 INT32
+    /// bytewise, 9 REAL32); `None` for any other type.
+    #[must_use]
+    pub fn from_mavlink(kind: u8, value: f32) -> Option<ParamValue> {
+        match ParamType::from_mavlink_id(kind)? {
+            ParamType::Int32 => Some(ParamValue::Int32(value.to_bits().cast_signed())),
+            ParamType::Real32 => Some(ParamValue::Real32(value)),
+        }
+    }
+}
+
+impl std::fmt::Display for ParamValue {
+    /// Integers as integers; floats in the shortest form that reads back to the same `f32`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ParamValue::Int32(i) => write!(f, "{i}"),
+            ParamValue::Real32(x) => write!(f, "{x}"),
+        }
+    }
+}
+
 /// One declared parameter.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct ParamSpec {
@@ -32,14 +136,66 @@ pub struct ParamSpec {
     pub name: &'static str,
     /// Type.
     pub kind: ParamType,
-    /// Default value.
+    /// Default value. For the few parameters whose default depends on the
+    /// airframe (`SIM_MASS`, `MDL_MASS`) this is the default vehicle's
+    /// (`quad`) and the description says so; [`ParamStore::default_value`]
+    /// gives the one in force.
     pub default: f64,
     /// Smallest allowed value.
     pub min: f64,
     /// Largest allowed value.
     pub max: f64,
-    /// Unit (`m`, `m/s`, `N`, `kg`, `rad/s`, `s`, or empty).
+    /// Unit (`m`, `m/s`, `N`, `N m`, `kg`, `rad/s`, `s`, `mAh`, `%`, or empty).
     pub unit: &'static str,
     /// One-line description.
     pub description: &'static str,
+    /// The value is stored and persisted at once but used only from the next
+    /// start (PX4's `reboot_required`), e.g. `MAV_SYS_ID`.
+    pub reboot_required: bool,
+}
+
+impl ParamSpec {
+    /// The declared default as a typed value.
+    #[must_use]
+    pub fn default_value(&self) -> ParamValue {
+        match self.kind {
+            // the table's integer defaults are small whole numbers (checked by a test)
+            ParamType::Int32 => ParamValue::Int32(self.default as i32),
+            ParamType::Real32 => ParamValue::Real32(self.default as f32),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn int32_travels_bytewise_and_real32_as_is() {
+        let one = ParamValue::Int32(1);
+        let f = one.to_mavlink_float();
+        assert_eq!(f.to_bits(), 1);
+        assert!(f > 0.0 && f < 1e-44, "denormal, as PX4 sends it");
+        assert_eq!(ParamValue::from_mavlink(6, f), Some(one));
+        let neg = ParamValue::Int32(-7);
+        assert_eq!(ParamValue::from_mavlink(6, neg.to_mavlink_float()), Some(neg));
+        let big = ParamValue::Int32(i32::MAX);
+        assert_eq!(ParamValue::from_mavlink(6, big.to_mavlink_float()), Some(big));
+        let r = ParamValue::Real32(2.5);
+        assert_eq!(r.to_mavlink_float(), 2.5);
+        assert_eq!(ParamValue::from_mavlink(9, 2.5), Some(r));
+        assert_eq!(ParamValue::from_mavlink(4, 1.0), None);
+        assert_eq!(ParamType::Int32.mavlink_id(), 6);
+        assert_eq!(ParamType::Real32.mavlink_id(), 9);
+        assert_eq!(ParamType::from_mavlink_id(10), None);
+    }
+
+    #[test]
+    fn display_round_trips() {
+        for v in [0.1f32, 2.5, 1e-7, 123_456.79, -3.0] {
+            let s = ParamValue::Real32(v).to_string();
+            assert_eq!(s.parse::<f32>().unwrap(), v);
+        }
+        assert_eq!(ParamValue::Int32(-3).to_string(), "-3");
+    }
 }

@@ -1,0 +1,372 @@
+//! The parameter table: every parameter once, as data, in MAVLink index order
+//! (PX4 names and defaults first, then rotorpilot's own). PX4 defaults and
+//! ranges are from PX4 v1.14 `module.yaml`/`*_params.c` where a client reads
+//! them (doc `mavlink-compat.md` sections 5, 6, 8 and 12).
+
+use super::{ParamSpec, ParamType};
+
+/// A REAL32 parameter.
+const fn real(
+    name: &'static str,
+    default: f64,
+    min: f64,
+    max: f64,
+    unit: &'static str,
+    description: &'static str,
+) -> ParamSpec {
+    ParamSpec {
+        name,
+        kind: ParamType::Real32,
+        default,
+        min,
+        max,
+        unit,
+        description,
+        reboot_required: false,
+    }
+}
+
+/// An INT32 parameter.
+const fn int(name: &'static str, default: i32, min: i32, max: i32, description: &'static str) -> ParamSpec {
+    ParamSpec {
+        name,
+        kind: ParamType::Int32,
+        default: default as f64,
+        min: min as f64,
+        max: max as f64,
+        unit: "",
+        description,
+        reboot_required: false,
+    }
+}
+
+/// An INT32 parameter used only from the next start.
+const fn int_reboot(name: &'static str, default: i32, min: i32, max: i32, description: &'static str) -> ParamSpec {
+    ParamSpec {
+        reboot_required: true,
+        ..int(name, default, min, max, description)
+    }
+}
+
+/// Every parameter, in index order.
+pub static PARAMS: &[ParamSpec] = &[
+    // --- PX4: mission, return, navigation -------------------------------------------------------
+    real(
+        "MIS_TAKEOFF_ALT",
+        2.5,
+        0.0,
+        80.0,
+        "m",
+        "Takeoff altitude above home (a lower takeoff target is raised to it)",
+    ),
+    real(
+        "RTL_RETURN_ALT",
+        60.0,
+        0.0,
+        150.0,
+        "m",
+        "RTL: climb to at least this altitude above home before returning",
+    ),
+    real(
+        "RTL_DESCEND_ALT",
+        30.0,
+        2.0,
+        100.0,
+        "m",
+        "RTL: above home, descend to this altitude before landing",
+    ),
+    real(
+        "NAV_ACC_RAD",
+        2.0,
+        0.05,
+        200.0,
+        "m",
+        "Horizontal acceptance radius of a target (RTL arrival over home)",
+    ),
+    // --- PX4: multicopter position control --------------------------------------------------------
+    real(
+        "MPC_XY_CRUISE",
+        5.0,
+        0.5,
+        20.0,
+        "m/s",
+        "Cruise ground speed of reposition, RTL and offboard position setpoints",
+    ),
+    real(
+        "MPC_XY_VEL_MAX",
+        12.0,
+        0.5,
+        20.0,
+        "m/s",
+        "Largest horizontal speed (caps cruise, reposition and velocity setpoints)",
+    ),
+    real("MPC_Z_VEL_MAX_UP", 3.0, 0.5, 8.0, "m/s", "Largest climb speed"),
+    real(
+        "MPC_Z_VEL_MAX_DN",
+        1.5,
+        0.5,
+        4.0,
+        "m/s",
+        "Largest descent speed (also landing above MPC_LAND_ALT1)",
+    ),
+    real("MPC_TKO_SPEED", 1.5, 0.5, 5.0, "m/s", "Climb speed of a takeoff"),
+    real(
+        "MPC_LAND_SPEED",
+        0.7,
+        0.2,
+        2.0,
+        "m/s",
+        "Landing descent speed below MPC_LAND_ALT1",
+    ),
+    real(
+        "MPC_LAND_ALT1",
+        10.0,
+        0.0,
+        122.0,
+        "m",
+        "Landing: above this height descend at MPC_Z_VEL_MAX_DN, below at MPC_LAND_SPEED",
+    ),
+    // --- PX4: commander ------------------------------------------------------------------------
+    real(
+        "COM_OF_LOSS_T",
+        1.0,
+        0.0,
+        60.0,
+        "s",
+        "Offboard: setpoints older than this are lost (OFFBOARD refused or left)",
+    ),
+    int(
+        "COM_OBL_RC_ACT",
+        0,
+        0,
+        7,
+        "Offboard loss action: 3 Return, 4 Land, any other Hold (no RC, no termination here)",
+    ),
+    real(
+        "COM_DISARM_LAND",
+        2.0,
+        -1.0,
+        20.0,
+        "s",
+        "Disarm this long after a landing (<= 0: never)",
+    ),
+    real(
+        "COM_DISARM_PRFLT",
+        10.0,
+        -1.0,
+        20.0,
+        "s",
+        "Disarm this long after arming if the vehicle has not taken off (<= 0: never)",
+    ),
+    // --- PX4: system, MAVLink, battery ---------------------------------------------------------
+    int(
+        "SYS_FAILURE_EN",
+        0,
+        0,
+        1,
+        "Allow failure injection (MAV_CMD_INJECT_FAILURE)",
+    ),
+    int_reboot("MAV_SYS_ID", 1, 1, 250, "MAVLink system id"),
+    int_reboot("MAV_COMP_ID", 1, 1, 250, "MAVLink component id"),
+    int("BAT1_N_CELLS", 4, 1, 14, "Simulated battery: cells in series"),
+    real(
+        "BAT1_CAPACITY",
+        5000.0,
+        100.0,
+        100_000.0,
+        "mAh",
+        "Simulated battery: capacity",
+    ),
+    real(
+        "SIM_BAT_MIN_PCT",
+        50.0,
+        0.0,
+        100.0,
+        "%",
+        "Simulated battery: charge never drops below this (PX4 SITL's floor)",
+    ),
+    // --- rotorpilot: control -------------------------------------------------------------------
+    int(
+        "CTRL_TYPE",
+        1,
+        0,
+        2,
+        "Control law: 0 hierarchical, 1 geometric, 2 passivity (switched bumplessly in flight)",
+    ),
+    real(
+        "CTRL_POS_SCALE",
+        1.0,
+        0.2,
+        3.0,
+        "",
+        "Position loop frequency scale s: stiffness gains x s^2, damping gains x s (all laws)",
+    ),
+    real(
+        "CTRL_ATT_SCALE",
+        1.0,
+        0.2,
+        3.0,
+        "",
+        "Attitude loop frequency scale s: stiffness gains x s^2, damping gains x s (all laws)",
+    ),
+    // --- rotorpilot: estimator -----------------------------------------------------------------
+    int("EST_ORDER", 3, 1, 20, "Wrench estimator order r"),
+    int(
+        "EST_POLY",
+        0,
+        0,
+        1,
+        "Estimator filter polynomial: 0 Butterworth, 1 binomial",
+    ),
+    real("EST_CUTOFF", 10.0, 0.1, 100.0, "rad/s", "Estimator cutoff frequency"),
+    int("EST_COMP", 0, 0, 1, "Feed the wrench estimate back to the controller"),
+    // --- rotorpilot: simulation ----------------------------------------------------------------
+    real(
+        "SIM_FEXT_X",
+        0.0,
+        -50.0,
+        50.0,
+        "N",
+        "Injected external force, north (world NED)",
+    ),
+    real(
+        "SIM_FEXT_Y",
+        0.0,
+        -50.0,
+        50.0,
+        "N",
+        "Injected external force, east (world NED)",
+    ),
+    real(
+        "SIM_FEXT_Z",
+        0.0,
+        -50.0,
+        50.0,
+        "N",
+        "Injected external force, down (world NED)",
+    ),
+    real(
+        "SIM_TEXT_X",
+        0.0,
+        -10.0,
+        10.0,
+        "N m",
+        "Injected external torque, body x forward (FRD)",
+    ),
+    real(
+        "SIM_TEXT_Y",
+        0.0,
+        -10.0,
+        10.0,
+        "N m",
+        "Injected external torque, body y right (FRD)",
+    ),
+    real(
+        "SIM_TEXT_Z",
+        0.0,
+        -10.0,
+        10.0,
+        "N m",
+        "Injected external torque, body z down (FRD)",
+    ),
+    real(
+        "SIM_MASS",
+        2.0,
+        0.05,
+        100.0,
+        "kg",
+        "True mass of the simulated vehicle (default: the airframe's nominal mass)",
+    ),
+    real(
+        "MDL_MASS",
+        2.0,
+        0.05,
+        100.0,
+        "kg",
+        "Nominal mass the controller and estimator assume (default: the airframe's)",
+    ),
+    int("SIM_GE_EN", 1, 0, 1, "Simulate ground effect"),
+    int("SIM_CE_EN", 1, 0, 1, "Simulate ceiling effect (needs SIM_CEIL_Z > 0)"),
+    real(
+        "SIM_CEIL_Z",
+        0.0,
+        0.0,
+        100.0,
+        "m",
+        "Height of a flat ceiling above the home ground (0: no ceiling)",
+    ),
+];
+
+/// The table as Markdown (name, type, default, range, unit, description),
+/// for the README: `| MIS_TAKEOFF_ALT | REAL32 | 2.5 | 0 .. 80 | m | ... |`.
+#[must_use]
+pub fn markdown_table() -> String {
+    let mut out = String::from("| Name | Type | Default | Range | Unit | Description |\n|---|---|---|---|---|---|\n");
+    for p in PARAMS {
+        let reboot = if p.reboot_required { " (reboot)" } else { "" };
+        out.push_str(&format!(
+            "| `{}` | {} | {} | {} .. {} | {} | {}{reboot} |\n",
+            p.name, p.kind, p.default, p.min, p.max, p.unit, p.description
+        ));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_are_unique_short_upper_case_and_defaults_in_range() {
+        for (i, p) in PARAMS.iter().enumerate() {
+            assert!(!p.name.is_empty() && p.name.len() <= 16, "{}", p.name);
+            assert!(
+                p.name
+                    .bytes()
+                    .all(|b| b.is_ascii_uppercase() || b.is_ascii_digit() || b == b'_'),
+                "{}",
+                p.name
+            );
+            assert!(PARAMS[..i].iter().all(|q| q.name != p.name), "duplicate {}", p.name);
+            assert!(p.min <= p.default && p.default <= p.max, "{}", p.name);
+            assert!(p.min.is_finite() && p.max.is_finite());
+            assert!(!p.description.is_empty());
+            if p.kind == ParamType::Int32 {
+                for x in [p.default, p.min, p.max] {
+                    assert_eq!(x.fract(), 0.0, "{}", p.name);
+                    assert!(x.abs() < f64::from(i32::MAX));
+                }
+            } else {
+                // the f32 default must itself pass the f32 range check
+                let d = p.default as f32;
+                assert!(d >= p.min as f32 && d <= p.max as f32, "{}", p.name);
+            }
+        }
+    }
+
+    #[test]
+    fn markdown_has_one_row_per_parameter() {
+        let md = markdown_table();
+        assert_eq!(md.lines().count(), PARAMS.len() + 2);
+        assert!(md.contains("| `MIS_TAKEOFF_ALT` | REAL32 | 2.5 | 0 .. 80 | m |"));
+    }
+
+    #[test]
+    fn the_parameters_clients_read_exist() {
+        for name in [
+            "MIS_TAKEOFF_ALT",
+            "RTL_RETURN_ALT",
+            "MPC_XY_CRUISE",
+            "SYS_FAILURE_EN",
+            "COM_OF_LOSS_T",
+            "COM_OBL_RC_ACT",
+            "COM_DISARM_LAND",
+            "COM_DISARM_PRFLT",
+            "MAV_SYS_ID",
+            "MAV_COMP_ID",
+            "NAV_ACC_RAD",
+        ] {
+            assert!(PARAMS.iter().any(|p| p.name == name), "{name}");
+        }
+    }
+}

@@ -75,7 +75,10 @@ mod tests {
         assert!((p.ned_from(&home) - ned).norm() < 1e-9);
         assert!((p.alt_amsl_m - 508.0).abs() < 1e-12);
         // one degree of latitude is about 111.2 km
-        let north = GeoPoint { lat_deg: home.lat_deg + 1.0, ..home };
+        let north = GeoPoint {
+            lat_deg: home.lat_deg + 1.0,
+            ..home
+        };
         assert!((north.ned_from(&home).x - 111_194.9).abs() < 1.0);
     }
 }

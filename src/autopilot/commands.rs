@@ -300,9 +300,9 @@ impl super::Autopilot {
             Some(p) if p.is_valid() => p,
             Some(_) => return CommandOutcome::Denied("invalid home position"),
             None => {
-                let mut p = self.plant.state().position_ned;
+                let mut p = self.vehicle.plant().state().position_ned;
                 if self.landed {
-                    p.z = self.plant.world().ground_z_ned;
+                    p.z = self.vehicle.plant().world().ground_z_ned;
                 }
                 self.origin.offset(&p)
             }

@@ -1,9 +1,10 @@
 //! The autopilot as clients see it: arming, flight modes, takeoff, landing,
 //! return, hold, position, offboard (and later missions), failsafes. Pure and
-//! stepped by simulated time: [`Autopilot`] owns the plant, controller,
-//! estimator and allocator (the lockstep loop of [`crate::vehicle`], plus a
-//! stopped and an idle path and attitude setpoints), turns the mode and its
-//! setpoints into references, and publishes [`Telemetry`]. The MAVLink layer
+//! stepped by simulated time: [`Autopilot`] owns a lockstep
+//! [`crate::vehicle::Vehicle`] (plant, estimator, controller, allocation),
+//! turns the mode and its setpoints into its demand (a reference, an attitude
+//! setpoint, idle or stopped rotors) between the vehicle's sense and act
+//! phases, and publishes [`Telemetry`]. The MAVLink layer
 //! talks to it only through [`AutopilotCommand`], [`CommandOutcome`],
 //! [`Telemetry`], [`StatusText`] and the parameter store.
 //!

@@ -1,7 +1,7 @@
 //! The [`Autopilot`]: supervision (landing detection, auto-disarm, offboard
-//! loss), guidance per mode (shaped references, attitude setpoints), and the
-//! lockstep loop of `vehicle.rs` with an idle/stopped path and attitude
-//! control added.
+//! loss) and guidance per mode (shaped references, attitude setpoints, idle
+//! or stopped rotors) between the two phases of the lockstep
+//! [`Vehicle`] step it owns.
 
 use std::collections::VecDeque;
 
@@ -10,17 +10,18 @@ use nalgebra::{UnitQuaternion, Vector2, Vector3};
 use super::battery::Battery;
 use super::settings::{OffboardLossAction, Settings};
 use super::{FlightMode, LandedState, OffboardSetpoint, Severity, StatusText, Telemetry};
-use crate::airframe::{Actuation, Airframe, Allocator, ControlWrench, GRAVITY, RotorVector};
+use crate::airframe::{Actuation, Airframe, GRAVITY};
 use crate::control::{
-    ControlGains, Controller, ControllerKind, GainError, Reference, Setpoint, Shaper, ShaperError, ShaperLimits,
+    ControlGains, ControllerKind, GainError, Reference, Setpoint, Shaper, ShaperError, ShaperLimits,
     TranslationSetpoint, YawSetpoint,
 };
 use crate::estimation::{Discretization, EstimatorConfig, EstimatorError, MomentumEstimator};
 use crate::geo::GeoPoint;
 use crate::math::euler_zyx;
-use crate::model::{ActuatorCommand, Contact, ExternalWrench, Plant, PlantConfig, SimFault, World};
+use crate::model::{Contact, ExternalWrench, Plant, PlantConfig, SimFault, World};
 use crate::params::ParamStore;
 use crate::signals::{Measurement, NominalModel, WrenchEstimate};
+use crate::vehicle::{Demand, Vehicle, VehicleError};
 
 /// Continuous ground contact this long [s] means "landed" (PX4's land detector takes longer; we see the contact).
 pub(super) const LAND_DETECT_S: f64 = 0.25;
@@ -130,23 +131,6 @@ pub(super) enum Nav {
     Offboard,
 }
 
-/// What drives the vehicle in one step.
-#[derive(Clone, Copy, Debug)]
-enum Demand {
-    /// Disarmed: rotors stopped.
-    Stop,
-    /// Armed on the ground: rotors at idle.
-    Idle,
-    /// Fly this reference with the active law.
-    Track(Reference),
-    /// Attitude and thrust setpoint.
-    Attitude {
-        attitude: UnitQuaternion<f64>,
-        rate_frd: Vector3<f64>,
-        thrust_n: f64,
-    },
-}
-
 /// A cross-fade of the fed-back estimate after the estimator was rebuilt in flight.
 #[derive(Clone, Copy, Debug)]
 struct EstimateFade {
@@ -155,29 +139,22 @@ struct EstimateFade {
     duration_s: f64,
 }
 
-/// The autopilot: arming, modes, guidance and the lockstep vehicle loop.
+/// The autopilot: arming, modes and guidance around the lockstep [`Vehicle`].
 ///
-/// It owns the plant, controller, estimator and allocator directly (the
-/// same pieces and timing as [`crate::vehicle::Vehicle`]: the estimator at
-/// `t_k` sees `x_k` and the wrench `u_{k-1}` commanded over the previous step),
-/// because a disarmed or idling vehicle must not run its controller and
-/// offboard attitude setpoints use [`Controller::update_attitude`].
+/// Each step senses (`x_k`, the estimate from `u_{k-1}`), decides the
+/// [`Demand`] for the mode and the estimate to feed back, and acts with them
+/// (module doc of [`crate::vehicle`]).
 #[derive(Debug)]
 pub struct Autopilot {
     pub(super) airframe: Airframe,
-    pub(super) plant: Plant,
-    controller: Controller,
-    estimator: MomentumEstimator,
-    allocator: Allocator,
-    nominal: NominalModel,
+    /// Plant, controller, estimator and allocation.
+    pub(super) vehicle: Vehicle,
     base_limits: ShaperLimits,
     shaper: Shaper,
     /// The shaper's state is the reference of the previous step (else reset it to the measurement first).
     pub(super) shaper_live: bool,
     pub(super) settings: Settings,
     external: ExternalWrench,
-    /// `u_{k-1}`: the wrench commanded over the previous step.
-    last_applied: ControlWrench,
     fade: Option<EstimateFade>,
     disk_area_m2: f64,
     acceleration_ned: Vector3<f64>,
@@ -319,12 +296,18 @@ impl Autopilot {
             });
         }
         let settings = Settings::from_store(params)?;
-        let nominal = NominalModel {
-            mass_kg: settings.model_mass_kg,
-            inertia_kg_m2: airframe.inertia_kg_m2,
-        };
-        let controller = Controller::new(settings.controller, control_gains(airframe, &settings))?;
-        let estimator = MomentumEstimator::new(estimator_config(&settings, plant.dt_s), nominal)?;
+        // the nominal model (MDL_MASS) is set by `apply_params` below
+        let vehicle = Vehicle::new(
+            airframe,
+            plant,
+            settings.controller,
+            control_gains(airframe, &settings),
+            estimator_config(&settings, plant.dt_s),
+        )
+        .map_err(|e| match e {
+            VehicleError::Gains(e) => AutopilotError::Gains(e),
+            VehicleError::Estimator(e) => AutopilotError::Estimator(e),
+        })?;
         let base_limits = ShaperLimits::for_airframe(airframe);
         let shaper = Shaper::new(base_limits)?;
         let n = airframe.rotor_count() as f64;
@@ -335,17 +318,12 @@ impl Autopilot {
         );
         let mut ap = Self {
             airframe: airframe.clone(),
-            plant: Plant::new(airframe, plant),
-            controller,
-            estimator,
-            allocator: airframe.allocator(),
-            nominal,
+            vehicle,
             base_limits,
             shaper,
             shaper_live: false,
             settings,
             external: ExternalWrench::default(),
-            last_applied: ControlWrench::default(),
             fade: None,
             disk_area_m2: n * std::f64::consts::PI * airframe.rotor.radius_m.powi(2),
             acceleration_ned: Vector3::zeros(),
@@ -385,29 +363,29 @@ impl Autopilot {
     /// A combination the controller or estimator refuses; nothing is changed then.
     pub fn apply_params(&mut self, params: &ParamStore) -> Result<(), AutopilotError> {
         let s = Settings::from_store(params)?;
-        let now = self.plant.time_s();
+        let now = self.vehicle.plant().time_s();
         let nominal = NominalModel {
             mass_kg: s.model_mass_kg,
             inertia_kg_m2: self.airframe.inertia_kg_m2,
         };
+        let nominal_changed = nominal != *self.vehicle.nominal();
         let gains = control_gains(&self.airframe, &s);
         gains.validate()?;
-        let config = estimator_config(&s, self.plant.dt_s());
-        let estimator = if &config != self.estimator.config() {
-            Some(MomentumEstimator::new(config, nominal)?)
-        } else if nominal != self.nominal {
-            let mut e = self.estimator.clone();
-            e.set_nominal(nominal)?;
-            Some(e)
-        } else {
+        let config = estimator_config(&s, self.vehicle.plant().dt_s());
+        let rebuilt = if &config == self.vehicle.estimator().config() {
+            if nominal_changed {
+                // whether the estimator accepts the model, asked of a copy
+                self.vehicle.estimator().clone().set_nominal(nominal)?;
+            }
             None
+        } else {
+            Some(MomentumEstimator::new(config, nominal)?)
         };
         // Everything is valid: commit.
-        self.controller.set_gains(gains)?;
-        self.controller.switch_to(s.controller);
-        if let Some(e) = estimator {
-            let rebuilt = e.config() != self.estimator.config();
-            if rebuilt && s.feedback && !self.landed {
+        self.vehicle.controller_mut().set_gains(gains)?;
+        self.vehicle.switch_controller(s.controller);
+        if let Some(e) = rebuilt {
+            if s.feedback && !self.landed {
                 let from = self.current_feedback(now);
                 let duration_s = (8.0 * s.estimator_order as f64 / s.estimator_cutoff_rad_s).clamp(0.5, 30.0);
                 self.fade = Some(EstimateFade {
@@ -416,12 +394,15 @@ impl Autopilot {
                     duration_s,
                 });
             }
-            self.estimator = e;
+            self.vehicle.replace_estimator(e);
         }
-        self.nominal = nominal;
-        self.plant.set_true_mass(s.sim_mass_kg);
-        let ground = self.plant.world().ground_z_ned;
-        self.plant.set_world(World {
+        if nominal_changed {
+            self.vehicle.set_nominal(nominal)?;
+        }
+        let plant = self.vehicle.plant_mut();
+        plant.set_true_mass(s.sim_mass_kg);
+        let ground = plant.world().ground_z_ned;
+        plant.set_world(World {
             ground_z_ned: ground,
             ceiling_z_ned: (s.ceiling_height_m > 0.0).then_some(ground - s.ceiling_height_m),
             ground_effect: s.ground_effect,
@@ -445,13 +426,13 @@ impl Autopilot {
     /// Simulated time since boot [s].
     #[must_use]
     pub fn time_s(&self) -> f64 {
-        self.plant.time_s()
+        self.vehicle.plant().time_s()
     }
 
     /// Step length [s] (the plant's, 1 ms by default).
     #[must_use]
     pub fn dt_s(&self) -> f64 {
-        self.plant.dt_s()
+        self.vehicle.plant().dt_s()
     }
 
     /// Armed.
@@ -513,19 +494,19 @@ impl Autopilot {
     /// The control law flying.
     #[must_use]
     pub fn controller_kind(&self) -> ControllerKind {
-        self.controller.kind()
+        self.vehicle.controller().kind()
     }
 
     /// The plant (true state, contact, rotor speeds), read-only.
     #[must_use]
     pub fn plant(&self) -> &Plant {
-        &self.plant
+        self.vehicle.plant()
     }
 
     /// The latest wrench estimate.
     #[must_use]
     pub fn estimate(&self) -> WrenchEstimate {
-        self.estimator.estimate()
+        self.vehicle.estimate()
     }
 
     /// The last simulation fault, if any (the vehicle was disarmed then).
@@ -559,7 +540,7 @@ impl Autopilot {
         if self.shaper_live {
             self.shaper.reference().position_ned
         } else {
-            self.plant.state().position_ned
+            self.vehicle.plant().state().position_ned
         }
     }
 
@@ -578,13 +559,15 @@ impl Autopilot {
                 let (_, w_max) = self.airframe.speed_sq_bounds();
                 self.airframe.rotor_count() as f64 * self.airframe.rotor.c_t * w_max
             }
-            Actuation::Ideal => self.controller.gains().limits.max_thrust_g * self.nominal.mass_kg * GRAVITY,
+            Actuation::Ideal => {
+                self.vehicle.controller().gains().limits.max_thrust_g * self.vehicle.nominal().mass_kg * GRAVITY
+            }
         }
     }
 
     /// Whether an offboard setpoint arrived within `COM_OF_LOSS_T`.
     pub(super) fn offboard_fresh(&self) -> bool {
-        let now = self.plant.time_s();
+        let now = self.vehicle.plant().time_s();
         self.offboard
             .is_some_and(|(_, t)| now - t <= self.settings.offboard_loss_s + TIME_EPS)
     }
@@ -594,7 +577,7 @@ impl Autopilot {
         if !self.landed {
             return Some("vehicle not landed");
         }
-        if !self.estimator.is_initialized() {
+        if !self.vehicle.estimator().is_initialized() {
             return Some("estimator not initialised");
         }
         if !self.home.is_valid() {
@@ -611,7 +594,7 @@ impl Autopilot {
 
     pub(super) fn arm_now(&mut self) {
         self.armed = true;
-        self.armed_at_s = self.plant.time_s();
+        self.armed_at_s = self.vehicle.plant().time_s();
         self.took_off = !self.landed;
         self.announce(Severity::Info, "Armed by external command");
     }
@@ -628,7 +611,7 @@ impl Autopilot {
                 target: None,
             },
         };
-        self.controller.reset();
+        self.vehicle.controller_mut().reset();
         self.shaper_live = false;
         self.rate_target = None;
         self.announce(Severity::Info, text);
@@ -669,66 +652,40 @@ impl Autopilot {
 
     // ----- the loop -------------------------------------------------------------------------------
 
-    /// Advance one step of simulated time (1 ms by default): landing
-    /// detection, auto-disarm and offboard-loss supervision, guidance for the
-    /// mode, estimator, controller, allocation, plant, battery. A plant fault
-    /// (non-finite command or state) disarms with a STATUSTEXT and steps the
-    /// plant with the rotors stopped, so time always advances.
+    /// Advance one step of simulated time (1 ms by default): sense (estimator
+    /// restarted while resting on the ground), landing detection, auto-disarm
+    /// and offboard-loss supervision, guidance for the mode, act (controller,
+    /// allocation, plant), battery. A plant fault (non-finite command or
+    /// state) disarms with a STATUSTEXT and steps the plant with the rotors
+    /// stopped, so time always advances.
     pub fn step(&mut self) {
-        let dt = self.plant.dt_s();
-        let now = self.plant.time_s();
-        let meas = self.plant.measure();
-        let on_ground = self.plant.contact() == Contact::OnGround;
+        let dt = self.vehicle.plant().dt_s();
+        let now = self.vehicle.plant().time_s();
+        let on_ground = self.vehicle.plant().contact() == Contact::OnGround;
         if on_ground {
             // The ground's reaction is no external wrench worth estimating:
             // restart from every resting sample, estimate from liftoff on.
-            self.estimator.reset();
+            self.vehicle.reset_estimator();
             self.fade = None;
         }
-        let estimate = self.estimator.update_measured(&meas, &self.last_applied);
+        let sensed = self.vehicle.sense();
         self.detect_landing(now, on_ground);
         self.supervise(now);
-        let demand = self.guidance(&meas, dt);
+        let demand = self.guidance(&sensed.measurement, dt);
+        if matches!(demand, Demand::Stop | Demand::Idle) {
+            self.shaper_live = false;
+        }
         let feedback = if self.settings.feedback {
-            Some(self.feedback_estimate(&estimate, now))
+            Some(self.feedback_estimate(&sensed.estimate, now))
         } else {
             None
         };
-        let (cmd, applied) = match demand {
-            Demand::Stop => {
-                self.controller.reset();
-                self.shaper_live = false;
-                (ActuatorCommand::Stop, ControlWrench::default())
-            }
-            Demand::Idle => {
-                self.controller.reset();
-                self.shaper_live = false;
-                self.idle()
-            }
-            Demand::Track(reference) => {
-                let w = self
-                    .controller
-                    .update(&self.nominal, &meas, &reference, feedback.as_ref(), dt);
-                self.actuate(&w)
-            }
-            Demand::Attitude {
-                attitude,
-                rate_frd,
-                thrust_n,
-            } => {
-                let w = self
-                    .controller
-                    .update_attitude(&self.nominal, &meas, &attitude, &rate_frd, thrust_n, dt);
-                self.actuate(&w)
-            }
-        };
-        match self.plant.step(&cmd, &self.external) {
-            Ok(_) => self.last_applied = applied,
-            Err(fault) => self.on_fault(fault),
+        if let Err(fault) = self.vehicle.act(&demand, feedback.as_ref(), &self.external) {
+            self.on_fault(fault);
         }
         self.acceleration_ned = self.true_acceleration();
         self.battery
-            .update(self.plant.last_wrench().thrust_n, self.disk_area_m2, dt);
+            .update(self.vehicle.plant().last_wrench().thrust_n, self.disk_area_m2, dt);
     }
 
     fn on_fault(&mut self, fault: SimFault) {
@@ -737,52 +694,21 @@ impl Autopilot {
         if self.armed {
             self.disarm_now("Disarmed: simulation fault");
         }
-        self.controller.reset();
         self.shaper_live = false;
-        self.last_applied = ControlWrench::default();
+        // the same step with the rotors stopped (resets the controller), to
         // keep time moving; if even this fails the state stays as it was
-        let _ = self.plant.step(&ActuatorCommand::Stop, &self.external);
-    }
-
-    /// Rotors at idle speed (ideal actuation: no wrench).
-    fn idle(&self) -> (ActuatorCommand, ControlWrench) {
-        match self.airframe.actuation {
-            Actuation::Rotors => {
-                let w = self.airframe.rotor.speed_min_rad_s;
-                let mut speeds = RotorVector::zeros();
-                let mut speed_sq = RotorVector::zeros();
-                for i in 0..self.airframe.rotor_count() {
-                    speeds[i] = w;
-                    speed_sq[i] = w * w;
-                }
-                (ActuatorCommand::RotorSpeeds(speeds), self.allocator.forward(&speed_sq))
-            }
-            Actuation::Ideal => (
-                ActuatorCommand::Wrench(ControlWrench::default()),
-                ControlWrench::default(),
-            ),
-        }
-    }
-
-    /// The command for a controller output and the wrench the estimator is told.
-    fn actuate(&self, w: &ControlWrench) -> (ActuatorCommand, ControlWrench) {
-        match self.airframe.actuation {
-            Actuation::Rotors => {
-                let a = self.allocator.allocate(w);
-                (ActuatorCommand::RotorSpeeds(a.speed_cmd_rad_s), a.achieved)
-            }
-            Actuation::Ideal => (ActuatorCommand::Wrench(*w), *w),
-        }
+        let _ = self.vehicle.act(&Demand::Stop, None, &self.external);
     }
 
     /// `g e3 + (R (-T e3) + f_e) / m` with the true mass; zero on the ground.
     fn true_acceleration(&self) -> Vector3<f64> {
-        if self.plant.contact() == Contact::OnGround {
+        if self.vehicle.plant().contact() == Contact::OnGround {
             return Vector3::zeros();
         }
-        let s = self.plant.state();
-        let thrust = s.attitude * Vector3::new(0.0, 0.0, -self.plant.last_wrench().thrust_n);
-        Vector3::new(0.0, 0.0, GRAVITY) + (thrust + self.external.force_ned) / self.plant.true_mass_kg()
+        let plant = self.vehicle.plant();
+        let s = plant.state();
+        let thrust = s.attitude * Vector3::new(0.0, 0.0, -plant.last_wrench().thrust_n);
+        Vector3::new(0.0, 0.0, GRAVITY) + (thrust + self.external.force_ned) / plant.true_mass_kg()
     }
 
     /// The estimate to feed back (cross-faded after an estimator rebuild).
@@ -803,12 +729,12 @@ impl Autopilot {
 
     /// What is being fed back right now (for the start of a cross-fade).
     fn current_feedback(&self, now: f64) -> WrenchEstimate {
-        let e = self.estimator.estimate();
+        let e = self.vehicle.estimate();
         match self.fade {
             Some(f) => blend(&f.from, &e, ((now - f.start_s) / f.duration_s).clamp(0.0, 1.0)),
             None if self.settings.feedback => e,
             None => WrenchEstimate {
-                mass_kg: self.nominal.mass_kg,
+                mass_kg: self.vehicle.nominal().mass_kg,
                 ..WrenchEstimate::default()
             },
         }
@@ -893,7 +819,7 @@ impl Autopilot {
 
     /// Height of the centre of mass above its resting height [m].
     fn height_above_ground(&self, meas: &Measurement) -> f64 {
-        self.plant.world().ground_z_ned - self.airframe.gear_height_m - meas.position_ned.z
+        self.vehicle.plant().world().ground_z_ned - self.airframe.gear_height_m - meas.position_ned.z
     }
 
     /// Descend to land at `xy`: MPC_Z_VEL_MAX_DN above MPC_LAND_ALT1, MPC_LAND_SPEED below.
@@ -904,7 +830,7 @@ impl Autopilot {
         } else {
             s.land_speed_m_s
         };
-        let target = Vector3::new(xy.x, xy.y, self.plant.world().ground_z_ned + LAND_SINK_M);
+        let target = Vector3::new(xy.x, xy.y, self.vehicle.plant().world().ground_z_ned + LAND_SINK_M);
         let limits = self.limits(self.cruise_m_s(), s.climb_m_s, speed);
         self.shape(
             meas,
@@ -1124,10 +1050,11 @@ impl Autopilot {
     /// A snapshot for telemetry (SI units, NED/FRD).
     #[must_use]
     pub fn telemetry(&self) -> Telemetry {
-        let s = self.plant.state();
+        let plant = self.vehicle.plant();
+        let s = plant.state();
         let max_thrust = self.max_thrust_n();
         Telemetry {
-            time_s: self.plant.time_s(),
+            time_s: plant.time_s(),
             armed: self.armed,
             mode: self.mode(),
             landed: self.landed_state(),
@@ -1145,14 +1072,14 @@ impl Autopilot {
             battery_consumed_mah: self.battery.consumed_mah(),
             battery_remaining: self.battery.remaining(),
             throttle: if max_thrust > 0.0 {
-                (self.plant.last_wrench().thrust_n / max_thrust).clamp(0.0, 1.0)
+                (plant.last_wrench().thrust_n / max_thrust).clamp(0.0, 1.0)
             } else {
                 0.0
             },
-            estimate: self.estimator.estimate(),
+            estimate: self.vehicle.estimate(),
             injected_force_ned: self.external.force_ned,
             injected_torque_frd: self.external.torque_frd,
-            true_mass_kg: self.plant.true_mass_kg(),
+            true_mass_kg: plant.true_mass_kg(),
             prearm_ok: self.prearm_failure().is_none(),
         }
     }

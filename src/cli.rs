@@ -7,12 +7,96 @@ use clap::{Parser, Subcommand};
 use crate::airframe::{Airframe, AirframeReport, DEFAULT_AIRFRAME};
 
 /// rotorpilot: software-in-the-loop multirotor autopilot.
+///
+/// Without a command it runs one simulated vehicle that speaks MAVLink 2 over
+/// UDP where PX4 SITL does (GCS link 18570+N -> 14550, API link 14580+N ->
+/// 14540+N), until Ctrl-C or SIGTERM.
 #[derive(Debug, Parser)]
-#[command(name = "rotorpilot", version, about)]
+#[command(name = "rotorpilot", version, about, args_conflicts_with_subcommands = true)]
 pub struct Cli {
-    /// What to do.
+    /// What to do (none: run the vehicle).
     #[command(subcommand)]
     pub command: Option<Command>,
+    /// Options of the vehicle daemon.
+    #[command(flatten)]
+    pub daemon: DaemonArgs,
+}
+
+/// Options of the vehicle daemon (`rotorpilot` without a command).
+#[derive(Debug, Clone, clap::Args)]
+pub struct DaemonArgs {
+    /// Built-in airframe name (quad, hexa, octo, fsr-quad) or path to a TOML file.
+    #[arg(long, default_value = DEFAULT_AIRFRAME)]
+    pub airframe: String,
+    /// PX4 SITL instance N: system id N+1, ports 18570+N and 14580+N, state in rotorpilot-state/N.
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=249))]
+    pub instance: u8,
+    /// Home and NED origin: LAT,LON,ALT (degrees, degrees, metres AMSL).
+    #[arg(long, value_name = "LAT,LON,ALT", allow_hyphen_values = true)]
+    pub home: Option<String>,
+    /// Simulated time runs FACTOR times faster than wall time.
+    #[arg(long, default_value_t = 1.0, value_name = "FACTOR")]
+    pub speed: f64,
+    /// Extra link, repeatable: udpout:HOST:PORT (send there) or udpin:HOST:PORT (listen there).
+    #[arg(long = "link", value_name = "udpout:HOST:PORT|udpin:HOST:PORT")]
+    pub links: Vec<String>,
+    /// Where parameters persist (default rotorpilot-state/N).
+    #[arg(long, value_name = "DIR")]
+    pub state_dir: Option<std::path::PathBuf>,
+    /// Start from default parameters (the saved file is overwritten).
+    #[arg(long)]
+    pub reset_params: bool,
+    /// Override the GCS link's bind address (default 0.0.0.0:18570+N).
+    #[arg(long, value_name = "HOST:PORT")]
+    pub gcs_bind: Option<String>,
+    /// Override the GCS link's remote, or `none` (default 127.0.0.1:14550).
+    #[arg(long, value_name = "HOST:PORT")]
+    pub gcs_remote: Option<String>,
+    /// Override the API link's bind address (default 0.0.0.0:14580+N).
+    #[arg(long, value_name = "HOST:PORT")]
+    pub api_bind: Option<String>,
+    /// Override the API link's remote, or `none` (default 127.0.0.1:14540+N).
+    #[arg(long, value_name = "HOST:PORT")]
+    pub api_remote: Option<String>,
+}
+
+impl DaemonArgs {
+    /// The daemon configuration these options describe.
+    ///
+    /// # Errors
+    /// A malformed home, link or address.
+    pub fn config(&self) -> anyhow::Result<crate::daemon::Config> {
+        use crate::daemon::{Config, LinkSpec, parse_home, resolve};
+        let mut c = Config::px4_sitl(self.instance);
+        c.airframe.clone_from(&self.airframe);
+        if let Some(h) = &self.home {
+            c.home = parse_home(h)?;
+        }
+        c.speed = self.speed;
+        if let Some(d) = &self.state_dir {
+            c.state_dir.clone_from(d);
+        }
+        c.reset_params = self.reset_params;
+        let remote = |s: &str| -> anyhow::Result<Option<std::net::SocketAddr>> {
+            if s == "none" { Ok(None) } else { resolve(s).map(Some) }
+        };
+        if let Some(b) = &self.gcs_bind {
+            c.links[0].bind = resolve(b)?;
+        }
+        if let Some(r) = &self.gcs_remote {
+            c.links[0].remote = remote(r)?;
+        }
+        if let Some(b) = &self.api_bind {
+            c.links[1].bind = resolve(b)?;
+        }
+        if let Some(r) = &self.api_remote {
+            c.links[1].remote = remote(r)?;
+        }
+        for l in &self.links {
+            c.links.push(LinkSpec::parse(l)?);
+        }
+        Ok(c)
+    }
 }
 
 /// Subcommands.
@@ -135,9 +219,55 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             };
             estimate(&log, &order, &polys, cutoff, disc, nominal, output.as_deref(), json)
         }
-        None => {
-            anyhow::bail!("no command given; try `rotorpilot --help` (the MAVLink daemon is not built yet)")
+        None => run_daemon(&cli.daemon),
+    }
+}
+
+/// Run the vehicle until Ctrl-C or SIGTERM (or a client's shutdown command).
+fn run_daemon(args: &DaemonArgs) -> anyhow::Result<()> {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
+    // A second call (tests running several daemons) keeps the first subscriber.
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+        .with_target(false)
+        .try_init();
+    let config = args.config()?;
+    // The links share one thread (no cross-thread wake-ups: an idle vehicle
+    // stays cheap); the simulation has its own thread (see `daemon`).
+    let rt = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
+    rt.block_on(async {
+        let daemon = crate::daemon::bind(config).await?;
+        for w in daemon.warnings() {
+            eprintln!("rotorpilot: {w}");
         }
+        println!("{}", daemon.summary());
+        daemon.run(shutdown_signal()).await
+    })
+}
+
+/// Ctrl-C or SIGTERM.
+async fn shutdown_signal() {
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{SignalKind, signal};
+        match signal(SignalKind::terminate()) {
+            Ok(mut term) => {
+                tokio::select! {
+                    _ = tokio::signal::ctrl_c() => {}
+                    _ = term.recv() => {}
+                }
+            }
+            Err(_) => {
+                let _ = tokio::signal::ctrl_c().await;
+            }
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = tokio::signal::ctrl_c().await;
     }
 }
 

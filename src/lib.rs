@@ -4,25 +4,25 @@
 //!
 //! | module | job | may import |
 //! |---|---|---|
-//! | [`math`] | SO(3) helpers (hat, vee, ZYX Euler angles) | nalgebra |
-//! | [`airframe`] | vehicle description from `params/airframes/*.toml`, allocation (effectiveness matrix, inverse, desaturation), rotor-failure analysis, the `airframe` report | `math` |
-//! | [`vehicle`] | the lockstep loop: measure, estimate, control, allocate, integrate | all pure modules |
-//! | [`scenario`] | scenario files and the flat-out runner behind `rotorpilot simulate` | `vehicle` |
-//! | [`flightlog`] | flight-log CSV reading and the offline estimator sweep of `rotorpilot estimate` | `estimation` |
-//! | [`geo`] | flat-earth NED <-> latitude/longitude/AMSL around home | nalgebra |
-//! | [`params`] | the parameter table (PX4 style), typed store, validation, atomic persistence | (pure) |
-//! | [`autopilot`] | arming, flight modes, takeoff/land/RTL/hold/offboard, telemetry snapshot | `vehicle`, `params`, `geo` |
-//! | [`link`] | MAVLink 2 over UDP as PX4 SITL: peers, streams, handlers (protocol only, never physics) | `autopilot`, `params` (types) |
-//! | [`daemon`] | the tokio runtime: paces simulated time, owns sockets, shutdown | everything |
-//! | [`tomlfile`] | TOML files to typed values, errors naming file, line/field and problem | serde, toml |
-//! | [`cli`] | the `rotorpilot` command line (thin: parses, calls the modules, prints) | everything |
+//! | [`math`] | SO(3) helpers (hat, vee, ZYX Euler angles) and the RPY model matrices `Q`, `M`, `C` | nalgebra |
 //! | [`signals`] | values passed between blocks: measurement, nominal model, wrench estimate | nalgebra |
+//! | [`tomlfile`] | TOML files to typed values, errors naming file, line/field and problem | serde, toml |
+//! | [`geo`] | flat-earth NED <-> latitude/longitude/AMSL around home | nalgebra |
+//! | [`airframe`] | vehicle description from `params/airframes/*.toml`, allocation (effectiveness matrix, inverse, desaturation), rotor-failure analysis, the `airframe` report | `math`, `tomlfile` |
+//! | [`model`] | the plant: 6-DoF rigid body (NED/FRD), rotors with lag and limits, ground and ceiling effect, external wrench, ground contact, seeded sensor noise | `math`, `airframe` |
 //! | [`control`] | the three controllers (hierarchical, geometric, passivity-based) and the reference shaper | `math`, `signals`, `airframe` (types) |
 //! | [`estimation`] | momentum-based external-wrench estimator of order r, real mass | `math`, `signals`, `airframe` (types) |
-//! | [`model`] | the plant: 6-DoF rigid body (NED/FRD), rotors with lag and limits, ground and ceiling effect, external wrench, ground contact, seeded sensor noise | `math`, `airframe` |
+//! | [`vehicle`] | the lockstep loop: sense (measure, estimate), act (control, allocate, integrate) | the pure modules above |
+//! | [`scenario`] | scenario files and the flat-out runner behind `rotorpilot simulate` | `vehicle` |
+//! | [`flightlog`] | flight-log CSV reading and the offline estimator sweep of `rotorpilot estimate` | `estimation` |
+//! | [`params`] | the parameter table (PX4 style), typed store, validation, atomic persistence | `airframe` (types) |
+//! | [`autopilot`] | arming, flight modes, takeoff/land/RTL/hold/offboard, telemetry snapshot | `vehicle`, `params`, `geo` |
+//! | [`link`] | MAVLink 2 over UDP as PX4 SITL: peers, streams, handlers (protocol only, never physics) | `autopilot`, `params`, `geo` (types), mavlink |
+//! | [`daemon`] | the runtime: simulation on its own thread paced against wall time, links on tokio, shutdown | everything |
+//! | [`cli`] | the `rotorpilot` command line (thin: parses, calls the modules, prints) | everything |
 //!
-//! Everything here is pure and deterministic: no sockets, no tokio, no wall
-//! clock, no global RNG. The same inputs and seed give a bit-identical
+//! Everything up to `autopilot` is pure and deterministic: no sockets, no
+//! tokio, no wall clock, no global RNG. The same inputs and seed give a bit-identical
 //! trajectory.
 //!
 //! # Conventions

@@ -1,12 +1,20 @@
 #!/usr/bin/env bash
 # Run every test of rotorpilot: formatting, lints, the Rust unit/integration
-# tests (release: the closed-loop flights are long), and the real-client tests
-# once they exist. Installs what it needs itself; safe to run on a fresh machine.
+# tests (release: the closed-loop flights are long), and the real MAVLink
+# client tests (pymavlink, MAVSDK 3 and 4 in venvs under .venv/). Installs
+# what it needs itself; safe to run on a fresh machine.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 echo "== cargo fmt --check"
 cargo fmt --all -- --check
+
+echo "== the deterministic core imports no runtime, protocol or clock"
+pure="src/math.rs src/signals.rs src/tomlfile.rs src/geo.rs src/airframe src/model src/control src/estimation src/vehicle.rs src/scenario src/flightlog.rs src/params src/autopilot"
+if grep -rnE "tokio|mavlink::|std::time|SystemTime|Instant::now|thread_rng" $pure; then
+    echo "a pure module reaches for a runtime, the protocol or a clock (above)" >&2
+    exit 1
+fi
 
 echo "== cargo clippy --all-targets -- -D warnings"
 cargo clippy --all-targets --quiet -- -D warnings
@@ -17,3 +25,35 @@ grep -q "test result: ok" /tmp/rotorpilot-cargo-test.log
 
 echo "== benches compile"
 cargo bench --no-run --quiet
+
+echo "== MAVLink client tests (pymavlink, MAVSDK 3 gRPC, MAVSDK 4 native)"
+# Real clients against the release binary on loopback. Each client set lives
+# in its own venv under .venv/ (gitignored): `mavsdk<4` and `mavsdk` 4.x are
+# both named `mavsdk`. Versions are pinned; pip only installs what is missing.
+cargo build --release --quiet
+export ROTORPILOT_BIN="${CARGO_TARGET_DIR:-$PWD/target}/release/rotorpilot"
+PY="${PYTHON:-python3}"
+VENV="$PWD/.venv"
+client_venv() {
+    local name=$1
+    shift
+    if [ ! -x "$VENV/$name/bin/python" ]; then
+        if ! "$PY" -m venv "$VENV/$name" 2>/dev/null; then
+            # Debian's python3 ships venv separately
+            if command -v apt-get >/dev/null; then
+                apt-get install -y -qq python3-venv >/dev/null 2>&1 || { apt-get update -qq && apt-get install -y -qq python3-venv; }
+            fi
+            rm -rf "${VENV:?}/$name"
+            "$PY" -m venv "$VENV/$name"
+        fi
+    fi
+    "$VENV/$name/bin/python" -m pip install -q --disable-pip-version-check "$@"
+}
+client_venv pymavlink "pymavlink==2.4.50" "pytest==9.2.0"
+client_venv mavsdk3 "mavsdk==3.17.4" "pymavlink==2.4.50" "pytest==9.2.0"
+client_venv mavsdk4 "mavsdk==4.1.0" "pytest==9.2.0"
+export PYTHONWARNINGS="ignore::FutureWarning"
+# every wait inside is bounded; the outer timeout is a last resort
+timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink.py
+timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3.py
+timeout 900 "$VENV/mavsdk4/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk4.py

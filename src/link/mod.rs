@@ -1,1 +1,637 @@
-//! MAVLink 2 over UDP as PX4 SITL does (being written).
+//! MAVLink 2 over UDP as PX4 SITL speaks it, as a sans-I/O state machine:
+//! datagrams and the time go in, addressed frames and [`Effect`]s for the
+//! daemon come out. No sockets, no tokio, no clock here: the daemon
+//! ([`crate::daemon`]) owns the sockets and the autopilot and calls in.
+//!
+//! One [`Link`] per UDP socket (PX4 SITL has a GCS link and an API link).
+//! Each serves a set of [`peers::Peers`] (its default remote from boot, plus
+//! everyone who talks, with a timeout), sends its own telemetry streams at
+//! its own rates ([`streams`]), answers the command, parameter, timesync,
+//! ping and FTP protocols, and turns offboard setpoints into
+//! [`AutopilotCommand`]s. Everything the compat doc (`shared/docs/mavlink-compat.md`)
+//! requires of the wire is decided here; the files:
+//!
+//! | file | job |
+//! |---|---|
+//! | [`wire`] | framing (v1 and v2 in, v2 out), hand-coded COMMAND_LONG/INT/ACK |
+//! | [`convert`] | PX4 custom_mode, MAV_RESULT, units (degE7, cdeg, mm) |
+//! | [`command`] | COMMAND_LONG/INT/SET_MODE classified as PX4 does |
+//! | [`param`] | PARAM_* protocol, INT32 bytewise |
+//! | [`offboard`] | SET_POSITION_TARGET_* and SET_ATTITUDE_TARGET to setpoints |
+//! | [`streams`] | stream rates, scheduler, message builders from [`Telemetry`] |
+//! | [`peers`] | default remote plus learned peers with a timeout |
+
+// PX4 and its clients still speak messages the XML marks deprecated
+// (SET_MODE, PING, ...): we must too.
+#![allow(deprecated)]
+
+pub mod command;
+pub mod convert;
+pub mod offboard;
+pub mod param;
+pub mod peers;
+pub mod streams;
+#[cfg(test)]
+pub(crate) mod testing;
+pub mod wire;
+
+use std::net::SocketAddr;
+use std::time::{Duration, Instant};
+
+use mavlink::dialects::common::{
+    AUTOPILOT_VERSION_DATA, FILE_TRANSFER_PROTOCOL_DATA, MavMessage, MavProtocolCapability, MavSeverity, PING_DATA,
+    STATUSTEXT_DATA, TIMESYNC_DATA,
+};
+
+use crate::autopilot::{AutopilotCommand, CommandOutcome, Severity, StatusText, Telemetry};
+use crate::params::ParamValue;
+use command::{Action, Command};
+use param::ParamAccess;
+use streams::{Identity, Rates, Scheduler, Stream};
+use wire::{CommandAck, Encoder, Frame, Inbound};
+
+/// AUTOPILOT_VERSION capabilities: PX4's set (MISSION_FLOAT, PARAM_FLOAT,
+/// MISSION_INT, COMMAND_INT, FTP, SET_ATTITUDE_TARGET,
+/// SET_POSITION_TARGET_LOCAL_NED and _GLOBAL_INT, MAVLINK2, MISSION_FENCE,
+/// MISSION_RALLY) plus PARAM_ENCODE_BYTEWISE: 57855.
+pub const CAPABILITIES: u64 = 57_855;
+/// AUTOPILOT_VERSION flight_sw_version: 1.16.0 release, as PX4 encodes it.
+pub const FLIGHT_SW_VERSION: u32 = 0x0110_00FF;
+
+/// How a link is set up.
+#[derive(Clone, Debug)]
+pub struct LinkConfig {
+    /// Name for logs ("gcs", "api", "udpout:HOST:PORT", ...).
+    pub name: String,
+    /// Our system and component id.
+    pub identity: Identity,
+    /// Where to send from boot, before anyone talks (PX4's default remote).
+    pub default_remote: Option<SocketAddr>,
+    /// Default stream rates.
+    pub rates: Rates,
+    /// A learned peer is forgotten after this long without a frame from it.
+    pub peer_timeout: Duration,
+}
+
+/// Where a frame goes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum To {
+    /// One peer (the requester).
+    Peer(SocketAddr),
+    /// Every active peer of the link.
+    All,
+}
+
+/// One encoded frame to send.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Outgoing {
+    /// Destination.
+    pub to: To,
+    /// A complete MAVLink 2 frame.
+    pub bytes: Vec<u8>,
+}
+
+/// What to ACK once the autopilot has answered a command.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AckTicket {
+    /// The command id to acknowledge (176 for SET_MODE).
+    pub command: u16,
+    /// Who asked.
+    pub to: SocketAddr,
+    /// The requester's system and component id (ACK target).
+    pub requester: (u8, u8),
+}
+
+/// What to answer once a PARAM_SET has been applied or refused.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ParamTicket {
+    /// Parameter name.
+    pub name: String,
+    /// Its index.
+    pub index: usize,
+    /// Who asked.
+    pub to: SocketAddr,
+    /// The requester's system and component id.
+    pub requester: (u8, u8),
+}
+
+/// What the daemon must do beyond sending frames.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Effect {
+    /// Give the autopilot a command, then pass its outcome to
+    /// [`Link::on_outcome`] with the ticket (offboard setpoints have none).
+    Autopilot {
+        /// The command.
+        command: AutopilotCommand,
+        /// ACK to send with the outcome.
+        ack: Option<AckTicket>,
+    },
+    /// Set a parameter (type already checked): store it and apply it to the
+    /// autopilot, then pass the outcome to [`Link::on_param_set`].
+    SetParam {
+        /// Who asked, for the answer.
+        ticket: ParamTicket,
+        /// The value to set.
+        value: ParamValue,
+    },
+    /// PREFLIGHT_REBOOT_SHUTDOWN p1 = 1 (ACK already queued).
+    Reboot,
+    /// PREFLIGHT_REBOOT_SHUTDOWN p1 = 2 (ACK already queued).
+    Shutdown,
+}
+
+/// One MAVLink link (one UDP socket's worth of protocol state).
+#[derive(Debug)]
+pub struct Link {
+    config: LinkConfig,
+    encoder: Encoder,
+    peers: peers::Peers,
+    streams: Scheduler,
+    outbox: Vec<Outgoing>,
+    delayed: Vec<(Instant, Outgoing)>,
+    due: Vec<Stream>,
+    stats: LinkStats,
+}
+
+/// Counters for logs and tests.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LinkStats {
+    /// Frames received with a valid CRC.
+    pub frames_in: u64,
+    /// Frames that did not decode or were not for us.
+    pub ignored: u64,
+}
+
+impl Link {
+    /// A link whose streams all start due at `now`.
+    #[must_use]
+    pub fn new(config: LinkConfig, now: Instant) -> Self {
+        let encoder = Encoder::new(config.identity.system_id, config.identity.component_id);
+        let peers = peers::Peers::new(config.default_remote, config.peer_timeout);
+        let streams = Scheduler::new(now, &config.rates);
+        Self {
+            config,
+            encoder,
+            peers,
+            streams,
+            outbox: Vec::new(),
+            delayed: Vec::new(),
+            due: Vec::new(),
+            stats: LinkStats::default(),
+        }
+    }
+
+    /// The link's configuration.
+    #[must_use]
+    pub fn config(&self) -> &LinkConfig {
+        &self.config
+    }
+
+    /// Counters.
+    #[must_use]
+    pub fn stats(&self) -> LinkStats {
+        self.stats
+    }
+
+    /// The stream scheduler (to read intervals).
+    #[must_use]
+    pub fn streams(&self) -> &Scheduler {
+        &self.streams
+    }
+
+    /// The addresses [`To::All`] means now.
+    pub fn destinations(&mut self, now: Instant, out: &mut Vec<SocketAddr>) {
+        self.peers.active(now, out);
+    }
+
+    /// Take the frames queued so far.
+    pub fn drain(&mut self) -> Vec<Outgoing> {
+        std::mem::take(&mut self.outbox)
+    }
+
+    fn send(&mut self, to: To, msg: &MavMessage) {
+        let bytes = self.encoder.message(msg);
+        self.outbox.push(Outgoing { to, bytes });
+    }
+
+    fn ack(&mut self, t: AckTicket, result: u8) {
+        let bytes = self.encoder.command_ack(&CommandAck {
+            command: t.command,
+            result,
+            progress: 0,
+            result_param2: 0,
+            target_system: t.requester.0,
+            target_component: t.requester.1,
+        });
+        self.outbox.push(Outgoing {
+            to: To::Peer(t.to),
+            bytes,
+        });
+    }
+
+    fn text(&mut self, to: To, severity: Severity, text: &str) {
+        let msg = status_text_msg(severity, text);
+        self.send(to, &msg);
+    }
+
+    /// Queue a STATUSTEXT for every peer.
+    pub fn status_text(&mut self, t: &StatusText) {
+        self.text(To::All, t.severity, &t.text);
+    }
+
+    /// Queue a PARAM_VALUE for every peer, [`command::PARAM_REBROADCAST_DELAY`]
+    /// from `now` (PX4 rebroadcasts a changed parameter on every link).
+    pub fn broadcast_param(&mut self, now: Instant, value: &MavMessage) {
+        let bytes = self.encoder.message(value);
+        self.delayed
+            .push((now + command::PARAM_REBROADCAST_DELAY, Outgoing { to: To::All, bytes }));
+    }
+
+    /// When [`Link::poll`] next has something to send.
+    #[must_use]
+    pub fn next_deadline(&self) -> Option<Instant> {
+        let d = self.delayed.iter().map(|(t, _)| *t).min();
+        match (self.streams.next_deadline(), d) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
+
+    /// Queue the streams due at `now` (and delayed frames whose time has come).
+    pub fn poll(&mut self, now: Instant, t: &Telemetry, unix_time_us: u64) {
+        let mut i = 0;
+        while i < self.delayed.len() {
+            if self.delayed[i].0 <= now {
+                let (_, out) = self.delayed.swap_remove(i);
+                self.outbox.push(out);
+            } else {
+                i += 1;
+            }
+        }
+        let mut due = std::mem::take(&mut self.due);
+        due.clear();
+        self.streams.due(now, &mut due);
+        for s in &due {
+            for m in streams::build(*s, t, unix_time_us) {
+                self.send(To::All, &m);
+            }
+        }
+        self.due = due;
+    }
+
+    /// Handle one received datagram from `from`.
+    pub fn on_datagram<P: ParamAccess + ?Sized>(
+        &mut self,
+        now: Instant,
+        from: SocketAddr,
+        data: &[u8],
+        t: &Telemetry,
+        params: &P,
+    ) -> Vec<Effect> {
+        let mut effects = Vec::new();
+        for frame in wire::frames(data) {
+            self.stats.frames_in += 1;
+            let me = self.config.identity;
+            if frame.system_id == me.system_id && frame.component_id == me.component_id {
+                // our own frames looped back (or another vehicle with our ids)
+                self.stats.ignored += 1;
+                continue;
+            }
+            if self.peers.heard(now, from) {
+                tracing::info!(link = %self.config.name, peer = %from, "new peer");
+            }
+            match wire::decode(&frame) {
+                Some(msg) => self.on_message(now, from, &frame, msg, t, params, &mut effects),
+                None => self.stats.ignored += 1,
+            }
+        }
+        effects
+    }
+
+    fn for_me(&self, system: u8, component: u8) -> bool {
+        let me = self.config.identity;
+        (system == 0 || system == me.system_id) && (component == 0 || component == me.component_id)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn on_message<P: ParamAccess + ?Sized>(
+        &mut self,
+        now: Instant,
+        from: SocketAddr,
+        frame: &Frame<'_>,
+        msg: Inbound,
+        t: &Telemetry,
+        params: &P,
+        effects: &mut Vec<Effect>,
+    ) {
+        let requester = (frame.system_id, frame.component_id);
+        let reply = To::Peer(from);
+        let msg = match msg {
+            Inbound::CommandLong(c) => {
+                if self.for_me(c.target_system, c.target_component) {
+                    self.on_command(now, from, requester, &Command::from(&c), t, params, effects);
+                } else {
+                    self.stats.ignored += 1;
+                }
+                return;
+            }
+            Inbound::CommandInt(c) => {
+                if self.for_me(c.target_system, c.target_component) {
+                    self.on_command(now, from, requester, &Command::from(&c), t, params, effects);
+                } else {
+                    self.stats.ignored += 1;
+                }
+                return;
+            }
+            Inbound::Other(m) => *m,
+        };
+        match msg {
+            MavMessage::SET_MODE(m) if self.for_me(m.target_system, 0) => {
+                let main = ((m.custom_mode >> 16) & 0xFF) as u8;
+                let sub = ((m.custom_mode >> 24) & 0xFF) as u8;
+                let action = command::set_mode(m.base_mode.bits(), main, sub);
+                let ticket = AckTicket {
+                    command: command::id::DO_SET_MODE,
+                    to: from,
+                    requester,
+                };
+                self.act(now, ticket, action, t, effects);
+            }
+            MavMessage::PARAM_REQUEST_LIST(m) if self.for_me(m.target_system, m.target_component) => {
+                for v in param::list(params) {
+                    self.send(reply, &v);
+                }
+            }
+            MavMessage::PARAM_REQUEST_READ(m) if self.for_me(m.target_system, m.target_component) => {
+                let name = param::name_of(&m.param_id);
+                let v = param::read(params, &name, m.param_index, requester);
+                self.send(reply, &v);
+            }
+            MavMessage::PARAM_SET(m) if self.for_me(m.target_system, m.target_component) => {
+                let name = param::name_of(&m.param_id);
+                match param::check_set(params, &name, m.param_type, m.param_value, requester) {
+                    Ok((index, value)) => effects.push(Effect::SetParam {
+                        ticket: ParamTicket {
+                            name,
+                            index,
+                            to: from,
+                            requester,
+                        },
+                        value,
+                    }),
+                    Err(r) => self.param_reply(reply, &r),
+                }
+            }
+            MavMessage::SET_POSITION_TARGET_LOCAL_NED(m) if self.for_me(m.target_system, m.target_component) => {
+                if let Some(sp) = offboard::local_ned(&m, t) {
+                    effects.push(Effect::Autopilot {
+                        command: AutopilotCommand::Offboard(sp),
+                        ack: None,
+                    });
+                }
+            }
+            MavMessage::SET_POSITION_TARGET_GLOBAL_INT(m) if self.for_me(m.target_system, m.target_component) => {
+                if let Some(sp) = offboard::global_int(&m, t) {
+                    effects.push(Effect::Autopilot {
+                        command: AutopilotCommand::Offboard(sp),
+                        ack: None,
+                    });
+                }
+            }
+            MavMessage::SET_ATTITUDE_TARGET(m) if self.for_me(m.target_system, m.target_component) => {
+                if let Some(sp) = offboard::attitude(&m) {
+                    effects.push(Effect::Autopilot {
+                        command: AutopilotCommand::Offboard(sp),
+                        ack: None,
+                    });
+                }
+            }
+            MavMessage::TIMESYNC(m) if m.tc1 == 0 => {
+                let now_ns = (t.time_s * 1e9) as i64;
+                self.send(
+                    reply,
+                    &MavMessage::TIMESYNC(TIMESYNC_DATA {
+                        tc1: now_ns.max(1),
+                        ts1: m.ts1,
+                    }),
+                );
+            }
+            MavMessage::PING(m) if m.target_system == 0 && m.target_component == 0 => {
+                self.send(
+                    reply,
+                    &MavMessage::PING(PING_DATA {
+                        time_usec: m.time_usec,
+                        seq: m.seq,
+                        target_system: requester.0,
+                        target_component: requester.1,
+                    }),
+                );
+            }
+            MavMessage::FILE_TRANSFER_PROTOCOL(m) if self.for_me(m.target_system, m.target_component) => {
+                if let Some(answer) = ftp_answer(&m, requester) {
+                    self.send(reply, &answer);
+                }
+            }
+            _ => {}
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn on_command<P: ParamAccess + ?Sized>(
+        &mut self,
+        now: Instant,
+        from: SocketAddr,
+        requester: (u8, u8),
+        c: &Command,
+        t: &Telemetry,
+        params: &P,
+        effects: &mut Vec<Effect>,
+    ) {
+        let failure = params.by_name("SYS_FAILURE_EN").map(|(_, v)| match v {
+            crate::params::ParamValue::Int32(i) => i != 0,
+            crate::params::ParamValue::Real32(f) => f != 0.0,
+        });
+        let state = command::State {
+            armed: t.armed,
+            failure_injection_enabled: failure,
+        };
+        let action = command::classify(c, state);
+        let ticket = AckTicket {
+            command: c.command,
+            to: from,
+            requester,
+        };
+        self.act(now, ticket, action, t, effects);
+    }
+
+    fn act(&mut self, now: Instant, ticket: AckTicket, action: Action, t: &Telemetry, effects: &mut Vec<Effect>) {
+        let reply = To::Peer(ticket.to);
+        match action {
+            Action::Autopilot(command) => effects.push(Effect::Autopilot {
+                command,
+                ack: Some(ticket),
+            }),
+            Action::Answer(result, reason) => {
+                self.ack(ticket, result);
+                if let Some(r) = reason
+                    && result != convert::result::ACCEPTED
+                {
+                    self.text(reply, Severity::Warning, r);
+                }
+            }
+            Action::SendMessage(id) => match requested(id, t, self.config.identity) {
+                Some(msgs) => {
+                    self.ack(ticket, convert::result::ACCEPTED);
+                    for m in &msgs {
+                        self.send(reply, m);
+                    }
+                }
+                None => self.ack(ticket, convert::result::DENIED),
+            },
+            Action::SetInterval(id, interval) => match Stream::from_message_id(id) {
+                Some(s) => {
+                    self.streams.set(now, s, interval);
+                    self.ack(ticket, convert::result::ACCEPTED);
+                }
+                None => self.ack(ticket, convert::result::FAILED),
+            },
+            Action::Reboot => {
+                self.ack(ticket, convert::result::ACCEPTED);
+                effects.push(Effect::Reboot);
+            }
+            Action::Shutdown => {
+                self.ack(ticket, convert::result::ACCEPTED);
+                effects.push(Effect::Shutdown);
+            }
+        }
+    }
+
+    /// Answer a PARAM_SET once applied (`Ok`: the value stored) or refused
+    /// (`Err`: why; nothing changed). On success returns the PARAM_VALUE the
+    /// daemon must have every link broadcast once more
+    /// ([`Link::broadcast_param`]), as PX4 does.
+    pub fn on_param_set<P: ParamAccess + ?Sized>(
+        &mut self,
+        ticket: &ParamTicket,
+        outcome: Result<ParamValue, String>,
+        params: &P,
+    ) -> Option<MavMessage> {
+        let r = param::finish_set(params, &ticket.name, ticket.index, outcome, ticket.requester);
+        self.param_reply(To::Peer(ticket.to), &r);
+        r.changed.map(|(_, m)| *m)
+    }
+
+    fn param_reply(&mut self, to: To, r: &param::SetReply) {
+        for v in &r.replies {
+            self.send(to, v);
+        }
+        if let Some(why) = &r.refused {
+            self.text(to, Severity::Warning, &format!("param: {why}"));
+        }
+    }
+
+    /// Send the ACK for a command the autopilot has answered. (The autopilot
+    /// announces its own refusals as status texts, so none is added here.)
+    pub fn on_outcome(&mut self, ticket: AckTicket, outcome: &CommandOutcome) {
+        let (result, _reason) = convert::mav_result(outcome);
+        self.ack(ticket, result);
+    }
+}
+
+/// STATUSTEXT (text cut to the 50 characters one message holds).
+#[must_use]
+pub fn status_text_msg(severity: Severity, text: &str) -> MavMessage {
+    let mut cut = text;
+    if cut.len() > 50 {
+        let mut end = 50;
+        while !cut.is_char_boundary(end) {
+            end -= 1;
+        }
+        cut = &cut[..end];
+    }
+    let sev = match severity {
+        Severity::Emergency => MavSeverity::MAV_SEVERITY_EMERGENCY,
+        Severity::Critical => MavSeverity::MAV_SEVERITY_CRITICAL,
+        Severity::Error => MavSeverity::MAV_SEVERITY_ERROR,
+        Severity::Warning => MavSeverity::MAV_SEVERITY_WARNING,
+        Severity::Notice => MavSeverity::MAV_SEVERITY_NOTICE,
+        Severity::Info => MavSeverity::MAV_SEVERITY_INFO,
+    };
+    MavMessage::STATUSTEXT(STATUSTEXT_DATA {
+        severity: sev,
+        text: cut.into(),
+    })
+}
+
+/// AUTOPILOT_VERSION as PX4 would send it.
+#[must_use]
+pub fn autopilot_version(identity: Identity) -> MavMessage {
+    MavMessage::AUTOPILOT_VERSION(AUTOPILOT_VERSION_DATA {
+        capabilities: MavProtocolCapability::from_bits_retain(CAPABILITIES),
+        uid: 0x5250_0000_0000_0000 | u64::from(identity.system_id),
+        flight_sw_version: FLIGHT_SW_VERSION,
+        middleware_sw_version: 0,
+        os_sw_version: 0,
+        board_version: 0,
+        vendor_id: 0,
+        product_id: 0,
+        flight_custom_version: [0; 8],
+        middleware_custom_version: [0; 8],
+        os_custom_version: [0; 8],
+    })
+}
+
+/// The messages a REQUEST_MESSAGE for `id` gets: AUTOPILOT_VERSION, or any
+/// stream's message; `None` (DENIED, as PX4) for the rest.
+#[must_use]
+pub fn requested(id: u32, t: &Telemetry, identity: Identity) -> Option<Vec<MavMessage>> {
+    if id == command::AUTOPILOT_VERSION_ID {
+        return Some(vec![autopilot_version(identity)]);
+    }
+    // SYSTEM_TIME's unix time is not known here; 0 means "unknown".
+    Stream::from_message_id(id).map(|s| streams::build(s, t, 0))
+}
+
+/// MAVLink FTP opcodes and errors used here.
+mod ftp {
+    pub(super) const TERMINATE_SESSION: u8 = 1;
+    pub(super) const RESET_SESSIONS: u8 = 2;
+    pub(super) const ACK: u8 = 128;
+    pub(super) const NAK: u8 = 129;
+    pub(super) const ERR_FILE_NOT_FOUND: u8 = 10;
+}
+
+/// The answer to an FTP request: rotorpilot serves no files, so every request
+/// gets a NAK FileNotFound (MAVProxy's `param fetch` then falls back to
+/// PARAM_REQUEST_LIST at once, compat doc section 11); session resets get an
+/// ACK. Replies (ACK/NAK opcodes) get nothing.
+fn ftp_answer(m: &FILE_TRANSFER_PROTOCOL_DATA, requester: (u8, u8)) -> Option<MavMessage> {
+    let p = &m.payload;
+    let seq = u16::from_le_bytes([p[0], p[1]]);
+    let session = p[2];
+    let opcode = p[3];
+    if opcode == ftp::ACK || opcode == ftp::NAK || opcode == 0 {
+        return None;
+    }
+    let mut out = [0u8; 251];
+    out[0..2].copy_from_slice(&seq.wrapping_add(1).to_le_bytes());
+    out[2] = session;
+    out[5] = opcode;
+    if opcode == ftp::TERMINATE_SESSION || opcode == ftp::RESET_SESSIONS {
+        out[3] = ftp::ACK;
+        out[4] = 0;
+    } else {
+        out[3] = ftp::NAK;
+        out[4] = 1;
+        out[12] = ftp::ERR_FILE_NOT_FOUND;
+    }
+    Some(MavMessage::FILE_TRANSFER_PROTOCOL(FILE_TRANSFER_PROTOCOL_DATA {
+        target_network: 0,
+        target_system: requester.0,
+        target_component: requester.1,
+        payload: out,
+    }))
+}
+
+#[cfg(test)]
+mod tests;

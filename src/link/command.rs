@@ -1,0 +1,472 @@
+//! The command protocol: COMMAND_LONG and COMMAND_INT read alike (PX4 does),
+//! then classified into what to do: ask the autopilot, answer a request
+//! here, or refuse. NaN parameters mean "default" or "keep", as MAVSDK sends
+//! them; pymavlink sends 0 in the same places, which is read the same way
+//! where PX4 does (lat/lon 0/0 = current position).
+
+use std::time::Duration;
+
+use super::convert::{self, ModeRequest, result};
+use super::streams::Interval;
+use super::wire::{CommandInt, CommandLong};
+use crate::autopilot::AutopilotCommand;
+use crate::geo::GeoPoint;
+
+/// MAV_CMD ids handled here.
+pub mod id {
+    /// MAV_CMD_NAV_RETURN_TO_LAUNCH.
+    pub const NAV_RETURN_TO_LAUNCH: u16 = 20;
+    /// MAV_CMD_NAV_LAND.
+    pub const NAV_LAND: u16 = 21;
+    /// MAV_CMD_NAV_TAKEOFF.
+    pub const NAV_TAKEOFF: u16 = 22;
+    /// MAV_CMD_DO_SET_MODE.
+    pub const DO_SET_MODE: u16 = 176;
+    /// MAV_CMD_DO_CHANGE_SPEED.
+    pub const DO_CHANGE_SPEED: u16 = 178;
+    /// MAV_CMD_DO_SET_HOME.
+    pub const DO_SET_HOME: u16 = 179;
+    /// MAV_CMD_DO_REPOSITION.
+    pub const DO_REPOSITION: u16 = 192;
+    /// MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN.
+    pub const PREFLIGHT_REBOOT_SHUTDOWN: u16 = 246;
+    /// MAV_CMD_MISSION_START.
+    pub const MISSION_START: u16 = 300;
+    /// MAV_CMD_COMPONENT_ARM_DISARM.
+    pub const COMPONENT_ARM_DISARM: u16 = 400;
+    /// MAV_CMD_GET_HOME_POSITION.
+    pub const GET_HOME_POSITION: u16 = 410;
+    /// MAV_CMD_INJECT_FAILURE.
+    pub const INJECT_FAILURE: u16 = 420;
+    /// MAV_CMD_SET_MESSAGE_INTERVAL.
+    pub const SET_MESSAGE_INTERVAL: u16 = 511;
+    /// MAV_CMD_REQUEST_MESSAGE.
+    pub const REQUEST_MESSAGE: u16 = 512;
+    /// MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES.
+    pub const REQUEST_AUTOPILOT_CAPABILITIES: u16 = 520;
+}
+
+/// The "force" magic number of MAV_CMD_COMPONENT_ARM_DISARM param2.
+pub const FORCE_MAGIC: f32 = 21196.0;
+
+/// AUTOPILOT_VERSION message id.
+pub const AUTOPILOT_VERSION_ID: u32 = 148;
+/// HOME_POSITION message id.
+pub const HOME_POSITION_ID: u32 = 242;
+
+/// Where a command's position parameters came from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Position {
+    /// COMMAND_LONG params 5..7 (lat/lon in degrees).
+    Float {
+        /// param5.
+        x: f32,
+        /// param6.
+        y: f32,
+        /// param7.
+        z: f32,
+    },
+    /// COMMAND_INT x, y (degE7), z and frame.
+    Int {
+        /// Latitude [degE7].
+        x: i32,
+        /// Longitude [degE7].
+        y: i32,
+        /// Altitude [m].
+        z: f32,
+        /// MAV_FRAME (ignored for altitudes: AMSL whatever the frame, as PX4).
+        frame: u8,
+    },
+}
+
+/// A command in either form.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Command {
+    /// MAV_CMD id.
+    pub command: u16,
+    /// param1..param4.
+    pub p: [f32; 4],
+    /// params 5..7 or x/y/z.
+    pub position: Position,
+    /// Target system.
+    pub target_system: u8,
+    /// Target component.
+    pub target_component: u8,
+}
+
+impl From<&CommandLong> for Command {
+    fn from(c: &CommandLong) -> Self {
+        Self {
+            command: c.command,
+            p: [c.params[0], c.params[1], c.params[2], c.params[3]],
+            position: Position::Float {
+                x: c.params[4],
+                y: c.params[5],
+                z: c.params[6],
+            },
+            target_system: c.target_system,
+            target_component: c.target_component,
+        }
+    }
+}
+
+impl From<&CommandInt> for Command {
+    fn from(c: &CommandInt) -> Self {
+        Self {
+            command: c.command,
+            p: c.params,
+            position: Position::Int {
+                x: c.x,
+                y: c.y,
+                z: c.z,
+                frame: c.frame,
+            },
+            target_system: c.target_system,
+            target_component: c.target_component,
+        }
+    }
+}
+
+impl Command {
+    /// Latitude and longitude [deg], `None` when unset (NaN, INT32_MAX, or 0/0).
+    #[must_use]
+    pub fn lat_lon(&self) -> Option<(f64, f64)> {
+        match self.position {
+            Position::Float { x, y, .. } => {
+                let (lat, lon) = (convert::finite(x)?, convert::finite(y)?);
+                (lat != 0.0 || lon != 0.0).then_some((lat, lon))
+            }
+            Position::Int { x, y, .. } => {
+                if x == i32::MAX || y == i32::MAX || (x == 0 && y == 0) {
+                    None
+                } else {
+                    Some((convert::from_deg_e7(x), convert::from_deg_e7(y)))
+                }
+            }
+        }
+    }
+
+    /// param7 / z, `None` when NaN.
+    #[must_use]
+    pub fn z(&self) -> Option<f64> {
+        match self.position {
+            Position::Float { z, .. } | Position::Int { z, .. } => convert::finite(z),
+        }
+    }
+}
+
+/// What the vehicle does about a command.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Action {
+    /// Ask the autopilot; the ACK carries its outcome.
+    Autopilot(AutopilotCommand),
+    /// ACK at once with this MAV_RESULT; a refusal may carry a reason for
+    /// STATUSTEXT.
+    Answer(u8, Option<&'static str>),
+    /// ACK ACCEPTED (if the link can build the message, else DENIED), then
+    /// send the message.
+    SendMessage(u32),
+    /// Change a stream interval on this link (ACCEPTED, or FAILED for a
+    /// message the vehicle does not stream).
+    SetInterval(u32, Interval),
+    /// ACK ACCEPTED, then reset the simulation (see the daemon).
+    Reboot,
+    /// ACK ACCEPTED, then stop the daemon (PX4 SITL exits too).
+    Shutdown,
+}
+
+/// The state a command is judged against.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct State {
+    /// The vehicle is armed.
+    pub armed: bool,
+    /// SYS_FAILURE_EN, if the parameter exists.
+    pub failure_injection_enabled: Option<bool>,
+}
+
+/// Classify a command as PX4 would.
+#[must_use]
+pub fn classify(c: &Command, state: State) -> Action {
+    let [p1, p2, p3, p4] = c.p;
+    match c.command {
+        id::COMPONENT_ARM_DISARM => {
+            let force = (p2 - FORCE_MAGIC).abs() < 0.5;
+            match p1.round() {
+                1.0 => Action::Autopilot(AutopilotCommand::Arm { force }),
+                0.0 => Action::Autopilot(AutopilotCommand::Disarm { force }),
+                _ => Action::Answer(result::UNSUPPORTED, None),
+            }
+        }
+        id::NAV_TAKEOFF => Action::Autopilot(AutopilotCommand::Takeoff { altitude_amsl_m: c.z() }),
+        id::NAV_LAND => Action::Autopilot(AutopilotCommand::Land),
+        id::NAV_RETURN_TO_LAUNCH => Action::Autopilot(AutopilotCommand::ReturnToLaunch),
+        id::DO_SET_MODE => set_mode(p1 as u8, p2 as u8, p3 as u8),
+        id::DO_REPOSITION => {
+            // PX4: bit 0 (CHANGE_MODE) must be set and no other bit.
+            let flags = if p2.is_finite() && p2 >= 0.0 { p2 as u32 } else { 0 };
+            if flags != 1 {
+                return Action::Answer(result::UNSUPPORTED, Some("DO_REPOSITION needs param2 = 1"));
+            }
+            let (lat, lon) = c.lat_lon().unzip();
+            Action::Autopilot(AutopilotCommand::Reposition {
+                lat_deg: lat,
+                lon_deg: lon,
+                alt_amsl_m: c.z(),
+                yaw_rad: convert::finite(p4),
+                speed_m_s: convert::finite(p1).filter(|s| *s > 0.0),
+            })
+        }
+        id::DO_CHANGE_SPEED => match convert::finite(p2).filter(|s| *s > 0.0) {
+            Some(speed_m_s) => Action::Autopilot(AutopilotCommand::ChangeSpeed { speed_m_s }),
+            // -1: no change (MAVSDK sends p3 = -1 for throttle, p2 for speed)
+            None => Action::Answer(result::ACCEPTED, None),
+        },
+        id::DO_SET_HOME => {
+            if p1.round() == 1.0 {
+                return Action::Autopilot(AutopilotCommand::SetHome(None));
+            }
+            match (c.lat_lon(), c.z()) {
+                (Some((lat_deg, lon_deg)), Some(alt_amsl_m)) => {
+                    let p = GeoPoint {
+                        lat_deg,
+                        lon_deg,
+                        alt_amsl_m,
+                    };
+                    if p.is_valid() {
+                        Action::Autopilot(AutopilotCommand::SetHome(Some(p)))
+                    } else {
+                        Action::Answer(result::DENIED, Some("invalid home position"))
+                    }
+                }
+                _ => Action::Answer(result::DENIED, Some("invalid home position")),
+            }
+        }
+        id::PREFLIGHT_REBOOT_SHUTDOWN => match p1.round() {
+            0.0 => Action::Answer(result::ACCEPTED, None),
+            1.0 | 2.0 if state.armed => Action::Answer(result::DENIED, Some("disarm before reboot")),
+            1.0 => Action::Reboot,
+            2.0 => Action::Shutdown,
+            _ => Action::Answer(result::UNSUPPORTED, None),
+        },
+        id::MISSION_START => Action::Answer(result::TEMPORARILY_REJECTED, Some("no mission loaded")),
+        id::SET_MESSAGE_INTERVAL => {
+            if !p1.is_finite() || p1 < 0.0 {
+                return Action::Answer(result::FAILED, None);
+            }
+            Action::SetInterval(p1 as u32, Interval::from_param_us(p2))
+        }
+        id::REQUEST_MESSAGE => {
+            if !p1.is_finite() || p1 < 0.0 {
+                return Action::Answer(result::DENIED, None);
+            }
+            Action::SendMessage(p1 as u32)
+        }
+        id::REQUEST_AUTOPILOT_CAPABILITIES => Action::SendMessage(AUTOPILOT_VERSION_ID),
+        id::GET_HOME_POSITION => Action::SendMessage(HOME_POSITION_ID),
+        id::INJECT_FAILURE => match state.failure_injection_enabled {
+            Some(false) => Action::Answer(result::DENIED, Some("failure injection disabled (SYS_FAILURE_EN)")),
+            _ => Action::Answer(result::UNSUPPORTED, None),
+        },
+        _ => {
+            let _ = (p3, p4);
+            Action::Answer(result::UNSUPPORTED, None)
+        }
+    }
+}
+
+/// DO_SET_MODE / SET_MODE: the requested mode, or a refusal.
+#[must_use]
+pub fn set_mode(base: u8, main: u8, sub: u8) -> Action {
+    match convert::mode_from_set_mode(base, main, sub) {
+        ModeRequest::Mode(m) => Action::Autopilot(AutopilotCommand::SetMode(m)),
+        ModeRequest::NotAvailable => Action::Answer(result::TEMPORARILY_REJECTED, Some("mode not available")),
+        ModeRequest::Unknown => Action::Answer(result::UNSUPPORTED, None),
+    }
+}
+
+/// How long after a param set the change is broadcast again (PX4's
+/// `send_untransmitted()` runs a few milliseconds later).
+pub const PARAM_REBROADCAST_DELAY: Duration = Duration::from_millis(5);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::autopilot::FlightMode;
+
+    const DISARMED: State = State {
+        armed: false,
+        failure_injection_enabled: Some(false),
+    };
+
+    fn long(command: u16, p: [f32; 7]) -> Command {
+        Command::from(&CommandLong {
+            params: p,
+            command,
+            target_system: 1,
+            target_component: 1,
+            confirmation: 0,
+        })
+    }
+
+    const N: f32 = f32::NAN;
+
+    #[test]
+    fn arm_disarm_and_force() {
+        let c = |p1, p2| classify(&long(400, [p1, p2, N, N, N, N, N]), DISARMED);
+        assert_eq!(c(1.0, N), Action::Autopilot(AutopilotCommand::Arm { force: false }));
+        assert_eq!(c(1.0, 0.0), Action::Autopilot(AutopilotCommand::Arm { force: false }));
+        assert_eq!(
+            c(1.0, 21196.0),
+            Action::Autopilot(AutopilotCommand::Arm { force: true })
+        );
+        // MAVSDK arm_force() sends p1 = 0: a forced disarm
+        assert_eq!(
+            c(0.0, 21196.0),
+            Action::Autopilot(AutopilotCommand::Disarm { force: true })
+        );
+        assert_eq!(
+            c(0.0, 0.0),
+            Action::Autopilot(AutopilotCommand::Disarm { force: false })
+        );
+        assert_eq!(c(3.0, 0.0), Action::Answer(result::UNSUPPORTED, None));
+        assert_eq!(c(N, 0.0), Action::Answer(result::UNSUPPORTED, None));
+    }
+
+    #[test]
+    fn takeoff_altitudes() {
+        let a = classify(&long(22, [N; 7]), DISARMED);
+        assert_eq!(
+            a,
+            Action::Autopilot(AutopilotCommand::Takeoff { altitude_amsl_m: None })
+        );
+        let a = classify(&long(22, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 10.0]), DISARMED);
+        assert_eq!(
+            a,
+            Action::Autopilot(AutopilotCommand::Takeoff {
+                altitude_amsl_m: Some(10.0)
+            })
+        );
+    }
+
+    #[test]
+    fn reposition_from_mavsdk_3_and_4_and_pymavlink() {
+        let mk = |frame| {
+            Command::from(&CommandInt {
+                params: [N, 1.0, N, 1.5],
+                x: 473_977_420,
+                y: 85_455_940,
+                z: 508.0,
+                command: 192,
+                target_system: 1,
+                target_component: 1,
+                frame,
+                current: 0,
+                autocontinue: 0,
+            })
+        };
+        for frame in [0, 5, 6] {
+            let Action::Autopilot(AutopilotCommand::Reposition {
+                lat_deg,
+                lon_deg,
+                alt_amsl_m,
+                yaw_rad,
+                speed_m_s,
+            }) = classify(&mk(frame), DISARMED)
+            else {
+                panic!()
+            };
+            assert!((lat_deg.unwrap() - 47.397_742).abs() < 1e-9);
+            assert!((lon_deg.unwrap() - 8.545_594).abs() < 1e-9);
+            assert_eq!(alt_amsl_m, Some(508.0));
+            assert_eq!(yaw_rad, Some(1.5));
+            assert_eq!(speed_m_s, None);
+        }
+        // p2 = 0: PX4 answers UNSUPPORTED
+        let a = classify(&long(192, [N, 0.0, N, N, 47.0, 8.0, 500.0]), DISARMED);
+        assert!(matches!(a, Action::Answer(result::UNSUPPORTED, _)));
+        // long form with NaN position keeps everything
+        let a = classify(&long(192, [N, 1.0, N, N, N, N, N]), DISARMED);
+        assert_eq!(
+            a,
+            Action::Autopilot(AutopilotCommand::Reposition {
+                lat_deg: None,
+                lon_deg: None,
+                alt_amsl_m: None,
+                yaw_rad: None,
+                speed_m_s: None
+            })
+        );
+    }
+
+    #[test]
+    fn set_mode_and_refusals() {
+        let a = classify(&long(176, [1.0, 4.0, 3.0, N, N, N, N]), DISARMED);
+        assert_eq!(a, Action::Autopilot(AutopilotCommand::SetMode(FlightMode::Hold)));
+        let a = classify(&long(176, [129.0, 6.0, 0.0, N, N, N, N]), DISARMED);
+        assert_eq!(a, Action::Autopilot(AutopilotCommand::SetMode(FlightMode::Offboard)));
+        let a = classify(&long(176, [81.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]), DISARMED);
+        assert!(matches!(a, Action::Answer(result::TEMPORARILY_REJECTED, _)));
+        // Mission goes to the autopilot, which refuses it without a mission
+        let a = classify(&long(176, [1.0, 4.0, 4.0, N, N, N, N]), DISARMED);
+        assert_eq!(a, Action::Autopilot(AutopilotCommand::SetMode(FlightMode::Mission)));
+        assert_eq!(
+            classify(&long(31_000, [N; 7]), DISARMED),
+            Action::Answer(result::UNSUPPORTED, None)
+        );
+        assert!(matches!(
+            classify(&long(300, [0.0; 7]), DISARMED),
+            Action::Answer(result::TEMPORARILY_REJECTED, _)
+        ));
+        assert!(matches!(
+            classify(&long(420, [4.0, 1.0, 0.0, N, N, N, N]), DISARMED),
+            Action::Answer(result::DENIED, _)
+        ));
+    }
+
+    #[test]
+    fn requests_and_reboot() {
+        assert_eq!(
+            classify(&long(512, [148.0, N, N, N, N, N, N]), DISARMED),
+            Action::SendMessage(148)
+        );
+        assert_eq!(
+            classify(&long(520, [1.0, N, N, N, N, N, N]), DISARMED),
+            Action::SendMessage(148)
+        );
+        assert_eq!(classify(&long(410, [0.0; 7]), DISARMED), Action::SendMessage(242));
+        assert_eq!(
+            classify(&long(511, [245.0, 1e6, N, N, N, N, N]), DISARMED),
+            Action::SetInterval(245, Interval::Every(Duration::from_secs(1)))
+        );
+        assert_eq!(
+            classify(&long(246, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]), DISARMED),
+            Action::Reboot
+        );
+        let armed = State {
+            armed: true,
+            ..DISARMED
+        };
+        assert!(matches!(
+            classify(&long(246, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]), armed),
+            Action::Answer(result::DENIED, _)
+        ));
+        assert_eq!(
+            classify(&long(246, [0.0; 7]), armed),
+            Action::Answer(result::ACCEPTED, None)
+        );
+    }
+
+    #[test]
+    fn set_home() {
+        assert_eq!(
+            classify(&long(179, [1.0, N, N, N, N, N, N]), DISARMED),
+            Action::Autopilot(AutopilotCommand::SetHome(None))
+        );
+        let a = classify(&long(179, [0.0, N, N, N, 47.4, 8.5, 500.0]), DISARMED);
+        assert!(matches!(a, Action::Autopilot(AutopilotCommand::SetHome(Some(p))) if p.alt_amsl_m == 500.0));
+        assert!(matches!(
+            classify(&long(179, [0.0, N, N, N, 147.4, 8.5, 500.0]), DISARMED),
+            Action::Answer(result::DENIED, _)
+        ));
+    }
+}

@@ -1,0 +1,301 @@
+//! Conversions at the MAVLink edge: PX4 `custom_mode`, MAV_RESULT, landed
+//! state, severities, and SI to MAVLink units (degE7, cm/s, cdeg, mm).
+//! Everything inside rotorpilot is SI, NED/FRD and `f64`; the wire types appear
+//! only here and in the message builders.
+
+use crate::autopilot::{CommandOutcome, FlightMode, LandedState, Severity};
+
+/// PX4 main modes (`px4_custom_mode.h`).
+pub mod main_mode {
+    /// MANUAL.
+    pub const MANUAL: u8 = 1;
+    /// ALTCTL.
+    pub const ALTCTL: u8 = 2;
+    /// POSCTL.
+    pub const POSCTL: u8 = 3;
+    /// AUTO (sub-mode says which).
+    pub const AUTO: u8 = 4;
+    /// ACRO.
+    pub const ACRO: u8 = 5;
+    /// OFFBOARD.
+    pub const OFFBOARD: u8 = 6;
+    /// STABILIZED.
+    pub const STABILIZED: u8 = 7;
+}
+
+/// PX4 AUTO sub-modes.
+pub mod auto_sub {
+    /// AUTO.READY.
+    pub const READY: u8 = 1;
+    /// AUTO.TAKEOFF.
+    pub const TAKEOFF: u8 = 2;
+    /// AUTO.LOITER (Hold).
+    pub const LOITER: u8 = 3;
+    /// AUTO.MISSION.
+    pub const MISSION: u8 = 4;
+    /// AUTO.RTL.
+    pub const RTL: u8 = 5;
+    /// AUTO.LAND.
+    pub const LAND: u8 = 6;
+    /// AUTO.FOLLOW_TARGET.
+    pub const FOLLOW_TARGET: u8 = 8;
+}
+
+/// PX4 (main, sub) of a flight mode.
+#[must_use]
+pub fn px4_mode(mode: FlightMode) -> (u8, u8) {
+    match mode {
+        FlightMode::Position => (main_mode::POSCTL, 0),
+        FlightMode::Hold => (main_mode::AUTO, auto_sub::LOITER),
+        FlightMode::Takeoff => (main_mode::AUTO, auto_sub::TAKEOFF),
+        FlightMode::Land => (main_mode::AUTO, auto_sub::LAND),
+        FlightMode::ReturnToLaunch => (main_mode::AUTO, auto_sub::RTL),
+        FlightMode::Offboard => (main_mode::OFFBOARD, 0),
+        FlightMode::Mission => (main_mode::AUTO, auto_sub::MISSION),
+    }
+}
+
+/// HEARTBEAT `custom_mode`: main << 16 | sub << 24 (bits 0..15 zero).
+#[must_use]
+pub fn custom_mode(mode: FlightMode) -> u32 {
+    let (main, sub) = px4_mode(mode);
+    (u32::from(main) << 16) | (u32::from(sub) << 24)
+}
+
+/// What a requested PX4 (main, sub) asks of us.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ModeRequest {
+    /// A mode rotorpilot flies.
+    Mode(FlightMode),
+    /// A PX4 mode that exists but that we cannot fly (manual modes need RC):
+    /// PX4 answers TEMPORARILY_REJECTED when a mode is not available.
+    NotAvailable,
+    /// Not a PX4 mode at all.
+    Unknown,
+}
+
+/// Map a PX4 (main, sub) pair to a flight mode. AUTO with sub 0 is MISSION
+/// (PX4); POSCTL and OFFBOARD ignore the sub-mode.
+#[must_use]
+pub fn mode_from_px4(main: u8, sub: u8) -> ModeRequest {
+    match (main, sub) {
+        (main_mode::POSCTL, _) => ModeRequest::Mode(FlightMode::Position),
+        (main_mode::OFFBOARD, _) => ModeRequest::Mode(FlightMode::Offboard),
+        (main_mode::AUTO, auto_sub::LOITER) => ModeRequest::Mode(FlightMode::Hold),
+        (main_mode::AUTO, auto_sub::TAKEOFF) => ModeRequest::Mode(FlightMode::Takeoff),
+        (main_mode::AUTO, auto_sub::LAND) => ModeRequest::Mode(FlightMode::Land),
+        (main_mode::AUTO, auto_sub::RTL) => ModeRequest::Mode(FlightMode::ReturnToLaunch),
+        (main_mode::AUTO, 0 | auto_sub::MISSION) => ModeRequest::Mode(FlightMode::Mission),
+        (main_mode::AUTO, auto_sub::READY | auto_sub::FOLLOW_TARGET | 7 | 9..=18) => ModeRequest::NotAvailable,
+        (main_mode::MANUAL | main_mode::ALTCTL | main_mode::ACRO | main_mode::STABILIZED | 8..=11, _) => {
+            ModeRequest::NotAvailable
+        }
+        _ => ModeRequest::Unknown,
+    }
+}
+
+/// Base-mode flags (MAV_MODE_FLAG).
+pub mod mode_flag {
+    /// CUSTOM_MODE_ENABLED.
+    pub const CUSTOM: u8 = 1;
+    /// AUTO_ENABLED.
+    pub const AUTO: u8 = 4;
+    /// GUIDED_ENABLED.
+    pub const GUIDED: u8 = 8;
+    /// STABILIZE_ENABLED.
+    pub const STABILIZE: u8 = 16;
+    /// MANUAL_INPUT_ENABLED.
+    pub const MANUAL: u8 = 64;
+    /// SAFETY_ARMED.
+    pub const ARMED: u8 = 128;
+}
+
+/// The mode a DO_SET_MODE / SET_MODE asks for, read as PX4 does: with
+/// CUSTOM_MODE_ENABLED in `base_mode`, from main and sub; without it, from the
+/// base flags (AUTO gives Mission, MANUAL + GUIDED gives POSCTL).
+#[must_use]
+pub fn mode_from_set_mode(base_mode: u8, main: u8, sub: u8) -> ModeRequest {
+    if base_mode & mode_flag::CUSTOM != 0 {
+        mode_from_px4(main, sub)
+    } else if base_mode & mode_flag::AUTO != 0 {
+        ModeRequest::Mode(FlightMode::Mission)
+    } else if base_mode & mode_flag::GUIDED != 0 && base_mode & mode_flag::MANUAL != 0 {
+        ModeRequest::Mode(FlightMode::Position)
+    } else if base_mode & (mode_flag::MANUAL | mode_flag::STABILIZE) != 0 {
+        ModeRequest::NotAvailable
+    } else {
+        ModeRequest::Unknown
+    }
+}
+
+/// HEARTBEAT `base_mode`: CUSTOM_MODE_ENABLED always, SAFETY_ARMED when armed,
+/// and the flags PX4 sets for the mode (no client reads them, QGC shows them).
+#[must_use]
+pub fn base_mode(mode: FlightMode, armed: bool) -> u8 {
+    let mut b = mode_flag::CUSTOM;
+    b |= match mode {
+        FlightMode::Position => mode_flag::MANUAL | mode_flag::STABILIZE | mode_flag::GUIDED,
+        FlightMode::Hold
+        | FlightMode::Takeoff
+        | FlightMode::Land
+        | FlightMode::ReturnToLaunch
+        | FlightMode::Mission
+        | FlightMode::Offboard => mode_flag::AUTO | mode_flag::GUIDED | mode_flag::STABILIZE,
+    };
+    if armed {
+        b |= mode_flag::ARMED;
+    }
+    b
+}
+
+/// MAV_RESULT values.
+pub mod result {
+    /// ACCEPTED.
+    pub const ACCEPTED: u8 = 0;
+    /// TEMPORARILY_REJECTED.
+    pub const TEMPORARILY_REJECTED: u8 = 1;
+    /// DENIED.
+    pub const DENIED: u8 = 2;
+    /// UNSUPPORTED.
+    pub const UNSUPPORTED: u8 = 3;
+    /// FAILED.
+    pub const FAILED: u8 = 4;
+}
+
+/// MAV_RESULT of an autopilot outcome, and its reason if it is a refusal.
+#[must_use]
+pub fn mav_result(outcome: &CommandOutcome) -> (u8, Option<&'static str>) {
+    match outcome {
+        CommandOutcome::Accepted => (result::ACCEPTED, None),
+        CommandOutcome::TemporarilyRejected(r) => (result::TEMPORARILY_REJECTED, Some(r)),
+        CommandOutcome::Denied(r) => (result::DENIED, Some(r)),
+        CommandOutcome::Failed(r) => (result::FAILED, Some(r)),
+    }
+}
+
+/// MAV_LANDED_STATE value.
+#[must_use]
+pub fn landed_state(l: LandedState) -> u8 {
+    match l {
+        LandedState::OnGround => 1,
+        LandedState::InAir => 2,
+        LandedState::Takeoff => 3,
+        LandedState::Landing => 4,
+    }
+}
+
+/// MAV_SEVERITY value.
+#[must_use]
+pub fn severity(s: Severity) -> u8 {
+    match s {
+        Severity::Emergency => 0,
+        Severity::Critical => 2,
+        Severity::Error => 3,
+        Severity::Warning => 4,
+        Severity::Notice => 5,
+        Severity::Info => 6,
+    }
+}
+
+/// Degrees to degE7 (rounded, saturating).
+#[must_use]
+pub fn deg_e7(deg: f64) -> i32 {
+    sat_i32((deg * 1e7).round())
+}
+
+/// degE7 to degrees.
+#[must_use]
+pub fn from_deg_e7(v: i32) -> f64 {
+    f64::from(v) * 1e-7
+}
+
+/// Saturating, NaN-safe float to i32.
+#[must_use]
+pub fn sat_i32(v: f64) -> i32 {
+    // `as` saturates and maps NaN to 0.
+    v as i32
+}
+
+/// Saturating, NaN-safe float to i16.
+#[must_use]
+pub fn sat_i16(v: f64) -> i16 {
+    v as i16
+}
+
+/// Saturating, NaN-safe float to u16.
+#[must_use]
+pub fn sat_u16(v: f64) -> u16 {
+    v as u16
+}
+
+/// Heading [rad] to centidegrees in 0..36000.
+#[must_use]
+pub fn heading_cdeg(yaw_rad: f64) -> u16 {
+    let d = yaw_rad.to_degrees().rem_euclid(360.0);
+    let c = (d * 100.0).round();
+    if c >= 36000.0 { 0 } else { sat_u16(c) }
+}
+
+/// MAVLink's "unset" for a float command parameter is NaN; `None` then.
+#[must_use]
+pub fn finite(v: f32) -> Option<f64> {
+    v.is_finite().then_some(f64::from(v))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn custom_modes_match_px4_numbers() {
+        assert_eq!(custom_mode(FlightMode::Hold), 50_593_792);
+        assert_eq!(custom_mode(FlightMode::Takeoff), 33_816_576);
+        assert_eq!(custom_mode(FlightMode::Mission), 67_371_008);
+        assert_eq!(custom_mode(FlightMode::ReturnToLaunch), 84_148_224);
+        assert_eq!(custom_mode(FlightMode::Land), 100_925_440);
+        assert_eq!(custom_mode(FlightMode::Offboard), 393_216);
+        assert_eq!(custom_mode(FlightMode::Position), 196_608);
+    }
+
+    #[test]
+    fn every_mode_round_trips() {
+        for m in [
+            FlightMode::Position,
+            FlightMode::Hold,
+            FlightMode::Takeoff,
+            FlightMode::Land,
+            FlightMode::ReturnToLaunch,
+            FlightMode::Offboard,
+            FlightMode::Mission,
+        ] {
+            let (main, sub) = px4_mode(m);
+            assert_eq!(mode_from_px4(main, sub), ModeRequest::Mode(m));
+            assert_eq!(mode_from_set_mode(1, main, sub), ModeRequest::Mode(m));
+            assert_eq!(base_mode(m, false) & 1, 1);
+            assert_eq!(base_mode(m, true) & 128, 128);
+        }
+    }
+
+    #[test]
+    fn set_mode_quirks() {
+        // pymavlink sends 29 (custom + auto + guided + stabilize) for AUTO modes
+        assert_eq!(mode_from_set_mode(29, 4, 3), ModeRequest::Mode(FlightMode::Hold));
+        // MAVSDK sends 129 when armed: 128 is ignored
+        assert_eq!(mode_from_set_mode(129, 6, 0), ModeRequest::Mode(FlightMode::Offboard));
+        assert_eq!(mode_from_set_mode(81, 1, 0), ModeRequest::NotAvailable);
+        assert_eq!(mode_from_set_mode(4, 0, 0), ModeRequest::Mode(FlightMode::Mission));
+        assert_eq!(mode_from_px4(4, 0), ModeRequest::Mode(FlightMode::Mission));
+        assert_eq!(mode_from_px4(42, 0), ModeRequest::Unknown);
+    }
+
+    #[test]
+    fn units() {
+        assert_eq!(deg_e7(47.397_742), 473_977_420);
+        assert!((from_deg_e7(85_455_940) - 8.545_594).abs() < 1e-12);
+        assert_eq!(heading_cdeg(-0.5_f64.to_radians()), 35_950);
+        assert_eq!(heading_cdeg(std::f64::consts::TAU), 0);
+        assert_eq!(sat_i16(1e9), i16::MAX);
+        assert_eq!(sat_i32(f64::NAN), 0);
+        assert_eq!(finite(f32::NAN), None);
+    }
+}

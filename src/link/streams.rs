@@ -1,0 +1,561 @@
+//! Telemetry streams: which messages a link sends unasked, at what rate, and
+//! how each is built from a [`Telemetry`] snapshot.
+//!
+//! Rates are in wall time (a stream at 50 Hz sends 50 messages per wall
+//! second whatever `--speed` is), so traffic and CPU stay bounded when the
+//! simulation runs fast; the timestamps inside are simulated time. The
+//! default rates are PX4's (compat doc section 4) for the GCS link (normal
+//! mode) and the API link (onboard mode). SET_MESSAGE_INTERVAL changes a
+//! stream on the link it arrives on only, as in PX4.
+//!
+//! Global position is computed by the autopilot from local NED around the
+//! NED origin with the flat-earth model of [`crate::geo`] (fine within a few
+//! kilometres of home).
+
+use std::time::{Duration, Instant};
+
+use mavlink::MessageData;
+use mavlink::dialects::common::{
+    ALTITUDE_DATA, ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, DEBUG_VECT_DATA,
+    EXTENDED_SYS_STATE_DATA, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA,
+    HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA, MavAutopilot, MavBatteryFunction, MavBatteryType, MavLandedState,
+    MavMessage, MavModeFlag, MavState, MavSysStatusSensor, MavType, MavVtolState, NAMED_VALUE_FLOAT_DATA,
+    SYS_STATUS_DATA, SYSTEM_TIME_DATA, VFR_HUD_DATA,
+};
+
+use super::convert;
+use crate::autopilot::{LandedState, Telemetry};
+
+/// A message the vehicle streams.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Stream {
+    /// HEARTBEAT (0).
+    Heartbeat,
+    /// SYS_STATUS (1).
+    SysStatus,
+    /// SYSTEM_TIME (2).
+    SystemTime,
+    /// GPS_RAW_INT (24).
+    GpsRawInt,
+    /// ATTITUDE (30).
+    Attitude,
+    /// ATTITUDE_QUATERNION (31).
+    AttitudeQuaternion,
+    /// LOCAL_POSITION_NED (32).
+    LocalPositionNed,
+    /// GLOBAL_POSITION_INT (33).
+    GlobalPositionInt,
+    /// VFR_HUD (74).
+    VfrHud,
+    /// ALTITUDE (141).
+    Altitude,
+    /// BATTERY_STATUS (147).
+    BatteryStatus,
+    /// HOME_POSITION (242).
+    HomePosition,
+    /// EXTENDED_SYS_STATE (245).
+    ExtendedSysState,
+    /// DEBUG_VECT (250): `EST_FORCE` and `EST_TORQUE`, and the injected truth
+    /// `SIM_FORCE` and `SIM_TORQUE`.
+    DebugVect,
+    /// NAMED_VALUE_FLOAT (251): `EST_MASS`, and the true `SIM_MASS`.
+    NamedValueFloat,
+}
+
+impl Stream {
+    /// Every stream.
+    pub const ALL: [Stream; 15] = [
+        Stream::Heartbeat,
+        Stream::SysStatus,
+        Stream::SystemTime,
+        Stream::GpsRawInt,
+        Stream::Attitude,
+        Stream::AttitudeQuaternion,
+        Stream::LocalPositionNed,
+        Stream::GlobalPositionInt,
+        Stream::VfrHud,
+        Stream::Altitude,
+        Stream::BatteryStatus,
+        Stream::HomePosition,
+        Stream::ExtendedSysState,
+        Stream::DebugVect,
+        Stream::NamedValueFloat,
+    ];
+
+    /// MAVLink message id.
+    #[must_use]
+    pub fn message_id(self) -> u32 {
+        match self {
+            Stream::Heartbeat => HEARTBEAT_DATA::ID,
+            Stream::SysStatus => SYS_STATUS_DATA::ID,
+            Stream::SystemTime => SYSTEM_TIME_DATA::ID,
+            Stream::GpsRawInt => GPS_RAW_INT_DATA::ID,
+            Stream::Attitude => ATTITUDE_DATA::ID,
+            Stream::AttitudeQuaternion => ATTITUDE_QUATERNION_DATA::ID,
+            Stream::LocalPositionNed => LOCAL_POSITION_NED_DATA::ID,
+            Stream::GlobalPositionInt => GLOBAL_POSITION_INT_DATA::ID,
+            Stream::VfrHud => VFR_HUD_DATA::ID,
+            Stream::Altitude => ALTITUDE_DATA::ID,
+            Stream::BatteryStatus => BATTERY_STATUS_DATA::ID,
+            Stream::HomePosition => HOME_POSITION_DATA::ID,
+            Stream::ExtendedSysState => EXTENDED_SYS_STATE_DATA::ID,
+            Stream::DebugVect => DEBUG_VECT_DATA::ID,
+            Stream::NamedValueFloat => NAMED_VALUE_FLOAT_DATA::ID,
+        }
+    }
+
+    /// The stream sending this message id, if any.
+    #[must_use]
+    pub fn from_message_id(id: u32) -> Option<Stream> {
+        Stream::ALL.into_iter().find(|s| s.message_id() == id)
+    }
+}
+
+/// Default stream rates [Hz] of a link.
+pub type Rates = Vec<(Stream, f64)>;
+
+/// PX4's GCS link (normal mode, after the SITL overrides), plus the
+/// estimator streams at 10 Hz.
+#[must_use]
+pub fn gcs_rates() -> Rates {
+    vec![
+        (Stream::Heartbeat, 1.0),
+        (Stream::SysStatus, 1.0),
+        (Stream::SystemTime, 1.0),
+        (Stream::GpsRawInt, 1.0),
+        (Stream::Attitude, 50.0),
+        (Stream::AttitudeQuaternion, 50.0),
+        (Stream::LocalPositionNed, 50.0),
+        (Stream::GlobalPositionInt, 50.0),
+        (Stream::VfrHud, 4.0),
+        (Stream::Altitude, 1.0),
+        (Stream::BatteryStatus, 0.5),
+        (Stream::HomePosition, 0.5),
+        (Stream::ExtendedSysState, 1.0),
+        (Stream::DebugVect, 10.0),
+        (Stream::NamedValueFloat, 10.0),
+    ]
+}
+
+/// PX4's API link (onboard mode), plus the estimator streams at 10 Hz.
+#[must_use]
+pub fn api_rates() -> Rates {
+    vec![
+        (Stream::Heartbeat, 1.0),
+        (Stream::SysStatus, 5.0),
+        (Stream::SystemTime, 1.0),
+        (Stream::GpsRawInt, 5.0),
+        (Stream::Attitude, 100.0),
+        (Stream::AttitudeQuaternion, 50.0),
+        (Stream::LocalPositionNed, 30.0),
+        (Stream::GlobalPositionInt, 50.0),
+        (Stream::VfrHud, 10.0),
+        (Stream::Altitude, 10.0),
+        (Stream::BatteryStatus, 0.5),
+        (Stream::HomePosition, 0.5),
+        (Stream::ExtendedSysState, 5.0),
+        (Stream::DebugVect, 10.0),
+        (Stream::NamedValueFloat, 10.0),
+    ]
+}
+
+/// A SET_MESSAGE_INTERVAL request.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Interval {
+    /// Back to the link's default rate (interval 0).
+    Default,
+    /// Stop the stream (interval -1).
+    Disabled,
+    /// Send every so often.
+    Every(Duration),
+}
+
+impl Interval {
+    /// Read SET_MESSAGE_INTERVAL param2 [us]: 0 default, negative stop (PX4
+    /// treats any value < 0 as stop), otherwise the interval; NaN is default.
+    #[must_use]
+    pub fn from_param_us(us: f32) -> Interval {
+        if !us.is_finite() || us == 0.0 {
+            Interval::Default
+        } else if us < 0.0 {
+            Interval::Disabled
+        } else {
+            Interval::Every(Duration::from_secs_f64(f64::from(us) * 1e-6))
+        }
+    }
+}
+
+fn period(hz: f64) -> Option<Duration> {
+    (hz.is_finite() && hz > 0.0).then(|| Duration::from_secs_f64(1.0 / hz))
+}
+
+/// When each stream of one link is due.
+#[derive(Clone, Debug)]
+pub struct Scheduler {
+    entries: Vec<Entry>,
+}
+
+#[derive(Clone, Debug)]
+struct Entry {
+    stream: Stream,
+    default: Option<Duration>,
+    interval: Option<Duration>,
+    next: Instant,
+}
+
+/// The shortest interval a stream may have (1 kHz).
+const MIN_INTERVAL: Duration = Duration::from_millis(1);
+
+impl Scheduler {
+    /// Streams at their default rates, all due at `now`.
+    #[must_use]
+    pub fn new(now: Instant, rates: &Rates) -> Self {
+        let entries = Stream::ALL
+            .iter()
+            .map(|s| {
+                let default = rates.iter().find(|(r, _)| r == s).and_then(|(_, hz)| period(*hz));
+                Entry {
+                    stream: *s,
+                    default,
+                    interval: default,
+                    next: now,
+                }
+            })
+            .collect();
+        Self { entries }
+    }
+
+    /// Change one stream's interval; the stream is next due at `now`.
+    pub fn set(&mut self, now: Instant, stream: Stream, interval: Interval) {
+        if let Some(e) = self.entries.iter_mut().find(|e| e.stream == stream) {
+            e.interval = match interval {
+                Interval::Default => e.default,
+                Interval::Disabled => None,
+                Interval::Every(d) => Some(d.max(MIN_INTERVAL)),
+            };
+            e.next = now;
+        }
+    }
+
+    /// The current interval of a stream (`None`: not sent).
+    #[must_use]
+    pub fn interval(&self, stream: Stream) -> Option<Duration> {
+        self.entries
+            .iter()
+            .find(|e| e.stream == stream)
+            .and_then(|e| e.interval)
+    }
+
+    /// The streams due at `now`, each advanced to its next time. A stream
+    /// that fell behind skips the missed sends rather than bursting.
+    pub fn due(&mut self, now: Instant, out: &mut Vec<Stream>) {
+        for e in &mut self.entries {
+            let Some(iv) = e.interval else { continue };
+            if now >= e.next {
+                out.push(e.stream);
+                e.next += iv;
+                if e.next <= now {
+                    e.next = now + iv;
+                }
+            }
+        }
+    }
+
+    /// The earliest time any stream is due.
+    #[must_use]
+    pub fn next_deadline(&self) -> Option<Instant> {
+        self.entries
+            .iter()
+            .filter(|e| e.interval.is_some())
+            .map(|e| e.next)
+            .min()
+    }
+}
+
+/// What identifies the vehicle in messages that carry it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Identity {
+    /// System id (PX4 SITL: instance + 1).
+    pub system_id: u8,
+    /// Component id (1, the autopilot).
+    pub component_id: u8,
+}
+
+/// Simulated time since boot [ms] (MAVLink `time_boot_ms`).
+#[must_use]
+pub fn time_boot_ms(t: &Telemetry) -> u32 {
+    (t.time_s * 1e3) as u32
+}
+
+/// Simulated time since boot [us].
+#[must_use]
+pub fn time_usec(t: &Telemetry) -> u64 {
+    (t.time_s * 1e6) as u64
+}
+
+/// The sensors SYS_STATUS reports present, enabled and healthy: gyro, accel,
+/// mag, baro, GPS, AHRS (0x20002F), plus PREARM_CHECK (0x10000000) in
+/// health when arming would pass.
+pub const SENSORS: u32 = 0x0020_002F;
+/// MAV_SYS_STATUS_PREARM_CHECK.
+pub const PREARM_CHECK: u32 = 0x1000_0000;
+
+/// Build the messages of one stream.
+#[must_use]
+pub fn build(stream: Stream, t: &Telemetry, unix_time_us: u64) -> Vec<MavMessage> {
+    let ms = time_boot_ms(t);
+    let us = time_usec(t);
+    let (roll, pitch, yaw) = t.attitude.euler_angles();
+    let rel_alt = t.global.alt_amsl_m - t.home.alt_amsl_m;
+    let ground_speed = t.velocity_ned.xy().norm();
+    let m = match stream {
+        Stream::Heartbeat => MavMessage::HEARTBEAT(heartbeat(t)),
+        Stream::SysStatus => {
+            let health = SENSORS | if t.prearm_ok || t.armed { PREARM_CHECK } else { 0 };
+            MavMessage::SYS_STATUS(SYS_STATUS_DATA {
+                onboard_control_sensors_present: MavSysStatusSensor::from_bits_retain(SENSORS | PREARM_CHECK),
+                onboard_control_sensors_enabled: MavSysStatusSensor::from_bits_retain(SENSORS | PREARM_CHECK),
+                onboard_control_sensors_health: MavSysStatusSensor::from_bits_retain(health),
+                load: 100,
+                voltage_battery: convert::sat_u16(t.battery_voltage_v * 1e3),
+                current_battery: convert::sat_i16(t.battery_current_a * 100.0),
+                drop_rate_comm: 0,
+                errors_comm: 0,
+                errors_count1: 0,
+                errors_count2: 0,
+                errors_count3: 0,
+                errors_count4: 0,
+                battery_remaining: battery_percent(t),
+            })
+        }
+        Stream::SystemTime => MavMessage::SYSTEM_TIME(SYSTEM_TIME_DATA {
+            time_unix_usec: unix_time_us,
+            time_boot_ms: ms,
+        }),
+        Stream::GpsRawInt => MavMessage::GPS_RAW_INT(GPS_RAW_INT_DATA {
+            time_usec: us,
+            lat: convert::deg_e7(t.global.lat_deg),
+            lon: convert::deg_e7(t.global.lon_deg),
+            alt: convert::sat_i32(t.global.alt_amsl_m * 1e3),
+            eph: 90,
+            epv: 120,
+            vel: convert::sat_u16(ground_speed * 100.0),
+            cog: if ground_speed > 0.1 {
+                convert::heading_cdeg(t.velocity_ned.y.atan2(t.velocity_ned.x))
+            } else {
+                convert::heading_cdeg(yaw)
+            },
+            fix_type: GpsFixType::GPS_FIX_TYPE_3D_FIX,
+            satellites_visible: 12,
+        }),
+        Stream::Attitude => MavMessage::ATTITUDE(ATTITUDE_DATA {
+            time_boot_ms: ms,
+            roll: roll as f32,
+            pitch: pitch as f32,
+            yaw: yaw as f32,
+            rollspeed: t.rate_frd.x as f32,
+            pitchspeed: t.rate_frd.y as f32,
+            yawspeed: t.rate_frd.z as f32,
+        }),
+        Stream::AttitudeQuaternion => MavMessage::ATTITUDE_QUATERNION(ATTITUDE_QUATERNION_DATA {
+            time_boot_ms: ms,
+            q1: t.attitude.w as f32,
+            q2: t.attitude.i as f32,
+            q3: t.attitude.j as f32,
+            q4: t.attitude.k as f32,
+            rollspeed: t.rate_frd.x as f32,
+            pitchspeed: t.rate_frd.y as f32,
+            yawspeed: t.rate_frd.z as f32,
+        }),
+        Stream::LocalPositionNed => MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA {
+            time_boot_ms: ms,
+            x: t.position_ned.x as f32,
+            y: t.position_ned.y as f32,
+            z: t.position_ned.z as f32,
+            vx: t.velocity_ned.x as f32,
+            vy: t.velocity_ned.y as f32,
+            vz: t.velocity_ned.z as f32,
+        }),
+        Stream::GlobalPositionInt => MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+            time_boot_ms: ms,
+            lat: convert::deg_e7(t.global.lat_deg),
+            lon: convert::deg_e7(t.global.lon_deg),
+            alt: convert::sat_i32(t.global.alt_amsl_m * 1e3),
+            relative_alt: convert::sat_i32(rel_alt * 1e3),
+            vx: convert::sat_i16(t.velocity_ned.x * 100.0),
+            vy: convert::sat_i16(t.velocity_ned.y * 100.0),
+            vz: convert::sat_i16(t.velocity_ned.z * 100.0),
+            hdg: convert::heading_cdeg(yaw),
+        }),
+        Stream::VfrHud => MavMessage::VFR_HUD(VFR_HUD_DATA {
+            airspeed: ground_speed as f32,
+            groundspeed: ground_speed as f32,
+            alt: t.global.alt_amsl_m as f32,
+            climb: (-t.velocity_ned.z) as f32,
+            heading: convert::sat_i16(f64::from(convert::heading_cdeg(yaw)) / 100.0),
+            throttle: convert::sat_u16((t.throttle * 100.0).clamp(0.0, 100.0)),
+        }),
+        Stream::Altitude => MavMessage::ALTITUDE(ALTITUDE_DATA {
+            time_usec: us,
+            altitude_monotonic: t.global.alt_amsl_m as f32,
+            altitude_amsl: t.global.alt_amsl_m as f32,
+            altitude_local: (-t.position_ned.z) as f32,
+            altitude_relative: rel_alt as f32,
+            // flat ground at the NED origin's altitude
+            altitude_terrain: t.origin.alt_amsl_m as f32,
+            bottom_clearance: (t.global.alt_amsl_m - t.origin.alt_amsl_m) as f32,
+        }),
+        Stream::BatteryStatus => {
+            let mut voltages = [u16::MAX; 10];
+            voltages[0] = convert::sat_u16(t.battery_voltage_v * 1e3);
+            MavMessage::BATTERY_STATUS(BATTERY_STATUS_DATA {
+                current_consumed: convert::sat_i32(t.battery_consumed_mah),
+                energy_consumed: -1,
+                temperature: i16::MAX,
+                voltages,
+                current_battery: convert::sat_i16(t.battery_current_a * 100.0),
+                id: 0,
+                battery_function: MavBatteryFunction::MAV_BATTERY_FUNCTION_ALL,
+                mavtype: MavBatteryType::MAV_BATTERY_TYPE_LIPO,
+                battery_remaining: battery_percent(t),
+            })
+        }
+        Stream::HomePosition => MavMessage::HOME_POSITION(home_position(t)),
+        Stream::ExtendedSysState => MavMessage::EXTENDED_SYS_STATE(EXTENDED_SYS_STATE_DATA {
+            vtol_state: MavVtolState::MAV_VTOL_STATE_UNDEFINED,
+            landed_state: match t.landed {
+                LandedState::OnGround => MavLandedState::MAV_LANDED_STATE_ON_GROUND,
+                LandedState::InAir => MavLandedState::MAV_LANDED_STATE_IN_AIR,
+                LandedState::Takeoff => MavLandedState::MAV_LANDED_STATE_TAKEOFF,
+                LandedState::Landing => MavLandedState::MAV_LANDED_STATE_LANDING,
+            },
+        }),
+        Stream::DebugVect => {
+            let f = t.estimate.force_ned;
+            let tq = t.estimate.torque_frd;
+            let sf = t.injected_force_ned;
+            let st = t.injected_torque_frd;
+            return vec![
+                debug_vect("EST_FORCE", us, [f.x, f.y, f.z]),
+                debug_vect("EST_TORQUE", us, [tq.x, tq.y, tq.z]),
+                debug_vect("SIM_FORCE", us, [sf.x, sf.y, sf.z]),
+                debug_vect("SIM_TORQUE", us, [st.x, st.y, st.z]),
+            ];
+        }
+        Stream::NamedValueFloat => {
+            return vec![
+                named_float("EST_MASS", ms, t.estimate.mass_kg),
+                named_float("SIM_MASS", ms, t.true_mass_kg),
+            ];
+        }
+    };
+    vec![m]
+}
+
+/// HEARTBEAT as PX4 sends it: quadrotor, autopilot PX4, custom mode.
+#[must_use]
+pub fn heartbeat(t: &Telemetry) -> HEARTBEAT_DATA {
+    HEARTBEAT_DATA {
+        custom_mode: convert::custom_mode(t.mode),
+        mavtype: MavType::MAV_TYPE_QUADROTOR,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
+        base_mode: MavModeFlag::from_bits_retain(convert::base_mode(t.mode, t.armed)),
+        system_status: if t.armed {
+            MavState::MAV_STATE_ACTIVE
+        } else {
+            MavState::MAV_STATE_STANDBY
+        },
+        mavlink_version: 3,
+    }
+}
+
+/// HOME_POSITION from telemetry.
+#[must_use]
+pub fn home_position(t: &Telemetry) -> HOME_POSITION_DATA {
+    HOME_POSITION_DATA {
+        latitude: convert::deg_e7(t.home.lat_deg),
+        longitude: convert::deg_e7(t.home.lon_deg),
+        altitude: convert::sat_i32(t.home.alt_amsl_m * 1e3),
+        x: t.home_ned.x as f32,
+        y: t.home_ned.y as f32,
+        z: t.home_ned.z as f32,
+        q: [1.0, 0.0, 0.0, 0.0],
+        approach_x: 0.0,
+        approach_y: 0.0,
+        approach_z: 0.0,
+    }
+}
+
+fn battery_percent(t: &Telemetry) -> i8 {
+    (t.battery_remaining * 100.0).round().clamp(0.0, 100.0) as i8
+}
+
+fn debug_vect(name: &str, time_usec: u64, v: [f64; 3]) -> MavMessage {
+    MavMessage::DEBUG_VECT(DEBUG_VECT_DATA {
+        time_usec,
+        x: v[0] as f32,
+        y: v[1] as f32,
+        z: v[2] as f32,
+        name: name.into(),
+    })
+}
+
+fn named_float(name: &str, time_boot_ms: u32, v: f64) -> MavMessage {
+    MavMessage::NAMED_VALUE_FLOAT(NAMED_VALUE_FLOAT_DATA {
+        time_boot_ms,
+        value: v as f32,
+        name: name.into(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_rates_and_deadlines() {
+        let t0 = Instant::now();
+        let mut s = Scheduler::new(t0, &gcs_rates());
+        let mut due = Vec::new();
+        s.due(t0, &mut due);
+        assert_eq!(due.len(), Stream::ALL.len());
+        due.clear();
+        // 20 ms later only the 50 Hz streams are due
+        s.due(t0 + Duration::from_millis(20), &mut due);
+        assert_eq!(
+            due,
+            vec![
+                Stream::Attitude,
+                Stream::AttitudeQuaternion,
+                Stream::LocalPositionNed,
+                Stream::GlobalPositionInt
+            ]
+        );
+        assert_eq!(s.next_deadline(), Some(t0 + Duration::from_millis(40)));
+    }
+
+    #[test]
+    fn intervals_from_set_message_interval() {
+        let t0 = Instant::now();
+        let mut s = Scheduler::new(t0, &api_rates());
+        s.set(t0, Stream::DebugVect, Interval::from_param_us(20_000.0));
+        assert_eq!(s.interval(Stream::DebugVect), Some(Duration::from_millis(20)));
+        s.set(t0, Stream::DebugVect, Interval::from_param_us(-1.0));
+        assert_eq!(s.interval(Stream::DebugVect), None);
+        s.set(t0, Stream::DebugVect, Interval::from_param_us(0.0));
+        assert_eq!(s.interval(Stream::DebugVect), Some(Duration::from_millis(100)));
+        assert_eq!(Stream::from_message_id(251), Some(Stream::NamedValueFloat));
+        assert_eq!(Stream::from_message_id(9999), None);
+    }
+
+    #[test]
+    fn a_late_poll_does_not_burst() {
+        let t0 = Instant::now();
+        let mut s = Scheduler::new(t0, &vec![(Stream::Heartbeat, 1.0)]);
+        let mut due = Vec::new();
+        s.due(t0, &mut due);
+        s.due(t0 + Duration::from_secs(5), &mut due);
+        s.due(t0 + Duration::from_millis(5100), &mut due);
+        assert_eq!(due.len(), 2);
+    }
+}

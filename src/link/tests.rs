@@ -1,0 +1,313 @@
+//! Link-level tests: datagrams in, frames and effects out.
+
+use std::net::SocketAddr;
+use std::time::{Duration, Instant};
+
+use mavlink::dialects::common::{
+    COMMAND_ACK_DATA, HEARTBEAT_DATA, MavMessage, MavParamType, PARAM_REQUEST_LIST_DATA, PARAM_SET_DATA, PING_DATA,
+    TIMESYNC_DATA,
+};
+use mavlink::{MavHeader, MessageData};
+
+use super::param::ParamAccess as _;
+use super::param::fake::FakeParams;
+use super::testing::telemetry;
+use super::wire::{self, CommandAck, CommandLong};
+use super::*;
+
+fn addr(p: u16) -> SocketAddr {
+    SocketAddr::from(([127, 0, 0, 1], p))
+}
+
+fn link(now: Instant) -> Link {
+    Link::new(
+        LinkConfig {
+            name: "test".into(),
+            identity: Identity {
+                system_id: 1,
+                component_id: 1,
+            },
+            default_remote: Some(addr(14540)),
+            rates: streams::api_rates(),
+            peer_timeout: Duration::from_secs(10),
+        },
+        now,
+    )
+}
+
+fn gcs() -> MavHeader {
+    MavHeader {
+        system_id: 245,
+        component_id: 190,
+        sequence: 0,
+    }
+}
+
+fn v2(msg: &MavMessage) -> Vec<u8> {
+    let mut enc = wire::Encoder::new(245, 190);
+    enc.message(msg)
+}
+
+fn cmd(command: u16, p: [f32; 7], target_component: u8) -> Vec<u8> {
+    let c = CommandLong {
+        params: p,
+        command,
+        target_system: 1,
+        target_component,
+        confirmation: 0,
+    };
+    wire::encode_v2(gcs(), 76, &c.encode())
+}
+
+/// Decode every frame of the outbox.
+fn decoded(out: &[Outgoing]) -> Vec<(To, u32, Vec<u8>)> {
+    out.iter()
+        .flat_map(|o| {
+            wire::frames(&o.bytes)
+                .map(|f| (o.to, f.message_id, f.payload.to_vec()))
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
+
+fn acks(out: &[Outgoing]) -> Vec<CommandAck> {
+    decoded(out)
+        .into_iter()
+        .filter(|(_, id, _)| *id == COMMAND_ACK_DATA::ID)
+        .map(|(_, _, p)| CommandAck::decode(&p))
+        .collect()
+}
+
+#[test]
+fn speaks_first_with_a_px4_heartbeat() {
+    let t0 = Instant::now();
+    let mut l = link(t0);
+    l.poll(t0, &telemetry(), 0);
+    let out = l.drain();
+    assert!(out.iter().all(|o| o.to == To::All));
+    let hb = out
+        .iter()
+        .flat_map(|o| wire::frames(&o.bytes).collect::<Vec<_>>())
+        .find(|f| f.message_id == 0)
+        .expect("heartbeat");
+    let Some(wire::Inbound::Other(m)) = wire::decode(&hb) else {
+        panic!()
+    };
+    let MavMessage::HEARTBEAT(h) = *m else { panic!() };
+    assert_eq!(h.custom_mode, 50_593_792);
+    assert_eq!(h.base_mode.bits() & 1, 1);
+    assert_eq!(h.autopilot as u8, 12);
+    assert_eq!(h.mavtype as u8, 2);
+    let mut d = Vec::new();
+    l.destinations(t0, &mut d);
+    assert_eq!(d, vec![addr(14540)]);
+}
+
+#[test]
+fn unknown_command_is_unsupported_with_target_requester() {
+    let t0 = Instant::now();
+    let mut l = link(t0);
+    let p = FakeParams::standard();
+    let e = l.on_datagram(t0, addr(50000), &cmd(31_337, [0.0; 7], 1), &telemetry(), &p);
+    assert!(e.is_empty());
+    let out = l.drain();
+    assert_eq!(out[0].to, To::Peer(addr(50000)));
+    let a = acks(&out);
+    assert_eq!(a.len(), 1);
+    assert_eq!((a[0].command, a[0].result), (31_337, convert::result::UNSUPPORTED));
+    assert_eq!((a[0].target_system, a[0].target_component), (245, 190));
+    // the sender is now a peer
+    let mut d = Vec::new();
+    l.destinations(t0, &mut d);
+    assert_eq!(d, vec![addr(14540), addr(50000)]);
+}
+
+#[test]
+fn commands_for_other_components_are_ignored_component_zero_accepted() {
+    let t0 = Instant::now();
+    let mut l = link(t0);
+    let p = FakeParams::standard();
+    let e = l.on_datagram(t0, addr(50000), &cmd(400, [1.0; 7], 0), &telemetry(), &p);
+    assert!(matches!(
+        e.as_slice(),
+        [Effect::Autopilot {
+            command: AutopilotCommand::Arm { force: false },
+            ack: Some(_)
+        }]
+    ));
+    let e = l.on_datagram(t0, addr(50000), &cmd(400, [1.0; 7], 154), &telemetry(), &p);
+    assert!(e.is_empty());
+    assert!(l.drain().is_empty());
+}
+
+#[test]
+fn outcome_acks_carry_results() {
+    let t0 = Instant::now();
+    let mut l = link(t0);
+    let ticket = AckTicket {
+        command: 176,
+        to: addr(50000),
+        requester: (255, 0),
+    };
+    l.on_outcome(ticket, &CommandOutcome::TemporarilyRejected("no offboard signal"));
+    let out = l.drain();
+    let a = acks(&out);
+    assert_eq!((a[0].command, a[0].result, a[0].target_system), (176, 1, 255));
+    // the autopilot announces its refusals itself: no second STATUSTEXT
+    assert_eq!(decoded(&out).len(), 1);
+}
+
+#[test]
+fn request_message_acks_then_sends() {
+    let t0 = Instant::now();
+    let mut l = link(t0);
+    let p = FakeParams::standard();
+    let nan = f32::NAN;
+    l.on_datagram(
+        t0,
+        addr(50000),
+        &cmd(512, [148.0, nan, nan, nan, nan, nan, nan], 1),
+        &telemetry(),
+        &p,
+    );
+    let d = decoded(&l.drain());
+    assert_eq!(d.iter().map(|x| x.1).collect::<Vec<_>>(), vec![77, 148]);
+    l.on_datagram(
+        t0,
+        addr(50000),
+        &cmd(512, [9999.0, nan, nan, nan, nan, nan, nan], 1),
+        &telemetry(),
+        &p,
+    );
+    let a = acks(&l.drain());
+    assert_eq!(a[0].result, convert::result::DENIED);
+    l.on_datagram(t0, addr(50000), &cmd(410, [0.0; 7], 0), &telemetry(), &p);
+    let d = decoded(&l.drain());
+    assert_eq!(d.iter().map(|x| x.1).collect::<Vec<_>>(), vec![77, 242]);
+}
+
+#[test]
+fn set_message_interval_is_per_link() {
+    let t0 = Instant::now();
+    let mut l = link(t0);
+    let p = FakeParams::standard();
+    let nan = f32::NAN;
+    l.on_datagram(
+        t0,
+        addr(50000),
+        &cmd(511, [250.0, 50_000.0, nan, nan, nan, nan, nan], 1),
+        &telemetry(),
+        &p,
+    );
+    assert_eq!(acks(&l.drain())[0].result, 0);
+    assert_eq!(l.streams().interval(Stream::DebugVect), Some(Duration::from_millis(50)));
+    l.on_datagram(
+        t0,
+        addr(50000),
+        &cmd(511, [331.0, 50_000.0, nan, nan, nan, nan, nan], 1),
+        &telemetry(),
+        &p,
+    );
+    assert_eq!(acks(&l.drain())[0].result, convert::result::FAILED);
+}
+
+#[test]
+fn param_list_goes_to_the_requester_in_order() {
+    let t0 = Instant::now();
+    let mut l = link(t0);
+    let p = FakeParams::standard();
+    let req = v2(&MavMessage::PARAM_REQUEST_LIST(PARAM_REQUEST_LIST_DATA {
+        target_system: 1,
+        target_component: 0,
+    }));
+    l.on_datagram(t0, addr(50000), &req, &telemetry(), &p);
+    let d = decoded(&l.drain());
+    assert_eq!(d.len(), 5);
+    assert!(d.iter().all(|(to, id, _)| *to == To::Peer(addr(50000)) && *id == 22));
+}
+
+#[test]
+fn param_set_echoes_then_rebroadcasts_via_the_daemon() {
+    let t0 = Instant::now();
+    let mut l = link(t0);
+    let mut p = FakeParams::standard();
+    let set = v2(&MavMessage::PARAM_SET(PARAM_SET_DATA {
+        param_value: f32::from_bits(1),
+        target_system: 1,
+        target_component: 1,
+        param_id: "SYS_FAILURE_EN".into(),
+        param_type: MavParamType::MAV_PARAM_TYPE_INT32,
+    }));
+    let e = l.on_datagram(t0, addr(50000), &set, &telemetry(), &p);
+    let [Effect::SetParam { ticket, value }] = e.as_slice() else {
+        panic!("{e:?}")
+    };
+    assert_eq!(ticket.index, 3);
+    assert!(l.drain().is_empty());
+    let stored = p.set(&ticket.name, *value);
+    let value = l.on_param_set(ticket, stored, &p).expect("changed");
+    assert_eq!(decoded(&l.drain()).len(), 1);
+    l.broadcast_param(t0, &value);
+    assert_eq!(l.next_deadline(), Some(t0));
+    l.poll(t0 + Duration::from_millis(1), &telemetry(), 0);
+    let early: Vec<_> = decoded(&l.drain()).into_iter().filter(|x| x.1 == 22).collect();
+    assert!(early.is_empty());
+    l.poll(t0 + Duration::from_millis(6), &telemetry(), 0);
+    let late: Vec<_> = decoded(&l.drain()).into_iter().filter(|x| x.1 == 22).collect();
+    assert_eq!(late.len(), 1);
+    assert_eq!(late[0].0, To::All);
+}
+
+#[test]
+fn mavlink1_and_timesync_and_ping() {
+    let t0 = Instant::now();
+    let mut l = link(t0);
+    let p = FakeParams::standard();
+    let ts = MavMessage::TIMESYNC(TIMESYNC_DATA { tc1: 0, ts1: 12345 });
+    let frame = wire::encode_v1(gcs(), 111, &wire::payload_v1(&ts));
+    l.on_datagram(t0, addr(50000), &frame, &telemetry(), &p);
+    let d = decoded(&l.drain());
+    assert_eq!(d[0].1, TIMESYNC_DATA::ID);
+    let ping = MavMessage::PING(PING_DATA {
+        time_usec: 5,
+        seq: 9,
+        target_system: 0,
+        target_component: 0,
+    });
+    l.on_datagram(t0, addr(50000), &v2(&ping), &telemetry(), &p);
+    let d = decoded(&l.drain());
+    assert_eq!(d[0].1, 4);
+    // a heartbeat only teaches the peer
+    let hb = v2(&MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()));
+    assert!(l.on_datagram(t0, addr(50001), &hb, &telemetry(), &p).is_empty());
+    assert!(l.drain().is_empty());
+    let mut dst = Vec::new();
+    l.destinations(t0, &mut dst);
+    assert_eq!(dst.len(), 3);
+}
+
+#[test]
+fn ftp_is_refused_at_once() {
+    let t0 = Instant::now();
+    let mut l = link(t0);
+    let p = FakeParams::standard();
+    let mut payload = [0u8; 251];
+    payload[0] = 7; // seq
+    payload[3] = 4; // OpenFileRO
+    let req = v2(&MavMessage::FILE_TRANSFER_PROTOCOL(
+        mavlink::dialects::common::FILE_TRANSFER_PROTOCOL_DATA {
+            target_network: 0,
+            target_system: 1,
+            target_component: 1,
+            payload,
+        },
+    ));
+    l.on_datagram(t0, addr(50000), &req, &telemetry(), &p);
+    let d = decoded(&l.drain());
+    let f = &d[0].2;
+    // payload offset 3 (target_network, target_system, target_component first)
+    assert_eq!(&f[3..5], &[8, 0]);
+    assert_eq!(f[3 + 3], 129);
+    assert_eq!(f[3 + 5], 4);
+    assert_eq!(f[3 + 12], 10);
+}

@@ -1,0 +1,138 @@
+"""Start and stop a rotorpilot vehicle (the real binary) for the client tests.
+
+Standard library only, so every client venv can import it. Every wait is
+bounded. The binary is $ROTORPILOT_BIN, else target/release/rotorpilot.
+"""
+
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def binary():
+    b = os.environ.get("ROTORPILOT_BIN")
+    if b:
+        return b
+    target = os.environ.get("CARGO_TARGET_DIR", str(REPO / "target"))
+    return str(Path(target) / "release" / "rotorpilot")
+
+
+def udp_port_free(port, host="0.0.0.0"):
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        s.bind((host, port))
+        return True
+    except OSError:
+        return False
+    finally:
+        s.close()
+
+
+def free_udp_port():
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
+def free_instance():
+    """A PX4 SITL instance N in 1..9 whose ports (API 14580+N and its remote
+    14540+N, GCS 18570+N) are all free, so MAVSDK can use udpin://0.0.0.0:14540+N."""
+    for n in range(1, 10):
+        if all(udp_port_free(p) for p in (14540 + n, 14580 + n, 18570 + n)):
+            return n
+    raise RuntimeError("no free PX4 SITL instance in 1..9")
+
+
+class Vehicle:
+    """A rotorpilot process. `instance` sets the PX4 ports (API link 14580+N
+    sending to 127.0.0.1:14540+N); the GCS link sends to `gcs_port` (a free
+    port by default, not 14550, so tests never talk to a real GCS)."""
+
+    def __init__(self, instance=None, speed=5.0, gcs_port=None, extra=()):
+        self.instance = free_instance() if instance is None else instance
+        self.gcs_port = gcs_port or free_udp_port()
+        self.api_port = 14540 + self.instance
+        self.api_bind = 14580 + self.instance
+        self.gcs_bind = 18570 + self.instance
+        self.sysid = self.instance + 1
+        self.speed = speed
+        self.state_dir = tempfile.mkdtemp(prefix="rotorpilot-client-")
+        self.log_path = os.path.join(self.state_dir, "rotorpilot.log")
+        self.extra = list(extra)
+        self.proc = None
+        self.banner = []
+
+    def start(self, timeout=15.0):
+        args = [
+            binary(),
+            "--instance", str(self.instance),
+            "--speed", str(self.speed),
+            "--state-dir", self.state_dir,
+            "--reset-params",
+            "--gcs-remote", f"127.0.0.1:{self.gcs_port}",
+        ] + self.extra
+        self.log = open(self.log_path, "w")
+        self.proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=self.log, text=True)
+        done = threading.Event()
+
+        def read():
+            for line in self.proc.stdout:
+                self.banner.append(line.rstrip())
+                if "parameters:" in line:
+                    done.set()
+                    break
+            done.set()
+
+        threading.Thread(target=read, daemon=True).start()
+        if not done.wait(timeout) or self.proc.poll() is not None:
+            self.stop()
+            raise RuntimeError("rotorpilot did not start:\n" + self.logs())
+        return self
+
+    def logs(self):
+        try:
+            with open(self.log_path) as f:
+                return f.read()[-4000:]
+        except OSError:
+            return ""
+
+    def stop(self, timeout=3.0):
+        """SIGTERM, then wait; returns the seconds it took to exit."""
+        if self.proc is None:
+            return 0.0
+        t0 = time.monotonic()
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(timeout)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(5)
+        took = time.monotonic() - t0
+        self.returncode = self.proc.returncode
+        self.proc = None
+        self.log.close()
+        return took
+
+    def cleanup(self):
+        shutil.rmtree(self.state_dir, ignore_errors=True)
+
+    def __enter__(self):
+        return self.start()
+
+    def __exit__(self, *exc):
+        self.stop()
+        if exc[0] is None:
+            self.cleanup()
+        else:
+            print("rotorpilot log:\n" + self.logs())

@@ -1,0 +1,116 @@
+"""MAVSDK-Python 3.x (gRPC; its bundled mavsdk_server is a real MAVSDK 3
+core) running scripts shaped like the public examples against the rotorpilot
+binary. The vehicle runs as PX4 SITL instance N (API link 14580+N sending to
+127.0.0.1:14540+N) and the scripts connect with udpin://0.0.0.0:14540+N.
+
+Run with the mavsdk<4 venv (which also holds pymavlink, for the two-client
+test): `python -m pytest tests/clients/test_mavsdk3.py`.
+"""
+
+import os
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from harness import Vehicle  # noqa: E402
+
+SPEED = 5.0
+EXAMPLES = HERE / "mavsdk_examples"
+
+
+def free_tcp_port():
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
+def run_example(name, vehicle, timeout=150):
+    env = dict(os.environ)
+    env["ROTORPILOT_MAVSDK_URL"] = f"udpin://0.0.0.0:{vehicle.api_port}"
+    env["MAVSDK_SERVER_PORT"] = str(free_tcp_port())
+    env["ROTORPILOT_SPEED"] = str(vehicle.speed)
+    env["PYTHONWARNINGS"] = "ignore::FutureWarning"
+    t0 = time.monotonic()
+    try:
+        p = subprocess.run(
+            [sys.executable, str(EXAMPLES / name)],
+            cwd=EXAMPLES,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+        )
+    except subprocess.TimeoutExpired as e:
+        pytest.fail(f"{name} timed out after {timeout} s\n{e.stdout}\n{e.stderr}\n{vehicle.logs()}")
+    took = time.monotonic() - t0
+    print(f"{name}: exit {p.returncode} in {took:.1f} s\n{p.stdout[-3000:]}")
+    if p.returncode != 0:
+        pytest.fail(f"{name} failed ({p.returncode})\n{p.stdout}\n{p.stderr[-3000:]}\n{vehicle.logs()}")
+    return p.stdout
+
+
+@pytest.mark.parametrize(
+    "example",
+    ["takeoff_and_land.py", "goto.py", "offboard_position_ned.py", "offboard_velocity_ned.py", "all_params.py"],
+)
+def test_example(example):
+    with Vehicle(speed=SPEED) as v:
+        run_example(example, v)
+
+
+def test_gcs_and_mavsdk_at_once_and_a_reconnecting_gcs():
+    """A pymavlink GCS on the GCS link while a MAVSDK script flies on the API
+    link: both are served. Then the GCS restarts on a new port (udpout from an
+    ephemeral port, as pymavlink udpout does) and is served again."""
+    from pymavlink import mavutil
+
+    with Vehicle(speed=SPEED) as v:
+        gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{v.gcs_port}", source_system=255)
+        assert gcs.wait_heartbeat(timeout=5) is not None
+        env = dict(os.environ)
+        env.update(
+            ROTORPILOT_MAVSDK_URL=f"udpin://0.0.0.0:{v.api_port}",
+            MAVSDK_SERVER_PORT=str(free_tcp_port()),
+            ROTORPILOT_SPEED=str(v.speed),
+            PYTHONWARNINGS="ignore::FutureWarning",
+        )
+        script = subprocess.Popen(
+            [sys.executable, str(EXAMPLES / "takeoff_and_land.py")],
+            cwd=EXAMPLES,
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+        try:
+            # while MAVSDK flies, the GCS sees the flight
+            in_air = gcs.recv_match(
+                type="EXTENDED_SYS_STATE", condition="EXTENDED_SYS_STATE.landed_state==2", blocking=True, timeout=40
+            )
+            assert in_air is not None, "the GCS sees the MAVSDK flight"
+            # the GCS also gets answers of its own
+            gcs.mav.param_request_read_send(gcs.target_system, 0, b"MIS_TAKEOFF_ALT", -1)
+            assert gcs.recv_match(type="PARAM_VALUE", blocking=True, timeout=3) is not None
+            gcs.close()
+            # the GCS comes back from a new ephemeral port, talking first
+            again = mavutil.mavlink_connection(f"udpout:127.0.0.1:{v.gcs_bind}", source_system=255)
+            again.mav.heartbeat_send(6, 8, 0, 0, 0)
+            hb = again.wait_heartbeat(timeout=5)
+            assert hb is not None and again.target_system == v.sysid
+            again.mav.param_request_read_send(again.target_system, 0, b"MIS_TAKEOFF_ALT", -1)
+            assert again.recv_match(type="PARAM_VALUE", blocking=True, timeout=3) is not None
+            out, _ = script.communicate(timeout=120)
+            print(out[-2000:])
+            assert script.returncode == 0, out
+        finally:
+            if script.poll() is None:
+                script.kill()
+                script.wait(5)

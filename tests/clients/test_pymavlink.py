@@ -1,0 +1,282 @@
+"""pymavlink as a GCS against the real rotorpilot binary, as a user script would
+drive PX4 SITL: udpin on the GCS port, parameters, arming, takeoff, the
+estimated disturbances against the injected truth, a controller switch in
+flight, offboard, land, disarm. Every wait is bounded.
+
+Run with the pymavlink venv: `python -m pytest tests/clients/test_pymavlink.py`.
+"""
+
+import math
+import struct
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from harness import Vehicle  # noqa: E402
+
+from pymavlink import mavutil  # noqa: E402
+
+mavlink = mavutil.mavlink
+SPEED = 5.0
+
+
+def int32_as_float(v):
+    """PX4 carries INT32 parameters bytewise in the float field."""
+    return struct.unpack("<f", struct.pack("<i", v))[0]
+
+
+def float_as_int32(f):
+    return struct.unpack("<i", struct.pack("<f", f))[0]
+
+
+@pytest.fixture
+def vehicle():
+    with Vehicle(speed=SPEED) as v:
+        yield v
+        # shown by pytest only when the test failed
+        print("rotorpilot log (tail):\n" + v.logs())
+
+
+def connect(v):
+    m = mavutil.mavlink_connection(f"udpin:127.0.0.1:{v.gcs_port}", source_system=255)
+    hb = m.wait_heartbeat(timeout=5)
+    assert hb is not None, "no heartbeat: the vehicle must speak first"
+    return m
+
+
+def drain(m):
+    """Read away the backlog. The GCS link streams ~270 messages/s; a script
+    that sleeps lets the socket buffer fill, and the kernel then drops new
+    datagrams (an ACK among them) until it reads again, as with PX4 SITL."""
+    while m.recv_match(blocking=False) is not None:
+        pass
+
+
+def wait(m, types, cond=lambda msg: True, timeout=5.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        msg = m.recv_match(type=types, blocking=True, timeout=min(0.5, max(0.01, deadline - time.monotonic())))
+        if msg is not None and cond(msg):
+            return msg
+    return None
+
+
+def command(m, cmd, *params, timeout=3.0):
+    p = list(params) + [0.0] * (7 - len(params))
+    drain(m)
+    m.mav.command_long_send(m.target_system, m.target_component, cmd, 0, *p)
+    ack = wait(m, "COMMAND_ACK", lambda a: a.command == cmd, timeout)
+    assert ack is not None, f"no COMMAND_ACK for {cmd}"
+    return ack.result
+
+
+def param_get(m, name, timeout=3.0):
+    drain(m)
+    m.mav.param_request_read_send(m.target_system, m.target_component, name.encode(), -1)
+    return wait(m, "PARAM_VALUE", lambda p: p.param_id == name, timeout)
+
+
+def param_set(m, name, value, kind=mavlink.MAV_PARAM_TYPE_REAL32, timeout=3.0):
+    if kind == mavlink.MAV_PARAM_TYPE_INT32:
+        value = int32_as_float(int(value))
+    drain(m)
+    m.param_set_send(name, value, kind)
+    return wait(m, "PARAM_VALUE", lambda p: p.param_id == name, timeout)
+
+
+def wait_armable(m, timeout=10.0):
+    ok = wait(m, "SYS_STATUS", lambda s: s.onboard_control_sensors_health & 0x10000000, timeout)
+    assert ok is not None, "never armable"
+
+
+def rel_alt(m):
+    drain(m)
+    g = wait(m, "GLOBAL_POSITION_INT", timeout=2.0)
+    assert g is not None
+    return g.relative_alt / 1000.0
+
+
+def sim_time_s(m):
+    """Simulated time [s] from the vehicle's own clock (ATTITUDE.time_boot_ms)."""
+    drain(m)
+    a = wait(m, "ATTITUDE", timeout=2.0)
+    assert a is not None, "no ATTITUDE"
+    return a.time_boot_ms / 1000.0
+
+
+def wait_sim(m, seconds, wall_timeout=60.0):
+    """Let `seconds` of simulated time pass, however fast the vehicle runs on this machine."""
+    start = sim_time_s(m)
+    deadline = time.monotonic() + wall_timeout
+    while time.monotonic() < deadline:
+        if sim_time_s(m) - start >= seconds:
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"{seconds} s of simulated time did not pass in {wall_timeout} s")
+
+
+def latest(m, name, kind, timeout=2.0):
+    drain(m)
+    return wait(m, kind, lambda d: d.name == name, timeout)
+
+
+def test_identity_and_mode_names(vehicle):
+    m = connect(vehicle)
+    hb = wait(m, "HEARTBEAT", lambda h: h.get_srcComponent() == 1)
+    assert hb.autopilot == mavlink.MAV_AUTOPILOT_PX4
+    assert hb.type == mavlink.MAV_TYPE_QUADROTOR
+    assert m.target_system == vehicle.sysid
+    assert m.flightmode == "LOITER"
+    assert m.mode_mapping()["OFFBOARD"] == (29, 6, 0)
+
+
+def test_param_fetch_set_and_refuse(vehicle):
+    m = connect(vehicle)
+    t0 = time.monotonic()
+    m.param_fetch_all()
+    seen = {}
+    count = None
+    while time.monotonic() - t0 < 5.0:
+        p = m.recv_match(type="PARAM_VALUE", blocking=True, timeout=1.0)
+        if p is None:
+            break
+        count = p.param_count
+        seen[p.param_index] = p.param_id
+        if len(seen) == count:
+            break
+    took = time.monotonic() - t0
+    assert count and len(seen) == count, f"{len(seen)} of {count}"
+    assert sorted(seen) == list(range(count))
+    print(f"full parameter list: {count} parameters in {took * 1000:.1f} ms")
+    # REAL32 set: echoed exactly
+    p = param_set(m, "MIS_TAKEOFF_ALT", 3.0)
+    assert p is not None and p.param_value == pytest.approx(3.0)
+    # out of range: the unchanged value comes back
+    p = param_set(m, "MIS_TAKEOFF_ALT", 1000.0)
+    assert p is not None and p.param_value == pytest.approx(3.0)
+    # INT32, bytewise
+    p = param_set(m, "SYS_FAILURE_EN", 1, mavlink.MAV_PARAM_TYPE_INT32)
+    assert p.param_type == mavlink.MAV_PARAM_TYPE_INT32
+    assert float_as_int32(p.param_value) == 1
+    # REAL32 for an INT32 parameter: refused, unchanged
+    p = param_set(m, "SYS_FAILURE_EN", 0.0)
+    assert float_as_int32(p.param_value) == 1
+    # unknown name: PARAM_ERROR, no PARAM_VALUE
+    m.param_set_send("NO_SUCH_PARAM", 1.0)
+    err = wait(m, "PARAM_ERROR", timeout=2.0)
+    assert err is not None and err.error == 1
+    assert param_get(m, "MIS_TAKEOFF_ALT").param_value == pytest.approx(3.0)
+
+
+def test_flight_with_disturbance_estimation_offboard_and_landing(vehicle):
+    m = connect(vehicle)
+    # the injected truth: 0.5 N east and north, 0.2 N m yaw torque, a lighter vehicle
+    nominal = param_get(m, "SIM_MASS").param_value
+    true_mass = round(nominal * 0.9, 3)
+    assert param_set(m, "MIS_TAKEOFF_ALT", 3.0).param_value == pytest.approx(3.0)
+
+    wait_armable(m)
+    m.arducopter_arm()
+    assert wait(m, "HEARTBEAT", lambda h: h.base_mode & 128, 3.0) is not None, "armed"
+    # pymavlink habit: p7 = 10 meaning "relative"; PX4 reads AMSL and raises it to home + MIS_TAKEOFF_ALT
+    assert command(m, mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 10) == 0
+    assert wait(m, "EXTENDED_SYS_STATE", lambda e: e.landed_state == 2, 15.0) is not None, "in air"
+    assert wait(m, "HEARTBEAT", lambda h: mavutil.interpret_px4_mode(h.base_mode, h.custom_mode) == "LOITER", 15)
+    assert abs(rel_alt(m) - 3.0) < 0.4
+
+    for name, value in [("SIM_FEXT_X", 0.5), ("SIM_FEXT_Y", 0.5), ("SIM_TEXT_Z", 0.2), ("SIM_MASS", true_mass)]:
+        p = param_set(m, name, value)
+        assert p is not None and p.param_value == pytest.approx(value), name
+    # let the estimator converge and the vehicle settle at its new hover: while it
+    # still accelerates the estimate rightly carries (m_nom - m_true) a as well
+    wait_sim(m, 15.0)
+    f = latest(m, "EST_FORCE", "DEBUG_VECT")
+    tq = latest(m, "EST_TORQUE", "DEBUG_VECT")
+    mass = latest(m, "EST_MASS", "NAMED_VALUE_FLOAT")
+    truth_f = latest(m, "SIM_FORCE", "DEBUG_VECT")
+    truth_m = latest(m, "SIM_MASS", "NAMED_VALUE_FLOAT")
+    print(f"EST_FORCE {f.x:.3f} {f.y:.3f} {f.z:.3f} N, EST_TORQUE {tq.x:.3f} {tq.y:.3f} {tq.z:.3f} N m, "
+          f"EST_MASS {mass.value:.3f} kg (true {true_mass}, nominal {nominal})")
+    assert (truth_f.x, truth_f.y) == pytest.approx((0.5, 0.5), abs=1e-3)
+    assert truth_m.value == pytest.approx(true_mass, abs=1e-3)
+    assert f.x == pytest.approx(0.5, abs=0.01) and f.y == pytest.approx(0.5, abs=0.01)
+    assert tq.z == pytest.approx(0.2, abs=0.004)
+    # within 0.5 %: what is left is ground effect at 3 m (about 0.05 % of the thrust)
+    assert mass.value == pytest.approx(true_mass, rel=0.005)
+    # the lighter vehicle shows as an upward (negative NED z) force of (m_true - m_nom) g
+    assert f.z == pytest.approx((true_mass - nominal) * 9.81, abs=0.05)
+
+    # switch the controller in flight: it keeps holding
+    ctrl = float_as_int32(param_get(m, "CTRL_TYPE").param_value)
+    other = (ctrl + 1) % 3
+    p = param_set(m, "CTRL_TYPE", other, mavlink.MAV_PARAM_TYPE_INT32)
+    assert float_as_int32(p.param_value) == other
+    time.sleep(4.0 / SPEED)
+    assert abs(rel_alt(m) - 3.0) < 0.5
+
+    # offboard: stream a position setpoint, then switch (pymavlink's set_mode)
+    target = (2.0, 1.0, -4.0)
+
+    def setpoint():
+        m.mav.set_position_target_local_ned_send(
+            0, m.target_system, m.target_component, mavlink.MAV_FRAME_LOCAL_NED, 2552,
+            *target, 0, 0, 0, 0, 0, 0, 0, 0)
+
+    for _ in range(5):
+        setpoint()
+        time.sleep(0.05)
+    drain(m)
+    m.set_mode("OFFBOARD")
+    ack = wait(m, "COMMAND_ACK", lambda a: a.command == mavlink.MAV_CMD_DO_SET_MODE, 3.0)
+    assert ack is not None and ack.result == 0
+    deadline = time.monotonic() + 20.0
+    reached = shown = False
+    while time.monotonic() < deadline and not (reached and shown):
+        setpoint()
+        p = wait(m, ["LOCAL_POSITION_NED", "HEARTBEAT"], timeout=0.05)
+        if p is None:
+            continue
+        if p.get_type() == "HEARTBEAT":
+            shown = shown or m.flightmode == "OFFBOARD"
+        elif math.dist((p.x, p.y, p.z), target) < 0.3:
+            reached = True
+    assert shown, "OFFBOARD in the heartbeat"
+    assert reached, "offboard position reached"
+
+    # land and disarm
+    drain(m)
+    m.set_mode("LAND")
+    assert wait(m, "EXTENDED_SYS_STATE", lambda e: e.landed_state == 1, 30.0) is not None, "landed"
+    assert wait(m, "HEARTBEAT", lambda h: h.get_srcComponent() == 1 and not h.base_mode & 128, 15.0), "disarmed"
+
+
+def test_mavproxy_style_ftp_falls_back_at_once(vehicle):
+    m = connect(vehicle)
+    payload = bytearray(251)
+    payload[3] = 4  # OpenFileRO
+    name = b"@PARAM/param.pck"
+    payload[4] = len(name)
+    payload[12:12 + len(name)] = name
+    m.mav.file_transfer_protocol_send(0, m.target_system, m.target_component, payload)
+    r = wait(m, "FILE_TRANSFER_PROTOCOL", timeout=2.0)
+    assert r is not None
+    data = bytes(r.payload)
+    assert data[3] == 129 and data[12] == 10  # NAK, FileNotFound
+
+
+def test_clean_shutdown_saves_parameters():
+    v = Vehicle(speed=SPEED).start()
+    try:
+        m = connect(v)
+        assert param_set(m, "MPC_XY_CRUISE", 6.5).param_value == pytest.approx(6.5)
+        took = v.stop()
+        assert took < 1.0, f"stopped in {took:.2f} s"
+        assert v.returncode == 0
+        text = (Path(v.state_dir) / "params.toml").read_text()
+        assert "MPC_XY_CRUISE = 6.5" in text
+    finally:
+        v.stop()
+        v.cleanup()

@@ -57,3 +57,7 @@ export PYTHONWARNINGS="ignore::FutureWarning"
 timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3.py
 timeout 900 "$VENV/mavsdk4/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk4.py
+
+echo "== tools: plot scripts on real logs (matplotlib)"
+client_venv tools "matplotlib==3.9.2" "pytest==9.2.0"
+timeout 600 "$VENV/tools/bin/python" -m pytest -q -p no:cacheprovider tests/tools/test_plots.py

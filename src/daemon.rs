@@ -679,11 +679,13 @@ impl Sim {
         match r {
             SimRequest::Command { command, reply } => {
                 let outcome = self.core.command(command);
+                // Publish before answering: a client that acts on the ACK (disarm,
+                // then shutdown) must find the links already seeing the new state.
+                self.publish();
                 if let Some(tx) = reply {
                     debug!(?command, ?outcome, "command");
                     let _ = tx.send(outcome);
                 }
-                self.publish();
             }
             SimRequest::SetParam { name, value, reply } => {
                 let outcome = {
@@ -706,8 +708,8 @@ impl Sim {
                     Ok(v) => info!(%name, value = %v, "parameter set"),
                     Err(e) => info!(%name, error = %e, "parameter refused"),
                 }
-                let _ = reply.send(outcome);
                 self.publish();
+                let _ = reply.send(outcome);
             }
             SimRequest::Stop => {}
             SimRequest::Reboot => {

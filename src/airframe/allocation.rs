@@ -188,7 +188,15 @@ impl Allocator {
     /// The wrench `B w` of squared speeds `w`.
     #[must_use]
     pub fn forward(&self, speed_sq: &RotorVector) -> ControlWrench {
-        ControlWrench::from_vector(&(self.b * speed_sq))
+        // `B w` over the n used columns only (column-major storage), summed in
+        // the order of nalgebra's product: the padding only adds exact zeros
+        let mut acc = [0.0; 4];
+        for (col, &x) in self.b.as_slice().chunks_exact(4).zip(speed_sq.as_slice()).take(self.n) {
+            for (a, b) in acc.iter_mut().zip(col) {
+                *a += b * x;
+            }
+        }
+        ControlWrench::new(acc[0], Vector3::new(acc[1], acc[2], acc[3]))
     }
 
     /// Unconstrained minimum-norm squared speeds `B^+ v` (may leave the bounds).

@@ -16,11 +16,11 @@ pub(super) fn e3() -> Vector3<f64> {
 }
 
 pub(super) fn finite3(v: &Vector3<f64>) -> bool {
-    v.iter().all(|x| x.is_finite())
+    v.x.is_finite() && v.y.is_finite() && v.z.is_finite()
 }
 
 pub(super) fn finite_m3(m: &Matrix3<f64>) -> bool {
-    m.iter().all(|x| x.is_finite())
+    m.as_slice().iter().all(|x| x.is_finite())
 }
 
 /// Whether a measurement can be used at all.
@@ -28,7 +28,7 @@ pub(super) fn measurement_ok(m: &Measurement) -> bool {
     finite3(&m.position_ned)
         && finite3(&m.velocity_ned)
         && finite3(&m.rate_frd)
-        && m.attitude.coords.iter().all(|x| x.is_finite())
+        && m.attitude.coords.as_slice().iter().all(|x| x.is_finite())
         && (m.attitude.coords.norm() - 1.0).abs() < 1e-6
 }
 

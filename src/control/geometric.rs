@@ -45,6 +45,36 @@ pub(super) struct Geometric {
     prev_omega_d: Vector3<f64>,
     /// Desired-attitude samples since the last reset or jump.
     samples: u32,
+    /// `(max_tilt, tan(max_tilt))` of the last call: the limit rarely changes.
+    tilt_tan: Option<(f64, f64)>,
+    /// `(psi_d, sin psi_d, cos psi_d)` of the last call: the heading is often held.
+    yaw_sin_cos: Option<(f64, f64, f64)>,
+}
+
+impl Geometric {
+    /// `tan(max_tilt)`, recomputed only when the limit changes (same value).
+    fn tan_max_tilt(&mut self, max_tilt: f64) -> f64 {
+        match self.tilt_tan {
+            Some((key, t)) if key.to_bits() == max_tilt.to_bits() => t,
+            _ => {
+                let t = max_tilt.tan();
+                self.tilt_tan = Some((max_tilt, t));
+                t
+            }
+        }
+    }
+
+    /// `(sin psi, cos psi)`, recomputed only when the heading changes (same value).
+    fn yaw_sin_cos(&mut self, yaw: f64) -> (f64, f64) {
+        match self.yaw_sin_cos {
+            Some((key, s, c)) if key.to_bits() == yaw.to_bits() => (s, c),
+            _ => {
+                let (s, c) = yaw.sin_cos();
+                self.yaw_sin_cos = Some((yaw, s, c));
+                (s, c)
+            }
+        }
+    }
 }
 
 /// `log(R)^vee` (rotation vector) of a rotation matrix; `None` near 180 deg,
@@ -141,9 +171,10 @@ impl Geometric {
         let a = -gains.kp_n_per_m.component_mul(&e_p) - gains.kv_n_s_per_m.component_mul(&e_v) - e3() * (m * GRAVITY)
             + reference.acceleration_ned * m
             - estimate.force_ned;
-        let (a, limited) = guard_a(a, m, limits);
+        let (a, limited) = guard_a(a, m, limits, self.tan_max_tilt(limits.max_tilt_rad));
         let thrust = -a.dot(&(r * e3()));
-        let r_d = self.desired_attitude(&a, reference.yaw_rad, &r);
+        let yaw = self.yaw_sin_cos(reference.yaw_rad);
+        let r_d = self.desired_attitude(&a, yaw, &r);
         let w_now = r_d.transpose() * (r * meas.rate_frd);
         let (w_d, w_dot_d, jump) = self.desired_rates(&r_d, &w_now, dt, limits.max_angular_accel_rad_s2);
         let out = so3_attitude(
@@ -169,9 +200,10 @@ impl Geometric {
     }
 
     /// `R_d = [y_d x z_d, y_d, z_d]` with `z_d = -A/|A|` and the heading `psi_d`.
-    fn desired_attitude(&self, a: &Vector3<f64>, yaw: f64, r: &Matrix3<f64>) -> Matrix3<f64> {
+    /// `yaw` is `(sin psi_d, cos psi_d)`.
+    fn desired_attitude(&self, a: &Vector3<f64>, yaw: (f64, f64), r: &Matrix3<f64>) -> Matrix3<f64> {
         let z_d = -a / a.norm();
-        let (s, c) = yaw.sin_cos();
+        let (s, c) = yaw;
         let mut y = z_d.cross(&Vector3::new(c, s, 0.0));
         if y.norm() < 1e-6 {
             // z_d along the heading: keep the previous desired (or current) x axis
@@ -192,8 +224,9 @@ impl Geometric {
     }
 }
 
-/// Guards on `A` (module doc); returns the guarded `A` and whether it changed.
-fn guard_a(mut a: Vector3<f64>, m: f64, limits: &ControlLimits) -> (Vector3<f64>, bool) {
+/// Guards on `A` (module doc) with `tan_max_tilt = tan(limits.max_tilt_rad)`;
+/// returns the guarded `A` and whether it changed.
+fn guard_a(mut a: Vector3<f64>, m: f64, limits: &ControlLimits, tan_max_tilt: f64) -> (Vector3<f64>, bool) {
     let mut limited = false;
     if !finite3(&a) {
         a = -e3() * (m * GRAVITY);
@@ -205,7 +238,7 @@ fn guard_a(mut a: Vector3<f64>, m: f64, limits: &ControlLimits) -> (Vector3<f64>
         limited = true;
     }
     let h = a.xy().norm();
-    let h_max = -a.z * limits.max_tilt_rad.tan();
+    let h_max = -a.z * tan_max_tilt;
     if h > h_max {
         let s = h_max / h;
         a.x *= s;

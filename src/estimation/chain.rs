@@ -212,8 +212,8 @@ impl<const C: usize> ChainFilter<C> {
                 let w = &self.last_row[..r];
                 let mut gr = [0.0; C];
                 for i in (1..r).rev() {
-                    let (lo, hi) = stages.split_at_mut(i);
-                    let (prev, cur, ai, wi) = (&lo[i - 1], &mut hi[0], a[i], w[i]);
+                    let prev = stages[i - 1];
+                    let (cur, ai, wi) = (&mut stages[i], a[i], w[i]);
                     for c in 0..C {
                         cur[c] += ai * (prev[c] - gr_old[c]);
                         gr[c] += wi * cur[c];
@@ -231,12 +231,14 @@ impl<const C: usize> ChainFilter<C> {
                         for c in 0..C {
                             stages[0][c] -= a[0] * gr[c];
                         }
+                        // ascending: carry gamma_{i-1} (already updated) in registers
+                        let mut prev = stages[0];
                         for i in 1..r - 1 {
-                            let (lo, hi) = stages.split_at_mut(i);
-                            let (prev, cur, ai) = (&lo[i - 1], &mut hi[0], a[i]);
+                            let (cur, ai) = (&mut stages[i], a[i]);
                             for c in 0..C {
                                 cur[c] += ai * (prev[c] - gr[c]);
                             }
+                            prev = *cur;
                         }
                     }
                     stages[r - 1] = gr;

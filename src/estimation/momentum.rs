@@ -275,7 +275,7 @@ impl Kinematics {
     fn from_measurement(meas: &Measurement) -> Self {
         let attitude = Attitude::from_quaternion(&meas.attitude);
         let w = meas.rate_frd;
-        let att_ok = meas.attitude.coords.iter().all(|c| c.is_finite());
+        let att_ok = meas.attitude.coords.as_slice().iter().all(|c| c.is_finite());
         let rate_ok = finite(&w);
         Self {
             attitude,
@@ -311,32 +311,47 @@ impl Sample {
     /// `M eta_dot = Q^T I_b w` and `C^T eta_dot = Q_dot^T I_b w + Q^T ((I_b w) x w)`,
     /// the transpose of `math::rpy_coriolis` applied to `eta_dot` (checked in the tests).
     fn new(nominal: &NominalModel, kin: Kinematics) -> Self {
+        let mut s = Self {
+            kin,
+            momentum: [0.0; CHANNELS],
+            drift: [0.0; CHANNELS],
+        };
+        s.set(nominal, kin);
+        s
+    }
+
+    /// Overwrite in place with `kin` ([`Self::new`] without moving the sample).
+    fn set(&mut self, nominal: &NominalModel, kin: Kinematics) {
         let m = nominal.mass_kg;
         let ib = &nominal.inertia_kg_m2;
         let att = &kin.attitude;
-        let w_eta = kin.rate_rpy;
-        let iw_eta = ib * w_eta;
-        let p_eta = att.qt(&iw_eta);
-        let c_t_eta_dot = att.q_dot_t(&kin.eta_dot, &iw_eta) + att.qt(&iw_eta.cross(&w_eta));
         let w = kin.rate_frd;
         let iw = ib * w;
         let gyro = iw.cross(&w);
+        let w_eta = kin.rate_rpy;
+        // from a measurement both channels see the same rate: reuse I_b w and its cross product
+        let (iw_eta, iw_eta_x_w_eta) = if w_eta == w {
+            (iw, gyro)
+        } else {
+            let iw_eta = ib * w_eta;
+            (iw_eta, iw_eta.cross(&w_eta))
+        };
+        let p_eta = att.qt(&iw_eta);
+        let c_t_eta_dot = att.q_dot_t(&kin.eta_dot, &iw_eta) + att.qt(&iw_eta_x_w_eta);
         let v = kin.velocity;
-        Self {
-            kin,
-            momentum: [m * v.x, m * v.y, m * v.z, p_eta.x, p_eta.y, p_eta.z, iw.x, iw.y, iw.z],
-            drift: [
-                0.0,
-                0.0,
-                m * GRAVITY,
-                c_t_eta_dot.x,
-                c_t_eta_dot.y,
-                c_t_eta_dot.z,
-                gyro.x,
-                gyro.y,
-                gyro.z,
-            ],
-        }
+        self.kin = kin;
+        self.momentum = [m * v.x, m * v.y, m * v.z, p_eta.x, p_eta.y, p_eta.z, iw.x, iw.y, iw.z];
+        self.drift = [
+            0.0,
+            0.0,
+            m * GRAVITY,
+            c_t_eta_dot.x,
+            c_t_eta_dot.y,
+            c_t_eta_dot.z,
+            gyro.x,
+            gyro.y,
+            gyro.z,
+        ];
     }
 }
 
@@ -416,8 +431,12 @@ pub struct MomentumEstimator {
     config: EstimatorConfig,
     nominal: NominalModel,
     chain: ChainFilter<CHANNELS>,
-    /// `x_{k-1}` with the current nominal model.
-    prev: Sample,
+    /// Two sample slots: `x_{k-1}` (with the current nominal model) in
+    /// `slots[prev]`; the next sample is written into the other slot, so
+    /// the roles swap without copying.
+    slots: [Sample; 2],
+    /// Slot of `x_{k-1}` in `slots`.
+    prev: usize,
     /// `t_{k-1}` [s].
     prev_time_s: f64,
     initialized: bool,
@@ -435,7 +454,8 @@ impl MomentumEstimator {
         let gains = config.gains()?;
         let chain = ChainFilter::new(&gains, config.discretization, config.sample_time_s)?;
         Ok(Self {
-            prev: Sample::new(&nominal, Kinematics::from_input(&EstimatorInput::default())),
+            slots: [Sample::new(&nominal, Kinematics::from_input(&EstimatorInput::default())); 2],
+            prev: 0,
             prev_time_s: 0.0,
             config,
             nominal,
@@ -517,7 +537,8 @@ impl MomentumEstimator {
     pub fn set_nominal(&mut self, nominal: NominalModel) -> Result<(), EstimatorError> {
         check_nominal(&nominal)?;
         self.nominal = nominal;
-        self.prev = Sample::new(&self.nominal, self.prev.kin);
+        let p = self.prev;
+        self.slots[p] = Sample::new(&self.nominal, self.slots[p].kin);
         Ok(())
     }
 
@@ -542,15 +563,18 @@ impl MomentumEstimator {
     }
 
     fn step(&mut self, kin: Kinematics, time_s: f64, thrust: f64, tau: &Vector3<f64>) -> WrenchEstimate {
-        let cur = Sample::new(&self.nominal, kin);
+        // x_k goes into the free slot (built in place, no copy of the sample)
+        let next = 1 - self.prev;
+        self.slots[next].set(&self.nominal, kin);
         self.samples += 1;
         if !self.initialized {
-            self.prev = cur;
+            self.prev = next;
             self.prev_time_s = time_s;
             self.initialized = true;
             return self.estimate();
         }
-        let prev = &self.prev;
+        let prev = &self.slots[self.prev];
+        let cur = &self.slots[next];
         let (pa, ca) = (&prev.kin.attitude, &cur.kin.attitude);
         let h = self.chain.sample_time_s();
         // command part of d integrated over the interval (without the factor h)
@@ -580,9 +604,9 @@ impl MomentumEstimator {
         }
         let tau_ok = finite(tau);
         let cmd_ok = [thrust.is_finite(), tau_ok, tau_ok];
-        let held = self.chain.output();
         for (g, ok) in cmd_ok.iter().enumerate() {
             if !(prev.kin.valid[g] && cur.kin.valid[g] && *ok) {
+                let held = self.chain.output();
                 let group = 3 * g..3 * g + 3;
                 for (inc, est) in increment[group.clone()].iter_mut().zip(&held[group]) {
                     *inc = h * est;
@@ -590,7 +614,7 @@ impl MomentumEstimator {
             }
         }
         let y = self.chain.advance(&increment);
-        self.prev = cur;
+        self.prev = next;
         self.prev_time_s = time_s;
         self.output(&y)
     }

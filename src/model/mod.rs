@@ -193,6 +193,8 @@ pub struct Plant {
     n: usize,
     /// `B`, zero-padded.
     b: SMatrix<f64, 4, MAX_ROTORS>,
+    /// The columns of `B` as plain arrays (the rotor loops visit only the first `n`).
+    b_cols: [[f64; 4]; MAX_ROTORS],
     allocator: Allocator,
     rotor_positions_frd: [Vector3<f64>; MAX_ROTORS],
     spin: RotorVector,
@@ -248,6 +250,7 @@ impl Plant {
             actuation: airframe.actuation,
             n,
             b: *allocator.b(),
+            b_cols: std::array::from_fn(|j| std::array::from_fn(|i| allocator.b()[(i, j)])),
             allocator,
             rotor_positions_frd: positions,
             spin,
@@ -417,10 +420,16 @@ impl Plant {
         if ground_far && ceiling_far {
             return None;
         }
-        let r = self.state.attitude.to_rotation_matrix();
+        // only the third row of R(q) is needed: (R p_i).z, with the rounding of
+        // `to_rotation_matrix` and of the matrix-vector product
+        let q = &self.state.attitude;
+        let (w, i, j, k) = (q.w, q.i, q.j, q.k);
+        let r31 = i * k * 2.0 - w * j * 2.0;
+        let r32 = w * i * 2.0 + j * k * 2.0;
+        let r33 = w * w - i * i - j * j + k * k;
         let mut rotor_z = [0.0; MAX_ROTORS];
-        for (i, z) in rotor_z.iter_mut().enumerate().take(self.n) {
-            *z = self.state.position_ned.z + (r * self.rotor_positions_frd[i]).z;
+        for (z, p) in rotor_z.iter_mut().zip(&self.rotor_positions_frd).take(self.n) {
+            *z = self.state.position_ned.z + (r31 * p.x + r32 * p.y + r33 * p.z);
         }
         let mut ratio: Option<RotorVector> = None;
         if ground {
@@ -437,15 +446,33 @@ impl Plant {
     }
 
     /// Rotor wrench `B (r (x) w)` with the yaw row on unscaled `w`.
+    /// Only the `n` used columns of the padded `B` are visited, in the order
+    /// of nalgebra's product (the padding contributes exact zeros).
     fn rotor_wrench(&self, speed_sq: &RotorVector, ratio: Option<&RotorVector>) -> ControlWrench {
+        let n = self.n;
+        let cols = &self.b_cols[..n];
+        let sq = &speed_sq.as_slice()[..n];
+        let mut acc = [0.0; 4];
         match ratio {
-            None => ControlWrench::from_vector(&(self.b * speed_sq)),
+            None => {
+                for (col, &x) in cols.iter().zip(sq) {
+                    for (a, b) in acc.iter_mut().zip(col) {
+                        *a += b * x;
+                    }
+                }
+            }
             Some(r) => {
-                let scaled = self.b * speed_sq.component_mul(r);
-                let yaw = self.b.row(3).dot(&speed_sq.transpose());
-                ControlWrench::new(scaled[0], Vector3::new(scaled[1], scaled[2], yaw))
+                for ((col, &x), &rj) in cols.iter().zip(sq).zip(&r.as_slice()[..n]) {
+                    let xs = x * rj;
+                    acc[0] += col[0] * xs;
+                    acc[1] += col[1] * xs;
+                    acc[2] += col[2] * xs;
+                    // yaw row on the unscaled speeds
+                    acc[3] += col[3] * x;
+                }
             }
         }
+        ControlWrench::new(acc[0], Vector3::new(acc[1], acc[2], acc[3]))
     }
 
     fn deriv(&self, s: &RigidBodyState, w: &ControlWrench, ext: &ExternalWrench, gyro_h: f64) -> Deriv {
@@ -511,13 +538,13 @@ impl Plant {
             (Actuation::Ideal, _) => None,
             (Actuation::Rotors, ActuatorCommand::Stop) => Some(RotorVector::zeros()),
             (Actuation::Rotors, ActuatorCommand::RotorSpeeds(w)) => {
-                if !w.iter().all(|x| x.is_finite()) {
+                if !w.as_slice().iter().all(|x| x.is_finite()) {
                     return Err(SimFault::NonFiniteCommand);
                 }
                 Some(self.clamp_speeds(w))
             }
             (Actuation::Rotors, ActuatorCommand::Wrench(wr)) => {
-                if !wr.to_vector().iter().all(|x| x.is_finite()) {
+                if !(wr.thrust_n.is_finite() && wr.torque_frd.as_slice().iter().all(|x| x.is_finite())) {
                     return Err(SimFault::NonFiniteCommand);
                 }
                 Some(self.allocator.allocate(wr).speed_cmd_rad_s)
@@ -529,7 +556,14 @@ impl Plant {
             let om0 = self.rotor_speed;
             let om_mid = bar + (om0 - bar) * self.decay.0;
             let om1 = bar + (om0 - bar) * self.decay.1;
-            let sq = |v: &RotorVector| v.component_mul(v);
+            let n = self.n;
+            let sq = |v: &RotorVector| {
+                let mut out = RotorVector::zeros();
+                for (o, x) in out.as_mut_slice()[..n].iter_mut().zip(&v.as_slice()[..n]) {
+                    *o = x * x;
+                }
+                out
+            };
             let spin_momentum = |om: &RotorVector| -self.rotor_inertia * self.spin.dot(om);
             (
                 self.rotor_wrench(&sq(&om0), ratio.as_ref()),
@@ -575,13 +609,15 @@ impl Plant {
             attitude: UnitQuaternion::new_normalize(q),
             rate_frd: s.rate_frd + (k1.w + (k2.w + k3.w) * 2.0 + k4.w) * sixth,
         };
-        let finite = next
-            .position_ned
-            .iter()
-            .chain(next.velocity_ned.iter())
-            .chain(next.rate_frd.iter())
-            .all(|x| x.is_finite())
-            && next.attitude.coords.iter().all(|x| x.is_finite());
+        let finite3 = |v: &Vector3<f64>| v.x.is_finite() && v.y.is_finite() && v.z.is_finite();
+        let c = &next.attitude.coords;
+        let finite = finite3(&next.position_ned)
+            && finite3(&next.velocity_ned)
+            && finite3(&next.rate_frd)
+            && c.x.is_finite()
+            && c.y.is_finite()
+            && c.z.is_finite()
+            && c.w.is_finite();
         if !finite {
             return Err(SimFault::NonFiniteState);
         }

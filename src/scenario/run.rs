@@ -271,7 +271,9 @@ pub fn run(s: &Scenario, mut csv: Option<&mut dyn Write>) -> anyhow::Result<Summ
         }
         saturated_steps += u64::from(rec.saturated);
         upright &= (rec.truth.attitude * Vector3::z()).z > 0.0;
-        finite &= e.iter().all(|x| x.is_finite()) && rec.command.to_vector().iter().all(|x| x.is_finite());
+        finite &= e.as_slice().iter().all(|x| x.is_finite())
+            && rec.command.thrust_n.is_finite()
+            && rec.command.torque_frd.as_slice().iter().all(|x| x.is_finite());
         if let Some(w) = csv.as_deref_mut() {
             writeln!(w, "{}", csv_row(&rec, n))?;
         }

@@ -68,6 +68,13 @@ class Vehicle:
         self.speed = speed
         self.state_dir = tempfile.mkdtemp(prefix="rotorpilot-client-")
         self.log_path = os.path.join(self.state_dir, "rotorpilot.log")
+        # A fresh state dir starts from the defaults, except for one: at `speed`
+        # times real time, COM_OF_LOSS_T = 1 s of simulated time is only 0.2 s of
+        # wall time, and a client stalled that long by a busy CI machine (MAVSDK
+        # streams offboard setpoints at 20 Hz of wall time) would lose offboard.
+        # Offboard loss itself is tested in tests/daemon_*.rs and tests/autopilot.rs.
+        with open(os.path.join(self.state_dir, "params.toml"), "w") as f:
+            f.write(f"COM_OF_LOSS_T = {max(1.0, 0.6 * speed)}\n")
         self.extra = list(extra)
         self.proc = None
         self.banner = []
@@ -78,7 +85,6 @@ class Vehicle:
             "--instance", str(self.instance),
             "--speed", str(self.speed),
             "--state-dir", self.state_dir,
-            "--reset-params",
             "--gcs-remote", f"127.0.0.1:{self.gcs_port}",
         ] + self.extra
         self.log = open(self.log_path, "w")

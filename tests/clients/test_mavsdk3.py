@@ -1,7 +1,9 @@
-"""MAVSDK-Python 3.x (gRPC; its bundled mavsdk_server is a real MAVSDK 3
-core) running scripts shaped like the public examples against the rotorpilot
-binary. The vehicle runs as PX4 SITL instance N (API link 14580+N sending to
-127.0.0.1:14540+N) and the scripts connect with udpin://0.0.0.0:14540+N.
+"""MAVSDK-Python 3.x (the gRPC API; its bundled mavsdk_server is a real
+MAVSDK 3 core) against the rotorpilot binary. Each script in mavsdk_examples/
+is a small flight or parameter session written against that public API and
+exits non-zero when the vehicle misbehaves. The vehicle runs as PX4 SITL
+instance N (API link 14580+N sending to 127.0.0.1:14540+N) and the scripts
+connect with udpin://0.0.0.0:14540+N.
 
 Run with the mavsdk<4 venv (which also holds pymavlink, for the two-client
 test): `python -m pytest tests/clients/test_mavsdk3.py`.
@@ -21,7 +23,7 @@ sys.path.insert(0, str(HERE))
 from harness import Vehicle  # noqa: E402
 
 SPEED = 5.0
-EXAMPLES = HERE / "mavsdk_examples"
+SCRIPTS = HERE / "mavsdk_examples"
 
 
 def free_tcp_port():
@@ -32,7 +34,7 @@ def free_tcp_port():
     return port
 
 
-def run_example(name, vehicle, timeout=150):
+def run_script(name, vehicle, timeout=150):
     env = dict(os.environ)
     env["ROTORPILOT_MAVSDK_URL"] = f"udpin://0.0.0.0:{vehicle.api_port}"
     env["MAVSDK_SERVER_PORT"] = str(free_tcp_port())
@@ -41,8 +43,8 @@ def run_example(name, vehicle, timeout=150):
     t0 = time.monotonic()
     try:
         p = subprocess.run(
-            [sys.executable, str(EXAMPLES / name)],
-            cwd=EXAMPLES,
+            [sys.executable, str(SCRIPTS / name)],
+            cwd=SCRIPTS,
             env=env,
             capture_output=True,
             text=True,
@@ -58,12 +60,12 @@ def run_example(name, vehicle, timeout=150):
 
 
 @pytest.mark.parametrize(
-    "example",
+    "script",
     ["takeoff_and_land.py", "goto.py", "offboard_position_ned.py", "offboard_velocity_ned.py", "all_params.py"],
 )
-def test_example(example):
+def test_script(script):
     with Vehicle(speed=SPEED) as v:
-        run_example(example, v)
+        run_script(script, v)
 
 
 def test_gcs_and_mavsdk_at_once_and_a_reconnecting_gcs():
@@ -83,8 +85,8 @@ def test_gcs_and_mavsdk_at_once_and_a_reconnecting_gcs():
             PYTHONWARNINGS="ignore::FutureWarning",
         )
         script = subprocess.Popen(
-            [sys.executable, str(EXAMPLES / "takeoff_and_land.py")],
-            cwd=EXAMPLES,
+            [sys.executable, str(SCRIPTS / "takeoff_and_land.py")],
+            cwd=SCRIPTS,
             env=env,
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,

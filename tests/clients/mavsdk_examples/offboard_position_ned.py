@@ -1,89 +1,102 @@
 #!/usr/bin/env python3
-"""MAVSDK-Python examples/offboard_position_ned.py, with position checks."""
+"""Offboard position control: a triangle in the local NED frame, then a
+landing flown with the setpoint alone.
 
-import asyncio
+MAVSDK refuses to start offboard without a setpoint, so one (the ground at
+home, nose north) is sent before Offboard.start. The legs below are flown one
+after the other; each must be reached within REACH_M and held there for HOLD_S,
+with the nose within YAW_TOL_DEG of the requested yaw and the vehicle still in
+OFFBOARD. The last setpoint is the ground below home: the vehicle must touch
+down and disarm before the script leaves offboard, after which it must report
+HOLD.
+"""
+
 import math
 
-from mavsdk import System
 from mavsdk.offboard import OffboardError, PositionNedYaw
+from mavsdk.telemetry import FlightMode
 
-from common import GRPC_PORT, URL, sleep, wait_until
+from common import (
+    bail,
+    bring_up,
+    echo_status_text,
+    expect_mode,
+    heading_gap_deg,
+    launch,
+    next_matching,
+    pause,
+    sample,
+    touchdown,
+)
+
+REACH_M = 0.3
+HOLD_S = 2.0  # simulated seconds
+YAW_TOL_DEG = 5.0
+
+# (north, east, down) in metres, yaw in degrees, and a note for the log
+LEGS = [
+    ((0.0, 0.0, -4.0), 0.0, "straight up to 4 m"),
+    ((6.0, 0.0, -4.0), 0.0, "6 m north"),
+    ((6.0, -6.0, -6.0), 270.0, "6 m west and 2 m up, nose west"),
+    ((0.0, 0.0, -6.0), 135.0, "back over home, nose south-east"),
+]
+GROUND = ((0.0, 0.0, 0.0), 135.0, "down to the ground below home")
 
 
-async def check(drone, n, e, d, tol=0.5):
-    pv = await wait_until(drone.telemetry.position_velocity_ned(), lambda p: True, 5, "position")
+def gap(pv, ned):
     p = pv.position
-    err = math.dist((p.north_m, p.east_m, p.down_m), (n, e, d))
-    print(f"   at {p.north_m:.2f} {p.east_m:.2f} {p.down_m:.2f} (error {err:.2f} m)")
-    assert err < tol, (n, e, d, p)
+    return math.dist((p.north_m, p.east_m, p.down_m), ned)
 
 
-async def run():
-    """Does Offboard control using position NED coordinates."""
-
-    drone = System(port=GRPC_PORT)
-    await drone.connect(system_address=URL)
-
-    print("Waiting for drone to connect...")
-    await wait_until(drone.core.connection_state(), lambda s: s.is_connected, 20, "connection")
-    print("-- Connected to drone!")
-
-    print("Waiting for drone to have a global position estimate...")
-    await wait_until(
-        drone.telemetry.health(),
-        lambda h: h.is_global_position_ok and h.is_home_position_ok,
-        20,
-        "health",
+async def fly_leg(uav, ned, yaw, note):
+    print(f"[leg] {note}: N {ned[0]:+.1f} E {ned[1]:+.1f} D {ned[2]:+.1f}, yaw {yaw:.0f}")
+    await uav.offboard.set_position_ned(PositionNedYaw(*ned, yaw))
+    await next_matching(uav.telemetry.position_velocity_ned(), lambda pv: gap(pv, ned) < REACH_M, 40, note)
+    await pause(uav, HOLD_S)
+    pv = await sample(uav.telemetry.position_velocity_ned(), "local position")
+    p = pv.position
+    print(f"[leg]   holding at {p.north_m:+.2f} {p.east_m:+.2f} {p.down_m:+.2f} ({gap(pv, ned):.2f} m off)")
+    if gap(pv, ned) >= REACH_M:
+        bail(f"did not hold {note}: {gap(pv, ned):.2f} m off")
+    att = await next_matching(
+        uav.telemetry.attitude_euler(),
+        lambda a: heading_gap_deg(a.yaw_deg, yaw) < YAW_TOL_DEG,
+        10,
+        f"yaw {yaw}",
     )
-    print("-- Global position estimate OK")
+    print(f"[leg]   yaw {att.yaw_deg:.1f}")
+    await expect_mode(uav, FlightMode.OFFBOARD, 2)
 
-    print("-- Arming")
-    await drone.action.arm()
 
-    print("-- Setting initial setpoint")
-    await drone.offboard.set_position_ned(PositionNedYaw(0.0, 0.0, 0.0, 0.0))
+async def main():
+    uav = await bring_up()
+    echo_status_text(uav)
 
-    print("-- Starting offboard")
+    await uav.action.arm()
+    print("[offboard] armed")
+    await uav.offboard.set_position_ned(PositionNedYaw(0.0, 0.0, 0.0, 0.0))
     try:
-        await drone.offboard.start()
-    except OffboardError as error:
-        print(f"Starting offboard mode failed with error code: {error._result.result}")
-        print("-- Disarming")
-        await drone.action.disarm()
-        raise SystemExit(1)
+        await uav.offboard.start()
+    except OffboardError as err:
+        print(f"[offboard] start refused: {err._result.result}")
+        await uav.action.disarm()
+        bail("offboard start refused")
+    await expect_mode(uav, FlightMode.OFFBOARD)
 
-    print("-- Go 0m North, 0m East, -5m Down within local coordinate system")
-    await drone.offboard.set_position_ned(PositionNedYaw(0.0, 0.0, -5.0, 0.0))
-    await sleep(10)
-    await check(drone, 0.0, 0.0, -5.0)
+    for ned, yaw, note in LEGS:
+        await fly_leg(uav, ned, yaw, note)
 
-    print("-- Go 5m North, 0m East, -5m Down within local coordinate system, turn to face East")
-    await drone.offboard.set_position_ned(PositionNedYaw(5.0, 0.0, -5.0, 90.0))
-    await sleep(10)
-    await check(drone, 5.0, 0.0, -5.0)
-    att = await wait_until(drone.telemetry.attitude_euler(), lambda a: True, 5, "attitude")
-    assert abs(att.yaw_deg - 90.0) < 5.0, att
+    ned, yaw, note = GROUND
+    print(f"[leg] {note}")
+    await uav.offboard.set_position_ned(PositionNedYaw(*ned, yaw))
+    await touchdown(uav, 40)
 
-    print("-- Go 5m North, 10m East, -5m Down within local coordinate system")
-    await drone.offboard.set_position_ned(PositionNedYaw(5.0, 10.0, -5.0, 90.0))
-    await sleep(15)
-    await check(drone, 5.0, 10.0, -5.0)
-
-    print("-- Go 0m North, 10m East, 0m Down within local coordinate system, turn to face South")
-    await drone.offboard.set_position_ned(PositionNedYaw(0.0, 10.0, 0.0, 180.0))
-    await sleep(10)
-    await wait_until(drone.telemetry.in_air(), lambda a: not a, 20, "on the ground")
-
-    print("-- Stopping offboard")
     try:
-        await drone.offboard.stop()
-    except OffboardError as error:
-        print(f"Stopping offboard mode failed with error code: {error._result.result}")
-        raise SystemExit(1)
-    mode = await wait_until(drone.telemetry.flight_mode(), lambda m: True, 5, "flight mode")
-    print(f"-- Flight mode after stop: {mode}")
-    assert str(mode) == "HOLD", mode
+        await uav.offboard.stop()
+    except OffboardError as err:
+        bail(f"offboard stop refused: {err._result.result}")
+    await expect_mode(uav, FlightMode.HOLD)
 
 
 if __name__ == "__main__":
-    asyncio.run(run())
+    launch(main)

@@ -1,93 +1,157 @@
 #!/usr/bin/env python3
-"""MAVSDK-Python examples/offboard_velocity_ned.py, then a landing."""
+"""Offboard velocity control, in the NED frame and then in the body frame.
 
-import asyncio
+A zero NED velocity goes out before Offboard.start (MAVSDK will not start
+offboard without a setpoint). Each step then commands a velocity for a while
+and checks what telemetry reports once the vehicle has had time to follow:
 
-from mavsdk import System
-from mavsdk.offboard import OffboardError, VelocityNedYaw
+- NED: a climb, an eastward run with the nose turning east, a diagonal to
+  the south-west with the nose following, a stop;
+- body (VelocityBodyYawspeed): straight ahead, a turn on the spot at a fixed
+  yaw rate, a sideways slide to the right (checked against the heading the
+  vehicle has at that moment), a stop;
+- NED again: a slow sink.
 
-from common import GRPC_PORT, URL, sleep, wait_until
+Then offboard is left (HOLD), and Action.land brings the vehicle down.
+"""
+
+import math
+
+from mavsdk.offboard import OffboardError, VelocityBodyYawspeed, VelocityNedYaw
+from mavsdk.telemetry import FlightMode
+
+from common import (
+    bail,
+    bring_up,
+    echo_status_text,
+    expect_mode,
+    heading_gap_deg,
+    launch,
+    next_matching,
+    pause,
+    sample,
+    touchdown,
+)
+
+SPEED_TOL = 0.3  # m/s
+YAW_TOL_DEG = 5.0
+YAW_RATE_DEG_S = 45.0
 
 
-async def run():
-    """Does Offboard control using velocity NED coordinates."""
+def ned_speed(pv):
+    v = pv.velocity
+    return (v.north_m_s, v.east_m_s, v.down_m_s)
 
-    drone = System(port=GRPC_PORT)
-    await drone.connect(system_address=URL)
 
-    print("Waiting for drone to connect...")
-    await wait_until(drone.core.connection_state(), lambda s: s.is_connected, 20, "connection")
-    print("-- Connected to drone!")
+async def expect_velocity(uav, want, label, wall_limit=10):
+    """Wait until the NED velocity is within SPEED_TOL of `want` on each axis,
+    then make sure the vehicle is still in OFFBOARD."""
 
-    print("Waiting for drone to have a global position estimate...")
-    await wait_until(
-        drone.telemetry.health(),
-        lambda h: h.is_global_position_ok and h.is_home_position_ok,
-        20,
-        "health",
+    def close(pv):
+        return all(abs(got - w) < SPEED_TOL for got, w in zip(ned_speed(pv), want))
+
+    pv = await next_matching(uav.telemetry.position_velocity_ned(), close, wall_limit, label)
+    n, e, d = ned_speed(pv)
+    print(f"[vel]   {label}: {n:+.2f} {e:+.2f} {d:+.2f} m/s at {-pv.position.down_m:.1f} m up")
+    await expect_mode(uav, FlightMode.OFFBOARD, 2)
+
+
+async def expect_heading(uav, yaw, wall_limit=10):
+    att = await next_matching(
+        uav.telemetry.attitude_euler(),
+        lambda a: heading_gap_deg(a.yaw_deg, yaw) < YAW_TOL_DEG,
+        wall_limit,
+        f"heading {yaw}",
     )
-    print("-- Global position estimate OK")
+    return att.yaw_deg
 
-    print("-- Arming")
-    await drone.action.arm()
 
-    print("-- Setting initial setpoint")
-    await drone.offboard.set_velocity_ned(VelocityNedYaw(0.0, 0.0, 0.0, 0.0))
+async def ned_step(uav, north, east, down, yaw, seconds, note):
+    print(f"[vel] {note}")
+    await uav.offboard.set_velocity_ned(VelocityNedYaw(north, east, down, yaw))
+    await pause(uav, seconds)
+    await expect_velocity(uav, (north, east, down), note)
 
-    print("-- Starting offboard")
+
+async def main():
+    uav = await bring_up()
+    echo_status_text(uav)
+
+    await uav.action.arm()
+    print("[offboard] armed")
+    await uav.offboard.set_velocity_ned(VelocityNedYaw(0.0, 0.0, 0.0, 0.0))
     try:
-        await drone.offboard.start()
-    except OffboardError as error:
-        print(f"Starting offboard mode failed with error code: {error._result.result}")
-        print("-- Disarming")
-        await drone.action.disarm()
-        raise SystemExit(1)
+        await uav.offboard.start()
+    except OffboardError as err:
+        print(f"[offboard] start refused: {err._result.result}")
+        await uav.action.disarm()
+        bail("offboard start refused")
+    await expect_mode(uav, FlightMode.OFFBOARD)
 
-    print("-- Go up 2 m/s")
-    await drone.offboard.set_velocity_ned(VelocityNedYaw(0.0, 0.0, -2.0, 0.0))
-    await sleep(4)
-    pv = await wait_until(drone.telemetry.position_velocity_ned(), lambda p: True, 5, "velocity")
-    print(f"   vertical speed {pv.velocity.down_m_s:.2f} m/s")
-    assert abs(pv.velocity.down_m_s + 2.0) < 0.5, pv
+    # --- NED frame
+    await ned_step(uav, 0.0, 0.0, -1.5, 0.0, 4.0, "climb at 1.5 m/s")
+    await ned_step(uav, 0.0, 3.0, 0.0, 90.0, 4.0, "east at 3 m/s, nose east")
+    await expect_heading(uav, 90.0)
+    await ned_step(uav, -2.0, -2.0, 0.0, 225.0, 3.0, "south-west at 2 m/s per axis, nose south-west")
+    await expect_heading(uav, 225.0)
+    await ned_step(uav, 0.0, 0.0, 0.0, 0.0, 3.0, "stop, nose north")
+    await expect_heading(uav, 0.0)
 
-    print("-- Go North 2 m/s, turn to face East")
-    await drone.offboard.set_velocity_ned(VelocityNedYaw(2.0, 0.0, 0.0, 90.0))
-    await sleep(4)
-    pv = await wait_until(drone.telemetry.position_velocity_ned(), lambda p: True, 5, "velocity")
-    print(f"   north speed {pv.velocity.north_m_s:.2f} m/s")
-    assert abs(pv.velocity.north_m_s - 2.0) < 0.5, pv
+    # --- body frame; the nose points north here, so forward is north
+    print("[vel] body: forward at 2.5 m/s")
+    await uav.offboard.set_velocity_body(VelocityBodyYawspeed(2.5, 0.0, 0.0, 0.0))
+    await pause(uav, 3.0)
+    await expect_velocity(uav, (2.5, 0.0, 0.0), "forward = north")
 
-    print("-- Go South 2 m/s, turn to face West")
-    await drone.offboard.set_velocity_ned(VelocityNedYaw(-2.0, 0.0, 0.0, 270.0))
-    await sleep(4)
+    print(f"[vel] body: stop and turn right at {YAW_RATE_DEG_S:.0f} deg/s")
+    await uav.offboard.set_velocity_body(VelocityBodyYawspeed(0.0, 0.0, 0.0, YAW_RATE_DEG_S))
+    await pause(uav, 1.0)
+    rate = await next_matching(
+        uav.telemetry.attitude_angular_velocity_body(),
+        lambda w: abs(math.degrees(w.yaw_rad_s) - YAW_RATE_DEG_S) < 8.0,
+        10,
+        f"yaw rate {YAW_RATE_DEG_S} deg/s",
+    )
+    print(f"[vel]   yaw rate {math.degrees(rate.yaw_rad_s):.1f} deg/s")
 
-    print("-- Go West 2 m/s, turn to face East")
-    await drone.offboard.set_velocity_ned(VelocityNedYaw(0.0, -2.0, 0.0, 90.0))
-    await sleep(4)
+    # sum the heading change sample by sample, so wrapping at +-180 does not matter
+    first = (await sample(uav.telemetry.attitude_euler(), "attitude")).yaw_deg
+    swept = {"deg": 0.0, "last": first}
 
-    print("-- Go East 2 m/s")
-    await drone.offboard.set_velocity_ned(VelocityNedYaw(0.0, 2.0, 0.0, 90.0))
-    await sleep(4)
+    def quarter_turn(att):
+        swept["deg"] += (att.yaw_deg - swept["last"] + 180.0) % 360.0 - 180.0
+        swept["last"] = att.yaw_deg
+        return swept["deg"] > 80.0
 
-    print("-- Turn to face South")
-    await drone.offboard.set_velocity_ned(VelocityNedYaw(0.0, 0.0, 0.0, 180.0))
-    await sleep(2)
+    turned = await next_matching(uav.telemetry.attitude_euler(), quarter_turn, 10, "a quarter turn to the right")
+    print(f"[vel]   heading {first:.1f} -> {turned.yaw_deg:.1f} deg")
 
-    print("-- Go down 1 m/s, turn to face North")
-    await drone.offboard.set_velocity_ned(VelocityNedYaw(0.0, 0.0, 1.0, 0.0))
-    await sleep(4)
+    await uav.offboard.set_velocity_body(VelocityBodyYawspeed(0.0, 0.0, 0.0, 0.0))
+    await pause(uav, 2.0)
+    heading = math.radians((await sample(uav.telemetry.attitude_euler(), "attitude")).yaw_deg)
+    print("[vel] body: slide right at 2 m/s")
+    await uav.offboard.set_velocity_body(VelocityBodyYawspeed(0.0, 2.0, 0.0, 0.0))
+    await pause(uav, 3.0)
+    # body right (0, 2) rotated by the heading into north/east
+    await expect_velocity(uav, (-2.0 * math.sin(heading), 2.0 * math.cos(heading), 0.0), "right, seen in NED")
 
-    print("-- Stopping offboard")
+    await uav.offboard.set_velocity_body(VelocityBodyYawspeed(0.0, 0.0, 0.0, 0.0))
+    await pause(uav, 2.0)
+    await expect_velocity(uav, (0.0, 0.0, 0.0), "stopped")
+
+    # --- NED again
+    await ned_step(uav, 0.0, 0.0, 1.0, 180.0, 3.0, "sink at 1 m/s, nose south")
+
     try:
-        await drone.offboard.stop()
-    except OffboardError as error:
-        print(f"Stopping offboard mode failed with error code: {error._result.result}")
-        raise SystemExit(1)
+        await uav.offboard.stop()
+    except OffboardError as err:
+        bail(f"offboard stop refused: {err._result.result}")
+    await expect_mode(uav, FlightMode.HOLD)
 
-    print("-- Landing")
-    await drone.action.land()
-    await wait_until(drone.telemetry.in_air(), lambda a: not a, 60, "landed")
+    await uav.action.land()
+    print("[vel] landing")
+    await touchdown(uav, 60)
 
 
 if __name__ == "__main__":
-    asyncio.run(run())
+    launch(main)

@@ -1,60 +1,58 @@
 #!/usr/bin/env python3
-"""MAVSDK-Python examples/takeoff_and_land.py, plus checks that it flew."""
+"""Hop: arm, climb to the configured takeoff height, hover, come back down.
+
+The flight uses only Action commands with their defaults (arm, takeoff, land),
+the way a first MAVSDK script would. Around them it checks that the vehicle
+reports itself airborne, levels off within ALT_TOL of MIS_TAKEOFF_ALT (read
+through Action.get_takeoff_altitude) and switches to HOLD there, is still at
+that height after hovering, touches down and disarms on its own.
+"""
 
 import asyncio
 
-from mavsdk import System
+from mavsdk.telemetry import FlightMode
 
-from common import GRPC_PORT, URL, sleep, wait_until
+from common import bail, bring_up, echo_status_text, expect_mode, launch, next_matching, pause, sample, touchdown
 
-
-async def run():
-    drone = System(port=GRPC_PORT)
-    await drone.connect(system_address=URL)
-
-    status_text_task = asyncio.ensure_future(print_status_text(drone))
-
-    print("Waiting for drone to connect...")
-    await wait_until(drone.core.connection_state(), lambda s: s.is_connected, 20, "connection")
-    print("-- Connected to drone!")
-
-    print("Waiting for drone to have a global position estimate...")
-    await wait_until(
-        drone.telemetry.health(),
-        lambda h: h.is_global_position_ok and h.is_home_position_ok,
-        20,
-        "health",
-    )
-    print("-- Global position estimate OK")
-
-    print("-- Arming")
-    await drone.action.arm()
-
-    print("-- Taking off")
-    await drone.action.takeoff()
-    await wait_until(drone.telemetry.in_air(), lambda a: a, 20, "in air")
-
-    await sleep(10)
-    pos = await wait_until(drone.telemetry.position(), lambda p: True, 5, "position")
-    print(f"-- Relative altitude {pos.relative_altitude_m:.2f} m")
-    assert 2.0 < pos.relative_altitude_m < 3.0, pos
-
-    print("-- Landing")
-    await drone.action.land()
-    await wait_until(drone.telemetry.in_air(), lambda a: not a, 40, "landed")
-    await wait_until(drone.telemetry.armed(), lambda a: not a, 20, "disarmed")
-    print("-- Landed and disarmed")
-
-    status_text_task.cancel()
+ALT_TOL = 0.3  # m
+HOVER_S = 10.0  # simulated seconds
 
 
-async def print_status_text(drone):
-    try:
-        async for status_text in drone.telemetry.status_text():
-            print(f"Status: {status_text.type}: {status_text.text}")
-    except asyncio.CancelledError:
-        return
+async def main():
+    uav = await bring_up()
+    echo = echo_status_text(uav)
+
+    target = await uav.action.get_takeoff_altitude()
+    print(f"[hop] takeoff height is {target:.2f} m")
+
+    await uav.action.arm()
+    print("[hop] armed")
+    await uav.action.takeoff()
+    print("[hop] takeoff sent")
+    await next_matching(uav.telemetry.in_air(), bool, 20, "liftoff")
+
+    def level(p):
+        return abs(p.relative_altitude_m - target) < ALT_TOL
+
+    await next_matching(uav.telemetry.position(), level, 30, f"level-off at {target:.1f} m")
+    await expect_mode(uav, FlightMode.HOLD, 20)
+
+    await pause(uav, HOVER_S)
+    here = await sample(uav.telemetry.position(), "position")
+    print(f"[hop] after hovering: {here.relative_altitude_m:.2f} m above home")
+    if not level(here):
+        bail(f"drifted to {here.relative_altitude_m:.2f} m while hovering")
+
+    await uav.action.land()
+    print("[hop] land sent")
+    await touchdown(uav, 40)
+    rest = await sample(uav.telemetry.position(), "position")
+    if abs(rest.relative_altitude_m) > ALT_TOL:
+        bail(f"on the ground but {rest.relative_altitude_m:.2f} m above home")
+
+    echo.cancel()
+    await asyncio.gather(echo, return_exceptions=True)
 
 
 if __name__ == "__main__":
-    asyncio.run(run())
+    launch(main)

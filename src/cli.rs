@@ -359,15 +359,16 @@ fn estimate(
     }
     writeln!(w, "{}", header.join(","))?;
     for (k, row) in log.rows.iter().enumerate() {
-        let mut fields = vec![format!("{}", row.input.time_s)];
+        // straight into the buffer: millions of numbers, no per-value String
+        write!(w, "{}", row.input.time_s)?;
         for s in &series {
             let e = &s[k];
             for v in e.force_ned.iter().chain(e.torque_frd.iter()).chain(e.torque_rpy.iter()) {
-                fields.push(format!("{v}"));
+                write!(w, ",{v}")?;
             }
-            fields.push(format!("{}", e.mass_kg));
+            write!(w, ",{}", e.mass_kg)?;
         }
-        writeln!(w, "{}", fields.join(","))?;
+        writeln!(w)?;
     }
     w.flush().context("writing the estimates")?;
 

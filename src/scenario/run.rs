@@ -23,7 +23,8 @@ use serde::Serialize;
 
 use super::{DisturbanceChange, ReferencePlan, Scenario};
 use crate::control::{Reference, Shaper, ShaperLimits, feedforward_attitude};
-use crate::math::{euler_zyx, from_euler_zyx, rate_map};
+use crate::estimation::input_from;
+use crate::math::{euler_zyx, from_euler_zyx};
 use crate::model::{ExternalWrench, PlantConfig, RigidBodyState};
 use crate::vehicle::{StepRecord, Vehicle, VehicleError};
 
@@ -111,11 +112,9 @@ fn csv_header(n: usize) -> String {
 
 fn csv_row(r: &StepRecord, n: usize) -> String {
     let m = &r.measurement;
-    let eta = euler_zyx(&m.attitude);
-    // eta_dot = Q^-1 omega (the report's attitude rates)
-    let eta_dot = rate_map(&eta)
-        .try_inverse()
-        .map_or(Vector3::repeat(f64::NAN), |qi| qi * m.rate_frd);
+    // the report's inputs exactly as the estimator derives them (eta, eta_dot = Q^-1 omega)
+    let input = input_from(m, &r.applied);
+    let (eta, eta_dot) = (input.eta, input.eta_dot);
     let mut v: Vec<f64> = Vec::with_capacity(64);
     v.push(m.time_s);
     v.extend(m.position_ned.iter());

@@ -115,6 +115,14 @@ impl AeroEffects {
     }
 
     /// Per-rotor ground-effect ratios for rotor heights `z_i` [m] above the surface below each.
+    ///
+    /// Evaluated with few square roots and divisions (they dominate the
+    /// cost): a rotor's own image term `rho^2/4 (2z)/(4z^2)^1.5 = rho^2 / (16 z^2)`
+    /// needs no root; it and the body term share one denominator,
+    /// `rho^2/(16 z^2) + 2 K_b rho^2 z / y = N / D` with `y = (b^2 + 4 z^2)^1.5`,
+    /// `N = rho^2 (y + 32 K_b z^3)`, `D = 16 z^2 y`; and the ratio
+    /// `1 / (1 - P - N/D) = D / (D (1 - P) - N)` (`P` the other rotors' terms)
+    /// takes a single division.
     #[must_use]
     pub fn ground_ratios(&self, heights_m: &[f64; MAX_ROTORS]) -> RotorVector {
         let mut out = RotorVector::from_element(1.0);
@@ -124,22 +132,25 @@ impl AeroEffects {
         for i in 0..self.n {
             z[i] = heights_m[i].max(zmin);
         }
-        let mut sum = [0.0; MAX_ROTORS];
+        // P_i: the images of the other rotors
+        let mut others = [0.0; MAX_ROTORS];
         for i in 0..self.n {
-            for j in i..self.n {
+            for j in i + 1..self.n {
                 let s = z[i] + z[j];
                 let term = 0.25 * rho2 * s / pow_1_5(self.d2[i][j] + s * s);
-                sum[i] += term;
-                if j != i {
-                    sum[j] += term;
-                }
+                others[i] += term;
+                others[j] += term;
             }
         }
         for i in 0..self.n {
-            let body = 2.0 * self.k_b * rho2 * z[i] / pow_1_5(self.b2[i] + 4.0 * z[i] * z[i]);
-            let den = 1.0 - sum[i] - body;
-            out[i] = if den > 1.0 / GROUND_RATIO_CAP {
-                1.0 / den
+            let z2 = z[i] * z[i];
+            let y = pow_1_5(self.b2[i] + 4.0 * z2);
+            let num = rho2 * (y + 32.0 * self.k_b * z2 * z[i]);
+            let den = 16.0 * z2 * y;
+            // ratio = den / rest, capped: rest > den / cap <=> ratio < cap (den > 0)
+            let rest = den * (1.0 - others[i]) - num;
+            out[i] = if rest > den * (1.0 / GROUND_RATIO_CAP) {
+                den / rest
             } else {
                 GROUND_RATIO_CAP
             };

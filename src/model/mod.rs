@@ -210,8 +210,11 @@ pub struct Plant {
     /// `e^{-h/(2 tau_m)}`, `e^{-h/tau_m}`.
     decay: (f64, f64),
     mass: f64,
+    /// `1 / mass` [1/kg].
+    inv_mass: f64,
     inertia: Matrix3<f64>,
-    inertia_inv: Matrix3<f64>,
+    /// `inertia` as the derivative applies it.
+    body_inertia: BodyInertia,
     state: RigidBodyState,
     rotor_speed: RotorVector,
     contact: Contact,
@@ -222,6 +225,64 @@ pub struct Plant {
 }
 
 /// Time derivative of the rigid-body part.
+/// `1 / sqrt(n)`, by its series `1 - e/2 + 3 e^2/8` (`e = n - 1`, remainder
+/// below `0.32 |e|^3 < 1e-16`) when `|e| < 1e-6`, as for the squared norm
+/// of a quaternion after one RK4 step: no square root and no division on
+/// the step's critical path.
+fn inv_sqrt_near_one(n: f64) -> f64 {
+    let e = n - 1.0;
+    if e.abs() < 1e-6 {
+        1.0 - e * (0.5 - 0.375 * e)
+    } else {
+        1.0 / n.sqrt()
+    }
+}
+
+/// The true body inertia as the derivative uses it, `I w` and `I^-1 x`,
+/// with a cheaper diagonal case (airframe files give principal inertias).
+#[derive(Clone, Copy, Debug)]
+enum BodyInertia {
+    /// `diag(i)`, `diag(inv)` [kg m^2], [1/(kg m^2)].
+    Diagonal { i: Vector3<f64>, inv: Vector3<f64> },
+    /// Any invertible inertia [kg m^2] and its inverse.
+    Full { i: Matrix3<f64>, inv: Matrix3<f64> },
+}
+
+impl BodyInertia {
+    /// `None` when `i` is not invertible.
+    fn new(i: &Matrix3<f64>) -> Option<Self> {
+        let inv = i.try_inverse()?;
+        let diagonal = |m: &Matrix3<f64>| (0..3).all(|r| (0..3).all(|c| r == c || m[(r, c)] == 0.0));
+        Some(if diagonal(i) && diagonal(&inv) {
+            // the same values as the full products (the zeros add exactly nothing)
+            Self::Diagonal {
+                i: i.diagonal(),
+                inv: inv.diagonal(),
+            }
+        } else {
+            Self::Full { i: *i, inv }
+        })
+    }
+
+    /// `I w`.
+    #[inline]
+    fn apply(&self, w: &Vector3<f64>) -> Vector3<f64> {
+        match self {
+            Self::Diagonal { i, .. } => i.component_mul(w),
+            Self::Full { i, .. } => i * w,
+        }
+    }
+
+    /// `I^-1 x`.
+    #[inline]
+    fn solve(&self, x: &Vector3<f64>) -> Vector3<f64> {
+        match self {
+            Self::Diagonal { inv, .. } => inv.component_mul(x),
+            Self::Full { inv, .. } => inv * x,
+        }
+    }
+}
+
 struct Deriv {
     p: Vector3<f64>,
     v: Vector3<f64>,
@@ -264,8 +325,12 @@ impl Plant {
             dt,
             decay: ((-0.5 * dt / tau_m).exp(), (-dt / tau_m).exp()),
             mass: airframe.mass_kg,
+            inv_mass: 1.0 / airframe.mass_kg,
             inertia,
-            inertia_inv: inertia.try_inverse().unwrap_or_else(Matrix3::zeros),
+            body_inertia: BodyInertia::new(&inertia).unwrap_or(BodyInertia::Full {
+                i: inertia,
+                inv: Matrix3::zeros(),
+            }),
             state: RigidBodyState::at_rest(rest),
             rotor_speed: RotorVector::zeros(),
             contact: Contact::OnGround,
@@ -337,6 +402,7 @@ impl Plant {
     pub fn set_true_mass(&mut self, mass_kg: f64) {
         if mass_kg.is_finite() && mass_kg > 0.0 {
             self.mass = mass_kg;
+            self.inv_mass = 1.0 / mass_kg;
         }
     }
 
@@ -349,10 +415,10 @@ impl Plant {
     /// Change the true inertia. Ignored unless invertible and finite.
     pub fn set_true_inertia(&mut self, inertia: Matrix3<f64>) {
         if inertia.iter().all(|x| x.is_finite())
-            && let Some(inv) = inertia.try_inverse()
+            && let Some(body) = BodyInertia::new(&inertia)
         {
             self.inertia = inertia;
-            self.inertia_inv = inv;
+            self.body_inertia = body;
         }
     }
 
@@ -427,17 +493,24 @@ impl Plant {
         let r31 = i * k * 2.0 - w * j * 2.0;
         let r32 = w * i * 2.0 + j * k * 2.0;
         let r33 = w * w - i * i - j * j + k * k;
+        let n = self.n;
         let mut rotor_z = [0.0; MAX_ROTORS];
-        for (z, p) in rotor_z.iter_mut().zip(&self.rotor_positions_frd).take(self.n) {
+        for (z, p) in rotor_z[..n].iter_mut().zip(&self.rotor_positions_frd) {
             *z = self.state.position_ned.z + (r31 * p.x + r32 * p.y + r33 * p.z);
         }
         let mut ratio: Option<RotorVector> = None;
         if ground {
-            let heights = rotor_z.map(|z| self.world.ground_z_ned - z);
+            let mut heights = [0.0; MAX_ROTORS];
+            for (h, z) in heights[..n].iter_mut().zip(&rotor_z) {
+                *h = self.world.ground_z_ned - z;
+            }
             ratio = self.aero.ground_ratios_if_near(&heights);
         }
         if ceiling && let Some(zc) = self.world.ceiling_z_ned {
-            let gaps = rotor_z.map(|z| z - zc);
+            let mut gaps = [0.0; MAX_ROTORS];
+            for (g, z) in gaps[..n].iter_mut().zip(&rotor_z) {
+                *g = z - zc;
+            }
             if let Some(c) = self.aero.ceiling_ratios_if_near(&gaps) {
                 ratio = Some(ratio.map_or(c, |g| g.component_mul(&c)));
             }
@@ -475,24 +548,73 @@ impl Plant {
         ControlWrench::new(acc[0], Vector3::new(acc[1], acc[2], acc[3]))
     }
 
+    /// The exact first-order motor lag towards `target` evaluated at the
+    /// stage times `t, t + h/2, t + h`,
+    /// `omega(t + s) = w_bar + (omega(t) - w_bar) e^{-s/tau_m}`, and at each of
+    /// them the rotor wrench `B (r (x) omega^2)` (yaw row on unscaled
+    /// `omega^2`) and the rotors' spin momentum `-J_r sum_i s_i omega_i`.
+    /// One pass over the `n` rotors; also returns the speeds at `t + h`.
+    fn lagged_rotor_wrenches(
+        &self,
+        target: &RotorVector,
+        ratio: Option<&RotorVector>,
+    ) -> ([ControlWrench; 3], [f64; 3], RotorVector) {
+        let (decay_half, decay_full) = self.decay;
+        let mut acc = [[0.0; 4]; 3];
+        let mut spin = [0.0; 3];
+        let mut end = RotorVector::zeros();
+        for i in 0..self.n {
+            let (bar, om0) = (target[i], self.rotor_speed[i]);
+            let speeds = [om0, bar + (om0 - bar) * decay_half, bar + (om0 - bar) * decay_full];
+            end[i] = speeds[2];
+            let (col, r, s) = (&self.b_cols[i], ratio.map_or(1.0, |r| r[i]), self.spin[i]);
+            for ((a, sp), om) in acc.iter_mut().zip(&mut spin).zip(speeds) {
+                let x = om * om;
+                let xs = x * r;
+                a[0] += col[0] * xs;
+                a[1] += col[1] * xs;
+                a[2] += col[2] * xs;
+                a[3] += col[3] * x;
+                *sp += s * om;
+            }
+        }
+        let j = -self.rotor_inertia;
+        (
+            acc.map(|a| ControlWrench::new(a[0], Vector3::new(a[1], a[2], a[3]))),
+            spin.map(|x| j * x),
+            end,
+        )
+    }
+
+    #[inline(always)]
     fn deriv(&self, s: &RigidBodyState, w: &ControlWrench, ext: &ExternalWrench, gyro_h: f64) -> Deriv {
         // thrust along -z_b in NED: -u_T R e3, with R e3 the third column of
         // R(q) = [2(xz + wy), 2(yz - wx), w^2 - x^2 - y^2 + z^2] / |q|^2 (RK4
         // stages carry unnormalised quaternions)
+        // stages carry unnormalised quaternions); one division per evaluation
         let q = s.attitude.quaternion();
         let (qw, qx, qy, qz) = (q.w, q.i, q.j, q.k);
-        let r_e3 = Vector3::new(
-            2.0 * (qx * qz + qw * qy),
-            2.0 * (qy * qz - qw * qx),
-            qw * qw - qx * qx - qy * qy + qz * qz,
-        ) / q.norm_squared();
-        let thrust_ned = r_e3 * (-w.thrust_n);
-        let acc = Vector3::new(0.0, 0.0, GRAVITY) + (thrust_ned + ext.force_ned) / self.mass;
+        let inv_m = self.inv_mass;
+        let thrust_per_m = -w.thrust_n * inv_m / q.norm_squared();
+        let acc = Vector3::new(
+            thrust_per_m * (2.0 * (qx * qz + qw * qy)) + ext.force_ned.x * inv_m,
+            thrust_per_m * (2.0 * (qy * qz - qw * qx)) + ext.force_ned.y * inv_m,
+            thrust_per_m * (qw * qw - qx * qx - qy * qy + qz * qz) + ext.force_ned.z * inv_m + GRAVITY,
+        );
         let om = s.rate_frd;
         // rotor gyroscopics: -w x sum h_i with sum h_i = [0, 0, gyro_h]
-        let gyro = -om.cross(&Vector3::new(0.0, 0.0, gyro_h));
-        let alpha = self.inertia_inv * (w.torque_frd + ext.torque_frd - om.cross(&(self.inertia * om)) + gyro);
-        let qd = q * Quaternion::new(0.0, om.x, om.y, om.z) * 0.5;
+        let gyro = Vector3::new(-om.y * gyro_h, om.x * gyro_h, 0.0);
+        let alpha = self
+            .body_inertia
+            .solve(&(w.torque_frd + ext.torque_frd + gyro - om.cross(&self.body_inertia.apply(&om))));
+        // q' = 1/2 q (x) [0, w], written out (the product with a pure quaternion)
+        let (hx, hy, hz) = (0.5 * om.x, 0.5 * om.y, 0.5 * om.z);
+        let qd = Quaternion::new(
+            -qx * hx - qy * hy - qz * hz,
+            qw * hx + qy * hz - qz * hy,
+            qw * hy + qz * hx - qx * hz,
+            qw * hz + qx * hy - qy * hx,
+        );
         Deriv {
             p: s.velocity_ned,
             v: acc,
@@ -501,6 +623,7 @@ impl Plant {
         }
     }
 
+    #[inline(always)]
     fn advance(s: &RigidBodyState, d: &Deriv, h: f64) -> RigidBodyState {
         RigidBodyState {
             position_ned: s.position_ned + d.p * h,
@@ -553,25 +676,8 @@ impl Plant {
 
         let (w0, wmid, w1, spin_mom, rotor_speed_next) = if let Some(bar) = target {
             // exact first-order lag at the stage times t, t + h/2, t + h
-            let om0 = self.rotor_speed;
-            let om_mid = bar + (om0 - bar) * self.decay.0;
-            let om1 = bar + (om0 - bar) * self.decay.1;
-            let n = self.n;
-            let sq = |v: &RotorVector| {
-                let mut out = RotorVector::zeros();
-                for (o, x) in out.as_mut_slice()[..n].iter_mut().zip(&v.as_slice()[..n]) {
-                    *o = x * x;
-                }
-                out
-            };
-            let spin_momentum = |om: &RotorVector| -self.rotor_inertia * self.spin.dot(om);
-            (
-                self.rotor_wrench(&sq(&om0), ratio.as_ref()),
-                self.rotor_wrench(&sq(&om_mid), ratio.as_ref()),
-                self.rotor_wrench(&sq(&om1), ratio.as_ref()),
-                [spin_momentum(&om0), spin_momentum(&om_mid), spin_momentum(&om1)],
-                om1,
-            )
+            let (w, spin_mom, om1) = self.lagged_rotor_wrenches(&bar, ratio.as_ref());
+            (w[0], w[1], w[2], spin_mom, om1)
         } else {
             let direct = match cmd {
                 ActuatorCommand::Stop => ControlWrench::default(),
@@ -606,7 +712,7 @@ impl Plant {
         let mut next = RigidBodyState {
             position_ned: s.position_ned + (k1.p + (k2.p + k3.p) * 2.0 + k4.p) * sixth,
             velocity_ned: s.velocity_ned + (k1.v + (k2.v + k3.v) * 2.0 + k4.v) * sixth,
-            attitude: UnitQuaternion::new_normalize(q),
+            attitude: UnitQuaternion::new_unchecked(q * inv_sqrt_near_one(q.norm_squared())),
             rate_frd: s.rate_frd + (k1.w + (k2.w + k3.w) * 2.0 + k4.w) * sixth,
         };
         let finite3 = |v: &Vector3<f64>| v.x.is_finite() && v.y.is_finite() && v.z.is_finite();
@@ -660,5 +766,42 @@ impl Plant {
         self.last_external = e0;
         self.steps += 1;
         Ok(event)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The series agrees with `1 / sqrt(n)` to rounding where it is used,
+    /// and the exact form takes over beyond.
+    #[test]
+    fn inverse_square_root_near_one() {
+        for e in [0.0_f64, 1e-16, -3e-12, 5e-9, -9.9e-7, 9.9e-7, 1.1e-6, -0.5, 3.0] {
+            let n = 1.0 + e;
+            let exact = 1.0 / n.sqrt();
+            assert!(
+                (inv_sqrt_near_one(n) - exact).abs() <= 2.0 * f64::EPSILON * exact,
+                "{e}"
+            );
+        }
+    }
+
+    /// The diagonal fast path of the inertia equals the full products.
+    #[test]
+    fn diagonal_inertia_equals_full_products() {
+        let i = Matrix3::from_diagonal(&Vector3::new(0.0217, 0.0219, 0.04));
+        let body = BodyInertia::new(&i).unwrap();
+        assert!(matches!(body, BodyInertia::Diagonal { .. }));
+        let full = BodyInertia::Full {
+            i,
+            inv: i.try_inverse().unwrap(),
+        };
+        let w = Vector3::new(0.3, -1.7, 2.9);
+        assert_eq!(body.apply(&w), full.apply(&w));
+        assert_eq!(body.solve(&w), full.solve(&w));
+        let skew = Matrix3::new(0.03, 0.001, 0.0, 0.001, 0.04, 0.0, 0.0, 0.0, 0.05);
+        assert!(matches!(BodyInertia::new(&skew), Some(BodyInertia::Full { .. })));
+        assert!(BodyInertia::new(&Matrix3::zeros()).is_none());
     }
 }

@@ -263,9 +263,9 @@ impl Vehicle {
         reference: &Reference,
         disturbance: &D,
     ) -> Result<StepRecord, SimFault> {
-        let sensed = self.sense();
-        let feedback = self.feedback.then_some(sensed.estimate);
-        self.act(&Demand::Track(*reference), feedback.as_ref(), disturbance)
+        let sensed = self.measure();
+        let feedback = self.feedback.then_some(&sensed.estimate);
+        self.act_on(&sensed, &Demand::Track(*reference), feedback, disturbance)
     }
 
     /// The first phase of a step at `t_k`: measure `x_k` and update the
@@ -273,12 +273,17 @@ impl Vehicle {
     /// (the nominal hover wrench before the first applied one). The
     /// measurement is kept for [`Self::act`].
     pub fn sense(&mut self) -> Sensed {
+        let sensed = self.measure();
+        self.sensed = Some(sensed);
+        sensed
+    }
+
+    /// [`Self::sense`] without keeping the measurement.
+    fn measure(&mut self) -> Sensed {
         let measurement = self.plant.measure();
         let applied_before = self.last_applied.unwrap_or_else(|| self.hover_wrench());
         let estimate = self.estimator.update_measured(&measurement, &applied_before);
-        let sensed = Sensed { measurement, estimate };
-        self.sensed = Some(sensed);
-        sensed
+        Sensed { measurement, estimate }
     }
 
     /// The second phase of a step at `t_k`: the controller for `demand` on
@@ -301,6 +306,18 @@ impl Vehicle {
             Some(s) => s,
             None => self.sense(),
         };
+        self.act_on(&sensed, demand, feedback, disturbance)
+    }
+
+    /// [`Self::act`] on the measurement `sensed` (kept as the current one
+    /// when the plant refuses the step).
+    fn act_on<D: Disturbance + ?Sized>(
+        &mut self,
+        sensed: &Sensed,
+        demand: &Demand,
+        feedback: Option<&WrenchEstimate>,
+        disturbance: &D,
+    ) -> Result<StepRecord, SimFault> {
         let dt = self.plant.dt_s();
         let truth = *self.plant.state();
         let measurement = &sensed.measurement;
@@ -358,7 +375,13 @@ impl Vehicle {
             (_, Actuation::Ideal) => (ActuatorCommand::Wrench(command), command, false, RotorVector::zeros()),
         };
         let external = disturbance.wrench_at(self.plant.time_s());
-        let event = self.plant.step(&cmd, disturbance)?;
+        let event = match self.plant.step(&cmd, disturbance) {
+            Ok(event) => event,
+            Err(fault) => {
+                self.sensed = Some(*sensed);
+                return Err(fault);
+            }
+        };
         self.last_applied = Some(applied);
         self.sensed = None;
         Ok(StepRecord {

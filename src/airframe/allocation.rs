@@ -224,13 +224,19 @@ impl Allocator {
     /// Allocate a requested wrench to rotor speeds within limits (module doc).
     #[must_use]
     pub fn allocate(&self, req: &ControlWrench) -> Allocation {
-        let w_t = self.b_pinv.column(0) * req.thrust_n;
-        let w_rp = self.b_pinv.column(1) * req.torque_frd.x + self.b_pinv.column(2) * req.torque_frd.y;
-        let w_y = self.b_pinv.column(3) * req.torque_frd.z;
-        let full = w_t + w_rp + w_y;
+        // fast path: the unsaturated `B^+ v`, `w_T + w_rp + w_y` per rotor
+        let (t, tau) = (req.thrust_n, &req.torque_frd);
+        let p = &self.b_pinv;
+        let mut full = RotorVector::zeros();
+        for i in 0..self.n {
+            full[i] = p[(i, 0)] * t + (p[(i, 1)] * tau.x + p[(i, 2)] * tau.y) + p[(i, 3)] * tau.z;
+        }
         let (sigma, delta, lambda, saturated, w) = if self.in_bounds(&full) {
             (1.0, 0.0, 1.0, false, full)
         } else {
+            let w_t = self.b_pinv.column(0) * req.thrust_n;
+            let w_rp = self.b_pinv.column(1) * req.torque_frd.x + self.b_pinv.column(2) * req.torque_frd.y;
+            let w_y = self.b_pinv.column(3) * req.torque_frd.z;
             let n_t: RotorVector = self.b_pinv.column(0).into_owned();
             let delta_max = self.delta_max_fraction * req.thrust_n.abs();
             // For a fixed sigma the feasible shifts form an interval; the feasible

@@ -63,10 +63,15 @@ fn one() -> f64 {
     1.0
 }
 
-/// Derivatives 0..=4 of `A sin(w t + phase)`.
-fn sine(a: f64, w: f64, t: f64, phase: f64) -> [f64; 5] {
-    let (s, c) = (w * t + phase).sin_cos();
+/// Derivatives 0..=4 in `t` of `A sin(theta)`, `theta = w t`, given
+/// `(sin theta, cos theta)`.
+fn sine(a: f64, w: f64, (s, c): (f64, f64)) -> [f64; 5] {
     [a * s, a * w * c, -a * w * w * s, -a * w.powi(3) * c, a * w.powi(4) * s]
+}
+
+/// `(sin 2 theta, cos 2 theta)` from `(sin theta, cos theta)`.
+fn double_angle((s, c): (f64, f64)) -> (f64, f64) {
+    (2.0 * s * c, (c - s) * (c + s))
 }
 
 impl Trajectory {
@@ -153,14 +158,15 @@ impl Trajectory {
                 yaw_amplitude_rad: b,
                 yaw_rate_rad_s: wy,
             } => {
-                let x = sine(r, w, t, std::f64::consts::FRAC_PI_2); // r cos(w t)
-                let y = sine(r, w, t, 0.0);
-                let z = sine(-a, wz, t, 0.0);
+                let (s, c) = (w * t).sin_cos();
+                let x = sine(r, w, (c, -s)); // r cos(w t) = r sin(w t + pi/2)
+                let y = sine(r, w, (s, c));
+                let z = sine(-a, wz, (wz * t).sin_cos());
                 for k in 0..5 {
                     d[k] = Vector3::new(x[k], y[k], z[k]);
                 }
                 d[0] += Vector3::new(-r, 0.0, -h);
-                let psi = sine(b, wy, t, 0.0);
+                let psi = sine(b, wy, (wy * t).sin_cos());
                 yaw.copy_from_slice(&psi[..3]);
             }
             Trajectory::FigureEight {
@@ -168,8 +174,9 @@ impl Trajectory {
                 rate_rad_s: w,
                 altitude_m: h,
             } => {
-                let x = sine(a, w, t, 0.0);
-                let y = sine(0.5 * a, 2.0 * w, t, 0.0);
+                let angle = (w * t).sin_cos();
+                let x = sine(a, w, angle);
+                let y = sine(0.5 * a, 2.0 * w, double_angle(angle));
                 for k in 0..5 {
                     d[k] = Vector3::new(x[k], y[k], 0.0);
                 }

@@ -28,7 +28,7 @@
 use nalgebra::{Matrix3, Vector3};
 
 use super::Reference;
-use super::common::{LawOutput, e3, finite_m3, finite3, so3_attitude};
+use super::common::{LawOutput, Memo, e3, finite_m3, finite3, so3_attitude};
 use super::gains::{ControlLimits, GeometricGains};
 use crate::airframe::GRAVITY;
 use crate::math::vee;
@@ -45,53 +45,29 @@ pub(super) struct Geometric {
     prev_omega_d: Vector3<f64>,
     /// Desired-attitude samples since the last reset or jump.
     samples: u32,
-    /// `(max_tilt, tan(max_tilt))` of the last call: the limit rarely changes.
-    tilt_tan: Option<(f64, f64)>,
-    /// `(psi_d, sin psi_d, cos psi_d)` of the last call: the heading is often held.
-    yaw_sin_cos: Option<(f64, f64, f64)>,
-}
-
-impl Geometric {
-    /// `tan(max_tilt)`, recomputed only when the limit changes (same value).
-    fn tan_max_tilt(&mut self, max_tilt: f64) -> f64 {
-        match self.tilt_tan {
-            Some((key, t)) if key.to_bits() == max_tilt.to_bits() => t,
-            _ => {
-                let t = max_tilt.tan();
-                self.tilt_tan = Some((max_tilt, t));
-                t
-            }
-        }
-    }
-
-    /// `(sin psi, cos psi)`, recomputed only when the heading changes (same value).
-    fn yaw_sin_cos(&mut self, yaw: f64) -> (f64, f64) {
-        match self.yaw_sin_cos {
-            Some((key, s, c)) if key.to_bits() == yaw.to_bits() => (s, c),
-            _ => {
-                let (s, c) = yaw.sin_cos();
-                self.yaw_sin_cos = Some((yaw, s, c));
-                (s, c)
-            }
-        }
-    }
+    /// `tan(max_tilt)`: the limit rarely changes.
+    tan_max_tilt: Memo<u64, f64>,
+    /// `(sin psi_d, cos psi_d)`: the heading is often held.
+    yaw_sin_cos: Memo<u64, (f64, f64)>,
+    /// `1 / dt`: the step rarely changes.
+    inv_dt: Memo<u64, f64>,
 }
 
 /// `log(R)^vee` (rotation vector) of a rotation matrix; `None` near 180 deg,
 /// where the axis is ill-defined.
 fn log_so3(m: &Matrix3<f64>) -> Option<Vector3<f64>> {
     let v = vee(m); // sin(angle) * axis
-    let s = v.norm();
+    let s2 = v.norm_squared(); // sin^2(angle): no square root on the common paths
     let c = (0.5 * (m.trace() - 1.0)).clamp(-1.0, 1.0);
-    if s < 1e-9 {
+    if s2 < 1e-18 {
         return (c > 0.0).then_some(v);
     }
-    if s < 1e-2 && c > 0.0 {
+    if s2 < 1e-4 && c > 0.0 {
         // angle / sin(angle) = asin(s)/s = 1 + s^2/6 + 3 s^4/40 + O(s^6): exact to
         // 1e-13 here, and successive desired attitudes 1 ms apart are always here
-        let s2 = s * s;
         return Some(v * (1.0 + s2 * (1.0 / 6.0 + s2 * (3.0 / 40.0))));
     }
+    let s = s2.sqrt();
     let angle = s.atan2(c);
     Some(v * (angle / s))
 }
@@ -103,28 +79,33 @@ impl Geometric {
 
     /// Desired rate and acceleration from the `R_d` sequence (module doc). On
     /// the first sample after a reset or a jump there is no previous `R_d`: the
-    /// desired rate is then the current one, `w_now = R_d^T R w` (no damping
-    /// kick when a law is switched in).
+    /// desired rate is then the current one, `w_now() = R_d^T R w` (no damping
+    /// kick when a law is switched in; only evaluated then).
     fn desired_rates(
         &mut self,
         r_d: &Matrix3<f64>,
-        w_now: &Vector3<f64>,
+        w_now: impl FnOnce() -> Vector3<f64>,
         dt: f64,
         max_accel: f64,
     ) -> (Vector3<f64>, Vector3<f64>, bool) {
-        let w_now = if finite3(w_now) && w_now.norm() <= JUMP_RATE_RAD_S {
-            *w_now
-        } else {
-            Vector3::zeros()
+        let w_now = || {
+            let w = w_now();
+            if finite3(&w) && w.norm_squared() <= JUMP_RATE_RAD_S * JUMP_RATE_RAD_S {
+                w
+            } else {
+                Vector3::zeros()
+            }
         };
         let mut jump = false;
+        let inv_dt = self.inv_dt.get(dt.to_bits(), || 1.0 / dt);
         let (w, w_dot) = match self.prev_rd {
-            Some(prev) if dt > 0.0 => match log_so3(&(prev.transpose() * r_d)).map(|v| v / dt) {
-                Some(w) if finite3(&w) && w.norm() <= JUMP_RATE_RAD_S => {
+            Some(prev) if dt > 0.0 => match log_so3(&prev.tr_mul(r_d)).map(|v| v * inv_dt) {
+                Some(w) if finite3(&w) && w.norm_squared() <= JUMP_RATE_RAD_S * JUMP_RATE_RAD_S => {
                     let w_dot = if self.samples >= 2 {
-                        let a = (w - self.prev_omega_d) / dt;
-                        if a.norm() > max_accel {
-                            a * (max_accel / a.norm())
+                        let a = (w - self.prev_omega_d) * inv_dt;
+                        let a2 = a.norm_squared();
+                        if a2 > max_accel * max_accel {
+                            a * (max_accel / a2.sqrt())
                         } else {
                             a
                         }
@@ -137,14 +118,14 @@ impl Geometric {
                 _ => {
                     jump = true;
                     self.samples = 1;
-                    (w_now, Vector3::zeros())
+                    (w_now(), Vector3::zeros())
                 }
             },
             // same instant again: keep the rate, no new derivative
             Some(_) => (self.prev_omega_d, Vector3::zeros()),
             None => {
                 self.samples = 1;
-                (w_now, Vector3::zeros())
+                (w_now(), Vector3::zeros())
             }
         };
         self.prev_rd = Some(*r_d);
@@ -165,21 +146,30 @@ impl Geometric {
         dt: f64,
     ) -> LawOutput {
         let m = model.mass_kg;
-        let r = *meas.attitude.to_rotation_matrix().matrix();
+        let rot = meas.attitude.to_rotation_matrix();
+        let r = rot.matrix();
         let e_p = meas.position_ned - reference.position_ned;
         let e_v = meas.velocity_ned - reference.velocity_ned;
-        let a = -gains.kp_n_per_m.component_mul(&e_p) - gains.kv_n_s_per_m.component_mul(&e_v) - e3() * (m * GRAVITY)
+        let weight = Vector3::new(0.0, 0.0, m * GRAVITY); // m g e3
+        let a = -gains.kp_n_per_m.component_mul(&e_p) - gains.kv_n_s_per_m.component_mul(&e_v) - weight
             + reference.acceleration_ned * m
             - estimate.force_ned;
-        let (a, limited) = guard_a(a, m, limits, self.tan_max_tilt(limits.max_tilt_rad));
-        let thrust = -a.dot(&(r * e3()));
-        let yaw = self.yaw_sin_cos(reference.yaw_rad);
-        let r_d = self.desired_attitude(&a, yaw, &r);
-        let w_now = r_d.transpose() * (r * meas.rate_frd);
-        let (w_d, w_dot_d, jump) = self.desired_rates(&r_d, &w_now, dt, limits.max_angular_accel_rad_s2);
+        let max_tilt = limits.max_tilt_rad;
+        let tan_max_tilt = self.tan_max_tilt.get(max_tilt.to_bits(), || max_tilt.tan());
+        let (a, limited) = guard_a(a, m, limits, tan_max_tilt);
+        let thrust = -a.dot(&r.column(2)); // -A^T R e3
+        let yaw = reference.yaw_rad;
+        let yaw = self.yaw_sin_cos.get(yaw.to_bits(), || yaw.sin_cos());
+        let r_d = self.desired_attitude(&a, yaw, r);
+        let (w_d, w_dot_d, jump) = self.desired_rates(
+            &r_d,
+            || r_d.tr_mul(&(r * meas.rate_frd)),
+            dt,
+            limits.max_angular_accel_rad_s2,
+        );
         let out = so3_attitude(
             &model.inertia_kg_m2,
-            &r,
+            r,
             &meas.rate_frd,
             &r_d,
             &w_d,
@@ -202,22 +192,26 @@ impl Geometric {
     /// `R_d = [y_d x z_d, y_d, z_d]` with `z_d = -A/|A|` and the heading `psi_d`.
     /// `yaw` is `(sin psi_d, cos psi_d)`.
     fn desired_attitude(&self, a: &Vector3<f64>, yaw: (f64, f64), r: &Matrix3<f64>) -> Matrix3<f64> {
-        let z_d = -a / a.norm();
+        let z_d = a * (-1.0 / a.norm());
         let (s, c) = yaw;
-        let mut y = z_d.cross(&Vector3::new(c, s, 0.0));
-        if y.norm() < 1e-6 {
+        // z_d x x_c with x_c = [c, s, 0]
+        let mut y = Vector3::new(-z_d.z * s, z_d.z * c, z_d.x * s - z_d.y * c);
+        let mut y_norm = y.norm();
+        if y_norm < 1e-6 {
             // z_d along the heading: keep the previous desired (or current) x axis
             let x_prev = self
                 .prev_rd
                 .map_or_else(|| r.column(0).into_owned(), |p| p.column(0).into_owned());
             y = z_d.cross(&x_prev);
-            if y.norm() < 1e-6 {
+            y_norm = y.norm();
+            if y_norm < 1e-6 {
                 // any axis normal to z_d
                 let other = if z_d.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
                 y = z_d.cross(&other);
+                y_norm = y.norm();
             }
         }
-        let y_d = y.normalize();
+        let y_d = y * (1.0 / y_norm);
         let x_d = y_d.cross(&z_d);
         let r_d = Matrix3::from_columns(&[x_d, y_d, z_d]);
         if finite_m3(&r_d) { r_d } else { Matrix3::identity() }
@@ -237,10 +231,11 @@ fn guard_a(mut a: Vector3<f64>, m: f64, limits: &ControlLimits, tan_max_tilt: f6
         a.z = az_max;
         limited = true;
     }
-    let h = a.xy().norm();
+    // |A_xy| > h_max, compared squared (h_max >= 0): a root only when limiting
+    let h2 = a.x * a.x + a.y * a.y;
     let h_max = -a.z * tan_max_tilt;
-    if h > h_max {
-        let s = h_max / h;
+    if h2 > h_max * h_max {
+        let s = h_max / h2.sqrt();
         a.x *= s;
         a.y *= s;
         limited = true;
@@ -309,13 +304,13 @@ mod tests {
         let mut outs = vec![];
         for k in 0..4 {
             let r = *Rotation3::new(w * (f64::from(k) * h)).matrix();
-            outs.push(g.desired_rates(&r, &Vector3::zeros(), h, 1e3));
+            outs.push(g.desired_rates(&r, Vector3::zeros, h, 1e3));
         }
         assert_eq!(outs[0].0, Vector3::zeros());
         assert!((outs[1].0 - w).norm() < 1e-9 && outs[1].1 == Vector3::zeros());
         assert!((outs[3].0 - w).norm() < 1e-9 && outs[3].1.norm() < 1e-5);
         let now = Vector3::new(0.1, 0.0, 0.0);
-        let jumped = g.desired_rates(Rotation3::new(Vector3::new(1.5, 0.0, 0.0)).matrix(), &now, h, 1e3);
+        let jumped = g.desired_rates(Rotation3::new(Vector3::new(1.5, 0.0, 0.0)).matrix(), || now, h, 1e3);
         assert!(jumped.2 && jumped.0 == now && jumped.1 == Vector3::zeros());
     }
 }

@@ -12,8 +12,12 @@
 //!        theta_d = atan2(-(mu_x c_psi_d + mu_y s_psi_d), g - mu_z)
 //! inner: nu = eta_d'' - K_D,eta e_eta' - K_P,eta e_eta                   e_eta = wrap(eta - eta_d)
 //!        tau^b = I_b Q nu + Q^-T (C eta' - tau_hat_eta)
+//!              = I_b (Q nu + Q_dot eta') + w x I_b w - Q^-T tau_hat_eta      (w = Q eta')
 //! ```
-//! giving `e_eta'' + K_D,eta e_eta' + K_P,eta e_eta = M^-1 tau_tilde`. `phi_d, theta_d`
+//! giving `e_eta'' + K_D,eta e_eta' + K_P,eta e_eta = M^-1 tau_tilde`. The second
+//! form is the one evaluated: with `C` of doc section 1,
+//! `Q^-T C eta' = I_b Q_dot eta' - (I_b w) x w`, so neither `C` nor `Q^-1` is
+//! formed as a matrix (the `sin`/`cos` of `eta` come from `R`, see `common`). `phi_d, theta_d`
 //! derivatives come from a critically damped second-order filter (`w_n` =
 //! `eta_filter_rad_s`), yaw ones from the reference.
 //!
@@ -28,9 +32,10 @@
 use nalgebra::Vector3;
 
 use super::Reference;
-use super::common::{LawOutput, RpyStage, inertia_diag, projected_thrust, rate_map_solve, rpy_setpoint_on_so3, wrap3};
+use super::common::{
+    EulerTrig, LawOutput, RpySetpoint, RpyStage, inertia_diag, projected_thrust, rpy_setpoint_on_so3, wrap3,
+};
 use super::gains::{ControlLimits, HierarchicalGains};
-use crate::math::{euler_zyx, rate_map, rpy_coriolis};
 use crate::signals::{Measurement, NominalModel, WrenchEstimate};
 
 /// Internal state: the attitude-setpoint stage.
@@ -58,39 +63,46 @@ impl Hierarchical {
     ) -> LawOutput {
         let m = model.mass_kg;
         let inertia = &model.inertia_kg_m2;
-        let r = *meas.attitude.to_rotation_matrix().matrix();
+        let rot = meas.attitude.to_rotation_matrix();
+        let r = rot.matrix();
         let e_p = meas.position_ned - reference.position_ned;
         let e_v = meas.velocity_ned - reference.velocity_ned;
         let mu = reference.acceleration_ned
             - gains.kp_pos_per_s2.component_mul(&e_p)
             - gains.kd_pos_per_s.component_mul(&e_v)
             - estimate.force_ned / m;
-        let eta = euler_zyx(&meas.attitude);
-        let q = rate_map(&eta);
-        let q_solved = rate_map_solve(&q);
+        let (eta, now) = EulerTrig::of_rotation(r);
+        let q_inv = now.rate_map_inverse();
+        let eta_dot = q_inv.map(|q_inv| q_inv.mul(&meas.rate_frd));
         // measured Euler rates to start the setpoint filter bumplessly (not near theta = 90 deg)
-        let eta_dot_now = match q_solved {
-            Some((q_inv, _)) if eta.y.cos() > 0.3 => q_inv * meas.rate_frd,
+        let eta_dot_now = match eta_dot {
+            Some(d) if now.cos_theta() > 0.3 => d,
             _ => Vector3::zeros(),
         };
-        let sp = self
-            .stage
-            .setpoint(&mu, reference, m, limits, gains.eta_filter_rad_s, &r, &eta_dot_now, dt);
-        match (sp.recovery, q_solved) {
-            (false, Some((q_inv, q_inv_t))) => {
-                let eta_dot = q_inv * meas.rate_frd;
+        let sp = self.stage.setpoint(
+            &mu,
+            reference,
+            m,
+            limits,
+            gains.eta_filter_rad_s,
+            r[(2, 2)],
+            &eta_dot_now,
+            dt,
+        );
+        match (sp.recovery, q_inv, eta_dot) {
+            (false, Some(q_inv), Some(eta_dot)) => {
                 let e = wrap3(&(eta - sp.eta_d));
                 let e_dot = eta_dot - sp.eta_d_dot;
                 let nu =
                     sp.eta_d_ddot - gains.kd_att_per_s.component_mul(&e_dot) - gains.kp_att_per_s2.component_mul(&e);
-                let c = rpy_coriolis(inertia, &eta, &eta_dot);
-                let torque = inertia * q * nu + q_inv_t * (c * eta_dot - estimate.torque_rpy);
-                let r_d = *crate::math::from_euler_zyx(&sp.eta_d).to_rotation_matrix().matrix();
+                let w = &meas.rate_frd;
+                let torque = inertia * (now.q_mul(&nu) + now.q_dot_mul(&eta_dot, &eta_dot)) + w.cross(&(inertia * w))
+                    - q_inv.tr_mul(&estimate.torque_rpy);
                 LawOutput {
                     thrust_n: sp.thrust_n,
                     torque_frd: torque,
-                    attitude_sp: r_d,
-                    rate_sp_frd: rate_map(&sp.eta_d) * sp.eta_d_dot,
+                    attitude_sp: sp.rotation(),
+                    rate_sp_frd: sp.body_rate(),
                     attitude_error: e,
                     limited: sp.limited,
                     recovery: false,
@@ -111,25 +123,24 @@ impl Hierarchical {
 pub(super) fn recovery_output(
     model: &NominalModel,
     meas: &Measurement,
-    sp: &super::common::RpySetpoint,
+    sp: &RpySetpoint,
     kr: &Vector3<f64>,
     kw: &Vector3<f64>,
     estimate: &WrenchEstimate,
 ) -> LawOutput {
-    let r = *meas.attitude.to_rotation_matrix().matrix();
+    let rot = meas.attitude.to_rotation_matrix();
+    let r = rot.matrix();
     let (out, r_d, w_d) = rpy_setpoint_on_so3(
         &model.inertia_kg_m2,
-        &r,
+        r,
         &meas.rate_frd,
-        &sp.eta_d,
-        &sp.eta_d_dot,
-        &sp.eta_d_ddot,
+        sp,
         kr,
         kw,
         &estimate.torque_frd,
     );
     LawOutput {
-        thrust_n: projected_thrust(sp.thrust_n, &r, &r_d),
+        thrust_n: projected_thrust(sp.thrust_n, r, &r_d),
         torque_frd: out.torque,
         attitude_sp: r_d,
         rate_sp_frd: w_d,
@@ -145,7 +156,7 @@ mod tests {
     use super::super::ControlGains;
     use super::*;
     use crate::airframe::GRAVITY;
-    use crate::math::{from_euler_zyx, rate_map_dot};
+    use crate::math::{euler_zyx, from_euler_zyx, rate_map, rate_map_dot};
     use nalgebra::Matrix3;
     use nalgebra::UnitQuaternion;
 

@@ -43,7 +43,8 @@ use serde::{Deserialize, Serialize};
 use crate::airframe::{ControlWrench, GRAVITY};
 use crate::signals::{Measurement, NominalModel, WrenchEstimate};
 use common::{
-    LawOutput, e3, finite3, measurement_ok, model_ok, sanitize_estimate, sanitize_reference, saturate, so3_attitude,
+    LawOutput, NO_ESTIMATE, all_finite, e3, estimate_usable, finite3, measurement_ok, model_ok, sanitize_estimate,
+    sanitize_reference, saturate, so3_attitude,
 };
 
 /// Which control law flies the vehicle (PX4-style parameter `CTRL_TYPE`: 0, 1, 2).
@@ -166,18 +167,33 @@ impl Reference {
     /// Whether every field is finite.
     #[must_use]
     pub fn is_finite(&self) -> bool {
-        [
-            self.position_ned,
-            self.velocity_ned,
-            self.acceleration_ned,
-            self.jerk_ned,
-            self.snap_ned,
-        ]
-        .iter()
-        .all(finite3)
-            && [self.yaw_rad, self.yaw_rate_rad_s, self.yaw_accel_rad_s2]
-                .iter()
-                .all(|x| x.is_finite())
+        let [p, v, a, j, s] = [
+            &self.position_ned,
+            &self.velocity_ned,
+            &self.acceleration_ned,
+            &self.jerk_ned,
+            &self.snap_ned,
+        ];
+        all_finite(&[
+            p.x,
+            p.y,
+            p.z,
+            v.x,
+            v.y,
+            v.z,
+            a.x,
+            a.y,
+            a.z,
+            j.x,
+            j.y,
+            j.z,
+            s.x,
+            s.y,
+            s.z,
+            self.yaw_rad,
+            self.yaw_rate_rad_s,
+            self.yaw_accel_rad_s2,
+        ])
     }
 }
 
@@ -389,23 +405,37 @@ impl Controller {
         }
         let dt_ok = dt.is_finite() && dt >= 0.0;
         let dt = if dt_ok { dt } else { 0.0 };
-        let (reference, ref_replaced) = sanitize_reference(reference, meas);
-        let est_replaced =
-            estimate.is_some_and(|e| !(finite3(&e.force_ned) && finite3(&e.torque_rpy) && finite3(&e.torque_frd)));
-        let est = sanitize_estimate(estimate, model, &self.gains.limits);
+        // one finiteness test on the hot path; the part-by-part repair only when it fails
+        let ref_replaced = !reference.is_finite();
+        let held;
+        let reference = if ref_replaced {
+            held = sanitize_reference(reference, meas);
+            &held
+        } else {
+            reference
+        };
+        let capped;
+        let (est, est_replaced) = match estimate {
+            None => (&NO_ESTIMATE, false),
+            Some(e) if estimate_usable(e, model, &self.gains.limits) => (e, false),
+            Some(e) => {
+                capped = sanitize_estimate(e, model, &self.gains.limits);
+                (&capped.0, capped.1)
+            }
+        };
         let g = &self.gains;
         let out: LawOutput = match self.kind {
             ControllerKind::Hierarchical => {
                 self.hierarchical
-                    .update(&g.hierarchical, &g.limits, model, meas, &reference, &est, dt)
+                    .update(&g.hierarchical, &g.limits, model, meas, reference, est, dt)
             }
             ControllerKind::Geometric => {
                 self.geometric
-                    .update(&g.geometric, &g.limits, model, meas, &reference, &est, dt)
+                    .update(&g.geometric, &g.limits, model, meas, reference, est, dt)
             }
             ControllerKind::Passivity => {
                 self.passivity
-                    .update(&g.passivity, &g.limits, model, meas, &reference, &est, dt)
+                    .update(&g.passivity, &g.limits, model, meas, reference, est, dt)
             }
         };
         let (wrench, saturated) = saturate(out.thrust_n, &out.torque_frd, model, &g.limits);

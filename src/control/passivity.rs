@@ -12,7 +12,11 @@
 //!          u_T, phi_d, theta_d from mu_d as in the hierarchical law (doc section 4, same guards)
 //! angular: e = wrap(eta - eta_d),  eta_r' = eta_d' - sigma e,  eta_r'' = eta_d'' - sigma e',  nu = e' + sigma e
 //!          tau^b = Q^-T (M eta_r'' + C(eta, eta') eta_r' - tau_hat_eta - D_o nu - K_o e)
+//!                = I_b (Q eta_r'' + Q_dot eta_r') + (Q eta_r') x I_b w - Q^-T (tau_hat_eta + D_o nu + K_o e)
 //! ```
+//! (`w = Q eta'`; the second form is the one evaluated: `Q^-T M = I_b Q` and
+//! `Q^-T C v = I_b Q_dot v - (I_b w) x (Q v)` with `C` of doc section 1, so
+//! neither `M`, `C` nor `Q^-1` is formed as a matrix.)
 //! Closed loop `M nu' + (C + D_o) nu + K_o e = tau_tilde` is passive from
 //! `tau_tilde` to `nu`; linearized per axis
 //! `m e'' + (m sigma_p + D_p) e' + (D_p sigma_p + K_p) e = f_tilde` and the same with
@@ -23,10 +27,9 @@
 use nalgebra::Vector3;
 
 use super::Reference;
-use super::common::{LawOutput, RpyStage, inertia_diag, rate_map_solve, wrap3};
+use super::common::{EulerTrig, LawOutput, RpyStage, inertia_diag, wrap3};
 use super::gains::{ControlLimits, PassivityGains};
 use super::hierarchical::recovery_output;
-use crate::math::{euler_zyx, from_euler_zyx, rate_map, rpy_coriolis, rpy_inertia};
 use crate::signals::{Measurement, NominalModel, WrenchEstimate};
 
 /// Internal state: the attitude-setpoint stage.
@@ -54,7 +57,8 @@ impl Passivity {
     ) -> LawOutput {
         let m = model.mass_kg;
         let inertia = &model.inertia_kg_m2;
-        let r = *meas.attitude.to_rotation_matrix().matrix();
+        let rot = meas.attitude.to_rotation_matrix();
+        let r = rot.matrix();
         let e_p = meas.position_ned - reference.position_ned;
         let e_v = meas.velocity_ned - reference.velocity_ned;
         let sigma_p = gains.sigma_p_per_s;
@@ -62,12 +66,12 @@ impl Passivity {
         let a_r = reference.acceleration_ned - e_v * sigma_p;
         let mu_d = a_r
             - (gains.dp_n_s_per_m.component_mul(&nu_p) + gains.kp_n_per_m.component_mul(&e_p) + estimate.force_ned) / m;
-        let eta = euler_zyx(&meas.attitude);
-        let q = rate_map(&eta);
-        let q_solved = rate_map_solve(&q);
+        let (eta, now) = EulerTrig::of_rotation(r);
+        let q_inv = now.rate_map_inverse();
+        let eta_dot = q_inv.map(|q_inv| q_inv.mul(&meas.rate_frd));
         // measured Euler rates to start the setpoint filter bumplessly (not near theta = 90 deg)
-        let eta_dot_now = match q_solved {
-            Some((q_inv, _)) if eta.y.cos() > 0.3 => q_inv * meas.rate_frd,
+        let eta_dot_now = match eta_dot {
+            Some(d) if now.cos_theta() > 0.3 => d,
             _ => Vector3::zeros(),
         };
         let sp = self.stage.setpoint(
@@ -76,30 +80,30 @@ impl Passivity {
             m,
             limits,
             gains.eta_filter_rad_s,
-            &r,
+            r[(2, 2)],
             &eta_dot_now,
             dt,
         );
         let sigma = gains.sigma_per_s;
-        match (sp.recovery, q_solved) {
-            (false, Some((q_inv, q_inv_t))) => {
-                let eta_dot = q_inv * meas.rate_frd;
+        match (sp.recovery, q_inv, eta_dot) {
+            (false, Some(q_inv), Some(eta_dot)) => {
                 let e = wrap3(&(eta - sp.eta_d));
                 let e_dot = eta_dot - sp.eta_d_dot;
                 let eta_r_dot = sp.eta_d_dot - e * sigma;
                 let eta_r_ddot = sp.eta_d_ddot - e_dot * sigma;
                 let nu = e_dot + e * sigma;
-                let mm = rpy_inertia(inertia, &eta);
-                let c = rpy_coriolis(inertia, &eta, &eta_dot);
-                let generalized = mm * eta_r_ddot + c * eta_r_dot
-                    - estimate.torque_rpy
+                let w = &meas.rate_frd;
+                // Q^-T (M eta_r'' + C eta_r') = I_b (Q eta_r'' + Q_dot eta_r') + (Q eta_r') x I_b w
+                let model_terms = inertia * (now.q_mul(&eta_r_ddot) + now.q_dot_mul(&eta_dot, &eta_r_dot))
+                    + now.q_mul(&eta_r_dot).cross(&(inertia * w));
+                let generalized = -estimate.torque_rpy
                     - gains.do_n_m_s_per_rad.component_mul(&nu)
                     - gains.ko_n_m_per_rad.component_mul(&e);
                 LawOutput {
                     thrust_n: sp.thrust_n,
-                    torque_frd: q_inv_t * generalized,
-                    attitude_sp: *from_euler_zyx(&sp.eta_d).to_rotation_matrix().matrix(),
-                    rate_sp_frd: rate_map(&sp.eta_d) * sp.eta_d_dot,
+                    torque_frd: model_terms + q_inv.tr_mul(&generalized),
+                    attitude_sp: sp.rotation(),
+                    rate_sp_frd: sp.body_rate(),
                     attitude_error: e,
                     limited: sp.limited,
                     recovery: false,

@@ -27,11 +27,24 @@
 //!   `S_k = S_{k-1} + (h/2)(gamma_{r,k-1} + gamma_{r,k})` is implied.
 //!   `A^-1` is computed once per configuration (one matrix serves every
 //!   channel). While every `(h/2) K_i <= 1` (any sensible setting: `K_i h <= 2`)
-//!   the update uses only its last row, `gamma_r = (A^-1 b)_r`, and then the
+//!   the update uses only its last row `w`, `gamma_r = w . b_k`, and then the
 //!   rows of `A` themselves (lower bidiagonal once `gamma_r` is known) for
 //!   `gamma_1..gamma_{r-1}`: the same solution as `A^-1 b` in O(r) instead of
 //!   O(r^2) operations per channel. Beyond that the full product is used,
 //!   because the substitution would amplify rounding.
+//!
+//!   The O(r) update never forms `b_k`: with `a_i = (h/2) K_i`, `b_k` is
+//!   linear in the old state and `u_k`, so
+//!   `gamma_{r,k} = w_1 K_1 u_k + sum_j c_j gamma_{j,k-1}` with
+//!   `c_j = w_j + w_{j+1} a_{j+1}` (`j < r`) and `c_r = w_r - sum_i w_i a_i`
+//!   (`gamma_{r,k-1}` is both a state and the `- a_i gamma_{r,k-1}` of every row),
+//!   and substituting `b_k` into the rows of `A` gives, with
+//!   `s = gamma_{r,k-1} + gamma_{r,k}`,
+//!   `gamma_{1,k} = gamma_{1,k-1} + K_1 u_k - a_1 s` and
+//!   `gamma_{i,k} = gamma_{i,k-1} + a_i (gamma_{i-1,k-1} + gamma_{i-1,k} - s)`.
+//!   The state part `sum_j c_j gamma_{j,k}` is formed at the end of each
+//!   update, while the stages are at hand, ready for the next one, which then
+//!   needs only `u_k` to get `gamma_{r,k}`.
 
 // Index loops over the fixed-size per-channel arrays read like the equations
 // and let the compiler unroll and vectorize across channels.
@@ -68,8 +81,11 @@ pub struct ChainFilter<const C: usize> {
     gains: [f64; MAX_ORDER],
     /// Trapezoidal: `(h/2) K_i`; forward Euler: `h K_i`.
     step_gains: [f64; MAX_ORDER],
-    /// Last row of `A^-1` (trapezoidal only).
-    last_row: [f64; MAX_ORDER],
+    /// Trapezoidal: `c_1..c_r` of `gamma_{r,k} = w_1 K_1 u_k + sum_j c_j gamma_{j,k-1}`
+    /// (module doc; `w` is the last row of `A^-1`).
+    output_weights: [f64; MAX_ORDER],
+    /// Trapezoidal: `w_1 K_1`, the weight of `u_k` in `gamma_{r,k}`.
+    input_weight: f64,
     /// `A^-1` (trapezoidal only), used when `structured` is false.
     inverse: [[f64; MAX_ORDER]; MAX_ORDER],
     /// Trapezoidal: every `(h/2) K_i <= 1`, so the O(r) solve is as accurate as
@@ -78,6 +94,8 @@ pub struct ChainFilter<const C: usize> {
     structured: bool,
     /// `gamma_1..gamma_r` per channel (row i-1 holds `gamma_i`) [wrench units].
     stages: [[f64; C]; MAX_ORDER],
+    /// Structured trapezoidal: `sum_j c_j gamma_j` of the current `stages` per channel.
+    state_part: [f64; C],
 }
 
 impl<const C: usize> ChainFilter<C> {
@@ -99,7 +117,8 @@ impl<const C: usize> ChainFilter<C> {
         let mut k = [0.0; MAX_ORDER];
         k[..r].copy_from_slice(gains);
         let mut step_gains = [0.0; MAX_ORDER];
-        let mut last_row = [0.0; MAX_ORDER];
+        let mut output_weights = [0.0; MAX_ORDER];
+        let mut input_weight = 0.0;
         let mut inverse = [[0.0; MAX_ORDER]; MAX_ORDER];
         let mut structured = false;
         match discretization {
@@ -120,7 +139,13 @@ impl<const C: usize> ChainFilter<C> {
                         inverse[i][j] = inv[(i, j)];
                     }
                 }
-                last_row = inverse[r - 1];
+                let w = inverse[r - 1];
+                // c_j = w_j + w_{j+1} a_{j+1}; c_r = w_r - sum_i w_i a_i
+                for j in 0..r - 1 {
+                    output_weights[j] = w[j] + w[j + 1] * step_gains[j + 1];
+                }
+                output_weights[r - 1] = w[r - 1] - (0..r).map(|i| w[i] * step_gains[i]).sum::<f64>();
+                input_weight = w[0] * k[0];
                 structured = step_gains[..r].iter().all(|a| *a <= 1.0);
             }
         }
@@ -130,10 +155,12 @@ impl<const C: usize> ChainFilter<C> {
             h,
             gains: k,
             step_gains,
-            last_row,
+            output_weights,
+            input_weight,
             inverse,
             structured,
             stages: [[0.0; C]; MAX_ORDER],
+            state_part: [0.0; C],
         })
     }
 
@@ -164,6 +191,7 @@ impl<const C: usize> ChainFilter<C> {
     /// Zero the state (estimate 0).
     pub fn reset(&mut self) {
         self.stages = [[0.0; C]; MAX_ORDER];
+        self.state_part = [0.0; C];
     }
 
     /// The estimate `gamma_r` per channel.
@@ -185,6 +213,8 @@ impl<const C: usize> ChainFilter<C> {
     ///
     /// The residual is carried by `gamma_1 = K_1 e`: the doc's first row
     /// `K_1 (y_k - S_{k-1} - ...)` is `gamma_{1,k-1} + K_1 u_k - ...`.
+    // Inlined into the estimator's update: increments and estimate stay in registers.
+    #[inline(always)]
     pub fn advance(&mut self, increment: &[f64; C]) -> [f64; C] {
         let r = self.order;
         let gr_old = self.stages[r - 1];
@@ -207,47 +237,62 @@ impl<const C: usize> ChainFilter<C> {
                     stages[0][c] += k1 * increment[c] - a[0] * gr_old[c];
                 }
             }
+            Discretization::Trapezoidal if self.structured => {
+                let mut gr = self.state_part;
+                for c in 0..C {
+                    gr[c] += self.input_weight * increment[c];
+                }
+                if r > 1 {
+                    // s = gamma_{r,k-1} + gamma_{r,k}; carry gamma_{i-1,k-1} + gamma_{i-1,k}
+                    let mut s = [0.0; C];
+                    let mut prev_sum = [0.0; C];
+                    for c in 0..C {
+                        s[c] = gr_old[c] + gr[c];
+                        let old = stages[0][c];
+                        stages[0][c] = old + k1 * increment[c] - a[0] * s[c];
+                        prev_sum[c] = old + stages[0][c];
+                    }
+                    for i in 1..r - 1 {
+                        let (cur, ai) = (&mut stages[i], a[i]);
+                        for c in 0..C {
+                            let old = cur[c];
+                            cur[c] = old + ai * (prev_sum[c] - s[c]);
+                            prev_sum[c] = old + cur[c];
+                        }
+                    }
+                }
+                stages[r - 1] = gr;
+                self.state_part = Self::weighted_stages(stages, &self.output_weights);
+            }
             Discretization::Trapezoidal => {
-                // pass 1, descending: right-hand side b_k in place, and gamma_r = (A^-1 b_k)_r
-                let w = &self.last_row[..r];
-                let mut gr = [0.0; C];
+                // right-hand side b_k in place (descending, gamma_{i-1} still old), then A^-1 b_k
                 for i in (1..r).rev() {
                     let prev = stages[i - 1];
-                    let (cur, ai, wi) = (&mut stages[i], a[i], w[i]);
+                    let (cur, ai) = (&mut stages[i], a[i]);
                     for c in 0..C {
                         cur[c] += ai * (prev[c] - gr_old[c]);
-                        gr[c] += wi * cur[c];
                     }
                 }
                 // b_1 = K_1 (e_{k-1} + u_k - (h/2) gamma_{r,k-1})
                 for c in 0..C {
                     stages[0][c] += k1 * increment[c] - a[0] * gr_old[c];
-                    gr[c] += w[0] * stages[0][c];
                 }
-                if self.structured {
-                    // pass 2, ascending, the rows of A:
-                    // gamma_1 = b_1 - a_1 gamma_r, gamma_i = b_i + a_i (gamma_{i-1} - gamma_r)
-                    if r > 1 {
-                        for c in 0..C {
-                            stages[0][c] -= a[0] * gr[c];
-                        }
-                        // ascending: carry gamma_{i-1} (already updated) in registers
-                        let mut prev = stages[0];
-                        for i in 1..r - 1 {
-                            let (cur, ai) = (&mut stages[i], a[i]);
-                            for c in 0..C {
-                                cur[c] += ai * (prev[c] - gr[c]);
-                            }
-                            prev = *cur;
-                        }
-                    }
-                    stages[r - 1] = gr;
-                } else {
-                    Self::solve_full(stages, &self.inverse);
-                }
+                Self::solve_full(stages, &self.inverse);
             }
         }
         self.stages[r - 1]
+    }
+
+    /// `sum_j c_j gamma_j` per channel: the state part of the next `gamma_r`
+    /// (structured trapezoidal update, module doc).
+    fn weighted_stages(stages: &[[f64; C]], weights: &[f64; MAX_ORDER]) -> [f64; C] {
+        let mut sum = [0.0; C];
+        for (stage, cj) in stages.iter().zip(weights) {
+            for c in 0..C {
+                sum[c] += cj * stage[c];
+            }
+        }
+        sum
     }
 
     /// `Gamma_k = A^-1 b_k` with `stages` holding `b_k`.
@@ -273,6 +318,7 @@ impl<const C: usize> ChainFilter<C> {
         for stage in &mut self.stages[..self.order] {
             *stage = *estimate;
         }
+        self.state_part = Self::weighted_stages(self.stages(), &self.output_weights);
     }
 }
 

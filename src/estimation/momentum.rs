@@ -160,6 +160,8 @@ struct Attitude {
     cp: f64,
     st: f64,
     ct: f64,
+    /// `1 / cos theta` (infinite at `cos theta = 0`), for `Q^-1`.
+    sec_t: f64,
     /// `R e3` (NED): the thrust acts as `-u_T R e3`.
     thrust_axis: Vector3<f64>,
 }
@@ -176,6 +178,7 @@ impl Attitude {
             cp,
             st,
             ct,
+            sec_t: 1.0 / ct,
             thrust_axis: Vector3::new(cy * st * cp + sy * sp, sy * st * cp - cy * sp, ct * cp),
         }
     }
@@ -193,9 +196,9 @@ impl Attitude {
         let r32 = 2.0 * (y * z + w * x);
         let r33 = 1.0 - 2.0 * (x * x + y * y);
         let ct = (r32 * r32 + r33 * r33).sqrt();
+        let sec_t = 1.0 / ct;
         let (sp, cp) = if ct > 0.0 {
-            let inv = 1.0 / ct;
-            (r32 * inv, r33 * inv)
+            (r32 * sec_t, r33 * sec_t)
         } else {
             (0.0, 1.0)
         };
@@ -204,6 +207,7 @@ impl Attitude {
             cp,
             st: -r31,
             ct,
+            sec_t,
             thrust_axis: Vector3::new(r13, r23, r33),
         }
     }
@@ -222,19 +226,19 @@ impl Attitude {
 
     /// `Q^-1 w`: `[w_x + (s_ph w_y + c_ph w_z) t_th, c_ph w_y - s_ph w_z, (s_ph w_y + c_ph w_z) / c_th]`.
     fn q_inv(&self, w: &Vector3<f64>) -> Vector3<f64> {
-        let a = (self.sp * w.y + self.cp * w.z) / self.ct;
+        let a = (self.sp * w.y + self.cp * w.z) * self.sec_t;
         Vector3::new(w.x + a * self.st, self.cp * w.y - self.sp * w.z, a)
     }
 
-    /// `Q_dot(eta, eta_dot)^T x` (`Q_dot` as `math::rate_map_dot`; its first column is zero).
+    /// `Q_dot(eta, eta_dot)^T x` (`Q_dot` as `math::rate_map_dot`; its first column is zero):
+    /// `[0, -phi_dot A, -theta_dot (c_th x_x + s_th A) + phi_dot c_th B]` with
+    /// `A = s_ph x_y + c_ph x_z`, `B = c_ph x_y - s_ph x_z` (also the terms of `Q^T x`).
     fn q_dot_t(&self, eta_dot: &Vector3<f64>, x: &Vector3<f64>) -> Vector3<f64> {
         let (sp, cp, st, ct) = (self.sp, self.cp, self.st, self.ct);
         let (pd, td) = (eta_dot.x, eta_dot.y);
-        Vector3::new(
-            0.0,
-            -pd * (sp * x.y + cp * x.z),
-            -ct * td * x.x + (-st * sp * td + ct * cp * pd) * x.y + (-st * cp * td - ct * sp * pd) * x.z,
-        )
+        let a = sp * x.y + cp * x.z;
+        let b = cp * x.y - sp * x.z;
+        Vector3::new(0.0, -pd * a, -td * (ct * x.x + st * a) + pd * ct * b)
     }
 }
 
@@ -250,45 +254,71 @@ struct Kinematics {
     rate_rpy: Vector3<f64>,
     /// `omega` [rad/s], FRD: the angular velocity the body channels see.
     rate_frd: Vector3<f64>,
+    /// `rate_rpy` is `rate_frd` itself (from a measurement), so the RPY and
+    /// body channels share `I_b omega` and its cross product.
+    rates_equal: bool,
     /// Per group (linear, RPY, body): the data are usable.
     valid: [bool; GROUPS],
+    /// Every group is usable (`valid == [true; 3]`, one test on the hot path).
+    all_valid: bool,
 }
+
+/// Every group of a sample is usable.
+const ALL_VALID: [bool; GROUPS] = [true; GROUPS];
 
 impl Kinematics {
     fn from_input(x: &EstimatorInput) -> Self {
         let attitude = Attitude::from_euler(&x.eta);
-        let eta_ok = finite(&x.eta);
-        Self {
+        let mut kin = Self {
             attitude,
             velocity: x.velocity_ned,
             eta_dot: x.eta_dot,
             rate_rpy: attitude.q(&x.eta_dot),
             rate_frd: x.rate_frd,
-            valid: [
+            rates_equal: false,
+            valid: ALL_VALID,
+            all_valid: true,
+        };
+        // one test on the usual path: a sum is finite only if every term is
+        let sum = (x.eta + x.velocity_ned + x.eta_dot + x.rate_frd).sum();
+        if !(sum.is_finite() && attitude.ct.abs() >= RPY_MIN_COS_PITCH) {
+            let eta_ok = finite(&x.eta);
+            kin.valid = [
                 eta_ok && finite(&x.velocity_ned),
                 eta_ok && finite(&x.eta_dot) && attitude.ct.abs() >= RPY_MIN_COS_PITCH,
                 finite(&x.rate_frd),
-            ],
+            ];
+            kin.all_valid = kin.valid == ALL_VALID;
         }
+        kin
     }
 
     fn from_measurement(meas: &Measurement) -> Self {
         let attitude = Attitude::from_quaternion(&meas.attitude);
         let w = meas.rate_frd;
-        let att_ok = meas.attitude.coords.as_slice().iter().all(|c| c.is_finite());
-        let rate_ok = finite(&w);
-        Self {
+        let mut kin = Self {
             attitude,
             velocity: meas.velocity_ned,
             eta_dot: attitude.q_inv(&w),
             rate_rpy: w,
             rate_frd: w,
-            valid: [
+            rates_equal: true,
+            valid: ALL_VALID,
+            all_valid: true,
+        };
+        // one test on the usual path: a sum is finite only if every term is
+        let sum = meas.attitude.coords.sum() + (meas.velocity_ned + w).sum();
+        if !(sum.is_finite() && attitude.ct.abs() >= RPY_MIN_COS_PITCH) {
+            let att_ok = meas.attitude.coords.iter().all(|c| c.is_finite());
+            let rate_ok = finite(&w);
+            kin.valid = [
                 att_ok && finite(&meas.velocity_ned),
                 att_ok && rate_ok && attitude.ct.abs() >= RPY_MIN_COS_PITCH,
                 rate_ok,
-            ],
+            ];
+            kin.all_valid = kin.valid == ALL_VALID;
         }
+        kin
     }
 }
 
@@ -316,30 +346,33 @@ impl Sample {
             momentum: [0.0; CHANNELS],
             drift: [0.0; CHANNELS],
         };
-        s.set(nominal, kin);
+        s.refresh(nominal);
         s
     }
 
-    /// Overwrite in place with `kin` ([`Self::new`] without moving the sample).
-    fn set(&mut self, nominal: &NominalModel, kin: Kinematics) {
+    /// Recompute momentum and drift from `self.kin` ([`Self::new`] in place,
+    /// after the kinematics were written into the sample). Inlined, so that
+    /// the update uses the new values straight from registers.
+    #[inline(always)]
+    fn refresh(&mut self, nominal: &NominalModel) {
         let m = nominal.mass_kg;
         let ib = &nominal.inertia_kg_m2;
+        let kin = &self.kin;
         let att = &kin.attitude;
         let w = kin.rate_frd;
         let iw = ib * w;
         let gyro = iw.cross(&w);
-        let w_eta = kin.rate_rpy;
         // from a measurement both channels see the same rate: reuse I_b w and its cross product
-        let (iw_eta, iw_eta_x_w_eta) = if w_eta == w {
+        let (iw_eta, iw_eta_x_w_eta) = if kin.rates_equal {
             (iw, gyro)
         } else {
+            let w_eta = kin.rate_rpy;
             let iw_eta = ib * w_eta;
             (iw_eta, iw_eta.cross(&w_eta))
         };
         let p_eta = att.qt(&iw_eta);
         let c_t_eta_dot = att.q_dot_t(&kin.eta_dot, &iw_eta) + att.qt(&iw_eta_x_w_eta);
         let v = kin.velocity;
-        self.kin = kin;
         self.momentum = [m * v.x, m * v.y, m * v.z, p_eta.x, p_eta.y, p_eta.z, iw.x, iw.y, iw.z];
         self.drift = [
             0.0,
@@ -537,15 +570,15 @@ impl MomentumEstimator {
     pub fn set_nominal(&mut self, nominal: NominalModel) -> Result<(), EstimatorError> {
         check_nominal(&nominal)?;
         self.nominal = nominal;
-        let p = self.prev;
-        self.slots[p] = Sample::new(&self.nominal, self.slots[p].kin);
+        self.slots[self.prev].refresh(&self.nominal);
         Ok(())
     }
 
     /// Take sample `k`: the state `x_k` and the command `u_{k-1}` held over
     /// `[t_{k-1}, t_k)` ([`EstimatorInput`]); returns the estimate at `t_k`.
     pub fn update(&mut self, x: &EstimatorInput) -> WrenchEstimate {
-        self.step(Kinematics::from_input(x), x.time_s, x.thrust_n, &x.torque_frd)
+        self.slots[1 - self.prev].kin = Kinematics::from_input(x);
+        self.step(x.time_s, x.thrust_n, &x.torque_frd)
     }
 
     /// The same as `update(&input_from(meas, applied))` (equal up to
@@ -554,18 +587,17 @@ impl MomentumEstimator {
     /// and the thrust axis `R e3` stays exact at any attitude. `applied` is
     /// the wrench held over `[t_{k-1}, t_k)`.
     pub fn update_measured(&mut self, meas: &Measurement, applied: &ControlWrench) -> WrenchEstimate {
-        self.step(
-            Kinematics::from_measurement(meas),
-            meas.time_s,
-            applied.thrust_n,
-            &applied.torque_frd,
-        )
+        self.slots[1 - self.prev].kin = Kinematics::from_measurement(meas);
+        self.step(meas.time_s, applied.thrust_n, &applied.torque_frd)
     }
 
-    fn step(&mut self, kin: Kinematics, time_s: f64, thrust: f64, tau: &Vector3<f64>) -> WrenchEstimate {
-        // x_k goes into the free slot (built in place, no copy of the sample)
+    /// Take the sample `x_k` whose kinematics were just written into the free
+    /// slot (the roles of the slots then swap, nothing is copied). Inlined
+    /// into both updates, so that the kinematics need not go through memory.
+    #[inline(always)]
+    fn step(&mut self, time_s: f64, thrust: f64, tau: &Vector3<f64>) -> WrenchEstimate {
         let next = 1 - self.prev;
-        self.slots[next].set(&self.nominal, kin);
+        self.slots[next].refresh(&self.nominal);
         self.samples += 1;
         if !self.initialized {
             self.prev = next;
@@ -577,46 +609,56 @@ impl MomentumEstimator {
         let cur = &self.slots[next];
         let (pa, ca) = (&prev.kin.attitude, &cur.kin.attitude);
         let h = self.chain.sample_time_s();
-        // command part of d integrated over the interval (without the factor h)
-        let (cmd_force, cmd_rpy, drift_weight) = match self.chain.discretization() {
-            Discretization::Trapezoidal => (
-                -0.5 * thrust * (pa.thrust_axis + ca.thrust_axis),
-                0.5 * (pa.qt(tau) + ca.qt(tau)),
-                [0.5, 0.5],
-            ),
-            Discretization::ForwardEuler => (-thrust * pa.thrust_axis, pa.qt(tau), [1.0, 0.0]),
-        };
-        let cmd = [
-            cmd_force.x,
-            cmd_force.y,
-            cmd_force.z,
-            cmd_rpy.x,
-            cmd_rpy.y,
-            cmd_rpy.z,
-            tau.x,
-            tau.y,
-            tau.z,
-        ];
+        // u_k = q_k - q_{k-1} - (integral of d over the interval): the drift part
+        // h/2 (d_{k-1} + d_k) (trapezoidal) or h d_{k-1}, and the command part h_cmd
+        let h_tau = h * tau;
         let mut increment = [0.0; CHANNELS];
-        for c in 0..CHANNELS {
-            let drift = drift_weight[0] * prev.drift[c] + drift_weight[1] * cur.drift[c];
-            increment[c] = cur.momentum[c] - prev.momentum[c] - h * (drift + cmd[c]);
-        }
-        let tau_ok = finite(tau);
-        let cmd_ok = [thrust.is_finite(), tau_ok, tau_ok];
-        for (g, ok) in cmd_ok.iter().enumerate() {
-            if !(prev.kin.valid[g] && cur.kin.valid[g] && *ok) {
-                let held = self.chain.output();
-                let group = 3 * g..3 * g + 3;
-                for (inc, est) in increment[group.clone()].iter_mut().zip(&held[group]) {
-                    *inc = h * est;
+        match self.chain.discretization() {
+            Discretization::Trapezoidal => {
+                let hh = 0.5 * h;
+                let f = -hh * thrust * (pa.thrust_axis + ca.thrust_axis);
+                let t = hh * (pa.qt(tau) + ca.qt(tau));
+                let h_cmd = [f.x, f.y, f.z, t.x, t.y, t.z, h_tau.x, h_tau.y, h_tau.z];
+                for c in 0..CHANNELS {
+                    let drift = hh * (prev.drift[c] + cur.drift[c]);
+                    increment[c] = cur.momentum[c] - prev.momentum[c] - drift - h_cmd[c];
                 }
             }
+            Discretization::ForwardEuler => {
+                let f = -h * thrust * pa.thrust_axis;
+                let t = h * pa.qt(tau);
+                let h_cmd = [f.x, f.y, f.z, t.x, t.y, t.z, h_tau.x, h_tau.y, h_tau.z];
+                for c in 0..CHANNELS {
+                    increment[c] = cur.momentum[c] - prev.momentum[c] - h * prev.drift[c] - h_cmd[c];
+                }
+            }
+        }
+        // one test on the usual path: a sum is finite only if every term is
+        let cmd_ok = (thrust + tau.sum()).is_finite();
+        if !(cmd_ok && prev.kin.all_valid && cur.kin.all_valid) {
+            let tau_ok = finite(tau);
+            let usable: [bool; GROUPS] = std::array::from_fn(|g| {
+                prev.kin.valid[g] && cur.kin.valid[g] && [thrust.is_finite(), tau_ok, tau_ok][g]
+            });
+            coast(&mut increment, usable, &self.chain.output(), h);
         }
         let y = self.chain.advance(&increment);
         self.prev = next;
         self.prev_time_s = time_s;
         self.output(&y)
+    }
+}
+
+/// Replace the increments of the groups that are not `usable` by those of a
+/// wrench equal to the current estimate `held`: those chains coast.
+fn coast(increment: &mut [f64; CHANNELS], usable: [bool; GROUPS], held: &[f64; CHANNELS], h: f64) {
+    for (g, ok) in usable.iter().enumerate() {
+        if !ok {
+            let group = 3 * g..3 * g + 3;
+            for (inc, est) in increment[group.clone()].iter_mut().zip(&held[group]) {
+                *inc = h * est;
+            }
+        }
     }
 }
 

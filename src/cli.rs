@@ -295,6 +295,29 @@ fn simulate(path: &std::path::Path, json: bool, csv: Option<&std::path::Path>) -
     Ok(())
 }
 
+/// One estimator run per cell over `log`, with its metrics, in the order of
+/// `cells`: each run on a thread of its own (they are independent), so a
+/// sweep uses every core; `bar` counts finished runs.
+fn run_cells(
+    log: &crate::flightlog::FlightLog,
+    cells: &[crate::estimation::EstimatorConfig],
+    nominal: &crate::signals::NominalModel,
+    bar: &indicatif::ProgressBar,
+) -> anyhow::Result<Vec<(crate::flightlog::SweepResult, Vec<crate::signals::WrenchEstimate>)>> {
+    let run = |c: &crate::estimation::EstimatorConfig| {
+        let est = crate::flightlog::estimate_log(log, c.clone(), *nominal)?;
+        bar.inc(1);
+        Ok((crate::flightlog::sweep_result(log, c, nominal, &est), est))
+    };
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = cells.iter().map(|c| scope.spawn(move || run(c))).collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect()
+    })
+}
+
 #[allow(clippy::too_many_arguments)]
 fn estimate(
     path: &std::path::Path,
@@ -326,16 +349,16 @@ fn estimate(
         indicatif::ProgressStyle::with_template("{msg:>20} [{bar:30}] {pos}/{len} ({elapsed})")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    let mut results = Vec::new();
-    let mut series = Vec::new();
-    for c in &cells {
-        bar.set_message(format!("r = {} {:?}", c.order, c.polynomial));
-        let est = crate::flightlog::estimate_log(&log, c.clone(), nominal)?;
-        results.push(crate::flightlog::sweep_result(&log, c, &nominal, &est));
-        series.push(est);
-        bar.inc(1);
-    }
+    bar.set_message(format!("{} runs", cells.len()));
+    let runs = run_cells(&log, &cells, &nominal, &bar)?;
     bar.finish_and_clear();
+    let (results, series): (Vec<_>, Vec<_>) = runs
+        .into_iter()
+        .map(|(result, est)| {
+            let label = format!("{}{}", result.poly, result.order);
+            (result, (label, est))
+        })
+        .unzip();
 
     let out_path = output.map_or_else(
         || {
@@ -349,27 +372,7 @@ fn estimate(
     let mut w = std::io::BufWriter::new(
         std::fs::File::create(&out_path).with_context(|| format!("cannot create {}", out_path.display()))?,
     );
-    let mut header = vec!["time_s".to_string()];
-    for r in &results {
-        for ch in [
-            "fn", "fe", "fd", "tx", "ty", "tz", "t_roll", "t_pitch", "t_yaw", "mass_kg",
-        ] {
-            header.push(format!("{}{}_{ch}", r.poly, r.order));
-        }
-    }
-    writeln!(w, "{}", header.join(","))?;
-    for (k, row) in log.rows.iter().enumerate() {
-        // straight into the buffer: millions of numbers, no per-value String
-        write!(w, "{}", row.input.time_s)?;
-        for s in &series {
-            let e = &s[k];
-            for v in e.force_ned.iter().chain(e.torque_frd.iter()).chain(e.torque_rpy.iter()) {
-                write!(w, ",{v}")?;
-            }
-            write!(w, ",{}", e.mass_kg)?;
-        }
-        writeln!(w)?;
-    }
+    crate::flightlog::write_estimates(&mut w, &log, &series).context("writing the estimates")?;
     w.flush().context("writing the estimates")?;
 
     if json {

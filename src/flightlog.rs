@@ -8,6 +8,10 @@
 //! r_frd` (body rates; otherwise `Q(eta) eta_dot`), and the truth
 //! `fext_n fext_e fext_d`, `text_x text_y text_z`, `true_mass_kg` for error
 //! metrics. Other columns are ignored. Time must increase with a constant step.
+//!
+//! The estimates CSV ([`write_estimates`]) holds millions of numbers: they
+//! are formatted with [`push_f64`] (shortest round-trip digits, several times
+//! faster than `Display`).
 
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -172,9 +176,11 @@ impl FlightLog {
         let mut rows = Vec::new();
         let mut step = None;
         let mut previous_t = None;
+        let mut fields: Vec<&str> = Vec::with_capacity(header.len());
         for (index, line) in lines {
             let number = index + 1;
-            let fields: Vec<&str> = line.split(',').collect();
+            fields.clear();
+            fields.extend(line.split(','));
             if fields.len() != header.len() {
                 return Err(LogError::Ragged {
                     file: file.to_string(),
@@ -410,5 +416,154 @@ pub fn sweep_config(
         cutoff_rad_s,
         discretization: disc,
         sample_time_s: step_s,
+    }
+}
+
+/// Column suffixes of one estimator run in the estimates CSV, in the order of
+/// [`write_estimates`]: force NED, torque FRD, torque RPY, mass.
+pub const ESTIMATE_COLUMNS: [&str; 10] = [
+    "fn", "fe", "fd", "tx", "ty", "tz", "t_roll", "t_pitch", "t_yaw", "mass_kg",
+];
+
+/// Write the estimates CSV: a header `time_s,{label}_fn,...` (the
+/// [`ESTIMATE_COLUMNS`] of each run), then one line per log row with the
+/// row's time and each run's estimate (numbers by [`push_f64`]).
+/// `runs` pairs a label (e.g. `butterworth5`) with one estimate per log row.
+///
+/// # Errors
+/// A write error, or a run that has not one estimate per row
+/// ([`std::io::ErrorKind::InvalidInput`]).
+pub fn write_estimates<W: std::io::Write>(
+    w: &mut W,
+    log: &FlightLog,
+    runs: &[(String, Vec<WrenchEstimate>)],
+) -> std::io::Result<()> {
+    if runs.iter().any(|(_, e)| e.len() != log.rows.len()) {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "an estimator run does not have one estimate per log row",
+        ));
+    }
+    let mut header = String::from("time_s");
+    for (label, _) in runs {
+        for ch in ESTIMATE_COLUMNS {
+            header.push_str(&format!(",{label}_{ch}"));
+        }
+    }
+    writeln!(w, "{header}")?;
+    let mut line = Vec::new();
+    for (k, row) in log.rows.iter().enumerate() {
+        line.clear();
+        push_f64(&mut line, row.input.time_s);
+        for (_, estimates) in runs {
+            let e = &estimates[k];
+            for v in e.force_ned.iter().chain(e.torque_frd.iter()).chain(e.torque_rpy.iter()) {
+                line.push(b',');
+                push_f64(&mut line, *v);
+            }
+            line.push(b',');
+            push_f64(&mut line, e.mass_kg);
+        }
+        line.push(b'\n');
+        w.write_all(&line)?;
+    }
+    Ok(())
+}
+
+/// Append `v` to `out` as the shortest decimal that reads back to the same
+/// `f64` (`zmij`, several times faster than `Display`; it may use an
+/// exponent, `1e-7`, and writes integers as `3.0`); `NaN`, `inf` and `-inf`
+/// as `Display` writes them.
+pub fn push_f64(out: &mut Vec<u8>, v: f64) {
+    if v.is_finite() {
+        out.extend_from_slice(zmij::Buffer::new().format_finite(v).as_bytes());
+    } else {
+        out.extend_from_slice(format!("{v}").as_bytes());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `push_f64` reads back to the same bits, for edge cases and a spread
+    /// of random bit patterns over every exponent.
+    #[test]
+    fn push_f64_round_trips() {
+        let mut values = vec![
+            0.0,
+            -0.0,
+            1.0,
+            -1.5,
+            0.1,
+            1e-7,
+            1e22,
+            9007199254740993.0,
+            f64::MAX,
+            f64::MIN_POSITIVE,
+            5e-324,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        let mut x: u64 = 0x2545_f491_4f6c_dd1d;
+        for _ in 0..100_000 {
+            // xorshift64
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            values.push(f64::from_bits(x));
+        }
+        let mut out = Vec::new();
+        for v in values.into_iter().filter(|v| !v.is_nan()) {
+            out.clear();
+            push_f64(&mut out, v);
+            let back: f64 = std::str::from_utf8(&out).unwrap().parse().unwrap();
+            assert_eq!(back.to_bits(), v.to_bits(), "{v}");
+        }
+        out.clear();
+        push_f64(&mut out, f64::NAN);
+        assert_eq!(out, b"NaN");
+    }
+
+    /// One header and one line per row, the runs side by side.
+    #[test]
+    fn estimates_csv_layout() {
+        let rows = (0..3)
+            .map(|k| LogRow {
+                input: EstimatorInput {
+                    time_s: f64::from(k) * 1e-3,
+                    ..EstimatorInput::default()
+                },
+                truth: None,
+            })
+            .collect();
+        let log = FlightLog { rows, step_s: 1e-3 };
+        let estimates: Vec<_> = (0..3)
+            .map(|k| WrenchEstimate {
+                force_ned: Vector3::new(f64::from(k), 0.25, -2.5),
+                torque_frd: Vector3::new(0.5, 0.0, -0.125),
+                torque_rpy: Vector3::repeat(1e-7),
+                mass_kg: 1.5,
+            })
+            .collect();
+        let runs = vec![
+            ("binomial3".to_string(), estimates.clone()),
+            ("butterworth5".to_string(), estimates),
+        ];
+        let mut out = Vec::new();
+        write_estimates(&mut out, &log, &runs).unwrap();
+        let text = String::from_utf8(out).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 4);
+        assert!(lines[0].starts_with("time_s,binomial3_fn,binomial3_fe,"));
+        assert!(lines[0].ends_with(",butterworth5_t_yaw,butterworth5_mass_kg"));
+        let fields: Vec<f64> = lines[2].split(',').map(|f| f.parse().unwrap()).collect();
+        let one = [1.0, 0.25, -2.5, 0.5, 0.0, -0.125, 1e-7, 1e-7, 1e-7, 1.5];
+        assert_eq!(fields[0], 1e-3);
+        assert_eq!(&fields[1..11], &one);
+        assert_eq!(&fields[11..], &one);
+        let mut short = runs.clone();
+        short[1].1.pop();
+        assert!(write_estimates(&mut Vec::new(), &log, &short).is_err());
     }
 }

@@ -192,26 +192,28 @@ impl Geometric {
     /// `R_d = [y_d x z_d, y_d, z_d]` with `z_d = -A/|A|` and the heading `psi_d`.
     /// `yaw` is `(sin psi_d, cos psi_d)`.
     fn desired_attitude(&self, a: &Vector3<f64>, yaw: (f64, f64), r: &Matrix3<f64>) -> Matrix3<f64> {
-        let z_d = a * (-1.0 / a.norm());
+        let a2 = a.norm_squared();
+        let z_d = a * (-1.0 / a2.sqrt());
         let (s, c) = yaw;
-        // z_d x x_c with x_c = [c, s, 0]
-        let mut y = Vector3::new(-z_d.z * s, z_d.z * c, z_d.x * s - z_d.y * c);
-        let mut y_norm = y.norm();
-        if y_norm < 1e-6 {
+        // z_d x x_c (x_c = [c, s, 0]) is (x_c x A) / |A|: built from A itself,
+        // so that its normalisation does not wait for z_d's
+        let mut y = Vector3::new(s * a.z, -c * a.z, c * a.y - s * a.x);
+        let mut y2 = y.norm_squared();
+        if y2 < 1e-12 * a2 {
             // z_d along the heading: keep the previous desired (or current) x axis
             let x_prev = self
                 .prev_rd
                 .map_or_else(|| r.column(0).into_owned(), |p| p.column(0).into_owned());
             y = z_d.cross(&x_prev);
-            y_norm = y.norm();
-            if y_norm < 1e-6 {
+            y2 = y.norm_squared();
+            if y2 < 1e-12 {
                 // any axis normal to z_d
                 let other = if z_d.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
                 y = z_d.cross(&other);
-                y_norm = y.norm();
+                y2 = y.norm_squared();
             }
         }
-        let y_d = y * (1.0 / y_norm);
+        let y_d = y * (1.0 / y2.sqrt());
         let x_d = y_d.cross(&z_d);
         let r_d = Matrix3::from_columns(&[x_d, y_d, z_d]);
         if finite_m3(&r_d) { r_d } else { Matrix3::identity() }

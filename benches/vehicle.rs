@@ -72,23 +72,27 @@ fn estimator_update(c: &mut Criterion) {
             ..EstimatorConfig::default()
         };
         let mut est = MomentumEstimator::new(config, a.nominal()).unwrap();
-        let mut meas = rotorpilot::signals::Measurement {
-            time_s: 0.0,
-            position_ned: Vector3::new(0.0, 0.0, -1.0),
-            velocity_ned: Vector3::new(0.1, -0.2, 0.05),
-            attitude: rotorpilot::math::from_euler_zyx(&Vector3::new(0.05, -0.03, 0.4)),
-            rate_frd: Vector3::new(0.01, 0.02, -0.03),
-        };
+        // a short recorded flight (a slow wobble), read in a loop: the
+        // estimator reads each measurement from memory, as in the vehicle
+        let flight: Vec<_> = (0..256)
+            .map(|j| {
+                let phase = std::f64::consts::TAU * f64::from(j) / 256.0;
+                rotorpilot::signals::Measurement {
+                    time_s: f64::from(j) * 1e-3,
+                    position_ned: Vector3::new(0.0, 0.0, -1.0),
+                    velocity_ned: Vector3::new(0.1 * phase.sin(), -0.2, 0.05 * phase.cos()),
+                    attitude: rotorpilot::math::from_euler_zyx(&Vector3::new(0.05 + 0.02 * phase.sin(), -0.03, 0.4)),
+                    rate_frd: Vector3::new(0.02 * phase.cos(), 0.02, -0.03),
+                }
+            })
+            .collect();
         let u = ControlWrench::new(12.3, Vector3::new(0.01, 0.0, -0.2));
-        let mut k = 0u64;
+        let mut k = 0usize;
         c.bench_function(&format!("estimator update r={order}"), |b| {
             b.iter(|| {
                 k += 1;
-                meas.time_s = k as f64 * 0.001;
-                // a cheap saw-tooth so that the input changes (a sin here would cost ~20 ns)
-                meas.velocity_ned.x = 1e-4 * (k % 1000) as f64;
                 // the path the vehicle uses: straight from the measurement (no Euler angles)
-                black_box(est.update_measured(black_box(&meas), &u));
+                black_box(est.update_measured(black_box(&flight[k % 256]), &u));
             });
         });
     }

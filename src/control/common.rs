@@ -62,7 +62,11 @@ impl<K: Copy + PartialEq, T: Copy> Memo<K, T> {
 /// Whether a measurement can be used at all.
 pub(super) fn measurement_ok(m: &Measurement) -> bool {
     let (p, v, w, q) = (&m.position_ned, &m.velocity_ned, &m.rate_frd, &m.attitude.coords);
-    all_finite(&[p.x, p.y, p.z, v.x, v.y, v.z, w.x, w.y, w.z, q.x, q.y, q.z, q.w]) && (q.norm() - 1.0).abs() < 1e-6
+    // | |q| - 1 | < 1e-6, compared squared (no root per step)
+    let n2 = q.norm_squared();
+    all_finite(&[p.x, p.y, p.z, v.x, v.y, v.z, w.x, w.y, w.z, q.x, q.y, q.z, q.w])
+        && n2 > (1.0 - 1e-6) * (1.0 - 1e-6)
+        && n2 < (1.0 + 1e-6) * (1.0 + 1e-6)
 }
 
 /// Whether the nominal model is usable: positive finite mass, finite inertia with a positive diagonal.
@@ -135,7 +139,7 @@ pub(super) fn estimate_usable(e: &WrenchEstimate, model: &NominalModel, limits: 
     let (f, tr, tf) = (&e.force_ned, &e.torque_rpy, &e.torque_frd);
     let within = |v: &Vector3<f64>| v.x.abs() <= t_max.x && v.y.abs() <= t_max.y && v.z.abs() <= t_max.z;
     all_finite(&[f.x, f.y, f.z, tr.x, tr.y, tr.z, tf.x, tf.y, tf.z, e.mass_kg])
-        && f.norm() <= f_max
+        && f.norm_squared() <= f_max * f_max
         && within(tr)
         && within(tf)
 }

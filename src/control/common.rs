@@ -481,6 +481,34 @@ impl RateMapInverse {
     }
 }
 
+/// The measured attitude as the RPY laws see it: `eta` of `R`, its sines and
+/// cosines, and, away from `theta = +-90 deg` (`|cos theta| >= 1e-6`), `Q^-1`
+/// with the Euler rates `eta_dot = Q^-1 omega`.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct MeasuredEuler {
+    pub(super) eta: Vector3<f64>,
+    pub(super) trig: EulerTrig,
+    pub(super) rates: Option<(RateMapInverse, Vector3<f64>)>,
+}
+
+impl MeasuredEuler {
+    /// From the attitude `r` (FRD to NED) and the body rate `omega` [rad/s], FRD.
+    pub(super) fn new(r: &Matrix3<f64>, omega: &Vector3<f64>) -> Self {
+        let (eta, trig) = EulerTrig::of_rotation(r);
+        let rates = trig.rate_map_inverse().map(|q_inv| (q_inv, q_inv.mul(omega)));
+        Self { eta, trig, rates }
+    }
+
+    /// The Euler rates that start the setpoint filter bumplessly: the measured
+    /// ones, zero near `theta = 90 deg` (`cos theta <= 0.3`).
+    pub(super) fn filter_start(&self) -> Vector3<f64> {
+        match self.rates {
+            Some((_, eta_dot)) if self.trig.cos_theta() > 0.3 => eta_dot,
+            _ => Vector3::zeros(),
+        }
+    }
+}
+
 /// Attitude-loop result.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct So3Output {
@@ -791,6 +819,30 @@ mod tests {
         assert!((inv.tr_mul(&v) - q_inv.transpose() * v).norm() < 1e-12);
         let vertical = EulerTrig::new((0.0, 1.0), (1.0, 0.0), (0.0, 1.0));
         assert!(vertical.rate_map_inverse().is_none());
+    }
+
+    /// GIVEN measured attitudes and rates WHEN read as Euler quantities THEN
+    /// `eta_dot = Q^-1 omega` starts the setpoint filter at moderate pitch, zero
+    /// starts it beyond `cos theta = 0.3`, and at `theta = 90 deg` there are no rates.
+    #[test]
+    fn measured_euler_rates_and_filter_start() {
+        use crate::math::{from_euler_zyx, rate_map};
+        let eta_dot = Vector3::new(0.3, -0.7, 1.2);
+        for (pitch, starts) in [(0.5, true), (1.3, false)] {
+            let eta = Vector3::new(0.2, pitch, -0.4);
+            let r = *from_euler_zyx(&eta).to_rotation_matrix().matrix();
+            let now = MeasuredEuler::new(&r, &(rate_map(&eta) * eta_dot));
+            assert!((now.eta - eta).norm() < 1e-12);
+            let (_, rates) = now.rates.unwrap();
+            assert!((rates - eta_dot).norm() < 1e-11);
+            let expected = if starts { eta_dot } else { Vector3::zeros() };
+            assert!((now.filter_start() - expected).norm() < 1e-11, "pitch {pitch}");
+        }
+        let vertical = *from_euler_zyx(&Vector3::new(0.0, std::f64::consts::FRAC_PI_2, 0.0))
+            .to_rotation_matrix()
+            .matrix();
+        let now = MeasuredEuler::new(&vertical, &Vector3::new(0.1, 0.2, 0.3));
+        assert!(now.rates.is_none() && now.filter_start() == Vector3::zeros());
     }
 
     #[test]

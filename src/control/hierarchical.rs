@@ -33,7 +33,7 @@ use nalgebra::Vector3;
 
 use super::Reference;
 use super::common::{
-    EulerTrig, LawOutput, RpySetpoint, RpyStage, inertia_diag, projected_thrust, rpy_setpoint_on_so3, wrap3,
+    LawOutput, MeasuredEuler, RpySetpoint, RpyStage, inertia_diag, projected_thrust, rpy_setpoint_on_so3, wrap3,
 };
 use super::gains::{ControlLimits, HierarchicalGains};
 use crate::signals::{Measurement, NominalModel, WrenchEstimate};
@@ -71,14 +71,7 @@ impl Hierarchical {
             - gains.kp_pos_per_s2.component_mul(&e_p)
             - gains.kd_pos_per_s.component_mul(&e_v)
             - estimate.force_ned / m;
-        let (eta, now) = EulerTrig::of_rotation(r);
-        let q_inv = now.rate_map_inverse();
-        let eta_dot = q_inv.map(|q_inv| q_inv.mul(&meas.rate_frd));
-        // measured Euler rates to start the setpoint filter bumplessly (not near theta = 90 deg)
-        let eta_dot_now = match eta_dot {
-            Some(d) if now.cos_theta() > 0.3 => d,
-            _ => Vector3::zeros(),
-        };
+        let now = MeasuredEuler::new(r, &meas.rate_frd);
         let sp = self.stage.setpoint(
             &mu,
             reference,
@@ -86,17 +79,18 @@ impl Hierarchical {
             limits,
             gains.eta_filter_rad_s,
             r[(2, 2)],
-            &eta_dot_now,
+            &now.filter_start(),
             dt,
         );
-        match (sp.recovery, q_inv, eta_dot) {
-            (false, Some(q_inv), Some(eta_dot)) => {
-                let e = wrap3(&(eta - sp.eta_d));
+        match (sp.recovery, now.rates) {
+            (false, Some((q_inv, eta_dot))) => {
+                let e = wrap3(&(now.eta - sp.eta_d));
                 let e_dot = eta_dot - sp.eta_d_dot;
                 let nu =
                     sp.eta_d_ddot - gains.kd_att_per_s.component_mul(&e_dot) - gains.kp_att_per_s2.component_mul(&e);
                 let w = &meas.rate_frd;
-                let torque = inertia * (now.q_mul(&nu) + now.q_dot_mul(&eta_dot, &eta_dot)) + w.cross(&(inertia * w))
+                let torque = inertia * (now.trig.q_mul(&nu) + now.trig.q_dot_mul(&eta_dot, &eta_dot))
+                    + w.cross(&(inertia * w))
                     - q_inv.tr_mul(&estimate.torque_rpy);
                 LawOutput {
                     thrust_n: sp.thrust_n,

@@ -24,10 +24,8 @@
 //! loop with the matching `K_R = D_o sigma + K_o`, `K_w = I_b sigma + D_o`
 //! (see the hierarchical module for the recovery rule).
 
-use nalgebra::Vector3;
-
 use super::Reference;
-use super::common::{EulerTrig, LawOutput, RpyStage, inertia_diag, wrap3};
+use super::common::{LawOutput, MeasuredEuler, RpyStage, inertia_diag, wrap3};
 use super::gains::{ControlLimits, PassivityGains};
 use super::hierarchical::recovery_output;
 use crate::signals::{Measurement, NominalModel, WrenchEstimate};
@@ -66,14 +64,7 @@ impl Passivity {
         let a_r = reference.acceleration_ned - e_v * sigma_p;
         let mu_d = a_r
             - (gains.dp_n_s_per_m.component_mul(&nu_p) + gains.kp_n_per_m.component_mul(&e_p) + estimate.force_ned) / m;
-        let (eta, now) = EulerTrig::of_rotation(r);
-        let q_inv = now.rate_map_inverse();
-        let eta_dot = q_inv.map(|q_inv| q_inv.mul(&meas.rate_frd));
-        // measured Euler rates to start the setpoint filter bumplessly (not near theta = 90 deg)
-        let eta_dot_now = match eta_dot {
-            Some(d) if now.cos_theta() > 0.3 => d,
-            _ => Vector3::zeros(),
-        };
+        let now = MeasuredEuler::new(r, &meas.rate_frd);
         let sp = self.stage.setpoint(
             &mu_d,
             reference,
@@ -81,21 +72,21 @@ impl Passivity {
             limits,
             gains.eta_filter_rad_s,
             r[(2, 2)],
-            &eta_dot_now,
+            &now.filter_start(),
             dt,
         );
         let sigma = gains.sigma_per_s;
-        match (sp.recovery, q_inv, eta_dot) {
-            (false, Some(q_inv), Some(eta_dot)) => {
-                let e = wrap3(&(eta - sp.eta_d));
+        match (sp.recovery, now.rates) {
+            (false, Some((q_inv, eta_dot))) => {
+                let e = wrap3(&(now.eta - sp.eta_d));
                 let e_dot = eta_dot - sp.eta_d_dot;
                 let eta_r_dot = sp.eta_d_dot - e * sigma;
                 let eta_r_ddot = sp.eta_d_ddot - e_dot * sigma;
                 let nu = e_dot + e * sigma;
                 let w = &meas.rate_frd;
                 // Q^-T (M eta_r'' + C eta_r') = I_b (Q eta_r'' + Q_dot eta_r') + (Q eta_r') x I_b w
-                let model_terms = inertia * (now.q_mul(&eta_r_ddot) + now.q_dot_mul(&eta_dot, &eta_r_dot))
-                    + now.q_mul(&eta_r_dot).cross(&(inertia * w));
+                let model_terms = inertia * (now.trig.q_mul(&eta_r_ddot) + now.trig.q_dot_mul(&eta_dot, &eta_r_dot))
+                    + now.trig.q_mul(&eta_r_dot).cross(&(inertia * w));
                 let generalized = -estimate.torque_rpy
                     - gains.do_n_m_s_per_rad.component_mul(&nu)
                     - gains.ko_n_m_per_rad.component_mul(&e);

@@ -267,6 +267,7 @@ struct Kinematics {
 const ALL_VALID: [bool; GROUPS] = [true; GROUPS];
 
 impl Kinematics {
+    #[inline(always)]
     fn from_input(x: &EstimatorInput) -> Self {
         let attitude = Attitude::from_euler(&x.eta);
         let mut kin = Self {
@@ -293,6 +294,7 @@ impl Kinematics {
         kin
     }
 
+    #[inline(always)]
     fn from_measurement(meas: &Measurement) -> Self {
         let attitude = Attitude::from_quaternion(&meas.attitude);
         let w = meas.rate_frd;
@@ -577,8 +579,7 @@ impl MomentumEstimator {
     /// Take sample `k`: the state `x_k` and the command `u_{k-1}` held over
     /// `[t_{k-1}, t_k)` ([`EstimatorInput`]); returns the estimate at `t_k`.
     pub fn update(&mut self, x: &EstimatorInput) -> WrenchEstimate {
-        self.slots[1 - self.prev].kin = Kinematics::from_input(x);
-        self.step(x.time_s, x.thrust_n, &x.torque_frd)
+        input_update(self, x)
     }
 
     /// The same as `update(&input_from(meas, applied))` (equal up to
@@ -587,8 +588,7 @@ impl MomentumEstimator {
     /// and the thrust axis `R e3` stays exact at any attitude. `applied` is
     /// the wrench held over `[t_{k-1}, t_k)`.
     pub fn update_measured(&mut self, meas: &Measurement, applied: &ControlWrench) -> WrenchEstimate {
-        self.slots[1 - self.prev].kin = Kinematics::from_measurement(meas);
-        self.step(meas.time_s, applied.thrust_n, &applied.torque_frd)
+        measured_update(self, meas, applied)
     }
 
     /// Take the sample `x_k` whose kinematics were just written into the free
@@ -647,6 +647,27 @@ impl MomentumEstimator {
         self.prev_time_s = time_s;
         self.output(&y)
     }
+}
+
+// The two updates are compiled twice, for the x86-64 baseline and with AVX2
+// (wider vectors over the nine channels, three-operand instructions), and the
+// first call picks the version this CPU runs. Both give the same bits: the
+// additions, products, divisions and roots are IEEE operations rounded the
+// same at any vector width, and Rust neither fuses `a * b + c` nor reorders
+// sums. Everything they call is inlined, so all of it gets the wider code.
+
+/// [`MomentumEstimator::update`].
+#[multiversion::multiversion(targets("x86_64+avx2"))]
+fn input_update(est: &mut MomentumEstimator, x: &EstimatorInput) -> WrenchEstimate {
+    est.slots[1 - est.prev].kin = Kinematics::from_input(x);
+    est.step(x.time_s, x.thrust_n, &x.torque_frd)
+}
+
+/// [`MomentumEstimator::update_measured`].
+#[multiversion::multiversion(targets("x86_64+avx2"))]
+fn measured_update(est: &mut MomentumEstimator, meas: &Measurement, applied: &ControlWrench) -> WrenchEstimate {
+    est.slots[1 - est.prev].kin = Kinematics::from_measurement(meas);
+    est.step(meas.time_s, applied.thrust_n, &applied.torque_frd)
 }
 
 /// Replace the increments of the groups that are not `usable` by those of a

@@ -654,7 +654,8 @@ impl MomentumEstimator {
 // first call picks the version this CPU runs. Both give the same bits: the
 // additions, products, divisions and roots are IEEE operations rounded the
 // same at any vector width, and Rust neither fuses `a * b + c` nor reorders
-// sums. Everything they call is inlined, so all of it gets the wider code.
+// sums. Everything on the usual path is inlined into them (hence the
+// `inline(always)` on the kinematics), so all of it gets the wider code.
 
 /// [`MomentumEstimator::update`].
 #[multiversion::multiversion(targets("x86_64+avx2"))]

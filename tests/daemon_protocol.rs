@@ -364,6 +364,19 @@ async fn requests_answered_per_link() {
             .result,
         4
     );
+    // an absurd interval is capped, and the link keeps answering
+    assert_eq!(
+        c.command(v.gcs, 511, [250.0, 1e30, NAN, NAN, NAN, NAN, NAN])
+            .await
+            .result,
+        0
+    );
+    assert_eq!(
+        c.command(v.gcs, 512, [148.0, NAN, NAN, NAN, NAN, NAN, NAN])
+            .await
+            .result,
+        0
+    );
     v.stop().await;
 }
 

@@ -180,13 +180,18 @@ impl Interval {
         } else if us < 0.0 {
             Interval::Disabled
         } else {
-            Interval::Every(Duration::from_secs_f64(f64::from(us) * 1e-6))
+            Interval::Every(Duration::try_from_secs_f64(f64::from(us) * 1e-6).unwrap_or(Duration::MAX))
         }
     }
 }
 
 fn period(hz: f64) -> Option<Duration> {
-    (hz.is_finite() && hz > 0.0).then(|| Duration::from_secs_f64(1.0 / hz))
+    (hz.is_finite() && hz > 0.0).then(|| Duration::try_from_secs_f64(1.0 / hz).map_or(MAX_INTERVAL, clamp_interval))
+}
+
+/// An interval within `MIN_INTERVAL..=MAX_INTERVAL`.
+fn clamp_interval(d: Duration) -> Duration {
+    d.clamp(MIN_INTERVAL, MAX_INTERVAL)
 }
 
 /// When each stream of one link is due.
@@ -205,6 +210,9 @@ struct Entry {
 
 /// The shortest interval a stream may have (1 kHz).
 const MIN_INTERVAL: Duration = Duration::from_millis(1);
+/// The longest: what MESSAGE_INTERVAL's `interval_us` (int32) can report,
+/// and far from overflowing an `Instant`.
+const MAX_INTERVAL: Duration = Duration::from_micros(i32::MAX as u64);
 
 impl Scheduler {
     /// Streams at their default rates, all due at `now`.
@@ -231,7 +239,7 @@ impl Scheduler {
             e.interval = match interval {
                 Interval::Default => e.default,
                 Interval::Disabled => None,
-                Interval::Every(d) => Some(d.max(MIN_INTERVAL)),
+                Interval::Every(d) => Some(clamp_interval(d)),
             };
             e.next = now;
         }
@@ -544,6 +552,16 @@ mod tests {
         assert_eq!(s.interval(Stream::DebugVect), None);
         s.set(t0, Stream::DebugVect, Interval::from_param_us(0.0));
         assert_eq!(s.interval(Stream::DebugVect), Some(Duration::from_millis(100)));
+        // any positive f32 is taken, capped at what MESSAGE_INTERVAL can report
+        s.set(t0, Stream::DebugVect, Interval::from_param_us(f32::MAX));
+        assert_eq!(s.interval(Stream::DebugVect), Some(MAX_INTERVAL));
+        let mut due = Vec::new();
+        s.due(t0, &mut due);
+        s.due(t0 + Duration::from_secs(2000), &mut due);
+        assert_eq!(due.iter().filter(|d| **d == Stream::DebugVect).count(), 1);
+        s.set(t0, Stream::DebugVect, Interval::from_param_us(1.0));
+        assert_eq!(s.interval(Stream::DebugVect), Some(MIN_INTERVAL));
+        assert_eq!(period(1e-300), Some(MAX_INTERVAL));
         assert_eq!(Stream::from_message_id(251), Some(Stream::NamedValueFloat));
         assert_eq!(Stream::from_message_id(9999), None);
     }

@@ -682,8 +682,11 @@ impl Sim {
                 // Publish before answering: a client that acts on the ACK (disarm,
                 // then shutdown) must find the links already seeing the new state.
                 self.publish();
-                if let Some(tx) = reply {
+                // setpoints stream without a reply: log only their refusals
+                if reply.is_some() || outcome != CommandOutcome::Accepted {
                     debug!(?command, ?outcome, "command");
+                }
+                if let Some(tx) = reply {
                     let _ = tx.send(outcome);
                 }
             }
@@ -711,6 +714,7 @@ impl Sim {
                 self.publish();
                 let _ = reply.send(outcome);
             }
+            // the loop returns on Stop before handing requests here
             SimRequest::Stop => {}
             SimRequest::Reboot => {
                 let p = lock(&self.params).clone();

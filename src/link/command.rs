@@ -267,10 +267,7 @@ pub fn classify(c: &Command, state: State) -> Action {
             Some(false) => Action::Answer(result::DENIED, Some("failure injection disabled (SYS_FAILURE_EN)")),
             _ => Action::Answer(result::UNSUPPORTED, None),
         },
-        _ => {
-            let _ = (p3, p4);
-            Action::Answer(result::UNSUPPORTED, None)
-        }
+        _ => Action::Answer(result::UNSUPPORTED, None),
     }
 }
 

@@ -3,7 +3,7 @@
 //! Everything inside rotorpilot is SI, NED/FRD and `f64`; the wire types appear
 //! only here and in the message builders.
 
-use crate::autopilot::{CommandOutcome, FlightMode, LandedState, Severity};
+use crate::autopilot::{CommandOutcome, FlightMode};
 
 /// PX4 main modes (`px4_custom_mode.h`).
 pub mod main_mode {
@@ -170,30 +170,6 @@ pub fn mav_result(outcome: &CommandOutcome) -> (u8, Option<&'static str>) {
         CommandOutcome::TemporarilyRejected(r) => (result::TEMPORARILY_REJECTED, Some(r)),
         CommandOutcome::Denied(r) => (result::DENIED, Some(r)),
         CommandOutcome::Failed(r) => (result::FAILED, Some(r)),
-    }
-}
-
-/// MAV_LANDED_STATE value.
-#[must_use]
-pub fn landed_state(l: LandedState) -> u8 {
-    match l {
-        LandedState::OnGround => 1,
-        LandedState::InAir => 2,
-        LandedState::Takeoff => 3,
-        LandedState::Landing => 4,
-    }
-}
-
-/// MAV_SEVERITY value.
-#[must_use]
-pub fn severity(s: Severity) -> u8 {
-    match s {
-        Severity::Emergency => 0,
-        Severity::Critical => 2,
-        Severity::Error => 3,
-        Severity::Warning => 4,
-        Severity::Notice => 5,
-        Severity::Info => 6,
     }
 }
 

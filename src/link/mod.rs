@@ -158,7 +158,8 @@ pub struct Link {
 pub struct LinkStats {
     /// Frames received with a valid CRC.
     pub frames_in: u64,
-    /// Frames that did not decode or were not for us.
+    /// Frames that did not decode, came back with our own ids, or were
+    /// commands for another system or component.
     pub ignored: u64,
 }
 
@@ -325,26 +326,31 @@ impl Link {
         effects: &mut Vec<Effect>,
     ) {
         let requester = (frame.system_id, frame.component_id);
-        let reply = To::Peer(from);
-        let msg = match msg {
-            Inbound::CommandLong(c) => {
-                if self.for_me(c.target_system, c.target_component) {
-                    self.on_command(now, from, requester, &Command::from(&c), t, params, effects);
-                } else {
-                    self.stats.ignored += 1;
-                }
-                return;
-            }
-            Inbound::CommandInt(c) => {
-                if self.for_me(c.target_system, c.target_component) {
-                    self.on_command(now, from, requester, &Command::from(&c), t, params, effects);
-                } else {
-                    self.stats.ignored += 1;
-                }
-                return;
-            }
-            Inbound::Other(m) => *m,
+        let command = match msg {
+            Inbound::CommandLong(c) => Command::from(&c),
+            Inbound::CommandInt(c) => Command::from(&c),
+            Inbound::Other(m) => return self.on_other_message(now, from, requester, *m, t, params, effects),
         };
+        if self.for_me(command.target_system, command.target_component) {
+            self.on_command(now, from, requester, &command, t, params, effects);
+        } else {
+            self.stats.ignored += 1;
+        }
+    }
+
+    /// Any message but a command.
+    #[allow(clippy::too_many_arguments)]
+    fn on_other_message<P: ParamAccess + ?Sized>(
+        &mut self,
+        now: Instant,
+        from: SocketAddr,
+        requester: (u8, u8),
+        msg: MavMessage,
+        t: &Telemetry,
+        params: &P,
+        effects: &mut Vec<Effect>,
+    ) {
+        let reply = To::Peer(from);
         match msg {
             MavMessage::SET_MODE(m) if self.for_me(m.target_system, 0) => {
                 let main = ((m.custom_mode >> 16) & 0xFF) as u8;

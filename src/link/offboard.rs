@@ -6,7 +6,9 @@
 //! 2048 and 3135, but any combination is read). A vector whose three
 //! components are all ignored becomes `None`; a partly ignored vector keeps
 //! NaN in the ignored components, PX4's "unset" (for example, position x/y
-//! with velocity z).
+//! with velocity z). The autopilot does not fly such mixed setpoints yet: it
+//! refuses them (and a SET_ATTITUDE_TARGET without thrust), which the daemon
+//! logs; setpoints have no ACK.
 //!
 //! Frames: LOCAL_NED (1) as is; LOCAL_OFFSET_NED (7) position relative to the
 //! current position; BODY_NED (8), BODY_OFFSET_NED (9) and BODY_FRD (12)
@@ -274,7 +276,7 @@ mod tests {
         };
         assert_eq!(acceleration_ned, Some(Vector3::zeros()));
         assert!(yaw_rad.is_none());
-        // 2048: everything but yaw rate; partial masks keep NaN
+        // 4: position x/y only; partial masks keep NaN
         let Some(OffboardSetpoint::Local { position_ned, .. }) = local_ned(&local(4, f), &t) else {
             panic!()
         };

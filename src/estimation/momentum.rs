@@ -339,9 +339,7 @@ struct Sample {
 }
 
 impl Sample {
-    /// Momentum and drift for the nominal model, with `w = Q eta_dot`:
-    /// `M eta_dot = Q^T I_b w` and `C^T eta_dot = Q_dot^T I_b w + Q^T ((I_b w) x w)`,
-    /// the transpose of `math::rpy_coriolis` applied to `eta_dot` (checked in the tests).
+    /// The sample of `kin` for the nominal model ([`Self::refresh`]).
     fn new(nominal: &NominalModel, kin: Kinematics) -> Self {
         let mut s = Self {
             kin,
@@ -352,9 +350,10 @@ impl Sample {
         s
     }
 
-    /// Recompute momentum and drift from `self.kin` ([`Self::new`] in place,
-    /// after the kinematics were written into the sample). Inlined, so that
-    /// the update uses the new values straight from registers.
+    /// Momentum and drift of `self.kin` for the nominal model, with `w = Q eta_dot`:
+    /// `M eta_dot = Q^T I_b w` and `C^T eta_dot = Q_dot^T I_b w + Q^T ((I_b w) x w)`,
+    /// the transpose of `math::rpy_coriolis` applied to `eta_dot` (checked in the tests).
+    /// Inlined, so that the update uses the new values straight from registers.
     #[inline(always)]
     fn refresh(&mut self, nominal: &NominalModel) {
         let m = nominal.mass_kg;
@@ -752,6 +751,53 @@ mod tests {
                 let s9 = Sample::new(&seed_nominal(), Kinematics::from_input(&x));
                 assert!((s9.drift[3] - 0.345964).abs() < 1e-6 && (s9.drift[4] + 0.198530).abs() < 1e-6);
                 assert!(s9.drift[5].abs() < 1e-12);
+            }
+        }
+    }
+
+    fn bits(e: &WrenchEstimate) -> Vec<u64> {
+        let v = [e.force_ned, e.torque_rpy, e.torque_frd];
+        v.iter()
+            .flat_map(|x| x.iter().map(|c| c.to_bits()))
+            .chain([e.mass_kg.to_bits()])
+            .collect()
+    }
+
+    /// The dispatched updates (the AVX2 build on a CPU that has it) give the
+    /// same bits as the same steps compiled here for the x86-64 baseline.
+    #[test]
+    fn dispatched_updates_give_the_baseline_bits() {
+        let mut nominal = seed_nominal();
+        nominal.inertia_kg_m2 = Matrix3::new(0.03, 0.001, -0.002, 0.001, 0.04, 0.0005, -0.002, 0.0005, 0.05);
+        for (order, polynomial) in [(5, Polynomial::Butterworth), (20, Polynomial::Binomial)] {
+            let config = EstimatorConfig {
+                order,
+                polynomial,
+                ..EstimatorConfig::default()
+            };
+            let mut dispatched = MomentumEstimator::new(config.clone(), nominal).unwrap();
+            let mut baseline = dispatched.clone();
+            let (mut dispatched_x, mut baseline_x) = (dispatched.clone(), dispatched.clone());
+            for k in 0..500 {
+                let t = k as f64 * 1e-3;
+                let eta = Vector3::new(0.3 * (2.0 * t).sin(), -0.2 * (3.0 * t).cos(), 1.0 + t);
+                let meas = Measurement {
+                    time_s: t,
+                    position_ned: Vector3::zeros(),
+                    velocity_ned: Vector3::new((5.0 * t).sin(), t, -0.5),
+                    attitude: from_euler_zyx(&eta),
+                    rate_frd: Vector3::new(0.4 * (7.0 * t).cos(), 0.1, -0.3 * t),
+                };
+                let applied = ControlWrench::new(14.0 + (11.0 * t).sin(), Vector3::new(0.1, -0.05 * t, -0.2));
+                let a = dispatched.update_measured(&meas, &applied);
+                baseline.slots[1 - baseline.prev].kin = Kinematics::from_measurement(&meas);
+                let b = baseline.step(t, applied.thrust_n, &applied.torque_frd);
+                assert_eq!(bits(&a), bits(&b), "update_measured, r = {order}, sample {k}");
+                let x = input_from(&meas, &applied);
+                let a = dispatched_x.update(&x);
+                baseline_x.slots[1 - baseline_x.prev].kin = Kinematics::from_input(&x);
+                let b = baseline_x.step(t, x.thrust_n, &x.torque_frd);
+                assert_eq!(bits(&a), bits(&b), "update, r = {order}, sample {k}");
             }
         }
     }

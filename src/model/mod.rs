@@ -224,7 +224,6 @@ pub struct Plant {
     last_external: ExternalWrench,
 }
 
-/// Time derivative of the rigid-body part.
 /// `1 / sqrt(n)`, by its series `1 - e/2 + 3 e^2/8` (`e = n - 1`, remainder
 /// below `0.32 |e|^3 < 1e-16`) when `|e| < 1e-6`, as for the squared norm
 /// of a quaternion after one RK4 step: no square root and no division on
@@ -283,6 +282,7 @@ impl BodyInertia {
     }
 }
 
+/// Time derivative of the rigid-body part.
 struct Deriv {
     p: Vector3<f64>,
     v: Vector3<f64>,
@@ -519,31 +519,21 @@ impl Plant {
     }
 
     /// Rotor wrench `B (r (x) w)` with the yaw row on unscaled `w`.
-    /// Only the `n` used columns of the padded `B` are visited, in the order
-    /// of nalgebra's product (the padding contributes exact zeros).
-    fn rotor_wrench(&self, speed_sq: &RotorVector, ratio: Option<&RotorVector>) -> ControlWrench {
+    /// Only the `n` used columns of the padded `B` are visited.
+    fn rotor_wrench(&self, speed_sq: &RotorVector, ratio: &RotorVector) -> ControlWrench {
         let n = self.n;
-        let cols = &self.b_cols[..n];
-        let sq = &speed_sq.as_slice()[..n];
         let mut acc = [0.0; 4];
-        match ratio {
-            None => {
-                for (col, &x) in cols.iter().zip(sq) {
-                    for (a, b) in acc.iter_mut().zip(col) {
-                        *a += b * x;
-                    }
-                }
-            }
-            Some(r) => {
-                for ((col, &x), &rj) in cols.iter().zip(sq).zip(&r.as_slice()[..n]) {
-                    let xs = x * rj;
-                    acc[0] += col[0] * xs;
-                    acc[1] += col[1] * xs;
-                    acc[2] += col[2] * xs;
-                    // yaw row on the unscaled speeds
-                    acc[3] += col[3] * x;
-                }
-            }
+        for ((col, &x), &rj) in self.b_cols[..n]
+            .iter()
+            .zip(&speed_sq.as_slice()[..n])
+            .zip(&ratio.as_slice()[..n])
+        {
+            let xs = x * rj;
+            acc[0] += col[0] * xs;
+            acc[1] += col[1] * xs;
+            acc[2] += col[2] * xs;
+            // yaw row on the unscaled speeds
+            acc[3] += col[3] * x;
         }
         ControlWrench::new(acc[0], Vector3::new(acc[1], acc[2], acc[3]))
     }
@@ -590,7 +580,6 @@ impl Plant {
     fn deriv(&self, s: &RigidBodyState, w: &ControlWrench, ext: &ExternalWrench, gyro_h: f64) -> Deriv {
         // thrust along -z_b in NED: -u_T R e3, with R e3 the third column of
         // R(q) = [2(xz + wy), 2(yz - wx), w^2 - x^2 - y^2 + z^2] / |q|^2 (RK4
-        // stages carry unnormalised quaternions)
         // stages carry unnormalised quaternions); one division per evaluation
         let q = s.attitude.quaternion();
         let (qw, qx, qy, qz) = (q.w, q.i, q.j, q.k);
@@ -689,7 +678,7 @@ impl Plant {
             }
             let direct = match ratio {
                 // ideal actuation near a surface: spread over the rotors, scale, recombine
-                Some(r) => self.rotor_wrench(&self.allocator.inverse(&direct), Some(&r)),
+                Some(r) => self.rotor_wrench(&self.allocator.inverse(&direct), &r),
                 None => direct,
             };
             (direct, direct, direct, [0.0; 3], self.rotor_speed)

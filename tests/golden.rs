@@ -1,0 +1,96 @@
+//! Golden flights: the `simulate --csv` log and the summary of every shipped
+//! scenario (`tools/scenarios/`) and of the extra ones in `tests/golden/`
+//! (sensor noise, disturbance schedules, an explicit start, a ceiling, the
+//! hexa) must not change by a single bit. The logs were recorded before the
+//! world and the flight stack were split apart; `tests/golden/csv.sha256`
+//! holds the SHA-256 of each log, `tests/golden/*.summary.json` each summary
+//! (its `wall_time_s` zeroed).
+//!
+//! A change that means to change a flight (a new log column, a different
+//! physics) records the new expectations with `ROTORPILOT_BLESS=1 cargo test
+//! --release --test golden` and says so in its commit.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use rotorpilot::scenario::{Scenario, run};
+use sha2::{Digest, Sha256};
+
+/// A `Write` that only hashes.
+struct HashWriter(Sha256);
+
+impl Write for HashWriter {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.update(buf);
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Fly `path` (relative to the repository); the log's SHA-256 (hex) and the summary as JSON.
+fn fly(path: &str) -> (String, serde_json::Value) {
+    let scenario = Scenario::from_file(&root().join(path)).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let mut hash = HashWriter(Sha256::new());
+    let summary = run(&scenario, Some(&mut hash)).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let hex: String = hash.0.finalize().iter().map(|b| format!("{b:02x}")).collect();
+    let mut json = serde_json::to_value(&summary).unwrap();
+    json["wall_time_s"] = serde_json::json!(0.0);
+    // the file name only: the summary must not depend on where the checkout is
+    json["scenario"] = serde_json::json!(Path::new(path).file_name().unwrap().to_string_lossy());
+    (hex, json)
+}
+
+fn summary_path(path: &str) -> PathBuf {
+    let stem = Path::new(path).file_stem().unwrap().to_string_lossy().to_string();
+    root().join("tests/golden").join(format!("{stem}.summary.json"))
+}
+
+#[test]
+fn every_golden_flight_is_bit_identical() {
+    let digests = root().join("tests/golden/csv.sha256");
+    let text = std::fs::read_to_string(&digests).unwrap();
+    let entries: Vec<(String, String)> = text
+        .lines()
+        .filter(|l| !l.trim().is_empty() && !l.starts_with('#'))
+        .map(|l| {
+            let (hash, path) = l.split_once("  ").expect("`HASH  PATH` lines");
+            (hash.to_string(), path.to_string())
+        })
+        .collect();
+    assert!(entries.len() >= 9, "every shipped scenario and the extra golden ones");
+    for scenario in std::fs::read_dir(root().join("tools/scenarios")).unwrap() {
+        let name = format!("tools/scenarios/{}", scenario.unwrap().file_name().to_string_lossy());
+        assert!(entries.iter().any(|(_, p)| *p == name), "{name} has no golden log");
+    }
+    let bless = std::env::var_os("ROTORPILOT_BLESS").is_some();
+    let mut blessed = String::from("# SHA-256 of `rotorpilot simulate PATH --csv` (tests/golden.rs)\n");
+    let mut failures = Vec::new();
+    for (want, path) in &entries {
+        let (got, summary) = fly(path);
+        let json_path = summary_path(path);
+        if bless {
+            blessed.push_str(&format!("{got}  {path}\n"));
+            std::fs::write(&json_path, serde_json::to_string_pretty(&summary).unwrap() + "\n").unwrap();
+            continue;
+        }
+        if got != *want {
+            failures.push(format!("{path}: log SHA-256 {got}, expected {want}"));
+        }
+        // compared as text: every number printed in its shortest exact form
+        let expected = std::fs::read_to_string(&json_path).unwrap();
+        let got = serde_json::to_string_pretty(&summary).unwrap() + "\n";
+        if got != expected {
+            failures.push(format!("{path}: summary differs:\n{got}expected\n{expected}"));
+        }
+    }
+    if bless {
+        std::fs::write(&digests, blessed).unwrap();
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}

@@ -4,8 +4,10 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::Vector3;
-use rotorpilot::airframe::{Airframe, ControlWrench, GRAVITY};
-use rotorpilot::model::{ActuatorCommand, ExternalWrench, Plant, PlantConfig, RigidBodyState};
+use rotorpilot::airframe::Airframe;
+use rotorpilot::signals::ActuatorCommand;
+use rotorpilot::signals::{ControlWrench, GRAVITY};
+use rotorpilot::sim::{ExternalWrench, Plant, PlantConfig, RigidBodyState};
 use std::hint::black_box;
 
 fn plant_step(c: &mut Criterion) {

@@ -8,51 +8,49 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::Vector3;
-use rotorpilot::airframe::{Airframe, ControlWrench, GRAVITY};
-use rotorpilot::control::{ControlGains, ControllerKind, feedforward_attitude};
+use rotorpilot::airframe::Airframe;
+use rotorpilot::control::ControllerKind;
 use rotorpilot::estimation::{EstimatorConfig, MomentumEstimator, Polynomial};
-use rotorpilot::model::{ExternalWrench, PlantConfig, RigidBodyState};
-use rotorpilot::scenario::Trajectory;
-use rotorpilot::vehicle::Vehicle;
+use rotorpilot::scenario::{Scenario, lockstep};
+use rotorpilot::signals::ControlWrench;
+use rotorpilot::sim::{DisturbanceSource, ExternalWrench};
 use std::hint::black_box;
 
+/// The figure-eight at 2 m (inside the quad's ground effect), estimate fed
+/// back, through the lockstep core as `rotorpilot simulate` flies it.
+fn figure_eight(airframe: &str, kind: ControllerKind) -> Scenario {
+    let text = format!(
+        "airframe = \"{airframe}\"\ncontroller = \"{}\"\nduration_s = 60.0\n\
+         [reference]\nkind = \"figure_eight\"\nhalf_width_m = 2.0\nrate_rad_s = 0.5\naltitude_m = 2.0\n\
+         [estimator]\nfeedback = true\n",
+        kind.name()
+    );
+    Scenario::from_toml(&text, "bench", None).unwrap()
+}
+
 fn full_step(c: &mut Criterion) {
-    let eight = Trajectory::FigureEight {
-        half_width_m: 2.0,
-        rate_rad_s: 0.5,
-        altitude_m: 2.0,
-    };
     let wind = ExternalWrench {
         force_ned: Vector3::new(0.5, 0.5, 0.0),
         torque_frd: Vector3::new(0.0, 0.0, 0.05),
     };
     for name in ["quad", "octo", "fsr-quad"] {
-        let a = Airframe::load(name).unwrap();
         for kind in ControllerKind::ALL {
-            let mut gains = ControlGains::for_airframe(&a);
-            gains.apply(&a.control);
-            let mut v = Vehicle::new(&a, PlantConfig::default(), kind, gains, EstimatorConfig::default()).unwrap();
-            v.set_feedback(true);
-            let r0 = eight.at(0.0);
-            let start = RigidBodyState {
-                position_ned: r0.position_ned,
-                velocity_ned: r0.velocity_ned,
-                attitude: feedforward_attitude(&r0.acceleration_ned, r0.yaw_rad),
-                rate_frd: Vector3::zeros(),
+            let scenario = figure_eight(name, kind);
+            let start = || {
+                let mut core = lockstep(&scenario).unwrap();
+                core.world_mut().set_disturbance(0, DisturbanceSource::Constant(wind));
+                core
             };
-            let hover = ControlWrench::new(a.mass_kg * GRAVITY, Vector3::zeros());
-            v.start_in_flight(start, hover);
+            let mut core = start();
             let mut k = 0u64;
             c.bench_function(&format!("full step {name} {}", kind.name()), |b| {
                 b.iter(|| {
                     k += 1;
                     if k.is_multiple_of(60_000) {
-                        v.start_in_flight(start, hover); // one minute of flight, then again
+                        core = start(); // one minute of flight, then again
                     }
-                    let t = v.plant().time_s();
-                    let r = eight.at(t);
                     // by reference: the record is built, not copied again
-                    black_box(&v.step(black_box(&r), &wind));
+                    black_box(&core.step()[0]);
                 });
             });
         }

@@ -16,9 +16,9 @@
 use nalgebra::Vector3;
 use serde::Serialize;
 
-use crate::airframe::GRAVITY;
 use crate::estimation::{Discretization, EstimatorConfig, EstimatorInput, MomentumEstimator, Polynomial, step_metrics};
 use crate::math::rate_map;
+use crate::signals::GRAVITY;
 use crate::signals::{NominalModel, WrenchEstimate};
 
 /// Why a log could not be read.

@@ -1,9 +1,67 @@
-//! Values that flow between the blocks of the loop (plant -> sensors ->
-//! estimator -> controller -> allocation): what flight software may know about
-//! the vehicle. Controllers and estimators import these, never `model`.
+//! Values that cross the boundary between the simulated world and the flight
+//! stack, and the blocks of the loop (sensors -> estimator -> controller ->
+//! allocation -> actuators): what flight software may know about the vehicle
+//! and what it sends back. The flight stack imports these, never [`crate::sim`].
+//! Also the constants everyone shares: gravity and the simulation step.
 
-use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, SVector, UnitQuaternion, Vector3, Vector4};
 use serde::Serialize;
+
+/// Standard gravity [m/s^2] used everywhere (doc section 1: use 9.81 in tests).
+pub const GRAVITY: f64 = 9.81;
+
+/// The simulation step [s] unless a scenario says otherwise: 1 kHz, as PX4's
+/// lockstep SITL.
+pub const DEFAULT_STEP_S: f64 = 1e-3;
+
+/// Largest rotor count supported (fixed-size vectors keep the hot path free of allocation).
+pub const MAX_ROTORS: usize = 12;
+
+/// Per-rotor values, rotor 1 first, zero beyond the vehicle's rotor count.
+pub type RotorVector = SVector<f64, MAX_ROTORS>;
+
+/// The four virtual inputs of a flat multirotor.
+#[derive(Clone, Copy, Debug, PartialEq, Default, Serialize)]
+pub struct ControlWrench {
+    /// Total thrust `u_T` [N] along `-z_b`.
+    pub thrust_n: f64,
+    /// Body torque `tau^b` [N m], FRD.
+    pub torque_frd: Vector3<f64>,
+}
+
+impl ControlWrench {
+    /// A wrench from thrust [N] and body FRD torque [N m].
+    #[must_use]
+    pub fn new(thrust_n: f64, torque_frd: Vector3<f64>) -> Self {
+        Self { thrust_n, torque_frd }
+    }
+
+    /// `[u_T, tau_x, tau_y, tau_z]`.
+    #[must_use]
+    pub fn to_vector(&self) -> Vector4<f64> {
+        Vector4::new(self.thrust_n, self.torque_frd.x, self.torque_frd.y, self.torque_frd.z)
+    }
+
+    /// From `[u_T, tau_x, tau_y, tau_z]`.
+    #[must_use]
+    pub fn from_vector(v: &Vector4<f64>) -> Self {
+        Self::new(v[0], Vector3::new(v[1], v[2], v[3]))
+    }
+}
+
+/// What the flight stack sends to the actuators for one step (held over it).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ActuatorCommand {
+    /// Rotors stopped (disarmed): every speed decays towards 0.
+    Stop,
+    /// Rotor speed commands [rad/s], clamped to the rotor limits. On an
+    /// ideal-actuation airframe the wrench `B omega^2` acts directly.
+    RotorSpeeds(RotorVector),
+    /// Total thrust and body torque. On an ideal-actuation airframe it acts
+    /// directly; on a rotor airframe it is allocated (with desaturation) to
+    /// rotor speed commands first.
+    Wrench(ControlWrench),
+}
 
 /// A measurement of the vehicle state at one instant.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -41,4 +99,49 @@ pub struct WrenchEstimate {
     pub torque_frd: Vector3<f64>,
     /// Real mass `m + f_e,z / g` [kg].
     pub mass_kg: f64,
+}
+
+/// What a GNSS receiver reports about its fix.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum GpsFix {
+    /// No fix (receiver off or no signal).
+    None,
+    /// A 3D fix.
+    Fix3d,
+}
+
+/// One reading of the GNSS receiver's status.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct GpsReading {
+    /// Fix type.
+    pub fix: GpsFix,
+    /// Satellites used.
+    pub satellites: u8,
+}
+
+/// One reading of the battery monitor (power module).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct BatteryReading {
+    /// Terminal voltage [V].
+    pub voltage_v: f64,
+    /// Current drawn [A].
+    pub current_a: f64,
+}
+
+/// Everything the flight stack's sensors report at one instant `t_k`: all a
+/// real autopilot knows of its vehicle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SensorReadings {
+    /// The navigation solution: position, velocity, attitude and body rates
+    /// (with the sensors' noise), stamped with the simulated time.
+    pub measurement: Measurement,
+    /// Accelerometer: specific force `R^T (a - g e3)` [m/s^2], body FRD
+    /// (`-g e3` at rest).
+    pub specific_force_frd: Vector3<f64>,
+    /// Rotor speeds as the ESCs report them [rad/s] (zero beyond the rotor count).
+    pub rotor_speeds_rad_s: RotorVector,
+    /// Battery monitor.
+    pub battery: BatteryReading,
+    /// GNSS receiver status.
+    pub gps: GpsReading,
 }

@@ -3,9 +3,8 @@
 
 use nalgebra::{DMatrix, Vector3};
 use proptest::prelude::*;
-use rotorpilot::airframe::{
-    Airframe, AirframeError, ControlWrench, GRAVITY, HoverVerdict, analyse_failures, hover_margins,
-};
+use rotorpilot::airframe::{Airframe, AirframeError, HoverVerdict, analyse_failures, hover_margins};
+use rotorpilot::signals::{ControlWrench, GRAVITY};
 
 const S2: f64 = std::f64::consts::FRAC_1_SQRT_2;
 

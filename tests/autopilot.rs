@@ -1,33 +1,82 @@
 //! Lockstep tests of the autopilot as a MAVLink client sees it: arming,
 //! takeoff, landing, auto-disarm, RTL, reposition, offboard (position,
 //! velocity, attitude, rates, loss), the injected wrench and its estimate,
-//! live parameter changes, refusals and determinism. Simulated time only;
-//! long flights are quick with `cargo test --release --test autopilot`.
+//! live parameter changes, refusals and determinism. One vehicle in the
+//! lockstep core (world and flight stack), simulated time only; long flights
+//! are quick with `cargo test --release --test autopilot`.
 
 use nalgebra::{UnitQuaternion, Vector3};
 use rotorpilot::airframe::Airframe;
 use rotorpilot::autopilot::{
-    Autopilot, AutopilotCommand, CommandOutcome, FlightMode, LandedState, OffboardSetpoint, Severity, StatusText,
-    Telemetry,
+    Autopilot, AutopilotCommand, AutopilotError, CommandOutcome, FlightMode, LandedState, OffboardSetpoint, Severity,
+    StatusText, Telemetry,
 };
 use rotorpilot::control::ControllerKind;
 use rotorpilot::geo::GeoPoint;
+use rotorpilot::lockstep::Lockstep;
 use rotorpilot::math::euler_zyx;
 use rotorpilot::params::{ParamStore, ParamValue};
+use rotorpilot::sim::{SensorConfig, SensorNoise, SimFault, Truth};
 
 const HOME: GeoPoint = GeoPoint::PX4_SITL_HOME;
 
-fn setup(airframe: &str, params: &[(&str, ParamValue)]) -> (Autopilot, ParamStore) {
+/// One vehicle in the lockstep core, as the daemon flies it.
+struct Ap(Lockstep<Autopilot>);
+
+impl Ap {
+    fn step(&mut self) {
+        self.0.step();
+    }
+    fn command(&mut self, cmd: AutopilotCommand) -> CommandOutcome {
+        self.0.command(0, cmd)
+    }
+    fn telemetry(&mut self) -> Telemetry {
+        self.0.telemetry(0)
+    }
+    fn truth(&self) -> Truth {
+        self.0.world().truth(0)
+    }
+    fn apply_params(&mut self, store: &ParamStore) -> Result<(), AutopilotError> {
+        self.0.apply_params(0, store)
+    }
+    fn drain_status_texts(&mut self) -> Vec<StatusText> {
+        self.0.drain_status_texts(0)
+    }
+    fn armed(&self) -> bool {
+        self.0.pilot(0).armed()
+    }
+    fn mode(&self) -> FlightMode {
+        self.0.pilot(0).mode()
+    }
+    fn controller_kind(&self) -> ControllerKind {
+        self.0.pilot(0).controller_kind()
+    }
+    fn dt_s(&self) -> f64 {
+        self.0.dt_s()
+    }
+    fn time_s(&self) -> f64 {
+        self.0.time_s()
+    }
+    fn last_fault(&self) -> Option<SimFault> {
+        self.0.last_fault(0)
+    }
+}
+
+fn setup_with(airframe: &str, params: &[(&str, ParamValue)], sensors: SensorConfig) -> (Ap, ParamStore) {
     let af = Airframe::load(airframe).unwrap();
     let mut store = ParamStore::new(&af);
     for (name, value) in params {
         store.set(name, *value).unwrap();
     }
-    let ap = Autopilot::new(&af, HOME, &store).unwrap();
-    (ap, store)
+    let ap = Lockstep::px4(&af, HOME, &store, sensors).unwrap();
+    (Ap(ap), store)
 }
 
-fn set(ap: &mut Autopilot, store: &mut ParamStore, name: &str, value: ParamValue) {
+fn setup(airframe: &str, params: &[(&str, ParamValue)]) -> (Ap, ParamStore) {
+    setup_with(airframe, params, SensorConfig::default())
+}
+
+fn set(ap: &mut Ap, store: &mut ParamStore, name: &str, value: ParamValue) {
     store.set(name, value).unwrap();
     ap.apply_params(store).unwrap();
 }
@@ -40,19 +89,19 @@ fn int(i: i32) -> ParamValue {
     ParamValue::Int32(i)
 }
 
-fn steps(ap: &Autopilot, seconds: f64) -> usize {
+fn steps(ap: &Ap, seconds: f64) -> usize {
     (seconds / ap.dt_s()).round() as usize
 }
 
 /// Run `seconds` of simulated time.
-fn run(ap: &mut Autopilot, seconds: f64) {
+fn run(ap: &mut Ap, seconds: f64) {
     for _ in 0..steps(ap, seconds) {
         ap.step();
     }
 }
 
 /// Run until `done` holds (checked every step) or `max_s` passes; the time it held.
-fn run_until(ap: &mut Autopilot, max_s: f64, mut done: impl FnMut(&Telemetry) -> bool) -> Option<f64> {
+fn run_until(ap: &mut Ap, max_s: f64, mut done: impl FnMut(&Telemetry) -> bool) -> Option<f64> {
     for _ in 0..steps(ap, max_s) {
         ap.step();
         let t = ap.telemetry();
@@ -63,7 +112,7 @@ fn run_until(ap: &mut Autopilot, max_s: f64, mut done: impl FnMut(&Telemetry) ->
     None
 }
 
-fn texts(ap: &mut Autopilot) -> Vec<String> {
+fn texts(ap: &mut Ap) -> Vec<String> {
     ap.drain_status_texts()
         .into_iter()
         .map(|s: StatusText| s.text)
@@ -80,7 +129,7 @@ fn height(t: &Telemetry) -> f64 {
 }
 
 /// Arm after one step and take off to MIS_TAKEOFF_ALT; returns once in Hold.
-fn take_off(ap: &mut Autopilot) {
+fn take_off(ap: &mut Ap) {
     ap.step();
     assert_eq!(
         ap.command(AutopilotCommand::Arm { force: false }),
@@ -94,13 +143,13 @@ fn take_off(ap: &mut Autopilot) {
 }
 
 /// Take off and let the hover settle.
-fn hover(ap: &mut Autopilot) -> Vector3<f64> {
+fn hover(ap: &mut Ap) -> Vector3<f64> {
     take_off(ap);
     run(ap, 5.0);
     ap.telemetry().position_ned
 }
 
-fn hover_at(ap: &mut Autopilot) -> Vector3<f64> {
+fn hover_at(ap: &mut Ap) -> Vector3<f64> {
     ap.telemetry().position_ned
 }
 
@@ -385,7 +434,7 @@ fn velocity_sp(v: Vector3<f64>) -> AutopilotCommand {
 }
 
 /// Run `seconds`, sending `cmd` every 50 ms (MAVSDK's 20 Hz stream); the time of the last one.
-fn stream(ap: &mut Autopilot, seconds: f64, cmd: AutopilotCommand) -> f64 {
+fn stream(ap: &mut Ap, seconds: f64, cmd: AutopilotCommand) -> f64 {
     let every = steps(ap, 0.05);
     let mut last = ap.time_s();
     for k in 0..steps(ap, seconds) {
@@ -522,9 +571,10 @@ fn injected_wrench_and_mass_are_estimated_fsr_quad_report_values() {
     }
     run(&mut ap, 10.0);
     let t = ap.telemetry();
-    assert_eq!(t.injected_force_ned, Vector3::new(0.5, 0.5, 0.0));
-    assert!((t.injected_torque_frd.z - 0.2).abs() < 1e-6);
-    assert_eq!(t.true_mass_kg, 1.25);
+    let truth = ap.truth();
+    assert_eq!(truth.force_ned, Vector3::new(0.5, 0.5, 0.0));
+    assert!((truth.torque_frd.z - 0.2).abs() < 1e-6);
+    assert_eq!(truth.true_mass_kg, 1.25);
     let e = t.estimate;
     assert!(
         (e.force_ned.x - 0.5).abs() < 0.015 && (e.force_ned.y - 0.5).abs() < 0.015,
@@ -902,5 +952,76 @@ fn every_parameter_at_its_bounds_is_applied_in_flight_without_faults() {
             ap = fresh;
             hover(&mut ap);
         }
+    }
+}
+
+/// GIVEN white sensor noise on every measurement at 1 kHz (position 1 cm,
+/// velocity 2 cm/s, attitude 0.1 deg, rates 0.3 deg/s) WHEN the quad rests,
+/// takes off, hovers and lands through the lockstep core THEN the land
+/// detector, which sees only those measurements and the thrust it commanded,
+/// reports one takeoff and one landing, at the right moments, and the vehicle
+/// disarms on the ground. (The hierarchical law flies: the geometric law
+/// differentiates its desired attitude step by step, which such noise upsets.)
+#[test]
+fn landing_detection_works_on_noisy_measurements() {
+    let noise = SensorNoise {
+        position_m: 0.01,
+        velocity_m_s: 0.02,
+        attitude_rad: 0.002,
+        rate_rad_s: 0.005,
+    };
+    let (mut ap, _) = setup_with("quad", &[("CTRL_TYPE", int(0))], SensorConfig { noise, seed: 11 });
+    // resting, noisy: still on the ground, and armable
+    let on_ground = run_until(&mut ap, 5.0, |t| t.landed != LandedState::OnGround);
+    assert_eq!(on_ground, None, "noise alone never lifts it off");
+    assert!(ap.telemetry().prearm_ok);
+    take_off(&mut ap);
+    let mut lowest: f64 = f64::INFINITY;
+    let spurious = run_until(&mut ap, 5.0, |t| {
+        lowest = lowest.min(height(t));
+        t.landed != LandedState::InAir
+    });
+    assert_eq!(spurious, None, "hovering is never taken for a landing");
+    assert!(lowest > 2.0, "{lowest}");
+    assert_eq!(ap.command(AutopilotCommand::Land), CommandOutcome::Accepted);
+    let touchdown = run_until(&mut ap, 30.0, |t| t.landed == LandedState::OnGround).expect("lands");
+    let t = ap.telemetry();
+    assert!(
+        ap.0.world().plant(0).contact() == rotorpilot::sim::Contact::OnGround,
+        "landed means on the ground"
+    );
+    assert!(t.position_ned.xy().norm() < 0.1);
+    let disarmed = run_until(&mut ap, 10.0, |t| !t.armed).expect("auto-disarm");
+    assert!((disarmed - touchdown - 2.0).abs() < 0.01, "{}", disarmed - touchdown);
+    let s = texts(&mut ap);
+    let count = |part: &str| s.iter().filter(|x| x.contains(part)).count();
+    assert_eq!((count("Takeoff detected"), count("Landing detected")), (1, 1), "{s:?}");
+    // it stays landed on noisy measurements, disarmed
+    assert_eq!(run_until(&mut ap, 5.0, |t| t.landed != LandedState::OnGround), None);
+}
+
+/// The land detector needs no contact flag: it lands as soon after touchdown
+/// as the low thrust has lasted 0.25 s, whatever the airframe.
+#[test]
+fn touchdown_to_landed_takes_about_the_detection_time() {
+    for name in ["quad", "hexa", "octo", "fsr-quad"] {
+        let (mut ap, _) = setup(name, &[]);
+        take_off(&mut ap);
+        ap.command(AutopilotCommand::Land);
+        let mut touched = None;
+        let mut landed = None;
+        for _ in 0..30_000 {
+            ap.step();
+            let now = ap.time_s();
+            if touched.is_none() && ap.0.world().plant(0).contact() == rotorpilot::sim::Contact::OnGround {
+                touched = Some(now);
+            }
+            if ap.telemetry().landed == LandedState::OnGround {
+                landed = Some(now);
+                break;
+            }
+        }
+        let delay = landed.expect("lands") - touched.expect("touches down");
+        assert!((0.25..0.3).contains(&delay), "{name}: {delay} s");
     }
 }

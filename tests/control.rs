@@ -4,13 +4,15 @@
 
 use nalgebra::{UnitQuaternion, Vector3};
 use proptest::prelude::*;
-use rotorpilot::airframe::{Actuation, Airframe, ControlWrench, GRAVITY, RotorVector};
+use rotorpilot::airframe::{Actuation, Airframe};
 use rotorpilot::control::{
     ControlGains, Controller, ControllerKind, Reference, Setpoint, Shaper, ShaperLimits, feedforward_attitude,
 };
 use rotorpilot::math::{euler_zyx, rate_map};
-use rotorpilot::model::{ActuatorCommand, ExternalWrench, Plant, PlantConfig, RigidBodyState, World};
+use rotorpilot::signals::ActuatorCommand;
+use rotorpilot::signals::{ControlWrench, GRAVITY, RotorVector};
 use rotorpilot::signals::{Measurement, NominalModel, WrenchEstimate};
+use rotorpilot::sim::{Environment, ExternalWrench, Plant, PlantConfig, RigidBodyState};
 
 const H: f64 = 1e-3;
 
@@ -18,10 +20,10 @@ const H: f64 = 1e-3;
 fn plant_at(airframe: &Airframe, state: RigidBodyState, free_air: bool) -> Plant {
     let mut config = PlantConfig::default();
     if free_air {
-        config.world = World {
+        config.environment = Environment {
             ground_effect: false,
             ceiling_effect: false,
-            ..World::default()
+            ..Environment::default()
         };
     }
     let mut plant = Plant::new(airframe, config);
@@ -496,7 +498,7 @@ fn hierarchical_guards_a_reference_toward_90_degrees_pitch() {
     let af = Airframe::load("quad").unwrap();
     let model = af.nominal();
     let mut plant = plant_at(&af, RigidBodyState::at_rest(Vector3::new(0.0, 0.0, -50.0)), false);
-    let gains = ControlGains::for_airframe(&af);
+    let gains = ControlGains::for_airframe(&af, af.mass_kg).unwrap();
     let mut ctl = Controller::new(ControllerKind::Hierarchical, gains).unwrap();
     let reference = |t: f64| Reference {
         acceleration_ned: if t < 2.0 {
@@ -677,7 +679,11 @@ fn attitude_setpoint_mode_converges() {
     let af = Airframe::load("quad").unwrap();
     let model = af.nominal();
     let mut plant = plant_at(&af, RigidBodyState::at_rest(Vector3::new(0.0, 0.0, -20.0)), false);
-    let mut ctl = Controller::new(ControllerKind::Hierarchical, ControlGains::for_airframe(&af)).unwrap();
+    let mut ctl = Controller::new(
+        ControllerKind::Hierarchical,
+        ControlGains::for_airframe(&af, af.mass_kg).unwrap(),
+    )
+    .unwrap();
     let sp = rotorpilot::math::from_euler_zyx(&Vector3::new(20f64.to_radians(), 0.0, 30f64.to_radians()));
     let thrust = model.mass_kg * GRAVITY / 20f64.to_radians().cos();
     for _ in 0..3000 {

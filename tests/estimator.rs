@@ -3,7 +3,7 @@
 //! the fsr-quad plant with a known external wrench and a wrong nominal mass.
 
 use nalgebra::{Complex, DMatrix, DVector, Matrix3, UnitQuaternion, Vector3};
-use rotorpilot::airframe::{Airframe, ControlWrench, GRAVITY};
+use rotorpilot::airframe::Airframe;
 use rotorpilot::estimation::gains::{
     binomial_gains, butterworth_gains, chain_gains, coefficients_from_gains, gains_for, polynomial_coefficients,
 };
@@ -13,8 +13,10 @@ use rotorpilot::estimation::{
     input_from, step_response,
 };
 use rotorpilot::math::{euler_zyx, rate_map};
-use rotorpilot::model::{ActuatorCommand, ExternalWrench, Plant, PlantConfig, RigidBodyState};
+use rotorpilot::signals::ActuatorCommand;
+use rotorpilot::signals::{ControlWrench, GRAVITY};
 use rotorpilot::signals::{NominalModel, WrenchEstimate};
+use rotorpilot::sim::{ExternalWrench, Plant, PlantConfig, RigidBodyState};
 
 const H: f64 = 1e-3;
 
@@ -253,8 +255,8 @@ fn estimator_force_step_is_the_chain_step_response() {
 fn fsr_plant(true_mass: f64) -> (Plant, NominalModel) {
     let af = Airframe::load("fsr-quad").unwrap();
     let mut cfg = PlantConfig::default();
-    cfg.world.ground_effect = false;
-    cfg.world.ceiling_effect = false;
+    cfg.environment.ground_effect = false;
+    cfg.environment.ceiling_effect = false;
     let mut plant = Plant::new(&af, cfg);
     plant.set_true_mass(true_mass);
     let nominal = NominalModel {

@@ -3,19 +3,20 @@
 //! and determinism.
 
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
-use rotorpilot::airframe::{Airframe, ControlWrench, GRAVITY, RotorVector};
-use rotorpilot::model::aero::{AeroEffects, ceiling_ratio, cheeseman_bennett, multirotor_ground_effect};
-use rotorpilot::model::{
-    ActuatorCommand, Contact, ExternalWrench, Plant, PlantConfig, RigidBodyState, SensorNoise, SimFault, StepEvent,
-    World,
+use rotorpilot::airframe::Airframe;
+use rotorpilot::signals::{ActuatorCommand, Measurement};
+use rotorpilot::signals::{ControlWrench, GRAVITY, RotorVector};
+use rotorpilot::sim::aero::{AeroEffects, ceiling_ratio, cheeseman_bennett, multirotor_ground_effect};
+use rotorpilot::sim::{
+    Contact, Environment, ExternalWrench, Plant, PlantConfig, RigidBodyState, SensorNoise, Sensors, SimFault, StepEvent,
 };
 
 fn no_surfaces() -> PlantConfig {
     PlantConfig {
-        world: World {
+        environment: Environment {
             ground_effect: false,
             ceiling_effect: false,
-            ..World::default()
+            ..Environment::default()
         },
         ..PlantConfig::default()
     }
@@ -290,9 +291,9 @@ fn ceiling_effect_pulls_the_vehicle_up_as_the_gap_closes() {
     let mut previous_up = 0.0;
     for gap in [1.0, 0.5, 0.3, 0.15, 0.05] {
         let config = PlantConfig {
-            world: World {
+            environment: Environment {
                 ceiling_z_ned: Some(-10.0),
-                ..World::default()
+                ..Environment::default()
             },
             ..PlantConfig::default()
         };
@@ -310,19 +311,16 @@ fn ceiling_effect_pulls_the_vehicle_up_as_the_gap_closes() {
     assert!(ceiling_ratio(rho, 2.5, k2, 2.0 * rho) < ceiling_ratio(rho, 2.5, k2, rho));
 }
 
-fn noisy_run(seed: u64) -> (Vec<RigidBodyState>, Vec<rotorpilot::model::Measurement>) {
+fn noisy_run(seed: u64) -> (Vec<RigidBodyState>, Vec<Measurement>) {
     let a = Airframe::load("octo").unwrap();
-    let config = PlantConfig {
-        noise: SensorNoise {
-            position_m: 0.01,
-            velocity_m_s: 0.02,
-            attitude_rad: 0.002,
-            rate_rad_s: 0.01,
-        },
-        seed,
-        ..PlantConfig::default()
+    let noise = SensorNoise {
+        position_m: 0.01,
+        velocity_m_s: 0.02,
+        attitude_rad: 0.002,
+        rate_rad_s: 0.01,
     };
-    let mut p = Plant::new(&a, config);
+    let mut sensors = Sensors::new(noise, seed);
+    let mut p = Plant::new(&a, PlantConfig::default());
     let gust = |t: f64| ExternalWrench {
         force_ned: Vector3::new(0.5 * (3.0 * t).sin(), 0.5, -0.2 * t),
         torque_frd: Vector3::new(0.0, 0.01 * t.cos(), 0.2),
@@ -339,7 +337,7 @@ fn noisy_run(seed: u64) -> (Vec<RigidBodyState>, Vec<rotorpilot::model::Measurem
         });
         p.step(&ActuatorCommand::RotorSpeeds(w), &gust).unwrap();
         states.push(*p.state());
-        meas.push(p.measure());
+        meas.push(sensors.measure(&p.truth()));
     }
     (states, meas)
 }

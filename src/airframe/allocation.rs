@@ -13,45 +13,10 @@
 //! 3. then the largest `lambda` in `[0, 1]` that keeps `+ lambda w_y` in bounds;
 //! 4. clamp; what was not delivered is reported.
 
-use nalgebra::{DMatrix, SMatrix, SVector, Vector3, Vector4};
-use serde::Serialize;
+use nalgebra::{DMatrix, SMatrix, Vector3};
 
 use super::RotorGeometry;
-
-/// Largest rotor count supported (fixed-size vectors keep the hot path free of allocation).
-pub const MAX_ROTORS: usize = 12;
-
-/// Per-rotor values, rotor 1 first, zero beyond the vehicle's rotor count.
-pub type RotorVector = SVector<f64, MAX_ROTORS>;
-
-/// The four virtual inputs of a flat multirotor.
-#[derive(Clone, Copy, Debug, PartialEq, Default, Serialize)]
-pub struct ControlWrench {
-    /// Total thrust `u_T` [N] along `-z_b`.
-    pub thrust_n: f64,
-    /// Body torque `tau^b` [N m], FRD.
-    pub torque_frd: Vector3<f64>,
-}
-
-impl ControlWrench {
-    /// A wrench from thrust [N] and body FRD torque [N m].
-    #[must_use]
-    pub fn new(thrust_n: f64, torque_frd: Vector3<f64>) -> Self {
-        Self { thrust_n, torque_frd }
-    }
-
-    /// `[u_T, tau_x, tau_y, tau_z]`.
-    #[must_use]
-    pub fn to_vector(&self) -> Vector4<f64> {
-        Vector4::new(self.thrust_n, self.torque_frd.x, self.torque_frd.y, self.torque_frd.z)
-    }
-
-    /// From `[u_T, tau_x, tau_y, tau_z]`.
-    #[must_use]
-    pub fn from_vector(v: &Vector4<f64>) -> Self {
-        Self::new(v[0], Vector3::new(v[1], v[2], v[3]))
-    }
-}
+use crate::signals::{ControlWrench, MAX_ROTORS, RotorVector};
 
 /// The 4 x n effectiveness matrix `B` (doc section 3).
 ///

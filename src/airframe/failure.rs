@@ -11,7 +11,8 @@ use microlp::{ComparisonOp, OptimizationDirection, Problem};
 use nalgebra::DMatrix;
 use serde::Serialize;
 
-use super::{Airframe, GRAVITY, rank};
+use super::{Airframe, rank};
+use crate::signals::GRAVITY;
 
 /// Largest torque [N m] the rotors can add in each direction while holding hover thrust.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]

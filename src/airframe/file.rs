@@ -4,12 +4,10 @@
 //! name the file, the field (`body.mass_kg`, `rotors[3].angle_deg`, rotors
 //! counted from 1 as they are labelled) and the problem.
 
-use super::{
-    Actuation, Airframe, CeilingEffectParams, GRAVITY, GroundEffectParams, MAX_ROTORS, RotorGeometry, RotorParams, Spin,
-};
+use super::{Actuation, Airframe, CeilingEffectParams, GroundEffectParams, RotorGeometry, RotorParams, Spin};
+use crate::signals::{GRAVITY, MAX_ROTORS};
 use nalgebra::Matrix3;
 
-use crate::control::{ControlGains, GainOverrides};
 use crate::tomlfile::{self, FileError};
 use serde::Deserialize;
 
@@ -41,9 +39,9 @@ struct FileAirframe {
     rotors: Vec<FileRotorGeometry>,
     ground_effect: FileGroundEffect,
     ceiling_effect: FileCeilingEffect,
-    /// Optional controller gain overrides for this vehicle.
+    /// Optional controller gain overrides for this vehicle (checked by `control`).
     #[serde(default)]
-    control: GainOverrides,
+    control: toml::Table,
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -255,13 +253,6 @@ fn validate(raw: FileAirframe, file: &str) -> Result<Airframe, FileError> {
         ceiling_effect,
         control: raw.control,
     };
-    // The vehicle's gains must be valid after its overrides.
-    let mut gains = ControlGains::for_airframe(&airframe);
-    gains.apply(&airframe.control);
-    gains
-        .validate()
-        .map_err(|e| c.fail(format!("control.{}", e.field), format!("{} {}", e.value, e.problem)))?;
-
     let b = airframe.effectiveness();
     let rank = super::rank(&b);
     if rank < 4 {
@@ -271,7 +262,7 @@ fn validate(raw: FileAirframe, file: &str) -> Result<Airframe, FileError> {
         ));
     }
     if airframe.actuation == Actuation::Rotors {
-        let max_thrust = n as f64 * rotor.c_t * rotor.speed_max_rad_s.powi(2);
+        let max_thrust = airframe.max_thrust_n();
         if max_thrust <= mass_kg * GRAVITY {
             return Err(c.fail(
                 "body.mass_kg",

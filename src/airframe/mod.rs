@@ -16,16 +16,13 @@ mod failure;
 mod file;
 mod report;
 
-pub use allocation::{Allocation, Allocator, ControlWrench, MAX_ROTORS, RotorVector, effectiveness, rank, wrench_map};
+pub use allocation::{Allocation, Allocator, effectiveness, rank, wrench_map};
 pub use failure::{FailureAnalysis, HoverVerdict, TorqueMargins, analyse_failures, hover_margins, intact_verdict};
 pub use file::AirframeError;
 pub use report::AirframeReport;
 
 use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
-
-/// Standard gravity [m/s^2] used everywhere (doc section 1: use 9.81 in tests).
-pub const GRAVITY: f64 = 9.81;
 
 /// How commands reach the rigid body.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -145,9 +142,10 @@ pub struct Airframe {
     pub ground_effect: GroundEffectParams,
     /// Ceiling-effect constants.
     pub ceiling_effect: CeilingEffectParams,
-    /// Controller gain overrides from the file's `[control]` table (applied over
-    /// `ControlGains::for_vehicle`).
-    pub control: crate::control::GainOverrides,
+    /// The file's `[control]` table as written: controller gain overrides that
+    /// `control::ControlGains::for_airframe` reads, applies and checks (the
+    /// airframe does not know the control laws).
+    pub control: toml::Table,
 }
 
 fn serialize_matrix3<S: serde::Serializer>(m: &Matrix3<f64>, s: S) -> Result<S::Ok, S::Error> {
@@ -238,6 +236,13 @@ impl Airframe {
     #[must_use]
     pub fn speed_sq_bounds(&self) -> (f64, f64) {
         (self.rotor.speed_min_rad_s.powi(2), self.rotor.speed_max_rad_s.powi(2))
+    }
+
+    /// The largest collective thrust of all rotors at full speed, `n c_T omega_max^2` [N].
+    #[must_use]
+    pub fn max_thrust_n(&self) -> f64 {
+        let (_, w_max) = self.speed_sq_bounds();
+        self.rotor_count() as f64 * self.rotor.c_t * w_max
     }
 
     /// The allocator (minimum-norm inverse with desaturation) for all rotors.

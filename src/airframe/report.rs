@@ -12,7 +12,8 @@ use std::fmt::Write as _;
 
 use serde::Serialize;
 
-use super::{Actuation, Airframe, FailureAnalysis, GRAVITY, HoverVerdict, TorqueMargins, rank, wrench_map};
+use super::{Actuation, Airframe, FailureAnalysis, HoverVerdict, TorqueMargins, rank, wrench_map};
+use crate::signals::GRAVITY;
 
 /// The full report, serialised as one JSON object by `--json`.
 #[derive(Clone, Debug, Serialize)]
@@ -68,7 +69,10 @@ impl AirframeReport {
         let wrench_rank = rank(&wrench_map(&b));
         let hover_thrust_n = a.mass_kg * GRAVITY;
         let alloc = a.allocator();
-        let hover_w = alloc.inverse(&super::ControlWrench::new(hover_thrust_n, nalgebra::Vector3::zeros()));
+        let hover_w = alloc.inverse(&crate::signals::ControlWrench::new(
+            hover_thrust_n,
+            nalgebra::Vector3::zeros(),
+        ));
         let (hover, hover_margins) = super::intact_verdict(a);
         Self {
             name: a.name.clone(),

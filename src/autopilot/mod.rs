@@ -1,16 +1,26 @@
-//! The autopilot as clients see it: arming, flight modes, takeoff, landing,
-//! return, hold, position, offboard (and later missions), failsafes. Pure and
-//! stepped by simulated time: [`Autopilot`] owns a lockstep
-//! [`crate::vehicle::Vehicle`] (plant, estimator, controller, allocation),
-//! turns the mode and its setpoints into its demand (a reference, an attitude
-//! setpoint, idle or stopped rotors) between the vehicle's sense and act
-//! phases, and publishes [`Telemetry`]. The MAVLink layer
-//! talks to it only through [`AutopilotCommand`], [`CommandOutcome`],
-//! [`Telemetry`], [`StatusText`] and the parameter store.
+//! The flight stack: what runs on the vehicle. It sees only what a real
+//! autopilot sees — [`SensorReadings`] (the navigation solution with its
+//! noise, the accelerometer, rotor speeds from the ESCs, the battery monitor,
+//! the GNSS fix) and what it commanded itself — and answers with an
+//! [`ActuatorCommand`] each step. It never imports the simulated world
+//! ([`crate::sim`]), its faults or the `SIM_*` parameters (CI greps for it).
+//! Pure and stepped by simulated time.
+//!
+//! | file | job |
+//! |---|---|
+//! | `stack` | [`Autopilot`]: the state, parameters, and one step in order (sense, detect, supervise, guide, act) |
+//! | `commander` | commands: arming and prearm checks, the mode state machine, home, reboot and failure-injection gates |
+//! | `navigator/` | guidance per mode family: `auto` (hold, takeoff, land, return), `offboard` (setpoints and their frames) |
+//! | `failsafe` | supervision: offboard loss, auto-disarm |
+//! | `land_detector` | landed or flying, from the measurements and the commanded thrust |
+//! | `estimate` | the wrench estimate fed back: held on the ground, cross-faded after a rebuild |
+//! | `control_loop` | estimator update, control law, allocation: the loop every pilot shares |
+//! | `battery` | the battery monitor: charge used and remaining from voltage and current |
+//! | `telemetry` | the snapshot clients are told |
+//! | `settings` | the parameters as typed values |
 //!
 //! # Behaviour (PX4's, doc `mavlink-compat.md` sections 3, 5, 8, 12)
-//! * Boot: disarmed, on the ground at home (the NED origin; the ground is at
-//!   NED z = 0 and the centre of mass rests `gear_height_m` above it), Hold.
+//! * Boot: disarmed, on the ground at home (the NED origin), Hold.
 //! * Arm: prearm checks (landed, estimator initialised, home valid, mode
 //!   armable); `force` skips them. Disarm refused in the air unless forced.
 //!   Auto-disarm `COM_DISARM_LAND` s after a landing, `COM_DISARM_PRFLT` s
@@ -26,7 +36,13 @@
 //!   the rotors idle until a setpoint asks to climb (a position 0.2 m above,
 //!   a climb rate above 0.3 m/s, an upward acceleration, or any attitude
 //!   setpoint), PX4's takeoff trigger: ground effect never hops it off.
-//! * Landing detector: ground contact for 0.25 s; liftoff at once.
+//!   Relative and body frames are resolved against the state at the instant
+//!   a setpoint arrives.
+//! * Land detector (PX4's, reduced): still (vertical speed, horizontal speed
+//!   and tilt rate low) at the height it rests at is ground contact; ground
+//!   contact with low commanded thrust for 0.25 s is landed; losing ground
+//!   contact for 0.05 s is a takeoff. On ground contact a mode that is not
+//!   climbing idles the rotors (PX4 cuts the thrust the same way).
 //! * References come from the jerk-limited shaper ([`crate::control::shaper`])
 //!   with the mode's speed limits; offboard attitude and rates go to
 //!   [`crate::control::Controller::update_attitude`].
@@ -34,18 +50,45 @@
 //! The estimator restarts on every step the vehicle rests on the ground (the
 //! ground's reaction is not a disturbance to learn) and estimates from liftoff on.
 
+/// What guidance knows at the instant of the measurement `$m`
+/// ([`navigator::Situation`]), borrowing only the autopilot's settings, so
+/// the navigator and the announcements stay free to change.
+macro_rules! situation {
+    ($ap:expr, $m:expr) => {
+        crate::autopilot::navigator::Situation {
+            meas: $m,
+            settings: &$ap.settings,
+            home_ned: $ap.home_ned(),
+            rest_z: $ap.land.rest_z($m),
+            resting: $ap.land.landed() || $ap.land.ground_contact(),
+            landed: $ap.land.landed(),
+            dt: $ap.dt_s(),
+            max_thrust_n: $ap.max_thrust_n(),
+        }
+    };
+}
+
 mod battery;
-mod commands;
-mod pilot;
+mod commander;
+mod control_loop;
+mod estimate;
+mod failsafe;
+mod land_detector;
+mod navigator;
 mod settings;
+mod stack;
+mod telemetry;
 
-pub use pilot::{Autopilot, AutopilotError};
+pub use control_loop::{ControlLoop, ControlLoopError, ControlOutput, Demand};
+pub use navigator::{AltitudeReference, GlobalTarget, OffboardSetpoint, RelativeFrame};
+pub use stack::{Autopilot, AutopilotError};
+pub use telemetry::{LandedState, Telemetry, VehicleType};
 
-use nalgebra::{UnitQuaternion, Vector3};
+use std::collections::VecDeque;
+
 use serde::Serialize;
 
 use crate::geo::GeoPoint;
-use crate::signals::WrenchEstimate;
 
 /// Flight modes, as PX4 names them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -66,44 +109,13 @@ pub enum FlightMode {
     Mission,
 }
 
-/// What the vehicle reports as its landed state (MAV_LANDED_STATE).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-pub enum LandedState {
-    /// On the ground.
-    OnGround,
-    /// Flying.
-    InAir,
-    /// Taking off.
-    Takeoff,
-    /// Landing.
-    Landing,
-}
-
-/// An offboard setpoint (SET_POSITION_TARGET_* / SET_ATTITUDE_TARGET, already in NED/FRD SI units).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum OffboardSetpoint {
-    /// Position / velocity / acceleration targets in local NED; `None` = ignored by the mask.
-    Local {
-        /// Position [m], NED.
-        position_ned: Option<Vector3<f64>>,
-        /// Velocity [m/s], NED.
-        velocity_ned: Option<Vector3<f64>>,
-        /// Acceleration [m/s^2], NED.
-        acceleration_ned: Option<Vector3<f64>>,
-        /// Yaw [rad].
-        yaw_rad: Option<f64>,
-        /// Yaw rate [rad/s].
-        yaw_rate_rad_s: Option<f64>,
-    },
-    /// Attitude (or body rates) and normalised thrust.
-    Attitude {
-        /// Attitude, FRD to NED; `None` = rates only.
-        attitude: Option<UnitQuaternion<f64>>,
-        /// Body rates [rad/s], FRD; `None` = ignored.
-        rate_frd: Option<Vector3<f64>>,
-        /// Collective thrust, 0..1 of the maximum.
-        thrust_normalised: f64,
-    },
+/// What MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN asks for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PowerAction {
+    /// Restart the vehicle (the simulation restarts on the ground at home).
+    Reboot,
+    /// Stop (PX4 SITL exits).
+    Shutdown,
 }
 
 /// A command to the autopilot. NaN from MAVLink is mapped to `None` by the link.
@@ -130,6 +142,8 @@ pub enum AutopilotCommand {
     ReturnToLaunch,
     /// Switch mode.
     SetMode(FlightMode),
+    /// Start the mission (MAV_CMD_MISSION_START).
+    StartMission,
     /// Fly to a point and hold there (DO_REPOSITION): `None` parts keep the current value.
     Reposition {
         /// Latitude [deg].
@@ -152,6 +166,18 @@ pub enum AutopilotCommand {
     SetHome(Option<GeoPoint>),
     /// A new offboard setpoint.
     Offboard(OffboardSetpoint),
+    /// Reboot or shut down: accepted only disarmed; the runtime carries it out.
+    Power(PowerAction),
+    /// MAV_CMD_INJECT_FAILURE, PX4's numbers: accepted only with
+    /// `SYS_FAILURE_EN`; the world carries it out.
+    InjectFailure {
+        /// FAILURE_UNIT.
+        unit: u8,
+        /// FAILURE_TYPE.
+        kind: u8,
+        /// Instance, from 1; 0 = all.
+        instance: u8,
+    },
 }
 
 /// The answer to a command (mapped to MAV_RESULT by the link).
@@ -163,6 +189,8 @@ pub enum CommandOutcome {
     TemporarilyRejected(&'static str),
     /// Never in this state (DENIED), with a reason.
     Denied(&'static str),
+    /// Not supported (UNSUPPORTED).
+    Unsupported,
     /// Failed, with a reason.
     Failed(&'static str),
 }
@@ -193,53 +221,28 @@ pub struct StatusText {
     pub text: String,
 }
 
-/// A snapshot of everything telemetry needs, in SI units and NED/FRD.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct Telemetry {
-    /// Simulated time since boot [s].
-    pub time_s: f64,
-    /// Armed.
-    pub armed: bool,
-    /// Mode.
-    pub mode: FlightMode,
-    /// Landed state.
-    pub landed: LandedState,
-    /// Position [m], NED from home's origin.
-    pub position_ned: Vector3<f64>,
-    /// Velocity [m/s], NED.
-    pub velocity_ned: Vector3<f64>,
-    /// Acceleration [m/s^2], NED (for VFR_HUD climb etc.).
-    pub acceleration_ned: Vector3<f64>,
-    /// Attitude, FRD to NED.
-    pub attitude: UnitQuaternion<f64>,
-    /// Body rates [rad/s], FRD.
-    pub rate_frd: Vector3<f64>,
-    /// Global position.
-    pub global: GeoPoint,
-    /// The NED origin (where the vehicle booted).
-    pub origin: GeoPoint,
-    /// Home.
-    pub home: GeoPoint,
-    /// Home in local NED [m].
-    pub home_ned: Vector3<f64>,
-    /// Battery voltage [V].
-    pub battery_voltage_v: f64,
-    /// Battery current [A].
-    pub battery_current_a: f64,
-    /// Charge used [mAh].
-    pub battery_consumed_mah: f64,
-    /// Remaining charge, 0..1.
-    pub battery_remaining: f64,
-    /// Normalised collective thrust 0..1 (VFR_HUD throttle).
-    pub throttle: f64,
-    /// The wrench estimate (force NED, torque FRD, real mass).
-    pub estimate: WrenchEstimate,
-    /// The injected truth, for tools that compare.
-    pub injected_force_ned: Vector3<f64>,
-    /// Injected torque [N m], FRD.
-    pub injected_torque_frd: Vector3<f64>,
-    /// True mass [kg].
-    pub true_mass_kg: f64,
-    /// Prearm checks pass.
-    pub prearm_ok: bool,
+/// Status texts waiting to be sent, oldest first; the oldest are dropped beyond 64.
+#[derive(Clone, Debug, Default)]
+struct Announcements(VecDeque<StatusText>);
+
+impl Announcements {
+    const CAPACITY: usize = 64;
+
+    fn announce(&mut self, severity: Severity, text: impl Into<String>) {
+        if self.0.len() >= Self::CAPACITY {
+            self.0.pop_front();
+        }
+        let mut text = text.into();
+        let mut end = text.len().min(50);
+        while !text.is_char_boundary(end) {
+            end -= 1;
+        }
+        text.truncate(end);
+        tracing::debug!(?severity, %text, "status");
+        self.0.push_back(StatusText { severity, text });
+    }
+
+    fn drain(&mut self) -> Vec<StatusText> {
+        self.0.drain(..).collect()
+    }
 }

@@ -13,8 +13,8 @@ use nalgebra::{Matrix3, Vector2, Vector3};
 
 use super::Reference;
 use super::gains::ControlLimits;
-use crate::airframe::{ControlWrench, GRAVITY};
 use crate::math::{euler_zyx, vee, wrap_pi};
+use crate::signals::{ControlWrench, GRAVITY};
 use crate::signals::{Measurement, NominalModel, WrenchEstimate};
 
 /// `e3 = [0, 0, 1]`: NED down.

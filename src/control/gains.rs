@@ -163,8 +163,11 @@ pub struct GainOverrides {
 }
 
 /// What is wrong with a gain.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub enum GainProblem {
+    /// A table of overrides that does not read as gains (an unknown key, a
+    /// wrong type): the reader's message.
+    Unreadable(String),
     /// NaN or infinite.
     NotFinite,
     /// Zero or negative where a positive value is required.
@@ -176,6 +179,7 @@ pub enum GainProblem {
 impl std::fmt::Display for GainProblem {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
+            GainProblem::Unreadable(why) => f.write_str(why),
             GainProblem::NotFinite => f.write_str("is not finite"),
             GainProblem::NotPositive => f.write_str("must be > 0"),
             GainProblem::OutOfRange(why) => write!(f, "is out of range: {why}"),
@@ -185,7 +189,7 @@ impl std::fmt::Display for GainProblem {
 
 /// A rejected gain: which field (`law.field[axis]`), its value and the problem.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[error("control gain {field} = {value} {problem}")]
+#[error("{}", self.describe())]
 pub struct GainError {
     /// Dotted field name, e.g. `geometric.kr_n_m_per_rad[2]`.
     pub field: String,
@@ -193,6 +197,32 @@ pub struct GainError {
     pub value: f64,
     /// What is wrong.
     pub problem: GainProblem,
+}
+
+impl GainError {
+    fn describe(&self) -> String {
+        match &self.problem {
+            GainProblem::Unreadable(why) => format!("control gains {}: {why}", self.field),
+            p => format!("control gain {} = {} {p}", self.field, self.value),
+        }
+    }
+}
+
+impl GainOverrides {
+    /// Read overrides from a TOML table such as an airframe file's `[control]`
+    /// (`[control.geometric]`, ...); unknown keys and wrong types are refused.
+    ///
+    /// # Errors
+    /// [`GainProblem::Unreadable`] with the reader's message.
+    pub fn from_table(table: &toml::Table) -> Result<Self, GainError> {
+        toml::Value::Table(table.clone())
+            .try_into()
+            .map_err(|e: toml::de::Error| GainError {
+                field: "[control]".into(),
+                value: f64::NAN,
+                problem: GainProblem::Unreadable(e.message().trim().to_string()),
+            })
+    }
 }
 
 /// Pole-placement design of the defaults: natural frequency [rad/s] and damping ratio.
@@ -288,23 +318,30 @@ impl ControlGains {
         }
     }
 
-    /// [`Self::for_vehicle`] for an airframe's nominal model, with the thrust
-    /// cap set to what its rotors can deliver, `n c_T w_max^2` (at most the
-    /// default 2 `m g`).
+    /// The gains `airframe` flies with when the controller assumes the mass
+    /// `mass_kg` (its nominal mass, or `MDL_MASS`): [`Self::for_vehicle`] for
+    /// that mass and the airframe's inertia, the thrust cap set to what its
+    /// rotors can deliver, `n c_T w_max^2` (at most the default 2 `m g`), then
+    /// the airframe file's `[control]` overrides; checked.
     /// A request above the rotors' maximum leaves the allocator no collective
     /// room for roll and pitch torque (its thrust shift is limited to 30 %), so
     /// the cap matters at rotor level.
-    #[must_use]
-    pub fn for_airframe(airframe: &crate::airframe::Airframe) -> Self {
-        let model = airframe.nominal();
+    ///
+    /// # Errors
+    /// An unreadable `[control]` table or a gain it makes invalid.
+    pub fn for_airframe(airframe: &crate::airframe::Airframe, mass_kg: f64) -> Result<Self, GainError> {
+        let model = NominalModel {
+            mass_kg,
+            inertia_kg_m2: airframe.inertia_kg_m2,
+        };
         let mut g = Self::for_vehicle(&model);
-        let (_, w_max) = airframe.speed_sq_bounds();
-        let t_max = airframe.rotor_count() as f64 * airframe.rotor.c_t * w_max;
-        let ratio = t_max / (model.mass_kg * crate::airframe::GRAVITY);
+        let ratio = airframe.max_thrust_n() / (model.mass_kg * crate::signals::GRAVITY);
         if ratio.is_finite() && ratio > 1.0 {
             g.limits.max_thrust_g = ratio.min(g.limits.max_thrust_g);
         }
-        g
+        g.apply(&GainOverrides::from_table(&airframe.control)?);
+        g.validate()?;
+        Ok(g)
     }
 
     /// The origin report's gains for its vehicle `fsr-quad` (1.5 kg,
@@ -475,8 +512,8 @@ mod tests {
         octo.validate().unwrap();
         ControlGains::report().validate().unwrap();
         for name in ["quad", "octo", "hexa", "fsr-quad"] {
-            let g = ControlGains::for_airframe(&crate::airframe::Airframe::load(name).unwrap());
-            g.validate().unwrap();
+            let a = crate::airframe::Airframe::load(name).unwrap();
+            let g = ControlGains::for_airframe(&a, a.mass_kg).unwrap();
             assert!(g.limits.max_thrust_g > 1.5 && g.limits.max_thrust_g <= 2.0, "{name}");
         }
         assert!((quad.geometric.kp_n_per_m.x / octo.geometric.kp_n_per_m.x - 2.0 / 1.5).abs() < 1e-12);

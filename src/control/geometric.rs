@@ -30,8 +30,8 @@ use nalgebra::{Matrix3, Vector3};
 use super::Reference;
 use super::common::{LawOutput, Memo, e3, finite_m3, finite3, so3_attitude};
 use super::gains::{ControlLimits, GeometricGains};
-use crate::airframe::GRAVITY;
 use crate::math::vee;
+use crate::signals::GRAVITY;
 use crate::signals::{Measurement, NominalModel, WrenchEstimate};
 
 /// Desired-attitude step rate [rad/s] above which `R_d` is treated as having

@@ -149,8 +149,8 @@ pub(super) fn recovery_output(
 mod tests {
     use super::super::ControlGains;
     use super::*;
-    use crate::airframe::GRAVITY;
     use crate::math::{euler_zyx, from_euler_zyx, rate_map, rate_map_dot};
+    use crate::signals::GRAVITY;
     use nalgebra::Matrix3;
     use nalgebra::UnitQuaternion;
 

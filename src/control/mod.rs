@@ -40,7 +40,7 @@ pub use shaper::{Setpoint, Shaper, ShaperError, ShaperLimits, TranslationSetpoin
 use nalgebra::{Rotation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
-use crate::airframe::{ControlWrench, GRAVITY};
+use crate::signals::{ControlWrench, GRAVITY};
 use crate::signals::{Measurement, NominalModel, WrenchEstimate};
 use common::{
     LawOutput, NO_ESTIMATE, all_finite, e3, estimate_usable, finite3, measurement_ok, model_ok, sanitize_estimate,
@@ -254,17 +254,23 @@ impl Default for ControlStatus {
 /// The flight controller: one active law, switchable at run time.
 ///
 /// ```
-/// use nalgebra::Vector3;
+/// use nalgebra::{UnitQuaternion, Vector3};
 /// use rotorpilot::airframe::Airframe;
 /// use rotorpilot::control::{ControlGains, Controller, ControllerKind, Reference};
-/// use rotorpilot::model::{Plant, PlantConfig};
+/// use rotorpilot::signals::Measurement;
 ///
 /// let airframe = Airframe::load("quad").unwrap();
 /// let model = airframe.nominal();
 /// let mut ctl = Controller::new(ControllerKind::Geometric, ControlGains::for_vehicle(&model)).unwrap();
-/// let plant = Plant::new(&airframe, PlantConfig::default());
+/// let on_the_ground = Measurement {
+///     time_s: 0.0,
+///     position_ned: Vector3::new(0.0, 0.0, -0.24),
+///     velocity_ned: Vector3::zeros(),
+///     attitude: UnitQuaternion::identity(),
+///     rate_frd: Vector3::zeros(),
+/// };
 /// let reference = Reference::hold(Vector3::new(0.0, 0.0, -2.0), 0.0);
-/// let wrench = ctl.update(&model, &plant.truth(), &reference, None, 0.001);
+/// let wrench = ctl.update(&model, &on_the_ground, &reference, None, 0.001);
 /// assert!(wrench.thrust_n > 0.0);
 /// ```
 #[derive(Clone, Debug)]

@@ -116,7 +116,7 @@ mod tests {
     use super::super::ControlGains;
     use super::super::hierarchical::Hierarchical;
     use super::*;
-    use crate::airframe::GRAVITY;
+    use crate::signals::GRAVITY;
     use nalgebra::{Matrix3, UnitQuaternion};
 
     /// GIVEN gains matched to the same linearized poles (doc section 10) and a

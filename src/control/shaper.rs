@@ -32,8 +32,9 @@ use serde::{Deserialize, Serialize};
 
 use super::Reference;
 use super::gains::GainProblem;
-use crate::airframe::{Airframe, GRAVITY};
+use crate::airframe::Airframe;
 use crate::math::{euler_zyx, wrap_pi};
+use crate::signals::GRAVITY;
 use crate::signals::Measurement;
 
 /// Kinematic limits of the shaped reference, per vehicle.
@@ -104,6 +105,8 @@ impl ShaperLimits {
         let weight = m * GRAVITY;
         let c_t = airframe.rotor.c_t;
         let (w_min, w_max) = airframe.speed_sq_bounds();
+        // 75 % of the rotors' maximum `n c_T w_max^2` (Airframe::max_thrust_n), multiplied in
+        // this order: the golden logs (tests/golden.rs) pin the shaped references to the bit
         let usable = 0.75 * n * c_t * w_max;
         if !(usable > weight && m > 0.0) {
             return d;

@@ -9,8 +9,8 @@ use serde::{Deserialize, Serialize};
 use super::EstimatorError;
 use super::chain::{ChainFilter, Discretization};
 use super::gains::{Polynomial, forward_euler_bound, forward_euler_stable, gains_for, polynomial_coefficients};
-use crate::airframe::{ControlWrench, GRAVITY};
 use crate::math::{euler_zyx, rate_map};
+use crate::signals::{ControlWrench, GRAVITY};
 use crate::signals::{Measurement, NominalModel, WrenchEstimate};
 
 /// Below this `|cos theta|` (|pitch| above about 89.94 deg) the RPY torque

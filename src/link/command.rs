@@ -1,15 +1,17 @@
 //! The command protocol: COMMAND_LONG and COMMAND_INT read alike (PX4 does),
-//! then classified into what to do: ask the autopilot, answer a request
-//! here, or refuse. NaN parameters mean "default" or "keep", as MAVSDK sends
-//! them; pymavlink sends 0 in the same places, which is read the same way
-//! where PX4 does (lat/lon 0/0 = current position).
+//! then classified into what to do: hand the autopilot a typed command (it
+//! accepts or refuses at the instant it applies it), answer a request for a
+//! message or a stream rate here, or answer what no vehicle state can change
+//! (an unknown command, malformed parameters). NaN parameters mean "default"
+//! or "keep", as MAVSDK sends them; pymavlink sends 0 in the same places,
+//! which is read the same way where PX4 does (lat/lon 0/0 = current position).
 
 use std::time::Duration;
 
 use super::convert::{self, ModeRequest, result};
 use super::streams::Interval;
 use super::wire::{CommandInt, CommandLong};
-use crate::autopilot::AutopilotCommand;
+use crate::autopilot::{AutopilotCommand, PowerAction};
 use crate::geo::GeoPoint;
 
 /// MAV_CMD ids handled here.
@@ -169,24 +171,11 @@ pub enum Action {
     /// Change a stream interval on this link (ACCEPTED, or FAILED for a
     /// message the vehicle does not stream).
     SetInterval(u32, Interval),
-    /// ACK ACCEPTED, then reset the simulation (see the daemon).
-    Reboot,
-    /// ACK ACCEPTED, then stop the daemon (PX4 SITL exits too).
-    Shutdown,
-}
-
-/// The state a command is judged against.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct State {
-    /// The vehicle is armed.
-    pub armed: bool,
-    /// SYS_FAILURE_EN, if the parameter exists.
-    pub failure_injection_enabled: Option<bool>,
 }
 
 /// Classify a command as PX4 would.
 #[must_use]
-pub fn classify(c: &Command, state: State) -> Action {
+pub fn classify(c: &Command) -> Action {
     let [p1, p2, p3, p4] = c.p;
     match c.command {
         id::COMPONENT_ARM_DISARM => {
@@ -216,39 +205,29 @@ pub fn classify(c: &Command, state: State) -> Action {
                 speed_m_s: convert::finite(p1).filter(|s| *s > 0.0),
             })
         }
-        id::DO_CHANGE_SPEED => match convert::finite(p2).filter(|s| *s > 0.0) {
-            Some(speed_m_s) => Action::Autopilot(AutopilotCommand::ChangeSpeed { speed_m_s }),
-            // -1: no change (MAVSDK sends p3 = -1 for throttle, p2 for speed)
-            None => Action::Answer(result::ACCEPTED, None),
-        },
+        // p2 = speed; NaN (MAVSDK's "unchanged") is PX4's -1, no change
+        id::DO_CHANGE_SPEED => Action::Autopilot(AutopilotCommand::ChangeSpeed {
+            speed_m_s: convert::finite(p2).unwrap_or(-1.0),
+        }),
         id::DO_SET_HOME => {
             if p1.round() == 1.0 {
                 return Action::Autopilot(AutopilotCommand::SetHome(None));
             }
-            match (c.lat_lon(), c.z()) {
-                (Some((lat_deg, lon_deg)), Some(alt_amsl_m)) => {
-                    let p = GeoPoint {
-                        lat_deg,
-                        lon_deg,
-                        alt_amsl_m,
-                    };
-                    if p.is_valid() {
-                        Action::Autopilot(AutopilotCommand::SetHome(Some(p)))
-                    } else {
-                        Action::Answer(result::DENIED, Some("invalid home position"))
-                    }
-                }
-                _ => Action::Answer(result::DENIED, Some("invalid home position")),
-            }
+            // no position (NaN or 0/0) is no valid home: the autopilot refuses it
+            let (lat_deg, lon_deg) = c.lat_lon().unwrap_or((f64::NAN, f64::NAN));
+            Action::Autopilot(AutopilotCommand::SetHome(Some(GeoPoint {
+                lat_deg,
+                lon_deg,
+                alt_amsl_m: c.z().unwrap_or(f64::NAN),
+            })))
         }
         id::PREFLIGHT_REBOOT_SHUTDOWN => match p1.round() {
             0.0 => Action::Answer(result::ACCEPTED, None),
-            1.0 | 2.0 if state.armed => Action::Answer(result::DENIED, Some("disarm before reboot")),
-            1.0 => Action::Reboot,
-            2.0 => Action::Shutdown,
+            1.0 => Action::Autopilot(AutopilotCommand::Power(PowerAction::Reboot)),
+            2.0 => Action::Autopilot(AutopilotCommand::Power(PowerAction::Shutdown)),
             _ => Action::Answer(result::UNSUPPORTED, None),
         },
-        id::MISSION_START => Action::Answer(result::TEMPORARILY_REJECTED, Some("no mission loaded")),
+        id::MISSION_START => Action::Autopilot(AutopilotCommand::StartMission),
         id::SET_MESSAGE_INTERVAL => {
             if !p1.is_finite() || p1 < 0.0 {
                 return Action::Answer(result::FAILED, None);
@@ -263,8 +242,15 @@ pub fn classify(c: &Command, state: State) -> Action {
         }
         id::REQUEST_AUTOPILOT_CAPABILITIES => Action::SendMessage(AUTOPILOT_VERSION_ID),
         id::GET_HOME_POSITION => Action::SendMessage(HOME_POSITION_ID),
-        id::INJECT_FAILURE => match state.failure_injection_enabled {
-            Some(false) => Action::Answer(result::DENIED, Some("failure injection disabled (SYS_FAILURE_EN)")),
+        // param1 failure unit, param2 failure type, param3 instance (0: all)
+        id::INJECT_FAILURE => match (convert::finite(p1), convert::finite(p2), convert::finite(p3)) {
+            (Some(unit), Some(kind), instance) if unit >= 0.0 && kind >= 0.0 => {
+                Action::Autopilot(AutopilotCommand::InjectFailure {
+                    unit: unit as u8,
+                    kind: kind as u8,
+                    instance: instance.map_or(0, |i| i.max(0.0) as u8),
+                })
+            }
             _ => Action::Answer(result::UNSUPPORTED, None),
         },
         _ => Action::Answer(result::UNSUPPORTED, None),
@@ -290,11 +276,6 @@ mod tests {
     use super::*;
     use crate::autopilot::FlightMode;
 
-    const DISARMED: State = State {
-        armed: false,
-        failure_injection_enabled: Some(false),
-    };
-
     fn long(command: u16, p: [f32; 7]) -> Command {
         Command::from(&CommandLong {
             params: p,
@@ -309,7 +290,7 @@ mod tests {
 
     #[test]
     fn arm_disarm_and_force() {
-        let c = |p1, p2| classify(&long(400, [p1, p2, N, N, N, N, N]), DISARMED);
+        let c = |p1, p2| classify(&long(400, [p1, p2, N, N, N, N, N]));
         assert_eq!(c(1.0, N), Action::Autopilot(AutopilotCommand::Arm { force: false }));
         assert_eq!(c(1.0, 0.0), Action::Autopilot(AutopilotCommand::Arm { force: false }));
         assert_eq!(
@@ -331,12 +312,12 @@ mod tests {
 
     #[test]
     fn takeoff_altitudes() {
-        let a = classify(&long(22, [N; 7]), DISARMED);
+        let a = classify(&long(22, [N; 7]));
         assert_eq!(
             a,
             Action::Autopilot(AutopilotCommand::Takeoff { altitude_amsl_m: None })
         );
-        let a = classify(&long(22, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 10.0]), DISARMED);
+        let a = classify(&long(22, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 10.0]));
         assert_eq!(
             a,
             Action::Autopilot(AutopilotCommand::Takeoff {
@@ -368,7 +349,7 @@ mod tests {
                 alt_amsl_m,
                 yaw_rad,
                 speed_m_s,
-            }) = classify(&mk(frame), DISARMED)
+            }) = classify(&mk(frame))
             else {
                 panic!()
             };
@@ -379,10 +360,10 @@ mod tests {
             assert_eq!(speed_m_s, None);
         }
         // p2 = 0: PX4 answers UNSUPPORTED
-        let a = classify(&long(192, [N, 0.0, N, N, 47.0, 8.0, 500.0]), DISARMED);
+        let a = classify(&long(192, [N, 0.0, N, N, 47.0, 8.0, 500.0]));
         assert!(matches!(a, Action::Answer(result::UNSUPPORTED, _)));
         // long form with NaN position keeps everything
-        let a = classify(&long(192, [N, 1.0, N, N, N, N, N]), DISARMED);
+        let a = classify(&long(192, [N, 1.0, N, N, N, N, N]));
         assert_eq!(
             a,
             Action::Autopilot(AutopilotCommand::Reposition {
@@ -397,73 +378,83 @@ mod tests {
 
     #[test]
     fn set_mode_and_refusals() {
-        let a = classify(&long(176, [1.0, 4.0, 3.0, N, N, N, N]), DISARMED);
+        let a = classify(&long(176, [1.0, 4.0, 3.0, N, N, N, N]));
         assert_eq!(a, Action::Autopilot(AutopilotCommand::SetMode(FlightMode::Hold)));
-        let a = classify(&long(176, [129.0, 6.0, 0.0, N, N, N, N]), DISARMED);
+        let a = classify(&long(176, [129.0, 6.0, 0.0, N, N, N, N]));
         assert_eq!(a, Action::Autopilot(AutopilotCommand::SetMode(FlightMode::Offboard)));
-        let a = classify(&long(176, [81.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]), DISARMED);
+        let a = classify(&long(176, [81.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]));
         assert!(matches!(a, Action::Answer(result::TEMPORARILY_REJECTED, _)));
         // Mission goes to the autopilot, which refuses it without a mission
-        let a = classify(&long(176, [1.0, 4.0, 4.0, N, N, N, N]), DISARMED);
+        let a = classify(&long(176, [1.0, 4.0, 4.0, N, N, N, N]));
         assert_eq!(a, Action::Autopilot(AutopilotCommand::SetMode(FlightMode::Mission)));
         assert_eq!(
-            classify(&long(31_000, [N; 7]), DISARMED),
+            classify(&long(31_000, [N; 7])),
             Action::Answer(result::UNSUPPORTED, None)
         );
-        assert!(matches!(
-            classify(&long(300, [0.0; 7]), DISARMED),
-            Action::Answer(result::TEMPORARILY_REJECTED, _)
-        ));
-        assert!(matches!(
-            classify(&long(420, [4.0, 1.0, 0.0, N, N, N, N]), DISARMED),
-            Action::Answer(result::DENIED, _)
-        ));
+        // the autopilot decides: no mission yet, SYS_FAILURE_EN
+        assert_eq!(
+            classify(&long(300, [0.0; 7])),
+            Action::Autopilot(AutopilotCommand::StartMission)
+        );
+        assert_eq!(
+            classify(&long(420, [1.0, 1.0, 3.0, N, N, N, N])),
+            Action::Autopilot(AutopilotCommand::InjectFailure {
+                unit: 1,
+                kind: 1,
+                instance: 3
+            })
+        );
+        assert_eq!(
+            classify(&long(420, [N, 1.0, 0.0, N, N, N, N])),
+            Action::Answer(result::UNSUPPORTED, None)
+        );
+        // DO_CHANGE_SPEED: NaN is "no change" (-1), -2 is "back to the default"
+        assert_eq!(
+            classify(&long(178, [1.0, N, -1.0, N, N, N, N])),
+            Action::Autopilot(AutopilotCommand::ChangeSpeed { speed_m_s: -1.0 })
+        );
+        assert_eq!(
+            classify(&long(178, [1.0, 3.5, -1.0, N, N, N, N])),
+            Action::Autopilot(AutopilotCommand::ChangeSpeed { speed_m_s: 3.5 })
+        );
     }
 
     #[test]
     fn requests_and_reboot() {
         assert_eq!(
-            classify(&long(512, [148.0, N, N, N, N, N, N]), DISARMED),
+            classify(&long(512, [148.0, N, N, N, N, N, N])),
             Action::SendMessage(148)
         );
+        assert_eq!(classify(&long(520, [1.0, N, N, N, N, N, N])), Action::SendMessage(148));
+        assert_eq!(classify(&long(410, [0.0; 7])), Action::SendMessage(242));
         assert_eq!(
-            classify(&long(520, [1.0, N, N, N, N, N, N]), DISARMED),
-            Action::SendMessage(148)
-        );
-        assert_eq!(classify(&long(410, [0.0; 7]), DISARMED), Action::SendMessage(242));
-        assert_eq!(
-            classify(&long(511, [245.0, 1e6, N, N, N, N, N]), DISARMED),
+            classify(&long(511, [245.0, 1e6, N, N, N, N, N])),
             Action::SetInterval(245, Interval::Every(Duration::from_secs(1)))
         );
+        // the autopilot refuses while armed
         assert_eq!(
-            classify(&long(246, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]), DISARMED),
-            Action::Reboot
+            classify(&long(246, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])),
+            Action::Autopilot(AutopilotCommand::Power(PowerAction::Reboot))
         );
-        let armed = State {
-            armed: true,
-            ..DISARMED
-        };
-        assert!(matches!(
-            classify(&long(246, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]), armed),
-            Action::Answer(result::DENIED, _)
-        ));
         assert_eq!(
-            classify(&long(246, [0.0; 7]), armed),
-            Action::Answer(result::ACCEPTED, None)
+            classify(&long(246, [2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])),
+            Action::Autopilot(AutopilotCommand::Power(PowerAction::Shutdown))
         );
+        assert_eq!(classify(&long(246, [0.0; 7])), Action::Answer(result::ACCEPTED, None));
     }
 
     #[test]
     fn set_home() {
         assert_eq!(
-            classify(&long(179, [1.0, N, N, N, N, N, N]), DISARMED),
+            classify(&long(179, [1.0, N, N, N, N, N, N])),
             Action::Autopilot(AutopilotCommand::SetHome(None))
         );
-        let a = classify(&long(179, [0.0, N, N, N, 47.4, 8.5, 500.0]), DISARMED);
+        let a = classify(&long(179, [0.0, N, N, N, 47.4, 8.5, 500.0]));
         assert!(matches!(a, Action::Autopilot(AutopilotCommand::SetHome(Some(p))) if p.alt_amsl_m == 500.0));
+        // an invalid point goes to the autopilot, which refuses it
         assert!(matches!(
-            classify(&long(179, [0.0, N, N, N, 147.4, 8.5, 500.0]), DISARMED),
-            Action::Answer(result::DENIED, _)
+            classify(&long(179, [0.0, N, N, N, 147.4, 8.5, 500.0])),
+            Action::Autopilot(AutopilotCommand::SetHome(Some(p))) if !p.is_valid()
         ));
     }
 }

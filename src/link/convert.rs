@@ -169,6 +169,7 @@ pub fn mav_result(outcome: &CommandOutcome) -> (u8, Option<&'static str>) {
         CommandOutcome::Accepted => (result::ACCEPTED, None),
         CommandOutcome::TemporarilyRejected(r) => (result::TEMPORARILY_REJECTED, Some(r)),
         CommandOutcome::Denied(r) => (result::DENIED, Some(r)),
+        CommandOutcome::Unsupported => (result::UNSUPPORTED, None),
         CommandOutcome::Failed(r) => (result::FAILED, Some(r)),
     }
 }

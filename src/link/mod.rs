@@ -7,9 +7,12 @@
 //! Each serves a set of [`peers::Peers`] (its default remote from boot, plus
 //! everyone who talks, with a timeout), sends its own telemetry streams at
 //! its own rates ([`streams`]), answers the command, parameter, timesync,
-//! ping and FTP protocols, and turns offboard setpoints into
-//! [`AutopilotCommand`]s. Everything the compat doc (`shared/docs/mavlink-compat.md`)
-//! requires of the wire is decided here; the files:
+//! ping and FTP protocols, and turns commands and offboard setpoints into
+//! [`AutopilotCommand`]s. It translates only: whether a command is accepted,
+//! and what a relative frame means, is decided by the autopilot at the
+//! instant the command is applied (the ACK carries that answer). Everything
+//! the compat doc (`shared/docs/mavlink-compat.md`) requires of the wire is
+//! decided here; the files:
 //!
 //! | file | job |
 //! |---|---|
@@ -18,7 +21,7 @@
 //! | [`command`] | COMMAND_LONG/INT/SET_MODE classified as PX4 does |
 //! | [`param`] | PARAM_* protocol, INT32 bytewise |
 //! | [`offboard`] | SET_POSITION_TARGET_* and SET_ATTITUDE_TARGET to setpoints |
-//! | [`streams`] | stream rates, scheduler, message builders from [`Telemetry`] |
+//! | [`streams`] | stream rates, scheduler, message builders from a [`Snapshot`] |
 //! | [`peers`] | default remote plus learned peers with a timeout |
 
 // PX4 and its clients still speak messages the XML marks deprecated
@@ -43,7 +46,8 @@ use mavlink::dialects::common::{
     STATUSTEXT_DATA, TIMESYNC_DATA,
 };
 
-use crate::autopilot::{AutopilotCommand, CommandOutcome, Severity, StatusText, Telemetry};
+use crate::autopilot::{AutopilotCommand, CommandOutcome, Severity, StatusText};
+use crate::lockstep::Snapshot;
 use crate::params::ParamValue;
 use command::{Action, Command};
 use param::ParamAccess;
@@ -134,10 +138,6 @@ pub enum Effect {
         /// The value to set.
         value: ParamValue,
     },
-    /// PREFLIGHT_REBOOT_SHUTDOWN p1 = 1 (ACK already queued).
-    Reboot,
-    /// PREFLIGHT_REBOOT_SHUTDOWN p1 = 2 (ACK already queued).
-    Shutdown,
 }
 
 /// One MAVLink link (one UDP socket's worth of protocol state).
@@ -259,7 +259,7 @@ impl Link {
     }
 
     /// Queue the streams due at `now` (and delayed frames whose time has come).
-    pub fn poll(&mut self, now: Instant, t: &Telemetry, unix_time_us: u64) {
+    pub fn poll(&mut self, now: Instant, t: &Snapshot, unix_time_us: u64) {
         let mut i = 0;
         while i < self.delayed.len() {
             if self.delayed[i].0 <= now {
@@ -286,7 +286,7 @@ impl Link {
         now: Instant,
         from: SocketAddr,
         data: &[u8],
-        t: &Telemetry,
+        t: &Snapshot,
         params: &P,
     ) -> Vec<Effect> {
         let mut effects = Vec::new();
@@ -321,7 +321,7 @@ impl Link {
         from: SocketAddr,
         frame: &Frame<'_>,
         msg: Inbound,
-        t: &Telemetry,
+        t: &Snapshot,
         params: &P,
         effects: &mut Vec<Effect>,
     ) {
@@ -332,7 +332,12 @@ impl Link {
             Inbound::Other(m) => return self.on_other_message(now, from, requester, *m, t, params, effects),
         };
         if self.for_me(command.target_system, command.target_component) {
-            self.on_command(now, from, requester, &command, t, params, effects);
+            let ticket = AckTicket {
+                command: command.command,
+                to: from,
+                requester,
+            };
+            self.act(now, ticket, command::classify(&command), t, effects);
         } else {
             self.stats.ignored += 1;
         }
@@ -346,7 +351,7 @@ impl Link {
         from: SocketAddr,
         requester: (u8, u8),
         msg: MavMessage,
-        t: &Telemetry,
+        t: &Snapshot,
         params: &P,
         effects: &mut Vec<Effect>,
     ) {
@@ -389,7 +394,7 @@ impl Link {
                 }
             }
             MavMessage::SET_POSITION_TARGET_LOCAL_NED(m) if self.for_me(m.target_system, m.target_component) => {
-                if let Some(sp) = offboard::local_ned(&m, t) {
+                if let Some(sp) = offboard::local_ned(&m) {
                     effects.push(Effect::Autopilot {
                         command: AutopilotCommand::Offboard(sp),
                         ack: None,
@@ -397,7 +402,7 @@ impl Link {
                 }
             }
             MavMessage::SET_POSITION_TARGET_GLOBAL_INT(m) if self.for_me(m.target_system, m.target_component) => {
-                if let Some(sp) = offboard::global_int(&m, t) {
+                if let Some(sp) = offboard::global_int(&m) {
                     effects.push(Effect::Autopilot {
                         command: AutopilotCommand::Offboard(sp),
                         ack: None,
@@ -413,7 +418,7 @@ impl Link {
                 }
             }
             MavMessage::TIMESYNC(m) if m.tc1 == 0 => {
-                let now_ns = (t.time_s * 1e9) as i64;
+                let now_ns = (t.telemetry.time_s * 1e9) as i64;
                 self.send(
                     reply,
                     &MavMessage::TIMESYNC(TIMESYNC_DATA {
@@ -442,35 +447,7 @@ impl Link {
         }
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn on_command<P: ParamAccess + ?Sized>(
-        &mut self,
-        now: Instant,
-        from: SocketAddr,
-        requester: (u8, u8),
-        c: &Command,
-        t: &Telemetry,
-        params: &P,
-        effects: &mut Vec<Effect>,
-    ) {
-        let failure = params.by_name("SYS_FAILURE_EN").map(|(_, v)| match v {
-            crate::params::ParamValue::Int32(i) => i != 0,
-            crate::params::ParamValue::Real32(f) => f != 0.0,
-        });
-        let state = command::State {
-            armed: t.armed,
-            failure_injection_enabled: failure,
-        };
-        let action = command::classify(c, state);
-        let ticket = AckTicket {
-            command: c.command,
-            to: from,
-            requester,
-        };
-        self.act(now, ticket, action, t, effects);
-    }
-
-    fn act(&mut self, now: Instant, ticket: AckTicket, action: Action, t: &Telemetry, effects: &mut Vec<Effect>) {
+    fn act(&mut self, now: Instant, ticket: AckTicket, action: Action, t: &Snapshot, effects: &mut Vec<Effect>) {
         let reply = To::Peer(ticket.to);
         match action {
             Action::Autopilot(command) => effects.push(Effect::Autopilot {
@@ -501,14 +478,6 @@ impl Link {
                 }
                 None => self.ack(ticket, convert::result::FAILED),
             },
-            Action::Reboot => {
-                self.ack(ticket, convert::result::ACCEPTED);
-                effects.push(Effect::Reboot);
-            }
-            Action::Shutdown => {
-                self.ack(ticket, convert::result::ACCEPTED);
-                effects.push(Effect::Shutdown);
-            }
         }
     }
 
@@ -590,7 +559,7 @@ pub fn autopilot_version(identity: Identity) -> MavMessage {
 /// The messages a REQUEST_MESSAGE for `id` gets: AUTOPILOT_VERSION, or any
 /// stream's message; `None` (DENIED, as PX4) for the rest.
 #[must_use]
-pub fn requested(id: u32, t: &Telemetry, identity: Identity) -> Option<Vec<MavMessage>> {
+pub fn requested(id: u32, t: &Snapshot, identity: Identity) -> Option<Vec<MavMessage>> {
     if id == command::AUTOPILOT_VERSION_ID {
         return Some(vec![autopilot_version(identity)]);
     }

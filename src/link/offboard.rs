@@ -10,26 +10,26 @@
 //! refuses them (and a SET_ATTITUDE_TARGET without thrust), which the daemon
 //! logs; setpoints have no ACK.
 //!
-//! Frames: LOCAL_NED (1) as is; LOCAL_OFFSET_NED (7) position relative to the
-//! current position; BODY_NED (8), BODY_OFFSET_NED (9) and BODY_FRD (12)
-//! rotate velocity and acceleration by the current heading (PX4 turns a body
-//! velocity into NED so that "forward" stays horizontal) and take position as
-//! an offset from the current position, also rotated. Global: GLOBAL_INT (5)
-//! and GLOBAL (0) altitude AMSL, RELATIVE_ALT (6, 3) above home, TERRAIN_ALT
-//! (11, 10) above the flat ground at the NED origin's altitude. Other frames
-//! are ignored, as PX4 ignores them.
+//! Frames are passed on as the autopilot must read them: LOCAL_NED (1) as is;
+//! LOCAL_OFFSET_NED (7) and the body frames BODY_NED (8), BODY_OFFSET_NED (9),
+//! BODY_FRD (12) as [`OffboardSetpoint::Relative`], resolved by the
+//! autopilot against the state at the instant the setpoint arrives; global
+//! targets with their altitude reference: GLOBAL_INT (5) and GLOBAL (0) AMSL,
+//! RELATIVE_ALT (6, 3) above home, TERRAIN_ALT (11, 10) above the ground.
+//! Other frames are ignored, as PX4 ignores them.
 
 use mavlink::dialects::common::{
     SET_ATTITUDE_TARGET_DATA, SET_POSITION_TARGET_GLOBAL_INT_DATA, SET_POSITION_TARGET_LOCAL_NED_DATA,
 };
-use nalgebra::{Quaternion, Rotation3, UnitQuaternion, Vector3};
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
-use crate::autopilot::{OffboardSetpoint, Telemetry};
-use crate::geo::GeoPoint;
+use crate::autopilot::{AltitudeReference, GlobalTarget, OffboardSetpoint, RelativeFrame};
 
 /// Position-target mask bits.
 mod bit {
     pub(super) const X: u16 = 1;
+    pub(super) const Y: u16 = 2;
+    pub(super) const Z: u16 = 4;
     pub(super) const VX: u16 = 8;
     pub(super) const AX: u16 = 64;
     pub(super) const YAW: u16 = 1024;
@@ -57,90 +57,104 @@ fn scalar(v: f32, mask: u16, b: u16) -> Option<f64> {
     (mask & b == 0 && v.is_finite()).then_some(f64::from(v))
 }
 
-fn yaw_of(t: &Telemetry) -> f64 {
-    t.attitude.euler_angles().2
-}
-
-/// How a local frame is read.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum LocalFrame {
-    Ned,
-    OffsetNed,
-    Body,
-}
-
-fn local_frame(frame: u8) -> Option<LocalFrame> {
-    match frame {
-        1 => Some(LocalFrame::Ned),
-        7 => Some(LocalFrame::OffsetNed),
-        8 | 9 | 12 => Some(LocalFrame::Body),
-        _ => None,
-    }
+/// Whether the setpoint sets anything at all.
+fn sets_something(
+    vectors: [&Option<Vector3<f64>>; 2],
+    position: bool,
+    yaw_rad: Option<f64>,
+    yaw_rate_rad_s: Option<f64>,
+) -> bool {
+    position || vectors.iter().any(|v| v.is_some()) || yaw_rad.is_some() || yaw_rate_rad_s.is_some()
 }
 
 /// SET_POSITION_TARGET_LOCAL_NED to a setpoint; `None` for an unsupported
 /// frame or a message that sets nothing.
 #[must_use]
-pub fn local_ned(m: &SET_POSITION_TARGET_LOCAL_NED_DATA, t: &Telemetry) -> Option<OffboardSetpoint> {
-    let frame = local_frame(m.coordinate_frame as u8)?;
-    let mask = m.type_mask.bits();
-    let mut position = masked([m.x, m.y, m.z], mask, bit::X);
-    let mut velocity = masked([m.vx, m.vy, m.vz], mask, bit::VX);
-    let mut acceleration = masked([m.afx, m.afy, m.afz], mask, bit::AX);
-    match frame {
-        LocalFrame::Ned => {}
-        LocalFrame::OffsetNed => position = position.map(|p| offset(p, &t.position_ned)),
-        LocalFrame::Body => {
-            let r = Rotation3::from_axis_angle(&Vector3::z_axis(), yaw_of(t));
-            let rot = |v: Vector3<f64>| rotate_keep_nan(&r, v);
-            position = position.map(|p| offset(rot(p), &t.position_ned));
-            velocity = velocity.map(rot);
-            acceleration = acceleration.map(rot);
-        }
-    }
-    let sp = OffboardSetpoint::Local {
-        position_ned: position,
-        velocity_ned: velocity,
-        acceleration_ned: acceleration,
-        yaw_rad: scalar(m.yaw, mask, bit::YAW),
-        yaw_rate_rad_s: scalar(m.yaw_rate, mask, bit::YAW_RATE),
-    };
-    sets_something(&sp).then_some(sp)
-}
-
-/// SET_POSITION_TARGET_GLOBAL_INT to a setpoint in local NED.
-#[must_use]
-pub fn global_int(m: &SET_POSITION_TARGET_GLOBAL_INT_DATA, t: &Telemetry) -> Option<OffboardSetpoint> {
-    let alt_base = match m.coordinate_frame as u8 {
-        0 | 5 => 0.0,
-        3 | 6 => t.home.alt_amsl_m,
-        10 | 11 => t.origin.alt_amsl_m,
+pub fn local_ned(m: &SET_POSITION_TARGET_LOCAL_NED_DATA) -> Option<OffboardSetpoint> {
+    let frame = match m.coordinate_frame as u8 {
+        1 => None,
+        7 => Some(RelativeFrame::OffsetNed),
+        8 | 9 | 12 => Some(RelativeFrame::Body),
         _ => return None,
     };
     let mask = m.type_mask.bits();
-    let point = GeoPoint {
-        lat_deg: f64::from(m.lat_int) * 1e-7,
-        lon_deg: f64::from(m.lon_int) * 1e-7,
-        alt_amsl_m: f64::from(m.alt) + alt_base,
+    let position = masked([m.x, m.y, m.z], mask, bit::X);
+    let velocity = masked([m.vx, m.vy, m.vz], mask, bit::VX);
+    let acceleration = masked([m.afx, m.afy, m.afz], mask, bit::AX);
+    let yaw_rad = scalar(m.yaw, mask, bit::YAW);
+    let yaw_rate_rad_s = scalar(m.yaw_rate, mask, bit::YAW_RATE);
+    if !sets_something([&velocity, &acceleration], position.is_some(), yaw_rad, yaw_rate_rad_s) {
+        return None;
+    }
+    Some(match frame {
+        None => OffboardSetpoint::Local {
+            position_ned: position,
+            velocity_ned: velocity,
+            acceleration_ned: acceleration,
+            yaw_rad,
+            yaw_rate_rad_s,
+        },
+        Some(frame) => OffboardSetpoint::Relative {
+            frame,
+            position,
+            velocity,
+            acceleration,
+            yaw_rad,
+            yaw_rate_rad_s,
+        },
+    })
+}
+
+/// SET_POSITION_TARGET_GLOBAL_INT to a setpoint (latitude and longitude in
+/// degrees, the altitude with its reference).
+#[must_use]
+pub fn global_int(m: &SET_POSITION_TARGET_GLOBAL_INT_DATA) -> Option<OffboardSetpoint> {
+    let altitude = match m.coordinate_frame as u8 {
+        0 | 5 => AltitudeReference::Amsl,
+        3 | 6 => AltitudeReference::Home,
+        10 | 11 => AltitudeReference::Terrain,
+        _ => return None,
     };
-    let ned = point.ned_from(&t.origin);
-    let position = masked([ned.x as f32, ned.y as f32, ned.z as f32], mask, bit::X).map(|mut p| {
-        // keep f64 precision where the component is used
-        for i in 0..3 {
-            if p[i].is_finite() {
-                p[i] = ned[i];
-            }
-        }
-        p
+    let mask = m.type_mask.bits();
+    let used = |b: u16| mask & b == 0;
+    let any_position = used(bit::X) || used(bit::Y) || (used(bit::Z) && m.alt.is_finite());
+    let position = any_position.then(|| GlobalTarget {
+        lat_deg: if used(bit::X) {
+            f64::from(m.lat_int) * 1e-7
+        } else {
+            f64::NAN
+        },
+        lon_deg: if used(bit::Y) {
+            f64::from(m.lon_int) * 1e-7
+        } else {
+            f64::NAN
+        },
+        alt_m: if used(bit::Z) && m.alt.is_finite() {
+            f64::from(m.alt)
+        } else {
+            f64::NAN
+        },
     });
-    let sp = OffboardSetpoint::Local {
-        position_ned: position,
-        velocity_ned: masked([m.vx, m.vy, m.vz], mask, bit::VX),
-        acceleration_ned: masked([m.afx, m.afy, m.afz], mask, bit::AX),
-        yaw_rad: scalar(m.yaw, mask, bit::YAW),
-        yaw_rate_rad_s: scalar(m.yaw_rate, mask, bit::YAW_RATE),
-    };
-    sets_something(&sp).then_some(sp)
+    let velocity_ned = masked([m.vx, m.vy, m.vz], mask, bit::VX);
+    let acceleration_ned = masked([m.afx, m.afy, m.afz], mask, bit::AX);
+    let yaw_rad = scalar(m.yaw, mask, bit::YAW);
+    let yaw_rate_rad_s = scalar(m.yaw_rate, mask, bit::YAW_RATE);
+    if !sets_something(
+        [&velocity_ned, &acceleration_ned],
+        position.is_some(),
+        yaw_rad,
+        yaw_rate_rad_s,
+    ) {
+        return None;
+    }
+    Some(OffboardSetpoint::Global {
+        position,
+        altitude,
+        velocity_ned,
+        acceleration_ned,
+        yaw_rad,
+        yaw_rate_rad_s,
+    })
 }
 
 /// SET_ATTITUDE_TARGET to a setpoint. Mask bits 1, 2, 4 ignore the body
@@ -179,40 +193,9 @@ pub fn attitude(m: &SET_ATTITUDE_TARGET_DATA) -> Option<OffboardSetpoint> {
     })
 }
 
-fn offset(p: Vector3<f64>, current: &Vector3<f64>) -> Vector3<f64> {
-    p + current
-}
-
-fn rotate_keep_nan(r: &Rotation3<f64>, v: Vector3<f64>) -> Vector3<f64> {
-    // Rotate the finite part; a NaN component stays unset.
-    let nan = v.map(f64::is_nan);
-    let rotated = r * v.map(|x| if x.is_nan() { 0.0 } else { x });
-    Vector3::from_fn(|i, _| if nan[i] { f64::NAN } else { rotated[i] })
-}
-
-fn sets_something(sp: &OffboardSetpoint) -> bool {
-    match sp {
-        OffboardSetpoint::Local {
-            position_ned,
-            velocity_ned,
-            acceleration_ned,
-            yaw_rad,
-            yaw_rate_rad_s,
-        } => {
-            position_ned.is_some()
-                || velocity_ned.is_some()
-                || acceleration_ned.is_some()
-                || yaw_rad.is_some()
-                || yaw_rate_rad_s.is_some()
-        }
-        OffboardSetpoint::Attitude { .. } => true,
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::link::testing::telemetry;
     use mavlink::dialects::common::{AttitudeTargetTypemask, MavFrame, PositionTargetTypemask};
 
     fn local(mask: u16, frame: MavFrame) -> SET_POSITION_TARGET_LOCAL_NED_DATA {
@@ -238,7 +221,6 @@ mod tests {
 
     #[test]
     fn mavsdk_masks() {
-        let t = telemetry();
         let f = MavFrame::MAV_FRAME_LOCAL_NED;
         // 2552: position + yaw
         let Some(OffboardSetpoint::Local {
@@ -247,7 +229,7 @@ mod tests {
             acceleration_ned,
             yaw_rad,
             yaw_rate_rad_s,
-        }) = local_ned(&local(2552, f), &t)
+        }) = local_ned(&local(2552, f))
         else {
             panic!()
         };
@@ -259,7 +241,7 @@ mod tests {
             position_ned,
             velocity_ned,
             ..
-        }) = local_ned(&local(2503, f), &t)
+        }) = local_ned(&local(2503, f))
         else {
             panic!()
         };
@@ -270,45 +252,51 @@ mod tests {
             acceleration_ned,
             yaw_rad,
             ..
-        }) = local_ned(&local(3135, f), &t)
+        }) = local_ned(&local(3135, f))
         else {
             panic!()
         };
         assert_eq!(acceleration_ned, Some(Vector3::zeros()));
         assert!(yaw_rad.is_none());
         // 4: position x/y only; partial masks keep NaN
-        let Some(OffboardSetpoint::Local { position_ned, .. }) = local_ned(&local(4, f), &t) else {
+        let Some(OffboardSetpoint::Local { position_ned, .. }) = local_ned(&local(4, f)) else {
             panic!()
         };
         let p = position_ned.unwrap();
         assert_eq!((p.x, p.y), (1.0, 2.0));
         assert!(p.z.is_nan());
         // unsupported frame
-        assert!(local_ned(&local(2552, MavFrame::MAV_FRAME_GLOBAL), &t).is_none());
+        assert!(local_ned(&local(2552, MavFrame::MAV_FRAME_GLOBAL)).is_none());
     }
 
     #[test]
-    fn body_velocity_turns_with_heading() {
-        let mut t = telemetry();
-        t.attitude = UnitQuaternion::from_euler_angles(0.0, 0.0, std::f64::consts::FRAC_PI_2);
-        // 1479: velocity + yaw rate, BODY_NED: forward 0.5 becomes east when facing east
-        let Some(OffboardSetpoint::Local {
-            velocity_ned,
+    fn relative_frames_are_left_to_the_autopilot() {
+        // 1479: velocity + yaw rate, BODY_NED: resolved against the heading when applied
+        let Some(OffboardSetpoint::Relative {
+            frame,
+            velocity,
             yaw_rate_rad_s,
+            position,
             ..
-        }) = local_ned(&local(1479, MavFrame::MAV_FRAME_BODY_NED), &t)
+        }) = local_ned(&local(1479, MavFrame::MAV_FRAME_BODY_NED))
         else {
             panic!()
         };
-        let v = velocity_ned.unwrap();
-        assert!((v - Vector3::new(0.0, 0.5, -0.2)).norm() < 1e-6, "{v}");
+        assert_eq!(frame, RelativeFrame::Body);
+        assert!(position.is_none());
+        assert!((velocity.unwrap() - Vector3::new(0.5, 0.0, -0.2)).norm() < 1e-6);
         assert!((yaw_rate_rad_s.unwrap() - 0.1).abs() < 1e-6);
+        let Some(OffboardSetpoint::Relative { frame, .. }) =
+            local_ned(&local(2552, MavFrame::MAV_FRAME_LOCAL_OFFSET_NED))
+        else {
+            panic!()
+        };
+        assert_eq!(frame, RelativeFrame::OffsetNed);
     }
 
     #[test]
     fn global_frames() {
-        let t = telemetry();
-        let home = t.home;
+        let home = crate::geo::GeoPoint::PX4_SITL_HOME;
         let mut m = SET_POSITION_TARGET_GLOBAL_INT_DATA {
             time_boot_ms: 0,
             lat_int: crate::link::convert::deg_e7(home.lat_deg),
@@ -327,16 +315,22 @@ mod tests {
             target_component: 1,
             coordinate_frame: MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
         };
-        let Some(OffboardSetpoint::Local { position_ned, .. }) = global_int(&m, &t) else {
+        let Some(OffboardSetpoint::Global { position, altitude, .. }) = global_int(&m) else {
             panic!()
         };
-        assert!((position_ned.unwrap() - Vector3::new(0.0, 0.0, -10.0)).norm() < 0.01);
+        let p = position.unwrap();
+        assert_eq!(altitude, AltitudeReference::Home);
+        assert!((p.lat_deg - home.lat_deg).abs() < 1e-7 && p.alt_m == 10.0);
         m.coordinate_frame = MavFrame::MAV_FRAME_GLOBAL_INT;
-        m.alt = (home.alt_amsl_m + 5.0) as f32;
-        let Some(OffboardSetpoint::Local { position_ned, .. }) = global_int(&m, &t) else {
+        // altitude ignored: unset, the rest kept
+        m.type_mask = PositionTargetTypemask::from_bits_retain(2552 | 4);
+        let Some(OffboardSetpoint::Global { position, altitude, .. }) = global_int(&m) else {
             panic!()
         };
-        assert!((position_ned.unwrap().z + 5.0).abs() < 0.01);
+        assert_eq!(altitude, AltitudeReference::Amsl);
+        assert!(position.unwrap().alt_m.is_nan());
+        m.coordinate_frame = MavFrame::MAV_FRAME_LOCAL_NED;
+        assert!(global_int(&m).is_none());
     }
 
     #[test]

@@ -1,5 +1,6 @@
 //! Telemetry streams: which messages a link sends unasked, at what rate, and
-//! how each is built from a [`Telemetry`] snapshot.
+//! how each is built from a [`Snapshot`] (the autopilot's [`Telemetry`] and
+//! the world's injected truth).
 //!
 //! Rates are in wall time (a stream at 50 Hz sends 50 messages per wall
 //! second whatever `--speed` is), so traffic and CPU stay bounded when the
@@ -24,7 +25,9 @@ use mavlink::dialects::common::{
 };
 
 use super::convert;
-use crate::autopilot::{LandedState, Telemetry};
+use crate::autopilot::{LandedState, Telemetry, VehicleType};
+use crate::lockstep::Snapshot;
+use crate::signals::GpsFix;
 
 /// A message the vehicle streams.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -307,10 +310,13 @@ pub fn time_usec(t: &Telemetry) -> u64 {
 pub const SENSORS: u32 = 0x0020_002F;
 /// MAV_SYS_STATUS_PREARM_CHECK.
 pub const PREARM_CHECK: u32 = 0x1000_0000;
+/// MAV_SYS_STATUS_SENSOR_GPS: unhealthy without a fix.
+pub const GPS: u32 = 0x20;
 
 /// Build the messages of one stream.
 #[must_use]
-pub fn build(stream: Stream, t: &Telemetry, unix_time_us: u64) -> Vec<MavMessage> {
+pub fn build(stream: Stream, snapshot: &Snapshot, unix_time_us: u64) -> Vec<MavMessage> {
+    let t = &snapshot.telemetry;
     let ms = time_boot_ms(t);
     let us = time_usec(t);
     let (roll, pitch, yaw) = t.attitude.euler_angles();
@@ -319,7 +325,8 @@ pub fn build(stream: Stream, t: &Telemetry, unix_time_us: u64) -> Vec<MavMessage
     let m = match stream {
         Stream::Heartbeat => MavMessage::HEARTBEAT(heartbeat(t)),
         Stream::SysStatus => {
-            let health = SENSORS | if t.prearm_ok || t.armed { PREARM_CHECK } else { 0 };
+            let gps = if t.gps_fix == GpsFix::None { GPS } else { 0 };
+            let health = (SENSORS & !gps) | if t.prearm_ok || t.armed { PREARM_CHECK } else { 0 };
             MavMessage::SYS_STATUS(SYS_STATUS_DATA {
                 onboard_control_sensors_present: MavSysStatusSensor::from_bits_retain(SENSORS | PREARM_CHECK),
                 onboard_control_sensors_enabled: MavSysStatusSensor::from_bits_retain(SENSORS | PREARM_CHECK),
@@ -353,8 +360,11 @@ pub fn build(stream: Stream, t: &Telemetry, unix_time_us: u64) -> Vec<MavMessage
             } else {
                 convert::heading_cdeg(yaw)
             },
-            fix_type: GpsFixType::GPS_FIX_TYPE_3D_FIX,
-            satellites_visible: 12,
+            fix_type: match t.gps_fix {
+                GpsFix::None => GpsFixType::GPS_FIX_TYPE_NO_FIX,
+                GpsFix::Fix3d => GpsFixType::GPS_FIX_TYPE_3D_FIX,
+            },
+            satellites_visible: t.gps_satellites,
         }),
         Stream::Attitude => MavMessage::ATTITUDE(ATTITUDE_DATA {
             time_boot_ms: ms,
@@ -441,8 +451,8 @@ pub fn build(stream: Stream, t: &Telemetry, unix_time_us: u64) -> Vec<MavMessage
         Stream::DebugVect => {
             let f = t.estimate.force_ned;
             let tq = t.estimate.torque_frd;
-            let sf = t.injected_force_ned;
-            let st = t.injected_torque_frd;
+            let sf = snapshot.truth.force_ned;
+            let st = snapshot.truth.torque_frd;
             return vec![
                 debug_vect("EST_FORCE", us, [f.x, f.y, f.z]),
                 debug_vect("EST_TORQUE", us, [tq.x, tq.y, tq.z]),
@@ -453,19 +463,26 @@ pub fn build(stream: Stream, t: &Telemetry, unix_time_us: u64) -> Vec<MavMessage
         Stream::NamedValueFloat => {
             return vec![
                 named_float("EST_MASS", ms, t.estimate.mass_kg),
-                named_float("SIM_MASS", ms, t.true_mass_kg),
+                named_float("SIM_MASS", ms, snapshot.truth.true_mass_kg),
             ];
         }
     };
     vec![m]
 }
 
-/// HEARTBEAT as PX4 sends it: quadrotor, autopilot PX4, custom mode.
+/// HEARTBEAT as PX4 sends it: the multirotor's type, autopilot PX4, custom mode.
 #[must_use]
 pub fn heartbeat(t: &Telemetry) -> HEARTBEAT_DATA {
     HEARTBEAT_DATA {
         custom_mode: convert::custom_mode(t.mode),
-        mavtype: MavType::MAV_TYPE_QUADROTOR,
+        mavtype: match t.vehicle_type {
+            VehicleType::Tricopter => MavType::MAV_TYPE_TRICOPTER,
+            VehicleType::Quadrotor => MavType::MAV_TYPE_QUADROTOR,
+            VehicleType::Hexarotor => MavType::MAV_TYPE_HEXAROTOR,
+            VehicleType::Octorotor => MavType::MAV_TYPE_OCTOROTOR,
+            VehicleType::Decarotor => MavType::MAV_TYPE_DECAROTOR,
+            VehicleType::Dodecarotor => MavType::MAV_TYPE_DODECAROTOR,
+        },
         autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
         base_mode: MavModeFlag::from_bits_retain(convert::base_mode(t.mode, t.armed)),
         system_status: if t.armed {

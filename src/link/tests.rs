@@ -11,7 +11,7 @@ use mavlink::{MavHeader, MessageData};
 
 use super::param::ParamAccess as _;
 use super::param::fake::FakeParams;
-use super::testing::telemetry;
+use super::testing::snapshot;
 use super::wire::{self, CommandAck, CommandLong};
 use super::*;
 
@@ -82,7 +82,7 @@ fn acks(out: &[Outgoing]) -> Vec<CommandAck> {
 fn speaks_first_with_a_px4_heartbeat() {
     let t0 = Instant::now();
     let mut l = link(t0);
-    l.poll(t0, &telemetry(), 0);
+    l.poll(t0, &snapshot(), 0);
     let out = l.drain();
     assert!(out.iter().all(|o| o.to == To::All));
     let hb = out
@@ -108,7 +108,7 @@ fn unknown_command_is_unsupported_with_target_requester() {
     let t0 = Instant::now();
     let mut l = link(t0);
     let p = FakeParams::standard();
-    let e = l.on_datagram(t0, addr(50000), &cmd(31_337, [0.0; 7], 1), &telemetry(), &p);
+    let e = l.on_datagram(t0, addr(50000), &cmd(31_337, [0.0; 7], 1), &snapshot(), &p);
     assert!(e.is_empty());
     let out = l.drain();
     assert_eq!(out[0].to, To::Peer(addr(50000)));
@@ -127,7 +127,7 @@ fn commands_for_other_components_are_ignored_component_zero_accepted() {
     let t0 = Instant::now();
     let mut l = link(t0);
     let p = FakeParams::standard();
-    let e = l.on_datagram(t0, addr(50000), &cmd(400, [1.0; 7], 0), &telemetry(), &p);
+    let e = l.on_datagram(t0, addr(50000), &cmd(400, [1.0; 7], 0), &snapshot(), &p);
     assert!(matches!(
         e.as_slice(),
         [Effect::Autopilot {
@@ -135,7 +135,7 @@ fn commands_for_other_components_are_ignored_component_zero_accepted() {
             ack: Some(_)
         }]
     ));
-    let e = l.on_datagram(t0, addr(50000), &cmd(400, [1.0; 7], 154), &telemetry(), &p);
+    let e = l.on_datagram(t0, addr(50000), &cmd(400, [1.0; 7], 154), &snapshot(), &p);
     assert!(e.is_empty());
     assert!(l.drain().is_empty());
 }
@@ -167,7 +167,7 @@ fn request_message_acks_then_sends() {
         t0,
         addr(50000),
         &cmd(512, [148.0, nan, nan, nan, nan, nan, nan], 1),
-        &telemetry(),
+        &snapshot(),
         &p,
     );
     let d = decoded(&l.drain());
@@ -176,12 +176,12 @@ fn request_message_acks_then_sends() {
         t0,
         addr(50000),
         &cmd(512, [9999.0, nan, nan, nan, nan, nan, nan], 1),
-        &telemetry(),
+        &snapshot(),
         &p,
     );
     let a = acks(&l.drain());
     assert_eq!(a[0].result, convert::result::DENIED);
-    l.on_datagram(t0, addr(50000), &cmd(410, [0.0; 7], 0), &telemetry(), &p);
+    l.on_datagram(t0, addr(50000), &cmd(410, [0.0; 7], 0), &snapshot(), &p);
     let d = decoded(&l.drain());
     assert_eq!(d.iter().map(|x| x.1).collect::<Vec<_>>(), vec![77, 242]);
 }
@@ -196,7 +196,7 @@ fn set_message_interval_is_per_link() {
         t0,
         addr(50000),
         &cmd(511, [250.0, 50_000.0, nan, nan, nan, nan, nan], 1),
-        &telemetry(),
+        &snapshot(),
         &p,
     );
     assert_eq!(acks(&l.drain())[0].result, 0);
@@ -205,7 +205,7 @@ fn set_message_interval_is_per_link() {
         t0,
         addr(50000),
         &cmd(511, [331.0, 50_000.0, nan, nan, nan, nan, nan], 1),
-        &telemetry(),
+        &snapshot(),
         &p,
     );
     assert_eq!(acks(&l.drain())[0].result, convert::result::FAILED);
@@ -220,7 +220,7 @@ fn param_list_goes_to_the_requester_in_order() {
         target_system: 1,
         target_component: 0,
     }));
-    l.on_datagram(t0, addr(50000), &req, &telemetry(), &p);
+    l.on_datagram(t0, addr(50000), &req, &snapshot(), &p);
     let d = decoded(&l.drain());
     assert_eq!(d.len(), 5);
     assert!(d.iter().all(|(to, id, _)| *to == To::Peer(addr(50000)) && *id == 22));
@@ -238,7 +238,7 @@ fn param_set_echoes_then_rebroadcasts_via_the_daemon() {
         param_id: "SYS_FAILURE_EN".into(),
         param_type: MavParamType::MAV_PARAM_TYPE_INT32,
     }));
-    let e = l.on_datagram(t0, addr(50000), &set, &telemetry(), &p);
+    let e = l.on_datagram(t0, addr(50000), &set, &snapshot(), &p);
     let [Effect::SetParam { ticket, value }] = e.as_slice() else {
         panic!("{e:?}")
     };
@@ -249,10 +249,10 @@ fn param_set_echoes_then_rebroadcasts_via_the_daemon() {
     assert_eq!(decoded(&l.drain()).len(), 1);
     l.broadcast_param(t0, &value);
     assert_eq!(l.next_deadline(), Some(t0));
-    l.poll(t0 + Duration::from_millis(1), &telemetry(), 0);
+    l.poll(t0 + Duration::from_millis(1), &snapshot(), 0);
     let early: Vec<_> = decoded(&l.drain()).into_iter().filter(|x| x.1 == 22).collect();
     assert!(early.is_empty());
-    l.poll(t0 + Duration::from_millis(6), &telemetry(), 0);
+    l.poll(t0 + Duration::from_millis(6), &snapshot(), 0);
     let late: Vec<_> = decoded(&l.drain()).into_iter().filter(|x| x.1 == 22).collect();
     assert_eq!(late.len(), 1);
     assert_eq!(late[0].0, To::All);
@@ -265,7 +265,7 @@ fn mavlink1_and_timesync_and_ping() {
     let p = FakeParams::standard();
     let ts = MavMessage::TIMESYNC(TIMESYNC_DATA { tc1: 0, ts1: 12345 });
     let frame = wire::encode_v1(gcs(), 111, &wire::payload_v1(&ts));
-    l.on_datagram(t0, addr(50000), &frame, &telemetry(), &p);
+    l.on_datagram(t0, addr(50000), &frame, &snapshot(), &p);
     let d = decoded(&l.drain());
     assert_eq!(d[0].1, TIMESYNC_DATA::ID);
     let ping = MavMessage::PING(PING_DATA {
@@ -274,12 +274,12 @@ fn mavlink1_and_timesync_and_ping() {
         target_system: 0,
         target_component: 0,
     });
-    l.on_datagram(t0, addr(50000), &v2(&ping), &telemetry(), &p);
+    l.on_datagram(t0, addr(50000), &v2(&ping), &snapshot(), &p);
     let d = decoded(&l.drain());
     assert_eq!(d[0].1, 4);
     // a heartbeat only teaches the peer
     let hb = v2(&MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()));
-    assert!(l.on_datagram(t0, addr(50001), &hb, &telemetry(), &p).is_empty());
+    assert!(l.on_datagram(t0, addr(50001), &hb, &snapshot(), &p).is_empty());
     assert!(l.drain().is_empty());
     let mut dst = Vec::new();
     l.destinations(t0, &mut dst);
@@ -302,7 +302,7 @@ fn ftp_is_refused_at_once() {
             payload,
         },
     ));
-    l.on_datagram(t0, addr(50000), &req, &telemetry(), &p);
+    l.on_datagram(t0, addr(50000), &req, &snapshot(), &p);
     let d = decoded(&l.drain());
     let f = &d[0].2;
     // payload offset 3 (target_network, target_system, target_component first)

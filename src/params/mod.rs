@@ -20,7 +20,7 @@ mod table;
 
 pub use file::ParamFileError;
 pub use store::{ParamError, ParamStore};
-pub use table::{PARAMS, markdown_table};
+pub use table::{PARAMS, Param, markdown_table};
 
 use serde::Serialize;
 

@@ -1,6 +1,6 @@
 //! The typed parameter store: one value per [`PARAMS`] entry, in table order.
 
-use super::{PARAMS, ParamSpec, ParamType, ParamValue};
+use super::{PARAMS, Param, ParamSpec, ParamType, ParamValue};
 use crate::airframe::Airframe;
 
 /// Why a parameter value was refused. The store is unchanged after any of these.
@@ -62,11 +62,11 @@ impl ParamStore {
     /// Every parameter at its default for `airframe`.
     #[must_use]
     pub fn new(airframe: &Airframe) -> Self {
-        let defaults: Vec<ParamValue> = PARAMS
+        let defaults: Vec<ParamValue> = Param::ALL
             .iter()
-            .map(|p| match p.name {
-                "SIM_MASS" | "MDL_MASS" => Self::airframe_mass(p, airframe.mass_kg),
-                _ => p.default_value(),
+            .map(|&p| match p {
+                Param::SIM_MASS | Param::MDL_MASS => Self::airframe_mass(p.spec(), airframe.mass_kg),
+                _ => p.spec().default_value(),
             })
             .collect();
         Self {
@@ -115,6 +115,27 @@ impl ParamStore {
     pub fn get(&self, name: &str) -> Option<(usize, ParamValue)> {
         let i = self.index_of(name)?;
         Some((i, self.values[i]))
+    }
+
+    /// The value of `p`.
+    #[must_use]
+    pub fn value(&self, p: Param) -> ParamValue {
+        self.values[p as usize]
+    }
+
+    /// The value of `p` as `f64` (a REAL32 widened, an INT32 converted).
+    #[must_use]
+    pub fn real(&self, p: Param) -> f64 {
+        self.value(p).as_f64()
+    }
+
+    /// The value of the INT32 parameter `p` (a REAL32 truncated towards zero).
+    #[must_use]
+    pub fn int(&self, p: Param) -> i32 {
+        match self.value(p) {
+            ParamValue::Int32(i) => i,
+            ParamValue::Real32(f) => f as i32,
+        }
     }
 
     /// Declaration and value of parameter `index`.

@@ -48,254 +48,113 @@ const fn int_reboot(name: &'static str, default: i32, min: i32, max: i32, descri
     }
 }
 
-/// Every parameter, in index order.
-pub static PARAMS: &[ParamSpec] = &[
+/// Declares the table once: the [`Param`] enum (one variant per parameter,
+/// named as the parameter, in index order) and [`PARAMS`], each entry built
+/// by `real`, `int` or `int_reboot` with the name filled in from the variant.
+macro_rules! parameters {
+    ($( $(#[$meta:meta])* $name:ident : $ctor:ident ( $($arg:expr),* $(,)? ) ),* $(,)?) => {
+        /// Every parameter, by its (PX4) name; `Param::X as usize` is its index.
+        #[allow(non_camel_case_types)]
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum Param {
+            $( #[doc = concat!("`", stringify!($name), "`")] $name, )*
+        }
+
+        impl Param {
+            /// Every parameter in index order.
+            pub const ALL: &'static [Param] = &[$(Param::$name),*];
+        }
+
+        /// Every parameter, in index order.
+        pub static PARAMS: &[ParamSpec] = &[
+            $( $(#[$meta])* $ctor(stringify!($name), $($arg),*), )*
+        ];
+    };
+}
+
+impl Param {
+    /// Its declaration.
+    #[must_use]
+    pub fn spec(self) -> &'static ParamSpec {
+        &PARAMS[self as usize]
+    }
+
+    /// Its name (at most 16 characters, as MAVLink carries it).
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        self.spec().name
+    }
+}
+
+parameters! {
     // --- PX4: mission, return, navigation -------------------------------------------------------
-    real(
-        "MIS_TAKEOFF_ALT",
-        2.5,
-        0.0,
-        80.0,
-        "m",
-        "Takeoff altitude above home (a lower takeoff target is raised to it)",
-    ),
-    real(
-        "RTL_RETURN_ALT",
-        60.0,
-        0.0,
-        150.0,
-        "m",
-        "RTL: climb to at least this altitude above home before returning",
-    ),
-    real(
-        "RTL_DESCEND_ALT",
-        30.0,
-        2.0,
-        100.0,
-        "m",
-        "RTL: above home, descend to this altitude before landing",
-    ),
-    real(
-        "NAV_ACC_RAD",
-        2.0,
-        0.05,
-        200.0,
-        "m",
-        "Horizontal acceptance radius of a target (RTL arrival over home)",
-    ),
+    MIS_TAKEOFF_ALT: real(2.5, 0.0, 80.0, "m", "Takeoff altitude above home (a lower takeoff target is raised to it)"),
+    RTL_RETURN_ALT: real(60.0, 0.0, 150.0, "m", "RTL: climb to at least this altitude above home before returning"),
+    RTL_DESCEND_ALT: real(30.0, 2.0, 100.0, "m", "RTL: above home, descend to this altitude before landing"),
+    NAV_ACC_RAD: real(2.0, 0.05, 200.0, "m", "Horizontal acceptance radius of a target (RTL arrival over home)"),
     // --- PX4: multicopter position control --------------------------------------------------------
-    real(
-        "MPC_XY_CRUISE",
-        5.0,
-        0.5,
-        20.0,
-        "m/s",
+    MPC_XY_CRUISE: real(
+        5.0, 0.5, 20.0, "m/s",
         "Cruise ground speed of reposition, RTL and offboard position setpoints",
     ),
-    real(
-        "MPC_XY_VEL_MAX",
-        12.0,
-        0.5,
-        20.0,
-        "m/s",
+    MPC_XY_VEL_MAX: real(
+        12.0, 0.5, 20.0, "m/s",
         "Largest horizontal speed (caps cruise, reposition and velocity setpoints)",
     ),
-    real("MPC_Z_VEL_MAX_UP", 3.0, 0.5, 8.0, "m/s", "Largest climb speed"),
-    real(
-        "MPC_Z_VEL_MAX_DN",
-        1.5,
-        0.5,
-        4.0,
-        "m/s",
-        "Largest descent speed (also landing above MPC_LAND_ALT1)",
-    ),
-    real("MPC_TKO_SPEED", 1.5, 0.5, 5.0, "m/s", "Climb speed of a takeoff"),
-    real(
-        "MPC_LAND_SPEED",
-        0.7,
-        0.2,
-        2.0,
-        "m/s",
-        "Landing descent speed below MPC_LAND_ALT1",
-    ),
-    real(
-        "MPC_LAND_ALT1",
-        10.0,
-        0.0,
-        122.0,
-        "m",
+    MPC_Z_VEL_MAX_UP: real(3.0, 0.5, 8.0, "m/s", "Largest climb speed"),
+    MPC_Z_VEL_MAX_DN: real(1.5, 0.5, 4.0, "m/s", "Largest descent speed (also landing above MPC_LAND_ALT1)"),
+    MPC_TKO_SPEED: real(1.5, 0.5, 5.0, "m/s", "Climb speed of a takeoff"),
+    MPC_LAND_SPEED: real(0.7, 0.2, 2.0, "m/s", "Landing descent speed below MPC_LAND_ALT1"),
+    MPC_LAND_ALT1: real(
+        10.0, 0.0, 122.0, "m",
         "Landing: above this height descend at MPC_Z_VEL_MAX_DN, below at MPC_LAND_SPEED",
     ),
     // --- PX4: commander ------------------------------------------------------------------------
-    real(
-        "COM_OF_LOSS_T",
-        1.0,
-        0.0,
-        60.0,
-        "s",
-        "Offboard: setpoints older than this are lost (OFFBOARD refused or left)",
-    ),
-    int(
-        "COM_OBL_RC_ACT",
-        0,
-        0,
-        7,
-        "Offboard loss action: 3 Return, 4 Land, any other Hold (no RC, no termination here)",
-    ),
-    real(
-        "COM_DISARM_LAND",
-        2.0,
-        -1.0,
-        20.0,
-        "s",
-        "Disarm this long after a landing (<= 0: never)",
-    ),
-    real(
-        "COM_DISARM_PRFLT",
-        10.0,
-        -1.0,
-        20.0,
-        "s",
+    COM_OF_LOSS_T: real(1.0, 0.0, 60.0, "s", "Offboard: setpoints older than this are lost (OFFBOARD refused or left)"),
+    COM_OBL_RC_ACT: int(0, 0, 7, "Offboard loss action: 3 Return, 4 Land, any other Hold (no RC, no termination here)"),
+    COM_DISARM_LAND: real(2.0, -1.0, 20.0, "s", "Disarm this long after a landing (<= 0: never)"),
+    COM_DISARM_PRFLT: real(
+        10.0, -1.0, 20.0, "s",
         "Disarm this long after arming if the vehicle has not taken off (<= 0: never)",
     ),
     // --- PX4: system, MAVLink, battery ---------------------------------------------------------
-    int(
-        "SYS_FAILURE_EN",
-        0,
-        0,
-        1,
-        "Allow failure injection (MAV_CMD_INJECT_FAILURE)",
-    ),
-    int_reboot("MAV_SYS_ID", 1, 1, 250, "MAVLink system id"),
-    int_reboot("MAV_COMP_ID", 1, 1, 250, "MAVLink component id"),
-    int("BAT1_N_CELLS", 4, 1, 14, "Simulated battery: cells in series"),
-    real(
-        "BAT1_CAPACITY",
-        5000.0,
-        100.0,
-        100_000.0,
-        "mAh",
-        "Simulated battery: capacity",
-    ),
-    real(
-        "SIM_BAT_MIN_PCT",
-        50.0,
-        0.0,
-        100.0,
-        "%",
-        "Simulated battery: charge never drops below this (PX4 SITL's floor)",
-    ),
+    SYS_FAILURE_EN: int(0, 0, 1, "Allow failure injection (MAV_CMD_INJECT_FAILURE)"),
+    MAV_SYS_ID: int_reboot(1, 1, 250, "MAVLink system id"),
+    MAV_COMP_ID: int_reboot(1, 1, 250, "MAVLink component id"),
+    BAT1_N_CELLS: int(4, 1, 14, "Simulated battery: cells in series"),
+    BAT1_CAPACITY: real(5000.0, 100.0, 100_000.0, "mAh", "Simulated battery: capacity"),
+    SIM_BAT_MIN_PCT: real(50.0, 0.0, 100.0, "%", "Simulated battery: charge never drops below this (PX4 SITL's floor)"),
     // --- rotorpilot: control -------------------------------------------------------------------
-    int(
-        "CTRL_TYPE",
-        1,
-        0,
-        2,
-        "Control law: 0 hierarchical, 1 geometric, 2 passivity (switched bumplessly in flight)",
-    ),
-    real(
-        "CTRL_POS_SCALE",
-        1.0,
-        0.2,
-        3.0,
-        "",
+    CTRL_TYPE: int(1, 0, 2, "Control law: 0 hierarchical, 1 geometric, 2 passivity (switched bumplessly in flight)"),
+    CTRL_POS_SCALE: real(
+        1.0, 0.2, 3.0, "",
         "Position loop frequency scale s: stiffness gains x s^2, damping gains x s (all laws)",
     ),
-    real(
-        "CTRL_ATT_SCALE",
-        1.0,
-        0.2,
-        3.0,
-        "",
+    CTRL_ATT_SCALE: real(
+        1.0, 0.2, 3.0, "",
         "Attitude loop frequency scale s: stiffness gains x s^2, damping gains x s (all laws)",
     ),
     // --- rotorpilot: estimator -----------------------------------------------------------------
-    int("EST_ORDER", 3, 1, 20, "Wrench estimator order r"),
-    int(
-        "EST_POLY",
-        0,
-        0,
-        1,
-        "Estimator filter polynomial: 0 Butterworth, 1 binomial",
-    ),
-    real("EST_CUTOFF", 10.0, 0.1, 100.0, "rad/s", "Estimator cutoff frequency"),
-    int("EST_COMP", 0, 0, 1, "Feed the wrench estimate back to the controller"),
+    EST_ORDER: int(3, 1, 20, "Wrench estimator order r"),
+    EST_POLY: int(0, 0, 1, "Estimator filter polynomial: 0 Butterworth, 1 binomial"),
+    EST_CUTOFF: real(10.0, 0.1, 100.0, "rad/s", "Estimator cutoff frequency"),
+    EST_COMP: int(0, 0, 1, "Feed the wrench estimate back to the controller"),
     // --- rotorpilot: simulation ----------------------------------------------------------------
-    real(
-        "SIM_FEXT_X",
-        0.0,
-        -50.0,
-        50.0,
-        "N",
-        "Injected external force, north (world NED)",
-    ),
-    real(
-        "SIM_FEXT_Y",
-        0.0,
-        -50.0,
-        50.0,
-        "N",
-        "Injected external force, east (world NED)",
-    ),
-    real(
-        "SIM_FEXT_Z",
-        0.0,
-        -50.0,
-        50.0,
-        "N",
-        "Injected external force, down (world NED)",
-    ),
-    real(
-        "SIM_TEXT_X",
-        0.0,
-        -10.0,
-        10.0,
-        "N m",
-        "Injected external torque, body x forward (FRD)",
-    ),
-    real(
-        "SIM_TEXT_Y",
-        0.0,
-        -10.0,
-        10.0,
-        "N m",
-        "Injected external torque, body y right (FRD)",
-    ),
-    real(
-        "SIM_TEXT_Z",
-        0.0,
-        -10.0,
-        10.0,
-        "N m",
-        "Injected external torque, body z down (FRD)",
-    ),
-    real(
-        "SIM_MASS",
-        2.0,
-        0.05,
-        100.0,
-        "kg",
-        "True mass of the simulated vehicle (default: the airframe's nominal mass)",
-    ),
-    real(
-        "MDL_MASS",
-        2.0,
-        0.05,
-        100.0,
-        "kg",
+    SIM_FEXT_X: real(0.0, -50.0, 50.0, "N", "Injected external force, north (world NED)"),
+    SIM_FEXT_Y: real(0.0, -50.0, 50.0, "N", "Injected external force, east (world NED)"),
+    SIM_FEXT_Z: real(0.0, -50.0, 50.0, "N", "Injected external force, down (world NED)"),
+    SIM_TEXT_X: real(0.0, -10.0, 10.0, "N m", "Injected external torque, body x forward (FRD)"),
+    SIM_TEXT_Y: real(0.0, -10.0, 10.0, "N m", "Injected external torque, body y right (FRD)"),
+    SIM_TEXT_Z: real(0.0, -10.0, 10.0, "N m", "Injected external torque, body z down (FRD)"),
+    SIM_MASS: real(2.0, 0.05, 100.0, "kg", "True mass of the simulated vehicle (default: the airframe's nominal mass)"),
+    MDL_MASS: real(
+        2.0, 0.05, 100.0, "kg",
         "Nominal mass the controller and estimator assume (default: the airframe's)",
     ),
-    int("SIM_GE_EN", 1, 0, 1, "Simulate ground effect"),
-    int("SIM_CE_EN", 1, 0, 1, "Simulate ceiling effect (needs SIM_CEIL_Z > 0)"),
-    real(
-        "SIM_CEIL_Z",
-        0.0,
-        0.0,
-        100.0,
-        "m",
-        "Height of a flat ceiling above the home ground (0: no ceiling)",
-    ),
-];
+    SIM_GE_EN: int(1, 0, 1, "Simulate ground effect"),
+    SIM_CE_EN: int(1, 0, 1, "Simulate ceiling effect (needs SIM_CEIL_Z > 0)"),
+    SIM_CEIL_Z: real(0.0, 0.0, 100.0, "m", "Height of a flat ceiling above the home ground (0: no ceiling)"),
+}
 
 /// The table as Markdown (name, type, default, range, unit, description),
 /// for the README: `| MIS_TAKEOFF_ALT | REAL32 | 2.5 | 0 .. 80 | m | ... |`.
@@ -341,6 +200,15 @@ mod tests {
                 let d = p.default as f32;
                 assert!(d >= p.min as f32 && d <= p.max as f32, "{}", p.name);
             }
+        }
+    }
+
+    #[test]
+    fn every_param_names_its_own_entry() {
+        assert_eq!(Param::ALL.len(), PARAMS.len());
+        for (i, p) in Param::ALL.iter().enumerate() {
+            assert_eq!(*p as usize, i);
+            assert_eq!(p.spec().name, format!("{p:?}"));
         }
     }
 

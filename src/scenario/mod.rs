@@ -12,16 +12,16 @@
 mod run;
 mod trajectory;
 
-pub use run::{Summary, run};
+pub use run::{ScenarioPilot, Summary, lockstep, run};
 pub use trajectory::Trajectory;
 
 use nalgebra::Vector3;
 use serde::Deserialize;
 
 use crate::airframe::{Airframe, AirframeError};
-use crate::control::{ControlGains, ControllerKind, GainOverrides, Setpoint};
+use crate::control::{ControlGains, ControllerKind, GainError, GainOverrides, Setpoint};
 use crate::estimation::{Discretization, EstimatorConfig, Polynomial};
-use crate::model::{SensorNoise, World};
+use crate::sim::{DisturbanceChange, Environment, SensorNoise};
 use crate::tomlfile::{self, FileError};
 
 /// Why a scenario could not be loaded.
@@ -37,6 +37,16 @@ pub enum ScenarioError {
         file: String,
         /// The airframe's own error.
         source: AirframeError,
+    },
+    /// The airframe's `[control]` table gives invalid gains.
+    #[error("{file}: airframe {airframe}: {source}")]
+    AirframeGains {
+        /// Scenario path.
+        file: String,
+        /// Where the airframe came from.
+        airframe: String,
+        /// What is wrong.
+        source: GainError,
     },
 }
 
@@ -57,7 +67,7 @@ struct File {
     #[serde(default)]
     noise: SensorNoise,
     #[serde(default)]
-    world: World,
+    world: Environment,
     #[serde(default)]
     estimator: FileEstimator,
     reference: Option<Trajectory>,
@@ -147,19 +157,6 @@ pub enum ReferencePlan {
     Setpoints(Vec<(f64, Setpoint)>),
 }
 
-/// The disturbance state from a time on: values not given keep their previous value.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct DisturbanceChange {
-    /// From this time [s].
-    pub at_s: f64,
-    /// New external force [N], NED.
-    pub force_ned: Option<Vector3<f64>>,
-    /// New external torque [N m], FRD.
-    pub torque_frd: Option<Vector3<f64>>,
-    /// New true mass [kg].
-    pub true_mass_kg: Option<f64>,
-}
-
 /// Initial state given explicitly.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct InitialState {
@@ -193,7 +190,7 @@ pub struct Scenario {
     /// Sensor noise.
     pub noise: SensorNoise,
     /// Environment.
-    pub world: World,
+    pub world: Environment,
     /// Estimator.
     pub estimator: EstimatorConfig,
     /// Feed the estimate back.
@@ -246,8 +243,12 @@ impl Scenario {
         if !(raw.step_s.is_finite() && raw.step_s >= 1e-5 && raw.step_s <= 0.01) {
             return Err(fail("step_s", format!("must be in [1e-5, 0.01] s, got {}", raw.step_s)));
         }
-        let mut gains = ControlGains::for_airframe(&airframe);
-        gains.apply(&airframe.control);
+        let mut gains =
+            ControlGains::for_airframe(&airframe, airframe.mass_kg).map_err(|source| ScenarioError::AirframeGains {
+                file: file.to_string(),
+                airframe: airframe.source.clone(),
+                source,
+            })?;
         gains.apply(&raw.gains);
         gains
             .validate()

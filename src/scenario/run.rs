@@ -21,12 +21,14 @@ use std::io::Write;
 use nalgebra::Vector3;
 use serde::Serialize;
 
-use super::{DisturbanceChange, ReferencePlan, Scenario};
-use crate::control::{Reference, Shaper, ShaperLimits, feedforward_attitude};
+use super::{ReferencePlan, Scenario};
+use crate::autopilot::{ControlLoop, ControlOutput, Demand};
+use crate::control::{Reference, Shaper, ShaperLimits, TranslationSetpoint, feedforward_attitude};
 use crate::estimation::input_from;
+use crate::lockstep::{Lockstep, Pilot, StepRecord};
 use crate::math::{euler_zyx, from_euler_zyx};
-use crate::model::{ExternalWrench, PlantConfig, RigidBodyState};
-use crate::vehicle::{StepRecord, Vehicle, VehicleError};
+use crate::signals::{ControlWrench, GRAVITY, SensorReadings};
+use crate::sim::{DisturbanceSource, RigidBodyState, SensorConfig, SimFault, World};
 
 /// What `rotorpilot simulate` prints.
 #[derive(Clone, Debug, Serialize)]
@@ -77,22 +79,52 @@ pub struct Summary {
     pub est_mass_kg: f64,
 }
 
-/// The disturbance in force at `t` (last change at or before `t`; values not given carry over).
-fn disturbance_at(changes: &[DisturbanceChange], t: f64) -> (ExternalWrench, Option<f64>) {
-    let mut w = ExternalWrench::default();
-    let mut mass = None;
-    for c in changes.iter().take_while(|c| c.at_s <= t) {
-        if let Some(f) = c.force_ned {
-            w.force_ned = f;
-        }
-        if let Some(tq) = c.torque_frd {
-            w.torque_frd = tq;
-        }
-        if c.true_mass_kg.is_some() {
-            mass = c.true_mass_kg;
+/// The flight software of a scenario: its reference (an analytic curve, or
+/// timed setpoints through the shaper) and its controller switches, flown by
+/// the loop every pilot shares, with the estimate fed back if asked.
+#[derive(Debug)]
+pub struct ScenarioPilot<'a> {
+    scenario: &'a Scenario,
+    control: ControlLoop,
+    shaper: Shaper,
+    next_switch: usize,
+}
+
+impl ScenarioPilot<'_> {
+    /// The reference at `t` [s] (the shaper advances one step).
+    fn reference_at(&mut self, t: f64) -> Reference {
+        match &self.scenario.reference {
+            ReferencePlan::Trajectory(tr) => tr.at(t),
+            ReferencePlan::Setpoints(list) => {
+                let sp = list
+                    .iter()
+                    .take_while(|(at, _)| *at <= t)
+                    .last()
+                    .map_or(list[0].1, |(_, sp)| *sp);
+                self.shaper.update(&sp, self.scenario.step_s)
+            }
         }
     }
-    (w, mass)
+}
+
+impl Pilot for ScenarioPilot<'_> {
+    fn decide(&mut self, readings: &SensorReadings) -> ControlOutput {
+        let s = self.scenario;
+        let m = &readings.measurement;
+        let t = m.time_s;
+        while self.next_switch < s.switches.len() && s.switches[self.next_switch].0 <= t {
+            self.control.switch_controller(s.switches[self.next_switch].1);
+            self.next_switch += 1;
+        }
+        let reference = self.reference_at(t);
+        let estimate = self.control.sense(m);
+        let feedback = s.feedback.then_some(&estimate);
+        self.control.act(m, &Demand::Track(reference), feedback, s.step_s)
+    }
+
+    fn rotors_stopped(&mut self, _why: &SimFault) {
+        self.control.rotors_stopped();
+    }
 }
 
 fn csv_header(n: usize) -> String {
@@ -110,8 +142,8 @@ fn csv_header(n: usize) -> String {
     h
 }
 
-fn csv_row(r: &StepRecord, n: usize) -> String {
-    let m = &r.measurement;
+fn csv_row(rec: &StepRecord, n: usize) -> String {
+    let (m, r, w) = (&rec.measurement, &rec.control, &rec.world);
     // the report's inputs exactly as the estimator derives them (eta, eta_dot = Q^-1 omega)
     let input = input_from(m, &r.applied);
     let (eta, eta_dot) = (input.eta, input.eta_dot);
@@ -122,8 +154,8 @@ fn csv_row(r: &StepRecord, n: usize) -> String {
     v.extend(eta.iter());
     v.extend(eta_dot.iter());
     v.extend(m.rate_frd.iter());
-    v.extend(r.truth.position_ned.iter());
-    v.extend(r.truth.velocity_ned.iter());
+    v.extend(w.truth.position_ned.iter());
+    v.extend(w.truth.velocity_ned.iter());
     v.extend(r.reference.position_ned.iter());
     v.push(r.reference.yaw_rad);
     v.push(r.applied.thrust_n);
@@ -132,9 +164,9 @@ fn csv_row(r: &StepRecord, n: usize) -> String {
     v.extend(r.command.torque_frd.iter());
     v.push(f64::from(u8::from(r.saturated)));
     v.extend(r.rotor_speed_cmd.iter().take(n));
-    v.extend(r.external.force_ned.iter());
-    v.extend(r.external.torque_frd.iter());
-    v.push(r.true_mass_kg);
+    v.extend(w.external.force_ned.iter());
+    v.extend(w.external.torque_frd.iter());
+    v.push(w.true_mass_kg);
     v.extend(r.estimate.force_ned.iter());
     v.extend(r.estimate.torque_frd.iter());
     v.push(r.estimate.mass_kg);
@@ -142,43 +174,36 @@ fn csv_row(r: &StepRecord, n: usize) -> String {
     v.iter().map(|x| format!("{x}")).collect::<Vec<_>>().join(",")
 }
 
-/// Fly the scenario. `csv` receives the time series when given.
+/// The scenario ready to fly: its world (the vehicle placed at the initial
+/// state, the disturbance schedule set) and its pilot, at `t = 0`.
 ///
 /// # Errors
-/// Invalid gains or estimator settings, or a failed write to `csv`.
-#[allow(clippy::too_many_lines)]
-pub fn run(s: &Scenario, mut csv: Option<&mut dyn Write>) -> anyhow::Result<Summary> {
-    let plant = PlantConfig {
-        dt_s: s.step_s,
-        world: s.world,
-        noise: s.noise,
-        seed: s.seed,
+/// Invalid gains or estimator settings.
+pub fn lockstep(s: &Scenario) -> anyhow::Result<Lockstep<ScenarioPilot<'_>>> {
+    let mut world = World::new(s.step_s, s.world);
+    world.add_vehicle(
+        &s.airframe,
+        SensorConfig {
+            noise: s.noise,
+            seed: s.seed,
+        },
+    );
+    let control = ControlLoop::new(&s.airframe, s.controller, s.gains, s.estimator.clone())
+        .map_err(|e| anyhow::anyhow!("{}: {e}", s.source))?;
+    let pilot = ScenarioPilot {
+        scenario: s,
+        control,
+        shaper: Shaper::new(ShaperLimits::for_airframe(&s.airframe))?,
+        next_switch: 0,
     };
-    let mut vehicle = Vehicle::new(&s.airframe, plant, s.controller, s.gains, s.estimator.clone())
-        .map_err(|e: VehicleError| anyhow::anyhow!("{}: {e}", s.source))?;
-    vehicle.set_feedback(s.feedback);
-
-    let mut shaper = Shaper::new(ShaperLimits::for_airframe(&s.airframe))?;
-    let reference_at = |shaper: &mut Shaper, t: f64, dt: f64| -> Reference {
-        match &s.reference {
-            ReferencePlan::Trajectory(tr) => tr.at(t),
-            ReferencePlan::Setpoints(list) => {
-                let sp = list
-                    .iter()
-                    .take_while(|(at, _)| *at <= t)
-                    .last()
-                    .map_or(list[0].1, |(_, sp)| *sp);
-                shaper.update(&sp, dt)
-            }
-        }
-    };
+    let mut core = Lockstep::new(world, vec![pilot]);
 
     // Initial state.
     let r0 = match &s.reference {
         ReferencePlan::Trajectory(tr) => tr.at(0.0),
         ReferencePlan::Setpoints(list) => {
             let p = match list[0].1.translation {
-                crate::control::TranslationSetpoint::Position(p) => p,
+                TranslationSetpoint::Position(p) => p,
                 _ => Vector3::new(0.0, 0.0, -2.0),
             };
             Reference::hold(p, 0.0)
@@ -192,11 +217,11 @@ pub fn run(s: &Scenario, mut csv: Option<&mut dyn Write>) -> anyhow::Result<Summ
                 attitude: from_euler_zyx(&i.euler_rad),
                 rate_frd: i.rate_frd,
             },
-            vehicle.hover_wrench(),
+            core.pilot(0).control.hover_wrench(),
         ),
         None => {
             // on the reference with its feedforward attitude and thrust
-            let g = Vector3::new(0.0, 0.0, crate::airframe::GRAVITY);
+            let g = Vector3::new(0.0, 0.0, GRAVITY);
             let f = s.airframe.mass_kg * (g - r0.acceleration_ned);
             (
                 RigidBodyState {
@@ -205,12 +230,28 @@ pub fn run(s: &Scenario, mut csv: Option<&mut dyn Write>) -> anyhow::Result<Summ
                     attitude: feedforward_attitude(&r0.acceleration_ned, r0.yaw_rad),
                     rate_frd: Vector3::zeros(),
                 },
-                crate::airframe::ControlWrench::new(f.norm(), Vector3::zeros()),
+                ControlWrench::new(f.norm(), Vector3::zeros()),
             )
         }
     };
-    vehicle.start_in_flight(state, hover);
-    shaper.reset(state.position_ned, state.velocity_ned, euler_zyx(&state.attitude).z);
+    let world = core.world_mut();
+    world.set_disturbance(0, DisturbanceSource::Schedule(s.disturbances.clone()));
+    world.start_in_flight(0, state, &hover);
+    let pilot = core.pilot_mut(0);
+    pilot.control.restart();
+    pilot
+        .shaper
+        .reset(state.position_ned, state.velocity_ned, euler_zyx(&state.attitude).z);
+    Ok(core)
+}
+
+/// Fly the scenario. `csv` receives the time series when given.
+///
+/// # Errors
+/// Invalid gains or estimator settings, or a failed write to `csv`.
+#[allow(clippy::too_many_lines)]
+pub fn run(s: &Scenario, mut csv: Option<&mut dyn Write>) -> anyhow::Result<Summary> {
+    let mut core = lockstep(s)?;
     let n = s.airframe.rotor_count();
     if let Some(w) = csv.as_deref_mut() {
         writeln!(w, "{}", csv_header(n))?;
@@ -229,34 +270,18 @@ pub fn run(s: &Scenario, mut csv: Option<&mut dyn Write>) -> anyhow::Result<Summ
     let mut upright = true;
     let mut finite = true;
     let mut fault = None;
-    let mut next_switch = 0usize;
     let mut flown = 0u64;
-    let mut current_mass = None;
     for k in 0..steps {
         let t = k as f64 * dt;
-        while next_switch < s.switches.len() && s.switches[next_switch].0 <= t {
-            vehicle.switch_controller(s.switches[next_switch].1);
-            next_switch += 1;
+        let rec = core.step()[0];
+        if let Some(e) = rec.world.fault {
+            fault = Some(format!("t = {t:.3} s: {e}"));
+            finite = false;
+            break;
         }
-        let (_, mass) = disturbance_at(&s.disturbances, t);
-        if mass != current_mass {
-            if let Some(m) = mass {
-                vehicle.plant_mut().set_true_mass(m);
-            }
-            current_mass = mass;
-        }
-        let reference = reference_at(&mut shaper, t, dt);
-        let schedule = |tt: f64| disturbance_at(&s.disturbances, tt).0;
-        let rec = match vehicle.step(&reference, &schedule) {
-            Ok(r) => r,
-            Err(e) => {
-                fault = Some(format!("t = {t:.3} s: {e}"));
-                finite = false;
-                break;
-            }
-        };
         flown += 1;
-        let e = rec.truth.position_ned - rec.reference.position_ned;
+        let (truth, control) = (&rec.world.truth, &rec.control);
+        let e = truth.position_ned - control.reference.position_ned;
         sum_sq += e.component_mul(&e);
         max_abs = max_abs.sup(&e.abs());
         max_norm = max_norm.max(e.norm());
@@ -264,21 +289,21 @@ pub fn run(s: &Scenario, mut csv: Option<&mut dyn Write>) -> anyhow::Result<Summ
             tail_sum += e;
             tail_n += 1;
         }
-        let att_err = rec.truth.attitude.angle_to(&rec.attitude_sp);
+        let att_err = truth.attitude.angle_to(&control.attitude_sp);
         if att_err.is_finite() {
             max_att = max_att.max(att_err);
         }
-        saturated_steps += u64::from(rec.saturated);
-        upright &= (rec.truth.attitude * Vector3::z()).z > 0.0;
+        saturated_steps += u64::from(control.saturated);
+        upright &= (truth.attitude * Vector3::z()).z > 0.0;
         finite &= e.as_slice().iter().all(|x| x.is_finite())
-            && rec.command.thrust_n.is_finite()
-            && rec.command.torque_frd.as_slice().iter().all(|x| x.is_finite());
+            && control.command.thrust_n.is_finite()
+            && control.command.torque_frd.as_slice().iter().all(|x| x.is_finite());
         if let Some(w) = csv.as_deref_mut() {
             writeln!(w, "{}", csv_row(&rec, n))?;
         }
     }
-    let state = vehicle.plant().state();
-    let est = vehicle.estimate();
+    let state = core.world().plant(0).state();
+    let est = core.pilot(0).control.estimate();
     let flown_f = flown.max(1) as f64;
     let rms = (sum_sq / flown_f).map(f64::sqrt);
     let tail = if tail_n > 0 {
@@ -290,7 +315,7 @@ pub fn run(s: &Scenario, mut csv: Option<&mut dyn Write>) -> anyhow::Result<Summ
     Ok(Summary {
         scenario: s.source.clone(),
         airframe: s.airframe.name.clone(),
-        controller: vehicle.controller().kind().name().to_string(),
+        controller: core.pilot(0).control.controller().kind().name().to_string(),
         steps: flown,
         sim_time_s: flown as f64 * dt,
         wall_time_s: 0.0,

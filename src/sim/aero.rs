@@ -15,7 +15,8 @@
 //! Far from a surface the ratios are 1 to within [`NEGLIGIBLE`]; beyond that
 //! height they are not evaluated at all, which keeps free flight cheap.
 
-use super::super::airframe::{Airframe, MAX_ROTORS, RotorVector};
+use crate::airframe::Airframe;
+use crate::signals::{MAX_ROTORS, RotorVector};
 
 /// Ratio deviation from 1 below which an effect is not evaluated.
 pub const NEGLIGIBLE: f64 = 1e-4;

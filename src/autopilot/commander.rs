@@ -1,51 +1,24 @@
-//! Commands: what each [`AutopilotCommand`] does and when it is refused
-//! (PX4 behaviour, doc `mavlink-compat.md` sections 3, 5 and 8).
+//! The commander: what each [`AutopilotCommand`] does and when it is refused
+//! (PX4 behaviour, doc `mavlink-compat.md` sections 3, 5 and 8) — arming and
+//! its prearm checks, the mode state machine, home, and the gates of reboot
+//! and failure injection. Each command is judged at the instant it is
+//! applied, against the sensor readings of that instant.
 
 use nalgebra::Vector3;
 
-use super::pilot::{HoldTarget, Nav};
-use super::{AutopilotCommand, CommandOutcome, FlightMode, OffboardSetpoint, Severity};
+use super::navigator::{HoldTarget, Nav};
+use super::{Autopilot, AutopilotCommand, CommandOutcome, FlightMode, OffboardSetpoint, PowerAction, Severity};
 use crate::geo::GeoPoint;
+use crate::signals::{Measurement, SensorReadings};
 
 /// DO_CHANGE_SPEED's "back to the default speed" value.
 const SPEED_DEFAULT: f64 = -2.0;
 
-fn finite3(v: &Vector3<f64>) -> bool {
-    v.iter().all(|x| x.is_finite())
-}
-
-/// Whether a setpoint can be followed: every given part finite, something given.
-fn setpoint_valid(sp: &OffboardSetpoint) -> bool {
-    match sp {
-        OffboardSetpoint::Local {
-            position_ned,
-            velocity_ned,
-            acceleration_ned,
-            yaw_rad,
-            yaw_rate_rad_s,
-        } => {
-            let parts = [position_ned, velocity_ned, acceleration_ned];
-            parts.iter().any(|p| p.is_some())
-                && parts.iter().all(|p| p.is_none_or(|v| finite3(&v)))
-                && yaw_rad.is_none_or(f64::is_finite)
-                && yaw_rate_rad_s.is_none_or(f64::is_finite)
-        }
-        OffboardSetpoint::Attitude {
-            attitude,
-            rate_frd,
-            thrust_normalised,
-        } => {
-            thrust_normalised.is_finite()
-                && attitude.is_none_or(|q| q.coords.iter().all(|x| x.is_finite()))
-                && rate_frd.is_none_or(|w| finite3(&w))
-        }
-    }
-}
-
-impl super::Autopilot {
-    /// Carry out a command. Accepted commands take effect from the next
-    /// [`Self::step`]; refusals leave everything as it was and, for arming,
-    /// takeoff and mode changes, queue a STATUSTEXT saying why.
+impl Autopilot {
+    /// Carry out a command at the instant of `readings`. Accepted commands
+    /// take effect from the next [`Self::step`]; refusals leave everything as
+    /// it was and, for arming, takeoff, mode changes, reboot and failure
+    /// injection, queue a STATUSTEXT saying why.
     ///
     /// | command | refused |
     /// |---|---|
@@ -54,36 +27,58 @@ impl super::Autopilot {
     /// | `Takeoff` | Denied for a non-finite altitude; TemporarilyRejected when disarmed |
     /// | `Land`, `ReturnToLaunch` | TemporarilyRejected when disarmed |
     /// | `SetMode` | Takeoff, Land, RTL as above; Offboard TemporarilyRejected without a setpoint within COM_OF_LOSS_T; Mission TemporarilyRejected (no mission) |
+    /// | `StartMission` | TemporarilyRejected (no mission) |
     /// | `Reposition` | Denied for non-finite parts or lat/lon out of range; TemporarilyRejected when disarmed |
     /// | `ChangeSpeed` | Denied when not finite |
     /// | `SetHome` | Denied for an invalid point |
     /// | `Offboard` | Denied when a given part is not finite, or nothing is given |
+    /// | `Power` | Denied when armed |
+    /// | `InjectFailure` | Denied while `SYS_FAILURE_EN` = 0 |
     ///
     /// Disarmed, Hold and Position are always accepted. Selecting the active
     /// mode again is accepted and changes nothing.
-    pub fn command(&mut self, cmd: AutopilotCommand) -> CommandOutcome {
+    pub fn command(&mut self, cmd: AutopilotCommand, readings: &SensorReadings) -> CommandOutcome {
+        let m = &readings.measurement;
+        self.now_s = m.time_s;
         match cmd {
-            AutopilotCommand::Arm { force } => self.arm(force),
+            AutopilotCommand::Arm { force } => self.arm(force, m),
             AutopilotCommand::Disarm { force } => self.disarm(force),
-            AutopilotCommand::Takeoff { altitude_amsl_m } => self.takeoff(altitude_amsl_m),
-            AutopilotCommand::Land => self.land(),
-            AutopilotCommand::ReturnToLaunch => self.return_to_launch(),
-            AutopilotCommand::SetMode(mode) => self.set_mode(mode),
+            AutopilotCommand::Takeoff { altitude_amsl_m } => self.takeoff(altitude_amsl_m, m),
+            AutopilotCommand::Land => self.land(m),
+            AutopilotCommand::ReturnToLaunch => self.return_to_launch(m),
+            AutopilotCommand::SetMode(mode) => self.set_mode(mode, m),
+            AutopilotCommand::StartMission => self.refuse(
+                Severity::Critical,
+                "Mission start denied: no mission",
+                CommandOutcome::TemporarilyRejected("no mission"),
+            ),
             AutopilotCommand::Reposition {
                 lat_deg,
                 lon_deg,
                 alt_amsl_m,
                 yaw_rad,
                 speed_m_s,
-            } => self.reposition(lat_deg, lon_deg, alt_amsl_m, yaw_rad, speed_m_s),
+            } => self.reposition([lat_deg, lon_deg, alt_amsl_m], yaw_rad, speed_m_s, m),
             AutopilotCommand::ChangeSpeed { speed_m_s } => self.change_speed(speed_m_s),
-            AutopilotCommand::SetHome(point) => self.set_home(point),
-            AutopilotCommand::Offboard(sp) => self.offboard_setpoint(sp),
+            AutopilotCommand::SetHome(point) => self.set_home(point, m),
+            AutopilotCommand::Offboard(sp) => self.offboard_setpoint(&sp, m),
+            AutopilotCommand::Power(action) => self.power(action),
+            AutopilotCommand::InjectFailure { .. } => {
+                if self.settings.failure_injection {
+                    CommandOutcome::Accepted
+                } else {
+                    self.refuse(
+                        Severity::Warning,
+                        "Failure injection disabled (SYS_FAILURE_EN)",
+                        CommandOutcome::Denied("failure injection disabled (SYS_FAILURE_EN)"),
+                    )
+                }
+            }
         }
     }
 
     fn refuse(&mut self, severity: Severity, text: &str, outcome: CommandOutcome) -> CommandOutcome {
-        self.announce(severity, text);
+        self.say.announce(severity, text);
         outcome
     }
 
@@ -95,18 +90,41 @@ impl super::Autopilot {
         )
     }
 
-    fn arm(&mut self, force: bool) -> CommandOutcome {
+    /// Why arming would be refused at the instant of `m`, if it would.
+    pub(super) fn prearm_failure(&self, m: &Measurement) -> Option<&'static str> {
+        if !self.land.landed() {
+            return Some("vehicle not landed");
+        }
+        if !self.control_initialised() {
+            return Some("estimator not initialised");
+        }
+        if !self.home.is_valid() {
+            return Some("home position invalid");
+        }
+        match self.navigator.nav {
+            Nav::Offboard if !self.navigator.offboard_fresh(m.time_s, self.settings.offboard_loss_s) => {
+                Some("no offboard signal")
+            }
+            Nav::Hold { .. } | Nav::Offboard => None,
+            Nav::Takeoff { .. } | Nav::Land { .. } | Nav::Rtl { .. } => Some("flight mode not armable"),
+        }
+    }
+
+    fn arm(&mut self, force: bool, m: &Measurement) -> CommandOutcome {
         if self.armed {
             return CommandOutcome::Accepted;
         }
-        if !force && let Some(why) = self.prearm_failure() {
+        if !force && let Some(why) = self.prearm_failure(m) {
             return self.refuse(
                 Severity::Critical,
                 &format!("Arming denied: {why}"),
                 CommandOutcome::TemporarilyRejected(why),
             );
         }
-        self.arm_now();
+        self.armed = true;
+        self.armed_at_s = m.time_s;
+        self.took_off = !self.land.landed();
+        self.say.announce(Severity::Info, "Armed by external command");
         CommandOutcome::Accepted
     }
 
@@ -114,7 +132,7 @@ impl super::Autopilot {
         if !self.armed {
             return CommandOutcome::Accepted;
         }
-        if !force && !self.landed {
+        if !force && !self.land.landed() {
             return self.refuse(
                 Severity::Critical,
                 "Disarming denied: not landed",
@@ -125,9 +143,17 @@ impl super::Autopilot {
         CommandOutcome::Accepted
     }
 
+    /// Disarm: rotors stop, Hold (Position kept), the controller starts over.
+    pub(super) fn disarm_now(&mut self, text: &str) {
+        self.armed = false;
+        self.navigator.disarmed();
+        self.reset_controller();
+        self.say.announce(Severity::Info, text);
+    }
+
     /// Take off to `altitude_amsl_m` (None: home + MIS_TAKEOFF_ALT; lower
     /// targets raised to that; a vehicle already higher keeps its altitude).
-    fn takeoff(&mut self, altitude_amsl_m: Option<f64>) -> CommandOutcome {
+    fn takeoff(&mut self, altitude_amsl_m: Option<f64>, m: &Measurement) -> CommandOutcome {
         if altitude_amsl_m.is_some_and(|a| !a.is_finite()) {
             return CommandOutcome::Denied("invalid takeoff altitude");
         }
@@ -140,7 +166,7 @@ impl super::Autopilot {
         if let Some(a) = altitude_amsl_m {
             let z_asked = self.origin.alt_amsl_m - a;
             if z_asked > z {
-                self.announce(
+                self.say.announce(
                     Severity::Info,
                     format!("Using minimum takeoff altitude: {min_alt:.2} m"),
                 );
@@ -148,55 +174,51 @@ impl super::Autopilot {
                 z = z_asked;
             }
         }
-        let here = self.current_position();
+        let here = self.navigator.current_position(m);
         let z = z.min(here.z);
-        self.nav = Nav::Takeoff {
-            target_ned: Vector3::new(here.x, here.y, z),
-            then: None,
-        };
-        self.announce(Severity::Info, format!("Takeoff to {:.1} m above home", home.z - z));
+        self.navigator.enter_takeoff(Vector3::new(here.x, here.y, z), None);
+        self.say
+            .announce(Severity::Info, format!("Takeoff to {:.1} m above home", home.z - z));
         CommandOutcome::Accepted
     }
 
-    fn land(&mut self) -> CommandOutcome {
+    fn land(&mut self, m: &Measurement) -> CommandOutcome {
         if !self.armed {
             return self.not_armed("Land");
         }
-        if !matches!(self.nav, Nav::Land { .. }) {
-            self.enter_land();
+        if !matches!(self.navigator.nav, Nav::Land { .. }) {
+            let landed = self.land.landed();
+            self.navigator.enter_land(m, landed, &mut self.say);
         }
         CommandOutcome::Accepted
     }
 
-    fn return_to_launch(&mut self) -> CommandOutcome {
+    fn return_to_launch(&mut self, m: &Measurement) -> CommandOutcome {
         if !self.armed {
             return self.not_armed("Return");
         }
-        if !matches!(self.nav, Nav::Rtl { .. }) {
-            self.enter_rtl();
+        if !matches!(self.navigator.nav, Nav::Rtl { .. }) {
+            let cx = situation!(self, m);
+            self.navigator.enter_rtl(&cx, &mut self.say);
         }
         CommandOutcome::Accepted
     }
 
-    fn set_mode(&mut self, mode: FlightMode) -> CommandOutcome {
-        if mode == self.mode() {
+    fn set_mode(&mut self, mode: FlightMode, m: &Measurement) -> CommandOutcome {
+        if mode == self.navigator.mode() {
             return CommandOutcome::Accepted;
         }
         match mode {
             FlightMode::Hold | FlightMode::Position => {
-                self.nav = Nav::Hold {
-                    position_mode: mode == FlightMode::Position,
-                    target: None,
-                };
+                self.navigator.enter_hold(mode == FlightMode::Position);
                 CommandOutcome::Accepted
             }
-            FlightMode::Takeoff => self.takeoff(None),
-            FlightMode::Land => self.land(),
-            FlightMode::ReturnToLaunch => self.return_to_launch(),
+            FlightMode::Takeoff => self.takeoff(None, m),
+            FlightMode::Land => self.land(m),
+            FlightMode::ReturnToLaunch => self.return_to_launch(m),
             FlightMode::Offboard => {
-                if self.offboard_fresh() {
-                    self.nav = Nav::Offboard;
-                    self.rate_target = None;
+                if self.navigator.offboard_fresh(m.time_s, self.settings.offboard_loss_s) {
+                    self.navigator.enter_offboard();
                     CommandOutcome::Accepted
                 } else {
                     self.refuse(
@@ -214,16 +236,15 @@ impl super::Autopilot {
         }
     }
 
-    /// DO_REPOSITION: fly to the point in Hold; `None` parts keep the current
-    /// value. On the ground (armed) it takes off first, to at least
-    /// MIS_TAKEOFF_ALT, as PX4 does.
+    /// DO_REPOSITION: fly to `[lat, lon, alt AMSL]` in Hold; `None` parts keep
+    /// the current value. On the ground (armed) it takes off first, to at
+    /// least MIS_TAKEOFF_ALT, as PX4 does.
     fn reposition(
         &mut self,
-        lat_deg: Option<f64>,
-        lon_deg: Option<f64>,
-        alt_amsl_m: Option<f64>,
+        [lat_deg, lon_deg, alt_amsl_m]: [Option<f64>; 3],
         yaw_rad: Option<f64>,
         speed_m_s: Option<f64>,
+        m: &Measurement,
     ) -> CommandOutcome {
         let parts = [lat_deg, lon_deg, alt_amsl_m, yaw_rad, speed_m_s];
         if parts.iter().flatten().any(|x| !x.is_finite()) {
@@ -235,7 +256,7 @@ impl super::Autopilot {
         if !self.armed {
             return self.not_armed("Reposition");
         }
-        let here = self.current_position();
+        let here = self.navigator.current_position(m);
         let here_geo = self.origin.offset(&here);
         let point = GeoPoint {
             lat_deg: lat_deg.unwrap_or(here_geo.lat_deg),
@@ -258,19 +279,15 @@ impl super::Autopilot {
                 .filter(|s| *s > 0.0)
                 .map(|s| s.min(self.settings.xy_vel_max_m_s)),
         };
-        if self.landed {
+        if self.land.landed() {
             let home = self.home_ned();
             let z = target.z.min(home.z - self.settings.takeoff_alt_m).min(here.z);
-            self.nav = Nav::Takeoff {
-                target_ned: Vector3::new(here.x, here.y, z),
-                then: Some(hold),
-            };
-            self.announce(Severity::Info, format!("Takeoff to {:.1} m above home", home.z - z));
+            self.navigator
+                .enter_takeoff(Vector3::new(here.x, here.y, z), Some(hold));
+            self.say
+                .announce(Severity::Info, format!("Takeoff to {:.1} m above home", home.z - z));
         } else {
-            self.nav = Nav::Hold {
-                position_mode: false,
-                target: Some(hold),
-            };
+            self.navigator.enter_hold_at(hold);
         }
         CommandOutcome::Accepted
     }
@@ -282,27 +299,23 @@ impl super::Autopilot {
             return CommandOutcome::Denied("invalid speed");
         }
         if speed_m_s == SPEED_DEFAULT {
-            self.cruise_override = None;
+            self.navigator.set_cruise(None);
         } else if speed_m_s > 0.0 {
-            self.cruise_override = Some(speed_m_s.min(self.settings.xy_vel_max_m_s));
-        } else {
-            return CommandOutcome::Accepted;
-        }
-        if let Nav::Hold { target: Some(t), .. } = &mut self.nav {
-            t.speed_m_s = None;
+            self.navigator
+                .set_cruise(Some(speed_m_s.min(self.settings.xy_vel_max_m_s)));
         }
         CommandOutcome::Accepted
     }
 
     /// Home here (on the ground: the ground under the vehicle) or at `point`.
-    fn set_home(&mut self, point: Option<GeoPoint>) -> CommandOutcome {
+    fn set_home(&mut self, point: Option<GeoPoint>, m: &Measurement) -> CommandOutcome {
         let home = match point {
             Some(p) if p.is_valid() => p,
             Some(_) => return CommandOutcome::Denied("invalid home position"),
             None => {
-                let mut p = self.vehicle.plant().state().position_ned;
-                if self.landed {
-                    p.z = self.vehicle.plant().world().ground_z_ned;
+                let mut p = m.position_ned;
+                if self.land.landed() {
+                    p.z = self.land.rest_z(m) + self.airframe.gear_height_m;
                 }
                 self.origin.offset(&p)
             }
@@ -311,14 +324,23 @@ impl super::Autopilot {
         CommandOutcome::Accepted
     }
 
-    fn offboard_setpoint(&mut self, sp: OffboardSetpoint) -> CommandOutcome {
-        if !setpoint_valid(&sp) {
+    fn offboard_setpoint(&mut self, sp: &OffboardSetpoint, m: &Measurement) -> CommandOutcome {
+        let local = sp.resolve(m, &self.origin, &self.home);
+        if !local.is_valid() {
             return CommandOutcome::Denied("invalid offboard setpoint");
         }
-        if !matches!(sp, OffboardSetpoint::Attitude { attitude: None, .. }) {
-            self.rate_target = None;
-        }
-        self.offboard = Some((sp, self.time_s()));
+        self.navigator.set_offboard(local, m.time_s);
         CommandOutcome::Accepted
+    }
+
+    fn power(&mut self, action: PowerAction) -> CommandOutcome {
+        if !self.armed {
+            return CommandOutcome::Accepted;
+        }
+        let what = match action {
+            PowerAction::Reboot => "Reboot denied: disarm first",
+            PowerAction::Shutdown => "Shutdown denied: disarm first",
+        };
+        self.refuse(Severity::Critical, what, CommandOutcome::Denied("disarm before reboot"))
     }
 }

@@ -1,5 +1,5 @@
-//! What controllers and estimators are allowed to see: a measurement of the
-//! state, optionally with seeded white Gaussian noise.
+//! The navigation solution the flight stack sees: the true state with seeded
+//! white Gaussian noise.
 //!
 //! `p~ = p + n_p`, `v~ = v + n_v` (NED), `q~ = q exp(n_att)` (a small body-frame
 //! rotation), `w~ = w + n_w` (FRD), each `n ~ N(0, sigma^2)` per axis, drawn
@@ -8,7 +8,7 @@
 
 use nalgebra::{UnitQuaternion, Vector3};
 
-pub use crate::signals::Measurement;
+use crate::signals::Measurement;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -39,7 +39,10 @@ impl SensorNoise {
 /// Noise source with its own seeded random stream.
 #[derive(Clone, Debug)]
 pub struct Sensors {
+    /// The configured noise.
     noise: SensorNoise,
+    /// The noise in force: the configured one times the fault's scale.
+    active: SensorNoise,
     rng: ChaCha8Rng,
 }
 
@@ -49,8 +52,20 @@ impl Sensors {
     pub fn new(noise: SensorNoise, seed: u64) -> Self {
         Self {
             noise,
+            active: noise,
             rng: ChaCha8Rng::seed_from_u64(seed),
         }
+    }
+
+    /// Multiply every standard deviation by `scale` (a sensor fault; 1 restores them).
+    pub fn set_scale(&mut self, scale: f64) {
+        let n = self.noise;
+        self.active = SensorNoise {
+            position_m: n.position_m * scale,
+            velocity_m_s: n.velocity_m_s * scale,
+            attitude_rad: n.attitude_rad * scale,
+            rate_rad_s: n.rate_rad_s * scale,
+        };
     }
 
     fn gauss3(&mut self, sigma: f64) -> Vector3<f64> {
@@ -63,10 +78,10 @@ impl Sensors {
 
     /// Measure a true state.
     pub fn measure(&mut self, truth: &Measurement) -> Measurement {
-        if self.noise.is_zero() {
+        if self.active.is_zero() {
             return *truth;
         }
-        let n = self.noise;
+        let n = self.active;
         Measurement {
             time_s: truth.time_s,
             position_ned: truth.position_ned + self.gauss3(n.position_m),

@@ -23,31 +23,12 @@
 //! exactly put (no sinking, bouncing or drift) until its thrust exceeds its
 //! weight. The step reports touchdown and liftoff.
 
-pub mod aero;
-mod sensors;
-
-pub use crate::airframe::GRAVITY;
-pub use sensors::{Measurement, SensorNoise, Sensors};
-
 use nalgebra::{Matrix3, Quaternion, SMatrix, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
-use crate::airframe::{Actuation, Airframe, Allocator, ControlWrench, MAX_ROTORS, RotorVector};
-use aero::AeroEffects;
-
-/// What drives the rotors during one step.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum ActuatorCommand {
-    /// Rotors stopped (disarmed): every speed decays towards 0.
-    Stop,
-    /// Rotor speed commands [rad/s], clamped to the rotor limits. On an
-    /// ideal-actuation airframe the wrench `B omega^2` acts directly.
-    RotorSpeeds(RotorVector),
-    /// Total thrust and body torque. On an ideal-actuation airframe it acts
-    /// directly; on a rotor airframe it is allocated (with desaturation) to
-    /// rotor speed commands first.
-    Wrench(ControlWrench),
-}
+use super::aero::AeroEffects;
+use crate::airframe::{Actuation, Airframe, Allocator};
+use crate::signals::{ActuatorCommand, ControlWrench, DEFAULT_STEP_S, GRAVITY, MAX_ROTORS, Measurement, RotorVector};
 
 /// External wrench acting on the body.
 #[derive(Clone, Copy, Debug, PartialEq, Default, Serialize, Deserialize)]
@@ -76,10 +57,11 @@ impl<F: Fn(f64) -> ExternalWrench> Disturbance for F {
     }
 }
 
-/// The environment.
+/// The environment every vehicle of the world shares: flat ground, an
+/// optional flat ceiling, and whether their aerodynamic effects are simulated.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
-pub struct World {
+pub struct Environment {
     /// NED z of the flat ground surface [m] (0: the home altitude).
     pub ground_z_ned: f64,
     /// NED z of a flat ceiling [m], if any (must be above the vehicle: smaller z).
@@ -90,7 +72,7 @@ pub struct World {
     pub ceiling_effect: bool,
 }
 
-impl Default for World {
+impl Default for Environment {
     fn default() -> Self {
         Self {
             ground_z_ned: 0.0,
@@ -168,20 +150,14 @@ pub struct PlantConfig {
     /// Integration step [s].
     pub dt_s: f64,
     /// Environment.
-    pub world: World,
-    /// Measurement noise.
-    pub noise: SensorNoise,
-    /// Seed of the measurement noise.
-    pub seed: u64,
+    pub environment: Environment,
 }
 
 impl Default for PlantConfig {
     fn default() -> Self {
         Self {
-            dt_s: 0.001,
-            world: World::default(),
-            noise: SensorNoise::default(),
-            seed: 0,
+            dt_s: DEFAULT_STEP_S,
+            environment: Environment::default(),
         }
     }
 }
@@ -205,7 +181,7 @@ pub struct Plant {
     /// Longest arm [m] (bounds how far a rotor can be from the centre vertically).
     max_arm_m: f64,
     aero: AeroEffects,
-    world: World,
+    environment: Environment,
     dt: f64,
     /// `e^{-h/(2 tau_m)}`, `e^{-h/tau_m}`.
     decay: (f64, f64),
@@ -219,7 +195,8 @@ pub struct Plant {
     rotor_speed: RotorVector,
     contact: Contact,
     steps: u64,
-    sensors: Sensors,
+    /// Per-rotor speed factor of a faulty motor (`None`: all healthy).
+    rotor_health: Option<RotorVector>,
     last_wrench: ControlWrench,
     last_external: ExternalWrench,
 }
@@ -305,7 +282,7 @@ impl Plant {
         let allocator = airframe.allocator();
         let tau_m = airframe.rotor.time_constant_s;
         let dt = config.dt_s;
-        let rest = Vector3::new(0.0, 0.0, config.world.ground_z_ned - airframe.gear_height_m);
+        let rest = Vector3::new(0.0, 0.0, config.environment.ground_z_ned - airframe.gear_height_m);
         let inertia = airframe.inertia_kg_m2;
         Self {
             actuation: airframe.actuation,
@@ -321,7 +298,7 @@ impl Plant {
             gear_height_m: airframe.gear_height_m,
             max_arm_m: airframe.rotors.iter().fold(0.0, |m, r| r.arm_m.max(m)),
             aero: AeroEffects::new(airframe),
-            world: config.world,
+            environment: config.environment,
             dt,
             decay: ((-0.5 * dt / tau_m).exp(), (-dt / tau_m).exp()),
             mass: airframe.mass_kg,
@@ -335,7 +312,7 @@ impl Plant {
             rotor_speed: RotorVector::zeros(),
             contact: Contact::OnGround,
             steps: 0,
-            sensors: Sensors::new(config.noise, config.seed),
+            rotor_health: None,
             last_wrench: ControlWrench::default(),
             last_external: ExternalWrench::default(),
         }
@@ -424,13 +401,55 @@ impl Plant {
 
     /// Environment.
     #[must_use]
-    pub fn world(&self) -> &World {
-        &self.world
+    pub fn environment(&self) -> &Environment {
+        &self.environment
+    }
+
+    /// Set the step count (the clock of a world the plant joins late).
+    pub fn set_steps(&mut self, steps: u64) {
+        self.steps = steps;
+    }
+
+    /// How commands reach the body.
+    #[must_use]
+    pub fn actuation(&self) -> Actuation {
+        self.actuation
+    }
+
+    /// The rotor speed commands [rad/s] that give `wrench` (the airframe's
+    /// allocator, with desaturation).
+    #[must_use]
+    pub fn allocate(&self, wrench: &ControlWrench) -> RotorVector {
+        self.allocator.allocate(wrench).speed_cmd_rad_s
+    }
+
+    /// Run rotor `i` (from 0) at `factor` times its commanded speed: 1 healthy,
+    /// 0 a dead motor (it spins down with its lag), between them a motor that
+    /// cannot reach its command. A factor outside `[0, 1]` or a rotor beyond
+    /// the count changes nothing.
+    pub fn set_rotor_health(&mut self, i: usize, factor: f64) {
+        if i >= self.n || !(0.0..=1.0).contains(&factor) {
+            return;
+        }
+        let mut h = self.rotor_health.unwrap_or_else(|| {
+            let mut ones = RotorVector::zeros();
+            ones.rows_mut(0, self.n).fill(1.0);
+            ones
+        });
+        h[i] = factor;
+        // all healthy again: back to the path without a multiplication
+        self.rotor_health = (h.rows(0, self.n).iter().any(|f| *f != 1.0)).then_some(h);
+    }
+
+    /// The speed factor of rotor `i` (from 0): 1 healthy, 0 dead.
+    #[must_use]
+    pub fn rotor_health(&self, i: usize) -> f64 {
+        self.rotor_health.map_or(1.0, |h| h[i])
     }
 
     /// Change the environment (effects on/off, ceiling height).
-    pub fn set_world(&mut self, world: World) {
-        self.world = world;
+    pub fn set_environment(&mut self, environment: Environment) {
+        self.environment = environment;
     }
 
     /// The thrust and body torque the rotors applied at the start of the last step.
@@ -457,30 +476,24 @@ impl Plant {
         }
     }
 
-    /// A measurement with the configured (seeded) noise.
-    pub fn measure(&mut self) -> Measurement {
-        let truth = self.truth();
-        self.sensors.measure(&truth)
-    }
-
     fn rest_z(&self) -> f64 {
-        self.world.ground_z_ned - self.gear_height_m
+        self.environment.ground_z_ned - self.gear_height_m
     }
 
     /// Per-rotor thrust ratio from ground and ceiling effect at the current state.
     fn thrust_ratios(&self) -> Option<RotorVector> {
-        let ground = self.world.ground_effect;
-        let ceiling = self.world.ceiling_effect && self.world.ceiling_z_ned.is_some();
+        let ground = self.environment.ground_effect;
+        let ceiling = self.environment.ceiling_effect && self.environment.ceiling_z_ned.is_some();
         if !ground && !ceiling {
             return None;
         }
         // Cheap reject before any per-rotor transform: no rotor is nearer a
         // surface than the centre's distance minus the longest arm.
         let z = self.state.position_ned.z;
-        let ground_far = !ground || self.world.ground_z_ned - z - self.max_arm_m > self.aero.ground_cutoff_m();
+        let ground_far = !ground || self.environment.ground_z_ned - z - self.max_arm_m > self.aero.ground_cutoff_m();
         let ceiling_far = !ceiling
             || self
-                .world
+                .environment
                 .ceiling_z_ned
                 .is_none_or(|zc| z - zc - self.max_arm_m > self.aero.ceiling_cutoff_m());
         if ground_far && ceiling_far {
@@ -502,11 +515,11 @@ impl Plant {
         if ground {
             let mut heights = [0.0; MAX_ROTORS];
             for (h, z) in heights[..n].iter_mut().zip(&rotor_z) {
-                *h = self.world.ground_z_ned - z;
+                *h = self.environment.ground_z_ned - z;
             }
             ratio = self.aero.ground_ratios_if_near(&heights);
         }
-        if ceiling && let Some(zc) = self.world.ceiling_z_ned {
+        if ceiling && let Some(zc) = self.environment.ceiling_z_ned {
             let mut gaps = [0.0; MAX_ROTORS];
             for (g, z) in gaps[..n].iter_mut().zip(&rotor_z) {
                 *g = z - zc;
@@ -663,6 +676,10 @@ impl Plant {
             }
         };
 
+        let target = match (target, &self.rotor_health) {
+            (Some(t), Some(h)) => Some(t.component_mul(h)),
+            (t, _) => t,
+        };
         let (w0, wmid, w1, spin_mom, rotor_speed_next) = if let Some(bar) = target {
             // exact first-order lag at the stage times t, t + h/2, t + h
             let (w, spin_mom, om1) = self.lagged_rotor_wrenches(&bar, ratio.as_ref());

@@ -1,0 +1,193 @@
+//! The land detector: PX4's multicopter land detector (`MulticopterLandDetector`)
+//! reduced to what this world needs, on measurements and the commanded thrust
+//! only (the flight stack never sees the plant's contact).
+//!
+//! ```text
+//! still          = |v_z| < 0.25 m/s, |v_xy| < 1.5 m/s, |(p, q)| < 20 deg/s   (x 2.5 while landed, PX4's)
+//! near the ground = z >= z_rest - 0.1 m        z_rest: where the centre of mass rests, learned while landed
+//! ground contact = still and near the ground
+//! landed        <- ground contact and u_T <= 0.3 m g, for 0.25 s
+//! flying        <- no ground contact, for 0.05 s
+//! ```
+//!
+//! PX4 uses a range sensor or the thrust and its integrators to tell ground
+//! contact; this world's ground is flat, so the height at which the vehicle
+//! last rested does that job. PX4 cuts the thrust on ground contact so the
+//! low-thrust condition can pass; the navigator does the same
+//! ([`super::navigator`]: a mode that is not climbing idles on ground contact).
+
+use crate::signals::Measurement;
+
+/// Vertical speed below which the vehicle is still [m/s] (PX4's `LNDMC_Z_VEL_MAX`).
+const Z_VEL_MAX_M_S: f64 = 0.25;
+/// Horizontal speed below which the vehicle is still [m/s] (`LNDMC_XY_VEL_MAX`).
+const XY_VEL_MAX_M_S: f64 = 1.5;
+/// Roll/pitch rate below which the vehicle is still [rad/s] (`LNDMC_ROT_MAX`, 20 deg/s).
+const ROT_MAX_RAD_S: f64 = 20.0 * std::f64::consts::PI / 180.0;
+/// The limits above are this much wider while landed (PX4's hysteresis).
+const LANDED_WIDENING: f64 = 2.5;
+/// Near the ground: at most this far [m] above the height the vehicle rests at.
+const NEAR_GROUND_M: f64 = 0.1;
+/// Low thrust: at most this fraction of the nominal weight (PX4's maybe-landed threshold, about 0.3 of hover).
+const LOW_THRUST_FRACTION: f64 = 0.3;
+/// Ground contact with low thrust this long [s] means landed.
+pub(super) const LAND_DETECT_S: f64 = 0.25;
+/// No ground contact this long [s] means flying.
+const TAKEOFF_DETECT_S: f64 = 0.05;
+/// Rate [1/sample] at which the resting height follows the measurement while landed.
+const REST_FILTER: f64 = 0.02;
+/// Time comparisons tolerate this much rounding [s].
+const TIME_EPS: f64 = 1e-9;
+
+/// A change of the landed state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum LandEvent {
+    /// Landed after flying.
+    Landed,
+    /// Flying after being landed.
+    TookOff,
+}
+
+/// The detector's state.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct LandDetector {
+    landed: bool,
+    ground_contact: bool,
+    /// Since when the conditions for a change hold [s].
+    since_s: Option<f64>,
+    /// NED z [m] of the centre of mass resting on the ground, learned from
+    /// the first measurement (the vehicle boots on the ground) and while landed.
+    rest_z: Option<f64>,
+}
+
+impl LandDetector {
+    /// Landed, as the vehicle boots.
+    pub(super) fn new() -> Self {
+        Self {
+            landed: true,
+            ground_contact: true,
+            since_s: None,
+            rest_z: None,
+        }
+    }
+
+    /// Landed.
+    pub(super) fn landed(&self) -> bool {
+        self.landed
+    }
+
+    /// Still, at the height it rests at.
+    pub(super) fn ground_contact(&self) -> bool {
+        self.ground_contact
+    }
+
+    /// NED z [m] of the centre of mass at rest (the measurement's until one arrives).
+    pub(super) fn rest_z(&self, m: &Measurement) -> f64 {
+        self.rest_z.unwrap_or(m.position_ned.z)
+    }
+
+    /// Update with the measurement at `t_k` and the collective thrust
+    /// commanded over the last step [N]; `weight_n` is the nominal weight.
+    pub(super) fn update(&mut self, m: &Measurement, thrust_n: f64, weight_n: f64) -> Option<LandEvent> {
+        let now = m.time_s;
+        let rest_z = *self.rest_z.get_or_insert(m.position_ned.z);
+        let widen = if self.landed { LANDED_WIDENING } else { 1.0 };
+        let v = &m.velocity_ned;
+        let still = v.z.abs() < Z_VEL_MAX_M_S * widen
+            && v.xy().norm() < XY_VEL_MAX_M_S * widen
+            && m.rate_frd.xy().norm() < ROT_MAX_RAD_S * widen;
+        let near_ground = m.position_ned.z >= rest_z - NEAR_GROUND_M;
+        self.ground_contact = still && near_ground;
+        let (change, hold_s) = if self.landed {
+            (!self.ground_contact, TAKEOFF_DETECT_S)
+        } else {
+            (
+                self.ground_contact && thrust_n <= LOW_THRUST_FRACTION * weight_n,
+                LAND_DETECT_S,
+            )
+        };
+        if !change {
+            self.since_s = None;
+        } else if now - *self.since_s.get_or_insert(now) >= hold_s - TIME_EPS {
+            self.since_s = None;
+            self.landed = !self.landed;
+            return Some(if self.landed {
+                LandEvent::Landed
+            } else {
+                LandEvent::TookOff
+            });
+        }
+        if self.landed && self.ground_contact {
+            // follow the resting height through the measurement noise
+            self.rest_z = Some(rest_z + REST_FILTER * (m.position_ned.z - rest_z));
+        }
+        None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{UnitQuaternion, Vector3};
+
+    fn at(t: f64, z: f64, vz: f64) -> Measurement {
+        Measurement {
+            time_s: t,
+            position_ned: Vector3::new(0.0, 0.0, z),
+            velocity_ned: Vector3::new(0.0, 0.0, vz),
+            attitude: UnitQuaternion::identity(),
+            rate_frd: Vector3::zeros(),
+        }
+    }
+
+    #[test]
+    fn landing_needs_contact_and_low_thrust_for_a_while_takeoff_needs_height() {
+        let mut d = LandDetector::new();
+        let w = 20.0;
+        assert_eq!(d.update(&at(0.0, -0.24, 0.0), 0.0, w), None);
+        assert!(d.landed() && d.ground_contact());
+        // spooling up on the ground: still landed
+        assert_eq!(d.update(&at(0.001, -0.24, 0.0), 25.0, w), None);
+        assert!(d.landed());
+        // rising: flying after 0.05 s without contact
+        let mut t = 0.002;
+        let mut event = None;
+        while event.is_none() && t < 1.0 {
+            event = d.update(&at(t, -0.5, -1.0), 25.0, w);
+            t += 0.001;
+        }
+        assert_eq!(event, Some(LandEvent::TookOff));
+        assert!((t - 0.052).abs() < 0.0015, "{t}");
+        // back at the resting height, still, but high thrust: not landed
+        for k in 0..1000 {
+            assert_eq!(d.update(&at(1.0 + k as f64 * 1e-3, -0.24, 0.0), 19.6, w), None);
+        }
+        assert!(d.ground_contact() && !d.landed());
+        // low thrust: landed after 0.25 s
+        let start = 2.0;
+        let mut k = 0;
+        while d.update(&at(start + k as f64 * 1e-3, -0.24, 0.0), 1.0, w).is_none() {
+            k += 1;
+            assert!(k < 1000);
+        }
+        assert!((k as f64 * 1e-3 - LAND_DETECT_S).abs() < 1.5e-3, "{k}");
+        assert_eq!(d.rest_z(&at(3.0, -2.24, 0.0)), -0.24);
+    }
+
+    #[test]
+    fn descending_above_the_ground_with_low_thrust_is_not_landed() {
+        let mut d = LandDetector::new();
+        d.update(&at(0.0, -0.24, 0.0), 0.0, 20.0);
+        d.update(&at(0.001, -3.0, -2.0), 20.0, 20.0);
+        assert_eq!(d.update(&at(0.1, -3.0, -2.0), 20.0, 20.0), Some(LandEvent::TookOff));
+        // sinking at 0.5 m/s, 20 cm above the resting height, thrust low: no contact
+        for k in 0..2000 {
+            assert_eq!(d.update(&at(0.2 + k as f64 * 1e-3, -0.44, 0.5), 2.0, 20.0), None);
+        }
+        // hovering still 20 cm up with low thrust (a light vehicle): not landed either
+        for k in 0..2000 {
+            assert_eq!(d.update(&at(3.0 + k as f64 * 1e-3, -0.44, 0.0), 2.0, 20.0), None);
+        }
+        assert!(!d.ground_contact() && !d.landed());
+    }
+}

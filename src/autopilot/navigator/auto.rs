@@ -1,0 +1,195 @@
+//! The automatic modes: Hold (and Position, the same without RC), Takeoff,
+//! Land and Return to launch, as PX4 flies them.
+
+use nalgebra::{Vector2, Vector3};
+
+use super::{HoldTarget, Nav, Navigator, REF_ARRIVED_M, RtlPhase, Situation, arrived};
+use crate::autopilot::control_loop::Demand;
+use crate::autopilot::{Announcements, Severity};
+use crate::control::{Reference, Setpoint, ShaperLimits, TranslationSetpoint, YawSetpoint};
+use crate::signals::Measurement;
+
+/// Landing aims this far [m] below the resting height so the descent never slows before touchdown.
+const LAND_SINK_M: f64 = 5.0;
+/// A takeoff is complete when the vehicle is also within this height [m] of its target.
+const TAKEOFF_ACCEPT_M: f64 = 0.25;
+
+impl Navigator {
+    /// Hold where it is (or Position).
+    pub(in crate::autopilot) fn enter_hold(&mut self, position_mode: bool) {
+        self.nav = Nav::Hold {
+            position_mode,
+            target: None,
+        };
+    }
+
+    /// Hold at a target (a reposition in the air).
+    pub(in crate::autopilot) fn enter_hold_at(&mut self, target: HoldTarget) {
+        self.nav = Nav::Hold {
+            position_mode: false,
+            target: Some(target),
+        };
+    }
+
+    /// Climb to `target_ned`, then hold there or at `then`.
+    pub(in crate::autopilot) fn enter_takeoff(&mut self, target_ned: Vector3<f64>, then: Option<HoldTarget>) {
+        self.nav = Nav::Takeoff { target_ned, then };
+    }
+
+    /// Land below where the vehicle is meant to be.
+    pub(in crate::autopilot) fn enter_land(&mut self, meas: &Measurement, landed: bool, say: &mut Announcements) {
+        let p = self.current_position(meas);
+        self.nav = Nav::Land { xy: p.xy() };
+        if !landed {
+            say.announce(Severity::Info, "Landing at current position");
+        }
+    }
+
+    /// Return: climb to at least RTL_RETURN_ALT above home where it is, fly
+    /// home, descend to RTL_DESCEND_ALT, land.
+    pub(in crate::autopilot) fn enter_rtl(&mut self, cx: &Situation<'_>, say: &mut Announcements) {
+        let p = self.current_position(cx.meas);
+        let z_return = p.z.min(cx.home_ned.z - cx.settings.rtl_return_alt_m);
+        self.nav = Nav::Rtl {
+            phase: RtlPhase::Climb { xy: p.xy() },
+            z_return,
+        };
+        if !cx.landed {
+            say.announce(
+                Severity::Info,
+                format!("Return to launch at {:.1} m above home", cx.home_ned.z - z_return),
+            );
+        }
+    }
+
+    /// DO_CHANGE_SPEED: `Some` speed becomes the cruise speed, `None` restores
+    /// MPC_XY_CRUISE; a reposition in progress takes it.
+    pub(in crate::autopilot) fn set_cruise(&mut self, speed_m_s: Option<f64>) {
+        self.cruise_override = speed_m_s;
+        if let Nav::Hold { target: Some(t), .. } = &mut self.nav {
+            t.speed_m_s = None;
+        }
+    }
+
+    /// The demand of Hold, Takeoff, Land or RTL.
+    pub(super) fn auto_demand(&mut self, cx: &Situation<'_>, say: &mut Announcements) -> Demand {
+        let (meas, s, dt) = (cx.meas, cx.settings, cx.dt);
+        let cruise = self.cruise_m_s(s);
+        let (climb, descent) = (s.climb_m_s, s.descent_m_s);
+        let normal = self.limits(cruise, climb, descent);
+        match self.nav {
+            Nav::Hold { target, .. } => {
+                if cx.resting {
+                    return Demand::Idle;
+                }
+                let r = match target {
+                    None => self.shape(
+                        meas,
+                        Setpoint {
+                            translation: TranslationSetpoint::Hold,
+                            yaw: YawSetpoint::Hold,
+                        },
+                        normal,
+                        dt,
+                    ),
+                    Some(t) => {
+                        let limits = self.limits(t.speed_m_s.unwrap_or(cruise), climb, descent);
+                        let yaw = t.yaw_rad.map_or(YawSetpoint::Hold, YawSetpoint::Angle);
+                        self.go_to(meas, t.position_ned, yaw, limits, dt)
+                    }
+                };
+                Demand::Track(r)
+            }
+            Nav::Takeoff { target_ned, then } => {
+                let limits = self.limits(cruise, s.takeoff_speed_m_s, descent);
+                let r = self.go_to(meas, target_ned, YawSetpoint::Hold, limits, dt);
+                if arrived(&r, &target_ned) && (meas.position_ned.z - target_ned.z).abs() < TAKEOFF_ACCEPT_M {
+                    self.nav = Nav::Hold {
+                        position_mode: false,
+                        target: Some(then.unwrap_or(HoldTarget {
+                            position_ned: target_ned,
+                            yaw_rad: None,
+                            speed_m_s: None,
+                        })),
+                    };
+                    say.announce(Severity::Info, "Takeoff complete, holding position");
+                }
+                Demand::Track(r)
+            }
+            Nav::Land { xy } => {
+                if cx.resting {
+                    Demand::Idle
+                } else {
+                    Demand::Track(self.descend(cx, xy))
+                }
+            }
+            Nav::Rtl { phase, z_return } => {
+                if cx.resting {
+                    return Demand::Idle;
+                }
+                Demand::Track(self.rtl(cx, phase, z_return, normal, say))
+            }
+            Nav::Offboard => unreachable!("offboard has its own guidance"),
+        }
+    }
+
+    /// Descend to land at `xy`: MPC_Z_VEL_MAX_DN above MPC_LAND_ALT1, MPC_LAND_SPEED below.
+    fn descend(&mut self, cx: &Situation<'_>, xy: Vector2<f64>) -> Reference {
+        let s = cx.settings;
+        let speed = if cx.rest_z - cx.meas.position_ned.z > s.land_alt1_m {
+            s.descent_m_s
+        } else {
+            s.land_speed_m_s
+        };
+        let target = Vector3::new(xy.x, xy.y, cx.rest_z + LAND_SINK_M);
+        let limits = self.limits(self.cruise_m_s(s), s.climb_m_s, speed);
+        self.go_to(cx.meas, target, YawSetpoint::Hold, limits, cx.dt)
+    }
+
+    fn rtl(
+        &mut self,
+        cx: &Situation<'_>,
+        phase: RtlPhase,
+        z_return: f64,
+        normal: ShaperLimits,
+        say: &mut Announcements,
+    ) -> Reference {
+        let (meas, dt, home) = (cx.meas, cx.dt, cx.home_ned);
+        let z_descend = home.z - cx.settings.rtl_descend_alt_m;
+        let set_phase = |nav: &mut Navigator, phase: RtlPhase| nav.nav = Nav::Rtl { phase, z_return };
+        match phase {
+            RtlPhase::Climb { xy } => {
+                let target = Vector3::new(xy.x, xy.y, z_return);
+                let r = self.go_to(meas, target, YawSetpoint::Hold, normal, dt);
+                if arrived(&r, &target) {
+                    set_phase(self, RtlPhase::Return);
+                }
+                r
+            }
+            RtlPhase::Return => {
+                let target = Vector3::new(home.x, home.y, z_return);
+                let r = self.go_to(meas, target, YawSetpoint::Hold, normal, dt);
+                let near = (meas.position_ned.xy() - home.xy()).norm() <= cx.settings.acceptance_radius_m;
+                if arrived(&r, &target) && near {
+                    if z_return < z_descend - REF_ARRIVED_M {
+                        set_phase(self, RtlPhase::Descend);
+                    } else {
+                        set_phase(self, RtlPhase::Land);
+                        say.announce(Severity::Info, "RTL: landing at home");
+                    }
+                }
+                r
+            }
+            RtlPhase::Descend => {
+                let target = Vector3::new(home.x, home.y, z_descend);
+                let r = self.go_to(meas, target, YawSetpoint::Hold, normal, dt);
+                if arrived(&r, &target) {
+                    set_phase(self, RtlPhase::Land);
+                    say.announce(Severity::Info, "RTL: landing at home");
+                }
+                r
+            }
+            RtlPhase::Land => self.descend(cx, home.xy()),
+        }
+    }
+}

@@ -1,0 +1,284 @@
+//! Guidance: the active mode turned into this step's [`Demand`] (a shaped
+//! reference, an attitude setpoint, idle or stopped rotors), one file per
+//! mode family — `auto` (hold, takeoff, land, return to launch) and
+//! `offboard` (external setpoints); the mission navigator joins them. The
+//! [`Navigator`] owns what guidance remembers between steps: the mode and its
+//! phase, the reference shaper, the cruise-speed override, the latest
+//! offboard setpoint.
+
+mod auto;
+mod offboard;
+
+pub use offboard::{AltitudeReference, GlobalTarget, OffboardSetpoint, RelativeFrame};
+
+use nalgebra::{UnitQuaternion, Vector2, Vector3};
+
+use super::control_loop::Demand;
+use super::settings::Settings;
+use super::telemetry::LandedState;
+use super::{Announcements, FlightMode};
+use crate::control::{Reference, Setpoint, Shaper, ShaperError, ShaperLimits, TranslationSetpoint, YawSetpoint};
+use crate::signals::Measurement;
+use offboard::LocalSetpoint;
+
+/// The shaped reference has arrived when within this distance [m] of its target...
+const REF_ARRIVED_M: f64 = 0.02;
+/// ... and slower than this [m/s].
+const REF_STOPPED_M_S: f64 = 0.05;
+
+/// What guidance knows at `t_k`.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Situation<'a> {
+    /// The measurement `x_k`.
+    pub(super) meas: &'a Measurement,
+    /// The parameters.
+    pub(super) settings: &'a Settings,
+    /// Home [m], NED.
+    pub(super) home_ned: Vector3<f64>,
+    /// NED z [m] of the centre of mass at rest on the ground.
+    pub(super) rest_z: f64,
+    /// Landed, or in ground contact: a mode that does not climb idles.
+    pub(super) resting: bool,
+    /// Landed (the land detector's output).
+    pub(super) landed: bool,
+    /// Step [s].
+    pub(super) dt: f64,
+    /// What offboard thrust 1.0 means [N].
+    pub(super) max_thrust_n: f64,
+}
+
+/// Where Hold flies to (DO_REPOSITION), instead of braking where it is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct HoldTarget {
+    /// Target [m], NED.
+    pub(super) position_ned: Vector3<f64>,
+    /// Heading [rad], `None` = keep.
+    pub(super) yaw_rad: Option<f64>,
+    /// Ground speed [m/s], `None` = cruise.
+    pub(super) speed_m_s: Option<f64>,
+}
+
+/// Phases of a return to launch.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum RtlPhase {
+    /// Climb where the return started (horizontal position [m], NED).
+    Climb {
+        /// Where the climb happens.
+        xy: Vector2<f64>,
+    },
+    /// Fly home at the return altitude.
+    Return,
+    /// Descend over home to RTL_DESCEND_ALT.
+    Descend,
+    /// Land at home.
+    Land,
+}
+
+/// The active mode with its state.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Nav {
+    /// Hold (or Position, which behaves the same without RC).
+    Hold {
+        /// Report POSCTL instead of AUTO.LOITER.
+        position_mode: bool,
+        /// Reposition target, or brake and hold.
+        target: Option<HoldTarget>,
+    },
+    /// Climb to a point, then Hold there (or at `then`).
+    Takeoff {
+        /// Target [m], NED.
+        target_ned: Vector3<f64>,
+        /// Where to go after the climb (a reposition given on the ground).
+        then: Option<HoldTarget>,
+    },
+    /// Descend and land at this horizontal position [m], NED.
+    Land {
+        /// Where.
+        xy: Vector2<f64>,
+    },
+    /// Return to launch.
+    Rtl {
+        /// Current phase.
+        phase: RtlPhase,
+        /// Return altitude [m], NED z.
+        z_return: f64,
+    },
+    /// Follow the offboard setpoints.
+    Offboard,
+}
+
+/// Whether a shaped reference has reached `target` and stopped.
+fn arrived(r: &Reference, target: &Vector3<f64>) -> bool {
+    (r.position_ned - target).norm() < REF_ARRIVED_M && r.velocity_ned.norm() < REF_STOPPED_M_S
+}
+
+/// Guidance state.
+#[derive(Debug)]
+pub(super) struct Navigator {
+    pub(super) nav: Nav,
+    base_limits: ShaperLimits,
+    shaper: Shaper,
+    /// The shaper's state is the reference of the previous step (else reset it to the measurement first).
+    shaper_live: bool,
+    /// DO_CHANGE_SPEED override of MPC_XY_CRUISE [m/s].
+    cruise_override: Option<f64>,
+    /// Latest offboard setpoint (resolved to local NED) and its arrival time [s].
+    offboard: Option<(LocalSetpoint, f64)>,
+    /// Attitude target integrated from body-rate setpoints.
+    rate_target: Option<UnitQuaternion<f64>>,
+}
+
+impl Navigator {
+    /// Hold, with the airframe's shaper limits.
+    ///
+    /// # Errors
+    /// Limits the shaper refuses.
+    pub(super) fn new(base_limits: ShaperLimits) -> Result<Self, ShaperError> {
+        Ok(Self {
+            nav: Nav::Hold {
+                position_mode: false,
+                target: None,
+            },
+            base_limits,
+            shaper: Shaper::new(base_limits)?,
+            shaper_live: false,
+            cruise_override: None,
+            offboard: None,
+            rate_target: None,
+        })
+    }
+
+    /// The mode as clients see it.
+    pub(super) fn mode(&self) -> FlightMode {
+        match self.nav {
+            Nav::Hold {
+                position_mode: true, ..
+            } => FlightMode::Position,
+            Nav::Hold { .. } => FlightMode::Hold,
+            Nav::Takeoff { .. } => FlightMode::Takeoff,
+            Nav::Land { .. } => FlightMode::Land,
+            Nav::Rtl { .. } => FlightMode::ReturnToLaunch,
+            Nav::Offboard => FlightMode::Offboard,
+        }
+    }
+
+    /// The landed state (never undefined): Takeoff while a takeoff runs,
+    /// OnGround when landed, Landing while descending to land, else InAir.
+    pub(super) fn landed_state(&self, armed: bool, landed: bool) -> LandedState {
+        let landing = matches!(
+            self.nav,
+            Nav::Land { .. }
+                | Nav::Rtl {
+                    phase: RtlPhase::Land,
+                    ..
+                }
+        );
+        if armed && matches!(self.nav, Nav::Takeoff { .. }) {
+            LandedState::Takeoff
+        } else if landed {
+            LandedState::OnGround
+        } else if armed && landing {
+            LandedState::Landing
+        } else {
+            LandedState::InAir
+        }
+    }
+
+    /// Where the vehicle is meant to be: the live reference, else the measured position [m], NED.
+    pub(super) fn current_position(&self, meas: &Measurement) -> Vector3<f64> {
+        if self.shaper_live {
+            self.shaper.reference().position_ned
+        } else {
+            meas.position_ned
+        }
+    }
+
+    /// The cruise speed in force [m/s].
+    pub(super) fn cruise_m_s(&self, s: &Settings) -> f64 {
+        self.cruise_override.unwrap_or(s.cruise_m_s).min(s.xy_vel_max_m_s)
+    }
+
+    /// A new `MPC_XY_CRUISE` replaces a DO_CHANGE_SPEED override.
+    pub(super) fn cruise_parameter_changed(&mut self) {
+        self.cruise_override = None;
+    }
+
+    /// Disarmed: back to Hold (keeping Position), the references and rate target dropped.
+    pub(super) fn disarmed(&mut self) {
+        self.nav = match self.nav {
+            Nav::Hold { position_mode, .. } => Nav::Hold {
+                position_mode,
+                target: None,
+            },
+            _ => Nav::Hold {
+                position_mode: false,
+                target: None,
+            },
+        };
+        self.shaper_live = false;
+        self.rate_target = None;
+    }
+
+    /// The rotors were stopped: the reference restarts from the measurement.
+    pub(super) fn drop_reference(&mut self) {
+        self.shaper_live = false;
+    }
+
+    fn limits(&self, xy: f64, up: f64, down: f64) -> ShaperLimits {
+        ShaperLimits {
+            max_speed_xy_m_s: xy,
+            max_climb_m_s: up,
+            max_descent_m_s: down,
+            ..self.base_limits
+        }
+    }
+
+    /// The shaped reference towards `sp` with `limits` (restarted at the measurement when not live).
+    fn shape(&mut self, meas: &Measurement, sp: Setpoint, limits: ShaperLimits, dt: f64) -> Reference {
+        if *self.shaper.limits() != limits {
+            // the limits come from validated parameters; on refusal the old ones stay
+            let _ = self.shaper.set_limits(limits);
+        }
+        if !self.shaper_live {
+            self.shaper.reset_to(meas);
+            self.shaper_live = true;
+        }
+        self.shaper.update(&sp, dt)
+    }
+
+    fn go_to(
+        &mut self,
+        meas: &Measurement,
+        target: Vector3<f64>,
+        yaw: YawSetpoint,
+        limits: ShaperLimits,
+        dt: f64,
+    ) -> Reference {
+        self.shape(
+            meas,
+            Setpoint {
+                translation: TranslationSetpoint::Position(target),
+                yaw,
+            },
+            limits,
+            dt,
+        )
+    }
+
+    /// The demand of the active mode at `t_k` (may advance the mode: takeoff
+    /// done, RTL phases).
+    pub(super) fn guidance(&mut self, armed: bool, cx: &Situation<'_>, say: &mut Announcements) -> Demand {
+        let demand = if armed {
+            match self.nav {
+                Nav::Offboard => self.offboard_demand(cx),
+                _ => self.auto_demand(cx, say),
+            }
+        } else {
+            Demand::Stop
+        };
+        if matches!(demand, Demand::Stop | Demand::Idle) {
+            self.shaper_live = false;
+        }
+        demand
+    }
+}

@@ -1,0 +1,404 @@
+//! The [`Autopilot`]: the flight stack's state, its construction from the
+//! parameters, and one step in order — detect landing, hold or run the
+//! estimator, supervise, guide, control.
+
+use nalgebra::Vector3;
+
+use super::battery::BatteryMonitor;
+use super::control_loop::{ControlLoop, ControlLoopError, ControlOutput};
+use super::estimate::EstimateFeedback;
+use super::land_detector::{LandDetector, LandEvent};
+use super::navigator::Navigator;
+use super::settings::Settings;
+use super::telemetry::{Telemetry, VehicleType};
+use super::{Announcements, Severity, StatusText};
+use crate::airframe::{Actuation, Airframe};
+use crate::control::{ControlGains, ControllerKind, GainError, ShaperError, ShaperLimits};
+use crate::estimation::{Discretization, EstimatorConfig, EstimatorError, MomentumEstimator};
+use crate::geo::GeoPoint;
+use crate::signals::{GRAVITY, NominalModel, SensorReadings, WrenchEstimate};
+
+/// Why an autopilot could not be built or parameters applied.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum AutopilotError {
+    /// The home position is not a valid point.
+    #[error("home {lat_deg}, {lon_deg}, {alt_amsl_m} m is not a valid position")]
+    InvalidHome {
+        /// Latitude [deg].
+        lat_deg: f64,
+        /// Longitude [deg].
+        lon_deg: f64,
+        /// Altitude AMSL [m].
+        alt_amsl_m: f64,
+    },
+    /// A parameter value the autopilot cannot use.
+    #[error("parameter: {0}")]
+    Param(String),
+    /// The control gains derived from the parameters are invalid.
+    #[error(transparent)]
+    Gains(#[from] GainError),
+    /// The estimator settings are invalid.
+    #[error("estimator: {0}")]
+    Estimator(#[from] EstimatorError),
+    /// The reference shaper limits are invalid.
+    #[error(transparent)]
+    Shaper(#[from] ShaperError),
+}
+
+impl From<ControlLoopError> for AutopilotError {
+    fn from(e: ControlLoopError) -> Self {
+        match e {
+            ControlLoopError::Gains(e) => AutopilotError::Gains(e),
+            ControlLoopError::Estimator(e) => AutopilotError::Estimator(e),
+        }
+    }
+}
+
+/// The gains for the airframe flown with the nominal mass `MDL_MASS`
+/// ([`ControlGains::for_airframe`]) and the loop frequency scales
+/// `CTRL_POS_SCALE`, `CTRL_ATT_SCALE` (stiffness x s^2, damping and the
+/// passivity coupling x s: every pole of the loop moves by the factor s,
+/// damping ratios unchanged).
+fn control_gains(airframe: &Airframe, s: &Settings) -> Result<ControlGains, GainError> {
+    let mut g = ControlGains::for_airframe(airframe, s.model_mass_kg)?;
+    let (p, a) = (s.position_scale, s.attitude_scale);
+    let (p2, a2) = (p * p, a * a);
+    let h = &mut g.hierarchical;
+    h.kp_pos_per_s2 *= p2;
+    h.kd_pos_per_s *= p;
+    h.kp_att_per_s2 *= a2;
+    h.kd_att_per_s *= a;
+    let geo = &mut g.geometric;
+    geo.kp_n_per_m *= p2;
+    geo.kv_n_s_per_m *= p;
+    geo.kr_n_m_per_rad *= a2;
+    geo.komega_n_m_s_per_rad *= a;
+    let pa = &mut g.passivity;
+    pa.sigma_p_per_s *= p;
+    pa.dp_n_s_per_m *= p;
+    pa.kp_n_per_m *= p2;
+    pa.sigma_per_s *= a;
+    pa.do_n_m_s_per_rad *= a;
+    pa.ko_n_m_per_rad *= a2;
+    g.validate()?;
+    Ok(g)
+}
+
+fn estimator_config(s: &Settings, dt: f64) -> EstimatorConfig {
+    EstimatorConfig {
+        order: s.estimator_order,
+        polynomial: s.estimator_polynomial.clone(),
+        cutoff_rad_s: s.estimator_cutoff_rad_s,
+        discretization: Discretization::Trapezoidal,
+        sample_time_s: dt,
+    }
+}
+
+/// The flight stack of one vehicle.
+///
+/// Each [`Self::step`] takes the sensor readings at `t_k`, detects landing,
+/// updates the estimator (held while resting on the ground), supervises,
+/// decides the [`Demand`] for the mode and the estimate to feed back, and
+/// returns what the actuators get over `[t_k, t_{k+1})`.
+#[derive(Debug)]
+pub struct Autopilot {
+    pub(super) airframe: Airframe,
+    pub(super) settings: Settings,
+    dt: f64,
+    control: ControlLoop,
+    feedback: EstimateFeedback,
+    pub(super) navigator: Navigator,
+    pub(super) land: LandDetector,
+    battery: BatteryMonitor,
+    pub(super) origin: GeoPoint,
+    pub(super) home: GeoPoint,
+    pub(super) armed: bool,
+    pub(super) armed_at_s: f64,
+    /// Left the ground since arming.
+    pub(super) took_off: bool,
+    pub(super) landed_at_s: f64,
+    /// The time of the latest readings [s].
+    pub(super) now_s: f64,
+    pub(super) say: Announcements,
+}
+
+impl Autopilot {
+    /// An autopilot for `airframe` stepping by `dt_s` [s], disarmed on the
+    /// ground at `home` (the NED origin), in Hold, with `params` applied.
+    ///
+    /// # Errors
+    /// Invalid home, or parameters that give invalid gains or estimator settings.
+    pub fn new(
+        airframe: &Airframe,
+        home: GeoPoint,
+        params: &crate::params::ParamStore,
+        dt_s: f64,
+    ) -> Result<Self, AutopilotError> {
+        if !home.is_valid() {
+            return Err(AutopilotError::InvalidHome {
+                lat_deg: home.lat_deg,
+                lon_deg: home.lon_deg,
+                alt_amsl_m: home.alt_amsl_m,
+            });
+        }
+        let settings = Settings::from_store(params)?;
+        // the nominal model (MDL_MASS) is set by `apply_params` below
+        let control = ControlLoop::new(
+            airframe,
+            settings.controller,
+            control_gains(airframe, &settings)?,
+            estimator_config(&settings, dt_s),
+        )?;
+        let mut ap = Self {
+            airframe: airframe.clone(),
+            battery: BatteryMonitor::new(settings.battery_cells),
+            settings,
+            dt: dt_s,
+            control,
+            feedback: EstimateFeedback::default(),
+            navigator: Navigator::new(ShaperLimits::for_airframe(airframe))?,
+            land: LandDetector::new(),
+            origin: home,
+            home,
+            armed: false,
+            armed_at_s: 0.0,
+            took_off: false,
+            landed_at_s: 0.0,
+            now_s: 0.0,
+            say: Announcements::default(),
+        };
+        ap.apply_params(params)?;
+        Ok(ap)
+    }
+
+    /// Apply every flight-stack parameter at once, in flight too: `CTRL_TYPE`
+    /// (bumpless switch), the gain scales and `MDL_MASS` (gains recomputed,
+    /// nominal model of controller and estimator changed),
+    /// `EST_ORDER/POLY/CUTOFF` (estimator rebuilt; with `EST_COMP` on in
+    /// flight the fed-back estimate cross-fades, see `estimate`), `EST_COMP`,
+    /// and the navigation values (altitudes, speeds, timeouts). Call it
+    /// after every accepted parameter change.
+    ///
+    /// # Errors
+    /// A combination the controller or estimator refuses; nothing is changed then.
+    pub fn apply_params(&mut self, params: &crate::params::ParamStore) -> Result<(), AutopilotError> {
+        let s = Settings::from_store(params)?;
+        let now = self.now_s;
+        let nominal = NominalModel {
+            mass_kg: s.model_mass_kg,
+            inertia_kg_m2: self.airframe.inertia_kg_m2,
+        };
+        let nominal_changed = nominal != *self.control.nominal();
+        let gains = control_gains(&self.airframe, &s)?;
+        let config = estimator_config(&s, self.dt);
+        let rebuilt = if &config == self.control.estimator().config() {
+            if nominal_changed {
+                // whether the estimator accepts the model, asked of a copy
+                self.control.estimator().clone().set_nominal(nominal)?;
+            }
+            None
+        } else {
+            Some(MomentumEstimator::new(config, nominal)?)
+        };
+        // Everything is valid: commit.
+        self.control.controller_mut().set_gains(gains)?;
+        self.control.switch_controller(s.controller);
+        if let Some(e) = rebuilt {
+            if s.feedback && !self.land.landed() {
+                let from = self.feedback.current(
+                    &self.control.estimate(),
+                    now,
+                    self.settings.feedback,
+                    self.control.nominal().mass_kg,
+                );
+                let duration = EstimateFeedback::fade_duration_s(s.estimator_order, s.estimator_cutoff_rad_s);
+                self.feedback.start_fade(from, now, duration);
+            }
+            self.control.replace_estimator(e);
+        }
+        if nominal_changed {
+            self.control.set_nominal(nominal)?;
+        }
+        self.battery.set_cells(s.battery_cells);
+        if s.cruise_m_s != self.settings.cruise_m_s {
+            self.navigator.cruise_parameter_changed();
+        }
+        self.settings = s;
+        Ok(())
+    }
+
+    /// One step at `t_k` (the readings' time): the land detector on the
+    /// measurement and last step's thrust; the estimator restarted while
+    /// resting on the ground, else updated; offboard-loss and auto-disarm
+    /// supervision; guidance for the mode; the controller and allocation.
+    pub fn step(&mut self, readings: &SensorReadings) -> ControlOutput {
+        let m = &readings.measurement;
+        let now = m.time_s;
+        self.now_s = now;
+        let weight = self.control.nominal().mass_kg * GRAVITY;
+        match self.land.update(m, self.control.last_applied().thrust_n, weight) {
+            Some(LandEvent::TookOff) if self.armed => {
+                self.took_off = true;
+                self.say.announce(Severity::Info, "Takeoff detected");
+            }
+            Some(LandEvent::Landed) => {
+                self.landed_at_s = now;
+                if self.armed {
+                    self.say.announce(Severity::Info, "Landing detected");
+                }
+            }
+            Some(LandEvent::TookOff) | None => {}
+        }
+        if self.land.landed() || self.land.ground_contact() {
+            // The ground's reaction is no external wrench worth estimating:
+            // restart from every resting sample, estimate from liftoff on.
+            self.control.reset_estimator();
+            self.feedback.cancel_fade();
+        }
+        let estimate = self.control.sense(m);
+        self.battery.update(&readings.battery, self.dt);
+        self.supervise(m);
+        let cx = situation!(self, m);
+        let demand = self.navigator.guidance(self.armed, &cx, &mut self.say);
+        let feedback = self.settings.feedback.then(|| self.feedback.feed_back(&estimate, now));
+        self.control.act(m, &demand, feedback.as_ref(), self.dt)
+    }
+
+    /// The actuators refused the last command (not finite) and the world
+    /// stopped the rotors: announce it, disarm, start the loop over.
+    pub fn rotors_stopped(&mut self, why: &str) {
+        self.say
+            .announce(Severity::Critical, format!("Simulation fault: {why}"));
+        if self.armed {
+            self.disarm_now("Disarmed: simulation fault");
+        }
+        self.navigator.drop_reference();
+        self.control.rotors_stopped();
+    }
+
+    /// A snapshot for telemetry (SI units, NED/FRD) at the instant of `readings`.
+    #[must_use]
+    pub fn telemetry(&self, readings: &SensorReadings) -> Telemetry {
+        let m = &readings.measurement;
+        let max_thrust = self.max_thrust_n();
+        let thrust = self.control.last_applied().thrust_n;
+        Telemetry {
+            time_s: m.time_s,
+            vehicle_type: VehicleType::from_rotor_count(self.airframe.rotor_count()),
+            armed: self.armed,
+            mode: self.navigator.mode(),
+            landed: self.navigator.landed_state(self.armed, self.land.landed()),
+            position_ned: m.position_ned,
+            velocity_ned: m.velocity_ned,
+            acceleration_ned: m.attitude * readings.specific_force_frd + Vector3::new(0.0, 0.0, GRAVITY),
+            attitude: m.attitude,
+            rate_frd: m.rate_frd,
+            global: self.origin.offset(&m.position_ned),
+            origin: self.origin,
+            home: self.home,
+            home_ned: self.home_ned(),
+            gps_fix: readings.gps.fix,
+            gps_satellites: readings.gps.satellites,
+            battery_voltage_v: readings.battery.voltage_v,
+            battery_current_a: readings.battery.current_a,
+            battery_consumed_mah: self.battery.consumed_mah(),
+            battery_remaining: self.battery.remaining(&readings.battery),
+            throttle: if max_thrust > 0.0 {
+                (thrust / max_thrust).clamp(0.0, 1.0)
+            } else {
+                0.0
+            },
+            estimate: self.control.estimate(),
+            prearm_ok: self.prearm_failure(m).is_none(),
+        }
+    }
+
+    // ----- accessors ------------------------------------------------------------------------------
+
+    /// The airframe it flies.
+    #[must_use]
+    pub fn airframe(&self) -> &Airframe {
+        &self.airframe
+    }
+
+    /// Step length [s].
+    #[must_use]
+    pub fn dt_s(&self) -> f64 {
+        self.dt
+    }
+
+    /// Armed.
+    #[must_use]
+    pub fn armed(&self) -> bool {
+        self.armed
+    }
+
+    /// The mode as clients see it.
+    #[must_use]
+    pub fn mode(&self) -> super::FlightMode {
+        self.navigator.mode()
+    }
+
+    /// Home.
+    #[must_use]
+    pub fn home(&self) -> GeoPoint {
+        self.home
+    }
+
+    /// The NED origin (where the vehicle booted).
+    #[must_use]
+    pub fn origin(&self) -> GeoPoint {
+        self.origin
+    }
+
+    /// The control law flying.
+    #[must_use]
+    pub fn controller_kind(&self) -> ControllerKind {
+        self.control.controller().kind()
+    }
+
+    /// The latest wrench estimate.
+    #[must_use]
+    pub fn estimate(&self) -> WrenchEstimate {
+        self.control.estimate()
+    }
+
+    /// Whether MAV_CMD_INJECT_FAILURE is allowed (`SYS_FAILURE_EN`).
+    #[must_use]
+    pub fn failure_injection_enabled(&self) -> bool {
+        self.settings.failure_injection
+    }
+
+    /// Status texts since the last call, oldest first (at most the latest 64).
+    pub fn drain_status_texts(&mut self) -> Vec<StatusText> {
+        self.say.drain()
+    }
+
+    /// Whether the estimator has had its first sample (a prearm check).
+    pub(super) fn control_initialised(&self) -> bool {
+        self.control.estimator().is_initialized()
+    }
+
+    /// The controller starts over (disarmed).
+    pub(super) fn reset_controller(&mut self) {
+        self.control.controller_mut().reset();
+    }
+
+    /// Home in local NED [m].
+    pub(super) fn home_ned(&self) -> Vector3<f64> {
+        self.home.ned_from(&self.origin)
+    }
+
+    /// The largest collective thrust [N] (what offboard thrust 1.0 means):
+    /// the rotors' at full speed, or for ideal actuation the controller's cap.
+    #[must_use]
+    pub fn max_thrust_n(&self) -> f64 {
+        match self.airframe.actuation {
+            Actuation::Rotors => self.airframe.max_thrust_n(),
+            Actuation::Ideal => {
+                self.control.controller().gains().limits.max_thrust_g * self.control.nominal().mass_kg * GRAVITY
+            }
+        }
+    }
+}

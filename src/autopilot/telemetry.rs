@@ -1,0 +1,106 @@
+//! What the flight stack tells its clients: one snapshot, in SI units and
+//! NED/FRD, built from its state and the latest sensor readings (the link
+//! turns it into MAVLink).
+
+use nalgebra::{UnitQuaternion, Vector3};
+use serde::Serialize;
+
+use super::FlightMode;
+use crate::geo::GeoPoint;
+use crate::signals::{GpsFix, WrenchEstimate};
+
+/// What the vehicle reports as its landed state (MAV_LANDED_STATE).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum LandedState {
+    /// On the ground.
+    OnGround,
+    /// Flying.
+    InAir,
+    /// Taking off.
+    Takeoff,
+    /// Landing.
+    Landing,
+}
+
+/// The kind of vehicle, from its rotor count (HEARTBEAT `type`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum VehicleType {
+    /// 3 rotors.
+    Tricopter,
+    /// 4 rotors (and any count MAVLink has no name for, as PX4's generic multicopter).
+    Quadrotor,
+    /// 6 rotors.
+    Hexarotor,
+    /// 8 rotors.
+    Octorotor,
+    /// 10 rotors.
+    Decarotor,
+    /// 12 rotors.
+    Dodecarotor,
+}
+
+impl VehicleType {
+    /// The type of a multirotor with `rotors` rotors.
+    #[must_use]
+    pub fn from_rotor_count(rotors: usize) -> Self {
+        match rotors {
+            3 => VehicleType::Tricopter,
+            6 => VehicleType::Hexarotor,
+            8 => VehicleType::Octorotor,
+            10 => VehicleType::Decarotor,
+            12 => VehicleType::Dodecarotor,
+            _ => VehicleType::Quadrotor,
+        }
+    }
+}
+
+/// A snapshot of everything telemetry needs, in SI units and NED/FRD.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Telemetry {
+    /// Simulated time since boot [s] (of the readings).
+    pub time_s: f64,
+    /// Multirotor kind.
+    pub vehicle_type: VehicleType,
+    /// Armed.
+    pub armed: bool,
+    /// Mode.
+    pub mode: FlightMode,
+    /// Landed state.
+    pub landed: LandedState,
+    /// Position [m], NED from home's origin.
+    pub position_ned: Vector3<f64>,
+    /// Velocity [m/s], NED.
+    pub velocity_ned: Vector3<f64>,
+    /// Acceleration [m/s^2], NED, from the accelerometer (`R f + g e3`).
+    pub acceleration_ned: Vector3<f64>,
+    /// Attitude, FRD to NED.
+    pub attitude: UnitQuaternion<f64>,
+    /// Body rates [rad/s], FRD.
+    pub rate_frd: Vector3<f64>,
+    /// Global position.
+    pub global: GeoPoint,
+    /// The NED origin (where the vehicle booted).
+    pub origin: GeoPoint,
+    /// Home.
+    pub home: GeoPoint,
+    /// Home in local NED [m].
+    pub home_ned: Vector3<f64>,
+    /// GNSS fix.
+    pub gps_fix: GpsFix,
+    /// GNSS satellites used.
+    pub gps_satellites: u8,
+    /// Battery voltage [V].
+    pub battery_voltage_v: f64,
+    /// Battery current [A].
+    pub battery_current_a: f64,
+    /// Charge used [mAh].
+    pub battery_consumed_mah: f64,
+    /// Remaining charge, 0..1.
+    pub battery_remaining: f64,
+    /// Normalised collective thrust commanded, 0..1 (VFR_HUD throttle).
+    pub throttle: f64,
+    /// The wrench estimate (force NED, torque FRD, real mass).
+    pub estimate: WrenchEstimate,
+    /// Prearm checks pass.
+    pub prearm_ok: bool,
+}

@@ -1,0 +1,204 @@
+//! One task per UDP link: it owns a [`Link`] (the protocol, sans I/O) and
+//! its socket, receives datagrams, sends the streams when due (wall-time
+//! rates; heartbeats keep going at 1 Hz even if the simulation is slow),
+//! forwards commands and parameter sets to the simulation thread and sends
+//! the answers.
+
+use std::net::SocketAddr;
+use std::sync::mpsc::{SyncSender, TrySendError};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+use tokio::net::UdpSocket;
+use tokio::sync::{Notify, broadcast, mpsc, oneshot, watch};
+use tokio::time::Instant;
+use tracing::{debug, warn};
+
+use super::saver::lock;
+use super::sim_thread::{Event, SimRequest};
+use crate::autopilot::{AutopilotCommand, CommandOutcome, PowerAction};
+use crate::link::{Effect, Link, Outgoing, To};
+use crate::lockstep::Snapshot;
+use crate::params::ParamStore;
+
+/// One link's task state.
+pub(super) struct LinkTask {
+    pub(super) link: Link,
+    pub(super) socket: UdpSocket,
+    pub(super) params: Arc<Mutex<ParamStore>>,
+    pub(super) tel: watch::Receiver<Snapshot>,
+    pub(super) sim: SyncSender<SimRequest>,
+    pub(super) events: broadcast::Sender<Event>,
+    pub(super) events_rx: broadcast::Receiver<Event>,
+    pub(super) save: Arc<Notify>,
+    pub(super) exit: mpsc::Sender<()>,
+    pub(super) dests: Vec<SocketAddr>,
+    pub(super) send_errors: u64,
+}
+
+/// How long a link waits for the autopilot's answer before ACKing FAILED.
+const COMMAND_TIMEOUT: Duration = Duration::from_secs(1);
+
+fn unix_time_us() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| u64::try_from(d.as_micros()).unwrap_or(u64::MAX))
+}
+
+impl LinkTask {
+    pub(super) async fn run(mut self, mut stop: watch::Receiver<bool>) {
+        let name = self.link.config().name.clone();
+        let mut buf = vec![0u8; 65_536];
+        loop {
+            let deadline = self
+                .link
+                .next_deadline()
+                .map_or_else(|| Instant::now() + Duration::from_secs(1), Instant::from_std);
+            tokio::select! {
+                biased;
+                _ = stop.changed() => break,
+                r = self.socket.recv_from(&mut buf) => match r {
+                    Ok((n, from)) => {
+                        let effects = {
+                            let t = self.tel.borrow();
+                            let p = lock(&self.params);
+                            self.link.on_datagram(Instant::now().into_std(), from, &buf[..n], &t, &*p)
+                        };
+                        self.flush().await;
+                        for e in effects {
+                            if !self.effect(e).await {
+                                return;
+                            }
+                        }
+                    }
+                    Err(e) => {
+                        debug!(link = %name, error = %e, "recv failed");
+                        // do not spin if the error persists
+                        tokio::time::sleep(Duration::from_millis(10)).await;
+                    }
+                },
+                ev = self.events_rx.recv() => match ev {
+                    Ok(Event::StatusText(s)) => {
+                        self.link.status_text(&s);
+                        self.flush().await;
+                    }
+                    Ok(Event::ParamValue(m)) => self.link.broadcast_param(Instant::now().into_std(), &m),
+                    Err(broadcast::error::RecvError::Lagged(n)) => warn!(link = %name, missed = n, "events dropped"),
+                    Err(broadcast::error::RecvError::Closed) => break,
+                },
+                () = tokio::time::sleep_until(deadline) => {
+                    {
+                        let t = self.tel.borrow();
+                        self.link.poll(Instant::now().into_std(), &t, unix_time_us());
+                    }
+                    self.flush().await;
+                }
+            }
+        }
+        let s = self.link.stats();
+        debug!(link = %name, frames_in = s.frames_in, ignored = s.ignored, "link stopped");
+    }
+
+    /// Hand a request to the simulation thread without blocking this task
+    /// (the queue only fills if the simulation is stuck). False when it is gone.
+    fn to_sim(&self, r: SimRequest) -> Result<(), bool> {
+        match self.sim.try_send(r) {
+            Ok(()) => Ok(()),
+            Err(TrySendError::Full(_)) => Err(true),
+            Err(TrySendError::Disconnected(_)) => Err(false),
+        }
+    }
+
+    /// Carry out one effect; false when the daemon is going down.
+    async fn effect(&mut self, e: Effect) -> bool {
+        match e {
+            Effect::Autopilot { command, ack: None } => {
+                // Offboard setpoints: a dropped one is replaced by the next
+                // (MAVSDK streams at 20 Hz).
+                let _ = self.to_sim(SimRequest::Command { command, reply: None });
+            }
+            Effect::Autopilot {
+                command,
+                ack: Some(ticket),
+            } => {
+                let (tx, rx) = oneshot::channel();
+                let outcome = match self.to_sim(SimRequest::Command {
+                    command,
+                    reply: Some(tx),
+                }) {
+                    Err(false) => return false,
+                    Err(true) => CommandOutcome::TemporarilyRejected("simulation busy"),
+                    Ok(()) => match tokio::time::timeout(COMMAND_TIMEOUT, rx).await {
+                        Ok(Ok(o)) => o,
+                        Ok(Err(_)) => return false,
+                        Err(_) => CommandOutcome::Failed("autopilot did not answer"),
+                    },
+                };
+                self.link.on_outcome(ticket, &outcome);
+                self.flush().await;
+                if command == AutopilotCommand::Power(PowerAction::Shutdown) && outcome == CommandOutcome::Accepted {
+                    // PX4 SITL exits after acknowledging
+                    let _ = self.exit.try_send(());
+                }
+            }
+            Effect::SetParam { ticket, value } => {
+                let (tx, rx) = oneshot::channel();
+                let outcome = match self.to_sim(SimRequest::SetParam {
+                    name: ticket.name.clone(),
+                    value,
+                    reply: tx,
+                }) {
+                    Err(false) => return false,
+                    Err(true) => Err("simulation busy".to_string()),
+                    Ok(()) => match tokio::time::timeout(COMMAND_TIMEOUT, rx).await {
+                        Ok(Ok(o)) => o,
+                        Ok(Err(_)) => return false,
+                        Err(_) => Err("autopilot did not answer".to_string()),
+                    },
+                };
+                let changed = {
+                    let p = lock(&self.params);
+                    self.link.on_param_set(&ticket, outcome, &*p)
+                };
+                self.flush().await;
+                if let Some(m) = changed {
+                    let _ = self.events.send(Event::ParamValue(Arc::new(m)));
+                    self.save.notify_one();
+                }
+            }
+        }
+        true
+    }
+
+    async fn flush(&mut self) {
+        let out = self.link.drain();
+        if out.is_empty() {
+            return;
+        }
+        let now = Instant::now().into_std();
+        if out.iter().any(|o| o.to == To::All) {
+            self.link.destinations(now, &mut self.dests);
+        }
+        for Outgoing { to, bytes } in out {
+            match to {
+                To::Peer(a) => self.send(&bytes, a).await,
+                To::All => {
+                    for i in 0..self.dests.len() {
+                        let a = self.dests[i];
+                        self.send(&bytes, a).await;
+                    }
+                }
+            }
+        }
+    }
+
+    async fn send(&mut self, bytes: &[u8], to: SocketAddr) {
+        if let Err(e) = self.socket.send_to(bytes, to).await {
+            self.send_errors += 1;
+            // rate-limited: the first, then every 1000th
+            if self.send_errors % 1000 == 1 {
+                debug!(link = %self.link.config().name, %to, error = %e, count = self.send_errors, "send failed");
+            }
+        }
+    }
+}

@@ -1,0 +1,300 @@
+//! The tokio runtime of one simulated vehicle: it owns the UDP sockets and
+//! the lockstep core, paces simulated time against the wall clock, and shuts
+//! down cleanly (shaped like mini-redis: [`bind`] takes a [`Config`] whose
+//! addresses may use port 0, [`Daemon::run`] takes the stop trigger).
+//!
+//! | file | job |
+//! |---|---|
+//! | `config` | [`Config`], [`LinkSpec`]: the instance and PX4 SITL's port rules, home, speed, state directory |
+//! | `sim_thread` | the simulation thread: the only owner of the core, paced against wall time; commands and parameter sets are applied there, between steps |
+//! | `link_task` | one task per UDP link: datagrams in, streams and answers out |
+//! | `saver` | the parameter file, written after each accepted set |
+//!
+//! Parameters live in a `std::sync::Mutex<ParamStore>`: links read it to
+//! answer requests, the simulation thread sets them (the core's parameter
+//! transaction applies the change or undoes it). The lock is never held
+//! across an `.await`.
+//!
+//! PREFLIGHT_REBOOT_SHUTDOWN: reboot (p1 = 1) restarts the vehicle from the
+//! current parameters, on the ground at the configured home, disarmed; the
+//! simulated clock keeps counting, so `time_boot_ms` stays monotonic for the
+//! clients already connected. Shutdown (p1 = 2) stops the daemon, as PX4 SITL
+//! exits. Both are refused while armed (the autopilot decides).
+
+mod config;
+mod link_task;
+mod saver;
+mod sim_thread;
+
+pub use config::{Config, LinkSpec, parse_home, resolve};
+
+use std::future::Future;
+use std::net::SocketAddr;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use anyhow::Context as _;
+use tokio::net::UdpSocket;
+use tokio::sync::{Notify, broadcast, mpsc, oneshot, watch};
+use tokio::task::JoinHandle;
+use tokio::time::Instant;
+use tracing::{info, warn};
+
+use crate::airframe::Airframe;
+use crate::autopilot::Autopilot;
+use crate::link::streams::Identity;
+use crate::link::{Link, LinkConfig};
+use crate::lockstep::Lockstep;
+use crate::params::{ParamStore, ParamValue};
+use crate::sim::SensorConfig;
+use link_task::LinkTask;
+use saver::{lock, saver};
+use sim_thread::{Event, Sim, SimRequest};
+
+/// A daemon with its sockets bound, ready to [`Daemon::run`].
+pub struct Daemon {
+    config: Config,
+    params: ParamStore,
+    warnings: Vec<String>,
+    sockets: Vec<(LinkSpec, UdpSocket)>,
+    core: Lockstep<Autopilot>,
+}
+
+impl std::fmt::Debug for Daemon {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Daemon")
+            .field("config", &self.config)
+            .field("addrs", &self.local_addrs())
+            .finish_non_exhaustive()
+    }
+}
+
+/// Load the airframe and parameters and bind every link's socket.
+///
+/// # Errors
+/// Unknown airframe, unreadable parameter file, bad speed, a socket that
+/// cannot be bound (port in use: try another `--instance`).
+pub async fn bind(config: Config) -> anyhow::Result<Daemon> {
+    anyhow::ensure!(
+        config.speed.is_finite() && config.speed > 0.0 && config.speed <= 1000.0,
+        "--speed must be in (0, 1000], got {}",
+        config.speed
+    );
+    anyhow::ensure!(config.instance < 250, "--instance must be below 250");
+    let airframe = Airframe::load(&config.airframe)?;
+    let path = config.params_path();
+    let (mut params, warnings) = if config.reset_params {
+        (ParamStore::new(&airframe), Vec::new())
+    } else {
+        ParamStore::load_or_default(&airframe, &path)?
+    };
+    // PX4 SITL's rcS sets MAV_SYS_ID to instance + 1 at every start.
+    let _ = params.set("MAV_SYS_ID", ParamValue::Int32(i32::from(config.system_id())));
+    let core = Lockstep::px4(&airframe, config.home, &params, SensorConfig::default())
+        .with_context(|| format!("starting the autopilot on {}", airframe.source))?;
+    let mut sockets = Vec::new();
+    for spec in &config.links {
+        let s = UdpSocket::bind(spec.bind).await.with_context(|| {
+            format!(
+                "{} link: cannot bind {} (in use? try another --instance)",
+                spec.name, spec.bind
+            )
+        })?;
+        sockets.push((spec.clone(), s));
+    }
+    Ok(Daemon {
+        config,
+        params,
+        warnings,
+        sockets,
+        core,
+    })
+}
+
+/// Bind and run until `shutdown` completes (or a client sends shutdown).
+///
+/// # Errors
+/// As [`bind`] and [`Daemon::run`].
+pub async fn run(config: Config, shutdown: impl Future<Output = ()>) -> anyhow::Result<()> {
+    bind(config).await?.run(shutdown).await
+}
+
+impl Daemon {
+    /// The bound address of each link, by name.
+    #[must_use]
+    pub fn local_addrs(&self) -> Vec<(String, SocketAddr)> {
+        self.sockets
+            .iter()
+            .filter_map(|(spec, s)| s.local_addr().ok().map(|a| (spec.name.clone(), a)))
+            .collect()
+    }
+
+    /// Warnings from reading the parameter file.
+    #[must_use]
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
+    /// The configuration.
+    #[must_use]
+    pub fn config(&self) -> &Config {
+        &self.config
+    }
+
+    /// Where it listens and sends, for the startup message.
+    #[must_use]
+    pub fn summary(&self) -> String {
+        let c = &self.config;
+        let mut s = format!(
+            "rotorpilot: {} at {:.7}, {:.7}, {:.1} m AMSL; instance {}, system id {}; speed x{}\n",
+            c.airframe,
+            c.home.lat_deg,
+            c.home.lon_deg,
+            c.home.alt_amsl_m,
+            c.instance,
+            c.system_id(),
+            c.speed
+        );
+        for (spec, sock) in &self.sockets {
+            let local = sock
+                .local_addr()
+                .map_or_else(|_| spec.bind.to_string(), |a| a.to_string());
+            let remote = spec
+                .remote
+                .map_or_else(|| "(whoever talks)".to_string(), |r| r.to_string());
+            s.push_str(&format!("  {:<4} link: udp {local} -> {remote}\n", spec.name));
+        }
+        s.push_str(&format!("  parameters: {}", c.params_path().display()));
+        s
+    }
+
+    /// Run until `shutdown` completes or a client sends
+    /// PREFLIGHT_REBOOT_SHUTDOWN with p1 = 2; then stop every task and save
+    /// the parameters.
+    ///
+    /// # Errors
+    /// The parameter file cannot be written at shutdown.
+    pub async fn run(self, shutdown: impl Future<Output = ()>) -> anyhow::Result<()> {
+        let Daemon {
+            config,
+            params,
+            warnings: _,
+            sockets,
+            mut core,
+        } = self;
+        let params = Arc::new(Mutex::new(params));
+        let path = config.params_path();
+        if let Some(dir) = path.parent() {
+            std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        }
+        let (stop_tx, stop_rx) = watch::channel(false);
+        let (exit_tx, mut exit_rx) = mpsc::channel::<()>(1);
+        let (sim_tx, sim_rx) = std::sync::mpsc::sync_channel::<SimRequest>(256);
+        let (tel_tx, tel_rx) = watch::channel(core.snapshot(0));
+        let (ev_tx, _) = broadcast::channel::<Event>(256);
+        let save = Arc::new(Notify::new());
+        // Save once at start: a --reset-params run overwrites the old file,
+        // and the state directory shows the parameters in force.
+        save.notify_one();
+
+        let mut tasks: Vec<JoinHandle<()>> = Vec::new();
+        let sim = Sim {
+            core,
+            params: params.clone(),
+            tel: tel_tx,
+            events: ev_tx.clone(),
+            speed: config.speed,
+            tick: config.tick,
+        };
+        let (sim_done_tx, sim_done_rx) = oneshot::channel::<()>();
+        let sim_thread = std::thread::Builder::new()
+            .name("rotorpilot-sim".into())
+            .spawn(move || {
+                sim.run(&sim_rx);
+                let _ = sim_done_tx.send(());
+            })
+            .context("starting the simulation thread")?;
+        tasks.push(tokio::spawn(saver(
+            params.clone(),
+            path.clone(),
+            save.clone(),
+            stop_rx.clone(),
+        )));
+        let identity = Identity {
+            system_id: config.system_id(),
+            component_id: 1,
+        };
+        for (spec, socket) in sockets {
+            let link = Link::new(
+                LinkConfig {
+                    name: spec.name.clone(),
+                    identity,
+                    default_remote: spec.remote,
+                    rates: spec.rates.clone(),
+                    peer_timeout: config.peer_timeout,
+                },
+                Instant::now().into_std(),
+            );
+            let task = LinkTask {
+                link,
+                socket,
+                params: params.clone(),
+                tel: tel_rx.clone(),
+                sim: sim_tx.clone(),
+                events: ev_tx.clone(),
+                events_rx: ev_tx.subscribe(),
+                save: save.clone(),
+                exit: exit_tx.clone(),
+                dests: Vec::new(),
+                send_errors: 0,
+            };
+            tasks.push(tokio::spawn(task.run(stop_rx.clone())));
+        }
+        drop(exit_tx);
+
+        let mut sim_done = sim_done_rx;
+        let sim_died = tokio::select! {
+            () = shutdown => {
+                info!("shutting down");
+                false
+            }
+            Some(()) = exit_rx.recv() => {
+                info!("shutdown requested by a client");
+                false
+            }
+            _ = &mut sim_done => {
+                tracing::error!("the simulation thread stopped; shutting down");
+                true
+            }
+        };
+        let _ = stop_tx.send(true);
+        // never block here; if the queue is full the simulation sees every
+        // sender gone once the links have stopped
+        let _ = sim_tx.try_send(SimRequest::Stop);
+        drop(sim_tx);
+        let all = async {
+            futures_join(tasks).await;
+            if !sim_died {
+                let _ = sim_done.await;
+            }
+        };
+        if tokio::time::timeout(Duration::from_millis(800), all).await.is_err() {
+            warn!("some tasks did not stop in time");
+        } else {
+            let _ = sim_thread.join();
+        }
+        let snapshot = lock(&params).clone();
+        snapshot
+            .save(&path)
+            .with_context(|| format!("saving parameters to {}", path.display()))?;
+        info!(path = %path.display(), "parameters saved");
+        anyhow::ensure!(!sim_died, "the simulation thread stopped unexpectedly");
+        Ok(())
+    }
+}
+
+async fn futures_join(tasks: Vec<JoinHandle<()>>) {
+    for t in tasks {
+        let _ = t.await;
+    }
+}

@@ -1,0 +1,189 @@
+//! The simulation thread: the only owner of the lockstep core, paced against
+//! the wall clock. Every tick of wall time it runs the steps that are due so
+//! that simulated time = speed x wall time (batched: no per-step syscall;
+//! requests are served between chunks of steps), then publishes a
+//! [`Snapshot`] on a `watch` and status texts on a `broadcast`. Between
+//! ticks it sleeps in `recv_timeout` on its bounded request channel, so a
+//! command is served at once. If the machine cannot keep up, simulated time
+//! falls behind instead of bursting (a warning says so).
+
+use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use mavlink::dialects::common::MavMessage;
+use tokio::sync::{broadcast, oneshot, watch};
+use tracing::{debug, info, warn};
+
+use super::saver::lock;
+use crate::autopilot::{Autopilot, AutopilotCommand, CommandOutcome, PowerAction, Severity, StatusText};
+use crate::lockstep::{Lockstep, Snapshot};
+use crate::params::{ParamStore, ParamValue};
+
+/// The vehicle this daemon flies (one today; the fleet addresses more).
+const VEHICLE: usize = 0;
+/// Steps run between two looks at the request queue.
+const CHUNK: u64 = 50;
+/// At most this much wall time is spent stepping per tick; the rest waits.
+const MAX_BATCH_WALL: Duration = Duration::from_millis(20);
+
+/// Messages from the link tasks to the simulation thread.
+#[derive(Debug)]
+pub(super) enum SimRequest {
+    /// A command, answered on `reply` (offboard setpoints have none).
+    Command {
+        command: AutopilotCommand,
+        reply: Option<oneshot::Sender<CommandOutcome>>,
+    },
+    /// A parameter set, answered with the stored value or why it was refused.
+    SetParam {
+        name: String,
+        value: ParamValue,
+        reply: oneshot::Sender<Result<ParamValue, String>>,
+    },
+    /// Stop the thread.
+    Stop,
+}
+
+/// Messages to every link task.
+#[derive(Clone, Debug)]
+pub(super) enum Event {
+    StatusText(StatusText),
+    ParamValue(Arc<MavMessage>),
+}
+
+/// The simulation thread's state.
+pub(super) struct Sim {
+    pub(super) core: Lockstep<Autopilot>,
+    pub(super) params: Arc<Mutex<ParamStore>>,
+    pub(super) tel: watch::Sender<Snapshot>,
+    pub(super) events: broadcast::Sender<Event>,
+    pub(super) speed: f64,
+    pub(super) tick: Duration,
+}
+
+impl Sim {
+    /// The simulation loop (on its own thread) until [`SimRequest::Stop`] or
+    /// every sender is gone.
+    pub(super) fn run(mut self, rx: &Receiver<SimRequest>) {
+        let dt = self.core.dt_s();
+        let start = Instant::now();
+        let mut base = start;
+        let mut base_steps: u64 = 0;
+        let mut steps: u64 = 0;
+        let mut next_tick = start;
+        let mut last_lag_warning: Option<Instant> = None;
+        loop {
+            let now = Instant::now();
+            if now < next_tick {
+                match rx.recv_timeout(next_tick - now) {
+                    Ok(SimRequest::Stop) | Err(RecvTimeoutError::Disconnected) => return,
+                    Ok(r) => self.handle(r),
+                    Err(RecvTimeoutError::Timeout) => {}
+                }
+                continue;
+            }
+            next_tick += self.tick;
+            if next_tick <= now {
+                next_tick = now + self.tick;
+            }
+            let target = base_steps + (now.duration_since(base).as_secs_f64() * self.speed / dt) as u64;
+            let mut due = target.saturating_sub(steps);
+            // More than a second of wall time behind: stop trying to catch
+            // up, let simulated time lag instead.
+            let limit = ((self.speed / dt) as u64).max(1000);
+            if due > limit {
+                if last_lag_warning.is_none_or(|t| now.duration_since(t) > Duration::from_secs(10)) {
+                    warn!(
+                        behind_s = due as f64 * dt,
+                        "simulation cannot keep up with --speed; slowing down"
+                    );
+                    last_lag_warning = Some(now);
+                }
+                base = now;
+                base_steps = steps;
+                due = 0;
+            }
+            while due > 0 {
+                let n = due.min(CHUNK);
+                for _ in 0..n {
+                    self.core.step();
+                }
+                steps += n;
+                due -= n;
+                loop {
+                    match rx.try_recv() {
+                        Ok(SimRequest::Stop) => return,
+                        Ok(r) => self.handle(r),
+                        Err(_) => break,
+                    }
+                }
+                if now.elapsed() > MAX_BATCH_WALL {
+                    break;
+                }
+            }
+            self.publish();
+        }
+    }
+
+    /// Publish the snapshot and the status texts.
+    pub(super) fn publish(&mut self) {
+        self.tel.send_replace(self.core.snapshot(VEHICLE));
+        for s in self.core.drain_status_texts(VEHICLE) {
+            info!(text = %s.text, "status");
+            let _ = self.events.send(Event::StatusText(s));
+        }
+    }
+
+    fn handle(&mut self, r: SimRequest) {
+        match r {
+            SimRequest::Command { command, reply } => {
+                let outcome = self.core.command(VEHICLE, command);
+                // Publish before answering: a client that acts on the ACK (disarm,
+                // then shutdown) must find the links already seeing the new state.
+                self.publish();
+                // setpoints stream without a reply: log only their refusals
+                if reply.is_some() || outcome != CommandOutcome::Accepted {
+                    debug!(?command, ?outcome, "command");
+                }
+                if let Some(tx) = reply {
+                    let _ = tx.send(outcome);
+                }
+                if command == AutopilotCommand::Power(PowerAction::Reboot) && outcome == CommandOutcome::Accepted {
+                    self.reboot();
+                }
+            }
+            SimRequest::SetParam { name, value, reply } => {
+                let outcome = {
+                    let mut p = lock(&self.params);
+                    self.core.set_param(VEHICLE, &mut p, &name, value)
+                };
+                match &outcome {
+                    Ok(v) => info!(%name, value = %v, "parameter set"),
+                    Err(e) => info!(%name, error = %e, "parameter refused"),
+                }
+                self.publish();
+                let _ = reply.send(outcome);
+            }
+            // the loop returns on Stop before handing requests here
+            SimRequest::Stop => {}
+        }
+    }
+
+    /// PREFLIGHT_REBOOT_SHUTDOWN p1 = 1: the vehicle restarts on the ground at
+    /// home, disarmed, from the current parameters; simulated time goes on.
+    fn reboot(&mut self) {
+        let p = lock(&self.params).clone();
+        match self.core.reboot(VEHICLE, &p) {
+            Ok(()) => {
+                info!("rebooted: simulation reset");
+                let _ = self.events.send(Event::StatusText(StatusText {
+                    severity: Severity::Info,
+                    text: "Rebooted: simulation reset".into(),
+                }));
+                self.publish();
+            }
+            Err(e) => warn!(error = %e, "reboot failed"),
+        }
+    }
+}

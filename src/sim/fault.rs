@@ -1,0 +1,106 @@
+//! What can go wrong with a simulated vehicle. Faults are the world's doing:
+//! the flight stack never sees them, only what its sensors then report (a
+//! rotor speed that does not follow its command, a receiver without a fix,
+//! noisier measurements).
+
+/// The state of one motor and its propeller.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum RotorHealth {
+    /// Follows its command.
+    Healthy,
+    /// Gives only this fraction of the thrust it is commanded (0..1): the
+    /// motor reaches `sqrt(fraction)` of the commanded speed, which its ESC reports.
+    Degraded {
+        /// Thrust fraction `T / T_cmd` in `[0, 1]`.
+        thrust_fraction: f64,
+    },
+    /// Dead: no power, it spins down with its motor lag.
+    Off,
+}
+
+impl RotorHealth {
+    /// The fraction of its commanded speed the rotor reaches: `T = c_T omega^2`,
+    /// so a thrust fraction `f` is a speed fraction `sqrt(f)`.
+    #[must_use]
+    pub fn speed_factor(self) -> f64 {
+        match self {
+            RotorHealth::Healthy => 1.0,
+            RotorHealth::Degraded { thrust_fraction } => thrust_fraction.sqrt(),
+            RotorHealth::Off => 0.0,
+        }
+    }
+}
+
+/// One fault (or its repair) injected into one vehicle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Fault {
+    /// Rotor `rotor` (counted from 0) changes its health.
+    Rotor {
+        /// Which rotor, from 0.
+        rotor: usize,
+        /// Its new state.
+        health: RotorHealth,
+    },
+    /// The GNSS receiver loses its fix (`false`) or has it again (`true`).
+    Gps {
+        /// Whether the receiver has a fix.
+        available: bool,
+    },
+    /// Every noise standard deviation of the navigation solution times
+    /// `scale` (1: as configured).
+    SensorNoise {
+        /// Factor on the configured noise, `>= 0`.
+        scale: f64,
+    },
+}
+
+/// Why a fault cannot be injected.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum FaultError {
+    /// No such vehicle in the world.
+    #[error("no vehicle {0} in the world")]
+    NoSuchVehicle(usize),
+    /// The rotor does not exist.
+    #[error("rotor {} does not exist: the vehicle has {count}", rotor + 1)]
+    NoSuchRotor {
+        /// The rotor asked for, from 0.
+        rotor: usize,
+        /// How many rotors there are.
+        count: usize,
+    },
+    /// The airframe's thrust and torque act directly: it has no rotors to fail.
+    #[error("the airframe has ideal actuation: no rotor can fail")]
+    NoRotors,
+    /// A thrust fraction or noise scale outside its range, or not a number.
+    #[error("fault value {0} is out of range")]
+    OutOfRange(f64),
+}
+
+/// The faults active on one vehicle.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ActiveFaults {
+    /// Per rotor, from 0.
+    pub rotors: Vec<RotorHealth>,
+    /// Whether the GNSS receiver has a fix.
+    pub gps_available: bool,
+    /// Factor on the sensor noise.
+    pub noise_scale: f64,
+}
+
+impl ActiveFaults {
+    /// Nothing wrong with a vehicle of `rotors` rotors.
+    #[must_use]
+    pub fn none(rotors: usize) -> Self {
+        Self {
+            rotors: vec![RotorHealth::Healthy; rotors],
+            gps_available: true,
+            noise_scale: 1.0,
+        }
+    }
+
+    /// Whether anything is wrong.
+    #[must_use]
+    pub fn any(&self) -> bool {
+        !self.gps_available || self.noise_scale != 1.0 || self.rotors.iter().any(|r| *r != RotorHealth::Healthy)
+    }
+}

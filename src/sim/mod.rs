@@ -1,0 +1,576 @@
+//! The simulated world: every vehicle's plant (rigid body, rotors, ground and
+//! ceiling effect), its sensors, its battery, the disturbances acting on it
+//! and the faults injected into it, stepped together on one clock. Pure and
+//! deterministic: no clock, no I/O, seeded noise.
+//!
+//! The flight stack ([`crate::autopilot`]) never imports this module: it sees
+//! a vehicle only through [`SensorReadings`] and acts on it only through
+//! [`ActuatorCommand`] (both in [`crate::signals`]). The `SIM_*` parameters
+//! configure the world ([`WorldSettings`]), never the autopilot; a fault
+//! ([`Fault`]) changes what the sensors report, nothing else tells.
+//!
+//! Vehicles are addressed by their index, in the order they were added.
+//! One step of the world ([`World::step`]) integrates every vehicle over
+//! `[t_k, t_k + dt)` under its held command; [`World::sense`] reads a
+//! vehicle's sensors at `t_k` (once per instant: a second call returns the
+//! same reading, so reading telemetry never draws noise the flight would not).
+//!
+//! | file | job |
+//! |---|---|
+//! | [`plant`] | the 6-DoF rigid body, rotors with lag and limits, contact |
+//! | [`aero`] | ground and ceiling effect |
+//! | `sensors` | the navigation solution's seeded noise |
+//! | `battery` | the pack: discharge with the power drawn |
+//! | `fault` | faults and their effect on the plant and sensors |
+//! | `settings` | the `SIM_*` parameters |
+
+pub mod aero;
+mod battery;
+mod fault;
+pub mod plant;
+mod sensors;
+mod settings;
+
+pub use fault::{ActiveFaults, Fault, FaultError, RotorHealth};
+pub use plant::{
+    Contact, Disturbance, Environment, ExternalWrench, Plant, PlantConfig, RigidBodyState, SimFault, StepEvent,
+};
+pub use sensors::{SensorNoise, Sensors};
+pub use settings::WorldSettings;
+
+use nalgebra::Vector3;
+
+use crate::airframe::{Actuation, Airframe};
+use crate::signals::{
+    ActuatorCommand, BatteryReading, ControlWrench, GRAVITY, GpsFix, GpsReading, RotorVector, SensorReadings,
+};
+use battery::Battery;
+
+/// Satellites a healthy receiver reports (PX4 SITL's GPS sends about as many).
+const SATELLITES: u8 = 12;
+
+/// The disturbance state from a time on: values not given keep their previous value.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DisturbanceChange {
+    /// From this time [s].
+    pub at_s: f64,
+    /// New external force [N], NED.
+    pub force_ned: Option<Vector3<f64>>,
+    /// New external torque [N m], FRD.
+    pub torque_frd: Option<Vector3<f64>>,
+    /// New true mass [kg].
+    pub true_mass_kg: Option<f64>,
+}
+
+/// The schedule's wrench and true mass at `t` (the last change at or before
+/// `t`; values not given carry over; no force before the first change).
+fn schedule_at(changes: &[DisturbanceChange], t: f64) -> (ExternalWrench, Option<f64>) {
+    let mut w = ExternalWrench::default();
+    let mut mass = None;
+    for c in changes.iter().take_while(|c| c.at_s <= t) {
+        if let Some(f) = c.force_ned {
+            w.force_ned = f;
+        }
+        if let Some(tq) = c.torque_frd {
+            w.torque_frd = tq;
+        }
+        if c.true_mass_kg.is_some() {
+            mass = c.true_mass_kg;
+        }
+    }
+    (w, mass)
+}
+
+/// Where a vehicle's external wrench comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum DisturbanceSource {
+    /// A constant wrench (the `SIM_*` parameters).
+    Constant(ExternalWrench),
+    /// A schedule sorted by time (a scenario's `[[disturbance]]`s), which may
+    /// also change the true mass.
+    Schedule(Vec<DisturbanceChange>),
+}
+
+impl Disturbance for DisturbanceSource {
+    fn wrench_at(&self, t_s: f64) -> ExternalWrench {
+        match self {
+            DisturbanceSource::Constant(w) => *w,
+            DisturbanceSource::Schedule(changes) => schedule_at(changes, t_s).0,
+        }
+    }
+}
+
+/// How a vehicle's sensors are set up.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SensorConfig {
+    /// Noise of the navigation solution.
+    pub noise: SensorNoise,
+    /// Seed of its random stream.
+    pub seed: u64,
+}
+
+/// What the world did to one vehicle over one step, with the truth at the
+/// step's start (for logs, and for tests that hold estimates against the truth).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepReport {
+    /// The true state at `t_k`.
+    pub truth: RigidBodyState,
+    /// The true external wrench at `t_k`.
+    pub external: ExternalWrench,
+    /// The true mass [kg] over the step.
+    pub true_mass_kg: f64,
+    /// Touchdown, liftoff or nothing.
+    pub event: StepEvent,
+    /// The command the plant refused, or the integration that failed: the
+    /// rotors were stopped for this step instead.
+    pub fault: Option<SimFault>,
+}
+
+/// The injected truth a client may compare the estimates with.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Truth {
+    /// External force [N], world NED.
+    pub force_ned: Vector3<f64>,
+    /// External torque [N m], body FRD.
+    pub torque_frd: Vector3<f64>,
+    /// True mass [kg].
+    pub true_mass_kg: f64,
+}
+
+/// One vehicle of the world.
+#[derive(Clone, Debug)]
+struct Body {
+    plant: Plant,
+    sensors: Sensors,
+    battery: Battery,
+    /// Total rotor disk area [m^2] (battery power).
+    disk_area_m2: f64,
+    disturbance: DisturbanceSource,
+    /// The true mass the schedule set last (it is applied when it changes).
+    scheduled_mass: Option<f64>,
+    faults: ActiveFaults,
+    /// The command held over the next step.
+    command: ActuatorCommand,
+    /// The sensors read at the current instant, until the next step.
+    reading: Option<SensorReadings>,
+}
+
+impl Body {
+    fn read(&mut self) -> SensorReadings {
+        let truth = self.plant.truth();
+        SensorReadings {
+            measurement: self.sensors.measure(&truth),
+            specific_force_frd: self.specific_force_frd(),
+            rotor_speeds_rad_s: *self.plant.rotor_speeds(),
+            battery: BatteryReading {
+                voltage_v: self.battery.voltage_v(),
+                current_a: self.battery.current_a(),
+            },
+            gps: if self.faults.gps_available {
+                GpsReading {
+                    fix: GpsFix::Fix3d,
+                    satellites: SATELLITES,
+                }
+            } else {
+                GpsReading {
+                    fix: GpsFix::None,
+                    satellites: 0,
+                }
+            },
+        }
+    }
+
+    /// The accelerometer: `f = R^T (a - g e3) = (-u_T e3 + R^T f_e) / m` in
+    /// flight (the thrust and external force of the last step, the true
+    /// mass), `-g e3` at rest (the ground carries the weight).
+    fn specific_force_frd(&self) -> Vector3<f64> {
+        if self.plant.contact() == Contact::OnGround {
+            return Vector3::new(0.0, 0.0, -GRAVITY);
+        }
+        let s = self.plant.state();
+        let force_frd = s
+            .attitude
+            .inverse_transform_vector(&self.plant.last_external_wrench().force_ned);
+        (Vector3::new(0.0, 0.0, -self.plant.last_wrench().thrust_n) + force_frd) / self.plant.true_mass_kg()
+    }
+
+    /// Integrate over `[t, t + dt)`; a refused command or a failed integration
+    /// stops the rotors for the step instead (what ESCs do with garbage).
+    fn step(&mut self) -> StepReport {
+        let t = self.plant.time_s();
+        if let DisturbanceSource::Schedule(changes) = &self.disturbance {
+            let (_, mass) = schedule_at(changes, t);
+            if mass != self.scheduled_mass {
+                if let Some(m) = mass {
+                    self.plant.set_true_mass(m);
+                }
+                self.scheduled_mass = mass;
+            }
+        }
+        let truth = *self.plant.state();
+        let (event, fault) = match self.plant.step(&self.command, &self.disturbance) {
+            Ok(event) => (event, None),
+            Err(fault) => {
+                // Stop is finite and the state was kept finite, so this step succeeds.
+                let event = self
+                    .plant
+                    .step(&ActuatorCommand::Stop, &self.disturbance)
+                    .unwrap_or(StepEvent::None);
+                (event, Some(fault))
+            }
+        };
+        self.battery
+            .update(self.plant.last_wrench().thrust_n, self.disk_area_m2, self.plant.dt_s());
+        self.reading = None;
+        StepReport {
+            truth,
+            external: self.plant.last_external_wrench(),
+            true_mass_kg: self.plant.true_mass_kg(),
+            event,
+            fault,
+        }
+    }
+}
+
+/// Every simulated vehicle on one clock.
+#[derive(Clone, Debug)]
+pub struct World {
+    dt_s: f64,
+    environment: Environment,
+    steps: u64,
+    bodies: Vec<Body>,
+    reports: Vec<StepReport>,
+}
+
+impl World {
+    /// An empty world stepping by `dt_s` [s] in `environment`.
+    #[must_use]
+    pub fn new(dt_s: f64, environment: Environment) -> Self {
+        Self {
+            dt_s,
+            environment,
+            steps: 0,
+            bodies: Vec::new(),
+            reports: Vec::new(),
+        }
+    }
+
+    /// Add a vehicle resting on the ground below the NED origin, with a full
+    /// battery and no disturbance; its index.
+    ///
+    /// # Panics
+    /// When the world has already stepped (every vehicle shares the clock from 0).
+    pub fn add_vehicle(&mut self, airframe: &Airframe, sensors: SensorConfig) -> usize {
+        assert_eq!(self.steps, 0, "vehicles join the world before it starts");
+        let plant = Plant::new(
+            airframe,
+            PlantConfig {
+                dt_s: self.dt_s,
+                environment: self.environment,
+            },
+        );
+        let n = airframe.rotor_count();
+        self.bodies.push(Body {
+            plant,
+            sensors: Sensors::new(sensors.noise, sensors.seed),
+            battery: Battery::new(4.0, 5000.0, 0.0),
+            disk_area_m2: n as f64 * std::f64::consts::PI * airframe.rotor.radius_m.powi(2),
+            disturbance: DisturbanceSource::Constant(ExternalWrench::default()),
+            scheduled_mass: None,
+            faults: ActiveFaults::none(if airframe.actuation == Actuation::Rotors { n } else { 0 }),
+            command: ActuatorCommand::Stop,
+            reading: None,
+        });
+        self.reports.push(StepReport {
+            truth: RigidBodyState::at_rest(Vector3::zeros()),
+            external: ExternalWrench::default(),
+            true_mass_kg: airframe.mass_kg,
+            event: StepEvent::None,
+            fault: None,
+        });
+        self.bodies.len() - 1
+    }
+
+    /// Restart vehicle `i` (a reboot): resting below the NED origin, rotors
+    /// still, a full battery, no disturbance and no fault; the clock and the
+    /// sensors' random stream go on.
+    pub fn restart_vehicle(&mut self, i: usize, airframe: &Airframe) {
+        let steps = self.steps;
+        let b = &mut self.bodies[i];
+        b.plant = Plant::new(
+            airframe,
+            PlantConfig {
+                dt_s: self.dt_s,
+                environment: self.environment,
+            },
+        );
+        b.plant.set_steps(steps);
+        b.sensors.set_scale(1.0);
+        b.battery = Battery::new(4.0, 5000.0, 0.0);
+        b.disturbance = DisturbanceSource::Constant(ExternalWrench::default());
+        b.scheduled_mass = None;
+        b.faults = ActiveFaults::none(b.faults.rotors.len());
+        b.command = ActuatorCommand::Stop;
+        b.reading = None;
+    }
+
+    /// Number of vehicles.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.bodies.len()
+    }
+
+    /// Whether the world holds no vehicle.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.bodies.is_empty()
+    }
+
+    /// The step [s].
+    #[must_use]
+    pub fn dt_s(&self) -> f64 {
+        self.dt_s
+    }
+
+    /// Simulated time [s]: the steps taken times the step.
+    #[must_use]
+    pub fn time_s(&self) -> f64 {
+        self.steps as f64 * self.dt_s
+    }
+
+    /// Vehicle `i`'s sensors at the current instant (read once per instant).
+    pub fn sense(&mut self, i: usize) -> SensorReadings {
+        let b = &mut self.bodies[i];
+        match b.reading {
+            Some(r) => r,
+            None => {
+                let r = b.read();
+                b.reading = Some(r);
+                r
+            }
+        }
+    }
+
+    /// Hold `command` on vehicle `i`'s actuators over the next step.
+    pub fn actuate(&mut self, i: usize, command: ActuatorCommand) {
+        self.bodies[i].command = command;
+    }
+
+    /// One tick of the clock: integrate every vehicle over `[t, t + dt)` under
+    /// its held command; what happened to each, by index.
+    pub fn step(&mut self) -> &[StepReport] {
+        for (body, report) in self.bodies.iter_mut().zip(&mut self.reports) {
+            *report = body.step();
+        }
+        self.steps += 1;
+        &self.reports
+    }
+
+    /// Configure vehicle `i` from its parameters: the injected wrench (a
+    /// schedule, if one is set, is replaced), true mass, effects, battery.
+    pub fn configure(&mut self, i: usize, s: &WorldSettings) {
+        let ground = self.environment.ground_z_ned;
+        let b = &mut self.bodies[i];
+        b.disturbance = DisturbanceSource::Constant(s.external);
+        b.scheduled_mass = None;
+        b.plant.set_true_mass(s.true_mass_kg);
+        b.plant.set_environment(Environment {
+            ground_z_ned: ground,
+            ceiling_z_ned: s.ceiling_height_m.map(|h| ground - h),
+            ground_effect: s.ground_effect,
+            ceiling_effect: s.ceiling_effect,
+        });
+        b.battery
+            .configure(s.battery_cells, s.battery_capacity_mah, s.battery_min_fraction);
+    }
+
+    /// Let a schedule drive vehicle `i`'s external wrench and true mass.
+    pub fn set_disturbance(&mut self, i: usize, source: DisturbanceSource) {
+        let b = &mut self.bodies[i];
+        b.disturbance = source;
+        b.scheduled_mass = None;
+    }
+
+    /// Place vehicle `i` in flight at `state` with its rotors spinning to give
+    /// `wrench` (allocated; ideal actuation: nothing spins).
+    pub fn start_in_flight(&mut self, i: usize, state: RigidBodyState, wrench: &ControlWrench) {
+        let b = &mut self.bodies[i];
+        b.plant.set_state(state);
+        let speeds = match b.plant.actuation() {
+            Actuation::Rotors => b.plant.allocate(wrench),
+            Actuation::Ideal => RotorVector::zeros(),
+        };
+        b.plant.set_rotor_speeds(&speeds);
+        b.reading = None;
+    }
+
+    /// Inject (or repair) a fault in vehicle `i`.
+    ///
+    /// # Errors
+    /// A vehicle or rotor that does not exist, a rotor fault on an airframe
+    /// without rotors, a value out of range; nothing changes then.
+    pub fn inject(&mut self, i: usize, fault: Fault) -> Result<(), FaultError> {
+        let b = self.bodies.get_mut(i).ok_or(FaultError::NoSuchVehicle(i))?;
+        match fault {
+            Fault::Rotor { rotor, health } => {
+                if b.faults.rotors.is_empty() {
+                    return Err(FaultError::NoRotors);
+                }
+                if rotor >= b.faults.rotors.len() {
+                    return Err(FaultError::NoSuchRotor {
+                        rotor,
+                        count: b.faults.rotors.len(),
+                    });
+                }
+                if let RotorHealth::Degraded { thrust_fraction: f } = health
+                    && !(0.0..=1.0).contains(&f)
+                {
+                    return Err(FaultError::OutOfRange(f));
+                }
+                b.plant.set_rotor_health(rotor, health.speed_factor());
+                b.faults.rotors[rotor] = health;
+            }
+            Fault::Gps { available } => b.faults.gps_available = available,
+            Fault::SensorNoise { scale } => {
+                if !(scale.is_finite() && scale >= 0.0) {
+                    return Err(FaultError::OutOfRange(scale));
+                }
+                b.sensors.set_scale(scale);
+                b.faults.noise_scale = scale;
+            }
+        }
+        Ok(())
+    }
+
+    /// The faults active on vehicle `i`.
+    #[must_use]
+    pub fn faults(&self, i: usize) -> &ActiveFaults {
+        &self.bodies[i].faults
+    }
+
+    /// The injected truth on vehicle `i` now.
+    #[must_use]
+    pub fn truth(&self, i: usize) -> Truth {
+        let b = &self.bodies[i];
+        let w = b.disturbance.wrench_at(self.time_s());
+        Truth {
+            force_ned: w.force_ned,
+            torque_frd: w.torque_frd,
+            true_mass_kg: b.plant.true_mass_kg(),
+        }
+    }
+
+    /// Vehicle `i`'s plant (true state, contact, rotor speeds), read-only: for
+    /// logs and tests, never for the flight stack.
+    #[must_use]
+    pub fn plant(&self, i: usize) -> &Plant {
+        &self.bodies[i].plant
+    }
+
+    /// The state of charge of vehicle `i`'s pack, 0..1 (truth).
+    #[must_use]
+    pub fn battery_charge(&self, i: usize) -> f64 {
+        self.bodies[i].battery.remaining()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn quad_world() -> World {
+        let mut w = World::new(crate::signals::DEFAULT_STEP_S, Environment::default());
+        w.add_vehicle(&Airframe::load("quad").unwrap(), SensorConfig::default());
+        w
+    }
+
+    #[test]
+    fn a_dead_rotor_spins_down_and_its_esc_says_so() {
+        let mut w = quad_world();
+        let hover = RotorVector::from_fn(|i, _| if i < 4 { 700.0 } else { 0.0 });
+        w.start_in_flight(
+            0,
+            RigidBodyState::at_rest(Vector3::new(0.0, 0.0, -10.0)),
+            &ControlWrench::default(),
+        );
+        w.inject(
+            0,
+            Fault::Rotor {
+                rotor: 2,
+                health: RotorHealth::Off,
+            },
+        )
+        .unwrap();
+        w.inject(
+            0,
+            Fault::Rotor {
+                rotor: 1,
+                health: RotorHealth::Degraded { thrust_fraction: 0.25 },
+            },
+        )
+        .unwrap();
+        // 0.5 s: forty motor time constants
+        for _ in 0..500 {
+            w.actuate(0, ActuatorCommand::RotorSpeeds(hover));
+            w.step();
+        }
+        let esc = w.sense(0).rotor_speeds_rad_s;
+        assert!((esc[0] - 700.0).abs() < 1e-6, "{}", esc[0]);
+        assert!(
+            (esc[1] - 350.0).abs() < 1e-6,
+            "half the speed: a quarter of the thrust, {}",
+            esc[1]
+        );
+        assert!(esc[2] < 1e-3, "dead: {}", esc[2]);
+        assert!(w.faults(0).any());
+        // repaired
+        w.inject(
+            0,
+            Fault::Rotor {
+                rotor: 2,
+                health: RotorHealth::Healthy,
+            },
+        )
+        .unwrap();
+        assert!(matches!(
+            w.inject(
+                0,
+                Fault::Rotor {
+                    rotor: 4,
+                    health: RotorHealth::Off
+                }
+            ),
+            Err(FaultError::NoSuchRotor { rotor: 4, count: 4 })
+        ));
+        let mut ideal = World::new(crate::signals::DEFAULT_STEP_S, Environment::default());
+        ideal.add_vehicle(&Airframe::load("fsr-quad").unwrap(), SensorConfig::default());
+        assert_eq!(
+            ideal.inject(
+                0,
+                Fault::Rotor {
+                    rotor: 0,
+                    health: RotorHealth::Off
+                }
+            ),
+            Err(FaultError::NoRotors)
+        );
+    }
+
+    #[test]
+    fn gps_loss_and_noise_show_only_in_the_readings() {
+        let mut w = quad_world();
+        assert_eq!(w.sense(0).gps.fix, GpsFix::Fix3d);
+        w.inject(0, Fault::Gps { available: false }).unwrap();
+        w.step();
+        let r = w.sense(0);
+        assert_eq!((r.gps.fix, r.gps.satellites), (GpsFix::None, 0));
+        // reading twice at one instant gives the same reading
+        assert_eq!(w.sense(0), r);
+        // at rest the accelerometer feels the ground carry the weight
+        assert_eq!(r.specific_force_frd, Vector3::new(0.0, 0.0, -GRAVITY));
+        assert!(matches!(
+            w.inject(0, Fault::SensorNoise { scale: f64::NAN }),
+            Err(FaultError::OutOfRange(_))
+        ));
+    }
+}

@@ -1,0 +1,59 @@
+//! What the parameters say about the simulated world: the `SIM_*` truth (an
+//! injected wrench, the true mass, ground and ceiling effect, the battery's
+//! floor) and the battery pack fitted (the one `BAT1_*` describes, as PX4
+//! SITL's battery simulator does). The flight stack never reads these.
+
+use nalgebra::Vector3;
+
+use super::plant::ExternalWrench;
+use crate::params::{Param, ParamStore};
+
+/// One vehicle's world configuration, read from its parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WorldSettings {
+    /// The injected external wrench (`SIM_FEXT_*` world NED, `SIM_TEXT_*` body FRD).
+    pub external: ExternalWrench,
+    /// The true mass [kg] (`SIM_MASS`).
+    pub true_mass_kg: f64,
+    /// Ground effect on (`SIM_GE_EN`).
+    pub ground_effect: bool,
+    /// Ceiling effect on (`SIM_CE_EN`).
+    pub ceiling_effect: bool,
+    /// Height of a flat ceiling above the ground [m], `None` for no ceiling (`SIM_CEIL_Z` = 0).
+    pub ceiling_height_m: Option<f64>,
+    /// Cells in series of the pack (`BAT1_N_CELLS`).
+    pub battery_cells: f64,
+    /// Capacity of the pack [mAh] (`BAT1_CAPACITY`).
+    pub battery_capacity_mah: f64,
+    /// The charge never drops below this fraction (`SIM_BAT_MIN_PCT` / 100).
+    pub battery_min_fraction: f64,
+}
+
+impl WorldSettings {
+    /// Read every world parameter (the store's ranges make each one usable).
+    #[must_use]
+    pub fn from_store(p: &ParamStore) -> Self {
+        let ceiling = p.real(Param::SIM_CEIL_Z);
+        Self {
+            external: ExternalWrench {
+                force_ned: Vector3::new(
+                    p.real(Param::SIM_FEXT_X),
+                    p.real(Param::SIM_FEXT_Y),
+                    p.real(Param::SIM_FEXT_Z),
+                ),
+                torque_frd: Vector3::new(
+                    p.real(Param::SIM_TEXT_X),
+                    p.real(Param::SIM_TEXT_Y),
+                    p.real(Param::SIM_TEXT_Z),
+                ),
+            },
+            true_mass_kg: p.real(Param::SIM_MASS),
+            ground_effect: p.int(Param::SIM_GE_EN) != 0,
+            ceiling_effect: p.int(Param::SIM_CE_EN) != 0,
+            ceiling_height_m: (ceiling > 0.0).then_some(ceiling),
+            battery_cells: p.real(Param::BAT1_N_CELLS),
+            battery_capacity_mah: p.real(Param::BAT1_CAPACITY),
+            battery_min_fraction: p.real(Param::SIM_BAT_MIN_PCT) / 100.0,
+        }
+    }
+}

@@ -174,6 +174,9 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Some(Command::Airframe { airframe, json }) => {
             let a = Airframe::load(&airframe)?;
+            // the airframe file's [control] table is the control laws' to check
+            crate::control::ControlGains::for_airframe(&a, a.mass_kg)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", a.source))?;
             let report = AirframeReport::new(&a);
             if json {
                 println!("{}", serde_json::to_string_pretty(&report)?);

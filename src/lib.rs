@@ -2,32 +2,38 @@
 //!
 //! # Layout
 //!
+//! Two halves and what joins them: the simulated world ([`sim`]) and the
+//! flight stack ([`autopilot`]) never import each other; they meet in
+//! [`signals`] (sensor readings in, actuator commands out) and are stepped
+//! together by the lockstep core ([`lockstep`]), which the scenario runner
+//! and the daemon both use.
+//!
 //! | module | job | may import |
 //! |---|---|---|
 //! | [`math`] | SO(3) helpers (hat, vee, ZYX Euler angles) and the RPY model matrices `Q`, `M`, `C` | nalgebra |
-//! | [`signals`] | values passed between blocks: measurement, nominal model, wrench estimate | nalgebra |
+//! | [`signals`] | what crosses between world and flight stack and between blocks: sensor readings, actuator commands, measurement, control wrench, nominal model, wrench estimate; gravity and the step | nalgebra |
 //! | [`tomlfile`] | TOML files to typed values, errors naming file, line/field and problem | serde, toml |
 //! | [`geo`] | flat-earth NED <-> latitude/longitude/AMSL around home | nalgebra |
-//! | [`airframe`] | vehicle description from `params/airframes/*.toml`, allocation (effectiveness matrix, inverse, desaturation), rotor-failure analysis, the `airframe` report | `math`, `tomlfile` |
-//! | [`model`] | the plant: 6-DoF rigid body (NED/FRD), rotors with lag and limits, ground and ceiling effect, external wrench, ground contact, seeded sensor noise | `math`, `airframe` |
-//! | [`control`] | the three controllers (hierarchical, geometric, passivity-based) and the reference shaper | `math`, `signals`, `airframe` (types) |
-//! | [`estimation`] | momentum-based external-wrench estimator of order r, real mass | `math`, `signals`, `airframe` (types) |
-//! | [`vehicle`] | the lockstep loop: sense (measure, estimate), act (control, allocate, integrate) | the pure modules above |
-//! | [`scenario`] | scenario files and the flat-out runner behind `rotorpilot simulate` | `vehicle` |
+//! | [`params`] | the parameter table (PX4 style, a typed [`params::Param`] per entry), store, validation, atomic persistence | `airframe` (types) |
+//! | [`airframe`] | vehicle description from `params/airframes/*.toml`, allocation, rotor-failure analysis, the `airframe` report | `math`, `signals`, `tomlfile` |
+//! | [`sim`] | the simulated world: plants (6-DoF rigid body, rotors, ground and ceiling effect, contact), sensors, battery, disturbances, faults; N vehicles on one clock; the `SIM_*` parameters | `math`, `signals`, `airframe`, `params` |
+//! | [`control`] | the three controllers (hierarchical, geometric, passivity-based), their gains (checking an airframe's `[control]` table), the reference shaper | `math`, `signals`, `airframe` |
+//! | [`estimation`] | momentum-based external-wrench estimator of order r, real mass | `math`, `signals` |
+//! | [`autopilot`] | the flight stack: commander, navigators, failsafes, land detector, control loop, telemetry; sees only sensor readings | `signals`, `control`, `estimation`, `params`, `geo`, `airframe` — never `sim` |
+//! | [`lockstep`] | the one loop: sense, decide, act, integrate for every vehicle; parameter routing and transaction; telemetry with the injected truth | `sim`, `autopilot` |
+//! | [`scenario`] | scenario files and the flat-out runner behind `rotorpilot simulate` | `lockstep`, `sim`, `autopilot`, `control` |
 //! | [`flightlog`] | flight-log CSV reading and the offline estimator sweep of `rotorpilot estimate` | `estimation` |
-//! | [`params`] | the parameter table (PX4 style), typed store, validation, atomic persistence | `airframe` (types) |
-//! | [`autopilot`] | arming, flight modes, takeoff/land/RTL/hold/offboard, telemetry snapshot | `vehicle`, `params`, `geo` |
-//! | [`link`] | MAVLink 2 over UDP as PX4 SITL: peers, streams, handlers (protocol only, never physics) | `autopilot`, `params`, `geo` (types), mavlink |
-//! | [`daemon`] | the runtime: simulation on its own thread paced against wall time, links on tokio, shutdown | everything |
+//! | [`link`] | MAVLink 2 over UDP as PX4 SITL, sans I/O: translates messages to autopilot commands and telemetry to messages (never physics, never a decision) | `autopilot`, `lockstep` (types), `params`, `geo`, mavlink |
+//! | [`daemon`] | the runtime: the simulation thread paced against wall time, link tasks on tokio, parameter saving, shutdown | everything |
 //! | [`cli`] | the `rotorpilot` command line (thin: parses, calls the modules, prints) | everything |
 //!
-//! Everything up to `autopilot` is pure and deterministic: no sockets, no
-//! tokio, no wall clock, no global RNG. The same inputs and seed give a bit-identical
-//! trajectory.
+//! Everything up to `scenario` is pure and deterministic: no sockets, no
+//! tokio, no wall clock, no global RNG. The same inputs and seed give a
+//! bit-identical trajectory. `tools/test-all.sh` checks both rules with a grep.
 //!
 //! # Conventions
 //! SI units. World frame NED (`_ned`), body frame FRD (`_frd`), gravity
-//! `+g e3` with `g` = [`model::GRAVITY`]. Attitude is the unit quaternion
+//! `+g e3` with `g` = [`signals::GRAVITY`]. Attitude is the unit quaternion
 //! taking FRD body vectors into NED. Rotor thrust points along `-z_b`.
 #![forbid(unsafe_code)]
 // Units sit in brackets in doc comments (`[m/s]`, PX4's habit), which rustdoc

@@ -26,15 +26,21 @@ use crate::sim::{Environment, SensorConfig, SimFault, StepReport, Truth, World, 
 /// the actuators get over `[t_k, t_{k+1})`.
 pub trait Pilot {
     /// Decide this step.
-    fn decide(&mut self, readings: &SensorReadings) -> ControlOutput;
+    fn decide(&mut self, readings: &SensorReadings) -> &ControlOutput;
+    /// What the latest [`Self::decide`] decided.
+    fn output(&self) -> &ControlOutput;
     /// The world refused the command (it was not finite) or could not
     /// integrate it, and stopped the rotors for the step instead.
     fn rotors_stopped(&mut self, why: &SimFault);
 }
 
 impl Pilot for Autopilot {
-    fn decide(&mut self, readings: &SensorReadings) -> ControlOutput {
+    fn decide(&mut self, readings: &SensorReadings) -> &ControlOutput {
         self.step(readings)
+    }
+
+    fn output(&self) -> &ControlOutput {
+        Autopilot::output(self)
     }
 
     fn rotors_stopped(&mut self, why: &SimFault) {
@@ -42,15 +48,16 @@ impl Pilot for Autopilot {
     }
 }
 
-/// Everything about one vehicle's step, for logs and summaries.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct StepRecord {
+/// Everything about one vehicle's latest step, for logs and summaries
+/// (borrowed where it lives: nothing is copied per step).
+#[derive(Clone, Copy, Debug)]
+pub struct StepRecord<'a> {
     /// The measurement the pilot decided on (`x_k`).
-    pub measurement: Measurement,
+    pub measurement: &'a Measurement,
     /// What the pilot decided.
-    pub control: ControlOutput,
+    pub control: &'a ControlOutput,
     /// What the world did.
-    pub world: StepReport,
+    pub world: &'a StepReport,
 }
 
 /// What a client may be told about a vehicle: its autopilot's telemetry and
@@ -68,9 +75,8 @@ pub struct Snapshot {
 pub struct Lockstep<P> {
     world: World,
     pilots: Vec<P>,
-    /// This step's decisions, until the world has stepped.
-    decided: Vec<(Measurement, ControlOutput)>,
-    records: Vec<StepRecord>,
+    /// The measurement each vehicle's pilot decided on last.
+    measurements: Vec<Measurement>,
     last_fault: Vec<Option<SimFault>>,
 }
 
@@ -86,41 +92,36 @@ impl<P: Pilot> Lockstep<P> {
         Self {
             world,
             pilots,
-            decided: Vec::with_capacity(n),
-            records: Vec::with_capacity(n),
+            measurements: vec![Measurement::default(); n],
             last_fault: vec![None; n],
         }
     }
 
     /// One step of every vehicle: sense, decide, act, integrate.
-    pub fn step(&mut self) -> &[StepRecord] {
-        self.decided.clear();
-        for (i, pilot) in self.pilots.iter_mut().enumerate() {
+    pub fn step(&mut self) {
+        for (i, (pilot, measurement)) in self.pilots.iter_mut().zip(&mut self.measurements).enumerate() {
             let readings = self.world.sense(i);
-            let control = pilot.decide(&readings);
-            self.world.actuate(i, control.actuator);
-            self.decided.push((readings.measurement, control));
+            *measurement = readings.measurement;
+            let actuator = pilot.decide(readings).actuator;
+            self.world.actuate(i, actuator);
         }
         let reports = self.world.step();
-        self.records.clear();
-        for ((((measurement, control), report), pilot), fault) in self
-            .decided
-            .iter()
-            .zip(reports)
-            .zip(&mut self.pilots)
-            .zip(&mut self.last_fault)
-        {
+        for ((report, pilot), fault) in reports.iter().zip(&mut self.pilots).zip(&mut self.last_fault) {
             if let Some(f) = report.fault {
                 pilot.rotors_stopped(&f);
                 *fault = Some(f);
             }
-            self.records.push(StepRecord {
-                measurement: *measurement,
-                control: *control,
-                world: *report,
-            });
         }
-        &self.records
+    }
+
+    /// Vehicle `i`'s latest step.
+    #[must_use]
+    pub fn last_step(&self, i: usize) -> StepRecord<'_> {
+        StepRecord {
+            measurement: &self.measurements[i],
+            control: self.pilots[i].output(),
+            world: self.world.last_report(i),
+        }
     }
 
     /// The world (truth, for logs and tests; never for a pilot).
@@ -189,7 +190,7 @@ impl Lockstep<Autopilot> {
     /// do (a failure injection) is done here.
     pub fn command(&mut self, i: usize, command: AutopilotCommand) -> CommandOutcome {
         let readings = self.world.sense(i);
-        let outcome = self.pilots[i].command(command, &readings);
+        let outcome = self.pilots[i].command(command, readings);
         match (command, outcome) {
             // no failure is wired to the world yet (issue 12): PX4's answer for an unknown one
             (AutopilotCommand::InjectFailure { .. }, CommandOutcome::Accepted) => CommandOutcome::Unsupported,
@@ -254,7 +255,7 @@ impl Lockstep<Autopilot> {
     /// Vehicle `i`'s telemetry at the current instant.
     pub fn telemetry(&mut self, i: usize) -> Telemetry {
         let readings = self.world.sense(i);
-        self.pilots[i].telemetry(&readings)
+        self.pilots[i].telemetry(readings)
     }
 
     /// Vehicle `i`'s telemetry and the world's injected truth.

@@ -78,6 +78,19 @@ pub struct Measurement {
     pub rate_frd: Vector3<f64>,
 }
 
+impl Default for Measurement {
+    /// At rest at the origin, level, at time 0.
+    fn default() -> Self {
+        Self {
+            time_s: 0.0,
+            position_ned: Vector3::zeros(),
+            velocity_ned: Vector3::zeros(),
+            attitude: UnitQuaternion::identity(),
+            rate_frd: Vector3::zeros(),
+        }
+    }
+}
+
 /// The model that controllers and estimators assume (never the plant's truth).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct NominalModel {

@@ -321,3 +321,52 @@ fn malformed_airframes_get_named_errors() {
         "{err}"
     );
 }
+
+/// An airframe's `[control]` table is the control laws' to check: a bad gain
+/// is refused by them, naming the file and the gain, by the `airframe`
+/// command, by a scenario that flies it and by the daemon's start.
+#[test]
+fn an_airframe_with_a_bad_gain_is_refused_where_it_would_fly() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/airframes");
+    let path = format!("{dir}/bad-gain.toml");
+    let a = Airframe::load(&path).expect("the airframe itself is valid");
+    let err = rotorpilot::control::ControlGains::for_airframe(&a, a.mass_kg)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("geometric.kp_n_per_m[1]") && err.contains("-355"), "{err}");
+    let typo = Airframe::from_toml(
+        &std::fs::read_to_string(&path)
+            .unwrap()
+            .replace("[control.geometric]", "[control.geometrik]"),
+        "typo.toml",
+    )
+    .unwrap();
+    let err = rotorpilot::control::ControlGains::for_airframe(&typo, typo.mass_kg)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("geometrik"), "{err}");
+    let state = std::env::temp_dir().join(format!("rotorpilot-bad-gain-{}", std::process::id()));
+    let state = state.display().to_string();
+    let daemon = [
+        "--airframe",
+        &path,
+        "--state-dir",
+        &state,
+        "--gcs-bind",
+        "127.0.0.1:0",
+        "--api-bind",
+        "127.0.0.1:0",
+    ];
+    for args in [&["airframe", path.as_str()][..], &daemon[..]] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("bad-gain.toml") && err.contains("kp_n_per_m[1]") && !err.contains("panicked"),
+            "{args:?}: {err}"
+        );
+    }
+}

@@ -1025,3 +1025,83 @@ fn touchdown_to_landed_takes_about_the_detection_time() {
         assert!((0.25..0.3).contains(&delay), "{name}: {delay} s");
     }
 }
+
+/// What the link used to decide is the autopilot's now, at the instant the
+/// command is applied: reboot and shutdown only disarmed, failure injection
+/// only with SYS_FAILURE_EN (then the world's: none is wired yet), no mission
+/// to start, an invalid home refused, a body-frame setpoint turned by the
+/// heading the vehicle has when it arrives.
+#[test]
+fn the_autopilot_decides_what_the_link_only_translates() {
+    use rotorpilot::autopilot::{PowerAction, RelativeFrame};
+    let (mut ap, mut store) = setup("quad", &[]);
+    ap.step();
+    let reboot = AutopilotCommand::Power(PowerAction::Reboot);
+    let inject = AutopilotCommand::InjectFailure {
+        unit: 0,
+        kind: 1,
+        instance: 1,
+    };
+    assert_eq!(ap.command(reboot), CommandOutcome::Accepted);
+    assert_eq!(
+        ap.command(inject),
+        CommandOutcome::Denied("failure injection disabled (SYS_FAILURE_EN)")
+    );
+    set(&mut ap, &mut store, "SYS_FAILURE_EN", int(1));
+    assert_eq!(ap.command(inject), CommandOutcome::Unsupported);
+    assert_eq!(
+        ap.command(AutopilotCommand::StartMission),
+        CommandOutcome::TemporarilyRejected("no mission")
+    );
+    assert_eq!(
+        ap.command(AutopilotCommand::SetHome(Some(GeoPoint { lat_deg: 91.0, ..HOME }))),
+        CommandOutcome::Denied("invalid home position")
+    );
+    take_off(&mut ap);
+    for power in [PowerAction::Reboot, PowerAction::Shutdown] {
+        assert_eq!(
+            ap.command(AutopilotCommand::Power(power)),
+            CommandOutcome::Denied("disarm before reboot")
+        );
+    }
+    // face east, then "forward at 1 m/s" in BODY_NED is east
+    let here = ap.telemetry().global;
+    ap.command(AutopilotCommand::Reposition {
+        lat_deg: Some(here.lat_deg),
+        lon_deg: Some(here.lon_deg),
+        alt_amsl_m: None,
+        yaw_rad: Some(std::f64::consts::FRAC_PI_2),
+        speed_m_s: None,
+    });
+    run(&mut ap, 6.0);
+    let forward = AutopilotCommand::Offboard(OffboardSetpoint::Relative {
+        frame: RelativeFrame::Body,
+        position: None,
+        velocity: Some(Vector3::new(1.0, 0.0, 0.0)),
+        acceleration: None,
+        yaw_rad: None,
+        yaw_rate_rad_s: Some(0.0),
+    });
+    ap.command(forward);
+    assert_eq!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::Offboard)),
+        CommandOutcome::Accepted
+    );
+    stream(&mut ap, 4.0, forward);
+    let v = ap.telemetry().velocity_ned;
+    assert!((v - Vector3::new(0.0, 1.0, 0.0)).norm() < 0.05, "{v}");
+}
+
+/// HEARTBEAT's type comes from the airframe: the autopilot reports what it flies.
+#[test]
+fn telemetry_names_the_multirotor() {
+    use rotorpilot::autopilot::VehicleType;
+    for (name, kind) in [
+        ("quad", VehicleType::Quadrotor),
+        ("hexa", VehicleType::Hexarotor),
+        ("octo", VehicleType::Octorotor),
+        ("fsr-quad", VehicleType::Quadrotor),
+    ] {
+        assert_eq!(setup(name, &[]).0.telemetry().vehicle_type, kind, "{name}");
+    }
+}

@@ -8,7 +8,7 @@
 //! along `-z_b`, drag torque `s_i c_Q w_i^2` about `+z_b`.
 //!
 //! The mass and inertia here are the *nominal* ones that controllers and
-//! estimators see; the plant ([`crate::model::Plant`]) starts from them and may
+//! estimators see; the plant ([`crate::sim::Plant`]) starts from them and may
 //! be given a different true mass and inertia.
 
 mod allocation;

@@ -71,12 +71,36 @@ pub struct ControlOutput {
     pub applied: ControlWrench,
     /// Whether the allocation had to desaturate.
     pub saturated: bool,
-    /// Rotor speed commands [rad/s] (zero for ideal actuation).
-    pub rotor_speed_cmd: RotorVector,
     /// The estimate at `t_k` (from `x_{k-1}, x_k` and `u_{k-1}`).
     pub estimate: WrenchEstimate,
     /// The controller's attitude setpoint at `t_k`.
     pub attitude_sp: UnitQuaternion<f64>,
+}
+
+impl Default for ControlOutput {
+    /// Rotors stopped, nothing commanded.
+    fn default() -> Self {
+        Self {
+            actuator: ActuatorCommand::Stop,
+            reference: Reference::default(),
+            command: ControlWrench::default(),
+            applied: ControlWrench::default(),
+            saturated: false,
+            estimate: WrenchEstimate::default(),
+            attitude_sp: UnitQuaternion::identity(),
+        }
+    }
+}
+
+impl ControlOutput {
+    /// Rotor speed commands [rad/s] (zero for stopped rotors and ideal actuation).
+    #[must_use]
+    pub fn rotor_speed_cmd(&self) -> RotorVector {
+        match self.actuator {
+            ActuatorCommand::RotorSpeeds(w) => w,
+            ActuatorCommand::Stop | ActuatorCommand::Wrench(_) => RotorVector::zeros(),
+        }
+    }
 }
 
 /// Estimator, controller and allocation of one vehicle.
@@ -91,8 +115,8 @@ pub struct ControlLoop {
     idle_speeds: RotorVector,
     /// `u_{k-1}` as the estimator must see it.
     last_applied: Option<ControlWrench>,
-    /// The estimate of the latest [`Self::sense`].
-    estimate: WrenchEstimate,
+    /// The latest step's output (its estimate from the latest [`Self::sense`]).
+    output: ControlOutput,
 }
 
 impl ControlLoop {
@@ -113,7 +137,10 @@ impl ControlLoop {
             .rows_mut(0, airframe.rotor_count())
             .fill(airframe.rotor.speed_min_rad_s);
         let estimator = MomentumEstimator::new(estimator, nominal)?;
-        let estimate = estimator.estimate();
+        let output = ControlOutput {
+            estimate: estimator.estimate(),
+            ..ControlOutput::default()
+        };
         Ok(Self {
             nominal,
             controller: Controller::new(kind, gains)?,
@@ -122,7 +149,7 @@ impl ControlLoop {
             actuation: airframe.actuation,
             idle_speeds,
             last_applied: None,
-            estimate,
+            output,
         })
     }
 
@@ -208,8 +235,14 @@ impl ControlLoop {
     /// hover wrench before the first applied one).
     pub fn sense(&mut self, measurement: &Measurement) -> WrenchEstimate {
         let applied_before = self.last_applied.unwrap_or_else(|| self.hover_wrench());
-        self.estimate = self.estimator.update_measured(measurement, &applied_before);
-        self.estimate
+        self.output.estimate = self.estimator.update_measured(measurement, &applied_before);
+        self.output.estimate
+    }
+
+    /// What the latest [`Self::act`] decided.
+    #[must_use]
+    pub fn output(&self) -> &ControlOutput {
+        &self.output
     }
 
     /// The second phase of a step at `t_k`: the controller for `demand` on
@@ -222,71 +255,58 @@ impl ControlLoop {
         demand: &Demand,
         feedback: Option<&WrenchEstimate>,
         dt: f64,
-    ) -> ControlOutput {
-        let (command, reference) = match demand {
+    ) -> &ControlOutput {
+        // (the reference goes straight to the output: it is large)
+        let command = match demand {
             Demand::Stop | Demand::Idle => {
                 self.controller.reset();
-                (ControlWrench::default(), Reference::default())
+                self.output.reference = Reference::default();
+                ControlWrench::default()
             }
-            Demand::Track(reference) => (
+            Demand::Track(reference) => {
+                self.output.reference = *reference;
                 self.controller
-                    .update(&self.nominal, measurement, reference, feedback, dt),
-                *reference,
-            ),
+                    .update(&self.nominal, measurement, reference, feedback, dt)
+            }
             Demand::Attitude {
                 attitude,
                 rate_frd,
                 thrust_n,
-            } => (
+            } => {
+                self.output.reference = Reference::default();
                 self.controller
-                    .update_attitude(&self.nominal, measurement, attitude, rate_frd, *thrust_n, dt),
-                Reference::default(),
-            ),
+                    .update_attitude(&self.nominal, measurement, attitude, rate_frd, *thrust_n, dt)
+            }
         };
-        let (actuator, applied, saturated, rotor_speed_cmd) = match (demand, self.actuation) {
-            (Demand::Stop, _) => (
-                ActuatorCommand::Stop,
-                ControlWrench::default(),
-                false,
-                RotorVector::zeros(),
-            ),
+        let (actuator, applied, saturated) = match (demand, self.actuation) {
+            (Demand::Stop, _) => (ActuatorCommand::Stop, ControlWrench::default(), false),
             (Demand::Idle, Actuation::Rotors) => {
                 let speed_sq = self.idle_speeds.component_mul(&self.idle_speeds);
                 (
                     ActuatorCommand::RotorSpeeds(self.idle_speeds),
                     self.allocator.forward(&speed_sq),
                     false,
-                    self.idle_speeds,
                 )
             }
             (Demand::Idle, Actuation::Ideal) => (
                 ActuatorCommand::Wrench(ControlWrench::default()),
                 ControlWrench::default(),
                 false,
-                RotorVector::zeros(),
             ),
             (_, Actuation::Rotors) => {
                 let a = self.allocator.allocate(&command);
-                (
-                    ActuatorCommand::RotorSpeeds(a.speed_cmd_rad_s),
-                    a.achieved,
-                    a.saturated,
-                    a.speed_cmd_rad_s,
-                )
+                (ActuatorCommand::RotorSpeeds(a.speed_cmd_rad_s), a.achieved, a.saturated)
             }
-            (_, Actuation::Ideal) => (ActuatorCommand::Wrench(command), command, false, RotorVector::zeros()),
+            (_, Actuation::Ideal) => (ActuatorCommand::Wrench(command), command, false),
         };
         self.last_applied = Some(applied);
-        ControlOutput {
-            actuator,
-            reference,
-            command,
-            applied,
-            saturated,
-            rotor_speed_cmd,
-            estimate: self.estimate,
-            attitude_sp: self.controller.status().attitude_sp,
-        }
+        let out = &mut self.output;
+        out.actuator = actuator;
+        out.command = command;
+        out.applied = applied;
+        out.saturated = saturated;
+        out.attitude_sp = self.controller.status().attitude_sp;
+        &self.output
     }
 
     /// The actuators refused the last command (it was not finite) and the

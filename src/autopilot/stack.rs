@@ -232,7 +232,7 @@ impl Autopilot {
     /// measurement and last step's thrust; the estimator restarted while
     /// resting on the ground, else updated; offboard-loss and auto-disarm
     /// supervision; guidance for the mode; the controller and allocation.
-    pub fn step(&mut self, readings: &SensorReadings) -> ControlOutput {
+    pub fn step(&mut self, readings: &SensorReadings) -> &ControlOutput {
         let m = &readings.measurement;
         let now = m.time_s;
         self.now_s = now;
@@ -263,6 +263,12 @@ impl Autopilot {
         let demand = self.navigator.guidance(self.armed, &cx, &mut self.say);
         let feedback = self.settings.feedback.then(|| self.feedback.feed_back(&estimate, now));
         self.control.act(m, &demand, feedback.as_ref(), self.dt)
+    }
+
+    /// What the latest [`Self::step`] decided.
+    #[must_use]
+    pub fn output(&self) -> &ControlOutput {
+        self.control.output()
     }
 
     /// The actuators refused the last command (not finite) and the world

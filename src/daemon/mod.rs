@@ -190,7 +190,7 @@ impl Daemon {
         let (stop_tx, stop_rx) = watch::channel(false);
         let (exit_tx, mut exit_rx) = mpsc::channel::<()>(1);
         let (sim_tx, sim_rx) = std::sync::mpsc::sync_channel::<SimRequest>(256);
-        let (tel_tx, tel_rx) = watch::channel(core.snapshot(0));
+        let (tel_tx, tel_rx) = watch::channel(core.snapshot(sim_thread::VEHICLE));
         let (ev_tx, _) = broadcast::channel::<Event>(256);
         let save = Arc::new(Notify::new());
         // Save once at start: a --reset-params run overwrites the old file,

@@ -21,7 +21,7 @@ use crate::lockstep::{Lockstep, Snapshot};
 use crate::params::{ParamStore, ParamValue};
 
 /// The vehicle this daemon flies (one today; the fleet addresses more).
-const VEHICLE: usize = 0;
+pub(super) const VEHICLE: usize = 0;
 /// Steps run between two looks at the request queue.
 const CHUNK: u64 = 50;
 /// At most this much wall time is spent stepping per tick; the rest waits.

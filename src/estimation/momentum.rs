@@ -41,7 +41,7 @@ impl Default for EstimatorConfig {
             polynomial: Polynomial::Butterworth,
             cutoff_rad_s: 10.0,
             discretization: Discretization::Trapezoidal,
-            sample_time_s: 0.001,
+            sample_time_s: crate::signals::DEFAULT_STEP_S,
         }
     }
 }

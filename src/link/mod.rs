@@ -1,7 +1,7 @@
 //! MAVLink 2 over UDP as PX4 SITL speaks it, as a sans-I/O state machine:
 //! datagrams and the time go in, addressed frames and [`Effect`]s for the
 //! daemon come out. No sockets, no tokio, no clock here: the daemon
-//! ([`crate::daemon`]) owns the sockets and the autopilot and calls in.
+//! ([`crate::daemon`]) owns the sockets and the lockstep core and calls in.
 //!
 //! One [`Link`] per UDP socket (PX4 SITL has a GCS link and an API link).
 //! Each serves a set of [`peers::Peers`] (its default remote from boot, plus

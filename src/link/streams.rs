@@ -536,6 +536,35 @@ fn named_float(name: &str, time_boot_ms: u32, v: f64) -> MavMessage {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::link::testing::snapshot;
+
+    #[test]
+    fn heartbeat_type_follows_the_airframe() {
+        let mut s = snapshot();
+        for (rotors, mav_type) in [(4, 2), (6, 13), (8, 14), (3, 15), (12, 29), (5, 2)] {
+            s.telemetry.vehicle_type = VehicleType::from_rotor_count(rotors);
+            assert_eq!(heartbeat(&s.telemetry).mavtype as u8, mav_type, "{rotors} rotors");
+        }
+    }
+
+    #[test]
+    fn gps_fix_and_health_follow_the_receiver() {
+        let mut s = snapshot();
+        let gps_raw = |s: &Snapshot| match build(Stream::GpsRawInt, s, 0).pop() {
+            Some(MavMessage::GPS_RAW_INT(g)) => (g.fix_type as u8, g.satellites_visible),
+            _ => panic!(),
+        };
+        let gps_healthy = |s: &Snapshot| match build(Stream::SysStatus, s, 0).pop() {
+            Some(MavMessage::SYS_STATUS(m)) => m.onboard_control_sensors_health.bits() & GPS != 0,
+            _ => panic!(),
+        };
+        assert_eq!(gps_raw(&s), (3, 12));
+        assert!(gps_healthy(&s));
+        s.telemetry.gps_fix = GpsFix::None;
+        s.telemetry.gps_satellites = 0;
+        assert_eq!(gps_raw(&s), (1, 0), "GPS_FIX_TYPE_NO_FIX");
+        assert!(!gps_healthy(&s));
+    }
 
     #[test]
     fn default_rates_and_deadlines() {

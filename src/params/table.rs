@@ -121,8 +121,8 @@ parameters! {
     SYS_FAILURE_EN: int(0, 0, 1, "Allow failure injection (MAV_CMD_INJECT_FAILURE)"),
     MAV_SYS_ID: int_reboot(1, 1, 250, "MAVLink system id"),
     MAV_COMP_ID: int_reboot(1, 1, 250, "MAVLink component id"),
-    BAT1_N_CELLS: int(4, 1, 14, "Simulated battery: cells in series"),
-    BAT1_CAPACITY: real(5000.0, 100.0, 100_000.0, "mAh", "Simulated battery: capacity"),
+    BAT1_N_CELLS: int(4, 1, 14, "Battery cells in series (the monitor reads them; the simulated pack has them)"),
+    BAT1_CAPACITY: real(5000.0, 100.0, 100_000.0, "mAh", "Battery capacity (of the simulated pack)"),
     SIM_BAT_MIN_PCT: real(50.0, 0.0, 100.0, "%", "Simulated battery: charge never drops below this (PX4 SITL's floor)"),
     // --- rotorpilot: control -------------------------------------------------------------------
     CTRL_TYPE: int(1, 0, 2, "Control law: 0 hierarchical, 1 geometric, 2 passivity (switched bumplessly in flight)"),

@@ -84,7 +84,7 @@ fn default_controller() -> ControllerKind {
 }
 
 fn default_step() -> f64 {
-    0.001
+    crate::signals::DEFAULT_STEP_S
 }
 
 #[derive(Deserialize)]

@@ -108,7 +108,11 @@ impl ScenarioPilot<'_> {
 }
 
 impl Pilot for ScenarioPilot<'_> {
-    fn decide(&mut self, readings: &SensorReadings) -> ControlOutput {
+    fn output(&self) -> &ControlOutput {
+        self.control.output()
+    }
+
+    fn decide(&mut self, readings: &SensorReadings) -> &ControlOutput {
         let s = self.scenario;
         let m = &readings.measurement;
         let t = m.time_s;
@@ -116,10 +120,10 @@ impl Pilot for ScenarioPilot<'_> {
             self.control.switch_controller(s.switches[self.next_switch].1);
             self.next_switch += 1;
         }
-        let reference = self.reference_at(t);
+        let demand = Demand::Track(self.reference_at(t));
         let estimate = self.control.sense(m);
         let feedback = s.feedback.then_some(&estimate);
-        self.control.act(m, &Demand::Track(reference), feedback, s.step_s)
+        self.control.act(m, &demand, feedback, s.step_s)
     }
 
     fn rotors_stopped(&mut self, _why: &SimFault) {
@@ -142,8 +146,8 @@ fn csv_header(n: usize) -> String {
     h
 }
 
-fn csv_row(rec: &StepRecord, n: usize) -> String {
-    let (m, r, w) = (&rec.measurement, &rec.control, &rec.world);
+fn csv_row(rec: &StepRecord<'_>, n: usize) -> String {
+    let (m, r, w) = (rec.measurement, rec.control, rec.world);
     // the report's inputs exactly as the estimator derives them (eta, eta_dot = Q^-1 omega)
     let input = input_from(m, &r.applied);
     let (eta, eta_dot) = (input.eta, input.eta_dot);
@@ -163,7 +167,7 @@ fn csv_row(rec: &StepRecord, n: usize) -> String {
     v.push(r.command.thrust_n);
     v.extend(r.command.torque_frd.iter());
     v.push(f64::from(u8::from(r.saturated)));
-    v.extend(r.rotor_speed_cmd.iter().take(n));
+    v.extend(r.rotor_speed_cmd().iter().take(n));
     v.extend(w.external.force_ned.iter());
     v.extend(w.external.torque_frd.iter());
     v.push(w.true_mass_kg);
@@ -273,14 +277,15 @@ pub fn run(s: &Scenario, mut csv: Option<&mut dyn Write>) -> anyhow::Result<Summ
     let mut flown = 0u64;
     for k in 0..steps {
         let t = k as f64 * dt;
-        let rec = core.step()[0];
+        core.step();
+        let rec = core.last_step(0);
         if let Some(e) = rec.world.fault {
             fault = Some(format!("t = {t:.3} s: {e}"));
             finite = false;
             break;
         }
         flown += 1;
-        let (truth, control) = (&rec.world.truth, &rec.control);
+        let (truth, control) = (&rec.world.truth, rec.control);
         let e = truth.position_ned - control.reference.position_ned;
         sum_sq += e.component_mul(&e);
         max_abs = max_abs.sup(&e.abs());

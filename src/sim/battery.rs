@@ -3,10 +3,10 @@
 //!
 //! ```text
 //! P = T^1.5 / sqrt(2 rho A) / (FM eta)          momentum theory: total thrust T [N], disk area A [m^2]
-//! I = P / V + I_avionics                        [A]
-//! consumed += I dt / 3.6                        [mAh]
-//! soc = max(1 - consumed / capacity, min)       PX4 SITL's SIM_BAT_MIN_PCT: never below `min`
-//! V = n (3.5 + 0.7 soc) - n R_cell I            [V]: 4.2 V per cell full, 3.5 V empty
+//! I = P / V_oc + I_avionics                     [A]
+//! soc -= I dt / (3.6 C)                         C [mAh]; PX4 SITL's SIM_BAT_MIN_PCT: never below `min`
+//! V_oc = n (3.5 + 0.7 soc)                      [V]: 4.2 V per cell full, 3.5 V empty
+//! V = V_oc - n R_cell I                         [V]
 //! ```
 //! With `rho` = 1.225 kg/m^3, figure of merit `FM` = 0.65, motor and ESC
 //! efficiency `eta` = 0.8, `I_avionics` = 0.3 A, `R_cell` = 10 mOhm. An
@@ -27,62 +27,69 @@ const CELL_FULL_V: f64 = 4.2;
 /// Pack state.
 #[derive(Clone, Debug, PartialEq)]
 pub(super) struct Battery {
+    /// `1 / (sqrt(2 rho A) FM eta)`: power per `T^1.5` [W/N^1.5] (0 without rotors).
+    power_per_thrust: f64,
     cells: f64,
     capacity_mah: f64,
     min_fraction: f64,
-    consumed_mah: f64,
+    /// State of charge, `min_fraction..1`.
+    soc: f64,
     current_a: f64,
     voltage_v: f64,
 }
 
 impl Battery {
-    /// A full pack.
-    pub(super) fn new(cells: f64, capacity_mah: f64, min_fraction: f64) -> Self {
+    /// A full pack for rotors of total disk area `disk_area_m2` [m^2].
+    pub(super) fn new(disk_area_m2: f64, cells: f64, capacity_mah: f64, min_fraction: f64) -> Self {
+        let power_per_thrust = if disk_area_m2 > 0.0 {
+            1.0 / (2.0 * RHO * disk_area_m2).sqrt() / EFFICIENCY
+        } else {
+            0.0
+        };
         let mut b = Self {
+            power_per_thrust,
             cells,
             capacity_mah,
-            min_fraction,
-            consumed_mah: 0.0,
+            min_fraction: min_fraction.clamp(0.0, 1.0),
+            soc: 1.0,
             current_a: AVIONICS_A,
             voltage_v: 0.0,
         };
-        b.voltage_v = b.open_circuit_v() - b.cells * CELL_R_OHM * b.current_a;
+        b.voltage_v = b.terminal_v();
         b
     }
 
-    /// Change the pack (parameters); the charge used is kept, the terminal
-    /// voltage follows at once.
+    /// Change the pack (parameters); the charge left is kept (at least the
+    /// new floor), the terminal voltage follows at once.
     pub(super) fn configure(&mut self, cells: f64, capacity_mah: f64, min_fraction: f64) {
         self.cells = cells;
         self.capacity_mah = capacity_mah;
         self.min_fraction = min_fraction.clamp(0.0, 1.0);
-        self.voltage_v = (self.open_circuit_v() - self.cells * CELL_R_OHM * self.current_a).max(0.0);
+        self.soc = self.soc.max(self.min_fraction);
+        self.voltage_v = self.terminal_v();
     }
 
     /// Remaining charge, `min_fraction..1`.
     pub(super) fn remaining(&self) -> f64 {
-        (1.0 - self.consumed_mah / self.capacity_mah).clamp(self.min_fraction, 1.0)
+        self.soc
     }
 
     fn open_circuit_v(&self) -> f64 {
-        self.cells * (CELL_EMPTY_V + (CELL_FULL_V - CELL_EMPTY_V) * self.remaining())
+        self.cells * (CELL_EMPTY_V + (CELL_FULL_V - CELL_EMPTY_V) * self.soc)
     }
 
-    /// Advance by `dt` [s] with total rotor thrust `thrust_n` [N] over disk area `disk_area_m2` [m^2].
-    pub(super) fn update(&mut self, thrust_n: f64, disk_area_m2: f64, dt: f64) {
+    fn terminal_v(&self) -> f64 {
+        (self.open_circuit_v() - self.cells * CELL_R_OHM * self.current_a).max(0.0)
+    }
+
+    /// Advance by `dt` [s] with total rotor thrust `thrust_n` [N].
+    pub(super) fn update(&mut self, thrust_n: f64, dt: f64) {
         let t = if thrust_n.is_finite() { thrust_n.max(0.0) } else { 0.0 };
-        let power_w = if disk_area_m2 > 0.0 {
-            t * t.sqrt() / (2.0 * RHO * disk_area_m2).sqrt() / EFFICIENCY
-        } else {
-            0.0
-        };
-        let ocv = self.open_circuit_v();
-        self.current_a = power_w / ocv.max(1.0) + AVIONICS_A;
-        // stop counting at the floor, as PX4's simulated battery does
-        if self.remaining() > self.min_fraction {
-            self.consumed_mah += self.current_a * dt / 3.6;
-        }
-        self.voltage_v = (self.open_circuit_v() - self.cells * CELL_R_OHM * self.current_a).max(0.0);
+        let power_w = t * t.sqrt() * self.power_per_thrust;
+        self.current_a = power_w / self.open_circuit_v().max(1.0) + AVIONICS_A;
+        // stop draining at the floor, as PX4's simulated battery does
+        self.soc = (self.soc - self.current_a * dt / (3.6 * self.capacity_mah)).max(self.min_fraction);
+        self.voltage_v = self.terminal_v();
     }
 
     /// Terminal voltage [V].
@@ -94,12 +101,6 @@ impl Battery {
     pub(super) fn current_a(&self) -> f64 {
         self.current_a
     }
-
-    /// Charge used [mAh].
-    #[cfg(test)]
-    fn consumed_mah(&self) -> f64 {
-        self.consumed_mah
-    }
 }
 
 #[cfg(test)]
@@ -108,18 +109,24 @@ mod tests {
 
     #[test]
     fn full_pack_hover_draw_and_floor() {
-        let mut b = Battery::new(4.0, 5000.0, 0.5);
-        assert!((b.voltage_v() - 16.8).abs() < 0.05);
-        assert_eq!(b.remaining(), 1.0);
         // x500 hover: 19.6 N over four 0.1396 m rotors
         let area = 4.0 * std::f64::consts::PI * 0.1396f64.powi(2);
-        b.update(19.62, area, 0.001);
+        let mut b = Battery::new(area, 4.0, 5000.0, 0.5);
+        assert!((b.voltage_v() - 16.8).abs() < 0.05);
+        assert_eq!(b.remaining(), 1.0);
+        b.update(19.62, 0.001);
         assert!(b.current_a() > 10.0 && b.current_a() < 25.0, "{}", b.current_a());
         for _ in 0..3_600_000 {
-            b.update(19.62, area, 0.001);
+            b.update(19.62, 0.001);
         }
         assert!((b.remaining() - 0.5).abs() < 1e-3, "stops at the floor");
         assert!(b.voltage_v() > 14.0 && b.voltage_v() < 15.2, "{}", b.voltage_v());
-        assert!(b.consumed_mah() <= 2501.0);
+        // 2500 mAh at about 16 A: 9.4 min, then the floor
+        let mut fresh = Battery::new(area, 4.0, 5000.0, 0.0);
+        for _ in 0..60_000 {
+            fresh.update(19.62, 0.001);
+        }
+        let used_mah = (1.0 - fresh.remaining()) * 5000.0;
+        assert!((used_mah - fresh.current_a() * 60.0 / 3.6).abs() < 3.0, "{used_mah}");
     }
 }

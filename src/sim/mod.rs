@@ -42,12 +42,16 @@ use nalgebra::Vector3;
 
 use crate::airframe::{Actuation, Airframe};
 use crate::signals::{
-    ActuatorCommand, BatteryReading, ControlWrench, GRAVITY, GpsFix, GpsReading, RotorVector, SensorReadings,
+    ActuatorCommand, BatteryReading, ControlWrench, GRAVITY, GpsFix, GpsReading, Measurement, RotorVector,
+    SensorReadings,
 };
 use battery::Battery;
 
 /// Satellites a healthy receiver reports (PX4 SITL's GPS sends about as many).
 const SATELLITES: u8 = 12;
+/// The pack fitted until the parameters say otherwise ([`World::configure`]): 4S, 5000 mAh.
+const DEFAULT_CELLS: f64 = 4.0;
+const DEFAULT_CAPACITY_MAH: f64 = 5000.0;
 
 /// The disturbance state from a time on: values not given keep their previous value.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -126,6 +130,19 @@ pub struct StepReport {
     pub fault: Option<SimFault>,
 }
 
+impl Default for StepReport {
+    /// At rest at the origin, nothing happened.
+    fn default() -> Self {
+        Self {
+            truth: RigidBodyState::at_rest(Vector3::zeros()),
+            external: ExternalWrench::default(),
+            true_mass_kg: 0.0,
+            event: StepEvent::None,
+            fault: None,
+        }
+    }
+}
+
 /// The injected truth a client may compare the estimates with.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct Truth {
@@ -146,38 +163,44 @@ struct Body {
     /// Total rotor disk area [m^2] (battery power).
     disk_area_m2: f64,
     disturbance: DisturbanceSource,
-    /// The true mass the schedule set last (it is applied when it changes).
-    scheduled_mass: Option<f64>,
+    /// How many of the schedule's changes have taken effect...
+    applied: usize,
+    /// ... and the wrench they make.
+    scheduled: ExternalWrench,
     faults: ActiveFaults,
     /// The command held over the next step.
     command: ActuatorCommand,
-    /// The sensors read at the current instant, until the next step.
-    reading: Option<SensorReadings>,
+    /// The sensors' latest reading...
+    reading: SensorReadings,
+    /// ... taken at the current instant (else it is from before the last step).
+    fresh: bool,
 }
 
 impl Body {
-    fn read(&mut self) -> SensorReadings {
+    /// Read every sensor at the current instant into `self.reading`.
+    fn read(&mut self) {
         let truth = self.plant.truth();
-        SensorReadings {
-            measurement: self.sensors.measure(&truth),
-            specific_force_frd: self.specific_force_frd(),
-            rotor_speeds_rad_s: *self.plant.rotor_speeds(),
-            battery: BatteryReading {
-                voltage_v: self.battery.voltage_v(),
-                current_a: self.battery.current_a(),
-            },
-            gps: if self.faults.gps_available {
-                GpsReading {
-                    fix: GpsFix::Fix3d,
-                    satellites: SATELLITES,
-                }
-            } else {
-                GpsReading {
-                    fix: GpsFix::None,
-                    satellites: 0,
-                }
-            },
-        }
+        let specific_force_frd = self.specific_force_frd();
+        let r = &mut self.reading;
+        r.measurement = self.sensors.measure(&truth);
+        r.specific_force_frd = specific_force_frd;
+        r.rotor_speeds_rad_s = *self.plant.rotor_speeds();
+        r.battery = BatteryReading {
+            voltage_v: self.battery.voltage_v(),
+            current_a: self.battery.current_a(),
+        };
+        r.gps = if self.faults.gps_available {
+            GpsReading {
+                fix: GpsFix::Fix3d,
+                satellites: SATELLITES,
+            }
+        } else {
+            GpsReading {
+                fix: GpsFix::None,
+                satellites: 0,
+            }
+        };
+        self.fresh = true;
     }
 
     /// The accelerometer: `f = R^T (a - g e3) = (-u_T e3 + R^T f_e) / m` in
@@ -196,39 +219,55 @@ impl Body {
 
     /// Integrate over `[t, t + dt)`; a refused command or a failed integration
     /// stops the rotors for the step instead (what ESCs do with garbage).
-    fn step(&mut self) -> StepReport {
+    /// What happened goes to `report`.
+    fn step(&mut self, report: &mut StepReport) {
         let t = self.plant.time_s();
-        if let DisturbanceSource::Schedule(changes) = &self.disturbance {
-            let (_, mass) = schedule_at(changes, t);
-            if mass != self.scheduled_mass {
-                if let Some(m) = mass {
-                    self.plant.set_true_mass(m);
+        // the wrench in force now, and until when
+        let (current, until_s) = match &self.disturbance {
+            DisturbanceSource::Constant(w) => (*w, f64::INFINITY),
+            DisturbanceSource::Schedule(changes) => {
+                // the changes due by now take effect, in order (the true mass too)
+                while let Some(c) = changes.get(self.applied).filter(|c| c.at_s <= t) {
+                    if let Some(f) = c.force_ned {
+                        self.scheduled.force_ned = f;
+                    }
+                    if let Some(tq) = c.torque_frd {
+                        self.scheduled.torque_frd = tq;
+                    }
+                    if let Some(m) = c.true_mass_kg {
+                        self.plant.set_true_mass(m);
+                    }
+                    self.applied += 1;
                 }
-                self.scheduled_mass = mass;
-            }
-        }
-        let truth = *self.plant.state();
-        let (event, fault) = match self.plant.step(&self.command, &self.disturbance) {
-            Ok(event) => (event, None),
-            Err(fault) => {
-                // Stop is finite and the state was kept finite, so this step succeeds.
-                let event = self
-                    .plant
-                    .step(&ActuatorCommand::Stop, &self.disturbance)
-                    .unwrap_or(StepEvent::None);
-                (event, Some(fault))
+                (
+                    self.scheduled,
+                    changes.get(self.applied).map_or(f64::INFINITY, |c| c.at_s),
+                )
             }
         };
+        report.truth = *self.plant.state();
+        // RK4 evaluates the wrench at t, t + dt/2 and t + dt: held constant
+        // unless a scheduled change falls inside the step
+        let held = until_s > t + self.plant.dt_s();
+        let mut step = |cmd: &ActuatorCommand| {
+            if held {
+                self.plant.step(cmd, &current)
+            } else {
+                self.plant.step(cmd, &self.disturbance)
+            }
+        };
+        let (event, fault) = match step(&self.command) {
+            Ok(event) => (event, None),
+            // Stop is finite and the state was kept finite, so this step succeeds.
+            Err(fault) => (step(&ActuatorCommand::Stop).unwrap_or(StepEvent::None), Some(fault)),
+        };
         self.battery
-            .update(self.plant.last_wrench().thrust_n, self.disk_area_m2, self.plant.dt_s());
-        self.reading = None;
-        StepReport {
-            truth,
-            external: self.plant.last_external_wrench(),
-            true_mass_kg: self.plant.true_mass_kg(),
-            event,
-            fault,
-        }
+            .update(self.plant.last_wrench().thrust_n, self.plant.dt_s());
+        self.fresh = false;
+        report.external = self.plant.last_external_wrench();
+        report.true_mass_kg = self.plant.true_mass_kg();
+        report.event = event;
+        report.fault = fault;
     }
 }
 
@@ -270,24 +309,33 @@ impl World {
             },
         );
         let n = airframe.rotor_count();
+        let disk_area_m2 = n as f64 * std::f64::consts::PI * airframe.rotor.radius_m.powi(2);
         self.bodies.push(Body {
             plant,
             sensors: Sensors::new(sensors.noise, sensors.seed),
-            battery: Battery::new(4.0, 5000.0, 0.0),
-            disk_area_m2: n as f64 * std::f64::consts::PI * airframe.rotor.radius_m.powi(2),
+            battery: Battery::new(disk_area_m2, DEFAULT_CELLS, DEFAULT_CAPACITY_MAH, 0.0),
+            disk_area_m2,
             disturbance: DisturbanceSource::Constant(ExternalWrench::default()),
-            scheduled_mass: None,
+            applied: 0,
+            scheduled: ExternalWrench::default(),
             faults: ActiveFaults::none(if airframe.actuation == Actuation::Rotors { n } else { 0 }),
             command: ActuatorCommand::Stop,
-            reading: None,
+            reading: SensorReadings {
+                measurement: Measurement::default(),
+                specific_force_frd: Vector3::zeros(),
+                rotor_speeds_rad_s: RotorVector::zeros(),
+                battery: BatteryReading {
+                    voltage_v: 0.0,
+                    current_a: 0.0,
+                },
+                gps: GpsReading {
+                    fix: GpsFix::None,
+                    satellites: 0,
+                },
+            },
+            fresh: false,
         });
-        self.reports.push(StepReport {
-            truth: RigidBodyState::at_rest(Vector3::zeros()),
-            external: ExternalWrench::default(),
-            true_mass_kg: airframe.mass_kg,
-            event: StepEvent::None,
-            fault: None,
-        });
+        self.reports.push(StepReport::default());
         self.bodies.len() - 1
     }
 
@@ -306,12 +354,13 @@ impl World {
         );
         b.plant.set_steps(steps);
         b.sensors.set_scale(1.0);
-        b.battery = Battery::new(4.0, 5000.0, 0.0);
+        b.battery = Battery::new(b.disk_area_m2, DEFAULT_CELLS, DEFAULT_CAPACITY_MAH, 0.0);
         b.disturbance = DisturbanceSource::Constant(ExternalWrench::default());
-        b.scheduled_mass = None;
+        b.applied = 0;
+        b.scheduled = ExternalWrench::default();
         b.faults = ActiveFaults::none(b.faults.rotors.len());
         b.command = ActuatorCommand::Stop;
-        b.reading = None;
+        b.fresh = false;
     }
 
     /// Number of vehicles.
@@ -339,16 +388,12 @@ impl World {
     }
 
     /// Vehicle `i`'s sensors at the current instant (read once per instant).
-    pub fn sense(&mut self, i: usize) -> SensorReadings {
+    pub fn sense(&mut self, i: usize) -> &SensorReadings {
         let b = &mut self.bodies[i];
-        match b.reading {
-            Some(r) => r,
-            None => {
-                let r = b.read();
-                b.reading = Some(r);
-                r
-            }
+        if !b.fresh {
+            b.read();
         }
+        &b.reading
     }
 
     /// Hold `command` on vehicle `i`'s actuators over the next step.
@@ -360,10 +405,16 @@ impl World {
     /// its held command; what happened to each, by index.
     pub fn step(&mut self) -> &[StepReport] {
         for (body, report) in self.bodies.iter_mut().zip(&mut self.reports) {
-            *report = body.step();
+            body.step(report);
         }
         self.steps += 1;
         &self.reports
+    }
+
+    /// What the latest step did to vehicle `i`.
+    #[must_use]
+    pub fn last_report(&self, i: usize) -> &StepReport {
+        &self.reports[i]
     }
 
     /// Configure vehicle `i` from its parameters: the injected wrench (a
@@ -372,7 +423,8 @@ impl World {
         let ground = self.environment.ground_z_ned;
         let b = &mut self.bodies[i];
         b.disturbance = DisturbanceSource::Constant(s.external);
-        b.scheduled_mass = None;
+        b.applied = 0;
+        b.scheduled = ExternalWrench::default();
         b.plant.set_true_mass(s.true_mass_kg);
         b.plant.set_environment(Environment {
             ground_z_ned: ground,
@@ -388,7 +440,8 @@ impl World {
     pub fn set_disturbance(&mut self, i: usize, source: DisturbanceSource) {
         let b = &mut self.bodies[i];
         b.disturbance = source;
-        b.scheduled_mass = None;
+        b.applied = 0;
+        b.scheduled = ExternalWrench::default();
     }
 
     /// Place vehicle `i` in flight at `state` with its rotors spinning to give
@@ -401,7 +454,7 @@ impl World {
             Actuation::Ideal => RotorVector::zeros(),
         };
         b.plant.set_rotor_speeds(&speeds);
-        b.reading = None;
+        b.fresh = false;
     }
 
     /// Inject (or repair) a fault in vehicle `i`.
@@ -562,10 +615,10 @@ mod tests {
         assert_eq!(w.sense(0).gps.fix, GpsFix::Fix3d);
         w.inject(0, Fault::Gps { available: false }).unwrap();
         w.step();
-        let r = w.sense(0);
+        let r = *w.sense(0);
         assert_eq!((r.gps.fix, r.gps.satellites), (GpsFix::None, 0));
         // reading twice at one instant gives the same reading
-        assert_eq!(w.sense(0), r);
+        assert_eq!(*w.sense(0), r);
         // at rest the accelerometer feels the ground carry the weight
         assert_eq!(r.specific_force_frd, Vector3::new(0.0, 0.0, -GRAVITY));
         assert!(matches!(

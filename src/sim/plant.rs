@@ -7,7 +7,7 @@
 //! q'  = 1/2 q (x) [0, w]                           (R = R(q): FRD -> NED)
 //! I w' = -w x I w + tau + tau_e - w x sum_i h_i    (tau_e body FRD, h_i = -s_i J_r omega_i e3)
 //! [u_T, tau] = B (r (x) omega^2)                   (r: ground/ceiling ratio per rotor, yaw row unscaled)
-//! omega_i' = (clamp(omega_cmd_i, omega_min, omega_max) - omega_i) / tau_m
+//! omega_i' = (h_i clamp(omega_cmd_i, omega_min, omega_max) - omega_i) / tau_m   (h_i: 1 healthy, 0 dead motor)
 //! ```
 //!
 //! Integration: fixed-step RK4 (1 ms by default) with the command held over the
@@ -16,7 +16,7 @@
 //! quaternion is renormalised after every step. Ground and ceiling ratios are
 //! evaluated once per step, at its start.
 //!
-//! Ground contact: flat ground at `world.ground_z_ned`. When a step ends with
+//! Ground contact: flat ground at `environment.ground_z_ned`. When a step ends with
 //! the centre of mass at or below its resting height (`gear_height_m` above the
 //! ground) the vehicle rests: height clamped, velocity and angular velocity
 //! zeroed, roll and pitch levelled, yaw kept. A resting vehicle therefore stays
@@ -676,10 +676,10 @@ impl Plant {
             }
         };
 
-        let target = match (target, &self.rotor_health) {
-            (Some(t), Some(h)) => Some(t.component_mul(h)),
-            (t, _) => t,
-        };
+        let mut target = target;
+        if let (Some(t), Some(h)) = (&mut target, &self.rotor_health) {
+            t.component_mul_assign(h);
+        }
         let (w0, wmid, w1, spin_mom, rotor_speed_next) = if let Some(bar) = target {
             // exact first-order lag at the stage times t, t + h/2, t + h
             let (w, spin_mom, om1) = self.lagged_rotor_wrenches(&bar, ratio.as_ref());

@@ -9,9 +9,11 @@
 //!
 //! The core is the only place that sees both halves: it routes each
 //! vehicle's `SIM_*` parameters to the world and the rest to its autopilot,
-//! carries out what the autopilot accepts but cannot do itself (a fault
-//! injected into the world, a reboot), and pairs the autopilot's telemetry
-//! with the world's injected truth for the clients that compare them.
+//! restarts a vehicle (world and autopilot) on a reboot, is where an accepted
+//! failure injection will reach the world, and pairs the autopilot's
+//! telemetry with the world's injected truth for the clients that compare
+//! them. Vehicles are addressed by index; an index beyond the world panics,
+//! as a slice index does.
 
 use crate::airframe::Airframe;
 use crate::autopilot::{
@@ -172,7 +174,7 @@ impl Lockstep<Autopilot> {
     ///
     /// # Errors
     /// As [`Autopilot::new`].
-    pub fn px4(
+    pub fn one_vehicle(
         airframe: &Airframe,
         home: GeoPoint,
         params: &ParamStore,
@@ -186,8 +188,9 @@ impl Lockstep<Autopilot> {
     }
 
     /// Carry out a command for vehicle `i`, judged by its autopilot at the
-    /// instant it is applied; what the autopilot accepts but the world must
-    /// do (a failure injection) is done here.
+    /// instant it is applied. A failure injection the autopilot allows is the
+    /// world's to do: none is wired yet (UNSUPPORTED). A reboot the autopilot
+    /// allows is the runtime's to carry out ([`Self::reboot`]).
     pub fn command(&mut self, i: usize, command: AutopilotCommand) -> CommandOutcome {
         let readings = self.world.sense(i);
         let outcome = self.pilots[i].command(command, readings);

@@ -68,7 +68,7 @@ fn setup_with(airframe: &str, params: &[(&str, ParamValue)], sensors: SensorConf
     for (name, value) in params {
         store.set(name, *value).unwrap();
     }
-    let ap = Lockstep::px4(&af, HOME, &store, sensors).unwrap();
+    let ap = Lockstep::one_vehicle(&af, HOME, &store, sensors).unwrap();
     (Ap(ap), store)
 }
 
@@ -1058,11 +1058,11 @@ fn the_autopilot_decides_what_the_link_only_translates() {
         CommandOutcome::Denied("invalid home position")
     );
     take_off(&mut ap);
-    for power in [PowerAction::Reboot, PowerAction::Shutdown] {
-        assert_eq!(
-            ap.command(AutopilotCommand::Power(power)),
-            CommandOutcome::Denied("disarm before reboot")
-        );
+    for (power, why) in [
+        (PowerAction::Reboot, "disarm before reboot"),
+        (PowerAction::Shutdown, "disarm before shutdown"),
+    ] {
+        assert_eq!(ap.command(AutopilotCommand::Power(power)), CommandOutcome::Denied(why));
     }
     // face east, then "forward at 1 m/s" in BODY_NED is east
     let here = ap.telemetry().global;
@@ -1104,4 +1104,45 @@ fn telemetry_names_the_multirotor() {
     ] {
         assert_eq!(setup(name, &[]).0.telemetry().vehicle_type, kind, "{name}");
     }
+}
+
+/// GIVEN the slowest climbs a client can ask for (a takeoff at MPC_TKO_SPEED
+/// 0.5 m/s, an offboard climb at 0.5 m/s, both under the land detector's
+/// stillness limit while landed) WHEN they end in a hover THEN the vehicle is
+/// flying, not "landed" in the air: it holds its height and refuses a disarm.
+#[test]
+fn slow_climbs_are_takeoffs() {
+    let (mut ap, _) = setup("quad", &[("MPC_TKO_SPEED", real(0.5))]);
+    take_off(&mut ap);
+    run(&mut ap, 3.0);
+    let t = ap.telemetry();
+    assert_eq!(t.landed, LandedState::InAir);
+    assert!((height(&t) - 2.5).abs() < 0.05, "{}", height(&t));
+    assert_eq!(
+        ap.command(AutopilotCommand::Disarm { force: false }),
+        CommandOutcome::TemporarilyRejected("vehicle in the air")
+    );
+
+    let (mut ap, _) = setup("quad", &[]);
+    ap.step();
+    ap.command(AutopilotCommand::Arm { force: false });
+    let climb = AutopilotCommand::Offboard(OffboardSetpoint::Local {
+        position_ned: None,
+        velocity_ned: Some(Vector3::new(0.0, 0.0, -0.5)),
+        acceleration_ned: None,
+        yaw_rad: Some(0.0),
+        yaw_rate_rad_s: None,
+    });
+    ap.command(climb);
+    assert_eq!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::Offboard)),
+        CommandOutcome::Accepted
+    );
+    stream(&mut ap, 4.0, climb);
+    let z = ap.telemetry().position_ned.z;
+    assert!(z < -1.2, "climbing: {z}");
+    stream(&mut ap, 8.0, position_sp(Vector3::new(0.0, 0.0, z), 0.0));
+    let t = ap.telemetry();
+    assert_eq!(t.landed, LandedState::InAir);
+    assert!((t.position_ned.z - z).abs() < 0.05, "{} vs {z}", t.position_ned.z);
 }

@@ -29,7 +29,7 @@ fi
 echo "== the flight stack sees only sensor readings: no plant, no world faults, no SIM_* truth"
 flight="src/autopilot src/control src/estimation"
 listed $flight
-found=$(code "crate::(sim|lockstep|scenario|link|daemon)\\b|rotorpilot::sim|Param::SIM_|\"SIM_" $flight)
+found=$(code "(crate|super)::(\\{[^}]*\\b)?(sim|lockstep|scenario|link|daemon)\\b|\\bsim::|Param::SIM_|\"SIM_" $flight)
 if [ -n "$found" ]; then
     echo "$found"
     echo "the flight stack reaches into the simulated world (above): give it a sensor reading instead" >&2

@@ -326,7 +326,7 @@ impl Autopilot {
 
     fn offboard_setpoint(&mut self, sp: &OffboardSetpoint, m: &Measurement) -> CommandOutcome {
         let local = sp.resolve(m, &self.origin, &self.home);
-        if !local.is_valid() {
+        if !sp.position_in_range() || !local.is_valid() {
             return CommandOutcome::Denied("invalid offboard setpoint");
         }
         self.navigator.set_offboard(local, m.time_s);
@@ -337,10 +337,10 @@ impl Autopilot {
         if !self.armed {
             return CommandOutcome::Accepted;
         }
-        let what = match action {
-            PowerAction::Reboot => "Reboot denied: disarm first",
-            PowerAction::Shutdown => "Shutdown denied: disarm first",
+        let (text, why) = match action {
+            PowerAction::Reboot => ("Reboot denied: disarm first", "disarm before reboot"),
+            PowerAction::Shutdown => ("Shutdown denied: disarm first", "disarm before shutdown"),
         };
-        self.refuse(Severity::Critical, what, CommandOutcome::Denied("disarm before reboot"))
+        self.refuse(Severity::Critical, text, CommandOutcome::Denied(why))
     }
 }

@@ -6,11 +6,8 @@
 
 use super::navigator::Nav;
 use super::settings::OffboardLossAction;
-use super::{Autopilot, Severity};
+use super::{Autopilot, Severity, TIME_EPS};
 use crate::signals::Measurement;
-
-/// Time comparisons tolerate this much rounding [s].
-const TIME_EPS: f64 = 1e-9;
 
 impl Autopilot {
     /// Offboard loss and auto-disarm at the instant of `m`.

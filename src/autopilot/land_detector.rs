@@ -3,19 +3,23 @@
 //! only (the flight stack never sees the plant's contact).
 //!
 //! ```text
-//! still          = |v_z| < 0.25 m/s, |v_xy| < 1.5 m/s, |(p, q)| < 20 deg/s   (x 2.5 while landed, PX4's)
-//! near the ground = z >= z_rest - 0.1 m        z_rest: where the centre of mass rests, learned while landed
-//! ground contact = still and near the ground
-//! landed        <- ground contact and u_T <= 0.3 m g, for 0.25 s
-//! flying        <- no ground contact, for 0.05 s
+//! still           = |v_z| < 0.25 m/s, |v_xy| < 1.5 m/s, |(p, q)| < 20 deg/s   (x 2.5 while landed, PX4's)
+//! near the ground = |z - z_rest| <= 0.1 m     z_rest: where the centre of mass rests (below)
+//! low thrust      = u_T <= 0.3 m g            (the last command; PX4's maybe-landed level)
+//! ground contact  = still and near the ground
+//! landed         <- ground contact and low thrust, for 0.25 s
+//! flying         <- not both, for 0.05 s      (trying to fly counts, as in PX4)
 //! ```
 //!
-//! PX4 uses a range sensor or the thrust and its integrators to tell ground
-//! contact; this world's ground is flat, so the height at which the vehicle
-//! last rested does that job. PX4 cuts the thrust on ground contact so the
-//! low-thrust condition can pass; the navigator does the same
+//! `z_rest` is the first measurement (the vehicle boots on the ground), then
+//! follows the measurement (through its noise) while landed with low thrust.
+//! PX4 tells ground contact from a range sensor or from the thrust and its
+//! integrators; this world's ground is flat, so the height at which the
+//! vehicle last rested does that job. PX4 cuts the thrust on ground contact
+//! so the low-thrust condition can pass; the navigator does the same
 //! ([`super::navigator`]: a mode that is not climbing idles on ground contact).
 
+use super::TIME_EPS;
 use crate::signals::Measurement;
 
 /// Vertical speed below which the vehicle is still [m/s] (PX4's `LNDMC_Z_VEL_MAX`).
@@ -26,18 +30,16 @@ const XY_VEL_MAX_M_S: f64 = 1.5;
 const ROT_MAX_RAD_S: f64 = 20.0 * std::f64::consts::PI / 180.0;
 /// The limits above are this much wider while landed (PX4's hysteresis).
 const LANDED_WIDENING: f64 = 2.5;
-/// Near the ground: at most this far [m] above the height the vehicle rests at.
+/// Near the ground: at most this far [m] from the height the vehicle rests at.
 const NEAR_GROUND_M: f64 = 0.1;
 /// Low thrust: at most this fraction of the nominal weight (PX4's maybe-landed threshold, about 0.3 of hover).
 const LOW_THRUST_FRACTION: f64 = 0.3;
 /// Ground contact with low thrust this long [s] means landed.
 pub(super) const LAND_DETECT_S: f64 = 0.25;
-/// No ground contact this long [s] means flying.
+/// Not resting (no ground contact, or more than low thrust) this long [s] means flying.
 const TAKEOFF_DETECT_S: f64 = 0.05;
 /// Rate [1/sample] at which the resting height follows the measurement while landed.
 const REST_FILTER: f64 = 0.02;
-/// Time comparisons tolerate this much rounding [s].
-const TIME_EPS: f64 = 1e-9;
 
 /// A change of the landed state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -96,15 +98,13 @@ impl LandDetector {
         let still = v.z.abs() < Z_VEL_MAX_M_S * widen
             && v.xy().norm() < XY_VEL_MAX_M_S * widen
             && m.rate_frd.xy().norm() < ROT_MAX_RAD_S * widen;
-        let near_ground = m.position_ned.z >= rest_z - NEAR_GROUND_M;
+        let near_ground = (m.position_ned.z - rest_z).abs() <= NEAR_GROUND_M;
         self.ground_contact = still && near_ground;
+        let resting = self.ground_contact && thrust_n <= LOW_THRUST_FRACTION * weight_n;
         let (change, hold_s) = if self.landed {
-            (!self.ground_contact, TAKEOFF_DETECT_S)
+            (!resting, TAKEOFF_DETECT_S)
         } else {
-            (
-                self.ground_contact && thrust_n <= LOW_THRUST_FRACTION * weight_n,
-                LAND_DETECT_S,
-            )
+            (resting, LAND_DETECT_S)
         };
         if !change {
             self.since_s = None;
@@ -117,7 +117,7 @@ impl LandDetector {
                 LandEvent::TookOff
             });
         }
-        if self.landed && self.ground_contact {
+        if self.landed && resting {
             // follow the resting height through the measurement noise
             self.rest_z = Some(rest_z + REST_FILTER * (m.position_ned.z - rest_z));
         }
@@ -141,23 +141,25 @@ mod tests {
     }
 
     #[test]
-    fn landing_needs_contact_and_low_thrust_for_a_while_takeoff_needs_height() {
+    fn landing_needs_contact_and_low_thrust_for_a_while_flying_needs_neither() {
         let mut d = LandDetector::new();
         let w = 20.0;
         assert_eq!(d.update(&at(0.0, -0.24, 0.0), 0.0, w), None);
         assert!(d.landed() && d.ground_contact());
-        // spooling up on the ground: still landed
-        assert_eq!(d.update(&at(0.001, -0.24, 0.0), 25.0, w), None);
-        assert!(d.landed());
-        // rising: flying after 0.05 s without contact
-        let mut t = 0.002;
+        // spooling up on the ground: trying to fly is flying after 0.05 s (PX4),
+        // while the ground contact lasts
+        let mut t = 0.001;
         let mut event = None;
         while event.is_none() && t < 1.0 {
-            event = d.update(&at(t, -0.5, -1.0), 25.0, w);
+            event = d.update(&at(t, -0.24, 0.0), 25.0, w);
             t += 0.001;
         }
         assert_eq!(event, Some(LandEvent::TookOff));
         assert!((t - 0.052).abs() < 0.0015, "{t}");
+        assert!(d.ground_contact());
+        // rising: no contact
+        d.update(&at(t, -0.5, -1.0), 25.0, w);
+        assert!(!d.ground_contact());
         // back at the resting height, still, but high thrust: not landed
         for k in 0..1000 {
             assert_eq!(d.update(&at(1.0 + k as f64 * 1e-3, -0.24, 0.0), 19.6, w), None);
@@ -172,6 +174,21 @@ mod tests {
         }
         assert!((k as f64 * 1e-3 - LAND_DETECT_S).abs() < 1.5e-3, "{k}");
         assert_eq!(d.rest_z(&at(3.0, -2.24, 0.0)), -0.24);
+    }
+
+    #[test]
+    fn a_slow_climb_is_a_takeoff_and_the_resting_height_stays_on_the_ground() {
+        let mut d = LandDetector::new();
+        d.update(&at(0.0, -0.24, 0.0), 0.0, 20.0);
+        // climbing at 0.5 m/s (within the landed stillness limit) on hover thrust
+        let mut events = Vec::new();
+        for k in 1..4000 {
+            let t = k as f64 * 1e-3;
+            events.extend(d.update(&at(t, -0.24 - 0.5 * t, -0.5), 20.0, 20.0));
+        }
+        assert_eq!(events, vec![LandEvent::TookOff]);
+        assert!(!d.ground_contact());
+        assert_eq!(d.rest_z(&at(4.0, -2.24, 0.0)), -0.24);
     }
 
     #[test]

@@ -40,15 +40,17 @@
 //!   a setpoint arrives.
 //! * Land detector (PX4's, reduced): still (vertical speed, horizontal speed
 //!   and tilt rate low) at the height it rests at is ground contact; ground
-//!   contact with low commanded thrust for 0.25 s is landed; losing ground
-//!   contact for 0.05 s is a takeoff. On ground contact a mode that is not
-//!   climbing idles the rotors (PX4 cuts the thrust the same way).
+//!   contact with low commanded thrust for 0.25 s is landed; 0.05 s without
+//!   either (off the ground, or trying to fly) is a takeoff. On ground
+//!   contact a mode that is not climbing idles the rotors (PX4 cuts the
+//!   thrust the same way).
 //! * References come from the jerk-limited shaper ([`crate::control::shaper`])
 //!   with the mode's speed limits; offboard attitude and rates go to
 //!   [`crate::control::Controller::update_attitude`].
 //!
-//! The estimator restarts on every step the vehicle rests on the ground (the
-//! ground's reaction is not a disturbance to learn) and estimates from liftoff on.
+//! The estimator restarts on every step the land detector says landed or in
+//! ground contact (the ground's reaction is not a disturbance to learn) and
+//! estimates from liftoff on.
 
 /// What guidance knows at the instant of the measurement `$m`
 /// ([`navigator::Situation`]), borrowing only the autopilot's settings, so
@@ -194,6 +196,10 @@ pub enum CommandOutcome {
     /// Failed, with a reason.
     Failed(&'static str),
 }
+
+/// Time comparisons of the flight stack tolerate this much rounding [s]
+/// (simulated time is a step count times the step).
+const TIME_EPS: f64 = 1e-9;
 
 /// STATUSTEXT severity (MAV_SEVERITY).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]

@@ -346,12 +346,6 @@ impl Autopilot {
         self.navigator.mode()
     }
 
-    /// Home.
-    #[must_use]
-    pub fn home(&self) -> GeoPoint {
-        self.home
-    }
-
     /// The NED origin (where the vehicle booted).
     #[must_use]
     pub fn origin(&self) -> GeoPoint {
@@ -368,12 +362,6 @@ impl Autopilot {
     #[must_use]
     pub fn estimate(&self) -> WrenchEstimate {
         self.control.estimate()
-    }
-
-    /// Whether MAV_CMD_INJECT_FAILURE is allowed (`SYS_FAILURE_EN`).
-    #[must_use]
-    pub fn failure_injection_enabled(&self) -> bool {
-        self.settings.failure_injection
     }
 
     /// Status texts since the last call, oldest first (at most the latest 64).

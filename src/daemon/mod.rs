@@ -90,7 +90,7 @@ pub async fn bind(config: Config) -> anyhow::Result<Daemon> {
     };
     // PX4 SITL's rcS sets MAV_SYS_ID to instance + 1 at every start.
     let _ = params.set("MAV_SYS_ID", ParamValue::Int32(i32::from(config.system_id())));
-    let core = Lockstep::px4(&airframe, config.home, &params, SensorConfig::default())
+    let core = Lockstep::one_vehicle(&airframe, config.home, &params, SensorConfig::default())
         .with_context(|| format!("starting the autopilot on {}", airframe.source))?;
     let mut sockets = Vec::new();
     for spec in &config.links {

@@ -138,7 +138,11 @@ impl Sim {
     fn handle(&mut self, r: SimRequest) {
         match r {
             SimRequest::Command { command, reply } => {
-                let outcome = self.core.command(VEHICLE, command);
+                let mut outcome = self.core.command(VEHICLE, command);
+                if command == AutopilotCommand::Power(PowerAction::Reboot) && outcome == CommandOutcome::Accepted {
+                    // carried out before the ACK, so that ACCEPTED means done
+                    outcome = self.reboot();
+                }
                 // Publish before answering: a client that acts on the ACK (disarm,
                 // then shutdown) must find the links already seeing the new state.
                 self.publish();
@@ -148,9 +152,6 @@ impl Sim {
                 }
                 if let Some(tx) = reply {
                     let _ = tx.send(outcome);
-                }
-                if command == AutopilotCommand::Power(PowerAction::Reboot) && outcome == CommandOutcome::Accepted {
-                    self.reboot();
                 }
             }
             SimRequest::SetParam { name, value, reply } => {
@@ -172,7 +173,8 @@ impl Sim {
 
     /// PREFLIGHT_REBOOT_SHUTDOWN p1 = 1: the vehicle restarts on the ground at
     /// home, disarmed, from the current parameters; simulated time goes on.
-    fn reboot(&mut self) {
+    /// The answer for the ACK.
+    fn reboot(&mut self) -> CommandOutcome {
         let p = lock(&self.params).clone();
         match self.core.reboot(VEHICLE, &p) {
             Ok(()) => {
@@ -181,9 +183,12 @@ impl Sim {
                     severity: Severity::Info,
                     text: "Rebooted: simulation reset".into(),
                 }));
-                self.publish();
+                CommandOutcome::Accepted
             }
-            Err(e) => warn!(error = %e, "reboot failed"),
+            Err(e) => {
+                warn!(error = %e, "reboot failed");
+                CommandOutcome::Failed("reboot failed")
+            }
         }
     }
 }

@@ -242,17 +242,20 @@ pub fn classify(c: &Command) -> Action {
         }
         id::REQUEST_AUTOPILOT_CAPABILITIES => Action::SendMessage(AUTOPILOT_VERSION_ID),
         id::GET_HOME_POSITION => Action::SendMessage(HOME_POSITION_ID),
-        // param1 failure unit, param2 failure type, param3 instance (0: all)
-        id::INJECT_FAILURE => match (convert::finite(p1), convert::finite(p2), convert::finite(p3)) {
-            (Some(unit), Some(kind), instance) if unit >= 0.0 && kind >= 0.0 => {
-                Action::Autopilot(AutopilotCommand::InjectFailure {
-                    unit: unit as u8,
-                    kind: kind as u8,
-                    instance: instance.map_or(0, |i| i.max(0.0) as u8),
-                })
-            }
-            _ => Action::Answer(result::UNSUPPORTED, None),
-        },
+        // param1 failure unit, param2 failure type, param3 instance (0: all);
+        // a number that is none (NaN, out of 0..255) is 255, which names nothing
+        id::INJECT_FAILURE => {
+            let number = |p: f32| {
+                convert::finite(p)
+                    .filter(|x| (0.0..=254.0).contains(x))
+                    .map_or(u8::MAX, |x| x as u8)
+            };
+            Action::Autopilot(AutopilotCommand::InjectFailure {
+                unit: number(p1),
+                kind: number(p2),
+                instance: convert::finite(p3).map_or(0, |_| number(p3)),
+            })
+        }
         _ => Action::Answer(result::UNSUPPORTED, None),
     }
 }
@@ -404,9 +407,14 @@ mod tests {
                 instance: 3
             })
         );
+        // SYS_FAILURE_EN is the autopilot's to check, whatever the numbers
         assert_eq!(
             classify(&long(420, [N, 1.0, 0.0, N, N, N, N])),
-            Action::Answer(result::UNSUPPORTED, None)
+            Action::Autopilot(AutopilotCommand::InjectFailure {
+                unit: 255,
+                kind: 1,
+                instance: 0
+            })
         );
         // DO_CHANGE_SPEED: NaN is "no change" (-1), -2 is "back to the default"
         assert_eq!(

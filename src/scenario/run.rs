@@ -23,7 +23,7 @@ use serde::Serialize;
 
 use super::{ReferencePlan, Scenario};
 use crate::autopilot::{ControlLoop, ControlOutput, Demand};
-use crate::control::{Reference, Shaper, ShaperLimits, TranslationSetpoint, feedforward_attitude};
+use crate::control::{Reference, Setpoint, Shaper, ShaperLimits, TranslationSetpoint, feedforward_attitude};
 use crate::estimation::input_from;
 use crate::lockstep::{Lockstep, Pilot, StepRecord};
 use crate::math::{euler_zyx, from_euler_zyx};
@@ -100,7 +100,8 @@ impl ScenarioPilot<'_> {
                     .iter()
                     .take_while(|(at, _)| *at <= t)
                     .last()
-                    .map_or(list[0].1, |(_, sp)| *sp);
+                    .or(list.first())
+                    .map_or(Setpoint::position(Vector3::zeros(), 0.0), |(_, sp)| *sp);
                 self.shaper.update(&sp, self.scenario.step_s)
             }
         }
@@ -206,8 +207,8 @@ pub fn lockstep(s: &Scenario) -> anyhow::Result<Lockstep<ScenarioPilot<'_>>> {
     let r0 = match &s.reference {
         ReferencePlan::Trajectory(tr) => tr.at(0.0),
         ReferencePlan::Setpoints(list) => {
-            let p = match list[0].1.translation {
-                TranslationSetpoint::Position(p) => p,
+            let p = match list.first().map(|(_, sp)| sp.translation) {
+                Some(TranslationSetpoint::Position(p)) => p,
                 _ => Vector3::new(0.0, 0.0, -2.0),
             };
             Reference::hold(p, 0.0)

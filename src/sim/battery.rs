@@ -70,7 +70,8 @@ impl Battery {
     }
 
     /// Remaining charge, `min_fraction..1`.
-    pub(super) fn remaining(&self) -> f64 {
+    #[cfg(test)]
+    fn remaining(&self) -> f64 {
         self.soc
     }
 

@@ -31,6 +31,8 @@ impl RotorHealth {
     }
 }
 
+use super::SensorNoise;
+
 /// One fault (or its repair) injected into one vehicle.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Fault {
@@ -46,12 +48,9 @@ pub enum Fault {
         /// Whether the receiver has a fix.
         available: bool,
     },
-    /// Every noise standard deviation of the navigation solution times
-    /// `scale` (1: as configured).
-    SensorNoise {
-        /// Factor on the configured noise, `>= 0`.
-        scale: f64,
-    },
+    /// The navigation solution's noise at this level (`None`: back to the
+    /// configured one).
+    SensorNoise(Option<SensorNoise>),
 }
 
 /// Why a fault cannot be injected.
@@ -71,7 +70,7 @@ pub enum FaultError {
     /// The airframe's thrust and torque act directly: it has no rotors to fail.
     #[error("the airframe has ideal actuation: no rotor can fail")]
     NoRotors,
-    /// A thrust fraction or noise scale outside its range, or not a number.
+    /// A thrust fraction or noise level outside its range, or not a number.
     #[error("fault value {0} is out of range")]
     OutOfRange(f64),
 }
@@ -83,8 +82,8 @@ pub struct ActiveFaults {
     pub rotors: Vec<RotorHealth>,
     /// Whether the GNSS receiver has a fix.
     pub gps_available: bool,
-    /// Factor on the sensor noise.
-    pub noise_scale: f64,
+    /// The noise forced on the navigation solution, if any.
+    pub noise: Option<SensorNoise>,
 }
 
 impl ActiveFaults {
@@ -94,13 +93,13 @@ impl ActiveFaults {
         Self {
             rotors: vec![RotorHealth::Healthy; rotors],
             gps_available: true,
-            noise_scale: 1.0,
+            noise: None,
         }
     }
 
     /// Whether anything is wrong.
     #[must_use]
     pub fn any(&self) -> bool {
-        !self.gps_available || self.noise_scale != 1.0 || self.rotors.iter().any(|r| *r != RotorHealth::Healthy)
+        !self.gps_available || self.noise.is_some() || self.rotors.iter().any(|r| *r != RotorHealth::Healthy)
     }
 }

@@ -12,8 +12,10 @@
 //! Vehicles are addressed by their index, in the order they were added.
 //! One step of the world ([`World::step`]) integrates every vehicle over
 //! `[t_k, t_k + dt)` under its held command; [`World::sense`] reads a
-//! vehicle's sensors at `t_k` (once per instant: a second call returns the
-//! same reading, so reading telemetry never draws noise the flight would not).
+//! vehicle's sensors at `t_k` (the navigation solution's noise is drawn once
+//! per instant: reading telemetry between steps never draws noise the flight
+//! would not, so the same inputs give the same flight however often a client
+//! looks).
 //!
 //! | file | job |
 //! |---|---|
@@ -172,17 +174,23 @@ struct Body {
     command: ActuatorCommand,
     /// The sensors' latest reading...
     reading: SensorReadings,
-    /// ... taken at the current instant (else it is from before the last step).
-    fresh: bool,
+    /// ... whose navigation solution was taken at the current instant (its
+    /// noise is drawn once per instant; the other sensors are read each time).
+    measured: bool,
 }
 
 impl Body {
-    /// Read every sensor at the current instant into `self.reading`.
+    /// Read the sensors at the current instant into `self.reading`: the
+    /// navigation solution once per instant, the others every time (they
+    /// follow a fault or a new pack at once).
     fn read(&mut self) {
-        let truth = self.plant.truth();
+        if !self.measured {
+            let truth = self.plant.truth();
+            self.reading.measurement = self.sensors.measure(&truth);
+            self.measured = true;
+        }
         let specific_force_frd = self.specific_force_frd();
         let r = &mut self.reading;
-        r.measurement = self.sensors.measure(&truth);
         r.specific_force_frd = specific_force_frd;
         r.rotor_speeds_rad_s = *self.plant.rotor_speeds();
         r.battery = BatteryReading {
@@ -200,7 +208,6 @@ impl Body {
                 satellites: 0,
             }
         };
-        self.fresh = true;
     }
 
     /// The accelerometer: `f = R^T (a - g e3) = (-u_T e3 + R^T f_e) / m` in
@@ -263,7 +270,7 @@ impl Body {
         };
         self.battery
             .update(self.plant.last_wrench().thrust_n, self.plant.dt_s());
-        self.fresh = false;
+        self.measured = false;
         report.external = self.plant.last_external_wrench();
         report.true_mass_kg = self.plant.true_mass_kg();
         report.event = event;
@@ -333,7 +340,7 @@ impl World {
                     satellites: 0,
                 },
             },
-            fresh: false,
+            measured: false,
         });
         self.reports.push(StepReport::default());
         self.bodies.len() - 1
@@ -353,14 +360,14 @@ impl World {
             },
         );
         b.plant.set_steps(steps);
-        b.sensors.set_scale(1.0);
+        b.sensors.force_noise(None);
         b.battery = Battery::new(b.disk_area_m2, DEFAULT_CELLS, DEFAULT_CAPACITY_MAH, 0.0);
         b.disturbance = DisturbanceSource::Constant(ExternalWrench::default());
         b.applied = 0;
         b.scheduled = ExternalWrench::default();
         b.faults = ActiveFaults::none(b.faults.rotors.len());
         b.command = ActuatorCommand::Stop;
-        b.fresh = false;
+        b.measured = false;
     }
 
     /// Number of vehicles.
@@ -390,9 +397,7 @@ impl World {
     /// Vehicle `i`'s sensors at the current instant (read once per instant).
     pub fn sense(&mut self, i: usize) -> &SensorReadings {
         let b = &mut self.bodies[i];
-        if !b.fresh {
-            b.read();
-        }
+        b.read();
         &b.reading
     }
 
@@ -454,7 +459,7 @@ impl World {
             Actuation::Ideal => RotorVector::zeros(),
         };
         b.plant.set_rotor_speeds(&speeds);
-        b.fresh = false;
+        b.measured = false;
     }
 
     /// Inject (or repair) a fault in vehicle `i`.
@@ -484,12 +489,18 @@ impl World {
                 b.faults.rotors[rotor] = health;
             }
             Fault::Gps { available } => b.faults.gps_available = available,
-            Fault::SensorNoise { scale } => {
-                if !(scale.is_finite() && scale >= 0.0) {
-                    return Err(FaultError::OutOfRange(scale));
+            Fault::SensorNoise(noise) => {
+                if let Some(n) = noise
+                    && !n.is_valid()
+                {
+                    let worst = [n.position_m, n.velocity_m_s, n.attitude_rad, n.rate_rad_s]
+                        .into_iter()
+                        .find(|s| !(s.is_finite() && *s >= 0.0))
+                        .unwrap_or(f64::NAN);
+                    return Err(FaultError::OutOfRange(worst));
                 }
-                b.sensors.set_scale(scale);
-                b.faults.noise_scale = scale;
+                b.sensors.force_noise(noise);
+                b.faults.noise = noise;
             }
         }
         Ok(())
@@ -501,15 +512,19 @@ impl World {
         &self.bodies[i].faults
     }
 
-    /// The injected truth on vehicle `i` now.
+    /// The injected truth on vehicle `i` now (a schedule's values at this
+    /// instant, even before the step that applies them).
     #[must_use]
     pub fn truth(&self, i: usize) -> Truth {
         let b = &self.bodies[i];
-        let w = b.disturbance.wrench_at(self.time_s());
+        let (w, mass) = match &b.disturbance {
+            DisturbanceSource::Constant(w) => (*w, None),
+            DisturbanceSource::Schedule(changes) => schedule_at(changes, self.time_s()),
+        };
         Truth {
             force_ned: w.force_ned,
             torque_frd: w.torque_frd,
-            true_mass_kg: b.plant.true_mass_kg(),
+            true_mass_kg: mass.unwrap_or_else(|| b.plant.true_mass_kg()),
         }
     }
 
@@ -518,12 +533,6 @@ impl World {
     #[must_use]
     pub fn plant(&self, i: usize) -> &Plant {
         &self.bodies[i].plant
-    }
-
-    /// The state of charge of vehicle `i`'s pack, 0..1 (truth).
-    #[must_use]
-    pub fn battery_charge(&self, i: usize) -> f64 {
-        self.bodies[i].battery.remaining()
     }
 }
 
@@ -621,8 +630,27 @@ mod tests {
         assert_eq!(*w.sense(0), r);
         // at rest the accelerometer feels the ground carry the weight
         assert_eq!(r.specific_force_frd, Vector3::new(0.0, 0.0, -GRAVITY));
+        // the noise up: a noiseless vehicle gets noisy measurements, then clean ones again
+        let noisy = SensorNoise {
+            position_m: 0.5,
+            ..SensorNoise::default()
+        };
+        w.inject(0, Fault::SensorNoise(Some(noisy))).unwrap();
+        w.step();
+        let p = w.sense(0).measurement.position_ned;
+        assert!((p - w.plant(0).state().position_ned).norm() > 1e-3, "{p}");
+        w.inject(0, Fault::SensorNoise(None)).unwrap();
+        w.step();
+        let clean = w.sense(0).measurement.position_ned;
+        assert_eq!(clean, w.plant(0).state().position_ned);
         assert!(matches!(
-            w.inject(0, Fault::SensorNoise { scale: f64::NAN }),
+            w.inject(
+                0,
+                Fault::SensorNoise(Some(SensorNoise {
+                    rate_rad_s: f64::NAN,
+                    ..SensorNoise::default()
+                }))
+            ),
             Err(FaultError::OutOfRange(_))
         ));
     }

@@ -441,12 +441,6 @@ impl Plant {
         self.rotor_health = (h.rows(0, self.n).iter().any(|f| *f != 1.0)).then_some(h);
     }
 
-    /// The speed factor of rotor `i` (from 0): 1 healthy, 0 dead.
-    #[must_use]
-    pub fn rotor_health(&self, i: usize) -> f64 {
-        self.rotor_health.map_or(1.0, |h| h[i])
-    }
-
     /// Change the environment (effects on/off, ceiling height).
     pub fn set_environment(&mut self, environment: Environment) {
         self.environment = environment;

@@ -29,6 +29,14 @@ pub struct SensorNoise {
 }
 
 impl SensorNoise {
+    /// Whether every standard deviation is finite and not negative.
+    #[must_use]
+    pub fn is_valid(&self) -> bool {
+        [self.position_m, self.velocity_m_s, self.attitude_rad, self.rate_rad_s]
+            .iter()
+            .all(|s| s.is_finite() && *s >= 0.0)
+    }
+
     /// Whether every standard deviation is zero.
     #[must_use]
     pub fn is_zero(&self) -> bool {
@@ -41,7 +49,7 @@ impl SensorNoise {
 pub struct Sensors {
     /// The configured noise.
     noise: SensorNoise,
-    /// The noise in force: the configured one times the fault's scale.
+    /// The noise in force: the configured one, or a fault's.
     active: SensorNoise,
     rng: ChaCha8Rng,
 }
@@ -57,15 +65,10 @@ impl Sensors {
         }
     }
 
-    /// Multiply every standard deviation by `scale` (a sensor fault; 1 restores them).
-    pub fn set_scale(&mut self, scale: f64) {
-        let n = self.noise;
-        self.active = SensorNoise {
-            position_m: n.position_m * scale,
-            velocity_m_s: n.velocity_m_s * scale,
-            attitude_rad: n.attitude_rad * scale,
-            rate_rad_s: n.rate_rad_s * scale,
-        };
+    /// Measure with `noise` instead of the configured noise (a sensor
+    /// fault), or with the configured one again (`None`).
+    pub fn force_noise(&mut self, noise: Option<SensorNoise>) {
+        self.active = noise.unwrap_or(self.noise);
     }
 
     fn gauss3(&mut self, sigma: f64) -> Vector3<f64> {

@@ -71,8 +71,8 @@ impl Navigator {
         }
     }
 
-    /// The demand of Hold, Takeoff, Land or RTL.
-    pub(super) fn auto_demand(&mut self, cx: &Situation<'_>, say: &mut Announcements) -> Demand {
+    /// The demand of the active mode: Hold, Takeoff, Land, RTL here, Offboard in `offboard`.
+    pub(super) fn mode_demand(&mut self, cx: &Situation<'_>, say: &mut Announcements) -> Demand {
         let (meas, s, dt) = (cx.meas, cx.settings, cx.dt);
         let cruise = self.cruise_m_s(s);
         let (climb, descent) = (s.climb_m_s, s.descent_m_s);
@@ -129,7 +129,7 @@ impl Navigator {
                 }
                 Demand::Track(self.rtl(cx, phase, z_return, normal, say))
             }
-            Nav::Offboard => unreachable!("offboard has its own guidance"),
+            Nav::Offboard => self.offboard_demand(cx),
         }
     }
 

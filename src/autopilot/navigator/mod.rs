@@ -268,14 +268,7 @@ impl Navigator {
     /// The demand of the active mode at `t_k` (may advance the mode: takeoff
     /// done, RTL phases).
     pub(super) fn guidance(&mut self, armed: bool, cx: &Situation<'_>, say: &mut Announcements) -> Demand {
-        let demand = if armed {
-            match self.nav {
-                Nav::Offboard => self.offboard_demand(cx),
-                _ => self.auto_demand(cx, say),
-            }
-        } else {
-            Demand::Stop
-        };
+        let demand = if armed { self.mode_demand(cx, say) } else { Demand::Stop };
         if matches!(demand, Demand::Stop | Demand::Idle) {
             self.shaper_live = false;
         }

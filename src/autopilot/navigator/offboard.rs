@@ -11,6 +11,7 @@
 use nalgebra::{Rotation3, UnitQuaternion, Vector3};
 
 use super::{Nav, Navigator, Situation};
+use crate::autopilot::TIME_EPS;
 use crate::autopilot::control_loop::Demand;
 use crate::control::{Reference, Setpoint, ShaperLimits, TranslationSetpoint, YawSetpoint};
 use crate::geo::GeoPoint;
@@ -22,8 +23,6 @@ const TAKEOFF_TRIGGER_M: f64 = 0.2;
 /// ... as does a climb-rate setpoint above this [m/s], or an upward acceleration setpoint above this [m/s^2].
 const TAKEOFF_TRIGGER_M_S: f64 = 0.3;
 const TAKEOFF_TRIGGER_M_S2: f64 = 0.5;
-/// Time comparisons tolerate this much rounding [s].
-const TIME_EPS: f64 = 1e-9;
 
 /// A frame measured from where the vehicle is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -147,6 +146,15 @@ fn rotate_keep_nan(r: &Rotation3<f64>, v: Vector3<f64>) -> Vector3<f64> {
 }
 
 impl OffboardSetpoint {
+    /// Whether a global target lies on the globe (latitude within ±90°,
+    /// longitude within ±180°; an unset component is fine).
+    pub(in crate::autopilot) fn position_in_range(&self) -> bool {
+        match self {
+            OffboardSetpoint::Global { position: Some(g), .. } => !(g.lat_deg.abs() > 90.0 || g.lon_deg.abs() > 180.0),
+            _ => true,
+        }
+    }
+
     /// Resolved to local NED against the measurement `meas`, the NED origin
     /// and home at the instant it arrives.
     pub(in crate::autopilot) fn resolve(
@@ -181,7 +189,7 @@ impl OffboardSetpoint {
                 let (position_ned, velocity_ned, acceleration_ned) = match frame {
                     RelativeFrame::OffsetNed => (position.map(|p| p + here), velocity, acceleration),
                     RelativeFrame::Body => {
-                        let r = Rotation3::from_axis_angle(&Vector3::z_axis(), meas.attitude.euler_angles().2);
+                        let r = Rotation3::from_axis_angle(&Vector3::z_axis(), euler_zyx(&meas.attitude).z);
                         let turn = |v: Vector3<f64>| rotate_keep_nan(&r, v);
                         (
                             position.map(|p| turn(p) + here),
@@ -489,5 +497,20 @@ mod tests {
         assert!((at(AltitudeReference::Home, 10.0) - Vector3::new(0.0, 0.0, -12.0)).norm() < 1e-9);
         assert!((at(AltitudeReference::Terrain, 10.0).z + 10.0).abs() < 1e-9);
         assert!((at(AltitudeReference::Amsl, origin.alt_amsl_m + 5.0).z + 5.0).abs() < 1e-9);
+        // off the globe: out of range; an unset latitude is fine
+        let far = |lat_deg| OffboardSetpoint::Global {
+            position: Some(GlobalTarget {
+                lat_deg,
+                lon_deg: 8.5,
+                alt_m: 10.0,
+            }),
+            altitude: AltitudeReference::Home,
+            velocity_ned: None,
+            acceleration_ned: None,
+            yaw_rad: None,
+            yaw_rate_rad_s: None,
+        };
+        assert!(!far(200.0).position_in_range());
+        assert!(far(f64::NAN).position_in_range() && far(47.0).position_in_range());
     }
 }

@@ -1,9 +1,9 @@
 //! The lockstep core: the simulated world and each vehicle's flight
 //! software, stepped together by simulated time. One step at `t_k`, for
 //! every vehicle: **sense** (the world reads its sensors), **decide** (its
-//! pilot turns the readings into an actuator command), **act** (the world
-//! holds the command), then **integrate** (the world steps every vehicle
-//! over `[t_k, t_{k+1})` on its one clock). The scenario runner
+//! pilot turns the readings into an actuator command), then **act and
+//! integrate** (the world steps every vehicle over `[t_k, t_{k+1})` under
+//! its command, on its one clock). The scenario runner
 //! ([`crate::scenario`]) and the daemon ([`crate::daemon`]) both step this;
 //! no other loop exists.
 //!
@@ -104,10 +104,10 @@ impl<P: Pilot> Lockstep<P> {
         for (i, (pilot, measurement)) in self.pilots.iter_mut().zip(&mut self.measurements).enumerate() {
             let readings = self.world.sense(i);
             *measurement = readings.measurement;
-            let actuator = pilot.decide(readings).actuator;
-            self.world.actuate(i, actuator);
+            pilot.decide(readings);
         }
-        let reports = self.world.step();
+        let pilots = &self.pilots;
+        let reports = self.world.step(|i| &pilots[i].output().actuator);
         for ((report, pilot), fault) in reports.iter().zip(&mut self.pilots).zip(&mut self.last_fault) {
             if let Some(f) = report.fault {
                 pilot.rotors_stopped(&f);

@@ -148,9 +148,9 @@ pub struct SensorReadings {
     /// The navigation solution: position, velocity, attitude and body rates
     /// (with the sensors' noise), stamped with the simulated time.
     pub measurement: Measurement,
-    /// Accelerometer: specific force `R^T (a - g e3)` [m/s^2], body FRD
-    /// (`-g e3` at rest).
-    pub specific_force_frd: Vector3<f64>,
+    /// Acceleration [m/s^2], NED, as the navigation filter puts the
+    /// accelerometer's reading (`a = R f + g e3`; zero at rest).
+    pub acceleration_ned: Vector3<f64>,
     /// Rotor speeds as the ESCs report them [rad/s] (zero beyond the rotor count).
     pub rotor_speeds_rad_s: RotorVector,
     /// Battery monitor.

@@ -278,34 +278,37 @@ impl ControlLoop {
                     .update_attitude(&self.nominal, measurement, attitude, rate_frd, *thrust_n, dt)
             }
         };
-        let (actuator, applied, saturated) = match (demand, self.actuation) {
-            (Demand::Stop, _) => (ActuatorCommand::Stop, ControlWrench::default(), false),
+        // (written straight into the output: the rotor speeds are large)
+        let out = &mut self.output;
+        out.saturated = false;
+        match (demand, self.actuation) {
+            (Demand::Stop, _) => {
+                out.actuator = ActuatorCommand::Stop;
+                out.applied = ControlWrench::default();
+            }
             (Demand::Idle, Actuation::Rotors) => {
                 let speed_sq = self.idle_speeds.component_mul(&self.idle_speeds);
-                (
-                    ActuatorCommand::RotorSpeeds(self.idle_speeds),
-                    self.allocator.forward(&speed_sq),
-                    false,
-                )
+                out.actuator = ActuatorCommand::RotorSpeeds(self.idle_speeds);
+                out.applied = self.allocator.forward(&speed_sq);
             }
-            (Demand::Idle, Actuation::Ideal) => (
-                ActuatorCommand::Wrench(ControlWrench::default()),
-                ControlWrench::default(),
-                false,
-            ),
+            (Demand::Idle, Actuation::Ideal) => {
+                out.actuator = ActuatorCommand::Wrench(ControlWrench::default());
+                out.applied = ControlWrench::default();
+            }
             (_, Actuation::Rotors) => {
                 let a = self.allocator.allocate(&command);
-                (ActuatorCommand::RotorSpeeds(a.speed_cmd_rad_s), a.achieved, a.saturated)
+                out.actuator = ActuatorCommand::RotorSpeeds(a.speed_cmd_rad_s);
+                out.applied = a.achieved;
+                out.saturated = a.saturated;
             }
-            (_, Actuation::Ideal) => (ActuatorCommand::Wrench(command), command, false),
-        };
-        self.last_applied = Some(applied);
-        let out = &mut self.output;
-        out.actuator = actuator;
+            (_, Actuation::Ideal) => {
+                out.actuator = ActuatorCommand::Wrench(command);
+                out.applied = command;
+            }
+        }
         out.command = command;
-        out.applied = applied;
-        out.saturated = saturated;
         out.attitude_sp = self.controller.status().attitude_sp;
+        self.last_applied = Some(out.applied);
         &self.output
     }
 

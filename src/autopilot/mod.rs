@@ -1,6 +1,6 @@
 //! The flight stack: what runs on the vehicle. It sees only what a real
 //! autopilot sees — [`SensorReadings`] (the navigation solution with its
-//! noise, the accelerometer, rotor speeds from the ESCs, the battery monitor,
+//! noise and acceleration, rotor speeds from the ESCs, the battery monitor,
 //! the GNSS fix) and what it commanded itself — and answers with an
 //! [`ActuatorCommand`] each step. It never imports the simulated world
 //! ([`crate::sim`]), its faults or the `SIM_*` parameters (CI greps for it).

@@ -297,7 +297,7 @@ impl Autopilot {
             landed: self.navigator.landed_state(self.armed, self.land.landed()),
             position_ned: m.position_ned,
             velocity_ned: m.velocity_ned,
-            acceleration_ned: m.attitude * readings.specific_force_frd + Vector3::new(0.0, 0.0, GRAVITY),
+            acceleration_ned: readings.acceleration_ned,
             attitude: m.attitude,
             rate_frd: m.rate_frd,
             global: self.origin.offset(&m.position_ned),

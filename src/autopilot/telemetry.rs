@@ -71,7 +71,7 @@ pub struct Telemetry {
     pub position_ned: Vector3<f64>,
     /// Velocity [m/s], NED.
     pub velocity_ned: Vector3<f64>,
-    /// Acceleration [m/s^2], NED, from the accelerometer (`R f + g e3`).
+    /// Acceleration [m/s^2], NED, from the navigation solution.
     pub acceleration_ned: Vector3<f64>,
     /// Attitude, FRD to NED.
     pub attitude: UnitQuaternion<f64>,

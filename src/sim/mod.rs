@@ -11,7 +11,7 @@
 //!
 //! Vehicles are addressed by their index, in the order they were added.
 //! One step of the world ([`World::step`]) integrates every vehicle over
-//! `[t_k, t_k + dt)` under its held command; [`World::sense`] reads a
+//! `[t_k, t_k + dt)` under the actuator command it is given; [`World::sense`] reads a
 //! vehicle's sensors at `t_k` (the navigation solution's noise is drawn once
 //! per instant: reading telemetry between steps never draws noise the flight
 //! would not, so the same inputs give the same flight however often a client
@@ -44,8 +44,7 @@ use nalgebra::Vector3;
 
 use crate::airframe::{Actuation, Airframe};
 use crate::signals::{
-    ActuatorCommand, BatteryReading, ControlWrench, GRAVITY, GpsFix, GpsReading, Measurement, RotorVector,
-    SensorReadings,
+    ActuatorCommand, BatteryReading, ControlWrench, GpsFix, GpsReading, Measurement, RotorVector, SensorReadings,
 };
 use battery::Battery;
 
@@ -54,6 +53,21 @@ const SATELLITES: u8 = 12;
 /// The pack fitted until the parameters say otherwise ([`World::configure`]): 4S, 5000 mAh.
 const DEFAULT_CELLS: f64 = 4.0;
 const DEFAULT_CAPACITY_MAH: f64 = 5000.0;
+
+/// What the GNSS receiver reports, with or without a fix.
+fn gps_reading(available: bool) -> GpsReading {
+    if available {
+        GpsReading {
+            fix: GpsFix::Fix3d,
+            satellites: SATELLITES,
+        }
+    } else {
+        GpsReading {
+            fix: GpsFix::None,
+            satellites: 0,
+        }
+    }
+}
 
 /// The disturbance state from a time on: values not given keep their previous value.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -170,8 +184,6 @@ struct Body {
     /// ... and the wrench they make.
     scheduled: ExternalWrench,
     faults: ActiveFaults,
-    /// The command held over the next step.
-    command: ActuatorCommand,
     /// The sensors' latest reading...
     reading: SensorReadings,
     /// ... whose navigation solution was taken at the current instant (its
@@ -189,45 +201,20 @@ impl Body {
             self.reading.measurement = self.sensors.measure(&truth);
             self.measured = true;
         }
-        let specific_force_frd = self.specific_force_frd();
         let r = &mut self.reading;
-        r.specific_force_frd = specific_force_frd;
+        r.acceleration_ned = self.plant.acceleration_ned();
         r.rotor_speeds_rad_s = *self.plant.rotor_speeds();
         r.battery = BatteryReading {
             voltage_v: self.battery.voltage_v(),
             current_a: self.battery.current_a(),
         };
-        r.gps = if self.faults.gps_available {
-            GpsReading {
-                fix: GpsFix::Fix3d,
-                satellites: SATELLITES,
-            }
-        } else {
-            GpsReading {
-                fix: GpsFix::None,
-                satellites: 0,
-            }
-        };
+        r.gps = gps_reading(self.faults.gps_available);
     }
 
-    /// The accelerometer: `f = R^T (a - g e3) = (-u_T e3 + R^T f_e) / m` in
-    /// flight (the thrust and external force of the last step, the true
-    /// mass), `-g e3` at rest (the ground carries the weight).
-    fn specific_force_frd(&self) -> Vector3<f64> {
-        if self.plant.contact() == Contact::OnGround {
-            return Vector3::new(0.0, 0.0, -GRAVITY);
-        }
-        let s = self.plant.state();
-        let force_frd = s
-            .attitude
-            .inverse_transform_vector(&self.plant.last_external_wrench().force_ned);
-        (Vector3::new(0.0, 0.0, -self.plant.last_wrench().thrust_n) + force_frd) / self.plant.true_mass_kg()
-    }
-
-    /// Integrate over `[t, t + dt)`; a refused command or a failed integration
-    /// stops the rotors for the step instead (what ESCs do with garbage).
-    /// What happened goes to `report`.
-    fn step(&mut self, report: &mut StepReport) {
+    /// Integrate over `[t, t + dt)` under `command`; a refused command or a
+    /// failed integration stops the rotors for the step instead (what ESCs do
+    /// with garbage). What happened goes to `report`.
+    fn step(&mut self, command: &ActuatorCommand, report: &mut StepReport) {
         let t = self.plant.time_s();
         // the wrench in force now, and until when
         let (current, until_s) = match &self.disturbance {
@@ -263,7 +250,7 @@ impl Body {
                 self.plant.step(cmd, &self.disturbance)
             }
         };
-        let (event, fault) = match step(&self.command) {
+        let (event, fault) = match step(command) {
             Ok(event) => (event, None),
             // Stop is finite and the state was kept finite, so this step succeeds.
             Err(fault) => (step(&ActuatorCommand::Stop).unwrap_or(StepEvent::None), Some(fault)),
@@ -326,10 +313,9 @@ impl World {
             applied: 0,
             scheduled: ExternalWrench::default(),
             faults: ActiveFaults::none(if airframe.actuation == Actuation::Rotors { n } else { 0 }),
-            command: ActuatorCommand::Stop,
             reading: SensorReadings {
                 measurement: Measurement::default(),
-                specific_force_frd: Vector3::zeros(),
+                acceleration_ned: Vector3::zeros(),
                 rotor_speeds_rad_s: RotorVector::zeros(),
                 battery: BatteryReading {
                     voltage_v: 0.0,
@@ -366,7 +352,6 @@ impl World {
         b.applied = 0;
         b.scheduled = ExternalWrench::default();
         b.faults = ActiveFaults::none(b.faults.rotors.len());
-        b.command = ActuatorCommand::Stop;
         b.measured = false;
     }
 
@@ -401,16 +386,11 @@ impl World {
         &b.reading
     }
 
-    /// Hold `command` on vehicle `i`'s actuators over the next step.
-    pub fn actuate(&mut self, i: usize, command: ActuatorCommand) {
-        self.bodies[i].command = command;
-    }
-
-    /// One tick of the clock: integrate every vehicle over `[t, t + dt)` under
-    /// its held command; what happened to each, by index.
-    pub fn step(&mut self) -> &[StepReport] {
-        for (body, report) in self.bodies.iter_mut().zip(&mut self.reports) {
-            body.step(report);
+    /// One tick of the clock: integrate every vehicle `i` over `[t, t + dt)`
+    /// under `command(i)`; what happened to each, by index.
+    pub fn step<'c>(&mut self, command: impl Fn(usize) -> &'c ActuatorCommand) -> &[StepReport] {
+        for (i, (body, report)) in self.bodies.iter_mut().zip(&mut self.reports).enumerate() {
+            body.step(command(i), report);
         }
         self.steps += 1;
         &self.reports
@@ -572,9 +552,9 @@ mod tests {
         )
         .unwrap();
         // 0.5 s: forty motor time constants
+        let spin = ActuatorCommand::RotorSpeeds(hover);
         for _ in 0..500 {
-            w.actuate(0, ActuatorCommand::RotorSpeeds(hover));
-            w.step();
+            w.step(|_| &spin);
         }
         let esc = w.sense(0).rotor_speeds_rad_s;
         assert!((esc[0] - 700.0).abs() < 1e-6, "{}", esc[0]);
@@ -623,24 +603,24 @@ mod tests {
         let mut w = quad_world();
         assert_eq!(w.sense(0).gps.fix, GpsFix::Fix3d);
         w.inject(0, Fault::Gps { available: false }).unwrap();
-        w.step();
+        w.step(|_| &ActuatorCommand::Stop);
         let r = *w.sense(0);
         assert_eq!((r.gps.fix, r.gps.satellites), (GpsFix::None, 0));
         // reading twice at one instant gives the same reading
         assert_eq!(*w.sense(0), r);
-        // at rest the accelerometer feels the ground carry the weight
-        assert_eq!(r.specific_force_frd, Vector3::new(0.0, 0.0, -GRAVITY));
+        // at rest the ground carries the weight: no acceleration
+        assert_eq!(r.acceleration_ned, Vector3::zeros());
         // the noise up: a noiseless vehicle gets noisy measurements, then clean ones again
         let noisy = SensorNoise {
             position_m: 0.5,
             ..SensorNoise::default()
         };
         w.inject(0, Fault::SensorNoise(Some(noisy))).unwrap();
-        w.step();
+        w.step(|_| &ActuatorCommand::Stop);
         let p = w.sense(0).measurement.position_ned;
         assert!((p - w.plant(0).state().position_ned).norm() > 1e-3, "{p}");
         w.inject(0, Fault::SensorNoise(None)).unwrap();
-        w.step();
+        w.step(|_| &ActuatorCommand::Stop);
         let clean = w.sense(0).measurement.position_ned;
         assert_eq!(clean, w.plant(0).state().position_ned);
         assert!(matches!(

@@ -410,6 +410,25 @@ impl Plant {
         self.steps = steps;
     }
 
+    /// The true acceleration at the current state [m/s^2], NED:
+    /// `a = g e3 + (-u_T R e3 + f_e) / m` with the thrust and external force
+    /// of the last step and the true mass; zero resting on the ground.
+    #[must_use]
+    pub fn acceleration_ned(&self) -> Vector3<f64> {
+        if self.contact == Contact::OnGround {
+            return Vector3::zeros();
+        }
+        let q = self.state.attitude.quaternion();
+        let (w, x, y, z) = (q.w, q.i, q.j, q.k);
+        let r_e3 = Vector3::new(
+            2.0 * (x * z + w * y),
+            2.0 * (y * z - w * x),
+            w * w - x * x - y * y + z * z,
+        );
+        (self.last_external.force_ned - r_e3 * self.last_wrench.thrust_n) * self.inv_mass
+            + Vector3::new(0.0, 0.0, GRAVITY)
+    }
+
     /// How commands reach the body.
     #[must_use]
     pub fn actuation(&self) -> Actuation {

@@ -27,8 +27,8 @@ use crate::sim::{Environment, SensorConfig, SimFault, StepReport, Truth, World, 
 /// Flight software in the loop: from the sensor readings at `t_k` to what
 /// the actuators get over `[t_k, t_{k+1})`.
 pub trait Pilot {
-    /// Decide this step.
-    fn decide(&mut self, readings: &SensorReadings) -> &ControlOutput;
+    /// Decide this step ([`Self::output`] holds the decision).
+    fn decide(&mut self, readings: &SensorReadings);
     /// What the latest [`Self::decide`] decided.
     fn output(&self) -> &ControlOutput;
     /// The world refused the command (it was not finite) or could not
@@ -37,8 +37,8 @@ pub trait Pilot {
 }
 
 impl Pilot for Autopilot {
-    fn decide(&mut self, readings: &SensorReadings) -> &ControlOutput {
-        self.step(readings)
+    fn decide(&mut self, readings: &SensorReadings) {
+        self.step(readings);
     }
 
     fn output(&self) -> &ControlOutput {

@@ -8,8 +8,8 @@
 use nalgebra::{UnitQuaternion, Vector3};
 use rotorpilot::airframe::Airframe;
 use rotorpilot::autopilot::{
-    Autopilot, AutopilotCommand, AutopilotError, CommandOutcome, FlightMode, LandedState, OffboardSetpoint, Severity,
-    StatusText, Telemetry,
+    AttitudeTarget, Autopilot, AutopilotCommand, AutopilotError, CommandOutcome, FlightMode, LandedState,
+    OffboardSetpoint, Severity, StatusText, Targets, Telemetry,
 };
 use rotorpilot::control::ControllerKind;
 use rotorpilot::geo::GeoPoint;
@@ -414,23 +414,23 @@ fn reposition_flies_to_lat_lon_alt_with_yaw_and_holds() {
 }
 
 fn position_sp(p: Vector3<f64>, yaw: f64) -> AutopilotCommand {
-    AutopilotCommand::Offboard(OffboardSetpoint::Local {
-        position_ned: Some(p),
-        velocity_ned: None,
-        acceleration_ned: None,
+    AutopilotCommand::Offboard(OffboardSetpoint::Local(Targets {
+        position: Some(p),
+        velocity: None,
+        acceleration: None,
         yaw_rad: Some(yaw),
         yaw_rate_rad_s: None,
-    })
+    }))
 }
 
 fn velocity_sp(v: Vector3<f64>) -> AutopilotCommand {
-    AutopilotCommand::Offboard(OffboardSetpoint::Local {
-        position_ned: None,
-        velocity_ned: Some(v),
-        acceleration_ned: None,
+    AutopilotCommand::Offboard(OffboardSetpoint::Local(Targets {
+        position: None,
+        velocity: Some(v),
+        acceleration: None,
         yaw_rad: Some(0.0),
         yaw_rate_rad_s: None,
-    })
+    }))
 }
 
 /// Run `seconds`, sending `cmd` every 50 ms (MAVSDK's 20 Hz stream); the time of the last one.
@@ -512,11 +512,11 @@ fn offboard_loss_action_can_be_land() {
 }
 
 fn attitude_sp(q: UnitQuaternion<f64>, thrust: f64) -> AutopilotCommand {
-    AutopilotCommand::Offboard(OffboardSetpoint::Attitude {
+    AutopilotCommand::Offboard(OffboardSetpoint::Attitude(AttitudeTarget {
         attitude: Some(q),
         rate_frd: None,
         thrust_normalised: thrust,
-    })
+    }))
 }
 
 #[test]
@@ -542,11 +542,11 @@ fn offboard_attitude_keeps_the_commanded_tilt_and_rates_turn() {
     let level = UnitQuaternion::from_euler_angles(0.0, 0.0, euler_zyx(&ap.telemetry().attitude).z);
     stream(&mut ap, 1.5, attitude_sp(level, hover));
     let yaw0 = euler_zyx(&ap.telemetry().attitude).z;
-    let rates = AutopilotCommand::Offboard(OffboardSetpoint::Attitude {
+    let rates = AutopilotCommand::Offboard(OffboardSetpoint::Attitude(AttitudeTarget {
         attitude: None,
         rate_frd: Some(Vector3::new(0.0, 0.0, 0.5)),
         thrust_normalised: hover,
-    });
+    }));
     stream(&mut ap, 2.0, rates);
     let t = ap.telemetry();
     let turned = rotorpilot::math::wrap_pi(euler_zyx(&t.attitude).z - yaw0);
@@ -718,31 +718,31 @@ fn invalid_or_untimely_commands_are_refused_without_panicking() {
             CommandOutcome::Denied("invalid home position"),
         ),
         (
-            AutopilotCommand::Offboard(OffboardSetpoint::Local {
-                position_ned: Some(Vector3::new(0.0, nan, 0.0)),
-                velocity_ned: None,
-                acceleration_ned: None,
+            AutopilotCommand::Offboard(OffboardSetpoint::Local(Targets {
+                position: Some(Vector3::new(0.0, nan, 0.0)),
+                velocity: None,
+                acceleration: None,
                 yaw_rad: None,
                 yaw_rate_rad_s: None,
-            }),
+            })),
             CommandOutcome::Denied("invalid offboard setpoint"),
         ),
         (
-            AutopilotCommand::Offboard(OffboardSetpoint::Local {
-                position_ned: None,
-                velocity_ned: None,
-                acceleration_ned: None,
+            AutopilotCommand::Offboard(OffboardSetpoint::Local(Targets {
+                position: None,
+                velocity: None,
+                acceleration: None,
                 yaw_rad: Some(0.0),
                 yaw_rate_rad_s: None,
-            }),
+            })),
             CommandOutcome::Denied("invalid offboard setpoint"),
         ),
         (
-            AutopilotCommand::Offboard(OffboardSetpoint::Attitude {
+            AutopilotCommand::Offboard(OffboardSetpoint::Attitude(AttitudeTarget {
                 attitude: None,
                 rate_frd: None,
                 thrust_normalised: nan,
-            }),
+            })),
             CommandOutcome::Denied("invalid offboard setpoint"),
         ),
         (
@@ -1074,14 +1074,16 @@ fn the_autopilot_decides_what_the_link_only_translates() {
         speed_m_s: None,
     });
     run(&mut ap, 6.0);
-    let forward = AutopilotCommand::Offboard(OffboardSetpoint::Relative {
-        frame: RelativeFrame::Body,
-        position: None,
-        velocity: Some(Vector3::new(1.0, 0.0, 0.0)),
-        acceleration: None,
-        yaw_rad: None,
-        yaw_rate_rad_s: Some(0.0),
-    });
+    let forward = AutopilotCommand::Offboard(OffboardSetpoint::Relative(
+        RelativeFrame::Body,
+        Targets {
+            position: None,
+            velocity: Some(Vector3::new(1.0, 0.0, 0.0)),
+            acceleration: None,
+            yaw_rad: None,
+            yaw_rate_rad_s: Some(0.0),
+        },
+    ));
     ap.command(forward);
     assert_eq!(
         ap.command(AutopilotCommand::SetMode(FlightMode::Offboard)),
@@ -1126,13 +1128,13 @@ fn slow_climbs_are_takeoffs() {
     let (mut ap, _) = setup("quad", &[]);
     ap.step();
     ap.command(AutopilotCommand::Arm { force: false });
-    let climb = AutopilotCommand::Offboard(OffboardSetpoint::Local {
-        position_ned: None,
-        velocity_ned: Some(Vector3::new(0.0, 0.0, -0.5)),
-        acceleration_ned: None,
+    let climb = AutopilotCommand::Offboard(OffboardSetpoint::Local(Targets {
+        position: None,
+        velocity: Some(Vector3::new(0.0, 0.0, -0.5)),
+        acceleration: None,
         yaw_rad: Some(0.0),
         yaw_rate_rad_s: None,
-    });
+    }));
     ap.command(climb);
     assert_eq!(
         ap.command(AutopilotCommand::SetMode(FlightMode::Offboard)),

@@ -10,38 +10,32 @@ echo "== cargo fmt --check"
 cargo fmt --all -- --check
 
 echo "== the deterministic core imports no runtime, protocol or clock"
-# Code lines only (comments may name what a module must not use).
-code() { grep -rnE "$1" "${@:2}" | grep -vE '^[^:]+:[0-9]+:\s*//' || true; }
-listed() {
+# forbid PATTERN WHY PATH...: fail when a code line (comments may name what a
+# module must not use) under PATH matches PATTERN, or when a PATH is missing.
+forbid() {
+    local pattern=$1 why=$2
+    shift 2
     for p in "$@"; do
         [ -e "$p" ] || { echo "purity check: $p is listed but missing (moved? update tools/test-all.sh)" >&2; exit 1; }
     done
+    local found
+    found=$(grep -rnE "$pattern" "$@" | grep -vE '^[^:]+:[0-9]+:\s*//' || true)
+    if [ -n "$found" ]; then
+        echo "$found"
+        echo "$why (above)" >&2
+        exit 1
+    fi
 }
-pure="src/math.rs src/signals.rs src/tomlfile.rs src/geo.rs src/params src/airframe src/sim src/control src/estimation src/autopilot src/lockstep.rs src/scenario src/flightlog.rs"
-listed $pure
-found=$(code "tokio|mavlink::|std::time|SystemTime|Instant::now|thread_rng" $pure)
-if [ -n "$found" ]; then
-    echo "$found"
-    echo "a pure module reaches for a runtime, the protocol or a clock (above)" >&2
-    exit 1
-fi
+forbid "tokio|mavlink::|std::time|SystemTime|Instant::now|thread_rng" \
+    "a pure module reaches for a runtime, the protocol or a clock" \
+    src/math.rs src/signals.rs src/tomlfile.rs src/geo.rs src/params src/airframe src/sim src/control \
+    src/estimation src/autopilot src/lockstep.rs src/scenario src/flightlog.rs
 
 echo "== the flight stack sees only sensor readings: no plant, no world faults, no SIM_* truth"
-flight="src/autopilot src/control src/estimation"
-listed $flight
-found=$(code "(crate|super)::(\\{[^}]*\\b)?(sim|lockstep|scenario|link|daemon)\\b|\\bsim::|Param::SIM_|\"SIM_" $flight)
-if [ -n "$found" ]; then
-    echo "$found"
-    echo "the flight stack reaches into the simulated world (above): give it a sensor reading instead" >&2
-    exit 1
-fi
-listed src/airframe
-found=$(code "crate::control\\b" src/airframe)
-if [ -n "$found" ]; then
-    echo "$found"
-    echo "airframe imports control (above): the [control] table is checked by control" >&2
-    exit 1
-fi
+forbid "(crate|super)::(\\{[^}]*\\b)?(sim|lockstep|scenario|link|daemon)\\b|\\bsim::|Param::SIM_|\"SIM_" \
+    "the flight stack reaches into the simulated world: give it a sensor reading instead" \
+    src/autopilot src/control src/estimation
+forbid "crate::control\\b" "airframe imports control: the [control] table is checked by control" src/airframe
 
 echo "== cargo clippy --all-targets -- -D warnings"
 cargo clippy --all-targets --quiet -- -D warnings

@@ -82,7 +82,7 @@ mod stack;
 mod telemetry;
 
 pub use control_loop::{ControlLoop, ControlLoopError, ControlOutput, Demand};
-pub use navigator::{AltitudeReference, GlobalTarget, OffboardSetpoint, RelativeFrame};
+pub use navigator::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};
 pub use stack::{Autopilot, AutopilotError};
 pub use telemetry::{LandedState, Telemetry, VehicleType};
 

@@ -16,6 +16,7 @@ use crate::airframe::{Actuation, Airframe};
 use crate::control::{ControlGains, ControllerKind, GainError, ShaperError, ShaperLimits};
 use crate::estimation::{Discretization, EstimatorConfig, EstimatorError, MomentumEstimator};
 use crate::geo::GeoPoint;
+use crate::params::ParamStore;
 use crate::signals::{GRAVITY, NominalModel, SensorReadings, WrenchEstimate};
 
 /// Why an autopilot could not be built or parameters applied.
@@ -129,12 +130,7 @@ impl Autopilot {
     ///
     /// # Errors
     /// Invalid home, or parameters that give invalid gains or estimator settings.
-    pub fn new(
-        airframe: &Airframe,
-        home: GeoPoint,
-        params: &crate::params::ParamStore,
-        dt_s: f64,
-    ) -> Result<Self, AutopilotError> {
+    pub fn new(airframe: &Airframe, home: GeoPoint, params: &ParamStore, dt_s: f64) -> Result<Self, AutopilotError> {
         if !home.is_valid() {
             return Err(AutopilotError::InvalidHome {
                 lat_deg: home.lat_deg,
@@ -182,7 +178,7 @@ impl Autopilot {
     ///
     /// # Errors
     /// A combination the controller or estimator refuses; nothing is changed then.
-    pub fn apply_params(&mut self, params: &crate::params::ParamStore) -> Result<(), AutopilotError> {
+    pub fn apply_params(&mut self, params: &ParamStore) -> Result<(), AutopilotError> {
         let s = Settings::from_store(params)?;
         let now = self.now_s;
         let nominal = NominalModel {

@@ -23,7 +23,7 @@ use mavlink::dialects::common::{
 };
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
-use crate::autopilot::{AltitudeReference, GlobalTarget, OffboardSetpoint, RelativeFrame};
+use crate::autopilot::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};
 
 /// Position-target mask bits.
 mod bit {
@@ -57,14 +57,17 @@ fn scalar(v: f32, mask: u16, b: u16) -> Option<f64> {
     (mask & b == 0 && v.is_finite()).then_some(f64::from(v))
 }
 
-/// Whether the setpoint sets anything at all.
-fn sets_something(
-    vectors: [&Option<Vector3<f64>>; 2],
-    position: bool,
-    yaw_rad: Option<f64>,
-    yaw_rate_rad_s: Option<f64>,
-) -> bool {
-    position || vectors.iter().any(|v| v.is_some()) || yaw_rad.is_some() || yaw_rate_rad_s.is_some()
+/// The targets of a position-target message with `position` (already
+/// masked, in the message's frame); `None` when it sets nothing.
+fn targets<P>(position: Option<P>, mask: u16, v: [f32; 3], a: [f32; 3], yaw: f32, yaw_rate: f32) -> Option<Targets<P>> {
+    let t = Targets {
+        position,
+        velocity: masked(v, mask, bit::VX),
+        acceleration: masked(a, mask, bit::AX),
+        yaw_rad: scalar(yaw, mask, bit::YAW),
+        yaw_rate_rad_s: scalar(yaw_rate, mask, bit::YAW_RATE),
+    };
+    t.sets_something().then_some(t)
 }
 
 /// SET_POSITION_TARGET_LOCAL_NED to a setpoint; `None` for an unsupported
@@ -79,29 +82,17 @@ pub fn local_ned(m: &SET_POSITION_TARGET_LOCAL_NED_DATA) -> Option<OffboardSetpo
     };
     let mask = m.type_mask.bits();
     let position = masked([m.x, m.y, m.z], mask, bit::X);
-    let velocity = masked([m.vx, m.vy, m.vz], mask, bit::VX);
-    let acceleration = masked([m.afx, m.afy, m.afz], mask, bit::AX);
-    let yaw_rad = scalar(m.yaw, mask, bit::YAW);
-    let yaw_rate_rad_s = scalar(m.yaw_rate, mask, bit::YAW_RATE);
-    if !sets_something([&velocity, &acceleration], position.is_some(), yaw_rad, yaw_rate_rad_s) {
-        return None;
-    }
+    let t = targets(
+        position,
+        mask,
+        [m.vx, m.vy, m.vz],
+        [m.afx, m.afy, m.afz],
+        m.yaw,
+        m.yaw_rate,
+    )?;
     Some(match frame {
-        None => OffboardSetpoint::Local {
-            position_ned: position,
-            velocity_ned: velocity,
-            acceleration_ned: acceleration,
-            yaw_rad,
-            yaw_rate_rad_s,
-        },
-        Some(frame) => OffboardSetpoint::Relative {
-            frame,
-            position,
-            velocity,
-            acceleration,
-            yaw_rad,
-            yaw_rate_rad_s,
-        },
+        None => OffboardSetpoint::Local(t),
+        Some(frame) => OffboardSetpoint::Relative(frame, t),
     })
 }
 
@@ -117,8 +108,8 @@ pub fn global_int(m: &SET_POSITION_TARGET_GLOBAL_INT_DATA) -> Option<OffboardSet
     };
     let mask = m.type_mask.bits();
     let used = |b: u16| mask & b == 0;
-    let any_position = used(bit::X) || used(bit::Y) || (used(bit::Z) && m.alt.is_finite());
-    let position = any_position.then(|| GlobalTarget {
+    let alt_used = used(bit::Z) && m.alt.is_finite();
+    let position = (used(bit::X) || used(bit::Y) || alt_used).then(|| GlobalTarget {
         lat_deg: if used(bit::X) {
             f64::from(m.lat_int) * 1e-7
         } else {
@@ -129,32 +120,17 @@ pub fn global_int(m: &SET_POSITION_TARGET_GLOBAL_INT_DATA) -> Option<OffboardSet
         } else {
             f64::NAN
         },
-        alt_m: if used(bit::Z) && m.alt.is_finite() {
-            f64::from(m.alt)
-        } else {
-            f64::NAN
-        },
+        alt_m: if alt_used { f64::from(m.alt) } else { f64::NAN },
     });
-    let velocity_ned = masked([m.vx, m.vy, m.vz], mask, bit::VX);
-    let acceleration_ned = masked([m.afx, m.afy, m.afz], mask, bit::AX);
-    let yaw_rad = scalar(m.yaw, mask, bit::YAW);
-    let yaw_rate_rad_s = scalar(m.yaw_rate, mask, bit::YAW_RATE);
-    if !sets_something(
-        [&velocity_ned, &acceleration_ned],
-        position.is_some(),
-        yaw_rad,
-        yaw_rate_rad_s,
-    ) {
-        return None;
-    }
-    Some(OffboardSetpoint::Global {
+    let t = targets(
         position,
-        altitude,
-        velocity_ned,
-        acceleration_ned,
-        yaw_rad,
-        yaw_rate_rad_s,
-    })
+        mask,
+        [m.vx, m.vy, m.vz],
+        [m.afx, m.afy, m.afz],
+        m.yaw,
+        m.yaw_rate,
+    )?;
+    Some(OffboardSetpoint::Global(altitude, t))
 }
 
 /// SET_ATTITUDE_TARGET to a setpoint. Mask bits 1, 2, 4 ignore the body
@@ -186,11 +162,11 @@ pub fn attitude(m: &SET_ATTITUDE_TARGET_DATA) -> Option<OffboardSetpoint> {
     } else {
         f64::NAN
     };
-    Some(OffboardSetpoint::Attitude {
+    Some(OffboardSetpoint::Attitude(AttitudeTarget {
         attitude,
         rate_frd,
         thrust_normalised: thrust,
-    })
+    }))
 }
 
 #[cfg(test)]
@@ -223,46 +199,29 @@ mod tests {
     fn mavsdk_masks() {
         let f = MavFrame::MAV_FRAME_LOCAL_NED;
         // 2552: position + yaw
-        let Some(OffboardSetpoint::Local {
-            position_ned,
-            velocity_ned,
-            acceleration_ned,
-            yaw_rad,
-            yaw_rate_rad_s,
-        }) = local_ned(&local(2552, f))
-        else {
+        let Some(OffboardSetpoint::Local(t)) = local_ned(&local(2552, f)) else {
             panic!()
         };
-        assert_eq!(position_ned, Some(Vector3::new(1.0, 2.0, -3.0)));
-        assert!(velocity_ned.is_none() && acceleration_ned.is_none() && yaw_rate_rad_s.is_none());
-        assert!((yaw_rad.unwrap() - 0.7).abs() < 1e-6);
+        assert_eq!(t.position, Some(Vector3::new(1.0, 2.0, -3.0)));
+        assert!(t.velocity.is_none() && t.acceleration.is_none() && t.yaw_rate_rad_s.is_none());
+        assert!((t.yaw_rad.unwrap() - 0.7).abs() < 1e-6);
         // 2503: velocity + yaw
-        let Some(OffboardSetpoint::Local {
-            position_ned,
-            velocity_ned,
-            ..
-        }) = local_ned(&local(2503, f))
-        else {
+        let Some(OffboardSetpoint::Local(t)) = local_ned(&local(2503, f)) else {
             panic!()
         };
-        assert!(position_ned.is_none());
-        assert!((velocity_ned.unwrap() - Vector3::new(0.5, 0.0, -0.2)).norm() < 1e-6);
+        assert!(t.position.is_none());
+        assert!((t.velocity.unwrap() - Vector3::new(0.5, 0.0, -0.2)).norm() < 1e-6);
         // 3135: acceleration only
-        let Some(OffboardSetpoint::Local {
-            acceleration_ned,
-            yaw_rad,
-            ..
-        }) = local_ned(&local(3135, f))
-        else {
+        let Some(OffboardSetpoint::Local(t)) = local_ned(&local(3135, f)) else {
             panic!()
         };
-        assert_eq!(acceleration_ned, Some(Vector3::zeros()));
-        assert!(yaw_rad.is_none());
+        assert_eq!(t.acceleration, Some(Vector3::zeros()));
+        assert!(t.yaw_rad.is_none());
         // 4: position x/y only; partial masks keep NaN
-        let Some(OffboardSetpoint::Local { position_ned, .. }) = local_ned(&local(4, f)) else {
+        let Some(OffboardSetpoint::Local(t)) = local_ned(&local(4, f)) else {
             panic!()
         };
-        let p = position_ned.unwrap();
+        let p = t.position.unwrap();
         assert_eq!((p.x, p.y), (1.0, 2.0));
         assert!(p.z.is_nan());
         // unsupported frame
@@ -272,22 +231,14 @@ mod tests {
     #[test]
     fn relative_frames_are_left_to_the_autopilot() {
         // 1479: velocity + yaw rate, BODY_NED: resolved against the heading when applied
-        let Some(OffboardSetpoint::Relative {
-            frame,
-            velocity,
-            yaw_rate_rad_s,
-            position,
-            ..
-        }) = local_ned(&local(1479, MavFrame::MAV_FRAME_BODY_NED))
-        else {
+        let Some(OffboardSetpoint::Relative(frame, t)) = local_ned(&local(1479, MavFrame::MAV_FRAME_BODY_NED)) else {
             panic!()
         };
         assert_eq!(frame, RelativeFrame::Body);
-        assert!(position.is_none());
-        assert!((velocity.unwrap() - Vector3::new(0.5, 0.0, -0.2)).norm() < 1e-6);
-        assert!((yaw_rate_rad_s.unwrap() - 0.1).abs() < 1e-6);
-        let Some(OffboardSetpoint::Relative { frame, .. }) =
-            local_ned(&local(2552, MavFrame::MAV_FRAME_LOCAL_OFFSET_NED))
+        assert!(t.position.is_none());
+        assert!((t.velocity.unwrap() - Vector3::new(0.5, 0.0, -0.2)).norm() < 1e-6);
+        assert!((t.yaw_rate_rad_s.unwrap() - 0.1).abs() < 1e-6);
+        let Some(OffboardSetpoint::Relative(frame, _)) = local_ned(&local(2552, MavFrame::MAV_FRAME_LOCAL_OFFSET_NED))
         else {
             panic!()
         };
@@ -315,20 +266,20 @@ mod tests {
             target_component: 1,
             coordinate_frame: MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
         };
-        let Some(OffboardSetpoint::Global { position, altitude, .. }) = global_int(&m) else {
+        let Some(OffboardSetpoint::Global(altitude, t)) = global_int(&m) else {
             panic!()
         };
-        let p = position.unwrap();
+        let p = t.position.unwrap();
         assert_eq!(altitude, AltitudeReference::Home);
         assert!((p.lat_deg - home.lat_deg).abs() < 1e-7 && p.alt_m == 10.0);
         m.coordinate_frame = MavFrame::MAV_FRAME_GLOBAL_INT;
         // altitude ignored: unset, the rest kept
         m.type_mask = PositionTargetTypemask::from_bits_retain(2552 | 4);
-        let Some(OffboardSetpoint::Global { position, altitude, .. }) = global_int(&m) else {
+        let Some(OffboardSetpoint::Global(altitude, t)) = global_int(&m) else {
             panic!()
         };
         assert_eq!(altitude, AltitudeReference::Amsl);
-        assert!(position.unwrap().alt_m.is_nan());
+        assert!(t.position.unwrap().alt_m.is_nan());
         m.coordinate_frame = MavFrame::MAV_FRAME_LOCAL_NED;
         assert!(global_int(&m).is_none());
     }
@@ -346,11 +297,11 @@ mod tests {
             target_component: 1,
             type_mask: AttitudeTargetTypemask::from_bits_retain(7),
         };
-        let Some(OffboardSetpoint::Attitude {
+        let Some(OffboardSetpoint::Attitude(AttitudeTarget {
             attitude,
             rate_frd,
             thrust_normalised,
-        }) = attitude(&m)
+        })) = attitude(&m)
         else {
             panic!()
         };
@@ -358,9 +309,9 @@ mod tests {
         assert!(rate_frd.is_none());
         assert!((thrust_normalised - 0.6).abs() < 1e-6);
         m.type_mask = AttitudeTargetTypemask::from_bits_retain(128);
-        let Some(OffboardSetpoint::Attitude {
+        let Some(OffboardSetpoint::Attitude(AttitudeTarget {
             attitude: a, rate_frd, ..
-        }) = super::attitude(&m)
+        })) = super::attitude(&m)
         else {
             panic!()
         };

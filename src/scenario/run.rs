@@ -113,7 +113,7 @@ impl Pilot for ScenarioPilot<'_> {
         self.control.output()
     }
 
-    fn decide(&mut self, readings: &SensorReadings) -> &ControlOutput {
+    fn decide(&mut self, readings: &SensorReadings) {
         let s = self.scenario;
         let m = &readings.measurement;
         let t = m.time_s;
@@ -124,7 +124,7 @@ impl Pilot for ScenarioPilot<'_> {
         let demand = Demand::Track(self.reference_at(t));
         let estimate = self.control.sense(m);
         let feedback = s.feedback.then_some(&estimate);
-        self.control.act(m, &demand, feedback, s.step_s)
+        self.control.act(m, &demand, feedback, s.step_s);
     }
 
     fn rotors_stopped(&mut self, _why: &SimFault) {

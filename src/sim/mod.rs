@@ -179,10 +179,6 @@ struct Body {
     /// Total rotor disk area [m^2] (battery power).
     disk_area_m2: f64,
     disturbance: DisturbanceSource,
-    /// How many of the schedule's changes have taken effect...
-    applied: usize,
-    /// ... and the wrench they make.
-    scheduled: ExternalWrench,
     faults: ActiveFaults,
     /// The sensors' latest reading...
     reading: SensorReadings,
@@ -220,23 +216,12 @@ impl Body {
         let (current, until_s) = match &self.disturbance {
             DisturbanceSource::Constant(w) => (*w, f64::INFINITY),
             DisturbanceSource::Schedule(changes) => {
-                // the changes due by now take effect, in order (the true mass too)
-                while let Some(c) = changes.get(self.applied).filter(|c| c.at_s <= t) {
-                    if let Some(f) = c.force_ned {
-                        self.scheduled.force_ned = f;
-                    }
-                    if let Some(tq) = c.torque_frd {
-                        self.scheduled.torque_frd = tq;
-                    }
-                    if let Some(m) = c.true_mass_kg {
-                        self.plant.set_true_mass(m);
-                    }
-                    self.applied += 1;
+                let (wrench, mass) = schedule_at(changes, t);
+                if let Some(m) = mass {
+                    self.plant.set_true_mass(m);
                 }
-                (
-                    self.scheduled,
-                    changes.get(self.applied).map_or(f64::INFINITY, |c| c.at_s),
-                )
+                let next = changes.iter().map(|c| c.at_s).find(|&at| at > t);
+                (wrench, next.unwrap_or(f64::INFINITY))
             }
         };
         report.truth = *self.plant.state();
@@ -310,8 +295,6 @@ impl World {
             battery: Battery::new(disk_area_m2, DEFAULT_CELLS, DEFAULT_CAPACITY_MAH, 0.0),
             disk_area_m2,
             disturbance: DisturbanceSource::Constant(ExternalWrench::default()),
-            applied: 0,
-            scheduled: ExternalWrench::default(),
             faults: ActiveFaults::none(if airframe.actuation == Actuation::Rotors { n } else { 0 }),
             reading: SensorReadings {
                 measurement: Measurement::default(),
@@ -349,8 +332,6 @@ impl World {
         b.sensors.force_noise(None);
         b.battery = Battery::new(b.disk_area_m2, DEFAULT_CELLS, DEFAULT_CAPACITY_MAH, 0.0);
         b.disturbance = DisturbanceSource::Constant(ExternalWrench::default());
-        b.applied = 0;
-        b.scheduled = ExternalWrench::default();
         b.faults = ActiveFaults::none(b.faults.rotors.len());
         b.measured = false;
     }
@@ -408,8 +389,6 @@ impl World {
         let ground = self.environment.ground_z_ned;
         let b = &mut self.bodies[i];
         b.disturbance = DisturbanceSource::Constant(s.external);
-        b.applied = 0;
-        b.scheduled = ExternalWrench::default();
         b.plant.set_true_mass(s.true_mass_kg);
         b.plant.set_environment(Environment {
             ground_z_ned: ground,
@@ -425,8 +404,6 @@ impl World {
     pub fn set_disturbance(&mut self, i: usize, source: DisturbanceSource) {
         let b = &mut self.bodies[i];
         b.disturbance = source;
-        b.applied = 0;
-        b.scheduled = ExternalWrench::default();
     }
 
     /// Place vehicle `i` in flight at `state` with its rotors spinning to give

@@ -253,6 +253,43 @@ def test_flight_with_disturbance_estimation_offboard_and_landing(vehicle):
     assert wait(m, "HEARTBEAT", lambda h: h.get_srcComponent() == 1 and not h.base_mode & 128, 15.0), "disarmed"
 
 
+def test_the_vehicle_decides_and_names_its_airframe():
+    """The octocopter says so in its HEARTBEAT; failure injection, mission start
+    and reboot are answered by the autopilot (with a STATUSTEXT saying why),
+    and a reboot keeps the vehicle's clock running."""
+    with Vehicle(speed=SPEED, extra=["--airframe", "octo"]) as v:
+        m = connect(v)
+        hb = wait(m, "HEARTBEAT", lambda h: h.get_srcComponent() == 1)
+        assert hb.type == mavlink.MAV_TYPE_OCTOROTOR
+
+        def refused(cmd, *params):
+            """The ACK's result and the STATUSTEXT that came with it."""
+            result = command(m, cmd, *params)
+            text = wait(m, "STATUSTEXT", timeout=2.0)
+            return result, text.text if text is not None else None
+
+        result, text = refused(mavlink.MAV_CMD_INJECT_FAILURE, 0, 1, 1)
+        assert result == mavlink.MAV_RESULT_DENIED and "SYS_FAILURE_EN" in text
+        p = param_set(m, "SYS_FAILURE_EN", 1, mavlink.MAV_PARAM_TYPE_INT32)
+        assert float_as_int32(p.param_value) == 1
+        assert command(m, mavlink.MAV_CMD_INJECT_FAILURE, 0, 1, 1) == mavlink.MAV_RESULT_UNSUPPORTED
+        result, text = refused(mavlink.MAV_CMD_MISSION_START, 0, 0)
+        assert result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED and "no mission" in text
+
+        wait_armable(m)
+        m.arducopter_arm()
+        assert wait(m, "HEARTBEAT", lambda h: h.base_mode & 128, 3.0) is not None, "armed"
+        result, text = refused(mavlink.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, 1)
+        assert result == mavlink.MAV_RESULT_DENIED and "Reboot denied" in text
+        m.arducopter_disarm()
+        assert wait(m, "HEARTBEAT", lambda h: not h.base_mode & 128, 3.0) is not None, "disarmed"
+        before = sim_time_s(m)
+        assert command(m, mavlink.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, 1) == mavlink.MAV_RESULT_ACCEPTED
+        assert wait(m, "STATUSTEXT", lambda t: "Rebooted" in t.text, 3.0) is not None
+        assert sim_time_s(m) >= before, "time_boot_ms runs on through a reboot"
+        assert wait(m, "HEARTBEAT", lambda h: h.type == mavlink.MAV_TYPE_OCTOROTOR, 3.0) is not None
+
+
 def test_mavproxy_style_ftp_falls_back_at_once(vehicle):
     m = connect(vehicle)
     payload = bytearray(251)

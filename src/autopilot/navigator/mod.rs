@@ -9,7 +9,7 @@
 mod auto;
 mod offboard;
 
-pub use offboard::{AltitudeReference, GlobalTarget, OffboardSetpoint, RelativeFrame};
+pub use offboard::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};
 
 use nalgebra::{UnitQuaternion, Vector2, Vector3};
 

@@ -57,81 +57,78 @@ pub struct GlobalTarget {
     pub alt_m: f64,
 }
 
-/// An offboard setpoint as it arrives, in SI units; `None` = ignored by the
-/// mask, a NaN component = unset.
+/// Position, velocity and acceleration targets with yaw, as a setpoint
+/// message carries them (SI units): `None` = ignored by the type mask, a NaN
+/// component = unset (which the autopilot refuses).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Targets<P> {
+    /// Position, in the setpoint's frame.
+    pub position: Option<P>,
+    /// Velocity [m/s].
+    pub velocity: Option<Vector3<f64>>,
+    /// Acceleration [m/s^2].
+    pub acceleration: Option<Vector3<f64>>,
+    /// Yaw [rad].
+    pub yaw_rad: Option<f64>,
+    /// Yaw rate [rad/s].
+    pub yaw_rate_rad_s: Option<f64>,
+}
+
+impl<P> Targets<P> {
+    /// Whether anything is set.
+    #[must_use]
+    pub fn sets_something(&self) -> bool {
+        self.position.is_some()
+            || self.velocity.is_some()
+            || self.acceleration.is_some()
+            || self.yaw_rad.is_some()
+            || self.yaw_rate_rad_s.is_some()
+    }
+
+    /// The same targets with the position `f` makes of this one.
+    fn map_position<Q>(self, f: impl FnOnce(P) -> Q) -> Targets<Q> {
+        Targets {
+            position: self.position.map(f),
+            velocity: self.velocity,
+            acceleration: self.acceleration,
+            yaw_rad: self.yaw_rad,
+            yaw_rate_rad_s: self.yaw_rate_rad_s,
+        }
+    }
+}
+
+/// An attitude (or body-rate) target with its thrust (SET_ATTITUDE_TARGET).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AttitudeTarget {
+    /// Attitude, FRD to NED; `None` = rates only.
+    pub attitude: Option<UnitQuaternion<f64>>,
+    /// Body rates [rad/s], FRD; `None` = ignored.
+    pub rate_frd: Option<Vector3<f64>>,
+    /// Collective thrust, 0..1 of the maximum.
+    pub thrust_normalised: f64,
+}
+
+/// An offboard setpoint as it arrives.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum OffboardSetpoint {
-    /// LOCAL_NED: position / velocity / acceleration in local NED.
-    Local {
-        /// Position [m], NED.
-        position_ned: Option<Vector3<f64>>,
-        /// Velocity [m/s], NED.
-        velocity_ned: Option<Vector3<f64>>,
-        /// Acceleration [m/s^2], NED.
-        acceleration_ned: Option<Vector3<f64>>,
-        /// Yaw [rad].
-        yaw_rad: Option<f64>,
-        /// Yaw rate [rad/s].
-        yaw_rate_rad_s: Option<f64>,
-    },
+    /// LOCAL_NED: position [m], velocity and acceleration in local NED.
+    Local(Targets<Vector3<f64>>),
     /// Measured from the vehicle's position and heading when it arrives.
-    Relative {
-        /// How to read the vectors.
-        frame: RelativeFrame,
-        /// Position offset [m].
-        position: Option<Vector3<f64>>,
-        /// Velocity [m/s].
-        velocity: Option<Vector3<f64>>,
-        /// Acceleration [m/s^2].
-        acceleration: Option<Vector3<f64>>,
-        /// Yaw [rad].
-        yaw_rad: Option<f64>,
-        /// Yaw rate [rad/s].
-        yaw_rate_rad_s: Option<f64>,
-    },
-    /// SET_POSITION_TARGET_GLOBAL_INT: a global position, NED velocity and acceleration.
-    Global {
-        /// Position.
-        position: Option<GlobalTarget>,
-        /// What the altitude is measured from.
-        altitude: AltitudeReference,
-        /// Velocity [m/s], NED.
-        velocity_ned: Option<Vector3<f64>>,
-        /// Acceleration [m/s^2], NED.
-        acceleration_ned: Option<Vector3<f64>>,
-        /// Yaw [rad].
-        yaw_rad: Option<f64>,
-        /// Yaw rate [rad/s].
-        yaw_rate_rad_s: Option<f64>,
-    },
-    /// Attitude (or body rates) and normalised thrust.
-    Attitude {
-        /// Attitude, FRD to NED; `None` = rates only.
-        attitude: Option<UnitQuaternion<f64>>,
-        /// Body rates [rad/s], FRD; `None` = ignored.
-        rate_frd: Option<Vector3<f64>>,
-        /// Collective thrust, 0..1 of the maximum.
-        thrust_normalised: f64,
-    },
+    Relative(RelativeFrame, Targets<Vector3<f64>>),
+    /// SET_POSITION_TARGET_GLOBAL_INT: a global position with its altitude
+    /// reference, velocity and acceleration in NED.
+    Global(AltitudeReference, Targets<GlobalTarget>),
+    /// SET_ATTITUDE_TARGET.
+    Attitude(AttitudeTarget),
 }
 
 /// A setpoint resolved to local NED (what offboard guidance follows).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(in crate::autopilot) enum LocalSetpoint {
     /// Targets in local NED.
-    Local {
-        position_ned: Option<Vector3<f64>>,
-        velocity_ned: Option<Vector3<f64>>,
-        acceleration_ned: Option<Vector3<f64>>,
-        yaw_rad: Option<f64>,
-        yaw_rate_rad_s: Option<f64>,
-    },
+    Local(Targets<Vector3<f64>>),
     /// Attitude or rates and thrust.
-    Attitude {
-        attitude: Option<UnitQuaternion<f64>>,
-        rate_frd: Option<Vector3<f64>>,
-        thrust_normalised: f64,
-    },
+    Attitude(AttitudeTarget),
 }
 
 fn finite3(v: &Vector3<f64>) -> bool {
@@ -150,7 +147,9 @@ impl OffboardSetpoint {
     /// longitude within ±180°; an unset component is fine).
     pub(in crate::autopilot) fn position_in_range(&self) -> bool {
         match self {
-            OffboardSetpoint::Global { position: Some(g), .. } => !(g.lat_deg.abs() > 90.0 || g.lon_deg.abs() > 180.0),
+            OffboardSetpoint::Global(_, Targets { position: Some(g), .. }) => {
+                !(g.lat_deg.abs() > 90.0 || g.lon_deg.abs() > 180.0)
+            }
             _ => true,
         }
     }
@@ -164,86 +163,35 @@ impl OffboardSetpoint {
         home: &GeoPoint,
     ) -> LocalSetpoint {
         match *self {
-            OffboardSetpoint::Local {
-                position_ned,
-                velocity_ned,
-                acceleration_ned,
-                yaw_rad,
-                yaw_rate_rad_s,
-            } => LocalSetpoint::Local {
-                position_ned,
-                velocity_ned,
-                acceleration_ned,
-                yaw_rad,
-                yaw_rate_rad_s,
-            },
-            OffboardSetpoint::Relative {
-                frame,
-                position,
-                velocity,
-                acceleration,
-                yaw_rad,
-                yaw_rate_rad_s,
-            } => {
-                let here = meas.position_ned;
-                let (position_ned, velocity_ned, acceleration_ned) = match frame {
-                    RelativeFrame::OffsetNed => (position.map(|p| p + here), velocity, acceleration),
-                    RelativeFrame::Body => {
-                        let r = Rotation3::from_axis_angle(&Vector3::z_axis(), euler_zyx(&meas.attitude).z);
-                        let turn = |v: Vector3<f64>| rotate_keep_nan(&r, v);
-                        (
-                            position.map(|p| turn(p) + here),
-                            velocity.map(turn),
-                            acceleration.map(turn),
-                        )
-                    }
-                };
-                LocalSetpoint::Local {
-                    position_ned,
-                    velocity_ned,
-                    acceleration_ned,
-                    yaw_rad,
-                    yaw_rate_rad_s,
-                }
+            OffboardSetpoint::Local(t) => LocalSetpoint::Local(t),
+            OffboardSetpoint::Relative(RelativeFrame::OffsetNed, t) => {
+                LocalSetpoint::Local(t.map_position(|p| p + meas.position_ned))
             }
-            OffboardSetpoint::Global {
-                position,
-                altitude,
-                velocity_ned,
-                acceleration_ned,
-                yaw_rad,
-                yaw_rate_rad_s,
-            } => {
+            OffboardSetpoint::Relative(RelativeFrame::Body, t) => {
+                let r = Rotation3::from_axis_angle(&Vector3::z_axis(), euler_zyx(&meas.attitude).z);
+                let turn = |v: Vector3<f64>| rotate_keep_nan(&r, v);
+                LocalSetpoint::Local(Targets {
+                    velocity: t.velocity.map(turn),
+                    acceleration: t.acceleration.map(turn),
+                    ..t.map_position(|p| turn(p) + meas.position_ned)
+                })
+            }
+            OffboardSetpoint::Global(altitude, t) => {
                 let base = match altitude {
                     AltitudeReference::Amsl => 0.0,
                     AltitudeReference::Home => home.alt_amsl_m,
                     AltitudeReference::Terrain => origin.alt_amsl_m,
                 };
-                let position_ned = position.map(|g| {
+                LocalSetpoint::Local(t.map_position(|g| {
                     GeoPoint {
                         lat_deg: g.lat_deg,
                         lon_deg: g.lon_deg,
                         alt_amsl_m: g.alt_m + base,
                     }
                     .ned_from(origin)
-                });
-                LocalSetpoint::Local {
-                    position_ned,
-                    velocity_ned,
-                    acceleration_ned,
-                    yaw_rad,
-                    yaw_rate_rad_s,
-                }
+                }))
             }
-            OffboardSetpoint::Attitude {
-                attitude,
-                rate_frd,
-                thrust_normalised,
-            } => LocalSetpoint::Attitude {
-                attitude,
-                rate_frd,
-                thrust_normalised,
-            },
+            OffboardSetpoint::Attitude(a) => LocalSetpoint::Attitude(a),
         }
     }
 }
@@ -252,27 +200,17 @@ impl LocalSetpoint {
     /// Whether it can be followed: every given part finite, something given.
     pub(in crate::autopilot) fn is_valid(&self) -> bool {
         match self {
-            LocalSetpoint::Local {
-                position_ned,
-                velocity_ned,
-                acceleration_ned,
-                yaw_rad,
-                yaw_rate_rad_s,
-            } => {
-                let parts = [position_ned, velocity_ned, acceleration_ned];
+            LocalSetpoint::Local(t) => {
+                let parts = [&t.position, &t.velocity, &t.acceleration];
                 parts.iter().any(|p| p.is_some())
                     && parts.iter().all(|p| p.is_none_or(|v| finite3(&v)))
-                    && yaw_rad.is_none_or(f64::is_finite)
-                    && yaw_rate_rad_s.is_none_or(f64::is_finite)
+                    && t.yaw_rad.is_none_or(f64::is_finite)
+                    && t.yaw_rate_rad_s.is_none_or(f64::is_finite)
             }
-            LocalSetpoint::Attitude {
-                attitude,
-                rate_frd,
-                thrust_normalised,
-            } => {
-                thrust_normalised.is_finite()
-                    && attitude.is_none_or(|q| q.coords.iter().all(|x| x.is_finite()))
-                    && rate_frd.is_none_or(|w| finite3(&w))
+            LocalSetpoint::Attitude(a) => {
+                a.thrust_normalised.is_finite()
+                    && a.attitude.is_none_or(|q| q.coords.iter().all(|x| x.is_finite()))
+                    && a.rate_frd.is_none_or(|w| finite3(&w))
             }
         }
     }
@@ -282,21 +220,16 @@ impl LocalSetpoint {
     /// attitude setpoint (its thrust decides).
     fn wants_to_climb(&self, meas: &Measurement) -> bool {
         match self {
-            LocalSetpoint::Local {
-                position_ned,
-                velocity_ned,
-                acceleration_ned,
-                ..
-            } => {
-                if let Some(p) = position_ned {
+            LocalSetpoint::Local(t) => {
+                if let Some(p) = t.position {
                     p.z < meas.position_ned.z - TAKEOFF_TRIGGER_M
-                } else if let Some(v) = velocity_ned {
+                } else if let Some(v) = t.velocity {
                     v.z < -TAKEOFF_TRIGGER_M_S
                 } else {
-                    acceleration_ned.is_some_and(|a| a.z < -TAKEOFF_TRIGGER_M_S2)
+                    t.acceleration.is_some_and(|a| a.z < -TAKEOFF_TRIGGER_M_S2)
                 }
             }
-            LocalSetpoint::Attitude { .. } => true,
+            LocalSetpoint::Attitude(_) => true,
         }
     }
 }
@@ -312,7 +245,7 @@ fn yaw_setpoint(yaw_rad: Option<f64>, yaw_rate_rad_s: Option<f64>) -> YawSetpoin
 impl Navigator {
     /// Keep `sp` (valid, resolved) as the latest setpoint, arrived at `now` [s].
     pub(in crate::autopilot) fn set_offboard(&mut self, sp: LocalSetpoint, now: f64) {
-        if !matches!(sp, LocalSetpoint::Attitude { attitude: None, .. }) {
+        if !matches!(sp, LocalSetpoint::Attitude(AttitudeTarget { attitude: None, .. })) {
             self.rate_target = None;
         }
         self.offboard = Some((sp, now));
@@ -346,17 +279,17 @@ impl Navigator {
             return Demand::Idle;
         }
         match sp {
-            LocalSetpoint::Local {
-                position_ned,
-                velocity_ned,
-                acceleration_ned,
+            LocalSetpoint::Local(Targets {
+                position,
+                velocity,
+                acceleration,
                 yaw_rad,
                 yaw_rate_rad_s,
-            } => {
+            }) => {
                 let yaw = yaw_setpoint(yaw_rad, yaw_rate_rad_s);
-                if let Some(p) = position_ned {
+                if let Some(p) = position {
                     Demand::Track(self.go_to(meas, p, yaw, normal, dt))
-                } else if let Some(v) = velocity_ned {
+                } else if let Some(v) = velocity {
                     let limits = ShaperLimits {
                         max_speed_xy_m_s: s.xy_vel_max_m_s,
                         ..normal
@@ -366,7 +299,7 @@ impl Navigator {
                         yaw,
                     };
                     Demand::Track(self.shape(meas, sp, limits, dt))
-                } else if let Some(a) = acceleration_ned {
+                } else if let Some(a) = acceleration {
                     // Pure acceleration: feedforward from the measured state (drifts, as in PX4).
                     self.shaper_live = false;
                     let heading = euler_zyx(&meas.attitude).z;
@@ -386,11 +319,11 @@ impl Navigator {
                     Demand::Track(self.shape(meas, hold, normal, dt))
                 }
             }
-            LocalSetpoint::Attitude {
+            LocalSetpoint::Attitude(AttitudeTarget {
                 attitude,
                 rate_frd,
                 thrust_normalised,
-            } => {
+            }) => {
                 self.shaper_live = false;
                 let rate = rate_frd.unwrap_or_else(Vector3::zeros);
                 let q = match attitude {
@@ -429,43 +362,47 @@ mod tests {
         }
     }
 
+    fn position<P>(position: P) -> Targets<P> {
+        Targets {
+            position: Some(position),
+            velocity: None,
+            acceleration: None,
+            yaw_rad: None,
+            yaw_rate_rad_s: None,
+        }
+    }
+
+    fn local(sp: LocalSetpoint) -> Targets<Vector3<f64>> {
+        match sp {
+            LocalSetpoint::Local(t) => t,
+            LocalSetpoint::Attitude(_) => panic!("{sp:?}"),
+        }
+    }
+
     #[test]
     fn relative_frames_resolve_against_the_state_when_applied() {
         let home = GeoPoint::PX4_SITL_HOME;
         let m = facing_east_at(Vector3::new(1.0, 2.0, -3.0));
         // BODY_NED velocity: forward 0.5 becomes east when facing east; a NaN stays unset
-        let body = OffboardSetpoint::Relative {
-            frame: RelativeFrame::Body,
-            position: Some(Vector3::new(2.0, 0.0, f64::NAN)),
-            velocity: Some(Vector3::new(0.5, 0.0, -0.2)),
-            acceleration: None,
-            yaw_rad: None,
-            yaw_rate_rad_s: Some(0.1),
-        };
-        let LocalSetpoint::Local {
-            position_ned,
-            velocity_ned,
-            ..
-        } = body.resolve(&m, &home, &home)
-        else {
-            panic!()
-        };
-        assert!((velocity_ned.unwrap() - Vector3::new(0.0, 0.5, -0.2)).norm() < 1e-9);
-        let p = position_ned.unwrap();
+        let body = OffboardSetpoint::Relative(
+            RelativeFrame::Body,
+            Targets {
+                velocity: Some(Vector3::new(0.5, 0.0, -0.2)),
+                yaw_rate_rad_s: Some(0.1),
+                ..position(Vector3::new(2.0, 0.0, f64::NAN))
+            },
+        );
+        let t = local(body.resolve(&m, &home, &home));
+        assert!((t.velocity.unwrap() - Vector3::new(0.0, 0.5, -0.2)).norm() < 1e-9);
+        assert_eq!(t.yaw_rate_rad_s, Some(0.1));
+        let p = t.position.unwrap();
         assert!((p.xy() - Vector3::new(1.0, 4.0, 0.0).xy()).norm() < 1e-9, "{p}");
         assert!(p.z.is_nan());
-        let offset = OffboardSetpoint::Relative {
-            frame: RelativeFrame::OffsetNed,
-            position: Some(Vector3::new(1.0, 0.0, 0.0)),
-            velocity: None,
-            acceleration: None,
-            yaw_rad: None,
-            yaw_rate_rad_s: None,
-        };
-        let LocalSetpoint::Local { position_ned, .. } = offset.resolve(&m, &home, &home) else {
-            panic!()
-        };
-        assert_eq!(position_ned, Some(Vector3::new(2.0, 2.0, -3.0)));
+        let offset = OffboardSetpoint::Relative(RelativeFrame::OffsetNed, position(Vector3::new(1.0, 0.0, 0.0)));
+        assert_eq!(
+            local(offset.resolve(&m, &home, &home)).position,
+            Some(Vector3::new(2.0, 2.0, -3.0))
+        );
     }
 
     #[test]
@@ -476,40 +413,26 @@ mod tests {
             ..origin
         };
         let m = facing_east_at(Vector3::zeros());
-        let at = |altitude, alt_m| {
-            let sp = OffboardSetpoint::Global {
-                position: Some(GlobalTarget {
-                    lat_deg: origin.lat_deg,
+        let global = |altitude, lat_deg, alt_m| {
+            OffboardSetpoint::Global(
+                altitude,
+                position(GlobalTarget {
+                    lat_deg,
                     lon_deg: origin.lon_deg,
                     alt_m,
                 }),
-                altitude,
-                velocity_ned: None,
-                acceleration_ned: None,
-                yaw_rad: None,
-                yaw_rate_rad_s: None,
-            };
-            let LocalSetpoint::Local { position_ned, .. } = sp.resolve(&m, &origin, &home) else {
-                panic!()
-            };
-            position_ned.unwrap()
+            )
+        };
+        let at = |altitude, alt_m| {
+            local(global(altitude, origin.lat_deg, alt_m).resolve(&m, &origin, &home))
+                .position
+                .unwrap()
         };
         assert!((at(AltitudeReference::Home, 10.0) - Vector3::new(0.0, 0.0, -12.0)).norm() < 1e-9);
         assert!((at(AltitudeReference::Terrain, 10.0).z + 10.0).abs() < 1e-9);
         assert!((at(AltitudeReference::Amsl, origin.alt_amsl_m + 5.0).z + 5.0).abs() < 1e-9);
         // off the globe: out of range; an unset latitude is fine
-        let far = |lat_deg| OffboardSetpoint::Global {
-            position: Some(GlobalTarget {
-                lat_deg,
-                lon_deg: 8.5,
-                alt_m: 10.0,
-            }),
-            altitude: AltitudeReference::Home,
-            velocity_ned: None,
-            acceleration_ned: None,
-            yaw_rad: None,
-            yaw_rate_rad_s: None,
-        };
+        let far = |lat_deg| global(AltitudeReference::Home, lat_deg, 10.0);
         assert!(!far(200.0).position_in_range());
         assert!(far(f64::NAN).position_in_range() && far(47.0).position_in_range());
     }

@@ -254,7 +254,6 @@ pub fn lockstep(s: &Scenario) -> anyhow::Result<Lockstep<ScenarioPilot<'_>>> {
 ///
 /// # Errors
 /// Invalid gains or estimator settings, or a failed write to `csv`.
-#[allow(clippy::too_many_lines)]
 pub fn run(s: &Scenario, mut csv: Option<&mut dyn Write>) -> anyhow::Result<Summary> {
     let mut core = lockstep(s)?;
     let n = s.airframe.rotor_count();

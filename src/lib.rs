@@ -52,6 +52,7 @@ pub mod geo;
 pub mod link;
 pub mod lockstep;
 pub mod math;
+pub mod mission;
 pub mod params;
 pub mod scenario;
 pub mod signals;

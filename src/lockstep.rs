@@ -20,6 +20,7 @@ use crate::autopilot::{
     Autopilot, AutopilotCommand, AutopilotError, CommandOutcome, ControlOutput, StatusText, Telemetry,
 };
 use crate::geo::GeoPoint;
+use crate::mission::{MissionResult, PlanChange, Plans};
 use crate::params::{ParamStore, ParamValue};
 use crate::signals::{DEFAULT_STEP_S, Measurement, SensorReadings};
 use crate::sim::{Environment, SensorConfig, SimFault, StepReport, Truth, World, WorldSettings};
@@ -70,6 +71,8 @@ pub struct Snapshot {
     pub telemetry: Telemetry,
     /// The injected wrench and true mass.
     pub truth: Truth,
+    /// The stored mission, geofence and rally points (shared, not copied).
+    pub plans: Plans,
 }
 
 /// The world and one pilot per vehicle.
@@ -247,7 +250,9 @@ impl Lockstep<Autopilot> {
     /// As [`Autopilot::new`]; nothing changes then.
     pub fn reboot(&mut self, i: usize, params: &ParamStore) -> Result<(), AutopilotError> {
         let old = &self.pilots[i];
-        let autopilot = Autopilot::new(old.airframe(), old.origin(), params, self.world.dt_s())?;
+        let mut autopilot = Autopilot::new(old.airframe(), old.origin(), params, self.world.dt_s())?;
+        // plans are stored, as PX4's dataman keeps them across a reboot
+        autopilot.restore_plans(old.plans().clone());
         self.world.restart_vehicle(i, old.airframe());
         self.world.configure(i, &WorldSettings::from_store(params));
         self.pilots[i] = autopilot;
@@ -266,7 +271,22 @@ impl Lockstep<Autopilot> {
         Snapshot {
             telemetry: self.telemetry(i),
             truth: self.world.truth(i),
+            plans: self.pilots[i].plans().clone(),
         }
+    }
+
+    /// Store or clear vehicle `i`'s plans, whole or not at all, at the
+    /// current instant ([`Autopilot::change_plans`]): the new plan's id.
+    ///
+    /// # Errors
+    /// Why nothing changed.
+    pub fn change_plans(&mut self, i: usize, change: PlanChange) -> Result<u32, MissionResult> {
+        self.pilots[i].change_plans(change)
+    }
+
+    /// Vehicle `i`'s mission items reached since the last call, oldest first.
+    pub fn drain_mission_reached(&mut self, i: usize) -> Vec<u16> {
+        self.pilots[i].drain_mission_reached()
     }
 
     /// Vehicle `i`'s status texts since the last call.

@@ -1050,7 +1050,7 @@ fn the_autopilot_decides_what_the_link_only_translates() {
     set(&mut ap, &mut store, "SYS_FAILURE_EN", int(1));
     assert_eq!(ap.command(inject), CommandOutcome::Unsupported);
     assert_eq!(
-        ap.command(AutopilotCommand::StartMission),
+        ap.command(AutopilotCommand::StartMission { first: Some(0) }),
         CommandOutcome::TemporarilyRejected("no mission")
     );
     assert_eq!(

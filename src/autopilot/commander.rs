@@ -47,11 +47,8 @@ impl Autopilot {
             AutopilotCommand::Land => self.land(m),
             AutopilotCommand::ReturnToLaunch => self.return_to_launch(m),
             AutopilotCommand::SetMode(mode) => self.set_mode(mode, m),
-            AutopilotCommand::StartMission => self.refuse(
-                Severity::Critical,
-                "Mission start denied: no mission",
-                CommandOutcome::TemporarilyRejected("no mission"),
-            ),
+            AutopilotCommand::StartMission { first } => self.start_mission(first, m),
+            AutopilotCommand::SetMissionCurrent { seq } => self.set_mission_current(seq),
             AutopilotCommand::Reposition {
                 lat_deg,
                 lon_deg,
@@ -77,7 +74,7 @@ impl Autopilot {
         }
     }
 
-    fn refuse(&mut self, severity: Severity, text: &str, outcome: CommandOutcome) -> CommandOutcome {
+    pub(super) fn refuse(&mut self, severity: Severity, text: &str, outcome: CommandOutcome) -> CommandOutcome {
         self.say.announce(severity, text);
         outcome
     }

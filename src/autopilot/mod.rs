@@ -76,6 +76,7 @@ mod control_loop;
 mod estimate;
 mod failsafe;
 mod land_detector;
+mod mission;
 mod navigator;
 mod settings;
 mod stack;
@@ -84,7 +85,7 @@ mod telemetry;
 pub use control_loop::{ControlLoop, ControlLoopError, ControlOutput, Demand};
 pub use navigator::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};
 pub use stack::{Autopilot, AutopilotError};
-pub use telemetry::{LandedState, Telemetry, VehicleType};
+pub use telemetry::{LandedState, MissionState, MissionStatus, Telemetry, VehicleType};
 
 use std::collections::VecDeque;
 
@@ -144,8 +145,18 @@ pub enum AutopilotCommand {
     ReturnToLaunch,
     /// Switch mode.
     SetMode(FlightMode),
-    /// Start the mission (MAV_CMD_MISSION_START).
-    StartMission,
+    /// Start the mission (MAV_CMD_MISSION_START, DO_SET_MODE AUTO.MISSION
+    /// goes through `SetMode`): arm-free start of AUTO.MISSION, from `first`
+    /// when given (p1), else where it stands.
+    StartMission {
+        /// The item to start from (MAVLink seq).
+        first: Option<u16>,
+    },
+    /// Make item `seq` the current one (MISSION_SET_CURRENT, DO_SET_MISSION_CURRENT).
+    SetMissionCurrent {
+        /// MAVLink seq.
+        seq: u16,
+    },
     /// Fly to a point and hold there (DO_REPOSITION): `None` parts keep the current value.
     Reposition {
         /// Latitude [deg].

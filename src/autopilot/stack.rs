@@ -16,6 +16,7 @@ use crate::airframe::{Actuation, Airframe};
 use crate::control::{ControlGains, ControllerKind, GainError, ShaperError, ShaperLimits};
 use crate::estimation::{Discretization, EstimatorConfig, EstimatorError, MomentumEstimator};
 use crate::geo::GeoPoint;
+use crate::mission::{MissionResult, PlanChange, Plans};
 use crate::params::ParamStore;
 use crate::signals::{GRAVITY, NominalModel, SensorReadings, WrenchEstimate};
 
@@ -122,6 +123,10 @@ pub struct Autopilot {
     /// The time of the latest readings [s].
     pub(super) now_s: f64,
     pub(super) say: Announcements,
+    /// The stored mission, geofence and rally points.
+    pub(super) plans: Plans,
+    /// Mission items reached since the last [`Self::drain_mission_reached`], oldest first.
+    pub(super) reached: Vec<u16>,
 }
 
 impl Autopilot {
@@ -163,6 +168,8 @@ impl Autopilot {
             landed_at_s: 0.0,
             now_s: 0.0,
             say: Announcements::default(),
+            plans: Plans::default(),
+            reached: Vec::new(),
         };
         ap.apply_params(params)?;
         Ok(ap)
@@ -313,7 +320,44 @@ impl Autopilot {
             },
             estimate: self.control.estimate(),
             prearm_ok: self.prearm_failure(m).is_none(),
+            mission: self.mission_status(),
         }
+    }
+
+    /// The stored plans (mission, geofence, rally points).
+    #[must_use]
+    pub fn plans(&self) -> &Plans {
+        &self.plans
+    }
+
+    /// Store or clear plans, whole or not at all (see [`Plans::apply`]); a
+    /// new or cleared mission restarts from its first item, and a mission
+    /// being flown that is cleared gives way to Hold. The new plan's id.
+    ///
+    /// # Errors
+    /// The MAV_MISSION_RESULT naming why nothing changed.
+    pub fn change_plans(&mut self, change: PlanChange) -> Result<u32, MissionResult> {
+        let touches_mission = match &change {
+            PlanChange::Store { kind, .. } => *kind == crate::mission::MissionType::Mission,
+            PlanChange::Clear(k) => k.is_none_or(|k| k == crate::mission::MissionType::Mission),
+        };
+        let id = self.plans.apply(change)?;
+        if touches_mission {
+            self.mission_replaced();
+        }
+        Ok(id)
+    }
+
+    /// Take `plans` as stored (loaded from the state dir, or kept over a
+    /// reboot); the mission starts from its first item.
+    pub fn restore_plans(&mut self, plans: Plans) {
+        self.plans = plans;
+        self.mission_replaced();
+    }
+
+    /// Mission items reached since the last call (MISSION_ITEM_REACHED), oldest first.
+    pub fn drain_mission_reached(&mut self) -> Vec<u16> {
+        std::mem::take(&mut self.reached)
     }
 
     // ----- accessors ------------------------------------------------------------------------------

@@ -103,4 +103,52 @@ pub struct Telemetry {
     pub estimate: WrenchEstimate,
     /// Prearm checks pass.
     pub prearm_ok: bool,
+    /// The mission's progress (MISSION_CURRENT).
+    pub mission: MissionStatus,
+}
+
+/// MISSION_CURRENT's `mission_state`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum MissionState {
+    /// 1: no mission stored.
+    NoMission,
+    /// 2: a mission is stored and not started (or not flown since it was stored).
+    NotStarted,
+    /// 3: flying it.
+    Active,
+    /// 4: paused (another mode took over before the end).
+    Paused,
+    /// 5: the last item is done.
+    Complete,
+}
+
+impl MissionState {
+    /// MISSION_STATE value.
+    #[must_use]
+    pub fn to_mav(self) -> u8 {
+        match self {
+            MissionState::NoMission => 1,
+            MissionState::NotStarted => 2,
+            MissionState::Active => 3,
+            MissionState::Paused => 4,
+            MissionState::Complete => 5,
+        }
+    }
+}
+
+/// The mission's progress as MISSION_CURRENT carries it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct MissionStatus {
+    /// The current item's sequence number (0 without a mission).
+    pub seq: u16,
+    /// Number of mission items.
+    pub total: u16,
+    /// Where the mission stands.
+    pub state: MissionState,
+    /// The mission's id (CRC32, 0 when empty).
+    pub mission_id: u32,
+    /// The geofence's id.
+    pub fence_id: u32,
+    /// The rally points' id.
+    pub rally_id: u32,
 }

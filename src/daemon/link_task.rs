@@ -83,6 +83,7 @@ impl LinkTask {
                         self.flush().await;
                     }
                     Ok(Event::ParamValue(m)) => self.link.broadcast_param(Instant::now().into_std(), &m),
+                    Ok(Event::MissionItemReached(_)) => {}
                     Err(broadcast::error::RecvError::Lagged(n)) => warn!(link = %name, missed = n, "events dropped"),
                     Err(broadcast::error::RecvError::Closed) => break,
                 },

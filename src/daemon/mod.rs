@@ -205,6 +205,7 @@ impl Daemon {
             events: ev_tx.clone(),
             speed: config.speed,
             tick: config.tick,
+            plans_changed: Arc::new(Notify::new()),
         };
         let (sim_done_tx, sim_done_rx) = oneshot::channel::<()>();
         let sim_thread = std::thread::Builder::new()

@@ -12,12 +12,13 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::common::MavMessage;
-use tokio::sync::{broadcast, oneshot, watch};
+use tokio::sync::{Notify, broadcast, oneshot, watch};
 use tracing::{debug, info, warn};
 
 use super::saver::lock;
 use crate::autopilot::{Autopilot, AutopilotCommand, CommandOutcome, PowerAction, Severity, StatusText};
 use crate::lockstep::{Lockstep, Snapshot};
+use crate::mission::{MissionResult, PlanChange};
 use crate::params::{ParamStore, ParamValue};
 
 /// The vehicle this daemon flies (one today; the fleet addresses more).
@@ -29,6 +30,7 @@ const MAX_BATCH_WALL: Duration = Duration::from_millis(20);
 
 /// Messages from the link tasks to the simulation thread.
 #[derive(Debug)]
+#[allow(dead_code)] // Plans: sent by the link tasks once they speak the mission protocol
 pub(super) enum SimRequest {
     /// A command, answered on `reply` (offboard setpoints have none).
     Command {
@@ -41,14 +43,22 @@ pub(super) enum SimRequest {
         value: ParamValue,
         reply: oneshot::Sender<Result<ParamValue, String>>,
     },
+    /// Store or clear plans, answered with the new plan's id or why nothing changed.
+    Plans {
+        change: PlanChange,
+        reply: oneshot::Sender<Result<u32, MissionResult>>,
+    },
     /// Stop the thread.
     Stop,
 }
 
 /// Messages to every link task.
 #[derive(Clone, Debug)]
+#[allow(dead_code)] // MissionItemReached: read by the links once they speak the mission protocol
 pub(super) enum Event {
     StatusText(StatusText),
+    /// MISSION_ITEM_REACHED for this seq.
+    MissionItemReached(u16),
     ParamValue(Arc<MavMessage>),
 }
 
@@ -60,6 +70,8 @@ pub(super) struct Sim {
     pub(super) events: broadcast::Sender<Event>,
     pub(super) speed: f64,
     pub(super) tick: Duration,
+    /// Notified after every accepted plan change (the plan saver writes the file).
+    pub(super) plans_changed: Arc<Notify>,
 }
 
 impl Sim {
@@ -133,6 +145,9 @@ impl Sim {
             info!(text = %s.text, "status");
             let _ = self.events.send(Event::StatusText(s));
         }
+        for seq in self.core.drain_mission_reached(VEHICLE) {
+            let _ = self.events.send(Event::MissionItemReached(seq));
+        }
     }
 
     fn handle(&mut self, r: SimRequest) {
@@ -164,6 +179,15 @@ impl Sim {
                     Err(e) => info!(%name, error = %e, "parameter refused"),
                 }
                 self.publish();
+                let _ = reply.send(outcome);
+            }
+            SimRequest::Plans { change, reply } => {
+                let outcome = self.core.change_plans(VEHICLE, change);
+                info!(?outcome, "plans changed");
+                self.publish();
+                if outcome.is_ok() {
+                    self.plans_changed.notify_one();
+                }
                 let _ = reply.send(outcome);
             }
             // the loop returns on Stop before handing requests here

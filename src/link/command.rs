@@ -227,7 +227,7 @@ pub fn classify(c: &Command) -> Action {
             2.0 => Action::Autopilot(AutopilotCommand::Power(PowerAction::Shutdown)),
             _ => Action::Answer(result::UNSUPPORTED, None),
         },
-        id::MISSION_START => Action::Autopilot(AutopilotCommand::StartMission),
+        id::MISSION_START => Action::Autopilot(AutopilotCommand::StartMission { first: Some(0) }),
         id::SET_MESSAGE_INTERVAL => {
             if !p1.is_finite() || p1 < 0.0 {
                 return Action::Answer(result::FAILED, None);
@@ -397,7 +397,7 @@ mod tests {
         // the autopilot decides: no mission yet, SYS_FAILURE_EN
         assert_eq!(
             classify(&long(300, [0.0; 7])),
-            Action::Autopilot(AutopilotCommand::StartMission)
+            Action::Autopilot(AutopilotCommand::StartMission { first: Some(0) })
         );
         assert_eq!(
             classify(&long(420, [1.0, 1.0, 3.0, N, N, N, N])),

@@ -2,9 +2,10 @@
 
 use nalgebra::{UnitQuaternion, Vector3};
 
-use crate::autopilot::{FlightMode, LandedState, Telemetry, VehicleType};
+use crate::autopilot::{FlightMode, LandedState, MissionState, MissionStatus, Telemetry, VehicleType};
 use crate::geo::GeoPoint;
 use crate::lockstep::Snapshot;
+use crate::mission::Plans;
 use crate::signals::{GpsFix, WrenchEstimate};
 use crate::sim::Truth;
 
@@ -42,11 +43,20 @@ pub(crate) fn snapshot() -> Snapshot {
                 mass_kg: 1.8,
             },
             prearm_ok: true,
+            mission: MissionStatus {
+                seq: 0,
+                total: 0,
+                state: MissionState::NoMission,
+                mission_id: 0,
+                fence_id: 0,
+                rally_id: 0,
+            },
         },
         truth: Truth {
             force_ned: Vector3::new(0.5, 0.5, 0.0),
             torque_frd: Vector3::new(0.0, 0.0, 0.2),
             true_mass_kg: 1.8,
         },
+        plans: Plans::default(),
     }
 }

@@ -9,6 +9,7 @@ use nalgebra::Vector3;
 use super::navigator::{HoldTarget, Nav};
 use super::{Autopilot, AutopilotCommand, CommandOutcome, FlightMode, OffboardSetpoint, PowerAction, Severity};
 use crate::geo::GeoPoint;
+use crate::mission::MissionType;
 use crate::signals::{Measurement, SensorReadings};
 
 /// DO_CHANGE_SPEED's "back to the default speed" value.
@@ -57,7 +58,7 @@ impl Autopilot {
                 speed_m_s,
             } => self.reposition([lat_deg, lon_deg, alt_amsl_m], yaw_rad, speed_m_s, m),
             AutopilotCommand::ChangeSpeed { speed_m_s } => self.change_speed(speed_m_s),
-            AutopilotCommand::SetHome(point) => self.set_home(point, m),
+            AutopilotCommand::SetHome(point) => self.set_home_to(point, m),
             AutopilotCommand::Offboard(sp) => self.offboard_setpoint(&sp, m),
             AutopilotCommand::Power(action) => self.power(action),
             AutopilotCommand::InjectFailure { .. } => {
@@ -102,12 +103,13 @@ impl Autopilot {
             Nav::Offboard if !self.navigator.offboard_fresh(m.time_s, self.settings.offboard_loss_s) => {
                 Some("no offboard signal")
             }
-            Nav::Hold { .. } | Nav::Offboard => None,
+            Nav::Mission if self.plans.get(MissionType::Mission).is_empty() => Some("no valid mission"),
+            Nav::Hold { .. } | Nav::Offboard | Nav::Mission => None,
             Nav::Takeoff { .. } | Nav::Land { .. } | Nav::Rtl { .. } => Some("flight mode not armable"),
         }
     }
 
-    fn arm(&mut self, force: bool, m: &Measurement) -> CommandOutcome {
+    pub(super) fn arm(&mut self, force: bool, m: &Measurement) -> CommandOutcome {
         if self.armed {
             return CommandOutcome::Accepted;
         }
@@ -225,11 +227,7 @@ impl Autopilot {
                     )
                 }
             }
-            FlightMode::Mission => self.refuse(
-                Severity::Critical,
-                "Switching to Mission denied: no mission",
-                CommandOutcome::TemporarilyRejected("no mission"),
-            ),
+            FlightMode::Mission => self.enter_mission(),
         }
     }
 
@@ -305,7 +303,7 @@ impl Autopilot {
     }
 
     /// Home here (on the ground: the ground under the vehicle) or at `point`.
-    fn set_home(&mut self, point: Option<GeoPoint>, m: &Measurement) -> CommandOutcome {
+    pub(super) fn set_home_to(&mut self, point: Option<GeoPoint>, m: &Measurement) -> CommandOutcome {
         let home = match point {
             Some(p) if p.is_valid() => p,
             Some(_) => return CommandOutcome::Denied("invalid home position"),

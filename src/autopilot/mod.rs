@@ -66,6 +66,9 @@ macro_rules! situation {
             landed: $ap.land.landed(),
             dt: $ap.dt_s(),
             max_thrust_n: $ap.max_thrust_n(),
+            origin: &$ap.origin,
+            home: &$ap.home,
+            mission: $ap.plans.get(crate::mission::MissionType::Mission).items(),
         }
     };
 }

@@ -125,8 +125,6 @@ pub struct Autopilot {
     pub(super) say: Announcements,
     /// The stored mission, geofence and rally points.
     pub(super) plans: Plans,
-    /// Mission items reached since the last [`Self::drain_mission_reached`], oldest first.
-    pub(super) reached: Vec<u16>,
 }
 
 impl Autopilot {
@@ -169,7 +167,6 @@ impl Autopilot {
             now_s: 0.0,
             say: Announcements::default(),
             plans: Plans::default(),
-            reached: Vec::new(),
         };
         ap.apply_params(params)?;
         Ok(ap)
@@ -264,6 +261,9 @@ impl Autopilot {
         self.supervise(m);
         let cx = situation!(self, m);
         let demand = self.navigator.guidance(self.armed, &cx, &mut self.say);
+        if let Some(h) = self.navigator.mission.new_home.take() {
+            self.mission_set_home(h, m);
+        }
         let feedback = self.settings.feedback.then(|| self.feedback.feed_back(&estimate, now));
         self.control.act(m, &demand, feedback.as_ref(), self.dt)
     }
@@ -357,7 +357,7 @@ impl Autopilot {
 
     /// Mission items reached since the last call (MISSION_ITEM_REACHED), oldest first.
     pub fn drain_mission_reached(&mut self) -> Vec<u16> {
-        std::mem::take(&mut self.reached)
+        std::mem::take(&mut self.navigator.mission.reached)
     }
 
     // ----- accessors ------------------------------------------------------------------------------

@@ -307,6 +307,13 @@ impl Shaper {
         self.k_yaw = l.max_yaw_accel_rad_s2 / l.max_yaw_rate_rad_s;
     }
 
+    /// The position loop's gain `k1` [1/s]: a target `d` [m] away asks for
+    /// the speed `k1 d` (saturated at the speed limit).
+    #[must_use]
+    pub fn position_gain(&self) -> f64 {
+        self.k[0]
+    }
+
     /// The limits in force.
     #[must_use]
     pub fn limits(&self) -> &ShaperLimits {

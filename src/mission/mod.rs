@@ -310,7 +310,9 @@ pub mod frame {
 
 /// One stored item: MISSION_ITEM_INT's fields but the sequence number
 /// (its index in the [`Plan`]) and the `current` flag (the vehicle's).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+/// Equality is bit for bit (a NaN parameter equals the same NaN: stored
+/// exactly as received).
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
 pub struct MissionItem {
     /// MAV_FRAME as received (synonyms kept: 3 stays 3, 6 stays 6).
     pub frame: u8,
@@ -327,6 +329,20 @@ pub struct MissionItem {
     /// param7: altitude [m] (AMSL or relative, by the frame), else the raw value.
     pub z: f32,
 }
+
+impl PartialEq for MissionItem {
+    fn eq(&self, o: &Self) -> bool {
+        self.frame == o.frame
+            && self.command == o.command
+            && self.autocontinue == o.autocontinue
+            && self.params.map(f32::to_bits) == o.params.map(f32::to_bits)
+            && self.x.to_bits() == o.x.to_bits()
+            && self.y.to_bits() == o.y.to_bits()
+            && self.z.to_bits() == o.z.to_bits()
+    }
+}
+
+impl Eq for MissionItem {}
 
 impl MissionItem {
     /// The scale of `x`, `y` in MISSION_ITEM_INT: 1e7 in global frames, 1 otherwise.

@@ -130,11 +130,12 @@ impl Navigator {
                 Demand::Track(self.rtl(cx, phase, z_return, normal, say))
             }
             Nav::Offboard => self.offboard_demand(cx),
+            Nav::Mission => self.mission_demand(cx, say),
         }
     }
 
     /// Descend to land at `xy`: MPC_Z_VEL_MAX_DN above MPC_LAND_ALT1, MPC_LAND_SPEED below.
-    fn descend(&mut self, cx: &Situation<'_>, xy: Vector2<f64>) -> Reference {
+    pub(super) fn descend(&mut self, cx: &Situation<'_>, xy: Vector2<f64>) -> Reference {
         let s = cx.settings;
         let speed = if cx.rest_z - cx.meas.position_ned.z > s.land_alt1_m {
             s.descent_m_s

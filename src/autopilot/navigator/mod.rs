@@ -7,7 +7,10 @@
 //! offboard setpoint.
 
 mod auto;
+mod mission;
 mod offboard;
+
+pub(super) use mission::{MissionRun, SetHome};
 
 pub use offboard::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};
 
@@ -18,6 +21,8 @@ use super::settings::Settings;
 use super::telemetry::LandedState;
 use super::{Announcements, FlightMode};
 use crate::control::{Reference, Setpoint, Shaper, ShaperError, ShaperLimits, TranslationSetpoint, YawSetpoint};
+use crate::geo::GeoPoint;
+use crate::mission::MissionItem;
 use crate::signals::Measurement;
 use offboard::LocalSetpoint;
 
@@ -45,6 +50,12 @@ pub(super) struct Situation<'a> {
     pub(super) dt: f64,
     /// What offboard thrust 1.0 means [N].
     pub(super) max_thrust_n: f64,
+    /// The NED origin.
+    pub(super) origin: &'a GeoPoint,
+    /// Home.
+    pub(super) home: &'a GeoPoint,
+    /// The stored mission's items.
+    pub(super) mission: &'a [MissionItem],
 }
 
 /// Where Hold flies to (DO_REPOSITION), instead of braking where it is.
@@ -105,6 +116,8 @@ pub(super) enum Nav {
     },
     /// Follow the offboard setpoints.
     Offboard,
+    /// Fly the stored mission ([`MissionRun`] holds where it stands).
+    Mission,
 }
 
 /// Whether a shaped reference has reached `target` and stopped.
@@ -126,6 +139,8 @@ pub(super) struct Navigator {
     offboard: Option<(LocalSetpoint, f64)>,
     /// Attitude target integrated from body-rate setpoints.
     rate_target: Option<UnitQuaternion<f64>>,
+    /// Where the mission stands (kept while other modes fly: pause and resume).
+    pub(super) mission: MissionRun,
 }
 
 impl Navigator {
@@ -145,6 +160,7 @@ impl Navigator {
             cruise_override: None,
             offboard: None,
             rate_target: None,
+            mission: MissionRun::default(),
         })
     }
 
@@ -159,6 +175,7 @@ impl Navigator {
             Nav::Land { .. } => FlightMode::Land,
             Nav::Rtl { .. } => FlightMode::ReturnToLaunch,
             Nav::Offboard => FlightMode::Offboard,
+            Nav::Mission => FlightMode::Mission,
         }
     }
 
@@ -173,7 +190,10 @@ impl Navigator {
                     ..
                 }
         );
-        if armed && matches!(self.nav, Nav::Takeoff { .. }) {
+        let landing = landing || (self.nav == Nav::Mission && self.mission_landing());
+        let taking_off =
+            matches!(self.nav, Nav::Takeoff { .. }) || (self.nav == Nav::Mission && self.mission_taking_off());
+        if armed && taking_off {
             LandedState::Takeoff
         } else if landed {
             LandedState::OnGround

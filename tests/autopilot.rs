@@ -1051,7 +1051,7 @@ fn the_autopilot_decides_what_the_link_only_translates() {
     assert_eq!(ap.command(inject), CommandOutcome::Unsupported);
     assert_eq!(
         ap.command(AutopilotCommand::StartMission { first: Some(0) }),
-        CommandOutcome::TemporarilyRejected("no mission")
+        CommandOutcome::Denied("no mission")
     );
     assert_eq!(
         ap.command(AutopilotCommand::SetHome(Some(GeoPoint { lat_deg: 91.0, ..HOME }))),

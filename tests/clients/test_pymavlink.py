@@ -274,7 +274,7 @@ def test_the_vehicle_decides_and_names_its_airframe():
         assert float_as_int32(p.param_value) == 1
         assert command(m, mavlink.MAV_CMD_INJECT_FAILURE, 0, 1, 1) == mavlink.MAV_RESULT_UNSUPPORTED
         result, text = refused(mavlink.MAV_CMD_MISSION_START, 0, 0)
-        assert result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED and "no mission" in text
+        assert result == mavlink.MAV_RESULT_DENIED and "No valid mission" in text
 
         wait_armable(m)
         m.arducopter_arm()

@@ -128,8 +128,8 @@ async fn every_command_is_acked_from_1_1_to_the_requester() {
         c.command(v.gcs, 400, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]).await.result,
         0
     );
-    // MISSION_START: TEMPORARILY_REJECTED
-    assert_eq!(c.command(v.gcs, 300, [0.0; 7]).await.result, 1);
+    // MISSION_START without a mission: DENIED (PX4)
+    assert_eq!(c.command(v.gcs, 300, [0.0; 7]).await.result, 2);
     // DO_SET_MODE to a manual mode we cannot fly: TEMPORARILY_REJECTED
     assert_eq!(
         c.command(v.gcs, 176, [81.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]).await.result,

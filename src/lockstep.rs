@@ -17,7 +17,7 @@
 
 use crate::airframe::Airframe;
 use crate::autopilot::{
-    Autopilot, AutopilotCommand, AutopilotError, CommandOutcome, ControlOutput, StatusText, Telemetry,
+    Autopilot, AutopilotCommand, AutopilotError, ClientTimer, CommandOutcome, ControlOutput, StatusText, Telemetry,
 };
 use crate::geo::GeoPoint;
 use crate::mission::{MissionResult, PlanChange, Plans};
@@ -253,6 +253,7 @@ impl Lockstep<Autopilot> {
         let mut autopilot = Autopilot::new(old.airframe(), old.origin(), params, self.world.dt_s())?;
         // plans are stored, as PX4's dataman keeps them across a reboot
         autopilot.restore_plans(old.plans().clone());
+        autopilot.set_client_clock(old.client_clock());
         self.world.restart_vehicle(i, old.airframe());
         self.world.configure(i, &WorldSettings::from_store(params));
         self.pilots[i] = autopilot;
@@ -282,6 +283,14 @@ impl Lockstep<Autopilot> {
     /// Why nothing changed.
     pub fn change_plans(&mut self, i: usize, change: PlanChange) -> Result<u32, MissionResult> {
         self.pilots[i].change_plans(change)
+    }
+
+    /// The runtime's wall clock says vehicle `i`'s client timer `timer`
+    /// (started at `started_s`) ran out: the autopilot acts on it at the
+    /// current instant if it still runs ([`Autopilot::client_timeout`]).
+    pub fn client_timeout(&mut self, i: usize, timer: ClientTimer, started_s: f64) -> bool {
+        let readings = self.world.sense(i);
+        self.pilots[i].client_timeout(timer, started_s, readings)
     }
 
     /// Vehicle `i`'s mission items reached since the last call, oldest first.

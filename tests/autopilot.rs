@@ -1148,3 +1148,60 @@ fn slow_climbs_are_takeoffs() {
     assert_eq!(t.landed, LandedState::InAir);
     assert!((t.position_ned.z - z).abs() < 0.05, "{} vs {z}", t.position_ned.z);
 }
+
+/// Above real-time speed the runtime times the timers that wait for a client
+/// on the wall clock: the core then never fires them on simulated time, and
+/// acts only on the runtime's expiry events — for the timer still running.
+#[test]
+fn client_timers_on_the_wall_clock_fire_only_on_the_runtimes_event() {
+    use rotorpilot::autopilot::{ClientClock, ClientTimer};
+    let (mut ap, _) = setup("quad", &[]);
+    ap.0.pilot_mut(0).set_client_clock(ClientClock::Wall);
+    ap.step();
+    ap.command(AutopilotCommand::Arm { force: false });
+    let armed_at = ap.time_s();
+    // 30 s of simulated time: COM_DISARM_PRFLT (10 s) is a wall-clock timer now
+    run(&mut ap, 30.0);
+    assert!(ap.armed(), "disarmed on simulated time");
+    let pending = ap.0.pilot(0).client_timers();
+    assert_eq!(pending.len(), 1);
+    assert_eq!(
+        (pending[0].timer, pending[0].started_s, pending[0].duration_s),
+        (ClientTimer::PreflightDisarm, armed_at, 10.0)
+    );
+    // a stale event (another arming's timer) changes nothing
+    assert!(!ap.0.client_timeout(0, ClientTimer::PreflightDisarm, armed_at + 1.0));
+    assert!(ap.armed());
+    assert!(ap.0.client_timeout(0, ClientTimer::PreflightDisarm, armed_at));
+    assert!(!ap.armed());
+    assert!(has(&texts(&mut ap), "preflight"));
+
+    // offboard: the stream's freshness is the runtime's to judge
+    take_off(&mut ap);
+    let here = ap.telemetry().position_ned;
+    let last = stream(&mut ap, 0.5, position_sp(here, 0.0));
+    assert_eq!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::Offboard)),
+        CommandOutcome::Accepted
+    );
+    run(&mut ap, 20.0);
+    assert_eq!(ap.mode(), FlightMode::Offboard, "left offboard on simulated time");
+    let t = ap.0.pilot(0).client_timers();
+    assert!(
+        t.iter()
+            .any(|p| p.timer == ClientTimer::OffboardLoss && p.started_s == last),
+        "{t:?}"
+    );
+    assert!(ap.0.client_timeout(0, ClientTimer::OffboardLoss, last));
+    assert_eq!(ap.mode(), FlightMode::Hold);
+    // lost: OFFBOARD is refused until a new setpoint arrives
+    assert!(matches!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::Offboard)),
+        CommandOutcome::TemporarilyRejected(_)
+    ));
+    assert_eq!(ap.command(position_sp(here, 0.0)), CommandOutcome::Accepted);
+    assert_eq!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::Offboard)),
+        CommandOutcome::Accepted
+    );
+}

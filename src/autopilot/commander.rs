@@ -100,9 +100,7 @@ impl Autopilot {
             return Some("home position invalid");
         }
         match self.navigator.nav {
-            Nav::Offboard if !self.navigator.offboard_fresh(m.time_s, self.settings.offboard_loss_s) => {
-                Some("no offboard signal")
-            }
+            Nav::Offboard if !self.offboard_fresh(m.time_s) => Some("no offboard signal"),
             Nav::Mission if self.plans.get(MissionType::Mission).is_empty() => Some("no valid mission"),
             Nav::Hold { .. } | Nav::Offboard | Nav::Mission => None,
             Nav::Takeoff { .. } | Nav::Land { .. } | Nav::Rtl { .. } => Some("flight mode not armable"),
@@ -216,7 +214,7 @@ impl Autopilot {
             FlightMode::Land => self.land(m),
             FlightMode::ReturnToLaunch => self.return_to_launch(m),
             FlightMode::Offboard => {
-                if self.navigator.offboard_fresh(m.time_s, self.settings.offboard_loss_s) {
+                if self.offboard_fresh(m.time_s) {
                     self.navigator.enter_offboard();
                     CommandOutcome::Accepted
                 } else {

@@ -86,6 +86,7 @@ mod stack;
 mod telemetry;
 
 pub use control_loop::{ControlLoop, ControlLoopError, ControlOutput, Demand};
+pub use failsafe::{ClientClock, ClientTimer, PendingTimer};
 pub use navigator::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};
 pub use stack::{Autopilot, AutopilotError};
 pub use telemetry::{LandedState, MissionState, MissionStatus, Telemetry, VehicleType};

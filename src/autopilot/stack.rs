@@ -11,7 +11,7 @@ use super::land_detector::{LandDetector, LandEvent};
 use super::navigator::Navigator;
 use super::settings::Settings;
 use super::telemetry::{Telemetry, VehicleType};
-use super::{Announcements, Severity, StatusText};
+use super::{Announcements, ClientClock, Severity, StatusText};
 use crate::airframe::{Actuation, Airframe};
 use crate::control::{ControlGains, ControllerKind, GainError, ShaperError, ShaperLimits};
 use crate::estimation::{Discretization, EstimatorConfig, EstimatorError, MomentumEstimator};
@@ -125,6 +125,8 @@ pub struct Autopilot {
     pub(super) say: Announcements,
     /// The stored mission, geofence and rally points.
     pub(super) plans: Plans,
+    /// The clock of the timers that wait for a client.
+    pub(super) client_clock: ClientClock,
 }
 
 impl Autopilot {
@@ -167,6 +169,7 @@ impl Autopilot {
             now_s: 0.0,
             say: Announcements::default(),
             plans: Plans::default(),
+            client_clock: ClientClock::Simulated,
         };
         ap.apply_params(params)?;
         Ok(ap)

@@ -41,7 +41,7 @@ use tokio::time::Instant;
 use tracing::{info, warn};
 
 use crate::airframe::Airframe;
-use crate::autopilot::Autopilot;
+use crate::autopilot::{Autopilot, ClientClock};
 use crate::link::streams::Identity;
 use crate::link::{Link, LinkConfig};
 use crate::lockstep::Lockstep;
@@ -90,8 +90,12 @@ pub async fn bind(config: Config) -> anyhow::Result<Daemon> {
     };
     // PX4 SITL's rcS sets MAV_SYS_ID to instance + 1 at every start.
     let _ = params.set("MAV_SYS_ID", ParamValue::Int32(i32::from(config.system_id())));
-    let core = Lockstep::one_vehicle(&airframe, config.home, &params, SensorConfig::default())
+    let mut core = Lockstep::one_vehicle(&airframe, config.home, &params, SensorConfig::default())
         .with_context(|| format!("starting the autopilot on {}", airframe.source))?;
+    if config.speed > 1.0 {
+        // faster than real time: timers that wait for a client run on the wall clock
+        core.pilot_mut(sim_thread::VEHICLE).set_client_clock(ClientClock::Wall);
+    }
     let mut sockets = Vec::new();
     for spec in &config.links {
         let s = UdpSocket::bind(spec.bind).await.with_context(|| {
@@ -206,6 +210,7 @@ impl Daemon {
             speed: config.speed,
             tick: config.tick,
             plans_changed: Arc::new(Notify::new()),
+            wall_timers: Vec::new(),
         };
         let (sim_done_tx, sim_done_rx) = oneshot::channel::<()>();
         let sim_thread = std::thread::Builder::new()

@@ -16,7 +16,9 @@ use tokio::sync::{Notify, broadcast, oneshot, watch};
 use tracing::{debug, info, warn};
 
 use super::saver::lock;
-use crate::autopilot::{Autopilot, AutopilotCommand, CommandOutcome, PowerAction, Severity, StatusText};
+use crate::autopilot::{
+    Autopilot, AutopilotCommand, ClientClock, CommandOutcome, PendingTimer, PowerAction, Severity, StatusText,
+};
 use crate::lockstep::{Lockstep, Snapshot};
 use crate::mission::{MissionResult, PlanChange};
 use crate::params::{ParamStore, ParamValue};
@@ -72,6 +74,9 @@ pub(super) struct Sim {
     pub(super) tick: Duration,
     /// Notified after every accepted plan change (the plan saver writes the file).
     pub(super) plans_changed: Arc<Notify>,
+    /// The client timers being timed on the wall clock (above real-time speed):
+    /// each with the simulated instant it started and the wall instant it was first seen.
+    pub(super) wall_timers: Vec<(PendingTimer, Instant)>,
 }
 
 impl Sim {
@@ -138,8 +143,41 @@ impl Sim {
         }
     }
 
+    /// Above real-time speed, time the autopilot's client timers on the wall
+    /// clock and report each expiry to it (module doc of `autopilot::failsafe`).
+    fn time_client_timers(&mut self) {
+        if self.core.pilot(VEHICLE).client_clock() != ClientClock::Wall {
+            return;
+        }
+        let now = Instant::now();
+        let pending = self.core.pilot(VEHICLE).client_timers();
+        self.wall_timers.retain(|(t, _)| {
+            pending
+                .iter()
+                .any(|p| p.timer == t.timer && p.started_s.to_bits() == t.started_s.to_bits())
+        });
+        for p in pending {
+            let seen = self
+                .wall_timers
+                .iter()
+                .find(|(t, _)| t.timer == p.timer)
+                .map(|(_, at)| *at);
+            match seen {
+                None => self.wall_timers.push((p, now)),
+                Some(at) if now.duration_since(at).as_secs_f64() >= p.duration_s => {
+                    if self.core.client_timeout(VEHICLE, p.timer, p.started_s) {
+                        debug!(timer = ?p.timer, "client timer ran out on the wall clock");
+                    }
+                    self.wall_timers.retain(|(t, _)| t.timer != p.timer);
+                }
+                Some(_) => {}
+            }
+        }
+    }
+
     /// Publish the snapshot and the status texts.
     pub(super) fn publish(&mut self) {
+        self.time_client_timers();
         self.tel.send_replace(self.core.snapshot(VEHICLE));
         for s in self.core.drain_status_texts(VEHICLE) {
             info!(text = %s.text, "status");

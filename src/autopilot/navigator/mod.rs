@@ -137,6 +137,8 @@ pub(super) struct Navigator {
     cruise_override: Option<f64>,
     /// Latest offboard setpoint (resolved to local NED) and its arrival time [s].
     offboard: Option<(LocalSetpoint, f64)>,
+    /// The runtime declared it lost (wall-clock timing, [`ClientClock::Wall`]).
+    offboard_lost: bool,
     /// Attitude target integrated from body-rate setpoints.
     rate_target: Option<UnitQuaternion<f64>>,
     /// Where the mission stands (kept while other modes fly: pause and resume).
@@ -159,6 +161,7 @@ impl Navigator {
             shaper_live: false,
             cruise_override: None,
             offboard: None,
+            offboard_lost: false,
             rate_target: None,
             mission: MissionRun::default(),
         })

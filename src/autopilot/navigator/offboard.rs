@@ -11,6 +11,7 @@
 use nalgebra::{Rotation3, UnitQuaternion, Vector3};
 
 use super::{Nav, Navigator, Situation};
+use crate::autopilot::ClientClock;
 use crate::autopilot::TIME_EPS;
 use crate::autopilot::control_loop::Demand;
 use crate::control::{Reference, Setpoint, ShaperLimits, TranslationSetpoint, YawSetpoint};
@@ -249,11 +250,27 @@ impl Navigator {
             self.rate_target = None;
         }
         self.offboard = Some((sp, now));
+        self.offboard_lost = false;
     }
 
-    /// Whether a setpoint arrived within `loss_s` [s] of `now`.
-    pub(in crate::autopilot) fn offboard_fresh(&self, now: f64, loss_s: f64) -> bool {
-        self.offboard.is_some_and(|(_, t)| now - t <= loss_s + TIME_EPS)
+    /// Whether a setpoint arrived within `loss_s` [s] of `now` (simulated
+    /// time), or, when the runtime times the link on the wall clock, whether
+    /// a setpoint exists that the runtime has not declared lost.
+    pub(in crate::autopilot) fn offboard_fresh(&self, now: f64, loss_s: f64, clock: ClientClock) -> bool {
+        match clock {
+            ClientClock::Simulated => self.offboard.is_some_and(|(_, t)| now - t <= loss_s + TIME_EPS),
+            ClientClock::Wall => self.offboard.is_some() && !self.offboard_lost,
+        }
+    }
+
+    /// When the latest setpoint arrived [s], unless declared lost.
+    pub(in crate::autopilot) fn offboard_arrival(&self) -> Option<f64> {
+        self.offboard.filter(|_| !self.offboard_lost).map(|(_, t)| t)
+    }
+
+    /// The runtime declared the setpoint stream lost (wall clock).
+    pub(in crate::autopilot) fn offboard_timed_out(&mut self) {
+        self.offboard_lost = true;
     }
 
     /// Follow the setpoints.

@@ -112,9 +112,12 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// Fly a scenario file flat out in lockstep and print a summary.
+    /// Fly a scenario or a mission flat out in lockstep and print a summary
+    /// (for a mission: each item reached, when and how far off, and a
+    /// pass/fail verdict; the exit status is 1 on fail).
     Simulate {
-        /// Scenario TOML (see tools/scenarios/).
+        /// Scenario TOML (see tools/scenarios/), a TOML with a [mission]
+        /// table, a QGroundControl .plan or a QGC WPL 110 file.
         scenario: std::path::PathBuf,
         /// Print the summary as one JSON object.
         #[arg(long)]
@@ -277,13 +280,31 @@ async fn shutdown_signal() {
 fn simulate(path: &std::path::Path, json: bool, csv: Option<&std::path::Path>) -> anyhow::Result<()> {
     use anyhow::Context as _;
     use std::io::Write as _;
-    let scenario = crate::scenario::Scenario::from_file(path)?;
     let mut writer = match csv {
         Some(p) => Some(std::io::BufWriter::new(
             std::fs::File::create(p).with_context(|| format!("cannot create {}", p.display()))?,
         )),
         None => None,
     };
+    if crate::scenario::is_mission(path) {
+        let flight = crate::scenario::MissionFlight::from_file(path)?;
+        let start = std::time::Instant::now();
+        let mut summary = crate::scenario::run_mission(&flight, writer.as_mut().map(|w| w as &mut dyn std::io::Write))?;
+        summary.wall_time_s = start.elapsed().as_secs_f64();
+        if let Some(mut w) = writer {
+            w.flush().context("writing the CSV")?;
+        }
+        if json {
+            println!("{}", serde_json::to_string_pretty(&summary)?);
+        } else {
+            print!("{}", summary.to_text());
+        }
+        if summary.verdict != "pass" {
+            std::process::exit(1);
+        }
+        return Ok(());
+    }
+    let scenario = crate::scenario::Scenario::from_file(path)?;
     let start = std::time::Instant::now();
     let mut summary = crate::scenario::run(&scenario, writer.as_mut().map(|w| w as &mut dyn std::io::Write))?;
     summary.wall_time_s = start.elapsed().as_secs_f64();

@@ -23,6 +23,8 @@ use std::sync::Arc;
 
 use serde::{Deserialize, Serialize};
 
+use crate::geo::GeoPoint;
+
 /// Most items a plan of any type may hold; a longer upload gets NO_SPACE.
 pub const MAX_ITEMS: usize = 20_000;
 
@@ -380,6 +382,31 @@ impl MissionItem {
     #[must_use]
     pub fn y_f32(&self) -> f32 {
         self.y as f32
+    }
+
+    /// The item's point — latitude, longitude and altitude AMSL, the relative
+    /// frames above `home_alt_amsl_m` (terrain is flat: above home too) —
+    /// or `None` when it has none (not positional, or NaN latitude/longitude: "here").
+    #[must_use]
+    pub fn geo_point(&self, home_alt_amsl_m: f64) -> Option<GeoPoint> {
+        if !self.has_position() || self.x.is_nan() || self.y.is_nan() {
+            return None;
+        }
+        Some(GeoPoint {
+            lat_deg: self.x,
+            lon_deg: self.y,
+            alt_amsl_m: self.alt_amsl(home_alt_amsl_m),
+        })
+    }
+
+    /// The altitude AMSL [m] of `z` in the item's frame (relative frames above `home_alt_amsl_m`).
+    #[must_use]
+    pub fn alt_amsl(&self, home_alt_amsl_m: f64) -> f64 {
+        if frame::is_relative(self.frame) {
+            home_alt_amsl_m + f64::from(self.z)
+        } else {
+            f64::from(self.z)
+        }
     }
 
     /// Whether the command flies to or marks a position (x, y, z are a point).

@@ -9,9 +9,11 @@
 //! duration. See `tools/scenarios/` for examples. Errors name the file, the
 //! field and the problem.
 
+mod mission;
 mod run;
 mod trajectory;
 
+pub use mission::{ItemResult, MissionFlight, MissionSummary, is_mission, mission_lockstep, run_mission};
 pub use run::{ScenarioPilot, Summary, lockstep, run};
 pub use trajectory::Trajectory;
 

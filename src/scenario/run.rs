@@ -132,7 +132,7 @@ impl Pilot for ScenarioPilot<'_> {
     }
 }
 
-fn csv_header(n: usize) -> String {
+pub(super) fn csv_header(n: usize) -> String {
     let mut h = String::from(
         "time_s,pos_n,pos_e,pos_d,vel_n,vel_e,vel_d,roll,pitch,yaw,roll_rate,pitch_rate,yaw_rate,p_frd,q_frd,r_frd,\
          true_pos_n,true_pos_e,true_pos_d,true_vel_n,true_vel_e,true_vel_d,ref_n,ref_e,ref_d,ref_yaw,\
@@ -147,7 +147,7 @@ fn csv_header(n: usize) -> String {
     h
 }
 
-fn csv_row(rec: &StepRecord<'_>, n: usize) -> String {
+pub(super) fn csv_row(rec: &StepRecord<'_>, n: usize) -> String {
     let (m, r, w) = (rec.measurement, rec.control, rec.world);
     // the report's inputs exactly as the estimator derives them (eta, eta_dot = Q^-1 omega)
     let input = input_from(m, &r.applied);

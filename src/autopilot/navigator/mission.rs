@@ -39,7 +39,7 @@ use crate::autopilot::control_loop::Demand;
 use crate::autopilot::{Announcements, Severity};
 use crate::control::{Reference, Setpoint, TranslationSetpoint, YawSetpoint};
 use crate::geo::GeoPoint;
-use crate::mission::{MissionItem, cmd, frame};
+use crate::mission::{MissionItem, cmd};
 
 /// Items done at once are at most this many per step (a DO_JUMP loop of DO items cannot hang the step).
 const MAX_INSTANT_ITEMS: usize = 64;
@@ -167,20 +167,10 @@ pub(in crate::autopilot) fn item_point_ned(
     home: &GeoPoint,
     here: &Vector3<f64>,
 ) -> Vector3<f64> {
-    let alt_amsl = if frame::is_relative(item.frame) {
-        home.alt_amsl_m + f64::from(item.z)
-    } else {
-        f64::from(item.z)
-    };
-    if item.x.is_nan() && item.y.is_nan() {
-        return Vector3::new(here.x, here.y, origin.alt_amsl_m - alt_amsl);
+    match item.geo_point(home.alt_amsl_m) {
+        Some(g) => g.ned_from(origin),
+        None => Vector3::new(here.x, here.y, origin.alt_amsl_m - item.alt_amsl(home.alt_amsl_m)),
     }
-    GeoPoint {
-        lat_deg: item.x,
-        lon_deg: item.y,
-        alt_amsl_m: alt_amsl,
-    }
-    .ned_from(origin)
 }
 
 /// The point `lookahead` [m] along `path` ahead of the projection of `p` on
@@ -277,11 +267,7 @@ impl Navigator {
                         SetHome::At(GeoPoint {
                             lat_deg: it.x,
                             lon_deg: it.y,
-                            alt_amsl_m: if frame::is_relative(it.frame) {
-                                cx.home.alt_amsl_m + f64::from(it.z)
-                            } else {
-                                f64::from(it.z)
-                            },
+                            alt_amsl_m: it.alt_amsl(cx.home.alt_amsl_m),
                         })
                     });
                     self.mission.next();

@@ -1,0 +1,542 @@
+//! Missions flown headless: `rotorpilot simulate` on a QGroundControl
+//! `.plan`, a QGC WPL 110 file, or a scenario TOML with a `[mission]`
+//! table. The flight stack flies it exactly as it does over MAVLink (the
+//! same [`Autopilot`] in the same lockstep core, the items stored as a
+//! client would upload them: global coordinates in degE7, as MAVSDK and
+//! MAVProxy send them), flat out, and the run ends in a verdict.
+//!
+//! ```toml
+//! airframe = "quad"            # built-in name or TOML path (default quad)
+//! duration_s = 600             # the time limit [s] (default 1800)
+//! home = [47.397742, 8.545594, 488.0]   # lat, lon [deg], alt AMSL [m] (default PX4's SITL home)
+//! seed = 0                     # sensor noise seed ([noise] as in other scenarios)
+//!
+//! [params]                     # PX4 parameters by name
+//! MPC_XY_CRUISE = 8.0
+//!
+//! [mission]
+//! file = "survey.plan"         # relative to this file; or the items below
+//! max_tracking_error_m = 3.0   # pass only below this (optional)
+//!
+//! [[mission.item]]             # MISSION_ITEM_INT's fields, x/y in degrees
+//! command = 22                 # NAV_TAKEOFF
+//! frame = 3                    # default: 3 with a position, else 2
+//! params = [nan, nan, nan, nan]  # default all NaN (unset, as MAVSDK)
+//! x = 47.397742
+//! y = 8.545594
+//! z = 10.0
+//! ```
+//!
+//! The flight: the plans stored, the vehicle armed once its prearm checks
+//! pass, MISSION_START from item 0 (pymavlink's `set_mode_auto`), stepped
+//! until the mission is complete and the vehicle holds (or, when it ends
+//! on the ground, is disarmed), or the time limit. **Pass** when the mission
+//! completed, every positional item was reached, the vehicle stayed upright
+//! and finite, a mission that lands ended disarmed on the ground, and the
+//! tracking error (true position against the shaped reference, in the
+//! air) stayed under `max_tracking_error_m` if given.
+
+use std::io::Write;
+use std::path::Path;
+
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+
+use super::run::{csv_header, csv_row};
+use crate::airframe::Airframe;
+use crate::autopilot::{Autopilot, AutopilotCommand, CommandOutcome, LandedState, MissionState};
+use crate::geo::GeoPoint;
+use crate::lockstep::Lockstep;
+use crate::mission::file::{PlanFile, load_mission_file};
+use crate::mission::{MissionItem, MissionType, PlanChange, cmd, frame};
+use crate::params::{ParamStore, ParamValue};
+use crate::sim::{SensorConfig, SensorNoise};
+use crate::tomlfile::{self, FileError};
+
+/// Default time limit [s].
+const DEFAULT_DURATION_S: f64 = 1800.0;
+/// A mission that ends in the air is over this long [s] after it completes (to see it hold).
+const SETTLE_S: f64 = 1.0;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct File {
+    #[serde(default = "default_airframe")]
+    airframe: String,
+    #[serde(default = "default_duration")]
+    duration_s: f64,
+    home: Option<[f64; 3]>,
+    #[serde(default)]
+    seed: u64,
+    #[serde(default)]
+    noise: SensorNoise,
+    #[serde(default)]
+    params: toml::Table,
+    mission: FileMission,
+}
+
+fn default_airframe() -> String {
+    "quad".into()
+}
+
+fn default_duration() -> f64 {
+    DEFAULT_DURATION_S
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileMission {
+    file: Option<String>,
+    #[serde(default, rename = "item")]
+    items: Vec<FileItem>,
+    max_tracking_error_m: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileItem {
+    command: u16,
+    frame: Option<u8>,
+    params: Option<[f32; 4]>,
+    x: Option<f64>,
+    y: Option<f64>,
+    z: Option<f32>,
+    #[serde(default = "yes")]
+    autocontinue: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+/// A mission flight, ready to fly.
+#[derive(Clone, Debug)]
+pub struct MissionFlight {
+    /// Where it came from (labels the summary).
+    pub source: String,
+    /// The vehicle.
+    pub airframe: Airframe,
+    /// Home and NED origin.
+    pub home: GeoPoint,
+    /// Parameters.
+    pub params: ParamStore,
+    /// Sensor noise and seed.
+    pub sensors: SensorConfig,
+    /// Mission, geofence and rally points, as a client would upload them.
+    pub plans: PlanFile,
+    /// Time limit [s].
+    pub duration_s: f64,
+    /// Pass only below this tracking error [m].
+    pub max_tracking_error_m: Option<f64>,
+}
+
+/// Whether `path` names a mission rather than a scenario: a `.plan`, a WPL
+/// file, or a TOML with a `[mission]` table.
+#[must_use]
+pub fn is_mission(path: &Path) -> bool {
+    match path.extension().and_then(|e| e.to_str()) {
+        Some("toml") => std::fs::read_to_string(path)
+            .ok()
+            .and_then(|t| t.parse::<toml::Table>().ok())
+            .is_some_and(|t| t.contains_key("mission")),
+        _ => true,
+    }
+}
+
+/// A global item's x/y as a client sends them (degE7, MISSION_ITEM_INT).
+fn quantised(frame: u8, x: f64, y: f64) -> (f64, f64) {
+    if frame::is_global(frame) && x.is_finite() && y.is_finite() {
+        MissionItem::xy_from_int(frame, (x * 1e7).round() as i32, (y * 1e7).round() as i32)
+    } else {
+        (x, y)
+    }
+}
+
+impl MissionFlight {
+    /// A `.plan` or WPL file flown on `quad` with default parameters, or a
+    /// TOML mission flight.
+    ///
+    /// # Errors
+    /// The file, the field and the problem.
+    pub fn from_file(path: &Path) -> anyhow::Result<Self> {
+        if path.extension().and_then(|e| e.to_str()) == Some("toml") {
+            let text = tomlfile::read(path)?;
+            return Self::from_toml(&text, &path.display().to_string(), path.parent());
+        }
+        let plans = load_mission_file(path)?;
+        let airframe = Airframe::load("quad")?;
+        Ok(Self {
+            source: path.display().to_string(),
+            params: ParamStore::new(&airframe),
+            airframe,
+            home: GeoPoint::PX4_SITL_HOME,
+            sensors: SensorConfig::default(),
+            plans,
+            duration_s: DEFAULT_DURATION_S,
+            max_tracking_error_m: None,
+        })
+    }
+
+    /// A TOML mission flight (`file` labels errors, `dir` resolves relative paths).
+    ///
+    /// # Errors
+    /// The file, the field and the problem.
+    pub fn from_toml(text: &str, file: &str, dir: Option<&Path>) -> anyhow::Result<Self> {
+        let raw: File = tomlfile::parse(text, file)?;
+        let fail = |field: &str, problem: String| FileError::invalid(file, field, problem);
+        let rel = |p: &str| match dir {
+            Some(d) if !Path::new(p).is_absolute() => d.join(p),
+            _ => Path::new(p).to_path_buf(),
+        };
+        let airframe_spec = if raw.airframe.ends_with(".toml") {
+            rel(&raw.airframe).display().to_string()
+        } else {
+            raw.airframe.clone()
+        };
+        let airframe = Airframe::load(&airframe_spec).map_err(|e| fail("airframe", e.to_string()))?;
+        if !(raw.duration_s.is_finite() && raw.duration_s > 0.0 && raw.duration_s <= 86_400.0) {
+            return Err(fail("duration_s", format!("must be in (0, 86400] s, got {}", raw.duration_s)).into());
+        }
+        let home = match raw.home {
+            Some([lat_deg, lon_deg, alt_amsl_m]) => GeoPoint {
+                lat_deg,
+                lon_deg,
+                alt_amsl_m,
+            },
+            None => GeoPoint::PX4_SITL_HOME,
+        };
+        if !home.is_valid() {
+            return Err(fail("home", format!("{:?} is not a valid position", raw.home)).into());
+        }
+        let mut params = ParamStore::new(&airframe);
+        for (name, v) in &raw.params {
+            let value = match v {
+                toml::Value::Integer(i) => ParamValue::Int32(
+                    i32::try_from(*i).map_err(|_| fail(&format!("params.{name}"), "out of range".into()))?,
+                ),
+                toml::Value::Float(f) => ParamValue::Real32(*f as f32),
+                _ => return Err(fail(&format!("params.{name}"), "must be a number".into()).into()),
+            };
+            // a float given for an integer parameter (or the reverse) is converted if exact
+            let value = match (params.get(name).map(|(_, v)| v), value) {
+                (Some(ParamValue::Int32(_)), ParamValue::Real32(f)) if f.fract() == 0.0 => ParamValue::Int32(f as i32),
+                (Some(ParamValue::Real32(_)), ParamValue::Int32(i)) => ParamValue::Real32(i as f32),
+                (_, v) => v,
+            };
+            params
+                .set(name, value)
+                .map_err(|e| fail(&format!("params.{name}"), e.to_string()))?;
+        }
+        let m = &raw.mission;
+        let plans = match (&m.file, m.items.is_empty()) {
+            (Some(_), false) => {
+                return Err(fail("mission", "give either `file` or `[[mission.item]]`, not both".into()).into());
+            }
+            (Some(f), true) => load_mission_file(&rel(f))?,
+            (None, true) => return Err(fail("mission", "no `file` and no `[[mission.item]]`".into()).into()),
+            (None, false) => {
+                let mut items = Vec::new();
+                for (k, it) in m.items.iter().enumerate() {
+                    let has_xy = it.x.is_some() || it.y.is_some();
+                    let fr = it.frame.unwrap_or(if has_xy {
+                        frame::GLOBAL_RELATIVE_ALT
+                    } else {
+                        frame::MISSION
+                    });
+                    let (x, y) = quantised(fr, it.x.unwrap_or(f64::NAN), it.y.unwrap_or(f64::NAN));
+                    let item = MissionItem {
+                        frame: fr,
+                        command: it.command,
+                        autocontinue: it.autocontinue,
+                        params: it.params.unwrap_or([f32::NAN; 4]),
+                        x,
+                        y,
+                        z: it.z.unwrap_or(0.0),
+                    };
+                    crate::mission::validate(MissionType::Mission, &item)
+                        .map_err(|r| fail(&format!("mission.item[{k}]"), r.reason().to_string()))?;
+                    items.push(item);
+                }
+                PlanFile {
+                    mission: items,
+                    ..PlanFile::default()
+                }
+            }
+        };
+        if plans.mission.is_empty() {
+            return Err(fail("mission", "the mission has no items".into()).into());
+        }
+        if let Some(e) = m.max_tracking_error_m
+            && !(e.is_finite() && e > 0.0)
+        {
+            return Err(fail("mission.max_tracking_error_m", format!("must be positive, got {e}")).into());
+        }
+        Ok(Self {
+            source: file.to_string(),
+            airframe,
+            home,
+            params,
+            sensors: SensorConfig {
+                noise: raw.noise,
+                seed: raw.seed,
+            },
+            plans,
+            duration_s: raw.duration_s,
+            max_tracking_error_m: m.max_tracking_error_m,
+        })
+    }
+}
+
+/// One item of the mission as flown.
+#[derive(Clone, Debug, Serialize)]
+pub struct ItemResult {
+    /// MAVLink seq.
+    pub seq: u16,
+    /// MAV_CMD.
+    pub command: u16,
+    /// When it was first reached [s] (`None`: never; items done at once are not reported).
+    pub reached_s: Option<f64>,
+    /// How often it was reached (DO_JUMP loops).
+    pub times_reached: u32,
+    /// Distance [m] from the true position to the item's point when first reached (positional items).
+    pub distance_m: Option<f64>,
+}
+
+/// What `rotorpilot simulate` prints for a mission.
+#[derive(Clone, Debug, Serialize)]
+pub struct MissionSummary {
+    /// The file flown.
+    pub scenario: String,
+    /// Airframe name.
+    pub airframe: String,
+    /// "pass" or "fail".
+    pub verdict: &'static str,
+    /// Why it failed (empty when it passed).
+    pub reasons: Vec<String>,
+    /// The mission completed.
+    pub complete: bool,
+    /// Per item.
+    pub items: Vec<ItemResult>,
+    /// From MISSION_START to the end of the flight [s].
+    pub mission_time_s: f64,
+    /// Simulated time [s].
+    pub sim_time_s: f64,
+    /// Wall time [s] (filled in by the caller).
+    pub wall_time_s: f64,
+    /// Max distance [m] from the shaped reference, in the air.
+    pub max_tracking_error_m: f64,
+    /// RMS distance [m] from the shaped reference, in the air.
+    pub rms_tracking_error_m: f64,
+    /// Final true position [m], NED.
+    pub final_position_ned: [f64; 3],
+    /// Ended disarmed on the ground.
+    pub landed_and_disarmed: bool,
+    /// Tilt below 90 degrees throughout.
+    pub upright: bool,
+    /// No NaN or infinity.
+    pub finite: bool,
+}
+
+/// Whether a mission ends on the ground (its last item lands or returns).
+fn ends_on_ground(items: &[MissionItem]) -> bool {
+    items
+        .iter()
+        .rev()
+        .find(|i| i.command != cmd::DO_JUMP && !cmd::NO_OPS.contains(&i.command) && i.command != cmd::DO_CHANGE_SPEED)
+        .is_some_and(|i| matches!(i.command, cmd::NAV_LAND | cmd::NAV_RETURN_TO_LAUNCH))
+}
+
+/// The lockstep core with the flight's plans stored, at `t = 0`.
+///
+/// # Errors
+/// Parameters the autopilot refuses, or a plan it refuses (with the item).
+pub fn mission_lockstep(f: &MissionFlight) -> anyhow::Result<Lockstep<Autopilot>> {
+    let mut core = Lockstep::one_vehicle(&f.airframe, f.home, &f.params, f.sensors)?;
+    for (kind, items) in [
+        (MissionType::Mission, &f.plans.mission),
+        (MissionType::Fence, &f.plans.fence),
+        (MissionType::Rally, &f.plans.rally),
+    ] {
+        if items.is_empty() {
+            continue;
+        }
+        core.change_plans(
+            0,
+            PlanChange::Store {
+                kind,
+                items: items.clone(),
+                base_id: None,
+            },
+        )
+        .map_err(|r| anyhow::anyhow!("{}: {} refused: {}", f.source, kind.name(), r.reason()))?;
+    }
+    Ok(core)
+}
+
+/// Fly the mission; `csv` receives the flight log (the format of
+/// `rotorpilot simulate --csv`) when given.
+///
+/// # Errors
+/// As [`mission_lockstep`], or a failed write to `csv`.
+#[allow(clippy::too_many_lines)]
+pub fn run_mission(f: &MissionFlight, mut csv: Option<&mut dyn Write>) -> anyhow::Result<MissionSummary> {
+    let mut core = mission_lockstep(f)?;
+    let n = f.airframe.rotor_count();
+    if let Some(w) = csv.as_deref_mut() {
+        writeln!(w, "{}", csv_header(n))?;
+    }
+    let items = &f.plans.mission;
+    let dt = core.dt_s();
+    let steps = (f.duration_s / dt).round() as u64;
+    let mut results: Vec<ItemResult> = items
+        .iter()
+        .enumerate()
+        .map(|(k, it)| ItemResult {
+            seq: u16::try_from(k).unwrap_or(u16::MAX),
+            command: it.command,
+            reached_s: None,
+            times_reached: 0,
+            distance_m: None,
+        })
+        .collect();
+    let lands = ends_on_ground(items);
+    let (mut started_s, mut complete_s) = (None, None);
+    let (mut sum_sq, mut n_air, mut max_err) = (0.0, 0u64, 0.0_f64);
+    let (mut upright, mut finite) = (true, true);
+    let mut k = 0;
+    while k < steps {
+        core.step();
+        k += 1;
+        let rec = core.last_step(0);
+        if let Some(w) = csv.as_deref_mut() {
+            writeln!(w, "{}", csv_row(&rec, n))?;
+        }
+        let truth = rec.world.truth;
+        let reference = rec.control.reference.position_ned;
+        upright &= (truth.attitude * Vector3::z()).z > 0.0;
+        finite &= truth.position_ned.iter().all(|x| x.is_finite());
+        if rec.world.fault.is_some() {
+            finite = false;
+            break;
+        }
+        let t = core.telemetry(0);
+        if t.landed == LandedState::InAir {
+            let e = (truth.position_ned - reference).norm();
+            sum_sq += e * e;
+            n_air += 1;
+            max_err = max_err.max(e);
+        }
+        for seq in core.drain_mission_reached(0) {
+            if let Some(r) = results.get_mut(usize::from(seq)) {
+                r.times_reached += 1;
+                if r.reached_s.is_none() {
+                    r.reached_s = Some(t.time_s);
+                    let it = &items[usize::from(seq)];
+                    r.distance_m = it
+                        .geo_point(f.home.alt_amsl_m)
+                        .map(|g| (core.world().plant(0).state().position_ned - g.ned_from(&f.home)).norm());
+                }
+            }
+        }
+        if started_s.is_none() && t.prearm_ok && !t.armed {
+            match core.command(0, AutopilotCommand::StartMission { first: Some(0) }) {
+                CommandOutcome::Accepted => started_s = Some(t.time_s),
+                other => anyhow::bail!("{}: the mission would not start: {other:?}", f.source),
+            }
+        }
+        if t.mission.state == MissionState::Complete && complete_s.is_none() {
+            complete_s = Some(t.time_s);
+        }
+        if let Some(c) = complete_s {
+            let over = if lands { !t.armed } else { t.time_s - c >= SETTLE_S };
+            if over {
+                break;
+            }
+        }
+    }
+    let t = core.telemetry(0);
+    let p = core.world().plant(0).state().position_ned;
+    let complete = complete_s.is_some();
+    let landed_and_disarmed = !t.armed && t.landed == LandedState::OnGround;
+    let mut reasons = Vec::new();
+    if !complete {
+        reasons.push(format!(
+            "the mission did not complete in {:.0} s (at item {} of {})",
+            f.duration_s, t.mission.seq, t.mission.total
+        ));
+    }
+    for r in &results {
+        if r.reached_s.is_none() && items[usize::from(r.seq)].geo_point(f.home.alt_amsl_m).is_some() {
+            reasons.push(format!("item {} (command {}) was never reached", r.seq, r.command));
+        }
+    }
+    if lands && complete && !landed_and_disarmed {
+        reasons.push("the mission ends on the ground but the vehicle did not land and disarm".into());
+    }
+    if !upright {
+        reasons.push("the vehicle tipped over".into());
+    }
+    if !finite {
+        reasons.push("the simulation stopped on a non-finite state".into());
+    }
+    if let Some(limit) = f.max_tracking_error_m
+        && max_err > limit
+    {
+        reasons.push(format!("tracking error {max_err:.3} m above the limit {limit} m"));
+    }
+    Ok(MissionSummary {
+        scenario: f.source.clone(),
+        airframe: f.airframe.name.clone(),
+        verdict: if reasons.is_empty() { "pass" } else { "fail" },
+        reasons,
+        complete,
+        items: results,
+        mission_time_s: started_s.map_or(0.0, |s| t.time_s - s),
+        sim_time_s: t.time_s,
+        wall_time_s: 0.0,
+        max_tracking_error_m: max_err,
+        rms_tracking_error_m: if n_air > 0 { (sum_sq / n_air as f64).sqrt() } else { 0.0 },
+        final_position_ned: [p.x, p.y, p.z],
+        landed_and_disarmed,
+        upright,
+        finite,
+    })
+}
+
+impl MissionSummary {
+    /// Human-readable rendering: one line per item, then the verdict.
+    #[must_use]
+    pub fn to_text(&self) -> String {
+        let mut s = format!(
+            "mission {} on {}: {} items, flew {:.1} s simulated ({:.1} s of mission) in {:.3} s wall\n",
+            self.scenario,
+            self.airframe,
+            self.items.len(),
+            self.sim_time_s,
+            self.mission_time_s,
+            self.wall_time_s
+        );
+        for r in &self.items {
+            let when = r.reached_s.map_or("          -".to_string(), |t| format!("{t:9.2} s"));
+            let off = r.distance_m.map_or(String::new(), |d| format!(", {d:.2} m off"));
+            let times = if r.times_reached > 1 {
+                format!(" ({} times)", r.times_reached)
+            } else {
+                String::new()
+            };
+            s.push_str(&format!(
+                "  item {:3} cmd {:5}: reached {when}{off}{times}\n",
+                r.seq, r.command
+            ));
+        }
+        s.push_str(&format!(
+            "tracking error: max {:.3} m, RMS {:.3} m; final position {:.2?} m NED; landed and disarmed: {}\n",
+            self.max_tracking_error_m, self.rms_tracking_error_m, self.final_position_ned, self.landed_and_disarmed
+        ));
+        s.push_str(&format!("verdict: {}\n", self.verdict.to_uppercase()));
+        for r in &self.reasons {
+            s.push_str(&format!("  - {r}\n"));
+        }
+        s
+    }
+}

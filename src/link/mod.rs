@@ -424,6 +424,9 @@ impl Link {
                     &MavMessage::TIMESYNC(TIMESYNC_DATA {
                         tc1: now_ns.max(1),
                         ts1: m.ts1,
+                        // PX4 aims the answer at the requester
+                        target_system: requester.0,
+                        target_component: requester.1,
                     }),
                 );
             }
@@ -535,6 +538,9 @@ pub fn status_text_msg(severity: Severity, text: &str) -> MavMessage {
     MavMessage::STATUSTEXT(STATUSTEXT_DATA {
         severity: sev,
         text: cut.into(),
+        // one chunk: id 0 (PX4 numbers only multi-chunk texts)
+        id: 0,
+        chunk_seq: 0,
     })
 }
 
@@ -553,6 +559,7 @@ pub fn autopilot_version(identity: Identity) -> MavMessage {
         flight_custom_version: [0; 8],
         middleware_custom_version: [0; 8],
         os_custom_version: [0; 8],
+        uid2: [0; 18],
     })
 }
 

@@ -341,6 +341,8 @@ pub fn build(stream: Stream, snapshot: &Snapshot, unix_time_us: u64) -> Vec<MavM
                 errors_count3: 0,
                 errors_count4: 0,
                 battery_remaining: battery_percent(t),
+                // MAVLink 2 extensions: not reported (zero, cut off the wire)
+                ..Default::default()
             })
         }
         Stream::SystemTime => MavMessage::SYSTEM_TIME(SYSTEM_TIME_DATA {
@@ -365,6 +367,8 @@ pub fn build(stream: Stream, snapshot: &Snapshot, unix_time_us: u64) -> Vec<MavM
                 GpsFix::Fix3d => GpsFixType::GPS_FIX_TYPE_3D_FIX,
             },
             satellites_visible: t.gps_satellites,
+            // MAVLink 2 extensions: not reported (zero, cut off the wire)
+            ..Default::default()
         }),
         Stream::Attitude => MavMessage::ATTITUDE(ATTITUDE_DATA {
             time_boot_ms: ms,
@@ -384,6 +388,8 @@ pub fn build(stream: Stream, snapshot: &Snapshot, unix_time_us: u64) -> Vec<MavM
             rollspeed: t.rate_frd.x as f32,
             pitchspeed: t.rate_frd.y as f32,
             yawspeed: t.rate_frd.z as f32,
+            // MAVLink 2 extensions: not reported (zero, cut off the wire)
+            ..Default::default()
         }),
         Stream::LocalPositionNed => MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA {
             time_boot_ms: ms,
@@ -436,6 +442,8 @@ pub fn build(stream: Stream, snapshot: &Snapshot, unix_time_us: u64) -> Vec<MavM
                 battery_function: MavBatteryFunction::MAV_BATTERY_FUNCTION_ALL,
                 mavtype: MavBatteryType::MAV_BATTERY_TYPE_LIPO,
                 battery_remaining: battery_percent(t),
+                // MAVLink 2 extensions: not reported (zero, cut off the wire)
+                ..Default::default()
             })
         }
         Stream::HomePosition => MavMessage::HOME_POSITION(home_position(t)),
@@ -508,6 +516,8 @@ pub fn home_position(t: &Telemetry) -> HOME_POSITION_DATA {
         approach_x: 0.0,
         approach_y: 0.0,
         approach_z: 0.0,
+        // MAVLink 2 extension: not reported (zero, cut off the wire)
+        ..Default::default()
     }
 }
 

@@ -263,7 +263,11 @@ fn mavlink1_and_timesync_and_ping() {
     let t0 = Instant::now();
     let mut l = link(t0);
     let p = FakeParams::standard();
-    let ts = MavMessage::TIMESYNC(TIMESYNC_DATA { tc1: 0, ts1: 12345 });
+    let ts = MavMessage::TIMESYNC(TIMESYNC_DATA {
+        tc1: 0,
+        ts1: 12345,
+        ..Default::default()
+    });
     let frame = wire::encode_v1(gcs(), 111, &wire::payload_v1(&ts));
     l.on_datagram(t0, addr(50000), &frame, &snapshot(), &p);
     let d = decoded(&l.drain());

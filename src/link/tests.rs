@@ -1,6 +1,5 @@
 //! Link-level tests: datagrams in, frames and effects out.
 
-use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::common::{
@@ -11,29 +10,9 @@ use mavlink::{MavHeader, MessageData};
 
 use super::param::ParamAccess as _;
 use super::param::fake::FakeParams;
-use super::testing::snapshot;
+use super::testing::{addr, link, snapshot};
 use super::wire::{self, CommandAck, CommandLong};
 use super::*;
-
-fn addr(p: u16) -> SocketAddr {
-    SocketAddr::from(([127, 0, 0, 1], p))
-}
-
-fn link(now: Instant) -> Link {
-    Link::new(
-        LinkConfig {
-            name: "test".into(),
-            identity: Identity {
-                system_id: 1,
-                component_id: 1,
-            },
-            default_remote: Some(addr(14540)),
-            rates: streams::api_rates(),
-            peer_timeout: Duration::from_secs(10),
-        },
-        now,
-    )
-}
 
 fn gcs() -> MavHeader {
     MavHeader {

@@ -172,10 +172,12 @@ pub struct Step {
 }
 
 impl Step {
+    /// Frames only.
     fn frames(out: Vec<Out>) -> Self {
         Self { out, plans: None }
     }
 
+    /// A plan change only.
     fn plans(ticket: PlanTicket, change: PlanChange) -> Self {
         Self {
             out: Vec::new(),
@@ -187,11 +189,17 @@ impl Step {
 /// The mission protocol state of one link.
 #[derive(Debug)]
 pub struct Missions {
+    /// Which item messages the link uses.
     mode: ItemMode,
+    /// The upload running, if any.
     upload: Upload,
+    /// The answer to the last upload's last item, for its repeat.
     answered: Option<Answered>,
+    /// The number of the last upload stored (tickets carry it).
     serial: u32,
+    /// MISSION_ITEM_REACHED to repeat.
     reached: Option<Reached>,
+    /// The last MISSION_CURRENT sent to every peer.
     reported: Option<MISSION_CURRENT_DATA>,
 }
 
@@ -214,32 +222,45 @@ enum Upload {
 /// An upload receiving its items.
 #[derive(Debug)]
 struct Transfer {
+    /// The uploader.
     partner: Partner,
+    /// The plan type.
     kind: MissionType,
+    /// MISSION_COUNT's count.
     count: u16,
     /// The items so far; the next expected seq is their number.
     items: Vec<MissionItem>,
     /// The stored plan's id when MISSION_COUNT arrived.
     base_id: u32,
+    /// When the last request went out (the next goes [`RETRY`] later).
     last_sent: Instant,
+    /// When the partner last spoke (the transfer ends [`TIMEOUT`] later).
     last_heard: Instant,
 }
 
 /// The MISSION_ACK that ended the last upload, and the item it answered.
 #[derive(Clone, Copy, Debug)]
 struct Answered {
+    /// The uploader.
     partner: Partner,
+    /// The plan type.
     kind: MissionType,
+    /// The item answered.
     seq: u16,
+    /// The answer.
     result: MavMissionResult,
+    /// The stored plan's id (0 unless accepted).
     opaque_id: u32,
 }
 
 /// MISSION_ITEM_REACHED repeats.
 #[derive(Clone, Copy, Debug)]
 struct Reached {
+    /// The item reached.
     seq: u16,
+    /// Repeats still to send.
     left: u8,
+    /// When the next is due.
     next: Instant,
 }
 
@@ -735,6 +756,7 @@ fn title(kind: MissionType) -> &'static str {
     }
 }
 
+/// MISSION_ACK to a client.
 fn ack(to: Partner, result: MavMissionResult, mission_type: MavMissionType, opaque_id: u32) -> Out {
     Out::Message(
         To::Peer(to.addr),
@@ -748,6 +770,7 @@ fn ack(to: Partner, result: MavMissionResult, mission_type: MavMissionType, opaq
     )
 }
 
+/// A warning STATUSTEXT to a client.
 fn text(to: Partner, text: String) -> Out {
     Out::Text(To::Peer(to.addr), Severity::Warning, text)
 }
@@ -773,6 +796,7 @@ fn request(tr: &Transfer, mode: ItemMode) -> Out {
     Out::Message(To::Peer(p.addr), Box::new(msg))
 }
 
+/// MISSION_ITEM_REACHED for every peer.
 fn item_reached(seq: u16) -> Out {
     Out::Message(
         To::All,

@@ -13,6 +13,7 @@
 //! | [`math`] | SO(3) helpers (hat, vee, ZYX Euler angles) and the RPY model matrices `Q`, `M`, `C` | nalgebra |
 //! | [`signals`] | what crosses between world and flight stack and between blocks: sensor readings, actuator commands, measurement, control wrench, nominal model, wrench estimate; gravity and the step | nalgebra |
 //! | [`tomlfile`] | TOML files to typed values, errors naming file, line/field and problem | serde, toml |
+//! | [`statefile`] | atomic replacement of the state directory's files (temp file, fsync, rename) | std |
 //! | [`geo`] | flat-earth NED <-> latitude/longitude/AMSL around home | nalgebra |
 //! | [`params`] | the parameter table (PX4 style, a typed [`params::Param`] per entry), store, validation, atomic persistence | `airframe` (types) |
 //! | [`airframe`] | vehicle description from `params/airframes/*.toml`, allocation, rotor-failure analysis, the `airframe` report | `math`, `signals`, `tomlfile` |
@@ -57,4 +58,5 @@ pub mod params;
 pub mod scenario;
 pub mod signals;
 pub mod sim;
+pub mod statefile;
 pub mod tomlfile;

@@ -28,7 +28,7 @@ forbid() {
 }
 forbid "tokio|mavlink::|std::time|SystemTime|Instant::now|thread_rng" \
     "a pure module reaches for a runtime, the protocol or a clock" \
-    src/math.rs src/signals.rs src/tomlfile.rs src/geo.rs src/params src/airframe src/sim src/control \
+    src/math.rs src/signals.rs src/tomlfile.rs src/statefile.rs src/geo.rs src/params src/airframe src/sim src/control \
     src/estimation src/autopilot src/lockstep.rs src/scenario src/flightlog.rs src/mission
 
 echo "== the flight stack sees only sensor readings: no plant, no world faults, no SIM_* truth"

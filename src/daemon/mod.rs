@@ -182,15 +182,16 @@ impl Daemon {
                 .map_or_else(|| "(whoever talks)".to_string(), |r| r.to_string());
             s.push_str(&format!("  {:<4} link: udp {local} -> {remote}\n", spec.name));
         }
-        s.push_str(&format!("  parameters: {}\n", c.params_path().display()));
         let plans = self.core.pilot(sim_thread::VEHICLE).plans();
         s.push_str(&format!(
-            "  plans: {} (mission {} items, fence {}, rally {})",
+            "  plans: {} (mission {} items, fence {}, rally {})\n",
             c.plans_path().display(),
             plans.get(MissionType::Mission).len(),
             plans.get(MissionType::Fence).len(),
             plans.get(MissionType::Rally).len()
         ));
+        // last: scripts read the summary up to this line (tests/daemon_runtime.rs)
+        s.push_str(&format!("  parameters: {}", c.params_path().display()));
         s
     }
 
@@ -323,7 +324,7 @@ impl Daemon {
         // the simulation thread publishes every plan change before it
         // answers it, so the last snapshot holds the plans in force
         let plans = tel_rx.borrow().plans.clone();
-        let plans_saved = plans_file.save(&plans);
+        let plans_saved = plans_file.save_final(&plans);
         if plans_saved.is_ok() {
             info!(path = %plans_file.path().display(), "plans saved");
         }

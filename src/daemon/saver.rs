@@ -51,19 +51,22 @@ pub(super) async fn saver(
     }
 }
 
-/// The plans file and the lock that keeps two writes of it (the saver's and
-/// the one at shutdown) from sharing its temporary file.
+/// The plans file, and the lock that keeps two writes of it (the saver's and
+/// the one at shutdown) from sharing its temporary file; it also remembers
+/// that the final write was made, so a saver write that was late (a task
+/// that did not stop in time) cannot put older plans over it.
 #[derive(Clone, Debug)]
 pub(super) struct PlansFile {
     path: PathBuf,
-    writing: Arc<Mutex<()>>,
+    /// Held while writing; true once the final write is done.
+    finished: Arc<Mutex<bool>>,
 }
 
 impl PlansFile {
     pub(super) fn new(path: PathBuf) -> Self {
         Self {
             path,
-            writing: Arc::new(Mutex::new(())),
+            finished: Arc::new(Mutex::new(false)),
         }
     }
 
@@ -71,9 +74,19 @@ impl PlansFile {
         &self.path
     }
 
-    /// Write `plans` (blocking: the file system).
+    /// Write `plans` (blocking: the file system), unless the final write was made.
     pub(super) fn save(&self, plans: &Plans) -> Result<(), MissionFileError> {
-        let _one_at_a_time = self.writing.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        let finished = self.finished.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        if *finished {
+            return Ok(());
+        }
+        save_plans(&self.path, plans)
+    }
+
+    /// The last write, at shutdown; later [`Self::save`] calls do nothing.
+    pub(super) fn save_final(&self, plans: &Plans) -> Result<(), MissionFileError> {
+        let mut finished = self.finished.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        *finished = true;
         save_plans(&self.path, plans)
     }
 }
@@ -171,6 +184,10 @@ mod tests {
             .await
             .unwrap()
             .unwrap();
+        // after the final write, a late save changes nothing
+        file.save_final(&Plans::default()).unwrap();
+        file.save(core.pilot(0).plans()).unwrap();
+        assert_eq!(load_plans(file.path()).unwrap(), Plans::default());
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -83,5 +83,5 @@ echo "== tools: plot scripts on real logs (matplotlib)"
 client_venv tools "matplotlib==3.9.2" "pytest==9.2.0"
 timeout 600 "$VENV/tools/bin/python" -m pytest -q -p no:cacheprovider tests/tools/test_plots.py
 
-echo "== tools: fly_mission.py against a scripted vehicle (pymavlink)"
+echo "== tools: fly_mission.py against a scripted vehicle and the real one (pymavlink)"
 timeout 300 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/tools/test_fly_mission.py

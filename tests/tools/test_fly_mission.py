@@ -2,8 +2,7 @@
 protocol as PX4 does (float mode first, MISSION_REQUEST_INT after; a lost
 request repeated; MISSION_CURRENT with mission_state; MISSION_ITEM_REACHED
 repeated): the upload in both modes, the answers to refusals, disarms and
-timeouts. The flight against the real vehicle belongs to tests/clients once
-the link speaks the mission protocol.
+timeouts; and then against rotorpilot itself, both shipped files at 20x.
 
 Run by tools/test-all.sh with the pymavlink venv (pymavlink 2.4.50, pytest).
 """
@@ -221,3 +220,24 @@ def test_bad_files_are_clear_failures(tmp_path):
     out = subprocess.run([sys.executable, SCRIPT, str(tmp_path / "none.txt")], capture_output=True, text=True,
                          timeout=30)
     assert out.returncode == 1 and "none.txt: cannot read" in out.stderr
+
+
+def test_the_real_vehicle_flies_both_files_at_20x():
+    """The script against rotorpilot itself (the release binary), at 20x:
+    the .plan (mission, fence, rally; RTL to the rally point) and the WPL file
+    fly to completion, and each item is reported reached."""
+    sys.path.insert(0, os.path.join(ROOT, "tests", "clients"))
+    from harness import Vehicle
+
+    for path in (PLAN, WPL):
+        with Vehicle(speed=20) as v:
+            p = subprocess.run(
+                [sys.executable, SCRIPT, "--connect", f"udpin:127.0.0.1:{v.gcs_port}", path, "--timeout", "120"],
+                capture_output=True,
+                text=True,
+                timeout=240,
+            )
+            out = p.stdout + p.stderr
+            assert p.returncode == 0, out + v.logs()
+            assert "mission complete; landed and disarmed" in out, out
+            assert "reached item 1" in out and "complete" in out, out

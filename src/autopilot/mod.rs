@@ -10,8 +10,9 @@
 //! |---|---|
 //! | `stack` | [`Autopilot`]: the state, parameters, and one step in order (sense, detect, supervise, guide, act) |
 //! | `commander` | commands: arming and prearm checks, the mode state machine, home, reboot and failure-injection gates |
-//! | `navigator/` | guidance per mode family: `auto` (hold, takeoff, land, return), `offboard` (setpoints and their frames) |
-//! | `failsafe` | supervision: offboard loss, auto-disarm |
+//! | `navigator/` | guidance per mode family: `auto` (hold, takeoff, land, return), `offboard` (setpoints and their frames), `mission` (the stored mission flown as paths) |
+//! | `mission` | the mission as the commander sees it: start, set current, what a new upload does, MISSION_CURRENT's state |
+//! | `failsafe` | supervision: offboard loss, auto-disarm; which clock the timers that wait for a client run on |
 //! | `land_detector` | landed or flying, from the measurements and the commanded thrust |
 //! | `estimate` | the wrench estimate fed back: held on the ground, cross-faded after a rebuild |
 //! | `control_loop` | estimator update, control law, allocation: the loop every pilot shares |
@@ -113,7 +114,7 @@ pub enum FlightMode {
     ReturnToLaunch,
     /// OFFBOARD: follow the external setpoint stream.
     Offboard,
-    /// AUTO.MISSION (filled by a later issue).
+    /// AUTO.MISSION: fly the stored mission.
     Mission,
 }
 

@@ -1,7 +1,7 @@
 //! Guidance: the active mode turned into this step's [`Demand`] (a shaped
 //! reference, an attitude setpoint, idle or stopped rotors), one file per
-//! mode family — `auto` (hold, takeoff, land, return to launch) and
-//! `offboard` (external setpoints); the mission navigator joins them. The
+//! mode family — `auto` (hold, takeoff, land, return to launch),
+//! `offboard` (external setpoints) and `mission` (the stored mission). The
 //! [`Navigator`] owns what guidance remembers between steps: the mode and its
 //! phase, the reference shaper, the cruise-speed override, the latest
 //! offboard setpoint.

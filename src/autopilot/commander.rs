@@ -27,8 +27,9 @@ impl Autopilot {
     /// | `Disarm` | TemporarilyRejected in the air unless forced (forced: rotors stop, the vehicle falls) |
     /// | `Takeoff` | Denied for a non-finite altitude; TemporarilyRejected when disarmed |
     /// | `Land`, `ReturnToLaunch` | TemporarilyRejected when disarmed |
-    /// | `SetMode` | Takeoff, Land, RTL as above; Offboard TemporarilyRejected without a setpoint within COM_OF_LOSS_T; Mission TemporarilyRejected (no mission) |
-    /// | `StartMission` | TemporarilyRejected (no mission) |
+    /// | `SetMode` | Takeoff, Land, RTL as above; Offboard TemporarilyRejected without a fresh setpoint (COM_OF_LOSS_T, on the client clock); Mission TemporarilyRejected without a mission |
+    /// | `StartMission` | Denied without a mission or with a first item beyond it; TemporarilyRejected when arming is (it arms) |
+    /// | `SetMissionCurrent` | Denied beyond the mission |
     /// | `Reposition` | Denied for non-finite parts or lat/lon out of range; TemporarilyRejected when disarmed |
     /// | `ChangeSpeed` | Denied when not finite |
     /// | `SetHome` | Denied for an invalid point |

@@ -24,6 +24,12 @@ from mavsdk.plugins.param import Param  # noqa: E402
 from mavsdk.plugins.telemetry import FlightMode, Telemetry  # noqa: E402
 
 SPEED = 5.0
+# Scripts written for real time run unchanged with the vehicle at 20x: the
+# flight test below runs at both speeds (every wait here is in wall time and
+# generous enough for 5x; timers that wait for a client run on the wall clock
+# above 1x, so the vehicle does not disarm or leave offboard under a script
+# that thinks in real time).
+FAST = 20.0
 
 
 def until(what, cond, timeout):
@@ -52,16 +58,13 @@ class Drone:
         h = self.telemetry.health()
         return h.is_global_position_ok and h.is_home_position_ok and h.is_armable
 
-    def sim_sleep(self, seconds):
-        time.sleep(seconds / SPEED)
-
     def ned(self):
         return self.telemetry.position_velocity_ned()
 
 
-@pytest.fixture
-def drone():
-    with Vehicle(speed=SPEED) as v:
+@pytest.fixture(params=[SPEED], ids=lambda s: f"x{s:g}")
+def drone(request):
+    with Vehicle(speed=request.param) as v:
         d = Drone(v)
         until("health", d.healthy, 20)
         yield d
@@ -97,9 +100,15 @@ def test_offboard_refused_without_setpoints(drone):
     drone.action.disarm()
 
 
+@pytest.mark.parametrize("drone", [SPEED, FAST], ids=lambda s: f"x{s:g}", indirect=True)
 def test_takeoff_goto_offboard_land(drone):
     home = drone.telemetry.home()
     drone.action.arm()
+    # a script written for real time looks around for a second before taking
+    # off: 20 s of simulated time at 20x, twice COM_DISARM_PRFLT, which counts
+    # on the wall clock above 1x, so the vehicle is still armed
+    time.sleep(1.0)
+    assert drone.telemetry.armed(), "disarmed before takeoff"
     drone.action.takeoff()
     until("in air", drone.telemetry.in_air, 20)
     until("hold after takeoff", lambda: drone.telemetry.flight_mode() == FlightMode.HOLD, 20)

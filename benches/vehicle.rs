@@ -2,7 +2,8 @@
 //!
 //! * one lockstep step (reference + estimator + controller + allocation + RK4
 //!   plant) per airframe and controller, flying a figure-eight;
-//! * one estimator update for r = 5 (and r = 3, 20), trapezoidal.
+//! * one estimator update for r = 5 (and r = 3, 20), trapezoidal;
+//! * a whole mission flown headless (`rotorpilot simulate` on a mission).
 //!
 //! Run: `cargo bench --bench vehicle`. Figures go in the README.
 
@@ -11,7 +12,7 @@ use nalgebra::Vector3;
 use rotorpilot::airframe::Airframe;
 use rotorpilot::control::ControllerKind;
 use rotorpilot::estimation::{EstimatorConfig, MomentumEstimator, Polynomial};
-use rotorpilot::scenario::{Scenario, lockstep};
+use rotorpilot::scenario::{MissionFlight, Scenario, lockstep, run_mission};
 use rotorpilot::signals::ControlWrench;
 use rotorpilot::sim::{DisturbanceSource, ExternalWrench};
 use std::hint::black_box;
@@ -96,5 +97,28 @@ fn estimator_update(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, full_step, estimator_update);
+/// A whole mission flown headless, as `rotorpilot simulate` flies it: five
+/// waypoints around home (automatic takeoff, four fly-through corners, a
+/// stop), and the shipped square (takeoff, RTL and landing included).
+fn mission_flight(c: &mut Criterion) {
+    let five = "duration_s = 300\n[params]\nMPC_XY_CRUISE = 8.0\n[mission]\n\
+        [[mission.item]]\ncommand = 16\nparams = [0.0, 3.0, 0.0, nan]\nx = 47.3981917\ny = 8.545594\nz = 10.0\n\
+        [[mission.item]]\ncommand = 16\nparams = [0.0, 3.0, 0.0, nan]\nx = 47.3981917\ny = 8.5462583\nz = 15.0\n\
+        [[mission.item]]\ncommand = 16\nparams = [0.0, 3.0, 0.0, nan]\nx = 47.397742\ny = 8.5462583\nz = 15.0\n\
+        [[mission.item]]\ncommand = 16\nparams = [0.0, 3.0, 0.0, nan]\nx = 47.3973\ny = 8.5459\nz = 12.0\n\
+        [[mission.item]]\ncommand = 16\nparams = [0.5, 1.0, 0.0, nan]\nx = 47.397742\ny = 8.545594\nz = 10.0\n";
+    let square = std::fs::read_to_string("tools/scenarios/mission-square.toml").unwrap();
+    let mut g = c.benchmark_group("mission headless");
+    g.sample_size(10);
+    for (name, text) in [("5 waypoints", five), ("square with RTL", square.as_str())] {
+        let flight = MissionFlight::from_toml(text, name, None).unwrap();
+        let s = run_mission(&flight, None).unwrap();
+        assert_eq!(s.verdict, "pass", "{name}: {:?}", s.reasons);
+        println!("{name}: {:.1} s of simulated flight per run", s.sim_time_s);
+        g.bench_function(name, |b| b.iter(|| black_box(run_mission(&flight, None).unwrap())));
+    }
+    g.finish();
+}
+
+criterion_group!(benches, full_step, estimator_update, mission_flight);
 criterion_main!(benches);

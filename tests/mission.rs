@@ -379,3 +379,35 @@ fn the_same_mission_flies_bit_identically_twice() {
     };
     assert_eq!(run(), run());
 }
+
+#[test]
+fn rtl_lands_at_a_rally_point_closer_than_home() {
+    let mut v = vehicle();
+    let mut rally = wp(40.0, 5.0, 0.0, 0.0, 0.0);
+    rally.command = cmd::RALLY_POINT;
+    rally.params = [0.0; 4];
+    let mut far = wp(-200.0, 0.0, 0.0, 0.0, 0.0);
+    far.command = cmd::RALLY_POINT;
+    far.params = [0.0; 4];
+    v.change_plans(
+        0,
+        PlanChange::Store {
+            kind: MissionType::Rally,
+            items: vec![far, rally],
+            base_id: None,
+        },
+    )
+    .unwrap();
+    let mut rtl = item(cmd::NAV_RETURN_TO_LAUNCH, [f32::NAN; 4]);
+    rtl.z = 0.0;
+    upload(&mut v, vec![wp(45.0, 0.0, 10.0, 0.0, 0.0), rtl]).unwrap();
+    ready(&mut v);
+    v.command(0, AutopilotCommand::StartMission { first: Some(0) });
+    let (ok, _) = fly(&mut v, 300.0, |t| !t.armed && t.mission.state == MissionState::Complete);
+    assert!(ok, "never landed");
+    let p = v.telemetry(0).position_ned;
+    assert!(
+        (p.xy() - Vector3::new(40.0, 5.0, 0.0).xy()).norm() < 1.0,
+        "landed at {p:?}, not the rally point"
+    );
+}

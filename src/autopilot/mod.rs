@@ -69,6 +69,7 @@ macro_rules! situation {
             origin: &$ap.origin,
             home: &$ap.home,
             mission: $ap.plans.get(crate::mission::MissionType::Mission).items(),
+            rally: $ap.plans.get(crate::mission::MissionType::Rally).items(),
         }
     };
 }

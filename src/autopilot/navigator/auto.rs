@@ -46,18 +46,28 @@ impl Navigator {
     }
 
     /// Return: climb to at least RTL_RETURN_ALT above home where it is, fly
-    /// home, descend to RTL_DESCEND_ALT, land.
+    /// home — or to the closest rally point when one is closer than home
+    /// (PX4's RTL_TYPE 0) — descend to RTL_DESCEND_ALT, land.
     pub(in crate::autopilot) fn enter_rtl(&mut self, cx: &Situation<'_>, say: &mut Announcements) {
         let p = self.current_position(cx.meas);
         let z_return = p.z.min(cx.home_ned.z - cx.settings.rtl_return_alt_m);
+        let rally = cx
+            .rally
+            .iter()
+            .filter_map(|r| r.geo_point(cx.home.alt_amsl_m))
+            .map(|g| g.ned_from(cx.origin).xy())
+            .min_by(|a, b| (a - p.xy()).norm().total_cmp(&(b - p.xy()).norm()))
+            .filter(|r| (r - p.xy()).norm() < (cx.home_ned.xy() - p.xy()).norm());
         self.nav = Nav::Rtl {
             phase: RtlPhase::Climb { xy: p.xy() },
             z_return,
+            dest_xy: rally.unwrap_or_else(|| cx.home_ned.xy()),
         };
         if !cx.landed {
+            let to = if rally.is_some() { "rally point" } else { "launch" };
             say.announce(
                 Severity::Info,
-                format!("Return to launch at {:.1} m above home", cx.home_ned.z - z_return),
+                format!("Return to {to} at {:.1} m above home", cx.home_ned.z - z_return),
             );
         }
     }
@@ -123,11 +133,15 @@ impl Navigator {
                     Demand::Track(self.descend(cx, xy))
                 }
             }
-            Nav::Rtl { phase, z_return } => {
+            Nav::Rtl {
+                phase,
+                z_return,
+                dest_xy,
+            } => {
                 if cx.resting {
                     return Demand::Idle;
                 }
-                Demand::Track(self.rtl(cx, phase, z_return, normal, say))
+                Demand::Track(self.rtl(cx, phase, z_return, dest_xy, normal, say))
             }
             Nav::Offboard => self.offboard_demand(cx),
             Nav::Mission => self.mission_demand(cx, say),
@@ -152,12 +166,20 @@ impl Navigator {
         cx: &Situation<'_>,
         phase: RtlPhase,
         z_return: f64,
+        dest_xy: Vector2<f64>,
         normal: ShaperLimits,
         say: &mut Announcements,
     ) -> Reference {
-        let (meas, dt, home) = (cx.meas, cx.dt, cx.home_ned);
+        let (meas, dt) = (cx.meas, cx.dt);
+        let home = Vector3::new(dest_xy.x, dest_xy.y, cx.home_ned.z);
         let z_descend = home.z - cx.settings.rtl_descend_alt_m;
-        let set_phase = |nav: &mut Navigator, phase: RtlPhase| nav.nav = Nav::Rtl { phase, z_return };
+        let set_phase = |nav: &mut Navigator, phase: RtlPhase| {
+            nav.nav = Nav::Rtl {
+                phase,
+                z_return,
+                dest_xy,
+            };
+        };
         match phase {
             RtlPhase::Climb { xy } => {
                 let target = Vector3::new(xy.x, xy.y, z_return);

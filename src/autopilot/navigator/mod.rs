@@ -56,6 +56,8 @@ pub(super) struct Situation<'a> {
     pub(super) home: &'a GeoPoint,
     /// The stored mission's items.
     pub(super) mission: &'a [MissionItem],
+    /// The stored rally points.
+    pub(super) rally: &'a [MissionItem],
 }
 
 /// Where Hold flies to (DO_REPOSITION), instead of braking where it is.
@@ -107,12 +109,14 @@ pub(super) enum Nav {
         /// Where.
         xy: Vector2<f64>,
     },
-    /// Return to launch.
+    /// Return to launch (home, or the closest rally point).
     Rtl {
         /// Current phase.
         phase: RtlPhase,
         /// Return altitude [m], NED z.
         z_return: f64,
+        /// Where it returns to land [m], NED horizontal.
+        dest_xy: Vector2<f64>,
     },
     /// Follow the offboard setpoints.
     Offboard,

@@ -40,12 +40,15 @@ pub struct DaemonArgs {
     /// Extra link, repeatable: udpout:HOST:PORT (send there) or udpin:HOST:PORT (listen there).
     #[arg(long = "link", value_name = "udpout:HOST:PORT|udpin:HOST:PORT")]
     pub links: Vec<String>,
-    /// Where parameters persist (default rotorpilot-state/N).
+    /// Where parameters and plans persist (default rotorpilot-state/N).
     #[arg(long, value_name = "DIR")]
     pub state_dir: Option<std::path::PathBuf>,
     /// Start from default parameters (the saved file is overwritten).
     #[arg(long)]
     pub reset_params: bool,
+    /// Start with no mission, geofence or rally points (the saved file is overwritten).
+    #[arg(long)]
+    pub reset_plans: bool,
     /// Override the GCS link's bind address (default 0.0.0.0:18570+N).
     #[arg(long, value_name = "HOST:PORT")]
     pub gcs_bind: Option<String>,
@@ -77,6 +80,7 @@ impl DaemonArgs {
             c.state_dir.clone_from(d);
         }
         c.reset_params = self.reset_params;
+        c.reset_plans = self.reset_plans;
         let remote = |s: &str| -> anyhow::Result<Option<std::net::SocketAddr>> {
             if s == "none" { Ok(None) } else { resolve(s).map(Some) }
         };

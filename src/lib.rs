@@ -13,6 +13,7 @@
 //! | [`math`] | SO(3) helpers (hat, vee, ZYX Euler angles) and the RPY model matrices `Q`, `M`, `C` | nalgebra |
 //! | [`signals`] | what crosses between world and flight stack and between blocks: sensor readings, actuator commands, measurement, control wrench, nominal model, wrench estimate; gravity and the step | nalgebra |
 //! | [`tomlfile`] | TOML files to typed values, errors naming file, line/field and problem | serde, toml |
+//! | [`statefile`] | atomic replacement of the state directory's files (temp file, fsync, rename) | std |
 //! | [`geo`] | flat-earth NED <-> latitude/longitude/AMSL around home | nalgebra |
 //! | [`params`] | the parameter table (PX4 style, a typed [`params::Param`] per entry), store, validation, atomic persistence | `airframe` (types) |
 //! | [`airframe`] | vehicle description from `params/airframes/*.toml`, allocation, rotor-failure analysis, the `airframe` report | `math`, `signals`, `tomlfile` |
@@ -20,11 +21,12 @@
 //! | [`control`] | the three controllers (hierarchical, geometric, passivity-based), their gains (checking an airframe's `[control]` table), the reference shaper | `math`, `signals`, `airframe` |
 //! | [`estimation`] | momentum-based external-wrench estimator of order r, real mass | `math`, `signals` |
 //! | [`autopilot`] | the flight stack: commander, navigators, failsafes, land detector, control loop, telemetry; sees only sensor readings | `signals`, `control`, `estimation`, `params`, `geo`, `airframe` — never `sim` |
+//! | [`mission`] | missions, geofences and rally points as data: items as stored, PX4's checks, result codes and CRC32 id; `.plan`, WPL 110 and `missions.json` files | `statefile`, serde_json |
 //! | [`lockstep`] | the one loop: sense, decide, act, integrate for every vehicle; parameter routing and transaction; telemetry with the injected truth | `sim`, `autopilot`, `signals`, `params`, `airframe`, `geo` |
 //! | [`scenario`] | scenario files and the flat-out runner behind `rotorpilot simulate` | `lockstep`, `sim`, `autopilot`, `control`, `estimation` |
 //! | [`flightlog`] | flight-log CSV reading and the offline estimator sweep of `rotorpilot estimate` | `estimation` |
 //! | [`link`] | MAVLink 2 over UDP as PX4 SITL, sans I/O: translates messages to autopilot commands and telemetry to messages (never physics, never a decision) | `autopilot`, `lockstep::Snapshot` (with the world's `sim::Truth` in it), `params`, `geo`, mavlink |
-//! | [`daemon`] | the runtime: the simulation thread paced against wall time, link tasks on tokio, parameter saving, shutdown | everything |
+//! | [`daemon`] | the runtime: the simulation thread paced against wall time, link tasks on tokio, parameter and plan saving, shutdown | everything |
 //! | [`cli`] | the `rotorpilot` command line (thin: parses, calls the modules, prints) | everything |
 //!
 //! Everything up to `scenario` is pure and deterministic: no sockets, no
@@ -57,4 +59,5 @@ pub mod params;
 pub mod scenario;
 pub mod signals;
 pub mod sim;
+pub mod statefile;
 pub mod tomlfile;

@@ -389,6 +389,7 @@ async fn timesync_ping_and_ftp_are_answered() {
         &MavMessage::TIMESYNC(TIMESYNC_DATA {
             tc1: 0,
             ts1: 123_456_789,
+            ..Default::default()
         }),
     )
     .await;

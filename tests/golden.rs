@@ -4,7 +4,8 @@
 //! hexa) must not change by a single bit. The logs were recorded before the
 //! world and the flight stack were split apart; `tests/golden/csv.sha256`
 //! holds the SHA-256 of each log, `tests/golden/*.summary.json` each summary
-//! (its `wall_time_s` zeroed).
+//! (its `wall_time_s` zeroed). Mission scenarios (a `[mission]` table) are
+//! pinned the same way, flown through the flight stack.
 //!
 //! A change that means to change a flight (a new log column, a different
 //! physics) records the new expectations with `ROTORPILOT_BLESS=1 cargo test
@@ -13,7 +14,7 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use rotorpilot::scenario::{Scenario, run};
+use rotorpilot::scenario::{MissionFlight, Scenario, is_mission, run, run_mission};
 use sha2::{Digest, Sha256};
 
 /// A `Write` that only hashes.
@@ -34,12 +35,20 @@ fn root() -> PathBuf {
 }
 
 /// Fly `path` (relative to the repository); the log's SHA-256 (hex) and the summary as JSON.
+/// Missions (`[mission]` scenarios) fly through the flight stack and have their own summary.
 fn fly(path: &str) -> (String, serde_json::Value) {
-    let scenario = Scenario::from_file(&root().join(path)).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let file = root().join(path);
     let mut hash = HashWriter(Sha256::new());
-    let summary = run(&scenario, Some(&mut hash)).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let mut json = if is_mission(&file) {
+        let flight = MissionFlight::from_file(&file).unwrap_or_else(|e| panic!("{path}: {e}"));
+        let summary = run_mission(&flight, Some(&mut hash)).unwrap_or_else(|e| panic!("{path}: {e}"));
+        serde_json::to_value(&summary).unwrap()
+    } else {
+        let scenario = Scenario::from_file(&file).unwrap_or_else(|e| panic!("{path}: {e}"));
+        let summary = run(&scenario, Some(&mut hash)).unwrap_or_else(|e| panic!("{path}: {e}"));
+        serde_json::to_value(&summary).unwrap()
+    };
     let hex: String = hash.0.finalize().iter().map(|b| format!("{b:02x}")).collect();
-    let mut json = serde_json::to_value(&summary).unwrap();
     json["wall_time_s"] = serde_json::json!(0.0);
     // the file name only: the summary must not depend on where the checkout is
     json["scenario"] = serde_json::json!(Path::new(path).file_name().unwrap().to_string_lossy());

@@ -28,7 +28,7 @@ forbid() {
 }
 forbid "tokio|mavlink::|std::time|SystemTime|Instant::now|thread_rng" \
     "a pure module reaches for a runtime, the protocol or a clock" \
-    src/math.rs src/signals.rs src/tomlfile.rs src/geo.rs src/params src/airframe src/sim src/control \
+    src/math.rs src/signals.rs src/tomlfile.rs src/statefile.rs src/geo.rs src/params src/airframe src/sim src/control \
     src/estimation src/autopilot src/lockstep.rs src/scenario src/flightlog.rs src/mission
 
 echo "== the flight stack sees only sensor readings: no plant, no world faults, no SIM_* truth"
@@ -82,3 +82,6 @@ timeout 900 "$VENV/mavsdk4/bin/python" -m pytest -q -p no:cacheprovider tests/cl
 echo "== tools: plot scripts on real logs (matplotlib)"
 client_venv tools "matplotlib==3.9.2" "pytest==9.2.0"
 timeout 600 "$VENV/tools/bin/python" -m pytest -q -p no:cacheprovider tests/tools/test_plots.py
+
+echo "== tools: fly_mission.py against a scripted vehicle and the real one (pymavlink)"
+timeout 300 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/tools/test_fly_mission.py

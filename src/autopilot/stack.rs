@@ -383,6 +383,18 @@ impl Autopilot {
         self.armed
     }
 
+    /// The landed state clients are told (MAV_LANDED_STATE).
+    #[must_use]
+    pub fn landed_state(&self) -> super::LandedState {
+        self.navigator.landed_state(self.armed, self.land.landed())
+    }
+
+    /// The mission's progress (MISSION_CURRENT's content).
+    #[must_use]
+    pub fn mission_progress(&self) -> super::MissionStatus {
+        self.mission_status()
+    }
+
     /// The mode as clients see it.
     #[must_use]
     pub fn mode(&self) -> super::FlightMode {

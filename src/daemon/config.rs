@@ -138,10 +138,13 @@ pub struct Config {
     pub speed: f64,
     /// The UDP links.
     pub links: Vec<LinkSpec>,
-    /// Where the parameter file lives.
+    /// Where the parameter file and the stored plans live.
     pub state_dir: PathBuf,
     /// Start from default parameters (the file is overwritten on the first save).
     pub reset_params: bool,
+    /// Start with no mission, geofence or rally points (the file is
+    /// overwritten at start).
+    pub reset_plans: bool,
     /// A learned peer is forgotten after this long without a frame from it.
     pub peer_timeout: Duration,
     /// Wall-time period of the simulation batches.
@@ -161,6 +164,7 @@ impl Config {
             links: vec![LinkSpec::px4_gcs(n), LinkSpec::px4_api(n)],
             state_dir: PathBuf::from("rotorpilot-state").join(n.to_string()),
             reset_params: false,
+            reset_plans: false,
             peer_timeout: Duration::from_secs(30),
             tick: Duration::from_millis(4),
         }
@@ -177,6 +181,13 @@ impl Config {
     pub fn params_path(&self) -> PathBuf {
         self.state_dir.join("params.toml")
     }
+
+    /// The stored mission, geofence and rally points
+    /// ([`crate::mission::file::save_plans`]).
+    #[must_use]
+    pub fn plans_path(&self) -> PathBuf {
+        self.state_dir.join("missions.json")
+    }
 }
 
 #[cfg(test)]
@@ -192,6 +203,8 @@ mod tests {
         assert_eq!(c.links[1].bind.port(), 14580);
         assert_eq!(c.links[1].remote, Some("127.0.0.1:14540".parse().unwrap()));
         assert_eq!(c.state_dir, PathBuf::from("rotorpilot-state/0"));
+        assert_eq!(c.params_path(), PathBuf::from("rotorpilot-state/0/params.toml"));
+        assert_eq!(c.plans_path(), PathBuf::from("rotorpilot-state/0/missions.json"));
         let c = Config::px4_sitl(3);
         assert_eq!(c.system_id(), 4);
         assert_eq!(c.links[0].bind.port(), 18573);

@@ -1,8 +1,8 @@
 //! One task per UDP link: it owns a [`Link`] (the protocol, sans I/O) and
 //! its socket, receives datagrams, sends the streams when due (wall-time
 //! rates; heartbeats keep going at 1 Hz even if the simulation is slow),
-//! forwards commands and parameter sets to the simulation thread and sends
-//! the answers.
+//! forwards commands, parameter sets and plan changes to the simulation
+//! thread and sends the answers.
 
 use std::net::SocketAddr;
 use std::sync::mpsc::{SyncSender, TrySendError};
@@ -19,6 +19,7 @@ use super::sim_thread::{Event, SimRequest};
 use crate::autopilot::{AutopilotCommand, CommandOutcome, PowerAction};
 use crate::link::{Effect, Link, Outgoing, To};
 use crate::lockstep::Snapshot;
+use crate::mission::MissionResult;
 use crate::params::ParamStore;
 
 /// One link's task state.
@@ -36,7 +37,8 @@ pub(super) struct LinkTask {
     pub(super) send_errors: u64,
 }
 
-/// How long a link waits for the autopilot's answer before ACKing FAILED.
+/// How long a link waits for the autopilot's answer before ACKing FAILED
+/// (or MISSION_ACK ERROR for a plan change).
 const COMMAND_TIMEOUT: Duration = Duration::from_secs(1);
 
 fn unix_time_us() -> u64 {
@@ -83,7 +85,10 @@ impl LinkTask {
                         self.flush().await;
                     }
                     Ok(Event::ParamValue(m)) => self.link.broadcast_param(Instant::now().into_std(), &m),
-                    Ok(Event::MissionItemReached(_)) => {}
+                    Ok(Event::MissionItemReached(seq)) => {
+                        self.link.on_mission_item_reached(Instant::now().into_std(), seq);
+                        self.flush().await;
+                    }
                     Err(broadcast::error::RecvError::Lagged(n)) => warn!(link = %name, missed = n, "events dropped"),
                     Err(broadcast::error::RecvError::Closed) => break,
                 },
@@ -122,18 +127,8 @@ impl LinkTask {
                 command,
                 ack: Some(ticket),
             } => {
-                let (tx, rx) = oneshot::channel();
-                let outcome = match self.to_sim(SimRequest::Command {
-                    command,
-                    reply: Some(tx),
-                }) {
-                    Err(false) => return false,
-                    Err(true) => CommandOutcome::TemporarilyRejected("simulation busy"),
-                    Ok(()) => match tokio::time::timeout(COMMAND_TIMEOUT, rx).await {
-                        Ok(Ok(o)) => o,
-                        Ok(Err(_)) => return false,
-                        Err(_) => CommandOutcome::Failed("autopilot did not answer"),
-                    },
+                let Some(outcome) = self.command(command).await else {
+                    return false;
                 };
                 self.link.on_outcome(ticket, &outcome);
                 self.flush().await;
@@ -167,8 +162,54 @@ impl LinkTask {
                     self.save.notify_one();
                 }
             }
+            Effect::Plans { ticket, change } => {
+                let (tx, rx) = oneshot::channel();
+                // a busy, slow or stuck flight stack changed nothing: ERROR
+                let outcome = match self.to_sim(SimRequest::Plans { change, reply: tx }) {
+                    Err(false) => return false,
+                    Err(true) => Err(MissionResult::Error),
+                    Ok(()) => match tokio::time::timeout(COMMAND_TIMEOUT, rx).await {
+                        Ok(Ok(o)) => o,
+                        Ok(Err(_)) => return false,
+                        Err(_) => Err(MissionResult::Error),
+                    },
+                };
+                self.link.on_plans_changed(ticket, outcome);
+                self.flush().await;
+            }
+            Effect::SetMissionCurrent { seq } => {
+                let Some(outcome) = self.command(AutopilotCommand::SetMissionCurrent { seq }).await else {
+                    return false;
+                };
+                {
+                    // published before the answer: it has the new current item
+                    let t = self.tel.borrow();
+                    self.link.on_mission_current_set(seq, &outcome, &t);
+                }
+                self.flush().await;
+            }
         }
         true
+    }
+
+    /// Give the autopilot a command and wait for its outcome (refused as
+    /// busy or unanswered when the simulation is); `None` when the
+    /// daemon is going down.
+    async fn command(&self, command: AutopilotCommand) -> Option<CommandOutcome> {
+        let (tx, rx) = oneshot::channel();
+        let outcome = match self.to_sim(SimRequest::Command {
+            command,
+            reply: Some(tx),
+        }) {
+            Err(false) => return None,
+            Err(true) => CommandOutcome::TemporarilyRejected("simulation busy"),
+            Ok(()) => match tokio::time::timeout(COMMAND_TIMEOUT, rx).await {
+                Ok(Ok(o)) => o,
+                Ok(Err(_)) => return None,
+                Err(_) => CommandOutcome::Failed("autopilot did not answer"),
+            },
+        };
+        Some(outcome)
     }
 
     async fn flush(&mut self) {

@@ -8,7 +8,13 @@
 //! | `config` | [`Config`], [`LinkSpec`]: the instance and PX4 SITL's port rules, home, speed, state directory |
 //! | `sim_thread` | the simulation thread: the only owner of the core, paced against wall time; commands and parameter sets are applied there, between steps |
 //! | `link_task` | one task per UDP link: datagrams in, streams and answers out |
-//! | `saver` | the parameter file, written after each accepted set |
+//! | `saver` | the parameter file and the stored plans, written after each accepted change |
+//!
+//! The state directory (`--state-dir`) holds `params.toml` and
+//! `missions.json` (the mission, geofence and rally points, kept across
+//! restarts as PX4's dataman keeps them). Both are read at start, before the
+//! simulation thread runs; a plans file that does not read stops the start
+//! with an error naming the file and the field (`--reset-plans` discards it).
 //!
 //! Parameters live in a `std::sync::Mutex<ParamStore>`: links read it to
 //! answer requests, the simulation thread sets them (the core's parameter
@@ -45,10 +51,12 @@ use crate::autopilot::{Autopilot, ClientClock};
 use crate::link::streams::Identity;
 use crate::link::{Link, LinkConfig};
 use crate::lockstep::Lockstep;
+use crate::mission::file::load_plans;
+use crate::mission::{MissionType, Plans};
 use crate::params::{ParamStore, ParamValue};
 use crate::sim::SensorConfig;
 use link_task::LinkTask;
-use saver::{lock, saver};
+use saver::{PlansFile, lock, plan_saver, saver};
 use sim_thread::{Event, Sim, SimRequest};
 
 /// A daemon with its sockets bound, ready to [`Daemon::run`].
@@ -69,11 +77,12 @@ impl std::fmt::Debug for Daemon {
     }
 }
 
-/// Load the airframe and parameters and bind every link's socket.
+/// Load the airframe, parameters and stored plans and bind every link's socket.
 ///
 /// # Errors
-/// Unknown airframe, unreadable parameter file, bad speed, a socket that
-/// cannot be bound (port in use: try another `--instance`).
+/// Unknown airframe, unreadable parameter file, a plans file that does not
+/// read or holds a plan the vehicle refuses, bad speed, a socket that cannot
+/// be bound (port in use: try another `--instance`).
 pub async fn bind(config: Config) -> anyhow::Result<Daemon> {
     anyhow::ensure!(
         config.speed.is_finite() && config.speed > 0.0 && config.speed <= 1000.0,
@@ -96,6 +105,15 @@ pub async fn bind(config: Config) -> anyhow::Result<Daemon> {
         // faster than real time: timers that wait for a client run on the wall clock
         core.pilot_mut(sim_thread::VEHICLE).set_client_clock(ClientClock::Wall);
     }
+    let plans = if config.reset_plans {
+        Plans::default()
+    } else {
+        load_plans(&config.plans_path()).context(
+            "cannot restore the stored mission, geofence and rally points \
+             (mend or remove the file, or start with --reset-plans to discard them)",
+        )?
+    };
+    core.pilot_mut(sim_thread::VEHICLE).restore_plans(plans);
     let mut sockets = Vec::new();
     for spec in &config.links {
         let s = UdpSocket::bind(spec.bind).await.with_context(|| {
@@ -168,16 +186,25 @@ impl Daemon {
                 .map_or_else(|| "(whoever talks)".to_string(), |r| r.to_string());
             s.push_str(&format!("  {:<4} link: udp {local} -> {remote}\n", spec.name));
         }
+        let plans = self.core.pilot(sim_thread::VEHICLE).plans();
+        s.push_str(&format!(
+            "  plans: {} (mission {} items, fence {}, rally {})\n",
+            c.plans_path().display(),
+            plans.get(MissionType::Mission).len(),
+            plans.get(MissionType::Fence).len(),
+            plans.get(MissionType::Rally).len()
+        ));
+        // last: scripts read the summary up to this line (tests/daemon_runtime.rs)
         s.push_str(&format!("  parameters: {}", c.params_path().display()));
         s
     }
 
     /// Run until `shutdown` completes or a client sends
     /// PREFLIGHT_REBOOT_SHUTDOWN with p1 = 2; then stop every task and save
-    /// the parameters.
+    /// the plans and the parameters.
     ///
     /// # Errors
-    /// The parameter file cannot be written at shutdown.
+    /// The parameter or plans file cannot be written at shutdown.
     pub async fn run(self, shutdown: impl Future<Output = ()>) -> anyhow::Result<()> {
         let Daemon {
             config,
@@ -200,6 +227,10 @@ impl Daemon {
         // Save once at start: a --reset-params run overwrites the old file,
         // and the state directory shows the parameters in force.
         save.notify_one();
+        let plans_file = PlansFile::new(config.plans_path());
+        let plans_changed = Arc::new(Notify::new());
+        // the same for the plans (--reset-plans)
+        plans_changed.notify_one();
 
         let mut tasks: Vec<JoinHandle<()>> = Vec::new();
         let sim = Sim {
@@ -209,7 +240,7 @@ impl Daemon {
             events: ev_tx.clone(),
             speed: config.speed,
             tick: config.tick,
-            plans_changed: Arc::new(Notify::new()),
+            plans_changed: plans_changed.clone(),
             wall_timers: Vec::new(),
         };
         let (sim_done_tx, sim_done_rx) = oneshot::channel::<()>();
@@ -224,6 +255,12 @@ impl Daemon {
             params.clone(),
             path.clone(),
             save.clone(),
+            stop_rx.clone(),
+        )));
+        tasks.push(tokio::spawn(plan_saver(
+            tel_rx.clone(),
+            plans_file.clone(),
+            plans_changed,
             stop_rx.clone(),
         )));
         let identity = Identity {
@@ -289,11 +326,19 @@ impl Daemon {
         } else {
             let _ = sim_thread.join();
         }
+        // the simulation thread publishes every plan change before it
+        // answers it, so the last snapshot holds the plans in force
+        let plans = tel_rx.borrow().plans.clone();
+        let plans_saved = plans_file.save_final(&plans);
+        if plans_saved.is_ok() {
+            info!(path = %plans_file.path().display(), "plans saved");
+        }
         let snapshot = lock(&params).clone();
         snapshot
             .save(&path)
             .with_context(|| format!("saving parameters to {}", path.display()))?;
         info!(path = %path.display(), "parameters saved");
+        plans_saved.context("saving the plans")?;
         anyhow::ensure!(!sim_died, "the simulation thread stopped unexpectedly");
         Ok(())
     }

@@ -32,7 +32,6 @@ const MAX_BATCH_WALL: Duration = Duration::from_millis(20);
 
 /// Messages from the link tasks to the simulation thread.
 #[derive(Debug)]
-#[allow(dead_code)] // Plans: sent by the link tasks once they speak the mission protocol
 pub(super) enum SimRequest {
     /// A command, answered on `reply` (offboard setpoints have none).
     Command {
@@ -56,7 +55,6 @@ pub(super) enum SimRequest {
 
 /// Messages to every link task.
 #[derive(Clone, Debug)]
-#[allow(dead_code)] // MissionItemReached: read by the links once they speak the mission protocol
 pub(super) enum Event {
     StatusText(StatusText),
     /// MISSION_ITEM_REACHED for this seq.

@@ -30,6 +30,8 @@ pub mod id {
     pub const DO_SET_HOME: u16 = 179;
     /// MAV_CMD_DO_REPOSITION.
     pub const DO_REPOSITION: u16 = 192;
+    /// MAV_CMD_DO_SET_MISSION_CURRENT.
+    pub const DO_SET_MISSION_CURRENT: u16 = 224;
     /// MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN.
     pub const PREFLIGHT_REBOOT_SHUTDOWN: u16 = 246;
     /// MAV_CMD_MISSION_START.
@@ -227,7 +229,13 @@ pub fn classify(c: &Command) -> Action {
             2.0 => Action::Autopilot(AutopilotCommand::Power(PowerAction::Shutdown)),
             _ => Action::Answer(result::UNSUPPORTED, None),
         },
-        id::MISSION_START => Action::Autopilot(AutopilotCommand::StartMission { first: Some(0) }),
+        // p1 = the first item; NaN or negative: where the mission stands
+        id::MISSION_START => Action::Autopilot(AutopilotCommand::StartMission { first: seq(p1) }),
+        // p1 = the item; the autopilot refuses one past the mission
+        id::DO_SET_MISSION_CURRENT => match seq(p1) {
+            Some(seq) => Action::Autopilot(AutopilotCommand::SetMissionCurrent { seq }),
+            None => Action::Answer(result::DENIED, Some("DO_SET_MISSION_CURRENT needs an item")),
+        },
         id::SET_MESSAGE_INTERVAL => {
             if !p1.is_finite() || p1 < 0.0 {
                 return Action::Answer(result::FAILED, None);
@@ -258,6 +266,12 @@ pub fn classify(c: &Command) -> Action {
         }
         _ => Action::Answer(result::UNSUPPORTED, None),
     }
+}
+
+/// A mission item's seq from a float parameter: `None` when NaN or
+/// negative; beyond u16 it saturates (no such item: the autopilot refuses).
+fn seq(p: f32) -> Option<u16> {
+    convert::finite(p).filter(|x| *x >= 0.0).map(|x| x as u16)
 }
 
 /// DO_SET_MODE / SET_MODE: the requested mode, or a refusal.
@@ -399,6 +413,28 @@ mod tests {
             classify(&long(300, [0.0; 7])),
             Action::Autopilot(AutopilotCommand::StartMission { first: Some(0) })
         );
+        assert_eq!(
+            classify(&long(300, [3.0, N, N, N, N, N, N])),
+            Action::Autopilot(AutopilotCommand::StartMission { first: Some(3) })
+        );
+        for p1 in [N, -1.0] {
+            assert_eq!(
+                classify(&long(300, [p1, N, N, N, N, N, N])),
+                Action::Autopilot(AutopilotCommand::StartMission { first: None })
+            );
+        }
+        assert_eq!(
+            classify(&long(224, [2.0, N, N, N, N, N, N])),
+            Action::Autopilot(AutopilotCommand::SetMissionCurrent { seq: 2 })
+        );
+        assert_eq!(
+            classify(&long(224, [1e9, N, N, N, N, N, N])),
+            Action::Autopilot(AutopilotCommand::SetMissionCurrent { seq: u16::MAX })
+        );
+        assert!(matches!(
+            classify(&long(224, [N; 7])),
+            Action::Answer(result::DENIED, _)
+        ));
         assert_eq!(
             classify(&long(420, [1.0, 1.0, 3.0, N, N, N, N])),
             Action::Autopilot(AutopilotCommand::InjectFailure {

@@ -7,19 +7,21 @@
 //! Each serves a set of [`peers::Peers`] (its default remote from boot, plus
 //! everyone who talks, with a timeout), sends its own telemetry streams at
 //! its own rates ([`streams`]), answers the command, parameter, timesync,
-//! ping and FTP protocols, and turns commands and offboard setpoints into
-//! [`AutopilotCommand`]s. It translates only: whether a command is accepted,
-//! and what a relative frame means, is decided by the autopilot at the
-//! instant the command is applied (the ACK carries that answer). Everything
+//! ping, FTP and mission protocols, and turns commands and offboard
+//! setpoints into [`AutopilotCommand`]s and uploads into plan changes. It
+//! translates only: whether a command is accepted, what a relative frame
+//! means and whether a complete plan is stored are decided by the autopilot
+//! at the instant it applies them (the ACK carries that answer). Everything
 //! the compat doc (`shared/docs/mavlink-compat.md`) requires of the wire is
 //! decided here; the files:
 //!
 //! | file | job |
 //! |---|---|
-//! | [`wire`] | framing (v1 and v2 in, v2 out), hand-coded COMMAND_LONG/INT/ACK |
+//! | [`wire`] | framing (v1 and v2 in, v2 out), hand-coded COMMAND_LONG/INT/ACK and MISSION_ITEM(_INT) |
 //! | [`convert`] | PX4 custom_mode, MAV_RESULT, units (degE7, cdeg, mm) |
 //! | [`command`] | COMMAND_LONG/INT/SET_MODE classified as PX4 does |
 //! | [`param`] | PARAM_* protocol, INT32 bytewise |
+//! | [`mission`] | MISSION_* protocol: upload, download, clear, set current, progress |
 //! | [`offboard`] | SET_POSITION_TARGET_* and SET_ATTITUDE_TARGET to setpoints |
 //! | [`streams`] | stream rates, scheduler, message builders from a [`Snapshot`] |
 //! | [`peers`] | default remote plus learned peers with a timeout |
@@ -30,6 +32,7 @@
 
 pub mod command;
 pub mod convert;
+pub mod mission;
 pub mod offboard;
 pub mod param;
 pub mod peers;
@@ -45,14 +48,16 @@ use mavlink::dialects::common::{
     AUTOPILOT_VERSION_DATA, FILE_TRANSFER_PROTOCOL_DATA, MavMessage, MavProtocolCapability, MavSeverity, PING_DATA,
     STATUSTEXT_DATA, TIMESYNC_DATA,
 };
+use mission::{ItemMode, Missions, Partner, PlanTicket};
 
 use crate::autopilot::{AutopilotCommand, CommandOutcome, Severity, StatusText};
 use crate::lockstep::Snapshot;
+use crate::mission::{MissionResult, PlanChange};
 use crate::params::ParamValue;
 use command::{Action, Command};
 use param::ParamAccess;
 use streams::{Identity, Rates, Scheduler, Stream};
-use wire::{CommandAck, Encoder, Frame, Inbound};
+use wire::{CommandAck, Encoder, Frame, Inbound, MissionItemMsg};
 
 /// AUTOPILOT_VERSION capabilities: PX4's set (MISSION_FLOAT, PARAM_FLOAT,
 /// MISSION_INT, COMMAND_INT, FTP, SET_ATTITUDE_TARGET,
@@ -138,6 +143,21 @@ pub enum Effect {
         /// The value to set.
         value: ParamValue,
     },
+    /// Store or clear plans in the flight stack (whole or not at all), then
+    /// pass its answer to [`Link::on_plans_changed`] with the ticket.
+    Plans {
+        /// Who asked, for the MISSION_ACK.
+        ticket: PlanTicket,
+        /// The change.
+        change: PlanChange,
+    },
+    /// MISSION_SET_CURRENT: give the autopilot
+    /// [`AutopilotCommand::SetMissionCurrent`], then pass its outcome to
+    /// [`Link::on_mission_current_set`] (the answer is a MISSION_CURRENT).
+    SetMissionCurrent {
+        /// The item to make current.
+        seq: u16,
+    },
 }
 
 /// One MAVLink link (one UDP socket's worth of protocol state).
@@ -147,6 +167,7 @@ pub struct Link {
     encoder: Encoder,
     peers: peers::Peers,
     streams: Scheduler,
+    missions: Missions,
     outbox: Vec<Outgoing>,
     delayed: Vec<(Instant, Outgoing)>,
     due: Vec<Stream>,
@@ -175,6 +196,7 @@ impl Link {
             encoder,
             peers,
             streams,
+            missions: Missions::new(),
             outbox: Vec::new(),
             delayed: Vec::new(),
             due: Vec::new(),
@@ -198,6 +220,12 @@ impl Link {
     #[must_use]
     pub fn streams(&self) -> &Scheduler {
         &self.streams
+    }
+
+    /// The mission protocol state (item mode, upload running).
+    #[must_use]
+    pub fn missions(&self) -> &Missions {
+        &self.missions
     }
 
     /// The addresses [`To::All`] means now.
@@ -251,11 +279,11 @@ impl Link {
     /// When [`Link::poll`] next has something to send.
     #[must_use]
     pub fn next_deadline(&self) -> Option<Instant> {
-        let d = self.delayed.iter().map(|(t, _)| *t).min();
-        match (self.streams.next_deadline(), d) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
-        }
+        let delayed = self.delayed.iter().map(|(t, _)| *t).min();
+        [self.streams.next_deadline(), delayed, self.missions.next_deadline()]
+            .into_iter()
+            .flatten()
+            .min()
     }
 
     /// Queue the streams due at `now` (and delayed frames whose time has come).
@@ -274,10 +302,40 @@ impl Link {
         self.streams.due(now, &mut due);
         for s in &due {
             for m in streams::build(*s, t, unix_time_us) {
+                if let MavMessage::MISSION_CURRENT(c) = &m {
+                    self.missions.note_current(c);
+                }
                 self.send(To::All, &m);
             }
         }
         self.due = due;
+        let out = self.missions.poll(now, t);
+        self.mission_frames(out);
+    }
+
+    /// Queue the mission protocol's frames.
+    fn mission_frames(&mut self, out: Vec<mission::Out>) {
+        for o in out {
+            match o {
+                mission::Out::Message(to, m) => self.send(to, &m),
+                mission::Out::Item(to, item) => {
+                    let bytes = self.encoder.mission_item(&item);
+                    self.outbox.push(Outgoing {
+                        to: To::Peer(to),
+                        bytes,
+                    });
+                }
+                mission::Out::Text(to, severity, text) => self.text(to, severity, &text),
+            }
+        }
+    }
+
+    /// Queue a step's frames; its plan change becomes an effect.
+    fn mission_step(&mut self, step: mission::Step, effects: &mut Vec<Effect>) {
+        self.mission_frames(step.out);
+        if let Some((ticket, change)) = step.plans {
+            effects.push(Effect::Plans { ticket, change });
+        }
     }
 
     /// Handle one received datagram from `from`.
@@ -314,6 +372,11 @@ impl Link {
         (system == 0 || system == me.system_id) && (component == 0 || component == me.component_id)
     }
 
+    /// Mission messages may also be aimed at the mission planner component (PX4).
+    fn for_mission(&self, system: u8, component: u8) -> bool {
+        self.for_me(system, component) || (self.for_me(system, 0) && component == mission::MISSION_PLANNER)
+    }
+
     #[allow(clippy::too_many_arguments)]
     fn on_message<P: ParamAccess + ?Sized>(
         &mut self,
@@ -329,6 +392,7 @@ impl Link {
         let command = match msg {
             Inbound::CommandLong(c) => Command::from(&c),
             Inbound::CommandInt(c) => Command::from(&c),
+            Inbound::MissionItem(m) => return self.on_mission_item(now, from, requester, &m, effects),
             Inbound::Other(m) => return self.on_other_message(now, from, requester, *m, t, params, effects),
         };
         if self.for_me(command.target_system, command.target_component) {
@@ -343,7 +407,24 @@ impl Link {
         }
     }
 
-    /// Any message but a command.
+    /// MISSION_ITEM or MISSION_ITEM_INT.
+    fn on_mission_item(
+        &mut self,
+        now: Instant,
+        from: SocketAddr,
+        requester: (u8, u8),
+        m: &MissionItemMsg,
+        effects: &mut Vec<Effect>,
+    ) {
+        if self.for_mission(m.target_system, m.target_component) {
+            let step = self.missions.on_item(now, partner(from, requester), m);
+            self.mission_step(step, effects);
+        } else {
+            self.stats.ignored += 1;
+        }
+    }
+
+    /// Any message but a command or a mission item.
     #[allow(clippy::too_many_arguments)]
     fn on_other_message<P: ParamAccess + ?Sized>(
         &mut self,
@@ -424,6 +505,9 @@ impl Link {
                     &MavMessage::TIMESYNC(TIMESYNC_DATA {
                         tc1: now_ns.max(1),
                         ts1: m.ts1,
+                        // PX4 aims the answer at the requester
+                        target_system: requester.0,
+                        target_component: requester.1,
                     }),
                 );
             }
@@ -437,6 +521,38 @@ impl Link {
                         target_component: requester.1,
                     }),
                 );
+            }
+            MavMessage::MISSION_COUNT(m) if self.for_mission(m.target_system, m.target_component) => {
+                let step = self.missions.on_count(now, partner(from, requester), &m, t);
+                self.mission_step(step, effects);
+            }
+            MavMessage::MISSION_ACK(m) if self.for_mission(m.target_system, m.target_component) => {
+                let out = self.missions.on_ack(now, partner(from, requester), &m);
+                self.mission_frames(out);
+            }
+            MavMessage::MISSION_REQUEST_LIST(m) if self.for_mission(m.target_system, m.target_component) => {
+                let out = Missions::on_request_list(partner(from, requester), m.mission_type, t);
+                self.mission_frames(vec![out]);
+            }
+            MavMessage::MISSION_REQUEST(m) if self.for_mission(m.target_system, m.target_component) => {
+                let p = partner(from, requester);
+                let out = self.missions.on_request(p, m.seq, m.mission_type, ItemMode::Float, t);
+                self.mission_frames(out);
+            }
+            MavMessage::MISSION_REQUEST_INT(m) if self.for_mission(m.target_system, m.target_component) => {
+                let p = partner(from, requester);
+                let out = self.missions.on_request(p, m.seq, m.mission_type, ItemMode::Int, t);
+                self.mission_frames(out);
+            }
+            MavMessage::MISSION_CLEAR_ALL(m) if self.for_mission(m.target_system, m.target_component) => {
+                let step = self.missions.on_clear_all(partner(from, requester), m.mission_type);
+                self.mission_step(step, effects);
+            }
+            MavMessage::MISSION_SET_CURRENT(m) if self.for_mission(m.target_system, m.target_component) => {
+                match self.missions.check_set_current(m.seq, t) {
+                    Ok(()) => effects.push(Effect::SetMissionCurrent { seq: m.seq }),
+                    Err(why) => self.text(reply, Severity::Warning, &why),
+                }
             }
             MavMessage::FILE_TRANSFER_PROTOCOL(m) if self.for_me(m.target_system, m.target_component) => {
                 if let Some(answer) = ftp_answer(&m, requester) {
@@ -505,11 +621,46 @@ impl Link {
         }
     }
 
+    /// Answer a plan change the flight stack has applied (`Ok`: the new
+    /// plan's id) or refused (`Err`: why; nothing changed): MISSION_ACK to
+    /// the client, with a STATUSTEXT on refusal.
+    pub fn on_plans_changed(&mut self, ticket: PlanTicket, outcome: Result<u32, MissionResult>) {
+        let out = self.missions.on_plans_changed(ticket, outcome);
+        self.mission_frames(out);
+    }
+
+    /// The autopilot's answer to [`Effect::SetMissionCurrent`]: once
+    /// accepted, MISSION_CURRENT with `seq` to every peer (`t`: the
+    /// snapshot published before the answer). A refusal the autopilot
+    /// announces itself.
+    pub fn on_mission_current_set(&mut self, seq: u16, outcome: &CommandOutcome, t: &Snapshot) {
+        if *outcome == CommandOutcome::Accepted {
+            let out = self.missions.current_set(seq, t);
+            self.mission_frames(vec![out]);
+        }
+    }
+
+    /// The vehicle reached mission item `seq`: MISSION_ITEM_REACHED to every
+    /// peer now, repeated by [`Link::poll`].
+    pub fn on_mission_item_reached(&mut self, now: Instant, seq: u16) {
+        let out = self.missions.on_item_reached(now, seq);
+        self.mission_frames(vec![out]);
+    }
+
     /// Send the ACK for a command the autopilot has answered. (The autopilot
     /// announces its own refusals as status texts, so none is added here.)
     pub fn on_outcome(&mut self, ticket: AckTicket, outcome: &CommandOutcome) {
         let (result, _reason) = convert::mav_result(outcome);
         self.ack(ticket, result);
+    }
+}
+
+/// A transfer partner: the address and ids a frame came from.
+fn partner(addr: SocketAddr, (system, component): (u8, u8)) -> Partner {
+    Partner {
+        addr,
+        system,
+        component,
     }
 }
 
@@ -535,6 +686,9 @@ pub fn status_text_msg(severity: Severity, text: &str) -> MavMessage {
     MavMessage::STATUSTEXT(STATUSTEXT_DATA {
         severity: sev,
         text: cut.into(),
+        // one chunk: id 0 (PX4 numbers only multi-chunk texts)
+        id: 0,
+        chunk_seq: 0,
     })
 }
 
@@ -553,6 +707,7 @@ pub fn autopilot_version(identity: Identity) -> MavMessage {
         flight_custom_version: [0; 8],
         middleware_custom_version: [0; 8],
         os_custom_version: [0; 8],
+        uid2: [0; 18],
     })
 }
 
@@ -608,5 +763,7 @@ fn ftp_answer(m: &FILE_TRANSFER_PROTOCOL_DATA, requester: (u8, u8)) -> Option<Ma
     }))
 }
 
+#[cfg(test)]
+mod mission_tests;
 #[cfg(test)]
 mod tests;

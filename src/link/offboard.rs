@@ -296,6 +296,7 @@ mod tests {
             target_system: 1,
             target_component: 1,
             type_mask: AttitudeTargetTypemask::from_bits_retain(7),
+            thrust_body: [0.0; 3],
         };
         let Some(OffboardSetpoint::Attitude(AttitudeTarget {
             attitude,

@@ -19,13 +19,13 @@ use mavlink::MessageData;
 use mavlink::dialects::common::{
     ALTITUDE_DATA, ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, DEBUG_VECT_DATA,
     EXTENDED_SYS_STATE_DATA, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA,
-    HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA, MavAutopilot, MavBatteryFunction, MavBatteryType, MavLandedState,
-    MavMessage, MavModeFlag, MavState, MavSysStatusSensor, MavType, MavVtolState, NAMED_VALUE_FLOAT_DATA,
-    SYS_STATUS_DATA, SYSTEM_TIME_DATA, VFR_HUD_DATA,
+    HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA, MISSION_CURRENT_DATA, MavAutopilot, MavBatteryFunction,
+    MavBatteryType, MavLandedState, MavMessage, MavModeFlag, MavState, MavSysStatusSensor, MavType, MavVtolState,
+    MissionState as MavMissionState, NAMED_VALUE_FLOAT_DATA, SYS_STATUS_DATA, SYSTEM_TIME_DATA, VFR_HUD_DATA,
 };
 
 use super::convert;
-use crate::autopilot::{LandedState, Telemetry, VehicleType};
+use crate::autopilot::{FlightMode, LandedState, MissionState, Telemetry, VehicleType};
 use crate::lockstep::Snapshot;
 use crate::signals::GpsFix;
 
@@ -48,6 +48,8 @@ pub enum Stream {
     LocalPositionNed,
     /// GLOBAL_POSITION_INT (33).
     GlobalPositionInt,
+    /// MISSION_CURRENT (42); also sent at once on change ([`super::mission`]).
+    MissionCurrent,
     /// VFR_HUD (74).
     VfrHud,
     /// ALTITUDE (141).
@@ -67,7 +69,7 @@ pub enum Stream {
 
 impl Stream {
     /// Every stream.
-    pub const ALL: [Stream; 15] = [
+    pub const ALL: [Stream; 16] = [
         Stream::Heartbeat,
         Stream::SysStatus,
         Stream::SystemTime,
@@ -76,6 +78,7 @@ impl Stream {
         Stream::AttitudeQuaternion,
         Stream::LocalPositionNed,
         Stream::GlobalPositionInt,
+        Stream::MissionCurrent,
         Stream::VfrHud,
         Stream::Altitude,
         Stream::BatteryStatus,
@@ -97,6 +100,7 @@ impl Stream {
             Stream::AttitudeQuaternion => ATTITUDE_QUATERNION_DATA::ID,
             Stream::LocalPositionNed => LOCAL_POSITION_NED_DATA::ID,
             Stream::GlobalPositionInt => GLOBAL_POSITION_INT_DATA::ID,
+            Stream::MissionCurrent => MISSION_CURRENT_DATA::ID,
             Stream::VfrHud => VFR_HUD_DATA::ID,
             Stream::Altitude => ALTITUDE_DATA::ID,
             Stream::BatteryStatus => BATTERY_STATUS_DATA::ID,
@@ -130,6 +134,7 @@ pub fn gcs_rates() -> Rates {
         (Stream::AttitudeQuaternion, 50.0),
         (Stream::LocalPositionNed, 50.0),
         (Stream::GlobalPositionInt, 50.0),
+        (Stream::MissionCurrent, 1.0),
         (Stream::VfrHud, 4.0),
         (Stream::Altitude, 1.0),
         (Stream::BatteryStatus, 0.5),
@@ -152,6 +157,7 @@ pub fn api_rates() -> Rates {
         (Stream::AttitudeQuaternion, 50.0),
         (Stream::LocalPositionNed, 30.0),
         (Stream::GlobalPositionInt, 50.0),
+        (Stream::MissionCurrent, 1.0),
         (Stream::VfrHud, 10.0),
         (Stream::Altitude, 10.0),
         (Stream::BatteryStatus, 0.5),
@@ -341,6 +347,8 @@ pub fn build(stream: Stream, snapshot: &Snapshot, unix_time_us: u64) -> Vec<MavM
                 errors_count3: 0,
                 errors_count4: 0,
                 battery_remaining: battery_percent(t),
+                // MAVLink 2 extensions: not reported (zero, cut off the wire)
+                ..Default::default()
             })
         }
         Stream::SystemTime => MavMessage::SYSTEM_TIME(SYSTEM_TIME_DATA {
@@ -365,6 +373,8 @@ pub fn build(stream: Stream, snapshot: &Snapshot, unix_time_us: u64) -> Vec<MavM
                 GpsFix::Fix3d => GpsFixType::GPS_FIX_TYPE_3D_FIX,
             },
             satellites_visible: t.gps_satellites,
+            // MAVLink 2 extensions: not reported (zero, cut off the wire)
+            ..Default::default()
         }),
         Stream::Attitude => MavMessage::ATTITUDE(ATTITUDE_DATA {
             time_boot_ms: ms,
@@ -384,6 +394,8 @@ pub fn build(stream: Stream, snapshot: &Snapshot, unix_time_us: u64) -> Vec<MavM
             rollspeed: t.rate_frd.x as f32,
             pitchspeed: t.rate_frd.y as f32,
             yawspeed: t.rate_frd.z as f32,
+            // MAVLink 2 extensions: not reported (zero, cut off the wire)
+            ..Default::default()
         }),
         Stream::LocalPositionNed => MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA {
             time_boot_ms: ms,
@@ -405,6 +417,7 @@ pub fn build(stream: Stream, snapshot: &Snapshot, unix_time_us: u64) -> Vec<MavM
             vz: convert::sat_i16(t.velocity_ned.z * 100.0),
             hdg: convert::heading_cdeg(yaw),
         }),
+        Stream::MissionCurrent => MavMessage::MISSION_CURRENT(mission_current(t)),
         Stream::VfrHud => MavMessage::VFR_HUD(VFR_HUD_DATA {
             airspeed: ground_speed as f32,
             groundspeed: ground_speed as f32,
@@ -436,6 +449,8 @@ pub fn build(stream: Stream, snapshot: &Snapshot, unix_time_us: u64) -> Vec<MavM
                 battery_function: MavBatteryFunction::MAV_BATTERY_FUNCTION_ALL,
                 mavtype: MavBatteryType::MAV_BATTERY_TYPE_LIPO,
                 battery_remaining: battery_percent(t),
+                // MAVLink 2 extensions: not reported (zero, cut off the wire)
+                ..Default::default()
             })
         }
         Stream::HomePosition => MavMessage::HOME_POSITION(home_position(t)),
@@ -494,6 +509,34 @@ pub fn heartbeat(t: &Telemetry) -> HEARTBEAT_DATA {
     }
 }
 
+/// MISSION_CURRENT as PX4 fills it (`send_mission_current`): `total` is
+/// UINT16_MAX without a mission; `mission_mode` is 1 (active) in the modes
+/// PX4 counts as flying the mission (mission, takeoff, land), else 2
+/// (suspended).
+#[must_use]
+pub fn mission_current(t: &Telemetry) -> MISSION_CURRENT_DATA {
+    let m = &t.mission;
+    MISSION_CURRENT_DATA {
+        seq: m.seq,
+        total: if m.total == 0 { u16::MAX } else { m.total },
+        mission_state: match m.state {
+            MissionState::NoMission => MavMissionState::MISSION_STATE_NO_MISSION,
+            MissionState::NotStarted => MavMissionState::MISSION_STATE_NOT_STARTED,
+            MissionState::Active => MavMissionState::MISSION_STATE_ACTIVE,
+            MissionState::Paused => MavMissionState::MISSION_STATE_PAUSED,
+            MissionState::Complete => MavMissionState::MISSION_STATE_COMPLETE,
+        },
+        mission_mode: if matches!(t.mode, FlightMode::Mission | FlightMode::Takeoff | FlightMode::Land) {
+            1
+        } else {
+            2
+        },
+        mission_id: m.mission_id,
+        fence_id: m.fence_id,
+        rally_points_id: m.rally_id,
+    }
+}
+
 /// HOME_POSITION from telemetry.
 #[must_use]
 pub fn home_position(t: &Telemetry) -> HOME_POSITION_DATA {
@@ -508,6 +551,8 @@ pub fn home_position(t: &Telemetry) -> HOME_POSITION_DATA {
         approach_x: 0.0,
         approach_y: 0.0,
         approach_z: 0.0,
+        // MAVLink 2 extension: not reported (zero, cut off the wire)
+        ..Default::default()
     }
 }
 
@@ -564,6 +609,28 @@ mod tests {
         s.telemetry.gps_satellites = 0;
         assert_eq!(gps_raw(&s), (1, 0), "GPS_FIX_TYPE_NO_FIX");
         assert!(!gps_healthy(&s));
+    }
+
+    #[test]
+    fn mission_current_as_px4_fills_it() {
+        let mut s = snapshot();
+        let m = mission_current(&s.telemetry);
+        assert_eq!((m.seq, m.total, m.mission_mode), (0, u16::MAX, 2));
+        assert_eq!(m.mission_state, MavMissionState::MISSION_STATE_NO_MISSION);
+        s.telemetry.mission.total = 4;
+        s.telemetry.mission.seq = 2;
+        s.telemetry.mission.state = MissionState::Paused;
+        s.telemetry.mission.mission_id = 0xDEAD_BEEF;
+        for (mode, active) in [(FlightMode::Mission, 1), (FlightMode::Land, 1), (FlightMode::Hold, 2)] {
+            s.telemetry.mode = mode;
+            let m = mission_current(&s.telemetry);
+            assert_eq!(
+                (m.seq, m.total, m.mission_mode, m.mission_id),
+                (2, 4, active, 0xDEAD_BEEF)
+            );
+            assert_eq!(m.mission_state, MavMissionState::MISSION_STATE_PAUSED);
+        }
+        assert_eq!(Stream::from_message_id(42), Some(Stream::MissionCurrent));
     }
 
     #[test]

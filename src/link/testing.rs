@@ -1,6 +1,13 @@
-//! Test helpers: a snapshot of a vehicle on the ground at PX4's SITL home.
+//! Test helpers: a link as the API link is set up, and a snapshot of a
+//! vehicle on the ground at PX4's SITL home.
+
+use std::net::SocketAddr;
+use std::time::{Duration, Instant};
 
 use nalgebra::{UnitQuaternion, Vector3};
+
+use super::streams::{self, Identity};
+use super::{Link, LinkConfig};
 
 use crate::autopilot::{FlightMode, LandedState, MissionState, MissionStatus, Telemetry, VehicleType};
 use crate::geo::GeoPoint;
@@ -8,6 +15,28 @@ use crate::lockstep::Snapshot;
 use crate::mission::Plans;
 use crate::signals::{GpsFix, WrenchEstimate};
 use crate::sim::Truth;
+
+/// A loopback address.
+pub(crate) fn addr(port: u16) -> SocketAddr {
+    SocketAddr::from(([127, 0, 0, 1], port))
+}
+
+/// Vehicle 1/1 with the API link's rates, sending to 14540 from `now`.
+pub(crate) fn link(now: Instant) -> Link {
+    Link::new(
+        LinkConfig {
+            name: "test".into(),
+            identity: Identity {
+                system_id: 1,
+                component_id: 1,
+            },
+            default_remote: Some(addr(14540)),
+            rates: streams::api_rates(),
+            peer_timeout: Duration::from_secs(10),
+        },
+        now,
+    )
+}
 
 /// A disarmed quad in Hold on the ground at home, 12.5 s after boot, with an
 /// injected wrench and its estimate.

@@ -1,6 +1,5 @@
 //! Link-level tests: datagrams in, frames and effects out.
 
-use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::common::{
@@ -11,29 +10,9 @@ use mavlink::{MavHeader, MessageData};
 
 use super::param::ParamAccess as _;
 use super::param::fake::FakeParams;
-use super::testing::snapshot;
+use super::testing::{addr, link, snapshot};
 use super::wire::{self, CommandAck, CommandLong};
 use super::*;
-
-fn addr(p: u16) -> SocketAddr {
-    SocketAddr::from(([127, 0, 0, 1], p))
-}
-
-fn link(now: Instant) -> Link {
-    Link::new(
-        LinkConfig {
-            name: "test".into(),
-            identity: Identity {
-                system_id: 1,
-                component_id: 1,
-            },
-            default_remote: Some(addr(14540)),
-            rates: streams::api_rates(),
-            peer_timeout: Duration::from_secs(10),
-        },
-        now,
-    )
-}
 
 fn gcs() -> MavHeader {
     MavHeader {
@@ -263,7 +242,11 @@ fn mavlink1_and_timesync_and_ping() {
     let t0 = Instant::now();
     let mut l = link(t0);
     let p = FakeParams::standard();
-    let ts = MavMessage::TIMESYNC(TIMESYNC_DATA { tc1: 0, ts1: 12345 });
+    let ts = MavMessage::TIMESYNC(TIMESYNC_DATA {
+        tc1: 0,
+        ts1: 12345,
+        ..Default::default()
+    });
     let frame = wire::encode_v1(gcs(), 111, &wire::payload_v1(&ts));
     l.on_datagram(t0, addr(50000), &frame, &snapshot(), &p);
     let d = decoded(&l.drain());

@@ -1,15 +1,18 @@
 //! MAVLink framing on byte slices: split a UDP datagram into checked frames
 //! (MAVLink 1 and 2, signed or not), and write MAVLink 2 frames. No sockets.
 //!
-//! Three messages are coded by hand instead of through the `mavlink` crate's
-//! types: COMMAND_LONG (76), COMMAND_INT (75) and COMMAND_ACK (77). The crate
-//! decodes `command` into its `MavCmd` enum and refuses a frame whose command
-//! id it does not know, but an unknown command must still be answered
-//! UNSUPPORTED; and the crate (without its `mav2-message-extensions` feature)
-//! has no COMMAND_ACK `target_system`/`target_component`, which PX4 fills with
-//! the requester's ids.
+//! Five messages are coded by hand instead of through the `mavlink` crate's
+//! types: COMMAND_LONG (76), COMMAND_INT (75), COMMAND_ACK (77), MISSION_ITEM
+//! (39) and MISSION_ITEM_INT (73). The crate decodes `command` (and a mission
+//! item's `frame`) into its `MavCmd` (`MavFrame`) enum and refuses a frame
+//! whose number it does not know, but an unknown command must still be
+//! answered: UNSUPPORTED for a command, MAV_MISSION_UNSUPPORTED (or
+//! UNSUPPORTED_FRAME) for a mission item, as PX4 does; and a COMMAND_ACK for
+//! such a command, or a stored item, is written from its number.
 
-use mavlink::dialects::common::{COMMAND_ACK_DATA, COMMAND_INT_DATA, COMMAND_LONG_DATA, MavMessage};
+use mavlink::dialects::common::{
+    COMMAND_ACK_DATA, COMMAND_INT_DATA, COMMAND_LONG_DATA, MISSION_ITEM_DATA, MISSION_ITEM_INT_DATA, MavMessage,
+};
 use mavlink::{MAVLinkV2MessageRaw, MavHeader, MavlinkVersion, Message, MessageData};
 
 /// MAVLink 1 start byte.
@@ -157,6 +160,8 @@ pub enum Inbound {
     CommandLong(CommandLong),
     /// COMMAND_INT (75), with the command id as a number.
     CommandInt(CommandInt),
+    /// MISSION_ITEM (39) or MISSION_ITEM_INT (73), with command and frame as numbers.
+    MissionItem(MissionItemMsg),
     /// Anything else the common dialect knows.
     Other(Box<MavMessage>),
 }
@@ -169,6 +174,8 @@ pub fn decode(frame: &Frame<'_>) -> Option<Inbound> {
     match frame.message_id {
         COMMAND_LONG_DATA::ID => Some(Inbound::CommandLong(CommandLong::decode(frame.payload))),
         COMMAND_INT_DATA::ID => Some(Inbound::CommandInt(CommandInt::decode(frame.payload))),
+        MISSION_ITEM_DATA::ID => Some(Inbound::MissionItem(MissionItemMsg::decode(false, frame.payload))),
+        MISSION_ITEM_INT_DATA::ID => Some(Inbound::MissionItem(MissionItemMsg::decode(true, frame.payload))),
         id => MavMessage::parse(frame.version, id, frame.payload)
             .ok()
             .map(|m| Inbound::Other(Box::new(m))),
@@ -297,6 +304,126 @@ impl CommandInt {
     }
 }
 
+/// MISSION_ITEM (39) and MISSION_ITEM_INT (73): one layout, `x` and `y`
+/// read as floats (degrees in global frames) or integers (degE7).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MissionItemMsg {
+    /// param1..param4.
+    pub params: [f32; 4],
+    /// param5 and param6, as the message carries them.
+    pub xy: ItemXy,
+    /// param7 (altitude [m] in global frames).
+    pub z: f32,
+    /// Sequence number.
+    pub seq: u16,
+    /// MAV_CMD id.
+    pub command: u16,
+    /// Target system.
+    pub target_system: u8,
+    /// Target component.
+    pub target_component: u8,
+    /// MAV_FRAME.
+    pub frame: u8,
+    /// 1 on the current item.
+    pub current: u8,
+    /// Continue to the next item when done.
+    pub autocontinue: u8,
+    /// MAV_MISSION_TYPE; extension (0, the mission, when absent).
+    pub mission_type: u8,
+}
+
+/// A mission item's `x` and `y` in either message.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ItemXy {
+    /// MISSION_ITEM: floats.
+    Float {
+        /// param5.
+        x: f32,
+        /// param6.
+        y: f32,
+    },
+    /// MISSION_ITEM_INT: integers (degE7 in global frames).
+    Int {
+        /// param5.
+        x: i32,
+        /// param6.
+        y: i32,
+    },
+}
+
+impl MissionItemMsg {
+    /// Wire length of the payload with the extension.
+    pub const LEN: usize = 38;
+
+    /// Decode MISSION_ITEM_INT (`int`) or MISSION_ITEM (zero-padded if truncated).
+    #[must_use]
+    pub fn decode(int: bool, payload: &[u8]) -> Self {
+        let p = padded::<{ Self::LEN }>(payload);
+        let mut params = [0.0; 4];
+        for (i, v) in params.iter_mut().enumerate() {
+            *v = f32_at(&p, 4 * i);
+        }
+        let xy = if int {
+            ItemXy::Int {
+                x: i32::from_le_bytes([p[16], p[17], p[18], p[19]]),
+                y: i32::from_le_bytes([p[20], p[21], p[22], p[23]]),
+            }
+        } else {
+            ItemXy::Float {
+                x: f32_at(&p, 16),
+                y: f32_at(&p, 20),
+            }
+        };
+        Self {
+            params,
+            xy,
+            z: f32_at(&p, 24),
+            seq: u16::from_le_bytes([p[28], p[29]]),
+            command: u16::from_le_bytes([p[30], p[31]]),
+            target_system: p[32],
+            target_component: p[33],
+            frame: p[34],
+            current: p[35],
+            autocontinue: p[36],
+            mission_type: p[37],
+        }
+    }
+
+    /// The message id: MISSION_ITEM_INT for integer `x`, `y`, else MISSION_ITEM.
+    #[must_use]
+    pub fn message_id(&self) -> u32 {
+        match self.xy {
+            ItemXy::Float { .. } => MISSION_ITEM_DATA::ID,
+            ItemXy::Int { .. } => MISSION_ITEM_INT_DATA::ID,
+        }
+    }
+
+    /// Encode the payload.
+    #[must_use]
+    pub fn encode(&self) -> [u8; Self::LEN] {
+        let mut p = [0u8; Self::LEN];
+        for (i, v) in self.params.iter().enumerate() {
+            p[4 * i..4 * i + 4].copy_from_slice(&v.to_le_bytes());
+        }
+        let (x, y) = match self.xy {
+            ItemXy::Float { x, y } => (x.to_le_bytes(), y.to_le_bytes()),
+            ItemXy::Int { x, y } => (x.to_le_bytes(), y.to_le_bytes()),
+        };
+        p[16..20].copy_from_slice(&x);
+        p[20..24].copy_from_slice(&y);
+        p[24..28].copy_from_slice(&self.z.to_le_bytes());
+        p[28..30].copy_from_slice(&self.seq.to_le_bytes());
+        p[30..32].copy_from_slice(&self.command.to_le_bytes());
+        p[32] = self.target_system;
+        p[33] = self.target_component;
+        p[34] = self.frame;
+        p[35] = self.current;
+        p[36] = self.autocontinue;
+        p[37] = self.mission_type;
+        p
+    }
+}
+
 /// COMMAND_ACK with its MAVLink 2 extension fields.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct CommandAck {
@@ -409,6 +536,12 @@ impl Encoder {
     #[must_use]
     pub fn command_ack(&mut self, ack: &CommandAck) -> Vec<u8> {
         self.raw(COMMAND_ACK_DATA::ID, &ack.encode())
+    }
+
+    /// A MISSION_ITEM or MISSION_ITEM_INT frame.
+    #[must_use]
+    pub fn mission_item(&mut self, item: &MissionItemMsg) -> Vec<u8> {
+        self.raw(item.message_id(), &item.encode())
     }
 }
 
@@ -587,5 +720,72 @@ mod tests {
         };
         assert_eq!(CommandAck::decode(&ack.encode()), ack);
         assert_eq!(CommandAck::decode(&ack.encode()[..3]).target_system, 0);
+    }
+
+    #[test]
+    fn mission_items_match_the_crate_layout_and_keep_unknown_commands() {
+        use mavlink::dialects::common::{MavCmd, MavFrame, MavMissionType};
+        let ours = MissionItemMsg {
+            params: [0.5, 1.0, f32::NAN, 90.0],
+            xy: ItemXy::Int {
+                x: 473_977_420,
+                y: -85_455_940,
+            },
+            z: 10.0,
+            seq: 3,
+            command: 16,
+            target_system: 1,
+            target_component: 190,
+            frame: 6,
+            current: 1,
+            autocontinue: 1,
+            mission_type: 2,
+        };
+        let crate_msg = MavMessage::MISSION_ITEM_INT(MISSION_ITEM_INT_DATA {
+            param1: 0.5,
+            param2: 1.0,
+            param3: f32::NAN,
+            param4: 90.0,
+            x: 473_977_420,
+            y: -85_455_940,
+            z: 10.0,
+            seq: 3,
+            command: MavCmd::MAV_CMD_NAV_WAYPOINT,
+            target_system: 1,
+            target_component: 190,
+            frame: MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+            current: 1,
+            autocontinue: 1,
+            mission_type: MavMissionType::MAV_MISSION_TYPE_RALLY,
+        });
+        let mut v2 = [0u8; 255];
+        let n = crate_msg.ser(MavlinkVersion::V2, &mut v2);
+        assert_eq!(&ours.encode()[..], &v2[..n]);
+        let mut enc = Encoder::new(1, 1);
+        let bytes = enc.mission_item(&ours);
+        let f = frames(&bytes).next().expect("frame");
+        assert_eq!(f.message_id, 73);
+        let Some(Inbound::MissionItem(back)) = decode(&f) else {
+            panic!("not an item")
+        };
+        assert_eq!(back.encode(), ours.encode());
+        // float x/y, a command the crate does not know, a MAVLink 1 frame without the extension
+        let float = MissionItemMsg {
+            xy: ItemXy::Float {
+                x: 47.397_742,
+                y: 8.545_594,
+            },
+            command: 31_337,
+            mission_type: 0,
+            ..ours
+        };
+        let v1 = encode_v1(header(0), 39, &float.encode()[..MissionItemMsg::LEN - 1]);
+        let f = frames(&v1).next().expect("frame");
+        let Some(Inbound::MissionItem(back)) = decode(&f) else {
+            panic!("not an item")
+        };
+        assert_eq!(back.message_id(), 39);
+        assert_eq!((back.command, back.mission_type), (31_337, 0));
+        assert_eq!(back.encode(), float.encode());
     }
 }

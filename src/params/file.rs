@@ -14,10 +14,10 @@
 //!
 //! Reading goes line by line: an unknown name, a malformed line or a refused
 //! value becomes a warning naming the line, and every other parameter is still
-//! read. Writing is atomic: the text goes to a temporary file in the same
-//! directory, which is flushed to disk (`fsync`) and then renamed over the
-//! target, so a crash at any point leaves either the old file or the new one,
-//! never a truncated one.
+//! read. Writing is atomic ([`crate::statefile`]): the text goes to a
+//! temporary file in the same directory, which is flushed to disk (`fsync`)
+//! and then renamed over the target, so a crash at any point leaves either the
+//! old file or the new one, never a truncated one.
 
 use std::fs;
 use std::io::Write;
@@ -25,6 +25,7 @@ use std::path::{Path, PathBuf};
 
 use super::{PARAMS, ParamStore, ParamType, ParamValue};
 use crate::airframe::Airframe;
+use crate::statefile::{self, WriteError};
 
 /// A parameter file could not be read or written.
 #[derive(Debug, thiserror::Error)]
@@ -41,6 +42,15 @@ pub enum ParamFileError {
     /// The path names no file (e.g. `/` or `..`).
     #[error("parameter file {0}: not a file name")]
     NotAFile(PathBuf),
+}
+
+impl From<WriteError> for ParamFileError {
+    fn from(e: WriteError) -> Self {
+        match e {
+            WriteError::Io { path, source } => ParamFileError::Io { path, source },
+            WriteError::NotAFile(path) => ParamFileError::NotAFile(path),
+        }
+    }
 }
 
 /// A REAL32 value as TOML: always with a decimal point or exponent.
@@ -183,61 +193,15 @@ impl ParamStore {
     /// Writing, syncing or renaming failed; the old file is then untouched
     /// and the temporary file removed.
     pub fn save(&self, path: &Path) -> Result<(), ParamFileError> {
-        write_atomic(path, self.to_file_text().as_bytes(), |f, b| f.write_all(b))
+        statefile::write_atomic(path, self.to_file_text().as_bytes(), |f, b| f.write_all(b))?;
+        Ok(())
     }
-}
-
-/// The temporary twin of `path`: same directory, hidden, per process.
-fn temp_path(path: &Path) -> Result<PathBuf, ParamFileError> {
-    let name = path
-        .file_name()
-        .ok_or_else(|| ParamFileError::NotAFile(path.to_path_buf()))?;
-    let tmp_name = format!(".{}.{}.tmp", name.to_string_lossy(), std::process::id());
-    Ok(path.with_file_name(tmp_name))
-}
-
-/// Write `bytes` to a temporary file next to `path` with `write`, `fsync`
-/// it, rename it over `path` and `fsync` the directory (best effort).
-fn write_atomic(
-    path: &Path,
-    bytes: &[u8],
-    write: impl FnOnce(&mut fs::File, &[u8]) -> std::io::Result<()>,
-) -> Result<(), ParamFileError> {
-    let tmp = temp_path(path)?;
-    let io = |p: &Path| {
-        let p = p.to_path_buf();
-        move |source| ParamFileError::Io { path: p, source }
-    };
-    let result = (|| {
-        let mut f = fs::OpenOptions::new()
-            .write(true)
-            .create(true)
-            .truncate(true)
-            .open(&tmp)
-            .map_err(io(&tmp))?;
-        write(&mut f, bytes).map_err(io(&tmp))?;
-        f.sync_all().map_err(io(&tmp))?;
-        drop(f);
-        fs::rename(&tmp, path).map_err(io(path))
-    })();
-    if result.is_err() {
-        let _ = fs::remove_file(&tmp);
-        return result;
-    }
-    // Make the rename itself durable. Not every platform can open a directory; the file is already safe.
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    if let Ok(d) = fs::File::open(dir) {
-        let _ = d.sync_all();
-    }
-    Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::statefile::{temp_path, write_atomic};
 
     fn quad() -> Airframe {
         Airframe::load("quad").unwrap()

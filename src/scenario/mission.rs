@@ -419,8 +419,10 @@ pub fn run_mission(f: &MissionFlight, mut csv: Option<&mut dyn Write>) -> anyhow
             finite = false;
             break;
         }
-        let t = core.telemetry(0);
-        if t.landed == LandedState::InAir {
+        let time_s = core.time_s();
+        let ap = core.pilot(0);
+        let (armed, progress) = (ap.armed(), ap.mission_progress());
+        if ap.landed_state() == LandedState::InAir {
             let e = (truth.position_ned - reference).norm();
             sum_sq += e * e;
             n_air += 1;
@@ -430,7 +432,7 @@ pub fn run_mission(f: &MissionFlight, mut csv: Option<&mut dyn Write>) -> anyhow
             if let Some(r) = results.get_mut(usize::from(seq)) {
                 r.times_reached += 1;
                 if r.reached_s.is_none() {
-                    r.reached_s = Some(t.time_s);
+                    r.reached_s = Some(time_s);
                     let it = &items[usize::from(seq)];
                     r.distance_m = it
                         .geo_point(f.home.alt_amsl_m)
@@ -438,17 +440,17 @@ pub fn run_mission(f: &MissionFlight, mut csv: Option<&mut dyn Write>) -> anyhow
                 }
             }
         }
-        if started_s.is_none() && t.prearm_ok && !t.armed {
+        if started_s.is_none() && !armed && core.telemetry(0).prearm_ok {
             match core.command(0, AutopilotCommand::StartMission { first: Some(0) }) {
-                CommandOutcome::Accepted => started_s = Some(t.time_s),
+                CommandOutcome::Accepted => started_s = Some(time_s),
                 other => anyhow::bail!("{}: the mission would not start: {other:?}", f.source),
             }
         }
-        if t.mission.state == MissionState::Complete && complete_s.is_none() {
-            complete_s = Some(t.time_s);
+        if progress.state == MissionState::Complete && complete_s.is_none() {
+            complete_s = Some(time_s);
         }
         if let Some(c) = complete_s {
-            let over = if lands { !t.armed } else { t.time_s - c >= SETTLE_S };
+            let over = if lands { !armed } else { time_s - c >= SETTLE_S };
             if over {
                 break;
             }

@@ -198,7 +198,7 @@ impl Navigator {
                         set_phase(self, RtlPhase::Descend);
                     } else {
                         set_phase(self, RtlPhase::Land);
-                        say.announce(Severity::Info, "RTL: landing at home");
+                        say.announce(Severity::Info, "RTL: landing");
                     }
                 }
                 r
@@ -208,7 +208,7 @@ impl Navigator {
                 let r = self.go_to(meas, target, YawSetpoint::Hold, normal, dt);
                 if arrived(&r, &target) {
                     set_phase(self, RtlPhase::Land);
-                    say.announce(Severity::Info, "RTL: landing at home");
+                    say.announce(Severity::Info, "RTL: landing");
                 }
                 r
             }

@@ -343,15 +343,13 @@ impl Navigator {
             Phase::Leg { from } => {
                 let fly_through = it.command == cmd::NAV_WAYPOINT && hold_s(&it) == 0.0;
                 let next = fly_through.then(|| self.next_point(cx, seq + 1, &point)).flatten();
-                let mut path = vec![from, point];
+                let mut target = point;
                 if it.command == cmd::NAV_LAND {
                     // fly there at the altitude the leg began, then descend
-                    path[1].z = from.z;
+                    target.z = from.z;
                 }
-                if let Some(n) = next {
-                    path.push(n);
-                }
-                let target = path[1];
+                let through = [from, target, next.unwrap_or(target)];
+                let path = if next.is_some() { &through[..] } else { &through[..2] };
                 let heading = if (target.xy() - from.xy()).norm() > YAW_MIN_LEG_M {
                     let d = target - from;
                     Some(d.y.atan2(d.x))
@@ -359,7 +357,7 @@ impl Navigator {
                     None
                 };
                 let yaw = item_yaw.or(heading).map_or(YawSetpoint::Hold, YawSetpoint::Angle);
-                let r = self.follow(cx, &path, yaw, normal);
+                let r = self.follow(cx, path, yaw, normal);
                 let passed = next.is_some_and(|n| past_corner(&from, &target, &n, &r.position_ned));
                 let acc = if it.params[1] > 0.0 && it.command == cmd::NAV_WAYPOINT {
                     f64::from(it.params[1])

@@ -58,7 +58,7 @@ class Vehicle:
     sending to 127.0.0.1:14540+N); the GCS link sends to `gcs_port` (a free
     port by default, not 14550, so tests never talk to a real GCS)."""
 
-    def __init__(self, instance=None, speed=5.0, gcs_port=None, extra=()):
+    def __init__(self, instance=None, speed=5.0, gcs_port=None, extra=(), params=None):
         self.instance = free_instance() if instance is None else instance
         self.gcs_port = gcs_port or free_udp_port()
         self.api_port = 14540 + self.instance
@@ -68,13 +68,14 @@ class Vehicle:
         self.speed = speed
         self.state_dir = tempfile.mkdtemp(prefix="rotorpilot-client-")
         self.log_path = os.path.join(self.state_dir, "rotorpilot.log")
-        # A fresh state dir starts from the defaults, except for one: at `speed`
-        # times real time, COM_OF_LOSS_T = 1 s of simulated time is only 0.2 s of
-        # wall time, and a client stalled that long by a busy CI machine (MAVSDK
-        # streams offboard setpoints at 20 Hz of wall time) would lose offboard.
-        # Offboard loss itself is tested in tests/daemon_*.rs and tests/autopilot.rs.
-        with open(os.path.join(self.state_dir, "params.toml"), "w") as f:
-            f.write(f"COM_OF_LOSS_T = {max(1.0, 0.6 * speed)}\n")
+        # A fresh state dir starts from PX4's defaults. Above real-time speed the
+        # timers that wait for a client (offboard loss COM_OF_LOSS_T, preflight
+        # auto-disarm COM_DISARM_PRFLT) run on the wall clock, so a script written
+        # for 1x needs no scaled parameter at 5x or 20x. `params` presets others.
+        if params:
+            with open(os.path.join(self.state_dir, "params.toml"), "w") as f:
+                for name, value in params.items():
+                    f.write(f"{name} = {value}\n")
         self.extra = list(extra)
         self.proc = None
         self.banner = []

@@ -2,7 +2,8 @@
 through ctypes, no mavsdk_server) against the rotorpilot binary: connect as a
 ground station with udpin://0.0.0.0:14540+N, wait for health, params, arm,
 take off, goto (MAVSDK 4 sends DO_REPOSITION in frame 0), offboard position
-and velocity, offboard refusal without setpoints, land.
+and velocity, offboard refusal without setpoints, land; and a three-waypoint
+mission uploaded, read back and flown at 1x and 20x.
 
 Run with the mavsdk 4.x venv: `python -m pytest tests/clients/test_mavsdk4.py`.
 """
@@ -19,11 +20,18 @@ from harness import Vehicle  # noqa: E402
 
 from mavsdk import ComponentType, Configuration, Mavsdk  # noqa: E402
 from mavsdk.plugins.action import Action, ActionError  # noqa: E402
+from mavsdk.plugins.mission import Mission, MissionItem, MissionPlan  # noqa: E402
 from mavsdk.plugins.offboard import Offboard, OffboardError, PositionNedYaw, VelocityNedYaw  # noqa: E402
 from mavsdk.plugins.param import Param  # noqa: E402
 from mavsdk.plugins.telemetry import FlightMode, Telemetry  # noqa: E402
 
 SPEED = 5.0
+# Scripts written for real time run unchanged with the vehicle at 20x: the
+# flight test below runs at both speeds (every wait here is in wall time and
+# generous enough for 5x; timers that wait for a client run on the wall clock
+# above 1x, so the vehicle does not disarm or leave offboard under a script
+# that thinks in real time).
+FAST = 20.0
 
 
 def until(what, cond, timeout):
@@ -52,16 +60,13 @@ class Drone:
         h = self.telemetry.health()
         return h.is_global_position_ok and h.is_home_position_ok and h.is_armable
 
-    def sim_sleep(self, seconds):
-        time.sleep(seconds / SPEED)
-
     def ned(self):
         return self.telemetry.position_velocity_ned()
 
 
-@pytest.fixture
-def drone():
-    with Vehicle(speed=SPEED) as v:
+@pytest.fixture(params=[SPEED], ids=lambda s: f"x{s:g}")
+def drone(request):
+    with Vehicle(speed=request.param) as v:
         d = Drone(v)
         until("health", d.healthy, 20)
         yield d
@@ -97,9 +102,15 @@ def test_offboard_refused_without_setpoints(drone):
     drone.action.disarm()
 
 
+@pytest.mark.parametrize("drone", [SPEED, FAST], ids=lambda s: f"x{s:g}", indirect=True)
 def test_takeoff_goto_offboard_land(drone):
     home = drone.telemetry.home()
     drone.action.arm()
+    # a script written for real time looks around for a second before taking
+    # off: 20 s of simulated time at 20x, twice COM_DISARM_PRFLT, which counts
+    # on the wall clock above 1x, so the vehicle is still armed
+    time.sleep(1.0)
+    assert drone.telemetry.armed(), "disarmed before takeoff"
     drone.action.takeoff()
     until("in air", drone.telemetry.in_air, 20)
     until("hold after takeoff", lambda: drone.telemetry.flight_mode() == FlightMode.HOLD, 20)
@@ -152,3 +163,73 @@ def test_disarm_in_air_refused(drone):
     assert drone.telemetry.armed()
     drone.action.land()
     until("landed", lambda: not drone.telemetry.in_air(), 60)
+
+
+def mission_item(lat, lon, alt, speed):
+    """A fly-through waypoint; the optional fields as MAVSDK reads them back."""
+    return MissionItem(latitude_deg=lat, longitude_deg=lon, relative_altitude_m=alt, speed_m_s=speed,
+                       is_fly_through=True, camera_photo_interval_s=1.0, acceptance_radius_m=2.0)
+
+
+def item_difference(a, b):
+    for f in ("latitude_deg", "longitude_deg", "relative_altitude_m", "speed_m_s", "is_fly_through",
+              "acceptance_radius_m", "camera_action", "vehicle_action", "loiter_time_s", "yaw_deg"):
+        x, y = getattr(a, f), getattr(b, f)
+        if isinstance(x, float) and math.isnan(x):
+            ok = isinstance(y, float) and math.isnan(y)
+        elif f in ("latitude_deg", "longitude_deg"):
+            ok = abs(x - y) < 1.01e-7
+        elif isinstance(x, float):
+            ok = abs(x - y) < 1e-4
+        else:
+            ok = x == y
+        if not ok:
+            return f"{f}: {x!r} != {y!r}"
+    return None
+
+
+@pytest.mark.parametrize("speed", [1.0, FAST], ids=["x1", "x20"])
+def test_three_waypoint_mission(speed):
+    """The MAVSDK 3 mission test's three waypoints (8, 3 and 5 m/s, RTL after)
+    through the native core: upload, read back equal, fly to the end, land at
+    home, disarm."""
+    with Vehicle(speed=speed, params={"RTL_RETURN_ALT": 10.0, "RTL_DESCEND_ALT": 10.0}) as v:
+        d = Drone(v)
+        try:
+            until("health", d.healthy, 20)
+            mission = Mission(d.system)
+            home = d.telemetry.home()
+            lat0, lon0 = home.latitude_deg, home.longitude_deg
+            m_lon = 111_195.0 * math.cos(math.radians(lat0))
+            wps = [(lat0 + 15 / 111_195.0, lon0), (lat0 + 15 / 111_195.0, lon0 + 30 / m_lon), (lat0, lon0 + 30 / m_lon)]
+            plan = MissionPlan(mission_items=[mission_item(la, lo, 8.0, s) for (la, lo), s in zip(wps, (8.0, 3.0, 5.0))])
+            mission.set_return_to_launch_after_mission(True)
+            mission.upload_mission(plan)
+            got = mission.download_mission().mission_items
+            assert len(got) == 3
+            for k, (a, b) in enumerate(zip(plan.mission_items, got)):
+                assert item_difference(a, b) is None, f"item {k}: {item_difference(a, b)}"
+            assert mission.get_return_to_launch_after_mission()
+            assert not mission.is_mission_finished()
+
+            d.action.arm()
+            mission.start_mission()
+            until("in air", d.telemetry.in_air, 30)
+            seen = set()
+
+            def finished():
+                p = mission.mission_progress()
+                seen.add((p.current, p.total))
+                return mission.is_mission_finished()
+
+            t0 = time.monotonic()
+            until("mission finished", finished, 30 + 120 / speed)
+            until("landed", lambda: not d.telemetry.in_air(), 30 + 60 / speed)
+            until("disarmed", lambda: not d.telemetry.armed(), 20)
+            p = d.telemetry.position()
+            gap = math.hypot((p.latitude_deg - lat0) * 111_195.0, (p.longitude_deg - lon0) * m_lon)
+            print(f"flown in {time.monotonic() - t0:.1f} s wall; progress {sorted(seen)}; landed {gap:.2f} m from home")
+            assert gap < 1.5
+            assert (3, 3) in seen and {c for c, _ in seen} >= {1, 2, 3}
+        finally:
+            d.mavsdk.destroy()

@@ -75,8 +75,8 @@ client_venv mavsdk3 "mavsdk==3.17.4" "pymavlink==2.4.50" "pytest==9.2.0"
 client_venv mavsdk4 "mavsdk==4.1.0" "pytest==9.2.0"
 export PYTHONWARNINGS="ignore::FutureWarning"
 # every wait inside is bounded; the outer timeout is a last resort
-timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink.py
-timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3.py
+timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink.py tests/clients/test_pymavlink_mission.py
+timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3.py tests/clients/test_mavsdk3_mission.py
 timeout 900 "$VENV/mavsdk4/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk4.py
 
 echo "== tools: plot scripts on real logs (matplotlib)"

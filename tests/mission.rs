@@ -198,6 +198,17 @@ fn do_jump_repeats_the_loop_the_given_number_of_times() {
     let (ok, r) = fly(&mut v, 200.0, |t| t.mission.state == MissionState::Complete);
     assert!(ok);
     assert_eq!(reached_seqs(&r), vec![0, 1, 2, 1, 2, 1, 2, 4]);
+    // every repeat is flown: reached where its waypoint is (a loop that turns
+    // back on itself stops at each point rather than cutting it)
+    let at = |seq: u16| match seq {
+        1 => Vector3::new(10.0, 0.0, -8.0),
+        2 => Vector3::new(10.0, 10.0, -8.0),
+        _ => Vector3::new(0.0, 0.0, -8.0),
+    };
+    for x in &r[1..] {
+        let off = (x.2 - at(x.0)).norm();
+        assert!(off < 3.5, "item {} reached {off:.2} m away at {:.2} s", x.0, x.1);
+    }
 }
 
 #[test]

@@ -45,6 +45,10 @@ use crate::mission::{MissionItem, cmd};
 const MAX_INSTANT_ITEMS: usize = 64;
 /// A leg shorter than this [m] horizontally keeps the heading.
 const YAW_MIN_LEG_M: f64 = 1.0;
+/// A fly-through point where the path turns by more than this [rad] is flown to a stop.
+const MAX_FLY_THROUGH_TURN_RAD: f64 = 2.0 * std::f64::consts::FRAC_PI_3;
+/// A reference this much farther [m] from a point than its closest approach is leaving it.
+const LEAVING_M: f64 = 0.05;
 /// Circle radius [m] of LOITER_TURNS when the item gives none.
 const DEFAULT_LOITER_RADIUS_M: f64 = 5.0;
 
@@ -91,6 +95,8 @@ enum Phase {
     Leg {
         /// Where the leg began [m], NED.
         from: Vector3<f64>,
+        /// The reference's closest approach to the point so far [m].
+        closest_m: f64,
     },
     /// At the point (or, for a delay, anywhere) until `until_s` [s] (`None`: forever).
     Wait {
@@ -119,6 +125,16 @@ enum Phase {
         /// Where [m], NED (z unused).
         at: Vector3<f64>,
     },
+}
+
+impl Phase {
+    /// A leg beginning at `from`.
+    fn leg(from: Vector3<f64>) -> Self {
+        Phase::Leg {
+            from,
+            closest_m: f64::INFINITY,
+        }
+    }
 }
 
 impl MissionRun {
@@ -195,6 +211,14 @@ fn carrot(path: &[Vector3<f64>], p: &Vector3<f64>, lookahead: f64) -> Vector3<f6
         from = w;
     }
     from
+}
+
+/// Whether the path `a -> b -> c` turns by more than [`MAX_FLY_THROUGH_TURN_RAD`] at `b`.
+fn sharp_turn(a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>) -> bool {
+    match ((b - a).try_normalize(1e-6), (c - b).try_normalize(1e-6)) {
+        (Some(u1), Some(u2)) => u1.dot(&u2) < MAX_FLY_THROUGH_TURN_RAD.cos(),
+        _ => false,
+    }
 }
 
 /// Whether `p` is past the corner `b` of the path `a -> b -> c`: beyond the
@@ -315,7 +339,7 @@ impl Navigator {
                 };
                 say.announce(Severity::Info, "Mission: taking off first");
             } else {
-                self.mission.phase = Phase::Leg { from: here_ref };
+                self.mission.phase = Phase::leg(here_ref);
             }
         }
         let s = cx.settings;
@@ -335,14 +359,18 @@ impl Navigator {
                         self.mission.reach(seq);
                         self.mission.next();
                     } else {
-                        self.mission.phase = Phase::Leg { from: target_ned };
+                        self.mission.phase = Phase::leg(target_ned);
                     }
                 }
                 Demand::Track(r)
             }
-            Phase::Leg { from } => {
+            Phase::Leg { from, closest_m } => {
                 let fly_through = it.command == cmd::NAV_WAYPOINT && hold_s(&it) == 0.0;
-                let next = fly_through.then(|| self.next_point(cx, seq + 1, &point)).flatten();
+                // flown through unless the path turns back sharply there (then it stops, as PX4 slows to a stop)
+                let next = fly_through
+                    .then(|| self.next_point(cx, seq + 1, &point))
+                    .flatten()
+                    .filter(|n| !sharp_turn(&from, &point, n));
                 let mut target = point;
                 if it.command == cmd::NAV_LAND {
                     // fly there at the altitude the leg began, then descend
@@ -358,7 +386,15 @@ impl Navigator {
                 };
                 let yaw = item_yaw.or(heading).map_or(YawSetpoint::Hold, YawSetpoint::Angle);
                 let r = self.follow(cx, path, yaw, normal);
-                let passed = next.is_some_and(|n| past_corner(&from, &target, &n, &r.position_ned));
+                // past a fly-through point: beyond the corner's bisector and
+                // moving away from the point (never at the start of a leg
+                // that doubles back on itself, as a DO_JUMP loop does)
+                let d = (r.position_ned - target).norm();
+                let leaving = d > closest_m + LEAVING_M;
+                let passed = leaving && next.is_some_and(|n| past_corner(&from, &target, &n, &r.position_ned));
+                if let Phase::Leg { closest_m, .. } = &mut self.mission.phase {
+                    *closest_m = closest_m.min(d);
+                }
                 let acc = if it.params[1] > 0.0 && it.command == cmd::NAV_WAYPOINT {
                     f64::from(it.params[1])
                 } else {
@@ -535,7 +571,7 @@ impl Navigator {
                     self.mission.reach(seq);
                     self.mission.next();
                     if self.mission.current < cx.mission.len() {
-                        self.mission.phase = Phase::Leg { from: point };
+                        self.mission.phase = Phase::leg(point);
                     }
                     return;
                 }

@@ -91,7 +91,7 @@ def session():
     with Vehicle(speed=5.0) as v:
         mp = MavProxy(f"udpin:127.0.0.1:{v.gcs_port}")
         try:
-            mp.expect(r"Detected vehicle 2:1")
+            mp.expect(rf"Detected vehicle {v.sysid}:1")
             # MAVProxy fetches the parameters on connecting; commands wait for that
             mp.expect(r"Received (\d+) parameters", timeout=20)
             yield v, mp
@@ -155,27 +155,27 @@ def test_params_modes_arming_and_a_mission_flown(session):
 
     mp.send("arm throttle")
     mp.expect(r"COMPONENT_ARM_DISARM: ACCEPTED")
-    mp.expect(r"^ARMED")
+    mp.expect(r"\bARMED$")
     mp.send("disarm")
     mp.expect(r"COMPONENT_ARM_DISARM: ACCEPTED")
-    mp.expect(r"^DISARMED")
+    mp.expect(r"\bDISARMED$")
 
     # AUTO.MISSION by DO_SET_MODE (base 1, main 4, sub 4): arm, and the mission takes off first
     mp.send("arm throttle")
-    mp.expect(r"^ARMED")
+    mp.expect(r"\bARMED$")
     mp.send("long DO_SET_MODE 1 4 4")
     mp.expect(r"DO_SET_MODE: ACCEPTED")
     mp.expect(r"Mode MISSION")
     # the mission lands at its end (item 5, NAV_LAND) and the vehicle disarms
-    mp.expect(r"^DISARMED", timeout=60)
+    mp.expect(r"\bDISARMED$", timeout=60)
     truth.drain()
     cur = truth.recv("MISSION_CURRENT", 3)
     assert cur is not None and cur.mission_state == 5 and cur.seq == 5
 
-    # Hold and Land by DO_SET_MODE too, from the ground: the mode follows
-    mp.send("long DO_SET_MODE 1 4 6")
+    # on the ground again: Position, then Hold, by DO_SET_MODE; the prompt follows
+    mp.send("long DO_SET_MODE 1 3 0")
     mp.expect(r"DO_SET_MODE: ACCEPTED")
-    mp.expect(r"Mode LAND")
+    mp.expect(r"Mode POSCTL")
     mp.send("long DO_SET_MODE 1 4 3")
     mp.expect(r"DO_SET_MODE: ACCEPTED")
     mp.expect(r"Mode LOITER")

@@ -47,10 +47,12 @@ grep -q "test result: ok" /tmp/rotorpilot-cargo-test.log
 echo "== benches compile"
 cargo bench --no-run --quiet
 
-echo "== MAVLink client tests (pymavlink, MAVSDK 3 gRPC, MAVSDK 4 native)"
+echo "== MAVLink client tests (pymavlink, MAVSDK 3 gRPC, MAVSDK 4 native, MAVProxy)"
 # Real clients against the release binary on loopback. Each client set lives
 # in its own venv under .venv/ (gitignored): `mavsdk<4` and `mavsdk` 4.x are
 # both named `mavsdk`. Versions are pinned; pip only installs what is missing.
+# Flights run at 5x, at 20x (scripts written for real time, unchanged) and,
+# once per MAVSDK generation, at 1x.
 cargo build --release --quiet
 export ROTORPILOT_BIN="${CARGO_TARGET_DIR:-$PWD/target}/release/rotorpilot"
 PY="${PYTHON:-python3}"
@@ -73,11 +75,19 @@ client_venv() {
 client_venv pymavlink "pymavlink==2.4.50" "pytest==9.2.0"
 client_venv mavsdk3 "mavsdk==3.17.4" "pymavlink==2.4.50" "pytest==9.2.0"
 client_venv mavsdk4 "mavsdk==4.1.0" "pytest==9.2.0"
+# MAVProxy 1.8.74: the newest without vtk/opencv/matplotlib as dependencies
+# (1.8.75), and it answers MISSION_REQUEST_INT (1.8.71 answers only
+# MISSION_REQUEST, so `wp load` stalls on PX4 and here); it imports `future`
+# without declaring it.
+client_venv mavproxy "MAVProxy==1.8.74" "future==1.0.0" "pymavlink==2.4.50" "pytest==9.2.0"
 export PYTHONWARNINGS="ignore::FutureWarning"
 # every wait inside is bounded; the outer timeout is a last resort
-timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink.py tests/clients/test_pymavlink_mission.py
-timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3.py tests/clients/test_mavsdk3_mission.py
+timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink.py
+timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_mission.py
+timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3.py
+timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_mission.py
 timeout 900 "$VENV/mavsdk4/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk4.py
+timeout 600 "$VENV/mavproxy/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavproxy.py
 
 echo "== tools: plot scripts on real logs (matplotlib)"
 client_venv tools "matplotlib==3.9.2" "pytest==9.2.0"

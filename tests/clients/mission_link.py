@@ -65,6 +65,14 @@ def waypoint(lat, lon, alt, hold=0.0, accept=1.0, yaw=math.nan, frame=3):
     return Item(16, frame, lat, lon, alt, hold, accept, 0.0, yaw)
 
 
+def distance_m(lat_a, lon_a, lat_b, lon_b):
+    """Horizontal distance between two nearby points (flat earth, as the vehicle)."""
+    r = 6_371_000.0
+    north = math.radians(lat_a - lat_b) * r
+    east = math.radians(lon_a - lon_b) * r * math.cos(math.radians(0.5 * (lat_a + lat_b)))
+    return math.hypot(north, east)
+
+
 def offset(lat, lon, north_m, east_m):
     """The point `north_m`, `east_m` from lat/lon (flat earth, as the vehicle)."""
     r = 6_371_000.0

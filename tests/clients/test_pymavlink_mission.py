@@ -70,13 +70,14 @@ def api_client(v, sysid=254):
     return Client(f"udpout:127.0.0.1:{v.api_bind}", sysid=sysid, compid=190)
 
 
-def test_wpl_file_old_float_loop_mission_start_progress_and_do_jump():
-    """The classic pymavlink upload (CLEAR_ALL, COUNT, answer each
-    MISSION_REQUEST with MAVWPLoader's MISSION_ITEM, targets 0/0), read back
-    the same way; MISSION_START arms and flies it at 20x: every item reached in
-    order with the triangle 1-2 flown three times (DO_JUMP 1, repeat 2),
-    MISSION_CURRENT active in flight and COMPLETE at the end, landed and
-    disarmed."""
+@pytest.fixture(scope="module")
+def wpl_flight():
+    """The classic pymavlink upload of tests/clients/missions/loop-jump.waypoints
+    (CLEAR_ALL, COUNT, each MISSION_REQUEST answered with MAVWPLoader's
+    MISSION_ITEM, targets 0/0), read back the same way and on the other link,
+    then MISSION_START and the flight at 20x to the end, recorded: every
+    MISSION_ITEM_REACHED with the vehicle's position at that moment, every
+    MISSION_CURRENT, the modes."""
     with Vehicle(speed=FAST) as v:
         m = gcs(v)
         loader = mavwp.MAVWPLoader()
@@ -101,58 +102,96 @@ def test_wpl_file_old_float_loop_mission_start_progress_and_do_jump():
         c = Client(f"udpout:127.0.0.1:{v.api_bind}", sysid=254)
         got = c.download(int_mode=False)
         assert ml.plan_difference(items, got, sent_int=False, got_int=False) is None, got
-        # and as int items on the other link: the same plan
+        # and as int items: the same plan
         assert ml.plan_difference(items, c.download(), sent_int=False, got_int=True) is None
         c.close()
 
         ok = wait(m, "SYS_STATUS", lambda s: s.onboard_control_sensors_health & 0x10000000, 10)
         assert ok is not None, "never armable"
-        cur = wait(m, "MISSION_CURRENT", timeout=3)
-        assert (cur.total, cur.mission_state) == (6, 2), "6 items, not started"
+        before = wait(m, "MISSION_CURRENT", timeout=3)
         m.set_mode_auto()  # MAV_CMD_MISSION_START p1 = 0
         a = wait(m, "COMMAND_ACK", lambda a: a.command == mavlink.MAV_CMD_MISSION_START, 3)
         assert a is not None and a.result == mavlink.MAV_RESULT_ACCEPTED
 
-        reached, states, modes = [], set(), set()
-        last_current = None
+        reached, currents, modes = [], [], set()
+        pos = None
         t0 = time.monotonic()
-        while time.monotonic() - t0 < 60:
-            msg = m.recv_match(type=["MISSION_ITEM_REACHED", "MISSION_CURRENT", "HEARTBEAT"], blocking=True,
-                               timeout=0.5)
+        done = False
+        while time.monotonic() - t0 < 60 and not done:
+            msg = m.recv_match(type=["MISSION_ITEM_REACHED", "MISSION_CURRENT", "HEARTBEAT", "GLOBAL_POSITION_INT"],
+                               blocking=True, timeout=0.5)
             if msg is None:
                 continue
             kind = msg.get_type()
-            if kind == "MISSION_ITEM_REACHED":
-                reached.append(msg.seq)
+            if kind == "GLOBAL_POSITION_INT":
+                pos = msg
+            elif kind == "MISSION_ITEM_REACHED":
+                reached.append((msg.seq, pos))
             elif kind == "MISSION_CURRENT":
-                states.add(msg.mission_state)
-                last_current = msg
+                currents.append(msg)
             elif msg.get_srcComponent() == 1:
                 modes.add(m.flightmode)
-                if last_current is not None and last_current.mission_state == 5 and not msg.base_mode & 128:
-                    break
+                done = bool(currents) and currents[-1].mission_state == 5 and not msg.base_mode & 128
         took = time.monotonic() - t0
         # the last item reached is repeated once a second (PX4: up to 10 times)
         t1 = time.monotonic()
         while time.monotonic() - t1 < 2.5:
             msg = m.recv_match(type="MISSION_ITEM_REACHED", blocking=True, timeout=0.5)
             if msg is not None:
-                reached.append(msg.seq)
-        changes = [s for k, s in enumerate(reached) if k == 0 or s != reached[k - 1]]
-        print(f"flown in {took:.1f} s wall; reached (changes) {changes}; {len(reached)} messages; states {states}")
-        nav = [s for s in changes if items[s].command != 177]
-        assert nav == [0, 1, 2, 1, 2, 1, 2, 4, 5], nav
-        repeats = len(reached) - len(changes)
-        assert 2 <= repeats <= 10, f"{repeats} repeats of the last item reached"
-        assert "MISSION" in modes
-        assert 3 in states, "ACTIVE while flown"
-        assert last_current is not None and last_current.mission_state == 5, "COMPLETE at the end"
-        assert last_current.seq == 5 and last_current.total == 6
+                reached.append((msg.seq, None))
         land = wait(m, "EXTENDED_SYS_STATE", timeout=2)
-        assert land.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND
-        g = wait(m, "GLOBAL_POSITION_INT", timeout=2)
-        assert abs(g.relative_alt) < 300, "on the ground at home"
-        assert math.hypot((g.lat / 1e7 - HOME[0]) * 111_195, (g.lon / 1e7 - HOME[1]) * 75_000) < 2.0
+        rest = wait(m, "GLOBAL_POSITION_INT", timeout=2)
+        yield dict(items=items, before=before, reached=reached, currents=currents, modes=modes, took=took,
+                   landed_state=land.landed_state, rest=rest)
+
+
+def changes(seqs):
+    return [s for k, s in enumerate(seqs) if k == 0 or s != seqs[k - 1]]
+
+
+def test_wpl_file_old_float_loop_mission_start_and_progress(wpl_flight):
+    """Progress as clients see it: every item reached in order, the triangle
+    1-2 three times (DO_JUMP to 1, 2 more times), the last one repeated;
+    MISSION_CURRENT not started, active, then COMPLETE on the last item; in
+    MISSION; landed at home and disarmed."""
+    f = wpl_flight
+    items = f["items"]
+    seqs = [s for s, _ in f["reached"]]
+    print(f"flown in {f['took']:.1f} s wall; reached (changes) {changes(seqs)}; {len(seqs)} messages")
+    nav = [s for s in changes(seqs) if items[s].command != 177]
+    assert nav == [0, 1, 2, 1, 2, 1, 2, 4, 5], nav
+    repeats = len(seqs) - len(changes(seqs))
+    assert 2 <= repeats <= 10, f"{repeats} repeats of the last item reached"
+    assert (f["before"].total, f["before"].mission_state) == (6, 2), "6 items, not started"
+    states = {c.mission_state for c in f["currents"]}
+    assert 3 in states, "ACTIVE while flown"
+    last = f["currents"][-1]
+    assert (last.mission_state, last.seq, last.total) == (5, 5, 6), "COMPLETE at the end"
+    assert "MISSION" in f["modes"]
+    assert f["landed_state"] == mavlink.MAV_LANDED_STATE_ON_GROUND
+    g = f["rest"]
+    assert abs(g.relative_alt) < 300, "on the ground"
+    assert ml.distance_m(g.lat / 1e7, g.lon / 1e7, *HOME) < 2.0, "at home"
+
+
+def test_do_jump_loops_are_flown(wpl_flight):
+    """Each MISSION_ITEM_REACHED of a waypoint comes when the vehicle is there
+    (within the item's 2 m acceptance radius, plus what the vehicle flies
+    between two position reports at 20x), the repeats of the DO_JUMP loop too;
+    and MISSION_CURRENT follows the item being flown to."""
+    f = wpl_flight
+    items = f["items"]
+    far = []
+    for seq, pos in f["reached"]:
+        it = items[seq]
+        if pos is None or it.command not in (16, 21):
+            continue
+        d = ml.distance_m(pos.lat / 1e7, pos.lon / 1e7, it.x, it.y)
+        if d > 6.0:
+            far.append((seq, round(d, 1)))
+    assert not far, f"items reported reached while the vehicle was elsewhere (seq, metres away): {far}"
+    current = changes([c.seq for c in f["currents"] if c.mission_state == 3])
+    assert [s for s in current if items[s].command != 177] == [0, 1, 2, 1, 2, 1, 2, 4, 5], current
 
 
 def test_mission_start_without_a_mission_is_denied(vehicle):

@@ -167,7 +167,10 @@ def test_three_waypoints_with_speed_changes_and_rtl(speed):
                  asyncio.ensure_future(track(uav, samples, progress))]
         await uav.action.arm()
         await uav.mission.start_mission()
-        await common.expect_mode(uav, FlightMode.MISSION, 5)
+        if speed == 1.0:
+            # at 20x the whole mission lasts about a second of wall time: the
+            # 1 Hz heartbeat may show RTL first (start_mission's ACK was checked)
+            await common.expect_mode(uav, FlightMode.MISSION, 5)
         # finished, then (RTL) down
         await common.next_matching(uav.telemetry.in_air(), bool, 30, "liftoff")
 

@@ -290,35 +290,31 @@ fn simulate(path: &std::path::Path, json: bool, csv: Option<&std::path::Path>) -
         )),
         None => None,
     };
-    if crate::scenario::is_mission(path) {
-        let flight = crate::scenario::MissionFlight::from_file(path)?;
-        let start = std::time::Instant::now();
-        let mut summary = crate::scenario::run_mission(&flight, writer.as_mut().map(|w| w as &mut dyn std::io::Write))?;
-        summary.wall_time_s = start.elapsed().as_secs_f64();
-        if let Some(mut w) = writer {
-            w.flush().context("writing the CSV")?;
-        }
-        if json {
-            println!("{}", serde_json::to_string_pretty(&summary)?);
-        } else {
-            print!("{}", summary.to_text());
-        }
-        if summary.verdict != "pass" {
-            std::process::exit(1);
-        }
-        return Ok(());
-    }
-    let scenario = crate::scenario::Scenario::from_file(path)?;
+    let out = writer.as_mut().map(|w| w as &mut dyn std::io::Write);
     let start = std::time::Instant::now();
-    let mut summary = crate::scenario::run(&scenario, writer.as_mut().map(|w| w as &mut dyn std::io::Write))?;
-    summary.wall_time_s = start.elapsed().as_secs_f64();
+    // (the summary as JSON, as text, and whether the flight passed)
+    let (as_json, as_text, passed) = if crate::scenario::is_mission(path) {
+        let flight = crate::scenario::MissionFlight::from_file(path)?;
+        let mut s = crate::scenario::run_mission(&flight, out)?;
+        s.wall_time_s = start.elapsed().as_secs_f64();
+        (serde_json::to_string_pretty(&s)?, s.to_text(), s.verdict == "pass")
+    } else {
+        let scenario = crate::scenario::Scenario::from_file(path)?;
+        let mut s = crate::scenario::run(&scenario, out)?;
+        s.wall_time_s = start.elapsed().as_secs_f64();
+        (serde_json::to_string_pretty(&s)?, s.to_text(), true)
+    };
     if let Some(mut w) = writer {
         w.flush().context("writing the CSV")?;
     }
     if json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        println!("{as_json}");
     } else {
-        print!("{}", summary.to_text());
+        print!("{as_text}");
+    }
+    if !passed {
+        // a mission that failed its verdict: exit status 1, for CI
+        std::process::exit(1);
     }
     Ok(())
 }

@@ -435,18 +435,6 @@ fn check_plan(
     Ok(items.into_iter().map(|(it, _)| it).collect())
 }
 
-/// `v` in degrees as MISSION_ITEM_INT carries it: `round(v * 1e7) / 1e7`.
-/// A value that does not fit degE7 (beyond ±214.7°) or is not finite is kept
-/// as it is: the check refuses it by its own value.
-fn quantise_deg(v: f64) -> f64 {
-    let scaled = (v * 1e7).round();
-    if scaled.is_finite() && scaled.abs() <= f64::from(i32::MAX) {
-        MissionItem::xy_from_int(frame::GLOBAL, scaled as i32, 0).0
-    } else {
-        v
-    }
-}
-
 // ----- JSON access with paths ---------------------------------------------------------------------
 
 /// JSON reading that names the file and the path of every problem.
@@ -728,25 +716,25 @@ mod tests {
 
     #[test]
     fn quantising_rounds_to_the_nearest_dege7_and_keeps_what_cannot_be_sent() {
-        assert_eq!(quantise_deg(47.397_742_04), 47.397_742);
-        assert_eq!(quantise_deg(47.397_741_96), 47.397_742);
-        assert_eq!(quantise_deg(-8.545_593_95), -8.545_594);
+        assert_eq!(crate::mission::quantise_deg(47.397_742_04), 47.397_742);
+        assert_eq!(crate::mission::quantise_deg(47.397_741_96), 47.397_742);
+        assert_eq!(crate::mission::quantise_deg(-8.545_593_95), -8.545_594);
         assert_eq!(
-            quantise_deg(0.000_000_05),
+            crate::mission::quantise_deg(0.000_000_05),
             0.000_000_1,
             "half away from zero, as std::round"
         );
-        assert_eq!(quantise_deg(250.0), 250.0);
-        assert!(quantise_deg(f64::NAN).is_nan());
-        assert_eq!(quantise_deg(f64::INFINITY), f64::INFINITY);
+        assert_eq!(crate::mission::quantise_deg(250.0), 250.0);
+        assert!(crate::mission::quantise_deg(f64::NAN).is_nan());
+        assert_eq!(crate::mission::quantise_deg(f64::INFINITY), f64::INFINITY);
         // the stored value gives the integer back
         let it = MissionItem {
             frame: 3,
             command: 16,
             autocontinue: true,
             params: [0.0; 4],
-            x: quantise_deg(47.398_226_644_791_98),
-            y: quantise_deg(8.545_560_383_312_846),
+            x: crate::mission::quantise_deg(47.398_226_644_791_98),
+            y: crate::mission::quantise_deg(8.545_560_383_312_846),
             z: 50.0,
         };
         assert_eq!((it.x_int(), it.y_int()), (473_982_266, 85_455_604));

@@ -431,6 +431,19 @@ impl MissionItem {
     }
 }
 
+/// `v` in degrees as MISSION_ITEM_INT carries it: `round(v * 1e7) / 1e7`.
+/// A value that does not fit degE7 (beyond ±214.7°) or is not finite is kept
+/// as it is: the check refuses it by its own value.
+#[must_use]
+pub fn quantise_deg(v: f64) -> f64 {
+    let scaled = (v * 1e7).round();
+    if scaled.is_finite() && scaled.abs() <= f64::from(i32::MAX) {
+        MissionItem::xy_from_int(frame::GLOBAL, scaled as i32, 0).0
+    } else {
+        v
+    }
+}
+
 /// Whether `item` may be stored in a plan of type `kind`: the command known
 /// for that type, the frame supported, and every value the command needs a
 /// number (PX4's MAV_MISSION_RESULT naming the first problem).

@@ -48,7 +48,7 @@ use crate::autopilot::{Autopilot, AutopilotCommand, CommandOutcome, LandedState,
 use crate::geo::GeoPoint;
 use crate::lockstep::Lockstep;
 use crate::mission::file::{PlanFile, load_mission_file};
-use crate::mission::{MissionItem, MissionType, PlanChange, cmd, frame};
+use crate::mission::{MissionItem, MissionType, PlanChange, cmd, frame, quantise_deg};
 use crate::params::{ParamStore, ParamValue};
 use crate::sim::{SensorConfig, SensorNoise};
 use crate::tomlfile::{self, FileError};
@@ -145,8 +145,8 @@ pub fn is_mission(path: &Path) -> bool {
 
 /// A global item's x/y as a client sends them (degE7, MISSION_ITEM_INT).
 fn quantised(frame: u8, x: f64, y: f64) -> (f64, f64) {
-    if frame::is_global(frame) && x.is_finite() && y.is_finite() {
-        MissionItem::xy_from_int(frame, (x * 1e7).round() as i32, (y * 1e7).round() as i32)
+    if frame::is_global(frame) {
+        (quantise_deg(x), quantise_deg(y))
     } else {
         (x, y)
     }

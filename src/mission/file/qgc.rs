@@ -34,7 +34,8 @@
 //! coordinates are refused; and a missing `geoFence` or `rallyPoints` means
 //! none (MAVSDK refuses the file).
 
-use super::{Json, Map, Origin, PlanFile, Shape, check_plan, join, quantise_deg};
+use super::{Json, Map, Origin, PlanFile, Shape, check_plan, join};
+use crate::mission::quantise_deg;
 use crate::mission::{MissionItem, MissionType, cmd, frame};
 
 use super::MissionFileError;

@@ -26,7 +26,8 @@
 //! is a geofence, of rally points only (5100) a rally plan; anything else is
 //! a mission.
 
-use super::{MissionFileError, Origin, PlanFile, check_plan, quantise_deg, wpl_field};
+use super::{MissionFileError, Origin, PlanFile, check_plan, wpl_field};
+use crate::mission::quantise_deg;
 use crate::mission::{MissionItem, MissionType, cmd, frame};
 
 /// The header line.

@@ -134,6 +134,11 @@ pub struct Airframe {
     pub inertia_kg_m2: Matrix3<f64>,
     /// Height of the centre of mass above flat ground when resting on it [m].
     pub gear_height_m: f64,
+    /// Rotational (aerodynamic) drag coefficient `gamma` [N m s]: the body
+    /// torque `tau_d = -gamma omega` (FRD, `omega` the body rates; Mueller and
+    /// D'Andrea's relaxed-hover model, doc section 3b). 0 (no drag) unless the
+    /// file's `body.rotational_drag_n_m_s` says otherwise.
+    pub rotational_drag_n_m_s: f64,
     /// Rotor coefficients and limits.
     pub rotor: RotorParams,
     /// Rotor layout, in label order (rotor 1 first).

@@ -822,6 +822,37 @@ mod tests {
         }
     }
 
+    /// Rotational drag alone on a spinning body with stopped rotors decays the
+    /// yaw rate as `r(t) = r0 e^{-gamma t / I_zz}`; without drag the rate stays.
+    #[test]
+    fn rotational_drag_decays_the_spin_exponentially() {
+        let text = include_str!("../../params/airframes/quad.toml")
+            .replace("rotational_drag_n_m_s = 0.0", "rotational_drag_n_m_s = 0.013");
+        let with = Airframe::from_toml(&text, "quad with drag").unwrap();
+        let without = Airframe::load("quad").unwrap();
+        assert_eq!(without.rotational_drag_n_m_s, 0.0);
+        for (af, gamma) in [(with, 0.013), (without, 0.0)] {
+            let mut plant = Plant::new(&af, PlantConfig::default());
+            let mut s = RigidBodyState::at_rest(Vector3::new(0.0, 0.0, -100.0));
+            s.rate_frd = Vector3::new(0.0, 0.0, 10.0);
+            plant.set_state(s);
+            for _ in 0..1000 {
+                plant.step(&ActuatorCommand::Stop, &ExternalWrench::default()).unwrap();
+            }
+            let expected = 10.0 * (-gamma * plant.time_s() / af.inertia_kg_m2[(2, 2)]).exp();
+            let r = plant.state().rate_frd.z;
+            assert!((r - expected).abs() < 1e-9, "gamma {gamma}: {r} vs {expected}");
+            assert_eq!(plant.rotational_drag_n_m_s(), gamma);
+        }
+        let bad = include_str!("../../params/airframes/quad.toml")
+            .replace("rotational_drag_n_m_s = 0.0", "rotational_drag_n_m_s = -0.01");
+        let e = Airframe::from_toml(&bad, "bad.toml").unwrap_err().to_string();
+        assert!(
+            e.contains("bad.toml") && e.contains("body.rotational_drag_n_m_s"),
+            "{e}"
+        );
+    }
+
     /// The diagonal fast path of the inertia equals the full products.
     #[test]
     fn diagonal_inertia_equals_full_products() {

@@ -49,15 +49,17 @@
 //! normal hover it is scheduled on the measured spin,
 //! `n(s) = normalize((1 - s)(-e3) + s n_bar)`, `s = clamp(w . n_bar / w_bar, 0, 1)`,
 //! so the thrust axis is not tilted before the spin that averages its
-//! horizontal part out exists.
+//! horizontal part out exists ([`UpSchedule`]; `k_n |n x d|` is capped at
+//! `max_tilt_rate_rad_s`).
 //!
 //! **(3) Position and descent.** `a_des = -K_p (p - p_t)_xy - K_v v_xy` (bounded),
 //! `a_des,z = -K_vz (v_z - v_descent)`; the wanted force `f_w = m (a_des - g e3)`
 //! gives `t = f_w / |f_w|` and the total thrust `F = |f_w| / (-n_z)`.
 //! `(F, tau_x, tau_y)` go to the three live rotors through the 3 x 3 map
 //! `[1 1 1; -l_i sin a_i; l_i cos a_i] f = [F, tau_x, tau_y]` (yaw torque is
-//! whatever results); when a rotor would exceed `c_T omega_max^2` the total
-//! thrust is lowered first, then the torque scaled down.
+//! whatever results); attitude first: when a rotor would exceed `c_T omega_max^2`
+//! the total thrust is lowered, and only below 60 % of the weight is the torque
+//! scaled down instead.
 //!
 //! **(4) Touchdown.** Once the centre of mass is within 1 cm of its resting
 //! height above the target (`target_z - gear_height`), every rotor is cut
@@ -347,9 +349,8 @@ impl RelaxedHover {
     /// [N m], body FRD, of the live rotors' thrusts `f` [N].
     fn rotor_torque(&self, f: &[f64; 3]) -> Vector3<f64> {
         let mut tau = Vector3::zeros();
-        for k in 0..3 {
-            let p = self.positions_frd[k];
-            tau += Vector3::new(-p.y * f[k], p.x * f[k], self.spin_sign[k] * self.kappa * f[k]);
+        for ((p, s), fk) in self.positions_frd.iter().zip(&self.spin_sign).zip(f) {
+            tau += Vector3::new(-p.y * fk, p.x * fk, s * self.kappa * fk);
         }
         tau
     }
@@ -427,9 +428,9 @@ impl RelaxedHover {
         let up = EquilibriumProblem::up(x[1], x[2]);
         let mut thrust = RotorVector::zeros();
         let mut speed = RotorVector::zeros();
-        for k in 0..3 {
-            thrust[self.live[k]] = f[k];
-            speed[self.live[k]] = (f[k] / self.c_t).sqrt();
+        for (&i, &fk) in self.live.iter().zip(&f) {
+            thrust[i] = fk;
+            speed[i] = (fk / self.c_t).sqrt();
         }
         Ok(Equilibrium {
             up_frd: up,
@@ -482,6 +483,8 @@ impl RelaxedHover {
         descent_speed_m_s: f64,
         dt: f64,
     ) -> RotorVector {
+        // the law is static (no integrator, no filter): `dt` is part of the
+        // interface every control step has, unused here
         let _ = dt;
         if self.phase == RelaxedHoverPhase::Landed {
             return RotorVector::zeros();
@@ -547,10 +550,10 @@ impl RelaxedHover {
 
         let f = self.allocate(thrust, tau.x, tau.y);
         let mut out = RotorVector::zeros();
-        for k in 0..3 {
-            let speed = (f[k] / self.c_t).sqrt();
-            self.last_speed[k] = speed;
-            out[self.live[k]] = speed;
+        for ((&i, &fk), last) in self.live.iter().zip(&f).zip(&mut self.last_speed) {
+            let speed = (fk / self.c_t).sqrt();
+            *last = speed;
+            out[i] = speed;
         }
         out
     }
@@ -567,9 +570,9 @@ impl RelaxedHover {
         let floor = (MIN_THRUST_FRACTION * self.mass * GRAVITY).min(thrust);
         let fit = |lambda: f64| {
             let mut f_total = thrust;
-            for k in 0..3 {
-                if a[k] > 1e-12 {
-                    f_total = f_total.min((self.thrust_max - lambda * b[k]) / a[k]);
+            for (ak, bk) in a.iter().zip(b.iter()) {
+                if *ak > 1e-12 {
+                    f_total = f_total.min((self.thrust_max - lambda * bk) / ak);
                 }
             }
             f_total

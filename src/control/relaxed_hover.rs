@@ -630,6 +630,47 @@ mod tests {
         }
     }
 
+    /// At the equilibrium (n_bar up, spinning at w_bar about it, descending at
+    /// the commanded speed above the target) the law commands the equilibrium
+    /// rotor speeds: the controller's fixed point is the relaxed hover of (1).
+    /// Near the ground it cuts every rotor and stays cut; non-finite input holds.
+    #[test]
+    fn equilibrium_is_the_fixed_point_and_touchdown_cuts() {
+        let af = quad(0.013);
+        for dead in 0..4 {
+            let mut h = RelaxedHover::new(&af, &af.nominal(), dead).unwrap();
+            let eq = *h.equilibrium();
+            let attitude = nalgebra::UnitQuaternion::rotation_between(&eq.up_frd, &(-Vector3::z())).unwrap();
+            let m = Measurement {
+                time_s: 1.0,
+                position_ned: Vector3::new(3.0, -2.0, -5.0),
+                velocity_ned: Vector3::new(0.0, 0.0, 0.7),
+                attitude,
+                rate_frd: eq.up_frd * eq.spin_rad_s,
+            };
+            let target = Vector3::new(3.0, -2.0, 0.0);
+            let out = h.update(&m, target, 0.7, 1e-3);
+            for i in 0..4 {
+                assert!(
+                    (out[i] - eq.speed_rad_s[i]).abs() < 1e-6,
+                    "dead {dead}, rotor {i}: {} vs {}",
+                    out[i],
+                    eq.speed_rad_s[i]
+                );
+            }
+            let mut bad = m;
+            bad.rate_frd.x = f64::NAN;
+            assert_eq!(h.update(&bad, target, 0.7, 1e-3), eq.speed_rad_s);
+            assert_eq!(h.phase(), RelaxedHoverPhase::Descending);
+            let mut down = m;
+            down.position_ned.z = -af.gear_height_m - 0.005;
+            assert_eq!(h.update(&down, target, 0.7, 1e-3), RotorVector::zeros());
+            assert_eq!(h.phase(), RelaxedHoverPhase::Landed);
+            // stays cut even if it bounces up
+            assert_eq!(h.update(&m, target, 0.7, 1e-3), RotorVector::zeros());
+        }
+    }
+
     #[test]
     fn refuses_what_it_cannot_fly() {
         let af = quad(0.0);

@@ -475,7 +475,9 @@ impl RelaxedHover {
     /// commands [rad/s] held over `[t_k, t_k + dt)` (the dead rotor and, once
     /// landed, every rotor commanded 0). `target_position_ned` [m, NED]: hold
     /// its `x, y` and land on the ground at its `z`; `descent_speed_m_s` [m/s]
-    /// (positive down). Non-finite inputs hold the equilibrium command.
+    /// (positive down). Non-finite inputs hold the equilibrium command. Once
+    /// [`RelaxedHoverPhase::Landed`] it returns zeros: send
+    /// `ActuatorCommand::Stop` then (a zero speed command is clamped to idle).
     pub fn update(
         &mut self,
         m: &Measurement,

@@ -293,6 +293,14 @@ impl Lockstep<Autopilot> {
         self.pilots[i].client_timeout(timer, started_s, readings)
     }
 
+    /// A ground station's HEARTBEAT for vehicle `i` arrived (from any link):
+    /// its autopilot records it at the current instant (data-link loss,
+    /// [`Autopilot::gcs_heartbeat`]).
+    pub fn gcs_heartbeat(&mut self, i: usize) {
+        let readings = self.world.sense(i);
+        self.pilots[i].gcs_heartbeat(readings);
+    }
+
     /// Vehicle `i`'s mission items reached since the last call, oldest first.
     pub fn drain_mission_reached(&mut self, i: usize) -> Vec<u16> {
         self.pilots[i].drain_mission_reached()

@@ -14,6 +14,8 @@ use crate::signals::{Measurement, SensorReadings};
 
 /// DO_CHANGE_SPEED's "back to the default speed" value.
 const SPEED_DEFAULT: f64 = -2.0;
+/// A target this little above `GF_MAX_VER_DIST` [m] is still at it (rounding of AMSL altitudes).
+const ALTITUDE_TOLERANCE_M: f64 = 1e-3;
 
 impl Autopilot {
     /// Carry out a command at the instant of `readings`. Accepted commands
@@ -25,15 +27,15 @@ impl Autopilot {
     /// |---|---|
     /// | `Arm` | TemporarilyRejected when a prearm check fails (not landed, estimator not initialised, home invalid, mode not armable: Offboard without fresh setpoints); `force` skips the checks |
     /// | `Disarm` | TemporarilyRejected in the air unless forced (forced: rotors stop, the vehicle falls) |
-    /// | `Takeoff` | Denied for a non-finite altitude; TemporarilyRejected when disarmed |
+    /// | `Takeoff` | Denied for a non-finite altitude or one above `GF_MAX_VER_DIST`; TemporarilyRejected when disarmed |
     /// | `Land`, `ReturnToLaunch` | TemporarilyRejected when disarmed |
     /// | `SetMode` | Takeoff, Land, RTL as above; Offboard TemporarilyRejected without a fresh setpoint (COM_OF_LOSS_T, on the client clock); Mission TemporarilyRejected without a mission |
     /// | `StartMission` | Denied without a mission or with a first item beyond it; TemporarilyRejected when arming is (it arms) |
     /// | `SetMissionCurrent` | Denied beyond the mission |
-    /// | `Reposition` | Denied for non-finite parts or lat/lon out of range; TemporarilyRejected when disarmed |
+    /// | `Reposition` | Denied for non-finite parts, lat/lon out of range, or a target outside the geofence (zones, `GF_MAX_HOR_DIST`, `GF_MAX_VER_DIST`; also its takeoff); TemporarilyRejected when disarmed |
     /// | `ChangeSpeed` | Denied when not finite |
     /// | `SetHome` | Denied for an invalid point |
-    /// | `Offboard` | Denied when a given part is not finite, or nothing is given |
+    /// | `Offboard` | Denied when a given part is not finite, or nothing is given; a position above `GF_MAX_VER_DIST` is clamped to it (announced once) |
     /// | `Power` | Denied when armed |
     /// | `InjectFailure` | Denied while `SYS_FAILURE_EN` = 0 |
     ///
@@ -174,6 +176,16 @@ impl Autopilot {
         }
         let here = self.navigator.current_position(m);
         let z = z.min(here.z);
+        if self
+            .max_altitude_z()
+            .is_some_and(|z_max| z < z_max - ALTITUDE_TOLERANCE_M)
+        {
+            return self.refuse(
+                Severity::Critical,
+                "Takeoff denied: above geofence max altitude",
+                CommandOutcome::Denied("takeoff altitude above GF_MAX_VER_DIST"),
+            );
+        }
         self.navigator.enter_takeoff(Vector3::new(here.x, here.y, z), None);
         self.say
             .announce(Severity::Info, format!("Takeoff to {:.1} m above home", home.z - z));
@@ -266,6 +278,13 @@ impl Autopilot {
         if alt_amsl_m.is_none() {
             target.z = here.z;
         }
+        if self.outside_geofence(&target) {
+            return self.refuse(
+                Severity::Critical,
+                "Reposition is outside geofence",
+                CommandOutcome::Denied("reposition outside the geofence"),
+            );
+        }
         let hold = HoldTarget {
             position_ned: target,
             yaw_rad,
@@ -276,6 +295,16 @@ impl Autopilot {
         if self.land.landed() {
             let home = self.home_ned();
             let z = target.z.min(home.z - self.settings.takeoff_alt_m).min(here.z);
+            if self
+                .max_altitude_z()
+                .is_some_and(|z_max| z < z_max - ALTITUDE_TOLERANCE_M)
+            {
+                return self.refuse(
+                    Severity::Critical,
+                    "Takeoff denied: above geofence max altitude",
+                    CommandOutcome::Denied("takeoff altitude above GF_MAX_VER_DIST"),
+                );
+            }
             self.navigator
                 .enter_takeoff(Vector3::new(here.x, here.y, z), Some(hold));
             self.say
@@ -319,9 +348,13 @@ impl Autopilot {
     }
 
     fn offboard_setpoint(&mut self, sp: &OffboardSetpoint, m: &Measurement) -> CommandOutcome {
-        let local = sp.resolve(m, &self.origin, &self.home);
+        let mut local = sp.resolve(m, &self.origin, &self.home);
         if !sp.position_in_range() || !local.is_valid() {
             return CommandOutcome::Denied("invalid offboard setpoint");
+        }
+        if let Some(z_max) = self.max_altitude_z() {
+            let clamped = local.clamp_position_z(z_max);
+            self.offboard_clamped(clamped);
         }
         self.navigator.set_offboard(local, m.time_s);
         CommandOutcome::Accepted

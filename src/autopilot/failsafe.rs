@@ -4,6 +4,19 @@
 //! without taking off (`COM_DISARM_PRFLT`). The failsafes of later issues
 //! (data link, battery, geofence) join here.
 //!
+//! # PX4's failsafes
+//! * Data-link loss: no GCS HEARTBEAT (MAV_TYPE_GCS, any link) for
+//!   `COM_DL_LOSS_T` while armed, once a GCS was heard: announced, then
+//!   `NAV_DLL_ACT` (disabled by default, ignored while landing); the next GCS
+//!   HEARTBEAT is announced as the link regained. A client timer
+//!   ([`ClientTimer::DataLinkLoss`]).
+//! * Low battery: the monitor's remaining charge against `BAT_LOW_THR`,
+//!   `BAT_CRIT_THR`, `BAT_EMERGEN_THR`; the level escalates only while armed,
+//!   each new level announced, `COM_LOW_BAT_ACT` at critical and emergency.
+//! * Geofence ([`super::geofence`]): the stored fence plan and
+//!   `GF_MAX_HOR_DIST`/`GF_MAX_VER_DIST`, checked on the current position
+//!   while armed in the air; `GF_ACTION` once per breach.
+//!
 //! # Which clock a timer runs on
 //! A timer about the flight itself (landing, hold and loiter times, the
 //! disarm after a landing) runs on simulated time, always. A timer that
@@ -20,9 +33,15 @@
 
 use serde::Serialize;
 
+use nalgebra::Vector3;
+
+use super::battery::{BatteryThresholds, BatteryWarning};
+use super::geofence::{self, DistanceLimits, Fence};
 use super::navigator::Nav;
 use super::settings::OffboardLossAction;
 use super::{Autopilot, Severity, TIME_EPS};
+use crate::mission::MissionType;
+use crate::params::{Param, ParamStore};
 use crate::signals::{Measurement, SensorReadings};
 
 /// The clock of the timers that wait for a client.
@@ -42,6 +61,8 @@ pub enum ClientTimer {
     PreflightDisarm,
     /// The offboard setpoint stream: lost after `COM_OF_LOSS_T` without a setpoint.
     OffboardLoss,
+    /// The ground station: lost after `COM_DL_LOSS_T` without a GCS HEARTBEAT (armed, once one was heard).
+    DataLinkLoss,
 }
 
 /// A client timer running now.
@@ -86,6 +107,10 @@ impl Autopilot {
                 duration_s: s.offboard_loss_s,
             });
         }
+        // data-link loss (COM_DL_LOSS_T)
+        if let Some(p) = self.data_link_timer() {
+            out.push(p);
+        }
         out
     }
 
@@ -111,6 +136,7 @@ impl Autopilot {
                     self.offboard_lost(m);
                 }
             }
+            ClientTimer::DataLinkLoss => self.data_link_lost(m),
         }
         true
     }
@@ -144,6 +170,14 @@ impl Autopilot {
                 self.disarm_now("Disarmed by auto preflight disarming");
             }
         }
+        // data-link loss and geofence
+        if simulated
+            && let Some(p) = self.data_link_timer()
+            && now - p.started_s >= p.duration_s - TIME_EPS
+        {
+            self.data_link_lost(m);
+        }
+        self.supervise_geofence(m);
     }
 
     /// Offboard setpoints lost while in Offboard: `COM_OBL_RC_ACT`.
@@ -163,6 +197,353 @@ impl Autopilot {
                 self.say.announce(Severity::Warning, "Offboard signal lost: landing");
                 let landed = self.land.landed();
                 self.navigator.enter_land(m, landed, &mut self.say);
+            }
+        }
+    }
+}
+
+// ----- PX4's failsafes: data-link loss, low battery, geofence ----------------------------------
+
+/// What a failsafe does (PX4's `FailsafeBase::Action`, the ones a multirotor uses).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum FailsafeAction {
+    /// Nothing (not even a message).
+    None,
+    /// A warning only.
+    Warn,
+    /// Hold (AUTO.LOITER) where it is.
+    Hold,
+    /// Return to launch (AUTO.RTL).
+    Return,
+    /// Land where it is (AUTO.LAND).
+    Land,
+    /// Flight termination: the rotors stop (a multirotor falls).
+    Terminate,
+    /// Disarm (PX4's lockdown): the rotors stop.
+    Disarm,
+}
+
+impl FailsafeAction {
+    /// `NAV_DLL_ACT`: 0 disabled, 1 Hold, 2 Return, 3 Land, 5 Terminate, 6 Disarm (4: none, as PX4's default branch).
+    fn from_nav_dll_act(v: i64) -> Self {
+        match v {
+            1 => Self::Hold,
+            2 => Self::Return,
+            3 => Self::Land,
+            5 => Self::Terminate,
+            6 => Self::Disarm,
+            _ => Self::None,
+        }
+    }
+
+    /// `GF_ACTION`: 0 none, 1 warning, 2 Hold, 3 Return, 4 Terminate, 5 Land.
+    fn from_gf_action(v: i64) -> Self {
+        match v {
+            0 => Self::None,
+            2 => Self::Hold,
+            3 => Self::Return,
+            4 => Self::Terminate,
+            5 => Self::Land,
+            _ => Self::Warn,
+        }
+    }
+
+    /// The mode or reaction as the STATUSTEXT names it.
+    fn name(self) -> &'static str {
+        match self {
+            Self::None | Self::Warn => "warning",
+            Self::Hold => "Hold",
+            Self::Return => "Return",
+            Self::Land => "Land",
+            Self::Terminate => "flight termination",
+            Self::Disarm => "Disarm",
+        }
+    }
+}
+
+/// `COM_LOW_BAT_ACT` (PX4's `LowBatteryAction`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum LowBatteryAction {
+    /// 0: warnings only.
+    Warning,
+    /// 1 (PX4's legacy value): Return at critical and emergency.
+    Return,
+    /// 2: Land at critical and emergency.
+    Land,
+    /// 3: Return at critical, Land at emergency.
+    ReturnOrLand,
+}
+
+impl LowBatteryAction {
+    fn from_param(v: i64) -> Self {
+        match v {
+            1 => Self::Return,
+            2 => Self::Land,
+            3 => Self::ReturnOrLand,
+            _ => Self::Warning,
+        }
+    }
+
+    /// PX4's `fromBatteryWarningActParam`: the action at warning level `w`.
+    pub(super) fn action(self, w: BatteryWarning) -> FailsafeAction {
+        match (w, self) {
+            (BatteryWarning::None, _) => FailsafeAction::None,
+            (BatteryWarning::Low, _) | (_, Self::Warning) => FailsafeAction::Warn,
+            (BatteryWarning::Critical, Self::Return | Self::ReturnOrLand)
+            | (BatteryWarning::Emergency, Self::Return) => FailsafeAction::Return,
+            (BatteryWarning::Critical | BatteryWarning::Emergency, _) => FailsafeAction::Land,
+        }
+    }
+}
+
+/// The failsafe parameters as typed values.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct FailsafeSettings {
+    /// `COM_DL_LOSS_T` [s].
+    pub(super) data_link_loss_s: f64,
+    /// `NAV_DLL_ACT`.
+    pub(super) data_link_loss_action: FailsafeAction,
+    /// `BAT_LOW_THR`, `BAT_CRIT_THR`, `BAT_EMERGEN_THR`.
+    pub(super) battery: BatteryThresholds,
+    /// `COM_LOW_BAT_ACT`.
+    pub(super) low_battery_action: LowBatteryAction,
+    /// `GF_ACTION`.
+    pub(super) geofence_action: FailsafeAction,
+    /// `GF_MAX_HOR_DIST`, `GF_MAX_VER_DIST`.
+    pub(super) geofence_limits: DistanceLimits,
+}
+
+impl FailsafeSettings {
+    /// Read from the store (its ranges already hold each value in PX4's range).
+    pub(super) fn from_store(p: &ParamStore) -> Self {
+        Self {
+            data_link_loss_s: f64::from(p.int(Param::COM_DL_LOSS_T)),
+            data_link_loss_action: FailsafeAction::from_nav_dll_act(i64::from(p.int(Param::NAV_DLL_ACT))),
+            battery: BatteryThresholds {
+                low: p.real(Param::BAT_LOW_THR),
+                critical: p.real(Param::BAT_CRIT_THR),
+                emergency: p.real(Param::BAT_EMERGEN_THR),
+            },
+            low_battery_action: LowBatteryAction::from_param(i64::from(p.int(Param::COM_LOW_BAT_ACT))),
+            geofence_action: FailsafeAction::from_gf_action(i64::from(p.int(Param::GF_ACTION))),
+            geofence_limits: DistanceLimits {
+                max_horizontal_m: p.real(Param::GF_MAX_HOR_DIST),
+                max_vertical_m: p.real(Param::GF_MAX_VER_DIST),
+            },
+        }
+    }
+
+    /// An altitude above home [m] capped so that it stays inside
+    /// `GF_MAX_VER_DIST` (PX4 caps the return altitude the same way).
+    pub(super) fn cap_height(&self, height_m: f64) -> f64 {
+        let max = self.geofence_limits.max_vertical_m;
+        if max > 0.0 { height_m.min(max) } else { height_m }
+    }
+}
+
+/// What the failsafes remember between steps.
+#[derive(Clone, Debug, Default)]
+pub(super) struct FailsafeState {
+    /// When the latest GCS HEARTBEAT arrived [s] (`None`: never).
+    gcs_heard_s: Option<f64>,
+    /// The data link was declared lost (until the next GCS HEARTBEAT).
+    gcs_lost: bool,
+    /// The battery warning level in force (escalates only while armed).
+    battery_warning: BatteryWarning,
+    /// The level when it was armed: a failsafe acts only on worse (PX4).
+    battery_warning_at_arming: BatteryWarning,
+    /// The fence, built from the plan with this id and length.
+    fence: Option<(u32, usize, Fence)>,
+    /// Breached, and its action taken (re-armed once back inside).
+    breached: bool,
+    /// An offboard setpoint above the altitude limit was announced (until one below it arrives).
+    clamp_announced: bool,
+}
+
+impl Autopilot {
+    /// A GCS HEARTBEAT (MAV_TYPE_GCS, from any link) arrived at the instant of
+    /// `readings`: the data link is alive; after a loss it is announced regained.
+    pub fn gcs_heartbeat(&mut self, readings: &SensorReadings) {
+        self.now_s = readings.measurement.time_s;
+        self.failsafes.gcs_heard_s = Some(self.now_s);
+        if self.failsafes.gcs_lost {
+            self.failsafes.gcs_lost = false;
+            self.say.announce(Severity::Info, "Data link regained");
+        }
+    }
+
+    /// The battery warning level in force (BATTERY_STATUS `charge_state`).
+    #[must_use]
+    pub fn battery_warning(&self) -> BatteryWarning {
+        self.failsafes.battery_warning
+    }
+
+    /// The data-link timer: armed, a GCS heard once and not yet declared lost;
+    /// it started at the latest GCS HEARTBEAT.
+    fn data_link_timer(&self) -> Option<PendingTimer> {
+        if !self.armed || self.failsafes.gcs_lost {
+            return None;
+        }
+        Some(PendingTimer {
+            timer: ClientTimer::DataLinkLoss,
+            started_s: self.failsafes.gcs_heard_s?,
+            duration_s: self.settings.failsafe.data_link_loss_s,
+        })
+    }
+
+    /// No GCS HEARTBEAT for `COM_DL_LOSS_T`: announce it and take `NAV_DLL_ACT`
+    /// (PX4 ignores the loss while landing).
+    fn data_link_lost(&mut self, m: &Measurement) {
+        self.failsafes.gcs_lost = true;
+        self.say
+            .announce(Severity::Critical, "Connection to ground station lost");
+        let action = self.settings.failsafe.data_link_loss_action;
+        if !matches!(self.navigator.nav, Nav::Land { .. }) {
+            self.failsafe_action(action, "GCS connection lost", m);
+        }
+    }
+
+    /// The battery monitor's warning level at the instant of `readings`: it
+    /// follows the charge while disarmed and only escalates while armed
+    /// (PX4's hysteresis: a sagging voltage that recovers does not clear it);
+    /// each new level is announced and acted on (`COM_LOW_BAT_ACT`) when worse
+    /// than at arming.
+    pub(super) fn supervise_battery(&mut self, readings: &SensorReadings) {
+        let remaining = self.battery.remaining(&readings.battery);
+        let level = self.settings.failsafe.battery.level(remaining);
+        let f = &mut self.failsafes;
+        if !self.armed {
+            f.battery_warning = level;
+            f.battery_warning_at_arming = level;
+            return;
+        }
+        if level <= f.battery_warning {
+            return;
+        }
+        f.battery_warning = level;
+        let worse_than_at_arming = level > f.battery_warning_at_arming;
+        let (severity, text, cause) = match level {
+            BatteryWarning::None => return,
+            BatteryWarning::Low => (Severity::Warning, "Low battery level, return advised", "battery low"),
+            BatteryWarning::Critical => (
+                Severity::Critical,
+                "Critical battery level, land now",
+                "battery critical",
+            ),
+            BatteryWarning::Emergency => (
+                Severity::Emergency,
+                "Emergency battery level, land immediately",
+                "battery emergency",
+            ),
+        };
+        self.say.announce(severity, text);
+        let action = if worse_than_at_arming {
+            self.settings.failsafe.low_battery_action.action(level)
+        } else {
+            FailsafeAction::Warn
+        };
+        if action != FailsafeAction::Warn {
+            self.failsafe_action(action, cause, &readings.measurement);
+        }
+    }
+
+    /// The fence of the stored plan (rebuilt when the plan changed).
+    fn fence(&mut self) -> &Fence {
+        let plan = self.plans.get(MissionType::Fence);
+        let key = (plan.id(), plan.len());
+        let stale = self.failsafes.fence.as_ref().is_none_or(|(id, n, _)| (*id, *n) != key);
+        if stale {
+            let fence = Fence::from_items(plan.items(), &self.origin);
+            self.failsafes.fence = Some((key.0, key.1, fence));
+        }
+        &self.failsafes.fence.as_ref().expect("just built").2
+    }
+
+    /// The geofence on the current position, armed and in the air: a breach
+    /// is announced and `GF_ACTION` taken once; back inside re-arms it.
+    fn supervise_geofence(&mut self, m: &Measurement) {
+        if !self.armed || self.land.landed() {
+            self.failsafes.breached = false;
+            return;
+        }
+        let home = self.home_ned();
+        let limits = self.settings.failsafe.geofence_limits;
+        let breach = geofence::check(self.fence(), &limits, &m.position_ned, &home);
+        match (breach, self.failsafes.breached) {
+            (Some(b), false) => {
+                self.failsafes.breached = true;
+                let action = self.settings.failsafe.geofence_action;
+                if action != FailsafeAction::None {
+                    self.say
+                        .announce(Severity::Critical, format!("Geofence breached: {}", b.describe()));
+                }
+                self.failsafe_action(action, "geofence breach", m);
+            }
+            (None, true) => self.failsafes.breached = false,
+            _ => {}
+        }
+    }
+
+    /// Whether the target `p` [m], NED, lies outside the geofence (zones or limits).
+    pub(super) fn outside_geofence(&mut self, p: &Vector3<f64>) -> bool {
+        let home = self.home_ned();
+        let limits = self.settings.failsafe.geofence_limits;
+        geofence::check(self.fence(), &limits, p, &home).is_some()
+    }
+
+    /// The lowest NED z [m] a target may have (`GF_MAX_VER_DIST` above home), if limited.
+    pub(super) fn max_altitude_z(&self) -> Option<f64> {
+        self.settings.failsafe.geofence_limits.min_z_ned(&self.home_ned())
+    }
+
+    /// An offboard position setpoint was clamped to the altitude limit
+    /// (`clamped`) or was within it: announce the first clamp of a run.
+    pub(super) fn offboard_clamped(&mut self, clamped: bool) {
+        if clamped && !self.failsafes.clamp_announced {
+            self.say
+                .announce(Severity::Warning, "Offboard setpoint clamped to max altitude");
+        }
+        self.failsafes.clamp_announced = clamped;
+    }
+
+    /// Take a failsafe action for `cause`, announced as PX4 does ("Failsafe
+    /// activated due to {cause}, triggering {action}", shortened to fit a
+    /// STATUSTEXT). A mode already in force is not entered again; a Return
+    /// while landing keeps landing (PX4).
+    fn failsafe_action(&mut self, action: FailsafeAction, cause: &str, m: &Measurement) {
+        let nav = self.navigator.nav;
+        let already = match action {
+            FailsafeAction::Hold => matches!(nav, Nav::Hold { target: None, .. }),
+            FailsafeAction::Return => matches!(nav, Nav::Rtl { .. } | Nav::Land { .. }),
+            FailsafeAction::Land => matches!(nav, Nav::Land { .. }),
+            _ => false,
+        };
+        match action {
+            FailsafeAction::None => {}
+            FailsafeAction::Warn => self
+                .say
+                .announce(Severity::Warning, format!("Failsafe warning: {cause}")),
+            _ if already => {}
+            _ => {
+                let severity = if matches!(action, FailsafeAction::Terminate | FailsafeAction::Disarm) {
+                    Severity::Emergency
+                } else {
+                    Severity::Critical
+                };
+                self.say
+                    .announce(severity, format!("Failsafe: {cause}, triggering {}", action.name()));
+                match action {
+                    FailsafeAction::Hold => self.navigator.enter_hold(false),
+                    FailsafeAction::Return => {
+                        let cx = situation!(self, m);
+                        self.navigator.enter_rtl(&cx, &mut self.say);
+                    }
+                    FailsafeAction::Land => {
+                        let landed = self.land.landed();
+                        self.navigator.enter_land(m, landed, &mut self.say);
+                    }
+                    _ => self.disarm_now("Disarmed by failsafe"),
+                }
             }
         }
     }

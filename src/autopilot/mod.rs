@@ -80,6 +80,7 @@ mod commander;
 mod control_loop;
 mod estimate;
 mod failsafe;
+mod geofence;
 mod land_detector;
 mod mission;
 mod navigator;
@@ -87,6 +88,7 @@ mod settings;
 mod stack;
 mod telemetry;
 
+pub use battery::BatteryWarning;
 pub use control_loop::{ControlLoop, ControlLoopError, ControlOutput, Demand};
 pub use failsafe::{ClientClock, ClientTimer, PendingTimer};
 pub use navigator::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};

@@ -47,6 +47,8 @@ pub(super) struct Settings {
     pub(super) estimator_cutoff_rad_s: f64,
     pub(super) feedback: bool,
     pub(super) model_mass_kg: f64,
+    /// Data-link, battery and geofence failsafes.
+    pub(super) failsafe: super::failsafe::FailsafeSettings,
 }
 
 impl Settings {
@@ -70,7 +72,7 @@ impl Settings {
             4 => OffboardLossAction::Land,
             _ => OffboardLossAction::Hold,
         };
-        let s = Self {
+        let mut s = Self {
             takeoff_alt_m: p.real(Param::MIS_TAKEOFF_ALT),
             rtl_return_alt_m: p.real(Param::RTL_RETURN_ALT),
             rtl_descend_alt_m: p.real(Param::RTL_DESCEND_ALT),
@@ -97,7 +99,10 @@ impl Settings {
             estimator_cutoff_rad_s: p.real(Param::EST_CUTOFF),
             feedback: p.int(Param::EST_COMP) != 0,
             model_mass_kg: p.real(Param::MDL_MASS),
+            failsafe: super::failsafe::FailsafeSettings::from_store(p),
         };
+        // the return altitude stays inside GF_MAX_VER_DIST (PX4's RTL)
+        s.rtl_return_alt_m = s.failsafe.cap_height(s.rtl_return_alt_m);
         let positive = [
             ("MPC_XY_CRUISE", s.cruise_m_s),
             ("MPC_XY_VEL_MAX", s.xy_vel_max_m_s),

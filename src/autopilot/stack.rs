@@ -112,7 +112,7 @@ pub struct Autopilot {
     feedback: EstimateFeedback,
     pub(super) navigator: Navigator,
     pub(super) land: LandDetector,
-    battery: BatteryMonitor,
+    pub(super) battery: BatteryMonitor,
     pub(super) origin: GeoPoint,
     pub(super) home: GeoPoint,
     pub(super) armed: bool,
@@ -127,6 +127,8 @@ pub struct Autopilot {
     pub(super) plans: Plans,
     /// The clock of the timers that wait for a client.
     pub(super) client_clock: ClientClock,
+    /// Data-link, battery and geofence failsafe state.
+    pub(super) failsafes: super::failsafe::FailsafeState,
 }
 
 impl Autopilot {
@@ -170,6 +172,7 @@ impl Autopilot {
             say: Announcements::default(),
             plans: Plans::default(),
             client_clock: ClientClock::Simulated,
+            failsafes: super::failsafe::FailsafeState::default(),
         };
         ap.apply_params(params)?;
         Ok(ap)
@@ -261,6 +264,7 @@ impl Autopilot {
         }
         let estimate = self.control.sense(m);
         self.battery.update(&readings.battery, self.dt);
+        self.supervise_battery(readings);
         self.supervise(m);
         let cx = situation!(self, m);
         let demand = self.navigator.guidance(self.armed, &cx, &mut self.say);
@@ -316,6 +320,7 @@ impl Autopilot {
             battery_current_a: readings.battery.current_a,
             battery_consumed_mah: self.battery.consumed_mah(),
             battery_remaining: self.battery.remaining(&readings.battery),
+            battery_warning: self.battery_warning(),
             throttle: if max_thrust > 0.0 {
                 (thrust / max_thrust).clamp(0.0, 1.0)
             } else {

@@ -97,6 +97,8 @@ pub struct Telemetry {
     pub battery_consumed_mah: f64,
     /// Remaining charge, 0..1.
     pub battery_remaining: f64,
+    /// The battery warning level in force (BATTERY_STATUS `charge_state`).
+    pub battery_warning: super::BatteryWarning,
     /// Normalised collective thrust commanded, 0..1 (VFR_HUD throttle).
     pub throttle: f64,
     /// The wrench estimate (force NED, torque FRD, real mass).

@@ -177,6 +177,10 @@ impl LinkTask {
                 self.link.on_plans_changed(ticket, outcome);
                 self.flush().await;
             }
+            Effect::GcsHeartbeat => {
+                // a dropped one is replaced by the next (GCSs send at 1 Hz)
+                let _ = self.to_sim(SimRequest::GcsHeartbeat);
+            }
             Effect::SetMissionCurrent { seq } => {
                 let Some(outcome) = self.command(AutopilotCommand::SetMissionCurrent { seq }).await else {
                     return false;

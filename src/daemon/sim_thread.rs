@@ -49,6 +49,8 @@ pub(super) enum SimRequest {
         change: PlanChange,
         reply: oneshot::Sender<Result<u32, MissionResult>>,
     },
+    /// A ground station's HEARTBEAT arrived (data-link loss supervision; no answer).
+    GcsHeartbeat,
     /// Stop the thread.
     Stop,
 }
@@ -226,6 +228,7 @@ impl Sim {
                 }
                 let _ = reply.send(outcome);
             }
+            SimRequest::GcsHeartbeat => self.core.gcs_heartbeat(VEHICLE),
             // the loop returns on Stop before handing requests here
             SimRequest::Stop => {}
         }

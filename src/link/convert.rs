@@ -219,6 +219,20 @@ pub fn finite(v: f32) -> Option<f64> {
     v.is_finite().then_some(f64::from(v))
 }
 
+/// BATTERY_STATUS `charge_state` of a warning level (PX4: warning + 1):
+/// OK, LOW, CRITICAL, EMERGENCY.
+#[must_use]
+pub fn charge_state(w: crate::autopilot::BatteryWarning) -> mavlink::dialects::common::MavBatteryChargeState {
+    use crate::autopilot::BatteryWarning as W;
+    use mavlink::dialects::common::MavBatteryChargeState as S;
+    match w {
+        W::None => S::MAV_BATTERY_CHARGE_STATE_OK,
+        W::Low => S::MAV_BATTERY_CHARGE_STATE_LOW,
+        W::Critical => S::MAV_BATTERY_CHARGE_STATE_CRITICAL,
+        W::Emergency => S::MAV_BATTERY_CHARGE_STATE_EMERGENCY,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -158,6 +158,9 @@ pub enum Effect {
         /// The item to make current.
         seq: u16,
     },
+    /// A ground station's HEARTBEAT (MAV_TYPE_GCS) arrived: tell the
+    /// autopilot the data link is alive (no answer).
+    GcsHeartbeat,
 }
 
 /// One MAVLink link (one UDP socket's worth of protocol state).
@@ -553,6 +556,9 @@ impl Link {
                     Ok(()) => effects.push(Effect::SetMissionCurrent { seq: m.seq }),
                     Err(why) => self.text(reply, Severity::Warning, &why),
                 }
+            }
+            MavMessage::HEARTBEAT(m) if m.mavtype == mavlink::dialects::common::MavType::MAV_TYPE_GCS => {
+                effects.push(Effect::GcsHeartbeat);
             }
             MavMessage::FILE_TRANSFER_PROTOCOL(m) if self.for_me(m.target_system, m.target_component) => {
                 if let Some(answer) = ftp_answer(&m, requester) {

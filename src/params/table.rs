@@ -155,6 +155,16 @@ parameters! {
     SIM_GE_EN: int(1, 0, 1, "Simulate ground effect"),
     SIM_CE_EN: int(1, 0, 1, "Simulate ceiling effect (needs SIM_CEIL_Z > 0)"),
     SIM_CEIL_Z: real(0.0, 0.0, 100.0, "m", "Height of a flat ceiling above the home ground (0: no ceiling)"),
+    // --- PX4: failsafes (data link, battery, geofence) -------------------------------------------
+    COM_DL_LOSS_T: int(10, 5, 300, "GCS connection loss: no GCS HEARTBEAT for this long [s] while armed"),
+    NAV_DLL_ACT: int(0, 0, 6, "GCS connection loss action: 0 disabled, 1 Hold, 2 Return, 3 Land, 5 Terminate, 6 Disarm"),
+    BAT_LOW_THR: real(0.15, 0.12, 0.4, "norm", "Battery low below this remaining charge (warning)"),
+    BAT_CRIT_THR: real(0.07, 0.05, 0.1, "norm", "Battery critical below this remaining charge (COM_LOW_BAT_ACT)"),
+    BAT_EMERGEN_THR: real(0.05, 0.03, 0.07, "norm", "Battery emergency below this remaining charge (COM_LOW_BAT_ACT)"),
+    COM_LOW_BAT_ACT: int(0, 0, 3, "Low battery action: 0 warning, 2 Land, 3 Return at critical and Land at emergency (1: Return)"),
+    GF_ACTION: int(2, 0, 5, "Geofence breach action: 0 none, 1 warning, 2 Hold, 3 Return, 4 Terminate, 5 Land"),
+    GF_MAX_HOR_DIST: real(0.0, 0.0, 10_000.0, "m", "Geofence: largest horizontal distance from home (0: no limit)"),
+    GF_MAX_VER_DIST: real(0.0, 0.0, 1_000.0, "m", "Geofence: largest height above home, also for targets (0: no limit)"),
 }
 
 /// The table as Markdown (name, type, default, range, unit, description),

@@ -18,6 +18,20 @@ pub(super) enum OffboardLossAction {
     Land,
 }
 
+/// What to do when the rotor monitor flags a failed or degraded rotor in
+/// flight (`COM_ACT_FAIL_ACT`, PX4's values; PX4's 4, terminate, is outside its range).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum ActuatorFailureAction {
+    /// 0: warn only, keep the mode (a mission goes on).
+    Warn,
+    /// 1: Hold.
+    Hold,
+    /// 2: Land.
+    Land,
+    /// 3: Return.
+    Return,
+}
+
 /// The flight stack's view of the parameter store.
 #[derive(Clone, Debug, PartialEq)]
 pub(super) struct Settings {
@@ -47,6 +61,7 @@ pub(super) struct Settings {
     pub(super) estimator_cutoff_rad_s: f64,
     pub(super) feedback: bool,
     pub(super) model_mass_kg: f64,
+    pub(super) actuator_failure_action: ActuatorFailureAction,
 }
 
 impl Settings {
@@ -69,6 +84,12 @@ impl Settings {
             3 => OffboardLossAction::Return,
             4 => OffboardLossAction::Land,
             _ => OffboardLossAction::Hold,
+        };
+        let actuator_failure_action = match p.int(Param::COM_ACT_FAIL_ACT) {
+            1 => ActuatorFailureAction::Hold,
+            2 => ActuatorFailureAction::Land,
+            3 => ActuatorFailureAction::Return,
+            _ => ActuatorFailureAction::Warn,
         };
         let s = Self {
             takeoff_alt_m: p.real(Param::MIS_TAKEOFF_ALT),
@@ -97,6 +118,7 @@ impl Settings {
             estimator_cutoff_rad_s: p.real(Param::EST_CUTOFF),
             feedback: p.int(Param::EST_COMP) != 0,
             model_mass_kg: p.real(Param::MDL_MASS),
+            actuator_failure_action,
         };
         let positive = [
             ("MPC_XY_CRUISE", s.cruise_m_s),

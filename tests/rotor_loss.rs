@@ -39,9 +39,7 @@ enum Action {
 fn vehicle(airframe: &str, action: Action) -> Lockstep<Autopilot> {
     let af = Airframe::load(airframe).unwrap();
     let mut store = ParamStore::new(&af);
-    store
-        .set("COM_ACT_FAIL_ACT", ParamValue::Int32(action as i32))
-        .unwrap();
+    store.set("COM_ACT_FAIL_ACT", ParamValue::Int32(action as i32)).unwrap();
     Lockstep::one_vehicle(&af, HOME, &store, SensorConfig::default()).unwrap()
 }
 
@@ -60,7 +58,10 @@ fn take_off(v: &mut Lockstep<Autopilot>) {
         v.step();
     }
     assert!(v.telemetry(0).prearm_ok, "never armable");
-    assert_eq!(v.command(0, AutopilotCommand::Arm { force: false }), CommandOutcome::Accepted);
+    assert_eq!(
+        v.command(0, AutopilotCommand::Arm { force: false }),
+        CommandOutcome::Accepted
+    );
     let takeoff = AutopilotCommand::Takeoff {
         altitude_amsl_m: Some(HOME.alt_amsl_m + ALT_M),
     };
@@ -69,7 +70,11 @@ fn take_off(v: &mut Lockstep<Autopilot>) {
         v.step();
     }
     let t = v.telemetry(0);
-    assert!((t.position_ned.z + ALT_M).abs() < 0.2, "not at altitude: {:?}", t.position_ned);
+    assert!(
+        (t.position_ned.z + ALT_M).abs() < 0.2,
+        "not at altitude: {:?}",
+        t.position_ned
+    );
     assert_eq!(t.mode, FlightMode::Hold);
 }
 
@@ -104,8 +109,10 @@ impl Figures {
             self.error_after_2s_m,
             self.max_tilt_deg,
             self.yaw_drift_deg,
-            self.touchdown_tilt_deg
-                .map_or(String::new(), |t| format!(", touchdown tilt {t:.2} deg, disarmed {}", self.disarmed)),
+            self.touchdown_tilt_deg.map_or(String::new(), |t| format!(
+                ", touchdown tilt {t:.2} deg, disarmed {}",
+                self.disarmed
+            )),
         );
     }
 }
@@ -149,7 +156,11 @@ fn fly_with_fault(
             }
             let dyaw = (euler_zyx(&t.attitude).z - yaw0 + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI)
                 - std::f64::consts::PI;
-            f.yaw_drift_deg = if dyaw.abs() > f.yaw_drift_deg.abs() { dyaw.to_degrees() } else { f.yaw_drift_deg };
+            f.yaw_drift_deg = if dyaw.abs() > f.yaw_drift_deg.abs() {
+                dyaw.to_degrees()
+            } else {
+                f.yaw_drift_deg
+            };
         }
         if t.landed != LandedState::OnGround {
             f.max_tilt_deg = f.max_tilt_deg.max(tilt_deg(&t));
@@ -174,7 +185,15 @@ fn hover_loss(airframe: &str, rotor: usize, action: Action) -> Figures {
     take_off(&mut v);
     let p0 = v.telemetry(0).position_ned;
     let land = (action == Action::Land).then_some(40.0);
-    let f = fly_with_fault(&mut v, rotor, RotorHealth::Off, 8.0, |_, p| Some((p - p0).norm()), |_| {}, land);
+    let f = fly_with_fault(
+        &mut v,
+        rotor,
+        RotorHealth::Off,
+        8.0,
+        |_, p| Some((p - p0).norm()),
+        |_| {},
+        land,
+    );
     let t = v.telemetry(0);
     assert_eq!(
         t.failed_rotors,
@@ -234,7 +253,7 @@ fn eight_loss(
     let every = steps(&v, 0.02);
     let mut k = 0usize;
     let mut stream = move |v: &mut Lockstep<Autopilot>| {
-        if k % every == 0 {
+        if k.is_multiple_of(every) {
             let t = v.time_s() - t0;
             assert_eq!(v.command(0, eight_setpoint(t)), CommandOutcome::Accepted);
         }
@@ -332,7 +351,10 @@ fn mission_loss(airframe: &str, fault: Option<usize>, action: Action) -> (Figure
     for _ in 0..steps(&v, 3.0) {
         v.step();
     }
-    assert_eq!(v.command(0, AutopilotCommand::Arm { force: false }), CommandOutcome::Accepted);
+    assert_eq!(
+        v.command(0, AutopilotCommand::Arm { force: false }),
+        CommandOutcome::Accepted
+    );
     assert_eq!(
         v.command(0, AutopilotCommand::StartMission { first: Some(0) }),
         CommandOutcome::Accepted
@@ -398,7 +420,11 @@ fn with_the_land_action_every_lost_rotor_ends_upright_on_the_ground_and_disarmed
         let tilt = f.touchdown_tilt_deg.expect("never touched down");
         assert!(tilt < TILT_MAX_DEG, "{airframe} rotor {}: {:?}", j + 1, f);
         assert!(f.disarmed, "{airframe} rotor {}: {:?}", j + 1, f);
-        assert!(f.texts.iter().any(|s| s.text == "Rotor failure: landing"), "{:?}", f.texts);
+        assert!(
+            f.texts.iter().any(|s| s.text == "Rotor failure: landing"),
+            "{:?}",
+            f.texts
+        );
     }
 }
 
@@ -459,9 +485,21 @@ fn a_half_thrust_rotor_is_flagged_degraded_with_its_fraction_and_flown_on() {
         assert!(f.detect_s.unwrap() <= DETECT_MAX_S);
         assert!(f.max_error_m < ERROR_MAX_M, "{f:?}");
         assert!(matches!(v.pilot(0).rotor_allocation(), RotorAllocation::Reduced { .. }));
-        assert!(f.texts.iter().any(|s| s.severity == Severity::Warning && s.text.starts_with("Motor 3 degraded: 5")));
+        assert!(
+            f.texts
+                .iter()
+                .any(|s| s.severity == Severity::Warning && s.text.starts_with("Motor 3 degraded: 5"))
+        );
         // repaired: taken back, the full allocation again
-        let f = fly_with_fault(&mut v, 2, RotorHealth::Healthy, 2.0, |_, p| Some((p - p0).norm()), |_| {}, None);
+        let f = fly_with_fault(
+            &mut v,
+            2,
+            RotorHealth::Healthy,
+            2.0,
+            |_, p| Some((p - p0).norm()),
+            |_| {},
+            None,
+        );
         assert_eq!(v.telemetry(0).degraded_rotors, 0);
         assert_eq!(*v.pilot(0).rotor_allocation(), RotorAllocation::Full);
         assert!(f.texts.iter().any(|s| s.text == "Motor 3 recovered"), "{:?}", f.texts);
@@ -512,21 +550,35 @@ fn a_quad_losing_a_rotor_gives_up_yaw_and_lands() {
     let mut v = vehicle("quad", Action::Continue);
     take_off(&mut v);
     let p0 = v.telemetry(0).position_ned;
-    let f = fly_with_fault(&mut v, 0, RotorHealth::Off, 1.0, |_, p| Some((p - p0).norm()), |_| {}, None);
+    let f = fly_with_fault(
+        &mut v,
+        0,
+        RotorHealth::Off,
+        1.0,
+        |_, p| Some((p - p0).norm()),
+        |_| {},
+        None,
+    );
     assert!(f.detect_s.unwrap() <= DETECT_MAX_S, "{f:?}");
     assert!(matches!(
         v.pilot(0).rotor_allocation(),
         RotorAllocation::RelaxedHover { .. }
     ));
     assert_eq!(v.telemetry(0).mode, FlightMode::Land);
-    assert!(f.texts.iter().any(|s| s.severity == Severity::Emergency), "{:?}", f.texts);
+    assert!(
+        f.texts.iter().any(|s| s.severity == Severity::Emergency),
+        "{:?}",
+        f.texts
+    );
 }
 
 /// The figures as one markdown table.
 #[test]
 #[ignore = "a report: run with --ignored --nocapture"]
 fn rotor_loss_table() {
-    println!("| airframe | flight | rotor | detection [ms] | max error [m] | error after 2 s [m] | max tilt [deg] | yaw drift [deg] |");
+    println!(
+        "| airframe | flight | rotor | detection [ms] | max error [m] | error after 2 s [m] | max tilt [deg] | yaw drift [deg] |"
+    );
     println!("|---|---|---|---|---|---|---|---|");
     let row = |a: &str, what: &str, j: usize, f: &Figures| {
         println!(
@@ -545,9 +597,19 @@ fn rotor_loss_table() {
         }
         let (_, track) = eight_loss(a, None, None);
         for j in 0..n {
-            row(a, "figure-eight", j, &eight_loss(a, Some((j, RotorHealth::Off)), Some(&track)).0);
+            row(
+                a,
+                "figure-eight",
+                j,
+                &eight_loss(a, Some((j, RotorHealth::Off)), Some(&track)).0,
+            );
         }
         let half = RotorHealth::Degraded { thrust_fraction: 0.5 };
-        row(a, "figure-eight, 50 % thrust", 2, &eight_loss(a, Some((2, half)), Some(&track)).0);
+        row(
+            a,
+            "figure-eight, 50 % thrust",
+            2,
+            &eight_loss(a, Some((2, half)), Some(&track)).0,
+        );
     }
 }

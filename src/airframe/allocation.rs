@@ -318,7 +318,11 @@ impl Allocator {
         let mut speed_cmd = RotorVector::zeros();
         for i in 0..self.n {
             // a dropped rotor idles: its column of `B` is zero, so it adds nothing
-            speed_sq[i] = if self.active[i] { w[i].clamp(self.w_min, self.w_max) } else { self.w_min };
+            speed_sq[i] = if self.active[i] {
+                w[i].clamp(self.w_min, self.w_max)
+            } else {
+                self.w_min
+            };
             speed_cmd[i] = speed_sq[i].sqrt();
         }
         let achieved = self.forward(&speed_sq);

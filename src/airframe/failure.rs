@@ -164,9 +164,7 @@ pub fn degraded_verdict(airframe: &Airframe, gains: &[f64], mass_kg: f64) -> Fai
     });
     let (rank, verdict, margins) = verdict(&bf, mass_kg * GRAVITY, lo, hi);
     FailureAnalysis {
-        rotor: (0..b.ncols())
-            .find(|i| !kept.contains(i))
-            .map_or(0, |i| i + 1),
+        rotor: (0..b.ncols()).find(|i| !kept.contains(i)).map_or(0, |i| i + 1),
         rank,
         verdict,
         margins,

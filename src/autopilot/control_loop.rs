@@ -142,7 +142,10 @@ impl RotorAllocation {
     /// Whether the heading is given up (the reference yaw follows the measured one).
     #[must_use]
     pub fn heading_free(&self) -> bool {
-        matches!(self, RotorAllocation::LostYaw { .. } | RotorAllocation::RelaxedHover { .. })
+        matches!(
+            self,
+            RotorAllocation::LostYaw { .. } | RotorAllocation::RelaxedHover { .. }
+        )
     }
 }
 

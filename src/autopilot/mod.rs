@@ -88,11 +88,11 @@ mod settings;
 mod stack;
 mod telemetry;
 
+pub use control_loop::RotorAllocation;
 pub use control_loop::{ControlLoop, ControlLoopError, ControlOutput, Demand};
 pub use failsafe::{ClientClock, ClientTimer, PendingTimer};
-pub use rotor_monitor::{FAILED_SPEED_RATIO, RotorEvent, RotorMonitor, RotorStatus};
-pub use control_loop::RotorAllocation;
 pub use navigator::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};
+pub use rotor_monitor::{FAILED_SPEED_RATIO, RotorEvent, RotorMonitor, RotorStatus};
 pub use stack::{Autopilot, AutopilotError};
 pub use telemetry::{LandedState, MissionState, MissionStatus, Telemetry, VehicleType};
 

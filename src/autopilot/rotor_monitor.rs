@@ -203,7 +203,7 @@ impl RotorMonitor {
             return Vec::new();
         };
         let h = time_s - last;
-        if !(h > 0.0) {
+        if h.is_nan() || h <= 0.0 {
             return Vec::new();
         }
         self.last_time_s = Some(time_s);
@@ -214,7 +214,7 @@ impl RotorMonitor {
             self.predicted[i] = c + (self.predicted[i] - c) * decay;
             let p = self.predicted[i];
             let m = measured[i];
-            if !(p >= 0.5 * self.speed_min) || !m.is_finite() {
+            if p.is_nan() || p < 0.5 * self.speed_min || !m.is_finite() {
                 // stopped: no evidence either way
                 self.since_s[i] = None;
                 continue;
@@ -258,7 +258,11 @@ mod tests {
     }
 
     /// Run 4 rotors for `steps`; rotor 0 gets `factor(t)` and the command `cmd(t)`.
-    fn run(steps: usize, cmd: impl Fn(f64) -> f64, factor: impl Fn(f64) -> f64) -> (RotorMonitor, Vec<(f64, RotorEvent)>) {
+    fn run(
+        steps: usize,
+        cmd: impl Fn(f64) -> f64,
+        factor: impl Fn(f64) -> f64,
+    ) -> (RotorMonitor, Vec<(f64, RotorEvent)>) {
         let mut mon = RotorMonitor::new(4, TAU, 100.0, 1000.0);
         let mut omega = RotorVector::zeros();
         omega.rows_mut(0, 4).fill(400.0);
@@ -281,7 +285,11 @@ mod tests {
     #[test]
     fn steps_and_saturation_of_healthy_motors_never_trip() {
         // bang-bang between idle and beyond the top speed every 10 ms
-        let (mon, events) = run(3000, |t| if (t * 100.0) as i64 % 2 == 0 { 50.0 } else { 2000.0 }, |_| 1.0);
+        let (mon, events) = run(
+            3000,
+            |t| if (t * 100.0) as i64 % 2 == 0 { 50.0 } else { 2000.0 },
+            |_| 1.0,
+        );
         assert!(events.is_empty(), "{events:?}");
         assert!(mon.flagged().is_empty());
     }

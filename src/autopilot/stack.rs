@@ -321,8 +321,7 @@ impl Autopilot {
                     );
                 }
                 RotorStatus::Healthy => {
-                    self.say
-                        .announce(Severity::Info, format!("Motor {label} recovered"));
+                    self.say.announce(Severity::Info, format!("Motor {label} recovered"));
                 }
             }
         }

@@ -93,8 +93,10 @@ struct Figures {
     disarmed: bool,
     /// Largest tilt in flight after the fault [deg].
     max_tilt_deg: f64,
-    /// Heading change over the flight after the fault [deg].
+    /// Heading change over the flight after the fault [deg] (wrapped to +-180).
     yaw_drift_deg: f64,
+    /// Largest yaw rate in flight after the fault [deg/s].
+    max_yaw_rate_deg_s: f64,
     /// Other rotors flagged (must be none).
     wrongly_flagged: u16,
     texts: Vec<StatusText>,
@@ -103,14 +105,15 @@ struct Figures {
 impl Figures {
     fn print(&self, what: &str) {
         println!(
-            "{what}: detected after {} ms, max error {:.3} m, after 2 s {:.3} m, max tilt {:.1} deg, yaw drift {:.1} deg{}",
+            "{what}: detected after {} ms, max error {:.3} m, after 2 s {:.3} m, max tilt {:.1} deg, yaw drift {:.1} deg, max yaw rate {:.0} deg/s{}",
             self.detect_s.map_or("never".into(), |d| format!("{:.0}", d * 1e3)),
             self.max_error_m,
             self.error_after_2s_m,
             self.max_tilt_deg,
             self.yaw_drift_deg,
+            self.max_yaw_rate_deg_s,
             self.touchdown_tilt_deg.map_or(String::new(), |t| format!(
-                ", touchdown tilt {t:.2} deg, disarmed {}",
+                ", touchdown tilt {t:.3} deg, disarmed {}",
                 self.disarmed
             )),
         );
@@ -156,14 +159,13 @@ fn fly_with_fault(
             }
             let dyaw = (euler_zyx(&t.attitude).z - yaw0 + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI)
                 - std::f64::consts::PI;
-            f.yaw_drift_deg = if dyaw.abs() > f.yaw_drift_deg.abs() {
-                dyaw.to_degrees()
-            } else {
-                f.yaw_drift_deg
-            };
+            if dyaw.to_degrees().abs() > f.yaw_drift_deg.abs() {
+                f.yaw_drift_deg = dyaw.to_degrees();
+            }
         }
         if t.landed != LandedState::OnGround {
             f.max_tilt_deg = f.max_tilt_deg.max(tilt_deg(&t));
+            f.max_yaw_rate_deg_s = f.max_yaw_rate_deg_s.max(t.rate_frd.z.abs().to_degrees());
         }
         // the world levels a vehicle that comes to rest: touchdown is the tilt just before
         if let StepEvent::Touchdown { .. } = v.world().last_report(0).event {
@@ -431,8 +433,20 @@ fn with_the_land_action_every_lost_rotor_ends_upright_on_the_ground_and_disarmed
 #[test]
 fn an_unrecoverable_hexa_rotor_still_lands_at_once() {
     // rotors 5 and 6 of PPNNPN leave no hover in the speed limits: land, best effort
-    let f = hover_loss("hexa-ppnnpn", 4, Action::Continue);
+    let mut v = vehicle("hexa-ppnnpn", Action::Continue);
+    take_off(&mut v);
+    let p0 = v.telemetry(0).position_ned;
+    let f = fly_with_fault(
+        &mut v,
+        4,
+        RotorHealth::Off,
+        8.0,
+        |_, p| Some((p - p0).norm()),
+        |_| {},
+        Some(40.0),
+    );
     f.print("hexa-ppnnpn hover, rotor 5 off (infeasible)");
+    assert!(f.disarmed && f.touchdown_tilt_deg.unwrap() < TILT_MAX_DEG, "{f:?}");
     assert!(f.detect_s.unwrap() <= DETECT_MAX_S);
     assert!(
         f.texts.iter().any(|s| s.severity == Severity::Emergency),
@@ -559,6 +573,7 @@ fn a_quad_losing_a_rotor_gives_up_yaw_and_lands() {
         |_| {},
         None,
     );
+    f.print("quad hover, rotor 1 off (first second)");
     assert!(f.detect_s.unwrap() <= DETECT_MAX_S, "{f:?}");
     assert!(matches!(
         v.pilot(0).rotor_allocation(),
@@ -610,6 +625,50 @@ fn rotor_loss_table() {
             "figure-eight, 50 % thrust",
             2,
             &eight_loss(a, Some((2, half)), Some(&track)).0,
+        );
+    }
+}
+
+#[test]
+fn the_stock_hexa_gives_up_its_heading_on_the_boundary_and_lands_when_hover_is_infeasible() {
+    // PNPNPN: rotors 1, 3, 4, 6 leave hover on the boundary (yaw and one of
+    // roll/pitch without margin), 2 and 5 leave none (doc section 3)
+    for (j, verdict) in rotors("hexa") {
+        let mut v = vehicle("hexa", Action::Continue);
+        take_off(&mut v);
+        let p0 = v.telemetry(0).position_ned;
+        let f = fly_with_fault(
+            &mut v,
+            j,
+            RotorHealth::Off,
+            8.0,
+            |_, p| Some((p - p0).norm()),
+            |_| {},
+            Some(40.0),
+        );
+        f.print(&format!("hexa hover, rotor {} off ({verdict:?})", j + 1));
+        assert!(f.detect_s.unwrap() <= DETECT_MAX_S, "{f:?}");
+        match verdict {
+            HoverVerdict::Boundary | HoverVerdict::Infeasible => {
+                assert!(matches!(v.pilot(0).rotor_allocation(), RotorAllocation::LostYaw { .. }));
+                assert!(
+                    f.texts.iter().any(|s| s.text.ends_with("heading free")),
+                    "{:?}",
+                    f.texts
+                );
+                assert!(
+                    f.texts.iter().any(|s| s.severity == Severity::Emergency),
+                    "{:?}",
+                    f.texts
+                );
+            }
+            other => panic!("stock hexa rotor {}: {other:?}", j + 1),
+        }
+        assert!(f.disarmed && f.touchdown_tilt_deg.unwrap() < TILT_MAX_DEG, "{f:?}");
+        // held position while the spin grew: the landing point is below where it was
+        assert!(
+            v.telemetry(0).position_ned.xy().metric_distance(&p0.xy()) < 1.0,
+            "{f:?}"
         );
     }
 }

@@ -338,3 +338,47 @@ impl Allocator {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::airframe::Airframe;
+
+    #[test]
+    fn all_gains_one_is_the_intact_allocator_and_a_dropped_rotor_idles_while_the_rest_deliver() {
+        let af = Airframe::load("octo").unwrap();
+        let (lo, hi) = af.speed_sq_bounds();
+        let b = af.effectiveness();
+        let intact = af.allocator();
+        let same = Allocator::with_rotor_gains(&b, lo, hi, &[1.0; 8], false).unwrap();
+        let req = ControlWrench::new(16.0, Vector3::new(0.2, -0.3, 0.05));
+        assert_eq!(intact.allocate(&req).speed_sq, same.allocate(&req).speed_sq);
+        let mut g = [1.0; 8];
+        g[2] = 0.0;
+        g[5] = 0.5;
+        let reduced = Allocator::with_rotor_gains(&b, lo, hi, &g, false).unwrap();
+        assert!(!reduced.is_active(2) && reduced.is_active(5));
+        let a = reduced.allocate(&req);
+        assert!(!a.saturated);
+        assert_eq!(a.speed_sq[2], lo);
+        // what the remaining rotors (rotor 6 at half thrust) deliver is the request
+        let mut col = b.clone();
+        col.column_mut(2).fill(0.0);
+        col.column_mut(5).scale_mut(0.5);
+        let w = nalgebra::DVector::from_fn(8, |i, _| a.speed_sq[i]);
+        let delivered = &col * w;
+        for (d, r) in delivered.iter().zip(req.to_vector().iter()) {
+            assert!((d - r).abs() < 1e-9, "{delivered} vs {req:?}");
+        }
+        // a quad without a rotor has no 4-row inverse; without the yaw row it has one
+        let q = Airframe::load("quad").unwrap();
+        let (lo, hi) = q.speed_sq_bounds();
+        let g = [0.0, 1.0, 1.0, 1.0];
+        assert_eq!(
+            Allocator::with_rotor_gains(&q.effectiveness(), lo, hi, &g, false).unwrap_err(),
+            3
+        );
+        let yawless = Allocator::with_rotor_gains(&q.effectiveness(), lo, hi, &g, true).unwrap();
+        assert_eq!(yawless.b_pinv().column(3).norm(), 0.0);
+    }
+}

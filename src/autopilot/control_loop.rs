@@ -116,10 +116,14 @@ pub enum RotorAllocation {
         /// Thrust fraction per rotor (0 failed, 1 healthy), from rotor 1.
         gains: Vec<f64>,
     },
-    /// As [`Self::Reduced`], but hover is only on the boundary of the
-    /// attainable set (or beyond it): yaw has the lowest priority and the
-    /// heading is left free (the reference heading follows the measured one)
-    /// so that roll, pitch and thrust keep position.
+    /// Failed columns deleted, degraded ones scaled, but hover with zero yaw
+    /// torque is only on the boundary of the attainable set (or beyond it):
+    /// yaw is given up entirely — the inverse is taken over `[u_T, tau_x,
+    /// tau_y]` only, so the remaining rotors' full range serves roll, pitch
+    /// and thrust (with yaw at the lowest priority the boundary leaves no
+    /// roll/pitch margin and the vehicle flips) — and the heading is left free
+    /// (the reference heading follows the measured one). The yaw rate then
+    /// grows (no rotational drag holds it): the autopilot lands.
     LostYaw {
         /// Thrust fraction per rotor (0 failed, 1 healthy), from rotor 1.
         gains: Vec<f64>,
@@ -218,7 +222,7 @@ impl ControlLoop {
     /// scaled ([`Allocator::with_rotor_gains`]), and the hover verdict of
     /// what remains chooses [`RotorAllocation`]: Feasible `Reduced`,
     /// Boundary or Infeasible `LostYaw`, RankDeficient `RelaxedHover` (yaw row
-    /// dropped). When no inverse exists at all the previous allocator stays.
+    /// dropped; `LostYaw` too). When no inverse exists at all the previous allocator stays.
     /// Ideal actuation has no rotors: nothing changes.
     pub fn set_rotor_gains(&mut self, gains: &[f64]) -> &RotorAllocation {
         let n = self.airframe.rotor_count();
@@ -239,9 +243,10 @@ impl ControlLoop {
         let full_rank = Allocator::with_rotor_gains(&b, lo, hi, &gains, false);
         let (allocator, mode) = match (verdict, full_rank) {
             (HoverVerdict::Feasible, Ok(a)) => (Some(a), RotorAllocation::Reduced { gains }),
-            (HoverVerdict::Boundary | HoverVerdict::Infeasible, Ok(a)) => {
-                (Some(a), RotorAllocation::LostYaw { gains, verdict })
-            }
+            (HoverVerdict::Boundary | HoverVerdict::Infeasible, Ok(_)) => (
+                Allocator::with_rotor_gains(&b, lo, hi, &gains, true).ok(),
+                RotorAllocation::LostYaw { gains, verdict },
+            ),
             (_, _) => (
                 Allocator::with_rotor_gains(&b, lo, hi, &gains, true).ok(),
                 RotorAllocation::RelaxedHover { gains },

@@ -292,8 +292,9 @@ impl Autopilot {
     /// The rotor monitor changed its verdict on some rotors: announce each
     /// (Critical failed, Warning degraded, Info recovered), reallocate over
     /// what remains ([`ControlLoop::set_rotor_gains`]), and react in the air:
-    /// without a static hover (a quad's rank-deficient case, or hover beyond
-    /// the remaining rotors) land at once; otherwise a rotor that got worse
+    /// without a static hover that holds yaw (hover on the boundary or beyond
+    /// the remaining rotors, a quad's rank-deficient case: the heading is
+    /// given up and the spin grows) land at once; otherwise a rotor that got worse
     /// triggers `COM_ACT_FAIL_ACT` (0 warn only and keep the mode, 1 Hold, 2 Land, 3 Return).
     fn rotors_changed(&mut self, events: &[RotorEvent], m: &crate::signals::Measurement) {
         let gains: Vec<f64> = self.rotors.status().iter().map(|r| r.thrust_fraction()).collect();
@@ -327,21 +328,16 @@ impl Autopilot {
         }
         let flying = self.armed && !self.land.landed();
         let landing = matches!(self.navigator.nav, Nav::Land { .. });
-        let no_hover = matches!(
-            allocation,
-            RotorAllocation::RelaxedHover { .. }
-                | RotorAllocation::LostYaw {
-                    verdict: crate::airframe::HoverVerdict::Infeasible,
-                    ..
-                }
-        );
+        // heading given up: the yaw rate is free to grow (no rotational drag
+        // holds it), so no hover lasts; land while attitude holds
+        let no_hover = allocation.heading_free();
         if !flying || !worse {
             return;
         }
         if no_hover {
             if !landing {
                 self.say
-                    .announce(Severity::Emergency, "Rotor loss: no hover possible, landing");
+                    .announce(Severity::Emergency, "Rotor loss: yaw uncontrollable, landing");
                 self.navigator.enter_land(m, false, &mut self.say);
             }
             return;

@@ -17,7 +17,9 @@ mod file;
 mod report;
 
 pub use allocation::{Allocation, Allocator, effectiveness, rank, wrench_map};
-pub use failure::{FailureAnalysis, HoverVerdict, TorqueMargins, analyse_failures, hover_margins, intact_verdict};
+pub use failure::{
+    FailureAnalysis, HoverVerdict, TorqueMargins, analyse_failures, degraded_verdict, hover_margins, intact_verdict,
+};
 pub use file::AirframeError;
 pub use report::AirframeReport;
 
@@ -168,6 +170,7 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ("hexa", include_str!("../../params/airframes/hexa.toml")),
     ("octo", include_str!("../../params/airframes/octo.toml")),
     ("fsr-quad", include_str!("../../params/airframes/fsr-quad.toml")),
+    ("hexa-ppnnpn", include_str!("../../params/airframes/hexa-ppnnpn.toml")),
 ];
 
 /// The default vehicle.

@@ -21,7 +21,7 @@
 
 use nalgebra::{UnitQuaternion, Vector3};
 
-use crate::airframe::{Actuation, Airframe, Allocator};
+use crate::airframe::{Actuation, Airframe, Allocator, HoverVerdict, degraded_verdict};
 use crate::control::{ControlGains, Controller, ControllerKind, GainError, Reference};
 use crate::estimation::{EstimatorConfig, EstimatorError, MomentumEstimator};
 use crate::signals::{ActuatorCommand, ControlWrench, GRAVITY, Measurement, NominalModel, RotorVector, WrenchEstimate};
@@ -103,6 +103,56 @@ impl ControlOutput {
     }
 }
 
+/// What the loop flies with after rotor faults (doc `model-and-control.md`
+/// section 3b), chosen by [`ControlLoop::set_rotor_gains`] from the hover
+/// verdict of the remaining rotors ([`degraded_verdict`]).
+#[derive(Clone, Debug, PartialEq)]
+pub enum RotorAllocation {
+    /// Every rotor as built.
+    Full,
+    /// Failed rotors' columns deleted, degraded ones scaled by their thrust
+    /// fraction; hover is interior to the attainable set: full control.
+    Reduced {
+        /// Thrust fraction per rotor (0 failed, 1 healthy), from rotor 1.
+        gains: Vec<f64>,
+    },
+    /// Failed columns deleted, degraded ones scaled, but hover with zero yaw
+    /// torque is only on the boundary of the attainable set (or beyond it):
+    /// yaw is given up entirely — the inverse is taken over `[u_T, tau_x,
+    /// tau_y]` only, so the remaining rotors' full range serves roll, pitch
+    /// and thrust (with yaw at the lowest priority the boundary leaves no
+    /// roll/pitch margin and the vehicle flips) — and the heading is left free
+    /// (the reference heading follows the measured one). The yaw rate then
+    /// grows (no rotational drag holds it): the autopilot lands.
+    LostYaw {
+        /// Thrust fraction per rotor (0 failed, 1 healthy), from rotor 1.
+        gains: Vec<f64>,
+        /// The verdict ([`HoverVerdict::Boundary`] or [`HoverVerdict::Infeasible`]).
+        verdict: HoverVerdict,
+    },
+    /// The remaining rotors have rank 3 (a quad with a dead rotor): no
+    /// static hover. HOOK for the relaxed-hover controller
+    /// (`control::relaxed_hover`, Mueller and D'Andrea 2014: spin about the
+    /// thrust axis, control the reduced attitude): until it is plugged in
+    /// here, the loop allocates over `[u_T, tau_x, tau_y]` only (yaw given
+    /// up, heading free) as a best effort, and the autopilot lands.
+    RelaxedHover {
+        /// Thrust fraction per rotor (0 failed, 1 healthy), from rotor 1.
+        gains: Vec<f64>,
+    },
+}
+
+impl RotorAllocation {
+    /// Whether the heading is given up (the reference yaw follows the measured one).
+    #[must_use]
+    pub fn heading_free(&self) -> bool {
+        matches!(
+            self,
+            RotorAllocation::LostYaw { .. } | RotorAllocation::RelaxedHover { .. }
+        )
+    }
+}
+
 /// Estimator, controller and allocation of one vehicle.
 #[derive(Debug)]
 pub struct ControlLoop {
@@ -111,6 +161,10 @@ pub struct ControlLoop {
     estimator: MomentumEstimator,
     allocator: Allocator,
     actuation: Actuation,
+    /// The airframe as built (for reallocation after rotor faults).
+    airframe: Airframe,
+    /// What the allocation flies with ([`Self::set_rotor_gains`]).
+    rotor_allocation: RotorAllocation,
     /// Rotor speeds at idle [rad/s] (zero beyond the rotor count).
     idle_speeds: RotorVector,
     /// `u_{k-1}` as the estimator must see it.
@@ -147,10 +201,62 @@ impl ControlLoop {
             estimator,
             allocator: airframe.allocator(),
             actuation: airframe.actuation,
+            airframe: airframe.clone(),
+            rotor_allocation: RotorAllocation::Full,
             idle_speeds,
             last_applied: None,
             output,
         })
+    }
+
+    /// What the allocation flies with.
+    #[must_use]
+    pub fn rotor_allocation(&self) -> &RotorAllocation {
+        &self.rotor_allocation
+    }
+
+    /// Rebuild the allocation for the thrust fraction `gains[i]` each rotor
+    /// still gives (1 healthy, in `(0, 1)` degraded, 0 failed; missing
+    /// entries count as 1), at the nominal mass: all ones is the airframe's own
+    /// allocator; otherwise failed columns are deleted and degraded ones
+    /// scaled ([`Allocator::with_rotor_gains`]), and the hover verdict of
+    /// what remains chooses [`RotorAllocation`]: Feasible `Reduced`,
+    /// Boundary or Infeasible `LostYaw`, RankDeficient `RelaxedHover` (yaw row
+    /// dropped; `LostYaw` too). When no inverse exists at all the previous allocator stays.
+    /// Ideal actuation has no rotors: nothing changes.
+    pub fn set_rotor_gains(&mut self, gains: &[f64]) -> &RotorAllocation {
+        let n = self.airframe.rotor_count();
+        if self.actuation != Actuation::Rotors {
+            return &self.rotor_allocation;
+        }
+        let gains: Vec<f64> = (0..n)
+            .map(|i| gains.get(i).copied().unwrap_or(1.0).clamp(0.0, 1.0))
+            .collect();
+        if gains.iter().all(|g| *g >= 1.0) {
+            self.allocator = self.airframe.allocator();
+            self.rotor_allocation = RotorAllocation::Full;
+            return &self.rotor_allocation;
+        }
+        let verdict = degraded_verdict(&self.airframe, &gains, self.nominal.mass_kg).verdict;
+        let b = self.airframe.effectiveness();
+        let (lo, hi) = self.airframe.speed_sq_bounds();
+        let full_rank = Allocator::with_rotor_gains(&b, lo, hi, &gains, false);
+        let (allocator, mode) = match (verdict, full_rank) {
+            (HoverVerdict::Feasible, Ok(a)) => (Some(a), RotorAllocation::Reduced { gains }),
+            (HoverVerdict::Boundary | HoverVerdict::Infeasible, Ok(_)) => (
+                Allocator::with_rotor_gains(&b, lo, hi, &gains, true).ok(),
+                RotorAllocation::LostYaw { gains, verdict },
+            ),
+            (_, _) => (
+                Allocator::with_rotor_gains(&b, lo, hi, &gains, true).ok(),
+                RotorAllocation::RelaxedHover { gains },
+            ),
+        };
+        if let Some(a) = allocator {
+            self.allocator = a;
+        }
+        self.rotor_allocation = mode;
+        &self.rotor_allocation
     }
 
     /// The controller.
@@ -262,6 +368,15 @@ impl ControlLoop {
                 self.controller.reset();
                 self.output.reference = Reference::default();
                 ControlWrench::default()
+            }
+            Demand::Track(reference) if self.rotor_allocation.heading_free() => {
+                // heading given up: hold the measured one, no yaw rate asked
+                let mut free = *reference;
+                free.yaw_rad = crate::math::euler_zyx(&measurement.attitude).z;
+                free.yaw_rate_rad_s = 0.0;
+                free.yaw_accel_rad_s2 = 0.0;
+                self.output.reference = free;
+                self.controller.update(&self.nominal, measurement, &free, feedback, dt)
             }
             Demand::Track(reference) => {
                 self.output.reference = *reference;

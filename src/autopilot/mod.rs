@@ -84,14 +84,17 @@ mod geofence;
 mod land_detector;
 mod mission;
 mod navigator;
+mod rotor_monitor;
 mod settings;
 mod stack;
 mod telemetry;
 
 pub use battery::BatteryWarning;
+pub use control_loop::RotorAllocation;
 pub use control_loop::{ControlLoop, ControlLoopError, ControlOutput, Demand};
 pub use failsafe::{ClientClock, ClientTimer, PendingTimer};
 pub use navigator::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};
+pub use rotor_monitor::{FAILED_SPEED_RATIO, RotorEvent, RotorMonitor, RotorStatus};
 pub use stack::{Autopilot, AutopilotError};
 pub use telemetry::{LandedState, MissionState, MissionStatus, Telemetry, VehicleType};
 

@@ -18,6 +18,20 @@ pub(super) enum OffboardLossAction {
     Land,
 }
 
+/// What to do when the rotor monitor flags a failed or degraded rotor in
+/// flight (`COM_ACT_FAIL_ACT`, PX4's values; PX4's 4, terminate, is outside its range).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum ActuatorFailureAction {
+    /// 0: warn only, keep the mode (a mission goes on).
+    Warn,
+    /// 1: Hold.
+    Hold,
+    /// 2: Land.
+    Land,
+    /// 3: Return.
+    Return,
+}
+
 /// The flight stack's view of the parameter store.
 #[derive(Clone, Debug, PartialEq)]
 pub(super) struct Settings {
@@ -49,6 +63,7 @@ pub(super) struct Settings {
     pub(super) model_mass_kg: f64,
     /// Data-link, battery and geofence failsafes.
     pub(super) failsafe: super::failsafe::FailsafeSettings,
+    pub(super) actuator_failure_action: ActuatorFailureAction,
 }
 
 impl Settings {
@@ -71,6 +86,12 @@ impl Settings {
             3 => OffboardLossAction::Return,
             4 => OffboardLossAction::Land,
             _ => OffboardLossAction::Hold,
+        };
+        let actuator_failure_action = match p.int(Param::COM_ACT_FAIL_ACT) {
+            1 => ActuatorFailureAction::Hold,
+            2 => ActuatorFailureAction::Land,
+            3 => ActuatorFailureAction::Return,
+            _ => ActuatorFailureAction::Warn,
         };
         let mut s = Self {
             takeoff_alt_m: p.real(Param::MIS_TAKEOFF_ALT),
@@ -100,6 +121,7 @@ impl Settings {
             feedback: p.int(Param::EST_COMP) != 0,
             model_mass_kg: p.real(Param::MDL_MASS),
             failsafe: super::failsafe::FailsafeSettings::from_store(p),
+            actuator_failure_action,
         };
         // the return altitude stays inside GF_MAX_VER_DIST (PX4's RTL)
         s.rtl_return_alt_m = s.failsafe.cap_height(s.rtl_return_alt_m);

@@ -5,11 +5,12 @@
 use nalgebra::Vector3;
 
 use super::battery::BatteryMonitor;
-use super::control_loop::{ControlLoop, ControlLoopError, ControlOutput};
+use super::control_loop::{ControlLoop, ControlLoopError, ControlOutput, RotorAllocation};
 use super::estimate::EstimateFeedback;
 use super::land_detector::{LandDetector, LandEvent};
-use super::navigator::Navigator;
-use super::settings::Settings;
+use super::navigator::{Nav, Navigator};
+use super::rotor_monitor::{RotorEvent, RotorMonitor, RotorStatus};
+use super::settings::{ActuatorFailureAction, Settings};
 use super::telemetry::{Telemetry, VehicleType};
 use super::{Announcements, ClientClock, Severity, StatusText};
 use crate::airframe::{Actuation, Airframe};
@@ -113,6 +114,8 @@ pub struct Autopilot {
     pub(super) navigator: Navigator,
     pub(super) land: LandDetector,
     pub(super) battery: BatteryMonitor,
+    /// Commanded versus ESC-reported rotor speeds.
+    rotors: RotorMonitor,
     pub(super) origin: GeoPoint,
     pub(super) home: GeoPoint,
     pub(super) armed: bool,
@@ -156,6 +159,15 @@ impl Autopilot {
         let mut ap = Self {
             airframe: airframe.clone(),
             battery: BatteryMonitor::new(settings.battery_cells),
+            rotors: RotorMonitor::new(
+                match airframe.actuation {
+                    Actuation::Rotors => airframe.rotor_count(),
+                    Actuation::Ideal => 0,
+                },
+                airframe.rotor.time_constant_s,
+                airframe.rotor.speed_min_rad_s,
+                airframe.rotor.speed_max_rad_s,
+            ),
             settings,
             dt: dt_s,
             control,
@@ -265,6 +277,10 @@ impl Autopilot {
         let estimate = self.control.sense(m);
         self.battery.update(&readings.battery, self.dt);
         self.supervise_battery(readings);
+        let rotor_events = self.rotors.update(now, &readings.rotor_speeds_rad_s);
+        if !rotor_events.is_empty() {
+            self.rotors_changed(&rotor_events, m);
+        }
         self.supervise(m);
         let cx = situation!(self, m);
         let demand = self.navigator.guidance(self.armed, &cx, &mut self.say);
@@ -272,7 +288,98 @@ impl Autopilot {
             self.mission_set_home(h, m);
         }
         let feedback = self.settings.feedback.then(|| self.feedback.feed_back(&estimate, now));
-        self.control.act(m, &demand, feedback.as_ref(), self.dt)
+        let out = self.control.act(m, &demand, feedback.as_ref(), self.dt);
+        self.rotors.commanded(&out.actuator);
+        self.control.output()
+    }
+
+    /// The rotor monitor changed its verdict on some rotors: announce each
+    /// (Critical failed, Warning degraded, Info recovered), reallocate over
+    /// what remains ([`ControlLoop::set_rotor_gains`]), and react in the air:
+    /// without a static hover that holds yaw (hover on the boundary or beyond
+    /// the remaining rotors, a quad's rank-deficient case: the heading is
+    /// given up and the spin grows) land at once; otherwise a rotor that got worse
+    /// triggers `COM_ACT_FAIL_ACT` (0 warn only and keep the mode, 1 Hold, 2 Land, 3 Return).
+    fn rotors_changed(&mut self, events: &[RotorEvent], m: &crate::signals::Measurement) {
+        let gains: Vec<f64> = self.rotors.status().iter().map(|r| r.thrust_fraction()).collect();
+        let allocation = self.control.set_rotor_gains(&gains).clone();
+        let what = match &allocation {
+            RotorAllocation::Full => "reallocated",
+            RotorAllocation::Reduced { .. } => "reallocated",
+            RotorAllocation::LostYaw { .. } => "heading free",
+            RotorAllocation::RelaxedHover { .. } => "no hover",
+        };
+        let mut worse = false;
+        for e in events {
+            let label = e.index + 1;
+            match e.to {
+                RotorStatus::Failed => {
+                    worse = true;
+                    self.say
+                        .announce(Severity::Critical, format!("Motor {label} failed: {what}"));
+                }
+                RotorStatus::Degraded { thrust_fraction } => {
+                    worse |= thrust_fraction < e.from.thrust_fraction();
+                    self.say.announce(
+                        Severity::Warning,
+                        format!("Motor {label} degraded: {:.0}% thrust, {what}", 100.0 * thrust_fraction),
+                    );
+                }
+                RotorStatus::Healthy => {
+                    self.say.announce(Severity::Info, format!("Motor {label} recovered"));
+                }
+            }
+        }
+        let flying = self.armed && !self.land.landed();
+        let landing = matches!(self.navigator.nav, Nav::Land { .. });
+        // heading given up: the yaw rate is free to grow (no rotational drag
+        // holds it), so no hover lasts; land while attitude holds
+        let no_hover = allocation.heading_free();
+        if !flying || !worse {
+            return;
+        }
+        if no_hover {
+            if !landing {
+                self.say
+                    .announce(Severity::Emergency, "Rotor loss: yaw uncontrollable, landing");
+                self.navigator.enter_land(m, false, &mut self.say);
+            }
+            return;
+        }
+        match self.settings.actuator_failure_action {
+            ActuatorFailureAction::Warn => {}
+            ActuatorFailureAction::Hold => {
+                if !matches!(self.navigator.nav, Nav::Hold { .. }) && !landing {
+                    self.say.announce(Severity::Warning, "Rotor failure: holding");
+                    self.navigator.enter_hold(false);
+                }
+            }
+            ActuatorFailureAction::Land => {
+                if !landing {
+                    self.say.announce(Severity::Warning, "Rotor failure: landing");
+                    self.navigator.enter_land(m, false, &mut self.say);
+                }
+            }
+            ActuatorFailureAction::Return => {
+                if !matches!(self.navigator.nav, Nav::Rtl { .. }) && !landing {
+                    self.say.announce(Severity::Warning, "Rotor failure: returning");
+                    let cx = situation!(self, m);
+                    self.navigator.enter_rtl(&cx, &mut self.say);
+                }
+            }
+        }
+    }
+
+    /// The rotor monitor's verdict per rotor (rotor 1 first).
+    #[must_use]
+    pub fn rotor_status(&self) -> &[RotorStatus] {
+        self.rotors.status()
+    }
+
+    /// What the allocation flies with after rotor faults.
+    #[must_use]
+    pub fn rotor_allocation(&self) -> &RotorAllocation {
+        self.control.rotor_allocation()
     }
 
     /// What the latest [`Self::step`] decided.
@@ -291,6 +398,7 @@ impl Autopilot {
         }
         self.navigator.drop_reference();
         self.control.rotors_stopped();
+        self.rotors.resync();
     }
 
     /// A snapshot for telemetry (SI units, NED/FRD) at the instant of `readings`.
@@ -329,6 +437,8 @@ impl Autopilot {
             estimate: self.control.estimate(),
             prearm_ok: self.prearm_failure(m).is_none(),
             mission: self.mission_status(),
+            failed_rotors: rotor_mask(self.rotors.status(), |r| r == RotorStatus::Failed),
+            degraded_rotors: rotor_mask(self.rotors.status(), |r| matches!(r, RotorStatus::Degraded { .. })),
         }
     }
 
@@ -455,4 +565,13 @@ impl Autopilot {
             }
         }
     }
+}
+
+/// Bit `i` set for each rotor `i` (from 0) whose status passes `pick`.
+fn rotor_mask(status: &[RotorStatus], pick: impl Fn(RotorStatus) -> bool) -> u16 {
+    status
+        .iter()
+        .enumerate()
+        .filter(|(i, r)| *i < 16 && pick(**r))
+        .fold(0, |m, (i, _)| m | (1 << i))
 }

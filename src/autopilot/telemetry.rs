@@ -107,6 +107,10 @@ pub struct Telemetry {
     pub prearm_ok: bool,
     /// The mission's progress (MISSION_CURRENT).
     pub mission: MissionStatus,
+    /// Rotors the rotor monitor flags failed: bit `i - 1` for rotor `i` (PX4's motor failure mask).
+    pub failed_rotors: u16,
+    /// Rotors flagged degraded (below ~90 % thrust): bit `i - 1` for rotor `i`.
+    pub degraded_rotors: u16,
 }
 
 /// MISSION_CURRENT's `mission_state`.

@@ -81,6 +81,8 @@ pub(crate) fn snapshot() -> Snapshot {
                 fence_id: 0,
                 rally_id: 0,
             },
+            failed_rotors: 0,
+            degraded_rotors: 0,
         },
         truth: Truth {
             force_ned: Vector3::new(0.5, 0.5, 0.0),

@@ -118,6 +118,11 @@ parameters! {
         10.0, -1.0, 20.0, "s",
         "Disarm this long after arming if the vehicle has not taken off (<= 0: never)",
     ),
+    // --- PX4: commander, actuator failure (rotor monitor) --------------------------------------
+    COM_ACT_FAIL_ACT: int(
+        0, 0, 3,
+        "Rotor failed or degraded in flight (ESC speed vs command): 0 warn and go on, 1 Hold, 2 Land, 3 Return",
+    ),
     // --- PX4: system, MAVLink, battery ---------------------------------------------------------
     SYS_FAILURE_EN: int(0, 0, 1, "Allow failure injection (MAV_CMD_INJECT_FAILURE)"),
     MAV_SYS_ID: int_reboot(1, 1, 250, "MAVLink system id"),

@@ -42,6 +42,9 @@ pub enum ClientTimer {
     PreflightDisarm,
     /// The offboard setpoint stream: lost after `COM_OF_LOSS_T` without a setpoint.
     OffboardLoss,
+    /// The pilot's sticks (MANUAL_CONTROL) in a manual mode: lost after
+    /// `COM_RC_LOSS_T` without them, then `NAV_RCL_ACT`.
+    ManualControlLoss,
 }
 
 /// A client timer running now.
@@ -86,6 +89,13 @@ impl Autopilot {
                 duration_s: s.offboard_loss_s,
             });
         }
+        if let Some(t) = self.navigator.manual_loss_timer_start() {
+            out.push(PendingTimer {
+                timer: ClientTimer::ManualControlLoss,
+                started_s: t,
+                duration_s: s.manual.loss_s,
+            });
+        }
         out
     }
 
@@ -111,6 +121,7 @@ impl Autopilot {
                     self.offboard_lost(m);
                 }
             }
+            ClientTimer::ManualControlLoss => self.manual_control_lost(m),
         }
         true
     }
@@ -150,7 +161,7 @@ impl Autopilot {
     fn offboard_lost(&mut self, m: &Measurement) {
         match self.settings.offboard_loss_action {
             OffboardLossAction::Hold => {
-                self.navigator.enter_hold(false);
+                self.navigator.enter_hold();
                 self.say
                     .announce(Severity::Warning, "Offboard signal lost: switching to Hold");
             }

@@ -89,6 +89,7 @@ mod telemetry;
 
 pub use control_loop::{ControlLoop, ControlLoopError, ControlOutput, Demand};
 pub use failsafe::{ClientClock, ClientTimer, PendingTimer};
+pub use navigator::ManualControl;
 pub use navigator::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};
 pub use stack::{Autopilot, AutopilotError};
 pub use telemetry::{LandedState, MissionState, MissionStatus, Telemetry, VehicleType};
@@ -102,7 +103,8 @@ use crate::geo::GeoPoint;
 /// Flight modes, as PX4 names them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub enum FlightMode {
-    /// POSCTL: hold position, move with (offboard-free) velocity input; here: hold.
+    /// POSCTL: sticks give horizontal velocity (MPC_VEL_MANUAL), climb rate
+    /// and yaw rate; centred sticks hold the position. Needs manual control.
     Position,
     /// AUTO.LOITER (Hold): hold the current position; PX4's idle mode.
     Hold,
@@ -116,6 +118,18 @@ pub enum FlightMode {
     Offboard,
     /// AUTO.MISSION: fly the stored mission.
     Mission,
+    /// ALTCTL: sticks give tilt (MPC_MAN_TILT_MAX), climb rate and yaw rate;
+    /// centred throttle holds the altitude. Needs manual control.
+    Altitude,
+    /// STABILIZED: sticks give tilt and yaw rate, throttle the collective thrust.
+    Stabilized,
+    /// ACRO: sticks give body rates (MC_ACRO_*_MAX), throttle the thrust.
+    Acro,
+    /// MANUAL: on a multicopter flown as Stabilized (PX4).
+    Manual,
+    /// PX4's Descend (shown as AUTO.LAND): land without a position estimate —
+    /// level, no horizontal control, sinking at MPC_LAND_SPEED (GPS loss).
+    Descend,
 }
 
 /// What MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN asks for.
@@ -185,6 +199,8 @@ pub enum AutopilotCommand {
     SetHome(Option<GeoPoint>),
     /// A new offboard setpoint.
     Offboard(OffboardSetpoint),
+    /// The pilot's sticks (MANUAL_CONTROL), kept with their arrival time.
+    ManualControl(ManualControl),
     /// Reboot or shut down: accepted only disarmed; the runtime carries it out.
     Power(PowerAction),
     /// MAV_CMD_INJECT_FAILURE, PX4's numbers: accepted only with

@@ -262,6 +262,8 @@ impl Autopilot {
         let estimate = self.control.sense(m);
         self.battery.update(&readings.battery, self.dt);
         self.supervise(m);
+        self.supervise_gps(readings);
+        self.supervise_manual(m);
         let cx = situation!(self, m);
         let demand = self.navigator.guidance(self.armed, &cx, &mut self.say);
         if let Some(h) = self.navigator.mission.new_home.take() {

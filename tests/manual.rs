@@ -559,3 +559,33 @@ fn position_falls_back_to_altitude_without_gps_and_back() {
     assert_eq!(v.mode(), FlightMode::Position);
     assert!(v.said(Severity::Warning, "GPS fix regained: back to Position"));
 }
+
+#[test]
+fn above_real_time_the_runtime_times_the_stick_loss_on_the_wall_clock() {
+    use rotorpilot::autopilot::{ClientClock, ClientTimer};
+    let mut v = Vehicle::new(&[]);
+    v.core.pilot_mut(0).ap.set_client_clock(ClientClock::Wall);
+    v.climb_in(FlightMode::Altitude, 0.6, 3.0);
+    v.sending = false;
+    let last = v.last_sent_s;
+    // simulated time alone never declares it lost
+    v.run(2.0);
+    assert_eq!(v.mode(), FlightMode::Altitude);
+    let timers = v.core.pilot(0).ap.client_timers();
+    let t = timers
+        .iter()
+        .find(|p| p.timer == ClientTimer::ManualControlLoss)
+        .expect("the loss timer runs");
+    assert_eq!((t.started_s, t.duration_s), (last, 0.5));
+    // a stale expiry (a timer since restarted) is ignored; the running one acts
+    let r = v.readings();
+    let ap = &mut v.core.pilot_mut(0).ap;
+    assert!(!ap.client_timeout(ClientTimer::ManualControlLoss, last - 0.05, &r));
+    assert!(ap.client_timeout(ClientTimer::ManualControlLoss, last, &r));
+    assert_eq!(ap.mode(), FlightMode::ReturnToLaunch);
+    assert!(
+        ap.client_timers()
+            .iter()
+            .all(|p| p.timer != ClientTimer::ManualControlLoss)
+    );
+}

@@ -45,6 +45,15 @@
 //!   either (off the ground, or trying to fly) is a takeoff. On ground
 //!   contact a mode that is not climbing idles the rotors (PX4 cuts the
 //!   thrust the same way).
+//! * Manual control (`navigator/manual`): MANUAL_CONTROL sticks, kept with
+//!   their arrival time. Position, Altitude, Stabilized, Acro and Manual are
+//!   refused without fresh sticks; arming there needs the throttle low (at
+//!   most centred where it is a climb rate). Sticks older than
+//!   `COM_RC_LOSS_T` in a manual mode: "Manual control lost", then
+//!   `NAV_RCL_ACT` (Return by default); not in the automatic modes.
+//! * GPS loss (`navigator/blind`): a mode that steers by position descends
+//!   without it (PX4's Descend, AUTO.LAND in the heartbeat), Position falls
+//!   back to Altitude; the fix back before touchdown gives Hold (Position).
 //! * References come from the jerk-limited shaper ([`crate::control::shaper`])
 //!   with the mode's speed limits; offboard attitude and rates go to
 //!   [`crate::control::Controller::update_attitude`].

@@ -127,7 +127,7 @@ parameters! {
     MPC_VEL_MANUAL: real(10.0, 3.0, 20.0, "m/s", "Position mode: horizontal speed at full stick"),
     MPC_MAN_Y_MAX: real(150.0, 0.0, 400.0, "deg/s", "Position, Altitude, Stabilized: yaw rate at full stick"),
     MPC_HOLD_DZ: real(0.1, 0.0, 1.0, "", "Stick deadzone of Position and Altitude: centred sticks hold"),
-    MPC_MAN_TILT_MAX: real(35.0, 1.0, 90.0, "deg", "Altitude, Stabilized: tilt at full stick"),
+    MPC_MAN_TILT_MAX: real(35.0, 0.0, 90.0, "deg", "Altitude, Stabilized: tilt at full stick"),
     MPC_MANTHR_MIN: real(0.08, 0.0, 1.0, "", "Stabilized: collective thrust at zero throttle in the air"),
     MC_ACRO_R_MAX: real(720.0, 0.0, 1800.0, "deg/s", "Acro: roll rate at full stick"),
     MC_ACRO_P_MAX: real(720.0, 0.0, 1800.0, "deg/s", "Acro: pitch rate at full stick"),

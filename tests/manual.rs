@@ -293,6 +293,10 @@ fn position_holds_centred_and_flies_at_the_stick_velocity() {
     v.sticks = sticks(0.5, 0.0, 0.0, 0.0);
     v.run(6.0);
     let vel = v.truth().velocity_ned;
+    eprintln!(
+        "Position: climb {climb:.3} m/s, hold drift {drift:.4} m in 5 s, velocity at half stick [{:.3}, {:.3}, {:.3}] m/s NED",
+        vel.x, vel.y, vel.z
+    );
     assert!((vel.x - 40.0 / 9.0).abs() < 0.15, "north {}", vel.x);
     assert!(vel.y.abs() < 0.1 && vel.z.abs() < 0.1, "{vel}");
     assert!((v.truth().position_ned.z - held.z).abs() < 0.2, "altitude kept");
@@ -507,6 +511,12 @@ fn gps_loss_descends_where_it_was_lost_without_the_horizontal_position() {
             break;
         }
     }
+    eprintln!(
+        "GPS loss at {:.1} m: landed {worst:.3} m from where the fix was lost, largest tilt {:.2} deg, at {:.1} s",
+        -lost_at.z,
+        max_tilt.to_degrees(),
+        v.core.time_s()
+    );
     assert!(landed, "lands and disarms");
     assert_eq!(v.mode(), FlightMode::Hold, "disarmed: Hold");
     assert!(worst < 1.0, "landed {worst} m from where the fix was lost");

@@ -6,7 +6,7 @@
 
 use nalgebra::Vector3;
 
-use super::navigator::{HoldTarget, Nav};
+use super::navigator::{HoldTarget, ManualMode, Nav};
 use super::{Autopilot, AutopilotCommand, CommandOutcome, FlightMode, OffboardSetpoint, PowerAction, Severity};
 use crate::geo::GeoPoint;
 use crate::mission::MissionType;
@@ -36,10 +36,13 @@ impl Autopilot {
     /// | `ChangeSpeed` | Denied when not finite |
     /// | `SetHome` | Denied for an invalid point |
     /// | `Offboard` | Denied when a given part is not finite, or nothing is given; a position above `GF_MAX_VER_DIST` is clamped to it (announced once) |
+    /// | `ManualControl` | Denied when a stick is not finite or beyond `[-1, 1]` |
+    /// | `SetMode` to a manual mode | TemporarilyRejected without fresh sticks (`COM_RC_LOSS_T`, client clock), Position also without a GPS fix |
+    /// | anything that needs a position (Hold, Takeoff, RTL, Mission, Reposition) | TemporarilyRejected without a GPS fix; Land then descends without position |
     /// | `Power` | Denied when armed |
     /// | `InjectFailure` | Denied while `SYS_FAILURE_EN` = 0 |
     ///
-    /// Disarmed, Hold and Position are always accepted. Selecting the active
+    /// Disarmed, Hold is accepted with a GPS fix. Selecting the active
     /// mode again is accepted and changes nothing.
     pub fn command(&mut self, cmd: AutopilotCommand, readings: &SensorReadings) -> CommandOutcome {
         let m = &readings.measurement;
@@ -63,6 +66,7 @@ impl Autopilot {
             AutopilotCommand::ChangeSpeed { speed_m_s } => self.change_speed(speed_m_s),
             AutopilotCommand::SetHome(point) => self.set_home_to(point, m),
             AutopilotCommand::Offboard(sp) => self.offboard_setpoint(&sp, m),
+            AutopilotCommand::ManualControl(sticks) => self.manual_control(sticks, m),
             AutopilotCommand::Power(action) => self.power(action),
             AutopilotCommand::InjectFailure { .. } => {
                 if self.settings.failure_injection {
@@ -102,11 +106,15 @@ impl Autopilot {
         if !self.home.is_valid() {
             return Some("home position invalid");
         }
+        if self.navigator.gps_lost && self.navigator.needs_position() {
+            return Some("no GPS fix");
+        }
         match self.navigator.nav {
+            Nav::Manual(mode) => self.manual_prearm_failure(mode, m.time_s),
             Nav::Offboard if !self.offboard_fresh(m.time_s) => Some("no offboard signal"),
             Nav::Mission if self.plans.get(MissionType::Mission).is_empty() => Some("no valid mission"),
             Nav::Hold { .. } | Nav::Offboard | Nav::Mission => None,
-            Nav::Takeoff { .. } | Nav::Land { .. } | Nav::Rtl { .. } => Some("flight mode not armable"),
+            Nav::Takeoff { .. } | Nav::Land { .. } | Nav::Rtl { .. } | Nav::Descend => Some("flight mode not armable"),
         }
     }
 
@@ -160,6 +168,9 @@ impl Autopilot {
         if !self.armed {
             return self.not_armed("Takeoff");
         }
+        if let Some(refused) = self.refuse_without_position("Takeoff") {
+            return refused;
+        }
         let home = self.home_ned();
         let min_alt = self.settings.takeoff_alt_m;
         let mut z = home.z - min_alt;
@@ -196,6 +207,12 @@ impl Autopilot {
         if !self.armed {
             return self.not_armed("Land");
         }
+        if self.navigator.gps_lost {
+            if self.navigator.nav != Nav::Descend {
+                self.descend_without_position("No GPS fix: descending without position");
+            }
+            return CommandOutcome::Accepted;
+        }
         if !matches!(self.navigator.nav, Nav::Land { .. }) {
             let landed = self.land.landed();
             self.navigator.enter_land(m, landed, &mut self.say);
@@ -206,6 +223,9 @@ impl Autopilot {
     fn return_to_launch(&mut self, m: &Measurement) -> CommandOutcome {
         if !self.armed {
             return self.not_armed("Return");
+        }
+        if let Some(refused) = self.refuse_without_position("Return") {
+            return refused;
         }
         if !matches!(self.navigator.nav, Nav::Rtl { .. }) {
             let cx = situation!(self, m);
@@ -219,10 +239,22 @@ impl Autopilot {
             return CommandOutcome::Accepted;
         }
         match mode {
-            FlightMode::Hold | FlightMode::Position => {
-                self.navigator.enter_hold(mode == FlightMode::Position);
+            FlightMode::Hold | FlightMode::Mission => {
+                if let Some(refused) = self.refuse_without_position(&format!("Switching to {mode:?}")) {
+                    return refused;
+                }
+                if mode == FlightMode::Mission {
+                    return self.enter_mission();
+                }
+                self.navigator.enter_hold();
                 CommandOutcome::Accepted
             }
+            FlightMode::Descend => self.land(m),
+            FlightMode::Position => self.enter_manual_mode(ManualMode::Position, m),
+            FlightMode::Altitude => self.enter_manual_mode(ManualMode::Altitude, m),
+            FlightMode::Stabilized => self.enter_manual_mode(ManualMode::Stabilized, m),
+            FlightMode::Acro => self.enter_manual_mode(ManualMode::Acro, m),
+            FlightMode::Manual => self.enter_manual_mode(ManualMode::Manual, m),
             FlightMode::Takeoff => self.takeoff(None, m),
             FlightMode::Land => self.land(m),
             FlightMode::ReturnToLaunch => self.return_to_launch(m),
@@ -238,7 +270,6 @@ impl Autopilot {
                     )
                 }
             }
-            FlightMode::Mission => self.enter_mission(),
         }
     }
 
@@ -261,6 +292,9 @@ impl Autopilot {
         }
         if !self.armed {
             return self.not_armed("Reposition");
+        }
+        if let Some(refused) = self.refuse_without_position("Reposition") {
+            return refused;
         }
         let here = self.navigator.current_position(m);
         let here_geo = self.origin.offset(&here);

@@ -63,6 +63,9 @@ pub enum ClientTimer {
     OffboardLoss,
     /// The ground station: lost after `COM_DL_LOSS_T` without a GCS HEARTBEAT (armed, once one was heard).
     DataLinkLoss,
+    /// The pilot's sticks (MANUAL_CONTROL) in a manual mode: lost after
+    /// `COM_RC_LOSS_T` without them, then `NAV_RCL_ACT`.
+    ManualControlLoss,
 }
 
 /// A client timer running now.
@@ -111,6 +114,13 @@ impl Autopilot {
         if let Some(p) = self.data_link_timer() {
             out.push(p);
         }
+        if let Some(t) = self.navigator.manual_loss_timer_start() {
+            out.push(PendingTimer {
+                timer: ClientTimer::ManualControlLoss,
+                started_s: t,
+                duration_s: s.manual.loss_s,
+            });
+        }
         out
     }
 
@@ -137,6 +147,7 @@ impl Autopilot {
                 }
             }
             ClientTimer::DataLinkLoss => self.data_link_lost(m),
+            ClientTimer::ManualControlLoss => self.manual_control_lost(m),
         }
         true
     }
@@ -184,7 +195,7 @@ impl Autopilot {
     fn offboard_lost(&mut self, m: &Measurement) {
         match self.settings.offboard_loss_action {
             OffboardLossAction::Hold => {
-                self.navigator.enter_hold(false);
+                self.navigator.enter_hold();
                 self.say
                     .announce(Severity::Warning, "Offboard signal lost: switching to Hold");
             }

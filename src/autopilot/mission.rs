@@ -48,7 +48,7 @@ impl Autopilot {
         self.navigator.mission.reset();
         if self.navigator.nav == Nav::Mission {
             if self.plans.get(MissionType::Mission).is_empty() {
-                self.navigator.enter_hold(false);
+                self.navigator.enter_hold();
                 self.say.announce(Severity::Warning, "Mission cleared: holding");
             } else {
                 self.navigator.enter_mission();

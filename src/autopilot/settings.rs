@@ -32,6 +32,71 @@ pub(super) enum ActuatorFailureAction {
     Return,
 }
 
+/// What to do when manual control stops in a manual mode (`NAV_RCL_ACT`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum ManualLossAction {
+    /// 0: keep flying the mode on the last sticks (PX4: disabled).
+    None,
+    /// 1: Hold.
+    Hold,
+    /// 2: Return (PX4's default).
+    Return,
+    /// 3 (and 4-6: no termination or lockdown here): Land.
+    Land,
+}
+
+/// The manual-control parameters (sticks, RC loss), SI units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct ManualSettings {
+    /// `COM_RC_LOSS_T` [s].
+    pub(super) loss_s: f64,
+    /// `NAV_RCL_ACT`.
+    pub(super) loss_action: ManualLossAction,
+    /// `MPC_VEL_MANUAL` [m/s].
+    pub(super) vel_max_m_s: f64,
+    /// `MPC_MAN_Y_MAX` [rad/s].
+    pub(super) yaw_rate_max_rad_s: f64,
+    /// `MPC_HOLD_DZ` (stick units).
+    pub(super) deadzone: f64,
+    /// `MPC_MAN_TILT_MAX` [rad].
+    pub(super) tilt_max_rad: f64,
+    /// `MPC_MANTHR_MIN` (0..1 of the maximum thrust).
+    pub(super) thrust_min: f64,
+    /// `MC_ACRO_R_MAX`, `MC_ACRO_P_MAX`, `MC_ACRO_Y_MAX` [rad/s], body FRD.
+    pub(super) acro_rate_max_rad_s: [f64; 3],
+    /// `MC_ACRO_EXPO`, `MC_ACRO_EXPO_Y`.
+    pub(super) acro_expo: [f64; 2],
+    /// `MC_ACRO_SUPEXPO`, `MC_ACRO_SUPEXPOY`.
+    pub(super) acro_superexpo: [f64; 2],
+}
+
+impl ManualSettings {
+    fn from_store(p: &ParamStore) -> Self {
+        let rad = |x: Param| p.real(x).to_radians();
+        Self {
+            loss_s: p.real(Param::COM_RC_LOSS_T),
+            loss_action: match p.int(Param::NAV_RCL_ACT) {
+                0 => ManualLossAction::None,
+                1 => ManualLossAction::Hold,
+                2 => ManualLossAction::Return,
+                _ => ManualLossAction::Land,
+            },
+            vel_max_m_s: p.real(Param::MPC_VEL_MANUAL),
+            yaw_rate_max_rad_s: rad(Param::MPC_MAN_Y_MAX),
+            deadzone: p.real(Param::MPC_HOLD_DZ),
+            tilt_max_rad: rad(Param::MPC_MAN_TILT_MAX),
+            thrust_min: p.real(Param::MPC_MANTHR_MIN),
+            acro_rate_max_rad_s: [
+                rad(Param::MC_ACRO_R_MAX),
+                rad(Param::MC_ACRO_P_MAX),
+                rad(Param::MC_ACRO_Y_MAX),
+            ],
+            acro_expo: [p.real(Param::MC_ACRO_EXPO), p.real(Param::MC_ACRO_EXPO_Y)],
+            acro_superexpo: [p.real(Param::MC_ACRO_SUPEXPO), p.real(Param::MC_ACRO_SUPEXPOY)],
+        }
+    }
+}
+
 /// The flight stack's view of the parameter store.
 #[derive(Clone, Debug, PartialEq)]
 pub(super) struct Settings {
@@ -64,6 +129,8 @@ pub(super) struct Settings {
     /// Data-link, battery and geofence failsafes.
     pub(super) failsafe: super::failsafe::FailsafeSettings,
     pub(super) actuator_failure_action: ActuatorFailureAction,
+    /// Manual control and its loss.
+    pub(super) manual: ManualSettings,
 }
 
 impl Settings {
@@ -122,6 +189,7 @@ impl Settings {
             model_mass_kg: p.real(Param::MDL_MASS),
             failsafe: super::failsafe::FailsafeSettings::from_store(p),
             actuator_failure_action,
+            manual: ManualSettings::from_store(p),
         };
         // the return altitude stays inside GF_MAX_VER_DIST (PX4's RTL)
         s.rtl_return_alt_m = s.failsafe.cap_height(s.rtl_return_alt_m);

@@ -282,6 +282,8 @@ impl Autopilot {
             self.rotors_changed(&rotor_events, m);
         }
         self.supervise(m);
+        self.supervise_gps(readings);
+        self.supervise_manual(m);
         let cx = situation!(self, m);
         let demand = self.navigator.guidance(self.armed, &cx, &mut self.say);
         if let Some(h) = self.navigator.mission.new_home.take() {

@@ -23,6 +23,7 @@
 //! | [`param`] | PARAM_* protocol, INT32 bytewise |
 //! | [`mission`] | MISSION_* protocol: upload, download, clear, set current, progress |
 //! | [`offboard`] | SET_POSITION_TARGET_* and SET_ATTITUDE_TARGET to setpoints |
+//! | [`manual`] | MANUAL_CONTROL to sticks |
 //! | [`streams`] | stream rates, scheduler, message builders from a [`Snapshot`] |
 //! | [`peers`] | default remote plus learned peers with a timeout |
 
@@ -32,6 +33,7 @@
 
 pub mod command;
 pub mod convert;
+pub mod manual;
 pub mod mission;
 pub mod offboard;
 pub mod param;
@@ -500,6 +502,13 @@ impl Link {
                         ack: None,
                     });
                 }
+            }
+            // PX4 takes MANUAL_CONTROL aimed at it or at everyone (target 0)
+            MavMessage::MANUAL_CONTROL(m) if m.target == 0 || m.target == self.config.identity.system_id => {
+                effects.push(Effect::Autopilot {
+                    command: AutopilotCommand::ManualControl(manual::sticks(&m)),
+                    ack: None,
+                });
             }
             MavMessage::TIMESYNC(m) if m.tc1 == 0 => {
                 let now_ns = (t.telemetry.time_s * 1e9) as i64;

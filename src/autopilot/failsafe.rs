@@ -544,7 +544,7 @@ impl Autopilot {
                 self.say
                     .announce(severity, format!("Failsafe: {cause}, triggering {}", action.name()));
                 match action {
-                    FailsafeAction::Hold => self.navigator.enter_hold(false),
+                    FailsafeAction::Hold => self.navigator.enter_hold(),
                     FailsafeAction::Return => {
                         let cx = situation!(self, m);
                         self.navigator.enter_rtl(&cx, &mut self.say);

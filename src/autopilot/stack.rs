@@ -353,7 +353,7 @@ impl Autopilot {
             ActuatorFailureAction::Hold => {
                 if !matches!(self.navigator.nav, Nav::Hold { .. }) && !landing {
                     self.say.announce(Severity::Warning, "Rotor failure: holding");
-                    self.navigator.enter_hold(false);
+                    self.navigator.enter_hold();
                 }
             }
             ActuatorFailureAction::Land => {

@@ -155,6 +155,12 @@ parameters! {
     SIM_GE_EN: int(1, 0, 1, "Simulate ground effect"),
     SIM_CE_EN: int(1, 0, 1, "Simulate ceiling effect (needs SIM_CEIL_Z > 0)"),
     SIM_CEIL_Z: real(0.0, 0.0, 100.0, "m", "Height of a flat ceiling above the home ground (0: no ceiling)"),
+    // --- rotorpilot: failure injection (MAV_CMD_INJECT_FAILURE, FAILURE_TYPE_WRONG) ------------
+    SIM_MOT_WRONG_FR: real(0.5, 0.0, 1.0, "", "Injected MOTOR WRONG: the motor gives this fraction of its thrust"),
+    SIM_GPS_WRONG_M: real(
+        10.0, 0.0, 1000.0, "m",
+        "Injected GPS WRONG: the position reported is this far north (world NED) of the truth",
+    ),
 }
 
 /// The table as Markdown (name, type, default, range, unit, description),

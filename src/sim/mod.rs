@@ -415,6 +415,12 @@ impl World {
         b.fault_settings = s.faults;
     }
 
+    /// Set what an injected WRONG fault does to vehicle `i` (a scenario
+    /// without parameters; [`Self::configure`] sets it from them).
+    pub fn set_fault_settings(&mut self, i: usize, settings: FaultSettings) {
+        self.bodies[i].fault_settings = settings;
+    }
+
     /// What an injected WRONG fault does to vehicle `i` (its `SIM_*_WRONG_*` parameters).
     #[must_use]
     pub fn fault_settings(&self, i: usize) -> FaultSettings {

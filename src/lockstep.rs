@@ -133,7 +133,11 @@ pub fn failure_faults(
                 TYPE_OK => (vec![Fault::Gps { available: true }, Fault::GpsOffset(None)], ok("GPS")),
                 TYPE_OFF => (vec![Fault::Gps { available: false }], warn("GPS off")),
                 _ => (
-                    vec![Fault::GpsOffset(Some(Vector3::new(settings.gps_offset_north_m, 0.0, 0.0)))],
+                    vec![Fault::GpsOffset(Some(Vector3::new(
+                        settings.gps_offset_north_m,
+                        0.0,
+                        0.0,
+                    )))],
                     warn("GPS wrong"),
                 ),
             })
@@ -141,7 +145,11 @@ pub fn failure_faults(
         (UNIT_BATTERY, TYPE_OK | TYPE_OFF) => {
             single("no such battery")?;
             let failed = inj.kind == TYPE_OFF;
-            let text = if failed { warn("battery cell off") } else { ok("battery") };
+            let text = if failed {
+                warn("battery cell off")
+            } else {
+                ok("battery")
+            };
             Ok((vec![Fault::BatteryCell { failed }], text))
         }
         (UNIT_MAVLINK_SIGNAL, TYPE_OK | TYPE_OFF) => {

@@ -75,7 +75,8 @@ fn airborne(core: &mut Core) {
 #[test]
 fn failure_injection_is_denied_while_sys_failure_en_is_0() {
     let (mut core, mut store) = vehicle("quad", &[]);
-    core.set_param(0, &mut store, "SYS_FAILURE_EN", ParamValue::Int32(0)).unwrap();
+    core.set_param(0, &mut store, "SYS_FAILURE_EN", ParamValue::Int32(0))
+        .unwrap();
     let before = faults(&core);
     assert!(matches!(inject(&mut core, GPS, OFF, 0), CommandOutcome::Denied(_)));
     assert_eq!(faults(&core), before);
@@ -83,7 +84,8 @@ fn failure_injection_is_denied_while_sys_failure_en_is_0() {
     assert!(t.iter().any(|s| s.text.contains("SYS_FAILURE_EN")), "{t:?}");
     assert!(!t.iter().any(|s| s.text.starts_with("CMD_INJECT_FAILURE")), "{t:?}");
     // allowed again: accepted
-    core.set_param(0, &mut store, "SYS_FAILURE_EN", ParamValue::Int32(1)).unwrap();
+    core.set_param(0, &mut store, "SYS_FAILURE_EN", ParamValue::Int32(1))
+        .unwrap();
     assert_eq!(inject(&mut core, GPS, OFF, 0), CommandOutcome::Accepted);
     assert!(!faults(&core).gps_available);
 }
@@ -111,13 +113,14 @@ fn motor_off_wrong_and_ok_reach_the_rotor() {
     assert!(esc[1] < 1.0, "dead rotor spins at {}", esc[1]);
     assert!(esc[0] > 100.0 && esc[2] > 100.0 && esc[3] > 100.0, "{esc:?}");
 
-    core.set_param(0, &mut store, "SIM_MOT_WRONG_FR", ParamValue::Real32(0.25)).unwrap();
+    core.set_param(0, &mut store, "SIM_MOT_WRONG_FR", ParamValue::Real32(0.25))
+        .unwrap();
     assert_eq!(inject(&mut core, MOTOR, WRONG, 2), CommandOutcome::Accepted);
+    assert_eq!(faults(&core).rotors[1], RotorHealth::Degraded { thrust_fraction: 0.25 });
     assert_eq!(
-        faults(&core).rotors[1],
-        RotorHealth::Degraded { thrust_fraction: 0.25 }
+        texts(&mut core)[0].text,
+        "CMD_INJECT_FAILURE, motor 2 wrong (25% thrust)"
     );
-    assert_eq!(texts(&mut core)[0].text, "CMD_INJECT_FAILURE, motor 2 wrong (25% thrust)");
 
     assert_eq!(inject(&mut core, MOTOR, OK, 2), CommandOutcome::Accepted);
     assert!(!faults(&core).any());
@@ -176,7 +179,8 @@ fn gps_off_drifts_wrong_offsets_and_ok_restores() {
     assert_eq!(r.gps.fix, GpsFix::Fix3d);
     assert_eq!(r.measurement.position_ned, core.world().plant(0).state().position_ned);
 
-    core.set_param(0, &mut store, "SIM_GPS_WRONG_M", ParamValue::Real32(25.0)).unwrap();
+    core.set_param(0, &mut store, "SIM_GPS_WRONG_M", ParamValue::Real32(25.0))
+        .unwrap();
     assert_eq!(inject(&mut core, GPS, WRONG, 0), CommandOutcome::Accepted);
     run_s(&mut core, 1.0);
     let truth = core.world().plant(0).state().position_ned;
@@ -233,8 +237,19 @@ fn unsupported_and_missing_parts_change_nothing() {
     let before = faults(&core);
     let state = |c: &Core| (c.pilot(0).armed(), c.pilot(0).mode());
     let s0 = state(&core);
-    for (unit, kind) in [(0, OFF), (GPS, 2), (BATTERY, WRONG), (MAVLINK_SIGNAL, WRONG), (104, OFF), (255, OFF)] {
-        assert_eq!(inject(&mut core, unit, kind, 0), CommandOutcome::Unsupported, "{unit}/{kind}");
+    for (unit, kind) in [
+        (0, OFF),
+        (GPS, 2),
+        (BATTERY, WRONG),
+        (MAVLINK_SIGNAL, WRONG),
+        (104, OFF),
+        (255, OFF),
+    ] {
+        assert_eq!(
+            inject(&mut core, unit, kind, 0),
+            CommandOutcome::Unsupported,
+            "{unit}/{kind}"
+        );
     }
     for (unit, kind, instance) in [(MOTOR, OFF, 9), (MOTOR, OK, 5), (GPS, OFF, 2), (BATTERY, OK, 3)] {
         assert!(
@@ -282,12 +297,16 @@ fn off_then_ok_at_one_instant_leaves_the_flight_as_it_was() {
 #[test]
 fn inject_failure_maps_without_the_autopilot_gate() {
     let (mut core, mut store) = vehicle("quad", &[]);
-    core.set_param(0, &mut store, "SYS_FAILURE_EN", ParamValue::Int32(0)).unwrap();
+    core.set_param(0, &mut store, "SYS_FAILURE_EN", ParamValue::Int32(0))
+        .unwrap();
     let inj = |unit, kind, instance| FailureInjection { unit, kind, instance };
     assert_eq!(core.inject_failure(0, inj(MOTOR, OFF, 4)), CommandOutcome::Accepted);
     assert_eq!(faults(&core).rotors[3], RotorHealth::Off);
     assert_eq!(core.inject_failure(0, inj(GPS, 3, 0)), CommandOutcome::Unsupported);
-    assert!(matches!(core.inject_failure(0, inj(MOTOR, OFF, 5)), CommandOutcome::Denied(_)));
+    assert!(matches!(
+        core.inject_failure(0, inj(MOTOR, OFF, 5)),
+        CommandOutcome::Denied(_)
+    ));
     assert_eq!(core.drain_world_texts(0).len(), 1);
 }
 
@@ -322,7 +341,9 @@ fn invalid(extra: &str) -> (String, String) {
 fn scenario_fault_errors_name_file_field_and_line() {
     // an unknown unit: a syntax error at its line
     match scenario("\n[[fault]]\nat_s = 1.0\nunit = \"rotor\"\ntype = \"off\"\n") {
-        Err(ScenarioError::File(FileError::Syntax { file, line, message, .. })) => {
+        Err(ScenarioError::File(FileError::Syntax {
+            file, line, message, ..
+        })) => {
             assert_eq!(file, "hover.toml");
             assert_eq!(line, 11, "{message}");
             assert!(message.contains("rotor") && message.contains("motor"), "{message}");
@@ -338,10 +359,14 @@ fn scenario_fault_errors_name_file_field_and_line() {
         other => panic!("{other:?}"),
     }
     let two = "\n[[fault]]\nat_s = 1.0\nunit = \"gps\"\ntype = \"off\"\n[[fault]]\n";
-    let (field, problem) = invalid(&format!("{two}at_s = 9.0\nunit = \"motor\"\ntype = \"off\"\ninstance = 1\n"));
+    let (field, problem) = invalid(&format!(
+        "{two}at_s = 9.0\nunit = \"motor\"\ntype = \"off\"\ninstance = 1\n"
+    ));
     assert_eq!(field, "fault[2].at_s");
     assert!(problem.contains("duration_s"), "{problem}");
-    let (field, problem) = invalid(&format!("{two}at_s = 2.0\nunit = \"motor\"\ntype = \"off\"\ninstance = 9\n"));
+    let (field, problem) = invalid(&format!(
+        "{two}at_s = 2.0\nunit = \"motor\"\ntype = \"off\"\ninstance = 9\n"
+    ));
     assert_eq!(field, "fault[2].instance");
     assert!(problem.contains("4 motors"), "{problem}");
     let (field, _) = invalid(&format!("{two}at_s = 2.0\nunit = \"battery\"\ntype = \"wrong\"\n"));

@@ -235,7 +235,10 @@ pub(super) fn validate(
                 if usize::from(f.instance) > n {
                     return Err((
                         at("instance"),
-                        format!("the airframe has {n} motors (1 to {n}, or 0 for all), got {}", f.instance),
+                        format!(
+                            "the airframe has {n} motors (1 to {n}, or 0 for all), got {}",
+                            f.instance
+                        ),
                     ));
                 }
             }
@@ -249,7 +252,10 @@ pub(super) fn validate(
         }
         if let Some(x) = f.thrust_fraction {
             if (f.unit, f.kind) != (FaultUnit::Motor, FaultType::Wrong) {
-                return Err((at("thrust_fraction"), "only for unit = \"motor\", type = \"wrong\"".into()));
+                return Err((
+                    at("thrust_fraction"),
+                    "only for unit = \"motor\", type = \"wrong\"".into(),
+                ));
             }
             if !(0.0..=1.0).contains(&x) {
                 return Err((at("thrust_fraction"), format!("must be in [0, 1], got {x}")));

@@ -540,7 +540,11 @@ pub fn run_mission(f: &MissionFlight, mut csv: Option<&mut dyn Write>) -> anyhow
 ///
 /// # Errors
 /// A parameter the vehicle refuses (not expected: the values were validated).
-fn inject(core: &mut Lockstep<Autopilot>, params: &mut ParamStore, sf: &ScheduledFault) -> anyhow::Result<AppliedFault> {
+fn inject(
+    core: &mut Lockstep<Autopilot>,
+    params: &mut ParamStore,
+    sf: &ScheduledFault,
+) -> anyhow::Result<AppliedFault> {
     let overrides = [
         ("SIM_MOT_WRONG_FR", sf.thrust_fraction),
         ("SIM_GPS_WRONG_M", sf.offset_m),
@@ -565,7 +569,8 @@ fn inject(core: &mut Lockstep<Autopilot>, params: &mut ParamStore, sf: &Schedule
         },
     );
     for (name, old) in restore {
-        core.set_param(0, params, name, old).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+        core.set_param(0, params, name, old)
+            .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
     }
     Ok(AppliedFault::new(sf, core.time_s(), &outcome))
 }

@@ -15,9 +15,9 @@ mod mission;
 mod run;
 mod trajectory;
 
+pub use fault::{AppliedFault, FaultType, FaultUnit, ScheduledFault};
 pub use mission::{ItemResult, MissionFlight, MissionSummary, is_mission, mission_lockstep, run_mission};
 pub use run::{ScenarioPilot, Summary, lockstep, run};
-pub use fault::{AppliedFault, FaultType, FaultUnit, ScheduledFault};
 pub use trajectory::Trajectory;
 
 use nalgebra::Vector3;

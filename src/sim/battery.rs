@@ -148,7 +148,11 @@ mod tests {
         let whole = b.voltage_v();
         b.set_cell_failed(true);
         // 3 of 4 cells at 4.2 V, the avionics' current through 4 cells' resistance
-        assert!((b.voltage_v() - (12.6 - 4.0 * CELL_R_OHM * AVIONICS_A)).abs() < 1e-9, "{}", b.voltage_v());
+        assert!(
+            (b.voltage_v() - (12.6 - 4.0 * CELL_R_OHM * AVIONICS_A)).abs() < 1e-9,
+            "{}",
+            b.voltage_v()
+        );
         b.set_cell_failed(false);
         assert_eq!(b.voltage_v(), whole);
     }

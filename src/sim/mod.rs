@@ -635,7 +635,10 @@ mod tests {
         // without a fix the solution dead-reckons away from the still truth; the fix back, it is right
         let drift = (r.measurement.position_ned - w.plant(0).state().position_ned).norm();
         let tau = w.dt_s();
-        assert!((drift - DEAD_RECKONING_BIAS_M_S2 * tau * tau / 2.0).abs() < 1e-12, "{drift}");
+        assert!(
+            (drift - DEAD_RECKONING_BIAS_M_S2 * tau * tau / 2.0).abs() < 1e-12,
+            "{drift}"
+        );
         w.inject(0, Fault::Gps { available: true }).unwrap();
         let fixed = w.sense(0).measurement.position_ned;
         assert_eq!(fixed, w.plant(0).state().position_ned);

@@ -188,6 +188,12 @@ parameters! {
     GF_ACTION: int(2, 0, 5, "Geofence breach action: 0 none, 1 warning, 2 Hold, 3 Return, 4 Terminate, 5 Land"),
     GF_MAX_HOR_DIST: real(0.0, 0.0, 10_000.0, "m", "Geofence: largest horizontal distance from home (0: no limit)"),
     GF_MAX_VER_DIST: real(0.0, 0.0, 1_000.0, "m", "Geofence: largest height above home, also for targets (0: no limit)"),
+    // --- rotorpilot: failure injection (MAV_CMD_INJECT_FAILURE, FAILURE_TYPE_WRONG) ------------
+    SIM_MOT_WRONG_FR: real(0.5, 0.0, 1.0, "", "Injected MOTOR WRONG: the motor gives this fraction of its thrust"),
+    SIM_GPS_WRONG_M: real(
+        10.0, 0.0, 1000.0, "m",
+        "Injected GPS WRONG: the position reported is this far north (world NED) of the truth",
+    ),
 }
 
 /// The table as Markdown (name, type, default, range, unit, description),

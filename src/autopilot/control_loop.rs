@@ -22,7 +22,9 @@
 use nalgebra::{UnitQuaternion, Vector3};
 
 use crate::airframe::{Actuation, Airframe, Allocator, HoverVerdict, degraded_verdict};
-use crate::control::{ControlGains, Controller, ControllerKind, GainError, Reference};
+use crate::control::{
+    ControlGains, Controller, ControllerKind, GainError, Reference, RelaxedHover, RelaxedHoverError, RelaxedHoverPhase,
+};
 use crate::estimation::{EstimatorConfig, EstimatorError, MomentumEstimator};
 use crate::signals::{ActuatorCommand, ControlWrench, GRAVITY, Measurement, NominalModel, RotorVector, WrenchEstimate};
 
@@ -131,11 +133,13 @@ pub enum RotorAllocation {
         verdict: HoverVerdict,
     },
     /// The remaining rotors have rank 3 (a quad with a dead rotor): no
-    /// static hover. HOOK for the relaxed-hover controller
-    /// (`control::relaxed_hover`, Mueller and D'Andrea 2014: spin about the
-    /// thrust axis, control the reduced attitude): until it is plugged in
-    /// here, the loop allocates over `[u_T, tau_x, tau_y]` only (yaw given
-    /// up, heading free) as a best effort, and the autopilot lands.
+    /// static hover. Once [`ControlLoop::engage_relaxed_hover`] succeeds the
+    /// relaxed-hover controller (`control::relaxed_hover`, Mueller and
+    /// D'Andrea 2014: spin about the thrust axis, control the reduced
+    /// attitude) flies every airborne demand ([`RelaxedHoverFlight`]);
+    /// until then (or when it cannot be built, e.g. no rotational drag) the
+    /// loop allocates over `[u_T, tau_x, tau_y]` only (yaw given up, heading
+    /// free) as a best effort, and the autopilot lands.
     RelaxedHover {
         /// Thrust fraction per rotor (0 failed, 1 healthy), from rotor 1.
         gains: Vec<f64>,
@@ -153,6 +157,32 @@ impl RotorAllocation {
     }
 }
 
+/// A quadrotor with a dead rotor coming down under [`RelaxedHover`]: it
+/// holds `target_ned` horizontally (NED, where the failure was detected) and
+/// descends at `descent_m_s` until the centre of mass is at its resting
+/// height above the ground at `target_ned.z`; then every rotor is stopped
+/// ([`ActuatorCommand::Stop`]) and stays stopped until the engagement ends
+/// (disarm, [`Demand::Stop`]; or the rotor recovers).
+#[derive(Clone, Debug)]
+pub struct RelaxedHoverFlight {
+    /// The controller, built for the dead rotor.
+    pub hover: RelaxedHover,
+    /// Where to land [m], NED: `x, y` held, `z` the ground.
+    pub target_ned: Vector3<f64>,
+    /// Descent speed [m/s], positive down.
+    pub descent_m_s: f64,
+    /// Rotors cut from outside (ground contact seen before the controller's touchdown).
+    pub cut: bool,
+}
+
+impl RelaxedHoverFlight {
+    /// Down, rotors stopped.
+    #[must_use]
+    pub fn landed(&self) -> bool {
+        self.cut || self.hover.phase() == RelaxedHoverPhase::Landed
+    }
+}
+
 /// Estimator, controller and allocation of one vehicle.
 #[derive(Debug)]
 pub struct ControlLoop {
@@ -165,6 +195,8 @@ pub struct ControlLoop {
     airframe: Airframe,
     /// What the allocation flies with ([`Self::set_rotor_gains`]).
     rotor_allocation: RotorAllocation,
+    /// Relaxed hover flying in place of the controller ([`Self::engage_relaxed_hover`]).
+    relaxed_hover: Option<RelaxedHoverFlight>,
     /// Rotor speeds at idle [rad/s] (zero beyond the rotor count).
     idle_speeds: RotorVector,
     /// `u_{k-1}` as the estimator must see it.
@@ -203,6 +235,7 @@ impl ControlLoop {
             actuation: airframe.actuation,
             airframe: airframe.clone(),
             rotor_allocation: RotorAllocation::Full,
+            relaxed_hover: None,
             idle_speeds,
             last_applied: None,
             output,
@@ -235,9 +268,11 @@ impl ControlLoop {
         if gains.iter().all(|g| *g >= 1.0) {
             self.allocator = self.airframe.allocator();
             self.rotor_allocation = RotorAllocation::Full;
+            self.relaxed_hover = None;
             return &self.rotor_allocation;
         }
         let verdict = degraded_verdict(&self.airframe, &gains, self.nominal.mass_kg).verdict;
+        let dead = single_dead_rotor(&gains);
         let b = self.airframe.effectiveness();
         let (lo, hi) = self.airframe.speed_sq_bounds();
         let full_rank = Allocator::with_rotor_gains(&b, lo, hi, &gains, false);
@@ -255,8 +290,70 @@ impl ControlLoop {
         if let Some(a) = allocator {
             self.allocator = a;
         }
+        // relaxed hover was built for one dead rotor and the others healthy
+        if let Some(flight) = &self.relaxed_hover
+            && !(matches!(mode, RotorAllocation::RelaxedHover { .. }) && dead == Some(flight.hover.dead_rotor()))
+        {
+            self.relaxed_hover = None;
+        }
         self.rotor_allocation = mode;
         &self.rotor_allocation
+    }
+
+    /// Fly [`RelaxedHover`] from now on (every demand but [`Demand::Stop`]
+    /// and, once landed, [`Demand::Idle`]): the allocation must be
+    /// [`RotorAllocation::RelaxedHover`] with exactly one dead rotor and the
+    /// others healthy; hold `target_ned` [m, NED] horizontally and land on
+    /// the ground at its `z`, descending at `descent_m_s` [m/s]. Engaged
+    /// already for that rotor: nothing changes.
+    ///
+    /// # Errors
+    /// Why relaxed hover cannot fly this vehicle (not a quad with one dead
+    /// rotor, no rotational drag in the airframe, no equilibrium within the
+    /// rotor limits); the best-effort allocation stays then.
+    pub fn engage_relaxed_hover(
+        &mut self,
+        target_ned: Vector3<f64>,
+        descent_m_s: f64,
+    ) -> Result<&RelaxedHoverFlight, RelaxedHoverError> {
+        let RotorAllocation::RelaxedHover { gains } = &self.rotor_allocation else {
+            return Err(RelaxedHoverError::NoEquilibrium(
+                "the remaining rotors can still hover: no relaxed hover needed".into(),
+            ));
+        };
+        let Some(dead) = single_dead_rotor(gains) else {
+            return Err(RelaxedHoverError::NoEquilibrium(
+                "relaxed hover is for one dead rotor, the others healthy".into(),
+            ));
+        };
+        let keep = self
+            .relaxed_hover
+            .as_ref()
+            .is_some_and(|f| f.hover.dead_rotor() == dead);
+        if !keep {
+            let hover = RelaxedHover::new(&self.airframe, &self.nominal, dead)?;
+            self.relaxed_hover = Some(RelaxedHoverFlight {
+                hover,
+                target_ned,
+                descent_m_s,
+                cut: false,
+            });
+        }
+        Ok(self.relaxed_hover.as_ref().expect("engaged above"))
+    }
+
+    /// The relaxed-hover flight, when engaged.
+    #[must_use]
+    pub fn relaxed_hover(&self) -> Option<&RelaxedHoverFlight> {
+        self.relaxed_hover.as_ref()
+    }
+
+    /// Stop the rotors of an engaged relaxed hover now (the vehicle is on the
+    /// ground before the controller saw its touchdown height).
+    pub fn cut_relaxed_hover(&mut self) {
+        if let Some(f) = &mut self.relaxed_hover {
+            f.cut = true;
+        }
     }
 
     /// The controller.
@@ -362,6 +459,32 @@ impl ControlLoop {
         feedback: Option<&WrenchEstimate>,
         dt: f64,
     ) -> &ControlOutput {
+        if matches!(demand, Demand::Stop) {
+            // disarmed: the emergency is over
+            self.relaxed_hover = None;
+        } else if self.actuation == Actuation::Rotors
+            && let Some(flight) = &mut self.relaxed_hover
+        {
+            let speeds = flight
+                .hover
+                .update(measurement, flight.target_ned, flight.descent_m_s, dt);
+            let landed = flight.landed();
+            self.controller.reset();
+            let out = &mut self.output;
+            out.reference = Reference::default();
+            out.saturated = false;
+            if landed {
+                out.actuator = ActuatorCommand::Stop;
+                out.applied = ControlWrench::default();
+            } else {
+                out.actuator = ActuatorCommand::RotorSpeeds(speeds);
+                out.applied = self.allocator.forward(&speeds.component_mul(&speeds));
+            }
+            out.command = out.applied;
+            out.attitude_sp = measurement.attitude;
+            self.last_applied = Some(out.applied);
+            return &self.output;
+        }
         // (the reference goes straight to the output: it is large)
         let command = match demand {
             Demand::Stop | Demand::Idle => {
@@ -434,4 +557,11 @@ impl ControlLoop {
         self.controller.reset();
         self.last_applied = Some(ControlWrench::default());
     }
+}
+
+/// The one rotor with no thrust left when every other one is healthy.
+fn single_dead_rotor(gains: &[f64]) -> Option<usize> {
+    let mut dead = gains.iter().enumerate().filter(|(_, g)| **g <= 0.0).map(|(i, _)| i);
+    let first = dead.next()?;
+    (dead.next().is_none() && gains.iter().filter(|g| **g > 0.0).all(|g| *g >= 1.0)).then_some(first)
 }

@@ -14,7 +14,7 @@ use super::settings::{ActuatorFailureAction, Settings};
 use super::telemetry::{Telemetry, VehicleType};
 use super::{Announcements, ClientClock, Severity, StatusText};
 use crate::airframe::{Actuation, Airframe};
-use crate::control::{ControlGains, ControllerKind, GainError, ShaperError, ShaperLimits};
+use crate::control::{ControlGains, ControllerKind, GainError, RelaxedHoverError, ShaperError, ShaperLimits};
 use crate::estimation::{Discretization, EstimatorConfig, EstimatorError, MomentumEstimator};
 use crate::geo::GeoPoint;
 use crate::mission::{MissionResult, PlanChange, Plans};
@@ -281,6 +281,11 @@ impl Autopilot {
         if !rotor_events.is_empty() {
             self.rotors_changed(&rotor_events, m);
         }
+        if self.land.ground_contact() && self.control.relaxed_hover().is_some_and(|f| !f.landed()) {
+            // on the ground before relaxed hover's touchdown height (the
+            // ground is higher than where the vehicle last rested)
+            self.control.cut_relaxed_hover();
+        }
         self.supervise(m);
         self.supervise_gps(readings);
         self.supervise_manual(m);
@@ -298,18 +303,38 @@ impl Autopilot {
     /// The rotor monitor changed its verdict on some rotors: announce each
     /// (Critical failed, Warning degraded, Info recovered), reallocate over
     /// what remains ([`ControlLoop::set_rotor_gains`]), and react in the air:
-    /// without a static hover that holds yaw (hover on the boundary or beyond
-    /// the remaining rotors, a quad's rank-deficient case: the heading is
-    /// given up and the spin grows) land at once; otherwise a rotor that got worse
+    /// a quad with one dead rotor (rank-deficient allocation) flies relaxed
+    /// hover ([`ControlLoop::engage_relaxed_hover`]): yaw given up, it holds
+    /// the point where the failure was detected and descends at
+    /// `MPC_LAND_SPEED` in Land mode, rotors stopped at touchdown, disarmed as
+    /// after any landing. Without a static hover that holds yaw otherwise
+    /// (hover on the boundary or beyond the remaining rotors, or relaxed
+    /// hover impossible, e.g. no rotational drag in the airframe: the heading
+    /// is given up and the spin grows) land at once; otherwise a rotor that got worse
     /// triggers `COM_ACT_FAIL_ACT` (0 warn only and keep the mode, 1 Hold, 2 Land, 3 Return).
     fn rotors_changed(&mut self, events: &[RotorEvent], m: &crate::signals::Measurement) {
         let gains: Vec<f64> = self.rotors.status().iter().map(|r| r.thrust_fraction()).collect();
         let allocation = self.control.set_rotor_gains(&gains).clone();
-        let what = match &allocation {
-            RotorAllocation::Full => "reallocated",
-            RotorAllocation::Reduced { .. } => "reallocated",
-            RotorAllocation::LostYaw { .. } => "heading free",
-            RotorAllocation::RelaxedHover { .. } => "no hover",
+        let flying = self.armed && !self.land.landed();
+        // relaxed hover: land on the ground below the point of detection
+        // (the resting height the land detector learned, plus the gear)
+        let relaxed = match &allocation {
+            RotorAllocation::RelaxedHover { .. } if flying => {
+                let ground_z = self.land.rest_z(m) + self.airframe.gear_height_m;
+                let target = Vector3::new(m.position_ned.x, m.position_ned.y, ground_z);
+                Some(
+                    self.control
+                        .engage_relaxed_hover(target, self.settings.land_speed_m_s)
+                        .map(|_| ()),
+                )
+            }
+            _ => None,
+        };
+        let what = match (&allocation, &relaxed) {
+            (RotorAllocation::Full | RotorAllocation::Reduced { .. }, _) => "reallocated",
+            (RotorAllocation::LostYaw { .. }, _) => "heading free",
+            (RotorAllocation::RelaxedHover { .. }, Some(Ok(()))) => "yaw given up, descending",
+            (RotorAllocation::RelaxedHover { .. }, _) => "no hover",
         };
         let mut worse = false;
         for e in events {
@@ -332,13 +357,37 @@ impl Autopilot {
                 }
             }
         }
-        let flying = self.armed && !self.land.landed();
         let landing = matches!(self.navigator.nav, Nav::Land { .. });
         // heading given up: the yaw rate is free to grow (no rotational drag
         // holds it), so no hover lasts; land while attitude holds
         let no_hover = allocation.heading_free();
         if !flying || !worse {
             return;
+        }
+        match relaxed {
+            Some(Ok(())) => {
+                self.say
+                    .announce(Severity::Emergency, "Rotor loss: yaw given up, emergency descent");
+                if !landing {
+                    self.navigator.enter_land(m, false, &mut self.say);
+                }
+                return;
+            }
+            Some(Err(e)) => {
+                // (a STATUSTEXT holds 50 characters: the reason in short)
+                let why = match e {
+                    RelaxedHoverError::NoRotationalDrag => "no rotational drag",
+                    RelaxedHoverError::NoEquilibrium(_) => "no equilibrium",
+                    _ => "no relaxed hover",
+                };
+                self.say
+                    .announce(Severity::Emergency, format!("Rotor loss: yaw lost, landing: {why}"));
+                if !landing {
+                    self.navigator.enter_land(m, false, &mut self.say);
+                }
+                return;
+            }
+            None => {}
         }
         if no_hover {
             if !landing {

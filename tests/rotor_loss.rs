@@ -570,8 +570,8 @@ fn healthy_missions_and_eights_never_flag_a_rotor() {
 
 #[test]
 fn a_quad_losing_a_rotor_gives_up_yaw_and_lands() {
-    // the quad's relaxed hover is another controller's job; here: flagged,
-    // the rank-3 hook chosen, an emergency landing commanded
+    // flagged, the rank-3 allocation chosen, an emergency landing commanded
+    // (the relaxed-hover descent itself: tests/quad_rotor_loss.rs)
     let mut v = vehicle("quad", Action::Continue);
     take_off(&mut v);
     let p0 = v.telemetry(0).position_ned;

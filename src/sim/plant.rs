@@ -826,10 +826,11 @@ mod tests {
     /// yaw rate as `r(t) = r0 e^{-gamma t / I_zz}`; without drag the rate stays.
     #[test]
     fn rotational_drag_decays_the_spin_exponentially() {
+        let with = Airframe::load("quad").unwrap();
+        assert_eq!(with.rotational_drag_n_m_s, 0.013);
         let text = include_str!("../../params/airframes/quad.toml")
-            .replace("rotational_drag_n_m_s = 0.0", "rotational_drag_n_m_s = 0.013");
-        let with = Airframe::from_toml(&text, "quad with drag").unwrap();
-        let without = Airframe::load("quad").unwrap();
+            .replace("rotational_drag_n_m_s = 0.013", "rotational_drag_n_m_s = 0.0");
+        let without = Airframe::from_toml(&text, "quad without drag").unwrap();
         assert_eq!(without.rotational_drag_n_m_s, 0.0);
         for (af, gamma) in [(with, 0.013), (without, 0.0)] {
             let mut plant = Plant::new(&af, PlantConfig::default());
@@ -845,7 +846,7 @@ mod tests {
             assert_eq!(plant.rotational_drag_n_m_s(), gamma);
         }
         let bad = include_str!("../../params/airframes/quad.toml")
-            .replace("rotational_drag_n_m_s = 0.0", "rotational_drag_n_m_s = -0.01");
+            .replace("rotational_drag_n_m_s = 0.013", "rotational_drag_n_m_s = -0.01");
         let e = Airframe::from_toml(&bad, "bad.toml").unwrap_err().to_string();
         assert!(
             e.contains("bad.toml") && e.contains("body.rotational_drag_n_m_s"),

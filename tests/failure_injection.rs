@@ -120,7 +120,8 @@ fn motor_off_wrong_and_ok_reach_the_rotor() {
     // the flight stack has said its own piece meanwhile (the rotor monitor's verdict)
     let said = texts(&mut core);
     assert!(
-        said.iter().any(|s| s.text == "CMD_INJECT_FAILURE, motor 2 wrong (25% thrust)"),
+        said.iter()
+            .any(|s| s.text == "CMD_INJECT_FAILURE, motor 2 wrong (25% thrust)"),
         "{said:?}"
     );
 

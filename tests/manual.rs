@@ -18,7 +18,7 @@ use rotorpilot::lockstep::{Lockstep, Pilot};
 use rotorpilot::math::euler_zyx;
 use rotorpilot::mission::{MissionItem, MissionType, PlanChange, cmd, frame};
 use rotorpilot::params::{ParamStore, ParamValue};
-use rotorpilot::signals::{DEFAULT_STEP_S, GpsFix, Measurement, SensorReadings};
+use rotorpilot::signals::{DEFAULT_STEP_S, GpsFix, SensorReadings};
 use rotorpilot::sim::{Environment, Fault, SensorConfig, SimFault, World, WorldSettings};
 
 const HOME: GeoPoint = GeoPoint::PX4_SITL_HOME;
@@ -141,8 +141,9 @@ impl Vehicle {
     }
 
     /// The world's (true) measurement, never the misled one.
-    fn truth(&self) -> Measurement {
-        *self.core.last_step(0).measurement
+    /// The plant's true state (not the navigation solution, which drifts while the fix is lost).
+    fn truth(&self) -> rotorpilot::sim::RigidBodyState {
+        *self.core.world().plant(0).state()
     }
 
     fn mode(&self) -> FlightMode {

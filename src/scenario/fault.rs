@@ -21,7 +21,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::airframe::Airframe;
 use crate::autopilot::CommandOutcome;
-use crate::lockstep::{FailureInjection, failure};
+use crate::lockstep::{FailureInjection, Lockstep, Pilot, failure};
 use crate::sim::FaultSettings;
 
 /// A failing part (FAILURE_UNIT), by name.
@@ -146,6 +146,22 @@ impl ScheduledFault {
             gps_offset_north_m: self.offset_m.unwrap_or(base.gps_offset_north_m),
         }
     }
+}
+
+/// Apply `f` to vehicle 0 now through `inject` (the lockstep's injection for
+/// a bare control law, the MAV_CMD_INJECT_FAILURE command for a flight
+/// stack), with this entry's WRONG values in force for that instant only;
+/// what happened, for the summary.
+pub(super) fn apply<P: Pilot>(
+    core: &mut Lockstep<P>,
+    f: &ScheduledFault,
+    inject: impl FnOnce(&mut Lockstep<P>, FailureInjection) -> CommandOutcome,
+) -> AppliedFault {
+    let base = core.world().fault_settings(0);
+    core.world_mut().set_fault_settings(0, f.settings(base));
+    let outcome = inject(core, f.injection());
+    core.world_mut().set_fault_settings(0, base);
+    AppliedFault::new(f, core.time_s(), &outcome)
 }
 
 /// A fault as it was applied, for the run's summary.

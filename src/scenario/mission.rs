@@ -425,12 +425,21 @@ pub fn run_mission(f: &MissionFlight, mut csv: Option<&mut dyn Write>) -> anyhow
     let (mut started_s, mut complete_s) = (None, None);
     let (mut sum_sq, mut n_air, mut max_err) = (0.0, 0u64, 0.0_f64);
     let (mut upright, mut finite) = (true, true);
-    let mut params = f.params.clone();
     let (mut applied, mut next_fault) = (Vec::new(), 0);
     let mut k = 0;
     while k < steps {
         for sf in &f.faults[fault::due(&f.faults, &mut next_fault, core.time_s())] {
-            applied.push(inject(&mut core, &mut params, sf)?);
+            // as a client injects it: through the flight stack's command
+            applied.push(fault::apply(&mut core, sf, |c, inj| {
+                c.command(
+                    0,
+                    AutopilotCommand::InjectFailure {
+                        unit: inj.unit,
+                        kind: inj.kind,
+                        instance: inj.instance,
+                    },
+                )
+            }));
         }
         core.step();
         k += 1;
@@ -531,48 +540,6 @@ pub fn run_mission(f: &MissionFlight, mut csv: Option<&mut dyn Write>) -> anyhow
         finite,
         faults: applied,
     })
-}
-
-/// Inject `sf` into vehicle 0 as a client would: its WRONG value (if it
-/// gives one) set as the `SIM_*_WRONG_*` parameter for the command, then
-/// MAV_CMD_INJECT_FAILURE through the one command method, then the
-/// parameter back.
-///
-/// # Errors
-/// A parameter the vehicle refuses (not expected: the values were validated).
-fn inject(
-    core: &mut Lockstep<Autopilot>,
-    params: &mut ParamStore,
-    sf: &ScheduledFault,
-) -> anyhow::Result<AppliedFault> {
-    let overrides = [
-        ("SIM_MOT_WRONG_FR", sf.thrust_fraction),
-        ("SIM_GPS_WRONG_M", sf.offset_m),
-    ];
-    let mut restore = Vec::new();
-    for (name, value) in overrides {
-        if let Some(v) = value {
-            if let Some((_, old)) = params.get(name) {
-                restore.push((name, old));
-            }
-            core.set_param(0, params, name, ParamValue::Real32(v as f32))
-                .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
-        }
-    }
-    let inj = sf.injection();
-    let outcome = core.command(
-        0,
-        AutopilotCommand::InjectFailure {
-            unit: inj.unit,
-            kind: inj.kind,
-            instance: inj.instance,
-        },
-    );
-    for (name, old) in restore {
-        core.set_param(0, params, name, old)
-            .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
-    }
-    Ok(AppliedFault::new(sf, core.time_s(), &outcome))
 }
 
 impl MissionSummary {

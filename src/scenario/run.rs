@@ -284,12 +284,8 @@ pub fn run(s: &Scenario, mut csv: Option<&mut dyn Write>) -> anyhow::Result<Summ
     for k in 0..steps {
         let t = k as f64 * dt;
         for f in &s.faults[fault::due(&s.faults, &mut next_fault, t)] {
-            // this entry's WRONG values, then the world's own again
-            let base = core.world().fault_settings(0);
-            core.world_mut().set_fault_settings(0, f.settings(base));
-            let outcome = core.inject_failure(0, f.injection());
-            core.world_mut().set_fault_settings(0, base);
-            applied.push(AppliedFault::new(f, core.time_s(), &outcome));
+            // a bare control law: no flight stack to ask (SYS_FAILURE_EN)
+            applied.push(fault::apply(&mut core, f, |c, inj| c.inject_failure(0, inj)));
         }
         core.step();
         let rec = core.last_step(0);

@@ -640,13 +640,14 @@ fn autopilot_flies_relaxed_hover_to_the_ground_on_every_rotor() {
 }
 
 /// The shipped x500 (1000 rad/s), end to end: from 10 m it lands upright,
-/// within 5 m, slower than a free fall but too fast for the goal (too little
-/// thrust to brake while the spin builds up); from 30 m the figures are
-/// printed and the same limits asserted.
+/// within 5 m, slower than a free fall but too fast for the goal (5.9 m/s: too
+/// little thrust to brake while the spin builds up); from 30 m no better
+/// (6.0 m/s); from 80 m it has the time to brake and meets the goals
+/// (`autopilot_touchdown_by_height_table` for the figures between).
 #[test]
 fn autopilot_on_the_shipped_quad_comes_down_upright_and_braked() {
     let af = quad();
-    for (height, dead) in [(HEIGHT_M, 0), (HEIGHT_M, 1), (30.0, 0)] {
+    for (height, dead) in [(HEIGHT_M, 0), (HEIGHT_M, 1), (30.0, 0), (80.0, 2)] {
         let o = autopilot_case(&af, height, dead);
         let free_fall = (2.0 * GRAVITY * (height - af.gear_height_m)).sqrt();
         assert!(o.distance_m < MAX_DISTANCE_M, "{o:?}");
@@ -654,6 +655,9 @@ fn autopilot_on_the_shipped_quad_comes_down_upright_and_braked() {
             o.touchdown_speed_m_s < 0.8 * free_fall,
             "free fall {free_fall:.2} m/s: {o:?}"
         );
+        if height >= 80.0 {
+            assert!(o.touchdown_speed_m_s < MAX_TOUCHDOWN_SPEED_M_S, "{o:?}");
+        }
     }
 }
 
@@ -703,4 +707,22 @@ fn autopilot_without_rotational_drag_says_it_keeps_the_best_effort() {
             .any(|t| t.severity == Severity::Emergency && t.text == "Rotor loss: yaw lost, landing: no rotational drag"),
         "{texts:?}"
     );
+}
+
+/// Touchdown speed of the shipped quad (and the 1100 rad/s one) against the
+/// hover height at which rotor 1 dies, end to end.
+#[test]
+#[ignore = "a report: run with --ignored --nocapture"]
+fn autopilot_touchdown_by_height_table() {
+    println!("| omega_max [rad/s] | height [m] | touchdown [m/s] | distance [m] | tilt [deg] | descent [s] |");
+    println!("|---|---|---|---|---|---|");
+    for af in [quad(), stronger_quad()] {
+        for height in [10.0, 20.0, 30.0, 50.0, 80.0] {
+            let o = autopilot_loss(&af, height, 0);
+            println!(
+                "| {} | {height} | {:.2} | {:.2} | {:.1} | {:.1} |",
+                af.rotor.speed_max_rad_s, o.touchdown_speed_m_s, o.distance_m, o.touchdown_tilt_deg, o.descent_s
+            );
+        }
+    }
 }

@@ -565,3 +565,92 @@ fn single_dead_rotor(gains: &[f64]) -> Option<usize> {
     let first = dead.next()?;
     (dead.next().is_none() && gains.iter().filter(|g| **g > 0.0).all(|g| *g >= 1.0)).then_some(first)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::control::{ControlGains, ControllerKind};
+    use nalgebra::UnitQuaternion;
+
+    fn quad_loop(gamma: f64) -> ControlLoop {
+        let mut af = Airframe::load("quad").unwrap();
+        af.rotational_drag_n_m_s = gamma;
+        let gains = ControlGains::for_airframe(&af, af.mass_kg).unwrap();
+        ControlLoop::new(&af, ControllerKind::Geometric, gains, EstimatorConfig::default()).unwrap()
+    }
+
+    fn hovering_at_10_m() -> Measurement {
+        Measurement {
+            time_s: 1.0,
+            position_ned: Vector3::new(0.0, 0.0, -10.0),
+            velocity_ned: Vector3::zeros(),
+            attitude: UnitQuaternion::identity(),
+            rate_frd: Vector3::zeros(),
+        }
+    }
+
+    #[test]
+    fn one_dead_rotor_among_healthy_ones_is_the_relaxed_hover_case() {
+        assert_eq!(single_dead_rotor(&[1.0, 0.0, 1.0, 1.0]), Some(1));
+        assert_eq!(single_dead_rotor(&[1.0, 0.0, 0.0, 1.0]), None);
+        assert_eq!(single_dead_rotor(&[1.0, 0.0, 0.5, 1.0]), None);
+        assert_eq!(single_dead_rotor(&[1.0, 1.0, 1.0, 1.0]), None);
+    }
+
+    #[test]
+    fn relaxed_hover_flies_the_dead_quad_until_touchdown_and_ends_with_the_emergency() {
+        let target = Vector3::new(0.0, 0.0, 0.0);
+        let mut c = quad_loop(0.013);
+        // a full allocation needs no relaxed hover
+        assert!(c.engage_relaxed_hover(target, 0.7).is_err());
+        assert!(matches!(
+            c.set_rotor_gains(&[1.0, 0.0, 1.0, 1.0]),
+            RotorAllocation::RelaxedHover { .. }
+        ));
+        assert_eq!(c.engage_relaxed_hover(target, 0.7).unwrap().hover.dead_rotor(), 1);
+        let m = hovering_at_10_m();
+        let track = Demand::Track(Reference::default());
+        let out = *c.act(&m, &track, None, 0.004);
+        let ActuatorCommand::RotorSpeeds(w) = out.actuator else {
+            panic!("{:?}", out.actuator)
+        };
+        assert_eq!(w[1], 0.0, "the dead rotor is not commanded");
+        // the two rotors next to the dead one carry the weight
+        assert!(w[0] > 300.0 && w[2] > 300.0 && w[3].is_finite(), "{w}");
+        assert!(out.applied.thrust_n > 0.0);
+        // on the ground (centre of mass at the gear height): rotors stopped,
+        // also for the Idle the navigator asks for on the ground
+        let mut down = m;
+        down.position_ned.z = -0.24;
+        assert_eq!(c.act(&down, &track, None, 0.004).actuator, ActuatorCommand::Stop);
+        assert_eq!(c.act(&down, &Demand::Idle, None, 0.004).actuator, ActuatorCommand::Stop);
+        assert!(c.relaxed_hover().unwrap().landed());
+        // disarmed: over
+        c.act(&down, &Demand::Stop, None, 0.004);
+        assert!(c.relaxed_hover().is_none());
+        // a second rotor lost or the rotor back: relaxed hover no longer applies
+        c.set_rotor_gains(&[1.0, 0.0, 1.0, 1.0]);
+        c.engage_relaxed_hover(target, 0.7).unwrap();
+        c.set_rotor_gains(&[1.0, 1.0, 1.0, 1.0]);
+        assert!(c.relaxed_hover().is_none());
+        c.set_rotor_gains(&[1.0, 0.0, 1.0, 1.0]);
+        c.engage_relaxed_hover(target, 0.7).unwrap();
+        c.set_rotor_gains(&[0.0, 0.0, 1.0, 1.0]);
+        assert!(c.relaxed_hover().is_none());
+        assert!(c.engage_relaxed_hover(target, 0.7).is_err());
+    }
+
+    #[test]
+    fn without_rotational_drag_relaxed_hover_is_refused_and_the_best_effort_stays() {
+        let mut c = quad_loop(0.0);
+        c.set_rotor_gains(&[1.0, 0.0, 1.0, 1.0]);
+        assert_eq!(
+            c.engage_relaxed_hover(Vector3::zeros(), 0.7).unwrap_err(),
+            RelaxedHoverError::NoRotationalDrag
+        );
+        assert!(c.relaxed_hover().is_none());
+        let out = c.act(&hovering_at_10_m(), &Demand::Track(Reference::default()), None, 0.004);
+        assert!(matches!(out.actuator, ActuatorCommand::RotorSpeeds(_)));
+        assert!(out.command.thrust_n > 0.0, "the controller flies");
+    }
+}

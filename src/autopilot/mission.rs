@@ -82,6 +82,9 @@ impl Autopilot {
         if first.is_some_and(|f| usize::from(f) >= total) {
             return CommandOutcome::Denied("first item beyond the mission");
         }
+        if let Some(refused) = self.refuse_without_position("Mission start") {
+            return refused;
+        }
         let was = (self.navigator.nav, self.navigator.mission.clone());
         if let Some(f) = first {
             self.navigator.mission.set_current(usize::from(f));

@@ -137,6 +137,12 @@ impl Autopilot {
         if !running {
             return false;
         }
+        self.client_timer_expired(timer, m);
+        true
+    }
+
+    /// The one dispatcher of an expired client timer, on either clock.
+    fn client_timer_expired(&mut self, timer: ClientTimer, m: &Measurement) {
         match timer {
             ClientTimer::PreflightDisarm => self.disarm_now("Disarmed by auto preflight disarming"),
             ClientTimer::OffboardLoss => {
@@ -148,7 +154,6 @@ impl Autopilot {
             ClientTimer::DataLinkLoss => self.data_link_lost(m),
             ClientTimer::ManualControlLoss => self.manual_control_lost(m),
         }
-        true
     }
 
     /// Whether the offboard setpoints are fresh at `now` (on the client clock).
@@ -157,35 +162,32 @@ impl Autopilot {
             .offboard_fresh(now, self.settings.offboard_loss_s, self.client_clock)
     }
 
-    /// Offboard loss and auto-disarm at the instant of `m`.
+    /// The client timers on simulated time (one boundary rule for all:
+    /// expired when `now - started >= duration - TIME_EPS`, dispatched as the
+    /// runtime's wall-clock expiries are), the disarm after a landing and
+    /// the geofence, at the instant of `m`.
     pub(super) fn supervise(&mut self, m: &Measurement) {
         let now = m.time_s;
-        let simulated = self.client_clock == ClientClock::Simulated;
-        if simulated && self.navigator.nav == Nav::Offboard && !self.offboard_fresh(now) {
-            self.offboard_lost(m);
-        }
-        if self.armed && self.land.landed() {
-            let s = &self.settings;
-            if self.took_off {
-                if s.disarm_land_s > 0.0
-                    && !matches!(self.navigator.nav, Nav::Takeoff { .. })
-                    && now - self.landed_at_s >= s.disarm_land_s - TIME_EPS
-                {
-                    self.disarm_now("Disarmed by landing");
+        if self.client_clock == ClientClock::Simulated {
+            for p in self.client_timers() {
+                // an earlier expiry this step may have stopped or restarted it
+                let running = self
+                    .client_timers()
+                    .iter()
+                    .any(|q| q.timer == p.timer && q.started_s.to_bits() == p.started_s.to_bits());
+                if running && now - p.started_s >= p.duration_s - TIME_EPS {
+                    self.client_timer_expired(p.timer, m);
                 }
-            } else if simulated
-                && s.disarm_preflight_s > 0.0
-                && now - self.armed_at_s >= s.disarm_preflight_s - TIME_EPS
-            {
-                self.disarm_now("Disarmed by auto preflight disarming");
             }
         }
-        // data-link loss and geofence
-        if simulated
-            && let Some(p) = self.data_link_timer()
-            && now - p.started_s >= p.duration_s - TIME_EPS
+        if self.armed
+            && self.land.landed()
+            && self.took_off
+            && self.settings.disarm_land_s > 0.0
+            && !matches!(self.navigator.nav, Nav::Takeoff { .. })
+            && now - self.landed_at_s >= self.settings.disarm_land_s - TIME_EPS
         {
-            self.data_link_lost(m);
+            self.disarm_now("Disarmed by landing");
         }
         self.supervise_geofence(m);
     }

@@ -192,7 +192,7 @@ impl Navigator {
     pub(in crate::autopilot) fn manual_fresh(&self, now: f64, loss_s: f64, clock: ClientClock) -> bool {
         match clock {
             ClientClock::Simulated => {
-                !self.manual_lost && self.manual.is_some_and(|(_, t)| now - t <= loss_s + TIME_EPS)
+                !self.manual_lost && self.manual.is_some_and(|(_, t)| now - t < loss_s - TIME_EPS)
             }
             ClientClock::Wall => self.manual.is_some() && !self.manual_lost,
         }
@@ -454,16 +454,10 @@ impl Autopilot {
         }
     }
 
-    /// Sticks lost in a manual mode, checked each step on simulated time
-    /// (the runtime reports it on the wall clock: [`Self::client_timeout`]).
-    pub(in crate::autopilot) fn supervise_manual(&mut self, m: &Measurement) {
-        if self.client_clock == ClientClock::Simulated
-            && self.navigator.manual_loss_timer_start().is_some()
-            && !self.manual_fresh(m.time_s)
-        {
-            self.manual_control_lost(m);
-        }
-    }
+    /// Sticks lost in a manual mode: timed with the other client timers
+    /// ([`Self::supervise`] on simulated time, [`Self::client_timeout`] on the
+    /// wall clock); nothing left to do here.
+    pub(in crate::autopilot) fn supervise_manual(&mut self, _m: &Measurement) {}
 
     /// The sticks are lost: announced (PX4's words, Critical); in a manual
     /// mode `NAV_RCL_ACT` is carried out by the one failsafe runner (which

@@ -726,3 +726,46 @@ fn arming_is_refused_at_critical_battery() {
     ));
     assert_eq!(ap.count("Arming denied: battery critical"), 1);
 }
+
+#[test]
+fn a_mission_outside_the_geofence_is_refused_at_start() {
+    let mut ap = Ap::new(&[("GF_MAX_VER_DIST", real(20.0))]);
+    ap.run(0.2);
+    let g = point(10.0, 0.0, 30.0);
+    let wp = |command: u16, g: GeoPoint, up: f32| MissionItem {
+        frame: 3, // MAV_FRAME_GLOBAL_RELATIVE_ALT
+        command,
+        autocontinue: true,
+        params: [0.0, 0.0, 0.0, f32::NAN],
+        x: rotorpilot::mission::quantise_deg(g.lat_deg),
+        y: rotorpilot::mission::quantise_deg(g.lon_deg),
+        z: up,
+    };
+    let store = |ap: &mut Ap, items: Vec<MissionItem>| {
+        ap.core
+            .change_plans(
+                0,
+                PlanChange::Store {
+                    kind: MissionType::Mission,
+                    items,
+                    base_id: None,
+                },
+            )
+            .expect("mission stored");
+    };
+    // 30 m up, above GF_MAX_VER_DIST = 20 m: denied, announced, still disarmed
+    store(&mut ap, vec![wp(22, HOME, 5.0), wp(16, g, 30.0)]);
+    assert!(matches!(
+        ap.command(AutopilotCommand::StartMission { first: None }),
+        CommandOutcome::Denied(_)
+    ));
+    assert_eq!(ap.count("Mission start denied: item 1 outside geofence"), 1);
+    assert!(!ap.armed());
+    // the same point at 15 m starts
+    store(&mut ap, vec![wp(22, HOME, 5.0), wp(16, g, 15.0)]);
+    assert_eq!(
+        ap.command(AutopilotCommand::StartMission { first: None }),
+        CommandOutcome::Accepted
+    );
+    assert!(ap.armed());
+}

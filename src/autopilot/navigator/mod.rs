@@ -16,7 +16,7 @@ mod offboard;
 pub use manual::ManualControl;
 pub(super) use manual::ManualMode;
 
-pub(super) use mission::{MissionRun, SetHome};
+pub(super) use mission::{MissionRun, SetHome, item_point_ned};
 
 pub use offboard::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};
 

@@ -6,7 +6,7 @@
 //!
 //! # PX4's failsafes
 //! * Data-link loss: no GCS HEARTBEAT (MAV_TYPE_GCS, any link) for
-//!   `COM_DL_LOSS_T` while armed, once a GCS was heard: announced, then
+//!   `COM_DL_LOSS_T`, armed or not, once a GCS was heard: announced, then
 //!   `NAV_DLL_ACT` (disabled by default, ignored while landing); the next GCS
 //!   HEARTBEAT is announced as the link regained. A client timer
 //!   ([`ClientTimer::DataLinkLoss`]).
@@ -60,7 +60,7 @@ pub enum ClientTimer {
     PreflightDisarm,
     /// The offboard setpoint stream: lost after `COM_OF_LOSS_T` without a setpoint.
     OffboardLoss,
-    /// The ground station: lost after `COM_DL_LOSS_T` without a GCS HEARTBEAT (armed, once one was heard).
+    /// The ground station: lost after `COM_DL_LOSS_T` without a GCS HEARTBEAT (once one was heard, armed or not).
     DataLinkLoss,
     /// The pilot's sticks (MANUAL_CONTROL) in a manual mode: lost after
     /// `COM_RC_LOSS_T` without them, then `NAV_RCL_ACT`.

@@ -16,7 +16,7 @@ use rotorpilot::geo::GeoPoint;
 use rotorpilot::lockstep::Lockstep;
 use rotorpilot::mission::{MissionItem, MissionType, PlanChange};
 use rotorpilot::params::{ParamStore, ParamValue};
-use rotorpilot::sim::SensorConfig;
+use rotorpilot::sim::{Fault, SensorConfig};
 
 const HOME: GeoPoint = GeoPoint::PX4_SITL_HOME;
 
@@ -148,6 +148,11 @@ impl Ap {
             self.run(0.05);
             self.offboard_velocity(v_ned);
         }
+    }
+
+    /// The GNSS receiver loses (`false`) or regains its fix (a world fault).
+    fn gps(&mut self, available: bool) {
+        self.core.world_mut().inject(0, Fault::Gps { available }).unwrap();
     }
 
     fn land_and_disarm(&mut self, max_s: f64) -> Telemetry {
@@ -562,4 +567,205 @@ fn max_altitude_refuses_targets_clamps_offboard_and_holds_on_breach() {
     let up = -ap.telemetry().position_ned.z;
     println!("max altitude: held at {up:.3} m after the breach");
     assert!(up < 10.5, "held near the limit: {up}");
+}
+
+// ----- interactions between failsafes (one runner) -------------------------------------------
+
+#[test]
+fn gps_lost_then_battery_critical_still_descends_blind() {
+    // COM_LOW_BAT_ACT 1: Return at critical, which needs a position
+    let mut params = small_pack();
+    params.push(("COM_LOW_BAT_ACT", int(1)));
+    let mut ap = Ap::new(&params);
+    ap.take_off_to(10.0);
+    ap.run_until(60.0, |t| t.battery_warning >= BatteryWarning::Low)
+        .expect("low");
+    ap.gps(false);
+    ap.run(0.1);
+    assert_eq!(ap.mode(), FlightMode::Descend);
+    let at = ap
+        .run_until(20.0, |t| t.battery_warning >= BatteryWarning::Critical)
+        .expect("critical");
+    ap.run(0.1);
+    println!(
+        "GPS lost, then battery critical at {at:.2} s, {:.1} m up: {:?}",
+        -ap.telemetry().position_ned.z,
+        ap.mode()
+    );
+    assert!(ap.armed(), "critical before touchdown");
+    assert_eq!(ap.mode(), FlightMode::Descend, "no Return on the drifting solution");
+    assert_eq!(ap.count("triggering Return"), 0);
+    assert!(matches!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::Hold)),
+        CommandOutcome::TemporarilyRejected(_)
+    ));
+}
+
+#[test]
+fn no_geofence_breach_while_the_fix_is_lost() {
+    let mut ap = Ap::new(&[("GF_ACTION", int(3))]);
+    ap.take_off_to(20.0);
+    ap.gps(false);
+    ap.run(0.1);
+    assert_eq!(ap.mode(), FlightMode::Descend);
+    // a fence that excludes where the vehicle is: not checked without a position
+    store_fence(&mut ap, vec![fence_item(5004, 30.0, 0.0, 0.0)]);
+    ap.run(2.0);
+    assert_eq!(ap.count("Geofence breached"), 0);
+    assert_eq!(ap.mode(), FlightMode::Descend);
+    // with the fix back it is checked (the control: the test can fail)
+    ap.gps(true);
+    ap.run(0.5);
+    assert_eq!(ap.count("Geofence breached"), 1);
+}
+
+#[test]
+fn a_geofence_hold_does_not_interrupt_a_landing() {
+    let mut ap = Ap::new(&[("GF_ACTION", int(2))]);
+    ap.take_off_to(10.0);
+    assert_eq!(ap.command(AutopilotCommand::Land), CommandOutcome::Accepted);
+    ap.run(1.0);
+    assert_eq!(ap.mode(), FlightMode::Land);
+    store_fence(&mut ap, vec![fence_item(5004, 30.0, 0.0, 0.0)]);
+    ap.run(1.0);
+    assert_eq!(ap.count("Geofence breached"), 1, "announced");
+    assert_eq!(ap.count("triggering Hold"), 0);
+    assert_eq!(ap.mode(), FlightMode::Land, "keeps landing");
+    ap.land_and_disarm(40.0);
+}
+
+#[test]
+fn fix_back_during_a_land_started_descend_keeps_landing() {
+    let mut ap = Ap::new(&[]);
+    ap.take_off_to(20.0);
+    assert_eq!(ap.command(AutopilotCommand::Land), CommandOutcome::Accepted);
+    ap.run(1.0);
+    ap.gps(false);
+    ap.run(2.0);
+    assert_eq!(ap.mode(), FlightMode::Descend);
+    ap.gps(true);
+    ap.run(0.1);
+    assert_eq!(ap.mode(), FlightMode::Land, "the landing goes on with the position");
+    assert_eq!(ap.count("GPS fix regained: landing"), 1);
+    ap.land_and_disarm(60.0);
+}
+
+#[test]
+fn a_mode_that_needs_a_position_entered_without_fix_is_corrected_and_mission_start_refused() {
+    let mut ap = Ap::new(&[]);
+    ap.take_off_to(20.0);
+    ap.gps(false);
+    ap.run(0.1);
+    assert_eq!(ap.mode(), FlightMode::Descend);
+    // Return is refused; Offboard with a velocity setpoint too
+    assert!(matches!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::ReturnToLaunch)),
+        CommandOutcome::TemporarilyRejected(_)
+    ));
+    ap.offboard_velocity(Vector3::zeros());
+    assert!(matches!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::Offboard)),
+        CommandOutcome::TemporarilyRejected(_)
+    ));
+    assert_eq!(ap.count("Switching to Offboard denied: no GPS fix"), 1);
+    assert_eq!(ap.mode(), FlightMode::Descend);
+}
+
+#[test]
+fn arming_is_refused_with_the_data_link_lost_and_nav_dll_act_set() {
+    // the link is tracked disarmed: lost 10 s after the last GCS HEARTBEAT
+    let mut ap = Ap::new(&[("NAV_DLL_ACT", int(2))]);
+    ap.heartbeat();
+    ap.run(11.0);
+    assert_eq!(ap.count("Connection to ground station lost"), 1);
+    assert!(matches!(
+        ap.command(AutopilotCommand::Arm { force: false }),
+        CommandOutcome::TemporarilyRejected(_)
+    ));
+    assert_eq!(
+        ap.count("Arming denied: no ground station connection"),
+        1,
+        "{:?}",
+        ap.said
+    );
+    // the link back: arming works and the loss does not fire at once
+    ap.heartbeat();
+    assert_eq!(ap.count("Data link regained"), 1);
+    assert_eq!(
+        ap.command(AutopilotCommand::Arm { force: false }),
+        CommandOutcome::Accepted
+    );
+    ap.run(1.0);
+    assert!(ap.armed());
+    assert_eq!(ap.count("Failsafe"), 0);
+    // NAV_DLL_ACT 0 (PX4's default): the lost link does not stop arming
+    let mut ap = Ap::new(&[]);
+    ap.heartbeat();
+    ap.run(11.0);
+    assert_eq!(ap.count("Connection to ground station lost"), 1);
+    assert_eq!(
+        ap.command(AutopilotCommand::Arm { force: false }),
+        CommandOutcome::Accepted
+    );
+}
+
+#[test]
+fn arming_is_refused_at_critical_battery() {
+    // land at critical (COM_LOW_BAT_ACT 2), then try again on the ground
+    let mut params = small_pack();
+    params.push(("COM_LOW_BAT_ACT", int(2)));
+    let mut ap = Ap::new(&params);
+    ap.take_off_to(4.0);
+    ap.run_until(60.0, |t| t.battery_warning == BatteryWarning::Critical)
+        .expect("critical");
+    ap.land_and_disarm(60.0);
+    ap.run(0.5);
+    assert!(matches!(
+        ap.command(AutopilotCommand::Arm { force: false }),
+        CommandOutcome::TemporarilyRejected(_)
+    ));
+    assert_eq!(ap.count("Arming denied: battery critical"), 1);
+}
+
+#[test]
+fn a_mission_outside_the_geofence_is_refused_at_start() {
+    let mut ap = Ap::new(&[("GF_MAX_VER_DIST", real(20.0))]);
+    ap.run(0.2);
+    let g = point(10.0, 0.0, 30.0);
+    let wp = |command: u16, g: GeoPoint, up: f32| MissionItem {
+        frame: 3, // MAV_FRAME_GLOBAL_RELATIVE_ALT
+        command,
+        autocontinue: true,
+        params: [0.0, 0.0, 0.0, f32::NAN],
+        x: rotorpilot::mission::quantise_deg(g.lat_deg),
+        y: rotorpilot::mission::quantise_deg(g.lon_deg),
+        z: up,
+    };
+    let store = |ap: &mut Ap, items: Vec<MissionItem>| {
+        ap.core
+            .change_plans(
+                0,
+                PlanChange::Store {
+                    kind: MissionType::Mission,
+                    items,
+                    base_id: None,
+                },
+            )
+            .expect("mission stored");
+    };
+    // 30 m up, above GF_MAX_VER_DIST = 20 m: denied, announced, still disarmed
+    store(&mut ap, vec![wp(22, HOME, 5.0), wp(16, g, 30.0)]);
+    assert!(matches!(
+        ap.command(AutopilotCommand::StartMission { first: None }),
+        CommandOutcome::Denied(_)
+    ));
+    assert_eq!(ap.count("Mission start denied: item 1 outside geofence"), 1);
+    assert!(!ap.armed());
+    // the same point at 15 m starts
+    store(&mut ap, vec![wp(22, HOME, 5.0), wp(16, g, 15.0)]);
+    assert_eq!(
+        ap.command(AutopilotCommand::StartMission { first: None }),
+        CommandOutcome::Accepted
+    );
+    assert!(ap.armed());
 }

@@ -600,3 +600,20 @@ fn above_real_time_the_runtime_times_the_stick_loss_on_the_wall_clock() {
             .all(|p| p.timer != ClientTimer::ManualControlLoss)
     );
 }
+
+#[test]
+fn nav_rcl_act_0_reads_centred_sticks_after_the_loss() {
+    // Altitude, climbing on a high throttle, then the sticks stop: PX4 zeroes
+    // the timed-out sticks, so the height is held instead of climbing on
+    let mut v = Vehicle::new(&[("NAV_RCL_ACT", ParamValue::Int32(0))]);
+    v.climb_in(FlightMode::Altitude, 0.6, 3.0);
+    v.sending = false;
+    v.run(2.0);
+    assert_eq!(v.mode(), FlightMode::Altitude, "NAV_RCL_ACT 0 keeps the mode");
+    assert!(v.said(Severity::Critical, "Manual control lost"));
+    let z0 = v.truth().position_ned.z;
+    v.run(3.0);
+    let climbed = z0 - v.truth().position_ned.z;
+    println!("NAV_RCL_ACT 0: climbed {climbed:.3} m in 3 s after the loss");
+    assert!(climbed.abs() < 0.3, "holds the height, climbed {climbed} m");
+}

@@ -6,8 +6,10 @@
 
 use nalgebra::Vector3;
 
+use super::failsafe::FailsafeAction;
 use super::navigator::{HoldTarget, ManualMode, Nav};
 use super::{Autopilot, AutopilotCommand, CommandOutcome, FlightMode, OffboardSetpoint, PowerAction, Severity};
+use super::{BatteryWarning, RotorStatus};
 use crate::geo::GeoPoint;
 use crate::mission::MissionType;
 use crate::signals::{Measurement, SensorReadings};
@@ -109,12 +111,23 @@ impl Autopilot {
         if self.navigator.gps_lost && self.navigator.needs_position() {
             return Some("no GPS fix");
         }
+        if self.rotor_status().iter().any(|r| *r != RotorStatus::Healthy) {
+            return Some("ESC failure");
+        }
+        if self.battery_warning() >= BatteryWarning::Critical {
+            return Some("battery critical");
+        }
+        if self.data_link_is_lost() && self.settings.failsafe.data_link_loss_action != FailsafeAction::None {
+            return Some("no ground station connection");
+        }
         match self.navigator.nav {
             Nav::Manual(mode) => self.manual_prearm_failure(mode, m.time_s),
             Nav::Offboard if !self.offboard_fresh(m.time_s) => Some("no offboard signal"),
             Nav::Mission if self.plans.get(MissionType::Mission).is_empty() => Some("no valid mission"),
             Nav::Hold { .. } | Nav::Offboard | Nav::Mission => None,
-            Nav::Takeoff { .. } | Nav::Land { .. } | Nav::Rtl { .. } | Nav::Descend => Some("flight mode not armable"),
+            Nav::Takeoff { .. } | Nav::Land { .. } | Nav::Rtl { .. } | Nav::Descend { .. } => {
+                Some("flight mode not armable")
+            }
         }
     }
 
@@ -208,8 +221,11 @@ impl Autopilot {
             return self.not_armed("Land");
         }
         if self.navigator.gps_lost {
-            if self.navigator.nav != Nav::Descend {
-                self.descend_without_position("No GPS fix: descending without position");
+            if !matches!(self.navigator.nav, Nav::Descend { .. }) {
+                // a landing asked for: the fix back keeps landing
+                self.navigator.enter_descend(super::navigator::DescendThen::Land);
+                self.say
+                    .announce(Severity::Critical, "No GPS fix: descending without position");
             }
             return CommandOutcome::Accepted;
         }
@@ -260,6 +276,11 @@ impl Autopilot {
             FlightMode::ReturnToLaunch => self.return_to_launch(m),
             FlightMode::Offboard => {
                 if self.offboard_fresh(m.time_s) {
+                    if self.navigator.offboard_needs_position()
+                        && let Some(refused) = self.refuse_without_position("Switching to Offboard")
+                    {
+                        return refused;
+                    }
                     self.navigator.enter_offboard();
                     CommandOutcome::Accepted
                 } else {

@@ -6,7 +6,7 @@
 //!
 //! # PX4's failsafes
 //! * Data-link loss: no GCS HEARTBEAT (MAV_TYPE_GCS, any link) for
-//!   `COM_DL_LOSS_T` while armed, once a GCS was heard: announced, then
+//!   `COM_DL_LOSS_T`, armed or not, once a GCS was heard: announced, then
 //!   `NAV_DLL_ACT` (disabled by default, ignored while landing); the next GCS
 //!   HEARTBEAT is announced as the link regained. A client timer
 //!   ([`ClientTimer::DataLinkLoss`]).
@@ -37,8 +37,7 @@ use nalgebra::Vector3;
 
 use super::battery::{BatteryThresholds, BatteryWarning};
 use super::geofence::{self, DistanceLimits, Fence};
-use super::navigator::Nav;
-use super::settings::OffboardLossAction;
+use super::navigator::{DescendThen, Nav};
 use super::{Autopilot, Severity, TIME_EPS};
 use crate::mission::MissionType;
 use crate::params::{Param, ParamStore};
@@ -61,7 +60,7 @@ pub enum ClientTimer {
     PreflightDisarm,
     /// The offboard setpoint stream: lost after `COM_OF_LOSS_T` without a setpoint.
     OffboardLoss,
-    /// The ground station: lost after `COM_DL_LOSS_T` without a GCS HEARTBEAT (armed, once one was heard).
+    /// The ground station: lost after `COM_DL_LOSS_T` without a GCS HEARTBEAT (once one was heard, armed or not).
     DataLinkLoss,
     /// The pilot's sticks (MANUAL_CONTROL) in a manual mode: lost after
     /// `COM_RC_LOSS_T` without them, then `NAV_RCL_ACT`.
@@ -138,6 +137,12 @@ impl Autopilot {
         if !running {
             return false;
         }
+        self.client_timer_expired(timer, m);
+        true
+    }
+
+    /// The one dispatcher of an expired client timer, on either clock.
+    fn client_timer_expired(&mut self, timer: ClientTimer, m: &Measurement) {
         match timer {
             ClientTimer::PreflightDisarm => self.disarm_now("Disarmed by auto preflight disarming"),
             ClientTimer::OffboardLoss => {
@@ -149,7 +154,6 @@ impl Autopilot {
             ClientTimer::DataLinkLoss => self.data_link_lost(m),
             ClientTimer::ManualControlLoss => self.manual_control_lost(m),
         }
-        true
     }
 
     /// Whether the offboard setpoints are fresh at `now` (on the client clock).
@@ -158,66 +162,52 @@ impl Autopilot {
             .offboard_fresh(now, self.settings.offboard_loss_s, self.client_clock)
     }
 
-    /// Offboard loss and auto-disarm at the instant of `m`.
+    /// The client timers on simulated time (one boundary rule for all:
+    /// expired when `now - started >= duration - TIME_EPS`, dispatched as the
+    /// runtime's wall-clock expiries are), the disarm after a landing and
+    /// the geofence, at the instant of `m`.
     pub(super) fn supervise(&mut self, m: &Measurement) {
         let now = m.time_s;
-        let simulated = self.client_clock == ClientClock::Simulated;
-        if simulated && self.navigator.nav == Nav::Offboard && !self.offboard_fresh(now) {
-            self.offboard_lost(m);
-        }
-        if self.armed && self.land.landed() {
-            let s = &self.settings;
-            if self.took_off {
-                if s.disarm_land_s > 0.0
-                    && !matches!(self.navigator.nav, Nav::Takeoff { .. })
-                    && now - self.landed_at_s >= s.disarm_land_s - TIME_EPS
-                {
-                    self.disarm_now("Disarmed by landing");
+        if self.client_clock == ClientClock::Simulated {
+            for p in self.client_timers() {
+                // an earlier expiry this step may have stopped or restarted it
+                let running = self
+                    .client_timers()
+                    .iter()
+                    .any(|q| q.timer == p.timer && q.started_s.to_bits() == p.started_s.to_bits());
+                if running && now - p.started_s >= p.duration_s - TIME_EPS {
+                    self.client_timer_expired(p.timer, m);
                 }
-            } else if simulated
-                && s.disarm_preflight_s > 0.0
-                && now - self.armed_at_s >= s.disarm_preflight_s - TIME_EPS
-            {
-                self.disarm_now("Disarmed by auto preflight disarming");
             }
         }
-        // data-link loss and geofence
-        if simulated
-            && let Some(p) = self.data_link_timer()
-            && now - p.started_s >= p.duration_s - TIME_EPS
+        if self.armed
+            && self.land.landed()
+            && self.took_off
+            && self.settings.disarm_land_s > 0.0
+            && !matches!(self.navigator.nav, Nav::Takeoff { .. })
+            && now - self.landed_at_s >= self.settings.disarm_land_s - TIME_EPS
         {
-            self.data_link_lost(m);
+            self.disarm_now("Disarmed by landing");
         }
         self.supervise_geofence(m);
     }
 
-    /// Offboard setpoints lost while in Offboard: `COM_OBL_RC_ACT`.
+    /// Offboard setpoints lost while in Offboard: announced, then `COM_OBL_RC_ACT`.
     fn offboard_lost(&mut self, m: &Measurement) {
-        match self.settings.offboard_loss_action {
-            OffboardLossAction::Hold => {
-                self.navigator.enter_hold();
-                self.say
-                    .announce(Severity::Warning, "Offboard signal lost: switching to Hold");
-            }
-            OffboardLossAction::Return => {
-                self.say.announce(Severity::Warning, "Offboard signal lost: returning");
-                let cx = situation!(self, m);
-                self.navigator.enter_rtl(&cx, &mut self.say);
-            }
-            OffboardLossAction::Land => {
-                self.say.announce(Severity::Warning, "Offboard signal lost: landing");
-                let landed = self.land.landed();
-                self.navigator.enter_land(m, landed, &mut self.say);
-            }
-        }
+        self.say.announce(Severity::Warning, "Offboard signal lost");
+        let action = self.settings.offboard_loss_action;
+        self.failsafe_action("offboard signal lost", action, m);
     }
 }
 
 // ----- PX4's failsafes: data-link loss, low battery, geofence ----------------------------------
 
-/// What a failsafe does (PX4's `FailsafeBase::Action`, the ones a multirotor uses).
+/// What a failsafe does (PX4's `FailsafeBase::Action`, the ones a multirotor
+/// uses): every failsafe parameter (`NAV_DLL_ACT`, `NAV_RCL_ACT`,
+/// `COM_OBL_RC_ACT`, `COM_LOW_BAT_ACT`, `GF_ACTION`, `COM_ACT_FAIL_ACT`) maps
+/// to one, and [`Autopilot::failsafe_action`] carries it out.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum FailsafeAction {
+pub(in crate::autopilot) enum FailsafeAction {
     /// Nothing (not even a message).
     None,
     /// A warning only.
@@ -232,11 +222,15 @@ pub(super) enum FailsafeAction {
     Terminate,
     /// Disarm (PX4's lockdown): the rotors stop.
     Disarm,
+    /// Descend without a position (what Hold, Return and Land become while
+    /// the GNSS fix is lost; no parameter names it).
+    Descend,
 }
 
 impl FailsafeAction {
-    /// `NAV_DLL_ACT`: 0 disabled, 1 Hold, 2 Return, 3 Land, 5 Terminate, 6 Disarm (4: none, as PX4's default branch).
-    fn from_nav_dll_act(v: i64) -> Self {
+    /// `NAV_DLL_ACT` and `NAV_RCL_ACT`: 0 disabled, 1 Hold, 2 Return, 3 Land,
+    /// 5 Terminate, 6 Disarm (4: none, as PX4's default branch).
+    pub(in crate::autopilot) fn from_nav_dll_act(v: i64) -> Self {
         match v {
             1 => Self::Hold,
             2 => Self::Return,
@@ -244,6 +238,18 @@ impl FailsafeAction {
             5 => Self::Terminate,
             6 => Self::Disarm,
             _ => Self::None,
+        }
+    }
+
+    /// `COM_OBL_RC_ACT`: 3 Return, 4 Land, 6 Terminate, 7 Disarm; 5 Hold, and
+    /// 0-2 (Position, Altitude, Manual: they need RC, which is absent here) Hold.
+    pub(in crate::autopilot) fn from_com_obl_rc_act(v: i64) -> Self {
+        match v {
+            3 => Self::Return,
+            4 => Self::Land,
+            6 => Self::Terminate,
+            7 => Self::Disarm,
+            _ => Self::Hold,
         }
     }
 
@@ -268,6 +274,7 @@ impl FailsafeAction {
             Self::Land => "Land",
             Self::Terminate => "flight termination",
             Self::Disarm => "Disarm",
+            Self::Descend => "Descend",
         }
     }
 }
@@ -352,6 +359,10 @@ impl FailsafeSettings {
     }
 }
 
+/// Offboard setpoints within the altitude limit this long [s] end an
+/// excursion: the next clamp is announced again.
+const CLAMP_REARM_S: f64 = 5.0;
+
 /// What the failsafes remember between steps.
 #[derive(Clone, Debug, Default)]
 pub(super) struct FailsafeState {
@@ -367,8 +378,11 @@ pub(super) struct FailsafeState {
     fence: Option<(u32, usize, Fence)>,
     /// Breached, and its action taken (re-armed once back inside).
     breached: bool,
-    /// An offboard setpoint above the altitude limit was announced (until one below it arrives).
+    /// A clamped offboard setpoint was announced (re-armed after
+    /// [`CLAMP_REARM_S`] of setpoints within the limit).
     clamp_announced: bool,
+    /// Since when the offboard setpoints are within the altitude limit [s].
+    clamp_clear_since_s: Option<f64>,
 }
 
 impl Autopilot {
@@ -389,10 +403,12 @@ impl Autopilot {
         self.failsafes.battery_warning
     }
 
-    /// The data-link timer: armed, a GCS heard once and not yet declared lost;
-    /// it started at the latest GCS HEARTBEAT.
+    /// The data-link timer: a GCS heard once and not yet declared lost,
+    /// armed or not (PX4 tracks the link either way, so arming long after
+    /// the last HEARTBEAT finds it lost on both clocks alike); it started at
+    /// the latest GCS HEARTBEAT.
     fn data_link_timer(&self) -> Option<PendingTimer> {
-        if !self.armed || self.failsafes.gcs_lost {
+        if self.failsafes.gcs_lost {
             return None;
         }
         Some(PendingTimer {
@@ -402,16 +418,19 @@ impl Autopilot {
         })
     }
 
-    /// No GCS HEARTBEAT for `COM_DL_LOSS_T`: announce it and take `NAV_DLL_ACT`
-    /// (PX4 ignores the loss while landing).
+    /// Whether the data link is lost (no GCS HEARTBEAT for `COM_DL_LOSS_T`, none since).
+    pub(super) fn data_link_is_lost(&self) -> bool {
+        self.failsafes.gcs_lost
+    }
+
+    /// No GCS HEARTBEAT for `COM_DL_LOSS_T`: announce it and, armed, take
+    /// `NAV_DLL_ACT` (PX4 ignores the loss while landing: the runner's rule).
     fn data_link_lost(&mut self, m: &Measurement) {
         self.failsafes.gcs_lost = true;
         self.say
             .announce(Severity::Critical, "Connection to ground station lost");
         let action = self.settings.failsafe.data_link_loss_action;
-        if !matches!(self.navigator.nav, Nav::Land { .. }) {
-            self.failsafe_action(action, "GCS connection lost", m);
-        }
+        self.failsafe_action("GCS connection lost", action, m);
     }
 
     /// The battery monitor's warning level at the instant of `readings`: it
@@ -454,7 +473,7 @@ impl Autopilot {
             FailsafeAction::Warn
         };
         if action != FailsafeAction::Warn {
-            self.failsafe_action(action, cause, &readings.measurement);
+            self.failsafe_action(cause, action, &readings.measurement);
         }
     }
 
@@ -472,9 +491,14 @@ impl Autopilot {
 
     /// The geofence on the current position, armed and in the air: a breach
     /// is announced and `GF_ACTION` taken once; back inside re-arms it.
+    /// Not checked while the GNSS fix is lost (PX4 checks the fence only
+    /// with a valid global position; the drifting solution would breach it).
     fn supervise_geofence(&mut self, m: &Measurement) {
         if !self.armed || self.land.landed() {
             self.failsafes.breached = false;
+            return;
+        }
+        if self.navigator.gps_lost {
             return;
         }
         let home = self.home_ned();
@@ -488,7 +512,7 @@ impl Autopilot {
                     self.say
                         .announce(Severity::Critical, format!("Geofence breached: {}", b.describe()));
                 }
-                self.failsafe_action(action, "geofence breach", m);
+                self.failsafe_action("geofence breach", action, m);
             }
             (None, true) => self.failsafes.breached = false,
             _ => {}
@@ -508,54 +532,88 @@ impl Autopilot {
     }
 
     /// An offboard position setpoint was clamped to the altitude limit
-    /// (`clamped`) or was within it: announce the first clamp of a run.
+    /// (`clamped`) or was within it: announce a clamp once per excursion (a
+    /// stream at the limit, in and out of range by noise, is announced once;
+    /// [`CLAMP_REARM_S`] within the limit ends the excursion).
     pub(super) fn offboard_clamped(&mut self, clamped: bool) {
-        if clamped && !self.failsafes.clamp_announced {
-            self.say
-                .announce(Severity::Warning, "Offboard setpoint clamped to max altitude");
+        let now = self.now_s;
+        let f = &mut self.failsafes;
+        if clamped {
+            f.clamp_clear_since_s = None;
+            if !f.clamp_announced {
+                f.clamp_announced = true;
+                self.say
+                    .announce(Severity::Warning, "Offboard setpoint clamped to max altitude");
+            }
+            return;
         }
-        self.failsafes.clamp_announced = clamped;
+        let since = *f.clamp_clear_since_s.get_or_insert(now);
+        if now - since >= CLAMP_REARM_S - TIME_EPS {
+            f.clamp_announced = false;
+        }
     }
 
-    /// Take a failsafe action for `cause`, announced as PX4 does ("Failsafe
-    /// activated due to {cause}, triggering {action}", shortened to fit a
-    /// STATUSTEXT). A mode already in force is not entered again; a Return
-    /// while landing keeps landing (PX4).
-    fn failsafe_action(&mut self, action: FailsafeAction, cause: &str, m: &Measurement) {
+    /// Take a failsafe action for `cause` (the one runner of every
+    /// failsafe), announced as PX4 does ("Failsafe activated due to {cause},
+    /// triggering {action}", shortened to fit a STATUSTEXT: "Failsafe:
+    /// {cause}, triggering {action}"). Disarmed, nothing happens. While the GNSS fix is lost, Hold, Return and Land become
+    /// Descend (remembering which, for when the fix returns). A mode already
+    /// in force is not entered again, and a landing (Land, Descend, a
+    /// return's or a mission's landing) is not interrupted by Hold, Return or
+    /// Land (PX4).
+    pub(in crate::autopilot) fn failsafe_action(&mut self, cause: &str, action: FailsafeAction, m: &Measurement) {
+        if action == FailsafeAction::None {
+            return;
+        }
+        if !self.armed {
+            return;
+        }
+        if action == FailsafeAction::Warn {
+            self.say
+                .announce(Severity::Warning, format!("Failsafe warning: {cause}"));
+            return;
+        }
+        let then = match action {
+            FailsafeAction::Land => Some(DescendThen::Land),
+            FailsafeAction::Return => Some(DescendThen::Return),
+            FailsafeAction::Hold => Some(DescendThen::Hold),
+            _ => None,
+        };
+        let action = match then {
+            Some(_) if self.navigator.gps_lost => FailsafeAction::Descend,
+            _ => action,
+        };
         let nav = self.navigator.nav;
+        let landing = self.navigator.landing();
         let already = match action {
-            FailsafeAction::Hold => matches!(nav, Nav::Hold { target: None, .. }),
-            FailsafeAction::Return => matches!(nav, Nav::Rtl { .. } | Nav::Land { .. }),
-            FailsafeAction::Land => matches!(nav, Nav::Land { .. }),
+            FailsafeAction::Hold => landing || matches!(nav, Nav::Hold { target: None, .. }),
+            FailsafeAction::Return => landing || matches!(nav, Nav::Rtl { .. }),
+            FailsafeAction::Land | FailsafeAction::Descend => landing,
             _ => false,
         };
+        if already {
+            return;
+        }
+        let severity = if matches!(action, FailsafeAction::Terminate | FailsafeAction::Disarm) {
+            Severity::Emergency
+        } else {
+            Severity::Critical
+        };
+        self.say
+            .announce(severity, format!("Failsafe: {cause}, triggering {}", action.name()));
         match action {
-            FailsafeAction::None => {}
-            FailsafeAction::Warn => self
-                .say
-                .announce(Severity::Warning, format!("Failsafe warning: {cause}")),
-            _ if already => {}
-            _ => {
-                let severity = if matches!(action, FailsafeAction::Terminate | FailsafeAction::Disarm) {
-                    Severity::Emergency
-                } else {
-                    Severity::Critical
-                };
-                self.say
-                    .announce(severity, format!("Failsafe: {cause}, triggering {}", action.name()));
-                match action {
-                    FailsafeAction::Hold => self.navigator.enter_hold(),
-                    FailsafeAction::Return => {
-                        let cx = situation!(self, m);
-                        self.navigator.enter_rtl(&cx, &mut self.say);
-                    }
-                    FailsafeAction::Land => {
-                        let landed = self.land.landed();
-                        self.navigator.enter_land(m, landed, &mut self.say);
-                    }
-                    _ => self.disarm_now("Disarmed by failsafe"),
-                }
+            FailsafeAction::Hold => self.navigator.enter_hold(),
+            FailsafeAction::Return => {
+                let cx = situation!(self, m);
+                self.navigator.enter_rtl(&cx, &mut self.say);
             }
+            FailsafeAction::Land => {
+                let landed = self.land.landed();
+                self.navigator.enter_land(m, landed, &mut self.say);
+            }
+            FailsafeAction::Descend => self.navigator.enter_descend(then.unwrap_or(DescendThen::Hold)),
+            FailsafeAction::Terminate | FailsafeAction::Disarm => self.disarm_now("Disarmed by failsafe"),
+            FailsafeAction::None | FailsafeAction::Warn => {}
         }
     }
 }

@@ -7,16 +7,7 @@ use crate::control::ControllerKind;
 use crate::estimation::Polynomial;
 use crate::params::{Param, ParamStore};
 
-/// What to do when the offboard setpoints stop (`COM_OBL_RC_ACT`, without RC).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum OffboardLossAction {
-    /// 0, 1, 2, 5 (and 6, 7: no termination or disarm in the air here).
-    Hold,
-    /// 3.
-    Return,
-    /// 4.
-    Land,
-}
+use super::failsafe::FailsafeAction;
 
 /// What to do when the rotor monitor flags a failed or degraded rotor in
 /// flight (`COM_ACT_FAIL_ACT`, PX4's values; PX4's 4, terminate, is outside its range).
@@ -32,17 +23,19 @@ pub(super) enum ActuatorFailureAction {
     Return,
 }
 
-/// What to do when manual control stops in a manual mode (`NAV_RCL_ACT`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum ManualLossAction {
-    /// 0: keep flying the mode on the last sticks (PX4: disabled).
-    None,
-    /// 1: Hold.
-    Hold,
-    /// 2: Return (PX4's default).
-    Return,
-    /// 3 (and 4-6: no termination or lockdown here): Land.
-    Land,
+impl ActuatorFailureAction {
+    /// The one failsafe runner's action (`Warn` keeps the mode), for
+    /// `rotors_changed` to route through [`super::Autopilot::failsafe_action`].
+    #[must_use]
+    #[allow(dead_code, reason = "routed by stack.rs's rotors_changed at merge")]
+    pub(super) fn action(self) -> FailsafeAction {
+        match self {
+            Self::Warn => FailsafeAction::Warn,
+            Self::Hold => FailsafeAction::Hold,
+            Self::Land => FailsafeAction::Land,
+            Self::Return => FailsafeAction::Return,
+        }
+    }
 }
 
 /// The manual-control parameters (sticks, RC loss), SI units.
@@ -50,8 +43,8 @@ pub(super) enum ManualLossAction {
 pub(super) struct ManualSettings {
     /// `COM_RC_LOSS_T` [s].
     pub(super) loss_s: f64,
-    /// `NAV_RCL_ACT`.
-    pub(super) loss_action: ManualLossAction,
+    /// `NAV_RCL_ACT` (PX4's values, as `NAV_DLL_ACT`).
+    pub(super) loss_action: FailsafeAction,
     /// `MPC_VEL_MANUAL` [m/s].
     pub(super) vel_max_m_s: f64,
     /// `MPC_MAN_Y_MAX` [rad/s].
@@ -75,12 +68,7 @@ impl ManualSettings {
         let rad = |x: Param| p.real(x).to_radians();
         Self {
             loss_s: p.real(Param::COM_RC_LOSS_T),
-            loss_action: match p.int(Param::NAV_RCL_ACT) {
-                0 => ManualLossAction::None,
-                1 => ManualLossAction::Hold,
-                2 => ManualLossAction::Return,
-                _ => ManualLossAction::Land,
-            },
+            loss_action: FailsafeAction::from_nav_dll_act(i64::from(p.int(Param::NAV_RCL_ACT))),
             vel_max_m_s: p.real(Param::MPC_VEL_MANUAL),
             yaw_rate_max_rad_s: rad(Param::MPC_MAN_Y_MAX),
             deadzone: p.real(Param::MPC_HOLD_DZ),
@@ -113,7 +101,7 @@ pub(super) struct Settings {
     pub(super) land_speed_m_s: f64,
     pub(super) land_alt1_m: f64,
     pub(super) offboard_loss_s: f64,
-    pub(super) offboard_loss_action: OffboardLossAction,
+    pub(super) offboard_loss_action: FailsafeAction,
     pub(super) disarm_land_s: f64,
     pub(super) disarm_preflight_s: f64,
     pub(super) failure_injection: bool,
@@ -149,11 +137,7 @@ impl Settings {
         let order = p.int(Param::EST_ORDER);
         let estimator_order =
             usize::try_from(order).map_err(|_| AutopilotError::Param(format!("EST_ORDER {order} is negative")))?;
-        let offboard_loss_action = match p.int(Param::COM_OBL_RC_ACT) {
-            3 => OffboardLossAction::Return,
-            4 => OffboardLossAction::Land,
-            _ => OffboardLossAction::Hold,
-        };
+        let offboard_loss_action = FailsafeAction::from_com_obl_rc_act(i64::from(p.int(Param::COM_OBL_RC_ACT)));
         let actuator_failure_action = match p.int(Param::COM_ACT_FAIL_ACT) {
             1 => ActuatorFailureAction::Hold,
             2 => ActuatorFailureAction::Land,
@@ -226,7 +210,7 @@ mod tests {
         assert_eq!(s.takeoff_alt_m, 2.5);
         assert_eq!(s.controller, ControllerKind::Geometric);
         assert_eq!(s.model_mass_kg, 2.0);
-        assert_eq!(s.offboard_loss_action, OffboardLossAction::Hold);
+        assert_eq!(s.offboard_loss_action, FailsafeAction::Hold);
         assert!(!s.feedback && !s.failure_injection);
     }
 }

@@ -112,7 +112,7 @@ parameters! {
     ),
     // --- PX4: commander ------------------------------------------------------------------------
     COM_OF_LOSS_T: real(1.0, 0.0, 60.0, "s", "Offboard: setpoints older than this are lost (OFFBOARD refused or left)"),
-    COM_OBL_RC_ACT: int(0, 0, 7, "Offboard loss action: 3 Return, 4 Land, any other Hold (no RC, no termination here)"),
+    COM_OBL_RC_ACT: int(0, 0, 7, "Offboard loss action: 3 Return, 4 Land, 6 Terminate, 7 Disarm, any other Hold (no RC here)"),
     COM_DISARM_LAND: real(2.0, -1.0, 20.0, "s", "Disarm this long after a landing (<= 0: never)"),
     COM_DISARM_PRFLT: real(
         10.0, -1.0, 20.0, "s",
@@ -127,7 +127,7 @@ parameters! {
     COM_RC_LOSS_T: real(0.5, 0.0, 35.0, "s", "Manual control (MANUAL_CONTROL) older than this is lost"),
     NAV_RCL_ACT: int(
         2, 0, 6,
-        "Manual control loss action in a manual mode: 0 none, 1 Hold, 2 Return, 3 Land (4-6: Land, no termination here)",
+        "Manual control loss action in a manual mode: 0 none, 1 Hold, 2 Return, 3 Land, 5 Terminate, 6 Disarm",
     ),
     MPC_VEL_MANUAL: real(10.0, 3.0, 20.0, "m/s", "Position mode: horizontal speed at full stick"),
     MPC_MAN_Y_MAX: real(150.0, 0.0, 400.0, "deg/s", "Position, Altitude, Stabilized: yaw rate at full stick"),

@@ -10,24 +10,42 @@
 //! horizontal feedback at all, its height and heading held by the same
 //! blind reference as Altitude mode, sinking at `MPC_LAND_SPEED` until it
 //! lands. In Position mode the pilot keeps flying in **Altitude** mode.
-//! When the fix returns before touchdown, Descend gives way to Hold where
-//! the vehicle is, and the Altitude fallback to Position; both announced.
+//! When the fix returns before touchdown, Descend gives way to what was
+//! intended ([`DescendThen`]: a landing keeps landing, with the position; a
+//! return returns; anything else holds where the vehicle is), and the
+//! Altitude fallback to Position; both announced. The supervision runs every
+//! step, not only on the change: a mode entered meanwhile that needs a
+//! position is corrected at once.
 //! Modes and commands that need a position are refused meanwhile.
 
 use nalgebra::Vector2;
 
 use super::manual::ManualMode;
 use super::offboard::LocalSetpoint;
-use super::{Nav, Navigator, Situation};
+use super::{DescendThen, Nav, Navigator, RtlPhase, Situation};
 use crate::autopilot::control_loop::Demand;
 use crate::autopilot::{Autopilot, CommandOutcome, Severity};
 use crate::signals::{GpsFix, SensorReadings};
 
 impl Navigator {
-    /// Descend without a position (level, heading held).
-    pub(in crate::autopilot) fn enter_descend(&mut self) {
-        self.nav = Nav::Descend;
+    /// Descend without a position (level, heading held), then `then` if the fix returns.
+    pub(in crate::autopilot) fn enter_descend(&mut self, then: DescendThen) {
+        self.nav = Nav::Descend { then };
         self.restart_references();
+    }
+
+    /// What the active mode meant to do, for Descend to resume when the
+    /// fix returns: a landing lands, a return returns, the rest holds.
+    fn descend_then(&self) -> DescendThen {
+        match self.nav {
+            Nav::Descend { then } => then,
+            Nav::Rtl {
+                phase: RtlPhase::Land, ..
+            } => DescendThen::Land,
+            Nav::Rtl { .. } => DescendThen::Return,
+            _ if self.landing() => DescendThen::Land,
+            _ => DescendThen::Hold,
+        }
     }
 
     /// Whether the active mode steers by the horizontal position or velocity.
@@ -36,8 +54,14 @@ impl Navigator {
             Nav::Hold { .. } | Nav::Takeoff { .. } | Nav::Land { .. } | Nav::Rtl { .. } | Nav::Mission => true,
             Nav::Manual(mode) => mode == ManualMode::Position,
             Nav::Offboard => !matches!(self.offboard, Some((LocalSetpoint::Attitude(_), _))),
-            Nav::Descend => false,
+            Nav::Descend { .. } => false,
         }
+    }
+
+    /// Whether Offboard, entered now, would steer by the position or
+    /// velocity (the latest setpoint is not an attitude one).
+    pub(in crate::autopilot) fn offboard_needs_position(&self) -> bool {
+        !matches!(self.offboard, Some((LocalSetpoint::Attitude(_), _)))
     }
 
     /// Descend: `MPC_LAND_SPEED` down, no horizontal acceleration, heading held.
@@ -53,9 +77,11 @@ impl Navigator {
 }
 
 impl Autopilot {
-    /// Enter Descend, announced (Critical) with `text`.
+    /// Enter Descend, announced (Critical) with `text`; the fix back resumes
+    /// what the active mode meant to do.
     pub(in crate::autopilot) fn descend_without_position(&mut self, text: &str) {
-        self.navigator.enter_descend();
+        let then = self.navigator.descend_then();
+        self.navigator.enter_descend(then);
         self.say.announce(Severity::Critical, text);
     }
 
@@ -70,13 +96,13 @@ impl Autopilot {
         })
     }
 
-    /// The GNSS fix at the instant of `readings`: on its loss and return,
-    /// the reaction of the module doc.
+    /// The GNSS fix at the instant of `readings`, every step: while it is
+    /// lost, armed, a mode that needs a position is replaced (the reaction
+    /// of the module doc); on its return, Descend and the Altitude fallback
+    /// give way.
     pub(in crate::autopilot) fn supervise_gps(&mut self, readings: &SensorReadings) {
         let lost = readings.gps.fix == GpsFix::None;
-        if lost == self.navigator.gps_lost {
-            return;
-        }
+        let changed = lost != self.navigator.gps_lost;
         self.navigator.gps_lost = lost;
         if !self.armed {
             return;
@@ -92,18 +118,38 @@ impl Autopilot {
             }
             return;
         }
+        if !changed {
+            return;
+        }
         match self.navigator.nav {
-            Nav::Descend if !self.land.landed() => {
-                self.navigator.enter_hold();
-                self.say
-                    .announce(Severity::Warning, "GPS fix regained: holding position");
-            }
+            Nav::Descend { then } if !self.land.landed() => self.resume_after_descend(then, readings),
             Nav::Manual(ManualMode::Altitude) if self.navigator.gps_fallback => {
                 self.navigator.enter_manual(ManualMode::Position);
                 self.say
                     .announce(Severity::Warning, "GPS fix regained: back to Position");
             }
             _ => {}
+        }
+    }
+
+    /// The fix is back during Descend: carry on with what was intended, announced.
+    fn resume_after_descend(&mut self, then: DescendThen, readings: &SensorReadings) {
+        let m = &readings.measurement;
+        match then {
+            DescendThen::Hold => {
+                self.navigator.enter_hold();
+                self.say
+                    .announce(Severity::Warning, "GPS fix regained: holding position");
+            }
+            DescendThen::Land => {
+                self.say.announce(Severity::Warning, "GPS fix regained: landing");
+                self.navigator.enter_land(m, false, &mut self.say);
+            }
+            DescendThen::Return => {
+                self.say.announce(Severity::Warning, "GPS fix regained: returning");
+                let cx = situation!(self, m);
+                self.navigator.enter_rtl(&cx, &mut self.say);
+            }
         }
     }
 }

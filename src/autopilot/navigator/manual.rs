@@ -15,7 +15,7 @@ use nalgebra::{Rotation2, UnitQuaternion, Vector2, Vector3};
 
 use super::{Nav, Navigator, Situation};
 use crate::autopilot::control_loop::Demand;
-use crate::autopilot::settings::{ManualLossAction, ManualSettings};
+use crate::autopilot::settings::ManualSettings;
 use crate::autopilot::{Autopilot, ClientClock, CommandOutcome, FlightMode, Severity, TIME_EPS};
 use crate::control::{Reference, Setpoint, ShaperLimits, TranslationSetpoint, YawSetpoint};
 use crate::math::{euler_zyx, wrap_pi};
@@ -192,15 +192,19 @@ impl Navigator {
     pub(in crate::autopilot) fn manual_fresh(&self, now: f64, loss_s: f64, clock: ClientClock) -> bool {
         match clock {
             ClientClock::Simulated => {
-                !self.manual_lost && self.manual.is_some_and(|(_, t)| now - t <= loss_s + TIME_EPS)
+                !self.manual_lost && self.manual.is_some_and(|(_, t)| now - t < loss_s - TIME_EPS)
             }
             ClientClock::Wall => self.manual.is_some() && !self.manual_lost,
         }
     }
 
-    /// The latest sticks (centred when none came).
+    /// The latest sticks (centred when none came, or once declared lost:
+    /// PX4 zeroes timed-out sticks).
     pub(in crate::autopilot) fn sticks(&self) -> ManualControl {
-        self.manual.map_or(ManualControl::CENTRED, |(s, _)| s)
+        match self.manual {
+            Some((s, _)) if !self.manual_lost => s,
+            _ => ManualControl::CENTRED,
+        }
     }
 
     /// The active manual mode, if one is.
@@ -450,53 +454,23 @@ impl Autopilot {
         }
     }
 
-    /// Sticks lost in a manual mode, checked each step on simulated time
-    /// (the runtime reports it on the wall clock: [`Self::client_timeout`]).
-    pub(in crate::autopilot) fn supervise_manual(&mut self, m: &Measurement) {
-        if self.client_clock == ClientClock::Simulated
-            && self.navigator.manual_loss_timer_start().is_some()
-            && !self.manual_fresh(m.time_s)
-        {
-            self.manual_control_lost(m);
-        }
-    }
+    /// Sticks lost in a manual mode: timed with the other client timers
+    /// ([`Self::supervise`] on simulated time, [`Self::client_timeout`] on the
+    /// wall clock); nothing left to do here.
+    pub(in crate::autopilot) fn supervise_manual(&mut self, _m: &Measurement) {}
 
     /// The sticks are lost: announced (PX4's words, Critical); in a manual
-    /// mode `NAV_RCL_ACT` is carried out (a Return or Hold without a GPS fix
-    /// descends instead).
+    /// mode `NAV_RCL_ACT` is carried out by the one failsafe runner (which
+    /// descends instead of Hold, Return or Land without a GPS fix). From now
+    /// on the sticks read centred (PX4 zeroes timed-out sticks).
     pub(in crate::autopilot) fn manual_control_lost(&mut self, m: &Measurement) {
         self.navigator.manual_lost = true;
         if self.navigator.manual_mode().is_none() {
             return;
         }
         self.say.announce(Severity::Critical, "Manual control lost");
-        if !self.armed {
-            return;
-        }
         let action = self.settings.manual.loss_action;
-        if self.navigator.gps_lost && matches!(action, ManualLossAction::Hold | ManualLossAction::Return) {
-            self.descend_without_position("Failsafe: no GPS fix, descending");
-            return;
-        }
-        match action {
-            ManualLossAction::None => {}
-            ManualLossAction::Hold => {
-                self.navigator.enter_hold();
-                self.say.announce(Severity::Warning, "Failsafe: switching to Hold");
-            }
-            ManualLossAction::Return => {
-                let cx = situation!(self, m);
-                self.navigator.enter_rtl(&cx, &mut self.say);
-            }
-            ManualLossAction::Land => {
-                let landed = self.land.landed();
-                if self.navigator.gps_lost {
-                    self.descend_without_position("Failsafe: no GPS fix, descending");
-                } else {
-                    self.navigator.enter_land(m, landed, &mut self.say);
-                }
-            }
-        }
+        self.failsafe_action("manual control lost", action, m);
     }
 }
 

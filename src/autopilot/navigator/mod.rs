@@ -16,7 +16,7 @@ mod offboard;
 pub use manual::ManualControl;
 pub(super) use manual::ManualMode;
 
-pub(super) use mission::{MissionRun, SetHome};
+pub(super) use mission::{MissionRun, SetHome, item_point_ned};
 
 pub use offboard::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};
 
@@ -129,7 +129,22 @@ pub(super) enum Nav {
     /// Fly with the pilot's sticks.
     Manual(ManualMode),
     /// Descend without a position (GPS loss).
-    Descend,
+    Descend {
+        /// What to fly when the fix returns before touchdown.
+        then: DescendThen,
+    },
+}
+
+/// What Descend gives way to when the GNSS fix returns in the air: what
+/// was intended when the position was lost.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum DescendThen {
+    /// Hold where it is.
+    Hold,
+    /// Keep landing, with the position (Land where it is).
+    Land,
+    /// Return to launch.
+    Return,
 }
 
 /// Whether a shaped reference has reached `target` and stopped.
@@ -204,23 +219,14 @@ impl Navigator {
             Nav::Offboard => FlightMode::Offboard,
             Nav::Mission => FlightMode::Mission,
             Nav::Manual(mode) => mode.flight_mode(),
-            Nav::Descend => FlightMode::Descend,
+            Nav::Descend { .. } => FlightMode::Descend,
         }
     }
 
     /// The landed state (never undefined): Takeoff while a takeoff runs,
     /// OnGround when landed, Landing while descending to land, else InAir.
     pub(super) fn landed_state(&self, armed: bool, landed: bool) -> LandedState {
-        let landing = matches!(
-            self.nav,
-            Nav::Land { .. }
-                | Nav::Descend
-                | Nav::Rtl {
-                    phase: RtlPhase::Land,
-                    ..
-                }
-        );
-        let landing = landing || (self.nav == Nav::Mission && self.mission_landing());
+        let landing = self.landing();
         let taking_off =
             matches!(self.nav, Nav::Takeoff { .. }) || (self.nav == Nav::Mission && self.mission_taking_off());
         if armed && taking_off {
@@ -232,6 +238,21 @@ impl Navigator {
         } else {
             LandedState::InAir
         }
+    }
+
+    /// Whether the active mode is landing: Land, Descend, a return's land
+    /// phase, a mission's landing item.
+    pub(super) fn landing(&self) -> bool {
+        let landing = matches!(
+            self.nav,
+            Nav::Land { .. }
+                | Nav::Descend { .. }
+                | Nav::Rtl {
+                    phase: RtlPhase::Land,
+                    ..
+                }
+        );
+        landing || (self.nav == Nav::Mission && self.mission_landing())
     }
 
     /// Where the vehicle is meant to be: the live reference, else the measured position [m], NED.

@@ -270,7 +270,7 @@ impl Navigator {
     /// a setpoint exists that the runtime has not declared lost.
     pub(in crate::autopilot) fn offboard_fresh(&self, now: f64, loss_s: f64, clock: ClientClock) -> bool {
         match clock {
-            ClientClock::Simulated => self.offboard.is_some_and(|(_, t)| now - t <= loss_s + TIME_EPS),
+            ClientClock::Simulated => self.offboard.is_some_and(|(_, t)| now - t < loss_s - TIME_EPS),
             ClientClock::Wall => self.offboard.is_some() && !self.offboard_lost,
         }
     }

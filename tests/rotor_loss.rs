@@ -432,7 +432,9 @@ fn with_the_land_action_every_lost_rotor_ends_upright_on_the_ground_and_disarmed
         assert!(tilt < TILT_MAX_DEG, "{airframe} rotor {}: {:?}", j + 1, f);
         assert!(f.disarmed, "{airframe} rotor {}: {:?}", j + 1, f);
         assert!(
-            f.texts.iter().any(|s| s.text == "Rotor failure: landing"),
+            f.texts
+                .iter()
+                .any(|s| s.text == "Failsafe: rotor failure, triggering Land"),
             "{:?}",
             f.texts
         );

@@ -195,6 +195,12 @@ impl Autopilot {
     /// Offboard setpoints lost while in Offboard: announced, then `COM_OBL_RC_ACT`.
     fn offboard_lost(&mut self, m: &Measurement) {
         self.say.announce(Severity::Warning, "Offboard signal lost");
+        if !self.armed {
+            // no failsafe on the ground: Offboard without setpoints is no
+            // mode to stay in, so fall back to Hold as before arming
+            self.navigator.enter_hold();
+            return;
+        }
         let action = self.settings.offboard_loss_action;
         self.failsafe_action("offboard signal lost", action, m);
     }

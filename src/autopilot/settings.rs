@@ -27,7 +27,6 @@ impl ActuatorFailureAction {
     /// The one failsafe runner's action (`Warn` keeps the mode), for
     /// `rotors_changed` to route through [`super::Autopilot::failsafe_action`].
     #[must_use]
-    #[allow(dead_code, reason = "routed by stack.rs's rotors_changed at merge")]
     pub(super) fn action(self) -> FailsafeAction {
         match self {
             Self::Warn => FailsafeAction::Warn,

@@ -7,10 +7,11 @@ use nalgebra::Vector3;
 use super::battery::BatteryMonitor;
 use super::control_loop::{ControlLoop, ControlLoopError, ControlOutput, RotorAllocation};
 use super::estimate::EstimateFeedback;
+use super::failsafe::FailsafeAction;
 use super::land_detector::{LandDetector, LandEvent};
-use super::navigator::{Nav, Navigator};
+use super::navigator::Navigator;
 use super::rotor_monitor::{RotorEvent, RotorMonitor, RotorStatus};
-use super::settings::{ActuatorFailureAction, Settings};
+use super::settings::Settings;
 use super::telemetry::{Telemetry, VehicleType};
 use super::{Announcements, ClientClock, Severity, StatusText};
 use crate::airframe::{Actuation, Airframe};
@@ -357,21 +358,19 @@ impl Autopilot {
                 }
             }
         }
-        let landing = matches!(self.navigator.nav, Nav::Land { .. });
         // heading given up: the yaw rate is free to grow (no rotational drag
         // holds it), so no hover lasts; land while attitude holds
         let no_hover = allocation.heading_free();
         if !flying || !worse {
             return;
         }
+        // the emergency landings go through the one failsafe runner (a
+        // landing under way goes on; without a fix it descends blind)
         match relaxed {
             Some(Ok(())) => {
                 self.say
                     .announce(Severity::Emergency, "Rotor loss: yaw given up, emergency descent");
-                if !landing {
-                    self.navigator.enter_land(m, false, &mut self.say);
-                }
-                return;
+                self.failsafe_action("rotor loss", FailsafeAction::Land, m);
             }
             Some(Err(e)) => {
                 // (a STATUSTEXT holds 50 characters: the reason in short)
@@ -382,41 +381,16 @@ impl Autopilot {
                 };
                 self.say
                     .announce(Severity::Emergency, format!("Rotor loss: yaw lost, landing: {why}"));
-                if !landing {
-                    self.navigator.enter_land(m, false, &mut self.say);
-                }
-                return;
+                self.failsafe_action("rotor loss", FailsafeAction::Land, m);
             }
-            None => {}
-        }
-        if no_hover {
-            if !landing {
+            None if no_hover => {
                 self.say
                     .announce(Severity::Emergency, "Rotor loss: yaw uncontrollable, landing");
-                self.navigator.enter_land(m, false, &mut self.say);
+                self.failsafe_action("rotor loss", FailsafeAction::Land, m);
             }
-            return;
-        }
-        match self.settings.actuator_failure_action {
-            ActuatorFailureAction::Warn => {}
-            ActuatorFailureAction::Hold => {
-                if !matches!(self.navigator.nav, Nav::Hold { .. }) && !landing {
-                    self.say.announce(Severity::Warning, "Rotor failure: holding");
-                    self.navigator.enter_hold();
-                }
-            }
-            ActuatorFailureAction::Land => {
-                if !landing {
-                    self.say.announce(Severity::Warning, "Rotor failure: landing");
-                    self.navigator.enter_land(m, false, &mut self.say);
-                }
-            }
-            ActuatorFailureAction::Return => {
-                if !matches!(self.navigator.nav, Nav::Rtl { .. }) && !landing {
-                    self.say.announce(Severity::Warning, "Rotor failure: returning");
-                    let cx = situation!(self, m);
-                    self.navigator.enter_rtl(&cx, &mut self.say);
-                }
+            None => {
+                let action = self.settings.actuator_failure_action.action();
+                self.failsafe_action("rotor failure", action, m);
             }
         }
     }

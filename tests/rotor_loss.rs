@@ -600,6 +600,47 @@ fn a_quad_losing_a_rotor_gives_up_yaw_and_lands() {
     );
 }
 
+/// GIVEN an octo that lost rotor 1 in a hover and landed (COM_ACT_FAIL_ACT Land)
+/// WHEN it is armed again
+/// THEN arming is refused ("Arming denied: ESC failure"), as PX4 refuses an
+/// ESC failure; forced arming still goes (the pilot's call).
+#[test]
+fn a_vehicle_that_lost_a_rotor_refuses_to_arm_again() {
+    let mut v = vehicle("octo", Action::Land);
+    take_off(&mut v);
+    v.world_mut()
+        .inject(
+            0,
+            Fault::Rotor {
+                rotor: 0,
+                health: RotorHealth::Off,
+            },
+        )
+        .unwrap();
+    for _ in 0..steps(&v, 40.0) {
+        v.step();
+        if !v.pilot(0).armed() {
+            break;
+        }
+    }
+    assert!(!v.pilot(0).armed(), "landed and disarmed");
+    v.drain_status_texts(0);
+    assert_eq!(
+        v.command(0, AutopilotCommand::Arm { force: false }),
+        CommandOutcome::TemporarilyRejected("ESC failure")
+    );
+    let said = v.drain_status_texts(0);
+    assert!(
+        said.iter()
+            .any(|s| s.severity == Severity::Critical && s.text == "Arming denied: ESC failure"),
+        "{said:?}"
+    );
+    assert_eq!(
+        v.command(0, AutopilotCommand::Arm { force: true }),
+        CommandOutcome::Accepted
+    );
+}
+
 /// The figures as one markdown table.
 #[test]
 #[ignore = "a report: run with --ignored --nocapture"]

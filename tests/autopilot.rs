@@ -763,12 +763,12 @@ fn invalid_or_untimely_commands_are_refused_without_panicking() {
     assert_eq!(ap.telemetry(), before, "refusals change nothing");
     ap.step();
     assert!(ap.telemetry().position_ned.iter().all(|x| x.is_finite()));
-    // modes that are always fine, and home
+    // Position needs manual control (PX4: "No manual control input"); home is always fine
     assert_eq!(
         ap.command(AutopilotCommand::SetMode(FlightMode::Position)),
-        CommandOutcome::Accepted
+        CommandOutcome::TemporarilyRejected("no manual control input")
     );
-    assert_eq!(ap.mode(), FlightMode::Position);
+    assert_eq!(ap.mode(), FlightMode::Hold);
     let elsewhere = HOME.offset(&Vector3::new(10.0, 0.0, -1.0));
     assert_eq!(
         ap.command(AutopilotCommand::SetHome(Some(elsewhere))),

@@ -77,6 +77,8 @@ pub struct Allocator {
     w_max: f64,
     /// Largest collective shift as a fraction of the requested thrust.
     delta_max_fraction: f64,
+    /// Rotors the allocation uses; the others (failed) are held at idle, `w_min`.
+    active: [bool; MAX_ROTORS],
 }
 
 /// The result of one allocation.
@@ -129,7 +131,69 @@ impl Allocator {
             w_min,
             w_max,
             delta_max_fraction: 0.3,
+            active: std::array::from_fn(|i| i < n),
         })
+    }
+
+    /// The allocator after rotor faults (doc `model-and-control.md` sections 3
+    /// and 3b): column `i` of the intact `B` scaled by the thrust fraction
+    /// `gains[i]` the rotor still gives (1 healthy, `0 < f < 1` degraded);
+    /// a rotor with `gains[i] <= 0` (failed) is dropped: its column is deleted
+    /// from the inverse, `B_f^+ = B_f^T (B_f B_f^T)^-1`, and it is commanded idle.
+    /// With `drop_yaw` the inverse is taken over the rows `[u_T, tau_x, tau_y]`
+    /// only (yaw given up: the rank-deficient case of a quad with a dead
+    /// rotor); the yaw column of `B^+` is then zero.
+    ///
+    /// # Errors
+    /// The rank of the rows kept when it is below their number (no inverse), or
+    /// when the shapes are wrong.
+    pub fn with_rotor_gains(
+        b: &DMatrix<f64>,
+        w_min: f64,
+        w_max: f64,
+        gains: &[f64],
+        drop_yaw: bool,
+    ) -> Result<Self, usize> {
+        let n = b.ncols();
+        if b.nrows() != 4 || n > MAX_ROTORS || gains.len() != n {
+            return Err(rank(b));
+        }
+        let kept: Vec<usize> = (0..n).filter(|i| gains[*i] > 0.0).collect();
+        let rows = if drop_yaw { 3 } else { 4 };
+        let bf = DMatrix::from_fn(rows, kept.len(), |r, j| b[(r, kept[j])] * gains[kept[j]]);
+        let r = rank(&bf);
+        if r < rows {
+            return Err(r);
+        }
+        let inv = (&bf * bf.transpose()).try_inverse().ok_or(r)?;
+        let pinv = bf.transpose() * inv;
+        let mut bp = SMatrix::<f64, 4, MAX_ROTORS>::zeros();
+        let mut pp = SMatrix::<f64, MAX_ROTORS, 4>::zeros();
+        let mut active = [false; MAX_ROTORS];
+        for (j, &i) in kept.iter().enumerate() {
+            active[i] = true;
+            for k in 0..4 {
+                bp[(k, i)] = b[(k, i)] * gains[i];
+            }
+            for k in 0..rows {
+                pp[(i, k)] = pinv[(j, k)];
+            }
+        }
+        Ok(Self {
+            n,
+            b: bp,
+            b_pinv: pp,
+            w_min,
+            w_max,
+            delta_max_fraction: 0.3,
+            active,
+        })
+    }
+
+    /// Whether rotor `i` (from 0) is allocated (false for a dropped, failed rotor).
+    #[must_use]
+    pub fn is_active(&self, i: usize) -> bool {
+        self.active.get(i).copied().unwrap_or(false)
     }
 
     /// Number of rotors.
@@ -171,14 +235,17 @@ impl Allocator {
     }
 
     fn in_bounds(&self, w: &RotorVector) -> bool {
-        w.iter().take(self.n).all(|x| *x >= self.w_min && *x <= self.w_max)
+        w.iter()
+            .take(self.n)
+            .zip(&self.active)
+            .all(|(x, on)| !on || (*x >= self.w_min && *x <= self.w_max))
     }
 
     /// Feasible collective-shift interval `[lo, hi]` for `base + delta n_T`.
     fn shift_interval(&self, base: &RotorVector, n_t: &RotorVector) -> (f64, f64) {
         let mut lo = f64::NEG_INFINITY;
         let mut hi = f64::INFINITY;
-        for i in 0..self.n {
+        for i in (0..self.n).filter(|i| self.active[*i]) {
             // n_T entries are > 0 for any flat frame (every column has c_T > 0 in row 1).
             lo = lo.max((self.w_min - base[i]) / n_t[i]);
             hi = hi.min((self.w_max - base[i]) / n_t[i]);
@@ -237,7 +304,7 @@ impl Allocator {
                 .unwrap_or((0.0, 0.0));
             let base = w_t + w_rp * sigma + n_t * delta;
             let mut lambda: f64 = 1.0;
-            for i in 0..self.n {
+            for i in (0..self.n).filter(|i| self.active[*i]) {
                 if w_y[i] > 0.0 {
                     lambda = lambda.min((self.w_max - base[i]) / w_y[i]);
                 } else if w_y[i] < 0.0 {
@@ -250,7 +317,12 @@ impl Allocator {
         let mut speed_sq = RotorVector::zeros();
         let mut speed_cmd = RotorVector::zeros();
         for i in 0..self.n {
-            speed_sq[i] = w[i].clamp(self.w_min, self.w_max);
+            // a dropped rotor idles: its column of `B` is zero, so it adds nothing
+            speed_sq[i] = if self.active[i] {
+                w[i].clamp(self.w_min, self.w_max)
+            } else {
+                self.w_min
+            };
             speed_cmd[i] = speed_sq[i].sqrt();
         }
         let achieved = self.forward(&speed_sq);
@@ -264,5 +336,49 @@ impl Allocator {
             yaw_scale: lambda,
             saturated,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::airframe::Airframe;
+
+    #[test]
+    fn all_gains_one_is_the_intact_allocator_and_a_dropped_rotor_idles_while_the_rest_deliver() {
+        let af = Airframe::load("octo").unwrap();
+        let (lo, hi) = af.speed_sq_bounds();
+        let b = af.effectiveness();
+        let intact = af.allocator();
+        let same = Allocator::with_rotor_gains(&b, lo, hi, &[1.0; 8], false).unwrap();
+        let req = ControlWrench::new(16.0, Vector3::new(0.2, -0.3, 0.05));
+        assert_eq!(intact.allocate(&req).speed_sq, same.allocate(&req).speed_sq);
+        let mut g = [1.0; 8];
+        g[2] = 0.0;
+        g[5] = 0.5;
+        let reduced = Allocator::with_rotor_gains(&b, lo, hi, &g, false).unwrap();
+        assert!(!reduced.is_active(2) && reduced.is_active(5));
+        let a = reduced.allocate(&req);
+        assert!(!a.saturated);
+        assert_eq!(a.speed_sq[2], lo);
+        // what the remaining rotors (rotor 6 at half thrust) deliver is the request
+        let mut col = b.clone();
+        col.column_mut(2).fill(0.0);
+        col.column_mut(5).scale_mut(0.5);
+        let w = nalgebra::DVector::from_fn(8, |i, _| a.speed_sq[i]);
+        let delivered = &col * w;
+        for (d, r) in delivered.iter().zip(req.to_vector().iter()) {
+            assert!((d - r).abs() < 1e-9, "{delivered} vs {req:?}");
+        }
+        // a quad without a rotor has no 4-row inverse; without the yaw row it has one
+        let q = Airframe::load("quad").unwrap();
+        let (lo, hi) = q.speed_sq_bounds();
+        let g = [0.0, 1.0, 1.0, 1.0];
+        assert_eq!(
+            Allocator::with_rotor_gains(&q.effectiveness(), lo, hi, &g, false).unwrap_err(),
+            3
+        );
+        let yawless = Allocator::with_rotor_gains(&q.effectiveness(), lo, hi, &g, true).unwrap();
+        assert_eq!(yawless.b_pinv().column(3).norm(), 0.0);
     }
 }

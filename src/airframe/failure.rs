@@ -147,3 +147,47 @@ pub fn analyse_failures(airframe: &Airframe) -> Vec<FailureAnalysis> {
         })
         .collect()
 }
+
+/// Hover verdict of `airframe` at mass `mass_kg` after rotor faults: column
+/// `i` of `B` scaled by the thrust fraction `gains[i]` the rotor still gives,
+/// deleted when `gains[i] <= 0` (failed). All gains 1 is [`intact_verdict`]
+/// at that mass; one gain 0 is that rotor's row of [`analyse_failures`].
+#[must_use]
+pub fn degraded_verdict(airframe: &Airframe, gains: &[f64], mass_kg: f64) -> FailureAnalysis {
+    let b = airframe.effectiveness();
+    let (lo, hi) = airframe.speed_sq_bounds();
+    let kept: Vec<usize> = (0..b.ncols())
+        .filter(|i| gains.get(*i).copied().unwrap_or(1.0) > 0.0)
+        .collect();
+    let bf = DMatrix::from_fn(4, kept.len(), |r, j| {
+        b[(r, kept[j])] * gains.get(kept[j]).copied().unwrap_or(1.0)
+    });
+    let (rank, verdict, margins) = verdict(&bf, mass_kg * GRAVITY, lo, hi);
+    FailureAnalysis {
+        rotor: (0..b.ncols()).find(|i| !kept.contains(i)).map_or(0, |i| i + 1),
+        rank,
+        verdict,
+        margins,
+    }
+}
+
+#[cfg(test)]
+mod degraded_tests {
+    use super::*;
+
+    #[test]
+    fn one_failed_rotor_matches_the_failure_table() {
+        let af = Airframe::load("octo").unwrap();
+        let table = analyse_failures(&af);
+        for j in 0..8 {
+            let mut g = vec![1.0; 8];
+            g[j] = 0.0;
+            assert_eq!(degraded_verdict(&af, &g, af.mass_kg), table[j]);
+        }
+        let q = Airframe::load("quad").unwrap();
+        let v = degraded_verdict(&q, &[0.0, 1.0, 1.0, 1.0], q.mass_kg);
+        assert_eq!(v.verdict, HoverVerdict::RankDeficient);
+        let h = degraded_verdict(&af, &[0.5, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0], af.mass_kg);
+        assert_eq!(h.verdict, HoverVerdict::Feasible);
+    }
+}

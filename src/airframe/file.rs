@@ -57,6 +57,9 @@ struct FileBody {
     mass_kg: f64,
     inertia_diag_kg_m2: [f64; 3],
     gear_height_m: f64,
+    /// Rotational drag `gamma` [N m s] (`tau_d = -gamma omega`); absent: 0.
+    #[serde(default)]
+    rotational_drag_n_m_s: f64,
 }
 
 #[derive(Deserialize)]
@@ -146,6 +149,7 @@ fn validate(raw: FileAirframe, file: &str) -> Result<Airframe, FileError> {
         ));
     }
     let gear_height_m = c.non_negative("body.gear_height_m", raw.body.gear_height_m)?;
+    let rotational_drag_n_m_s = c.non_negative("body.rotational_drag_n_m_s", raw.body.rotational_drag_n_m_s)?;
 
     let r = &raw.rotor;
     let rotor = RotorParams {
@@ -247,6 +251,7 @@ fn validate(raw: FileAirframe, file: &str) -> Result<Airframe, FileError> {
         mass_kg,
         inertia_kg_m2: Matrix3::from_diagonal(&nalgebra::Vector3::new(ixx, iyy, izz)),
         gear_height_m,
+        rotational_drag_n_m_s,
         rotor,
         rotors,
         ground_effect,

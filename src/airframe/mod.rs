@@ -17,7 +17,9 @@ mod file;
 mod report;
 
 pub use allocation::{Allocation, Allocator, effectiveness, rank, wrench_map};
-pub use failure::{FailureAnalysis, HoverVerdict, TorqueMargins, analyse_failures, hover_margins, intact_verdict};
+pub use failure::{
+    FailureAnalysis, HoverVerdict, TorqueMargins, analyse_failures, degraded_verdict, hover_margins, intact_verdict,
+};
 pub use file::AirframeError;
 pub use report::AirframeReport;
 
@@ -134,6 +136,11 @@ pub struct Airframe {
     pub inertia_kg_m2: Matrix3<f64>,
     /// Height of the centre of mass above flat ground when resting on it [m].
     pub gear_height_m: f64,
+    /// Rotational (aerodynamic) drag coefficient `gamma` [N m s]: the body
+    /// torque `tau_d = -gamma omega` (FRD, `omega` the body rates; Mueller and
+    /// D'Andrea's relaxed-hover model, doc section 3b). 0 (no drag) unless the
+    /// file's `body.rotational_drag_n_m_s` says otherwise.
+    pub rotational_drag_n_m_s: f64,
     /// Rotor coefficients and limits.
     pub rotor: RotorParams,
     /// Rotor layout, in label order (rotor 1 first).
@@ -163,6 +170,7 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ("hexa", include_str!("../../params/airframes/hexa.toml")),
     ("octo", include_str!("../../params/airframes/octo.toml")),
     ("fsr-quad", include_str!("../../params/airframes/fsr-quad.toml")),
+    ("hexa-ppnnpn", include_str!("../../params/airframes/hexa-ppnnpn.toml")),
 ];
 
 /// The default vehicle.

@@ -6,14 +6,18 @@
 
 use nalgebra::Vector3;
 
-use super::navigator::{HoldTarget, Nav};
+use super::failsafe::FailsafeAction;
+use super::navigator::{HoldTarget, ManualMode, Nav};
 use super::{Autopilot, AutopilotCommand, CommandOutcome, FlightMode, OffboardSetpoint, PowerAction, Severity};
+use super::{BatteryWarning, RotorStatus};
 use crate::geo::GeoPoint;
 use crate::mission::MissionType;
 use crate::signals::{Measurement, SensorReadings};
 
 /// DO_CHANGE_SPEED's "back to the default speed" value.
 const SPEED_DEFAULT: f64 = -2.0;
+/// A target this little above `GF_MAX_VER_DIST` [m] is still at it (rounding of AMSL altitudes).
+const ALTITUDE_TOLERANCE_M: f64 = 1e-3;
 
 impl Autopilot {
     /// Carry out a command at the instant of `readings`. Accepted commands
@@ -25,19 +29,22 @@ impl Autopilot {
     /// |---|---|
     /// | `Arm` | TemporarilyRejected when a prearm check fails (not landed, estimator not initialised, home invalid, mode not armable: Offboard without fresh setpoints); `force` skips the checks |
     /// | `Disarm` | TemporarilyRejected in the air unless forced (forced: rotors stop, the vehicle falls) |
-    /// | `Takeoff` | Denied for a non-finite altitude; TemporarilyRejected when disarmed |
+    /// | `Takeoff` | Denied for a non-finite altitude or one above `GF_MAX_VER_DIST`; TemporarilyRejected when disarmed |
     /// | `Land`, `ReturnToLaunch` | TemporarilyRejected when disarmed |
     /// | `SetMode` | Takeoff, Land, RTL as above; Offboard TemporarilyRejected without a fresh setpoint (COM_OF_LOSS_T, on the client clock); Mission TemporarilyRejected without a mission |
     /// | `StartMission` | Denied without a mission or with a first item beyond it; TemporarilyRejected when arming is (it arms) |
     /// | `SetMissionCurrent` | Denied beyond the mission |
-    /// | `Reposition` | Denied for non-finite parts or lat/lon out of range; TemporarilyRejected when disarmed |
+    /// | `Reposition` | Denied for non-finite parts, lat/lon out of range, or a target outside the geofence (zones, `GF_MAX_HOR_DIST`, `GF_MAX_VER_DIST`; also its takeoff); TemporarilyRejected when disarmed |
     /// | `ChangeSpeed` | Denied when not finite |
     /// | `SetHome` | Denied for an invalid point |
-    /// | `Offboard` | Denied when a given part is not finite, or nothing is given |
+    /// | `Offboard` | Denied when a given part is not finite, or nothing is given; a position above `GF_MAX_VER_DIST` is clamped to it (announced once) |
+    /// | `ManualControl` | Denied when a stick is not finite or beyond `[-1, 1]` |
+    /// | `SetMode` to a manual mode | TemporarilyRejected without fresh sticks (`COM_RC_LOSS_T`, client clock), Position also without a GPS fix |
+    /// | anything that needs a position (Hold, Takeoff, RTL, Mission, Reposition) | TemporarilyRejected without a GPS fix; Land then descends without position |
     /// | `Power` | Denied when armed |
     /// | `InjectFailure` | Denied while `SYS_FAILURE_EN` = 0 |
     ///
-    /// Disarmed, Hold and Position are always accepted. Selecting the active
+    /// Disarmed, Hold is accepted with a GPS fix. Selecting the active
     /// mode again is accepted and changes nothing.
     pub fn command(&mut self, cmd: AutopilotCommand, readings: &SensorReadings) -> CommandOutcome {
         let m = &readings.measurement;
@@ -61,6 +68,7 @@ impl Autopilot {
             AutopilotCommand::ChangeSpeed { speed_m_s } => self.change_speed(speed_m_s),
             AutopilotCommand::SetHome(point) => self.set_home_to(point, m),
             AutopilotCommand::Offboard(sp) => self.offboard_setpoint(&sp, m),
+            AutopilotCommand::ManualControl(sticks) => self.manual_control(sticks, m),
             AutopilotCommand::Power(action) => self.power(action),
             AutopilotCommand::InjectFailure { .. } => {
                 if self.settings.failure_injection {
@@ -100,11 +108,26 @@ impl Autopilot {
         if !self.home.is_valid() {
             return Some("home position invalid");
         }
+        if self.navigator.gps_lost && self.navigator.needs_position() {
+            return Some("no GPS fix");
+        }
+        if self.rotor_status().iter().any(|r| *r != RotorStatus::Healthy) {
+            return Some("ESC failure");
+        }
+        if self.battery_warning() >= BatteryWarning::Critical {
+            return Some("battery critical");
+        }
+        if self.data_link_is_lost() && self.settings.failsafe.data_link_loss_action != FailsafeAction::None {
+            return Some("no ground station connection");
+        }
         match self.navigator.nav {
+            Nav::Manual(mode) => self.manual_prearm_failure(mode, m.time_s),
             Nav::Offboard if !self.offboard_fresh(m.time_s) => Some("no offboard signal"),
             Nav::Mission if self.plans.get(MissionType::Mission).is_empty() => Some("no valid mission"),
             Nav::Hold { .. } | Nav::Offboard | Nav::Mission => None,
-            Nav::Takeoff { .. } | Nav::Land { .. } | Nav::Rtl { .. } => Some("flight mode not armable"),
+            Nav::Takeoff { .. } | Nav::Land { .. } | Nav::Rtl { .. } | Nav::Descend { .. } => {
+                Some("flight mode not armable")
+            }
         }
     }
 
@@ -158,6 +181,9 @@ impl Autopilot {
         if !self.armed {
             return self.not_armed("Takeoff");
         }
+        if let Some(refused) = self.refuse_without_position("Takeoff") {
+            return refused;
+        }
         let home = self.home_ned();
         let min_alt = self.settings.takeoff_alt_m;
         let mut z = home.z - min_alt;
@@ -174,6 +200,16 @@ impl Autopilot {
         }
         let here = self.navigator.current_position(m);
         let z = z.min(here.z);
+        if self
+            .max_altitude_z()
+            .is_some_and(|z_max| z < z_max - ALTITUDE_TOLERANCE_M)
+        {
+            return self.refuse(
+                Severity::Critical,
+                "Takeoff denied: above geofence max altitude",
+                CommandOutcome::Denied("takeoff altitude above GF_MAX_VER_DIST"),
+            );
+        }
         self.navigator.enter_takeoff(Vector3::new(here.x, here.y, z), None);
         self.say
             .announce(Severity::Info, format!("Takeoff to {:.1} m above home", home.z - z));
@@ -183,6 +219,15 @@ impl Autopilot {
     fn land(&mut self, m: &Measurement) -> CommandOutcome {
         if !self.armed {
             return self.not_armed("Land");
+        }
+        if self.navigator.gps_lost {
+            if !matches!(self.navigator.nav, Nav::Descend { .. }) {
+                // a landing asked for: the fix back keeps landing
+                self.navigator.enter_descend(super::navigator::DescendThen::Land);
+                self.say
+                    .announce(Severity::Critical, "No GPS fix: descending without position");
+            }
+            return CommandOutcome::Accepted;
         }
         if !matches!(self.navigator.nav, Nav::Land { .. }) {
             let landed = self.land.landed();
@@ -194,6 +239,9 @@ impl Autopilot {
     fn return_to_launch(&mut self, m: &Measurement) -> CommandOutcome {
         if !self.armed {
             return self.not_armed("Return");
+        }
+        if let Some(refused) = self.refuse_without_position("Return") {
+            return refused;
         }
         if !matches!(self.navigator.nav, Nav::Rtl { .. }) {
             let cx = situation!(self, m);
@@ -207,15 +255,32 @@ impl Autopilot {
             return CommandOutcome::Accepted;
         }
         match mode {
-            FlightMode::Hold | FlightMode::Position => {
-                self.navigator.enter_hold(mode == FlightMode::Position);
+            FlightMode::Hold | FlightMode::Mission => {
+                if let Some(refused) = self.refuse_without_position(&format!("Switching to {mode:?}")) {
+                    return refused;
+                }
+                if mode == FlightMode::Mission {
+                    return self.enter_mission();
+                }
+                self.navigator.enter_hold();
                 CommandOutcome::Accepted
             }
+            FlightMode::Descend => self.land(m),
+            FlightMode::Position => self.enter_manual_mode(ManualMode::Position, m),
+            FlightMode::Altitude => self.enter_manual_mode(ManualMode::Altitude, m),
+            FlightMode::Stabilized => self.enter_manual_mode(ManualMode::Stabilized, m),
+            FlightMode::Acro => self.enter_manual_mode(ManualMode::Acro, m),
+            FlightMode::Manual => self.enter_manual_mode(ManualMode::Manual, m),
             FlightMode::Takeoff => self.takeoff(None, m),
             FlightMode::Land => self.land(m),
             FlightMode::ReturnToLaunch => self.return_to_launch(m),
             FlightMode::Offboard => {
                 if self.offboard_fresh(m.time_s) {
+                    if self.navigator.offboard_needs_position()
+                        && let Some(refused) = self.refuse_without_position("Switching to Offboard")
+                    {
+                        return refused;
+                    }
                     self.navigator.enter_offboard();
                     CommandOutcome::Accepted
                 } else {
@@ -226,7 +291,6 @@ impl Autopilot {
                     )
                 }
             }
-            FlightMode::Mission => self.enter_mission(),
         }
     }
 
@@ -250,6 +314,9 @@ impl Autopilot {
         if !self.armed {
             return self.not_armed("Reposition");
         }
+        if let Some(refused) = self.refuse_without_position("Reposition") {
+            return refused;
+        }
         let here = self.navigator.current_position(m);
         let here_geo = self.origin.offset(&here);
         let point = GeoPoint {
@@ -266,6 +333,13 @@ impl Autopilot {
         if alt_amsl_m.is_none() {
             target.z = here.z;
         }
+        if self.outside_geofence(&target) {
+            return self.refuse(
+                Severity::Critical,
+                "Reposition is outside geofence",
+                CommandOutcome::Denied("reposition outside the geofence"),
+            );
+        }
         let hold = HoldTarget {
             position_ned: target,
             yaw_rad,
@@ -276,6 +350,16 @@ impl Autopilot {
         if self.land.landed() {
             let home = self.home_ned();
             let z = target.z.min(home.z - self.settings.takeoff_alt_m).min(here.z);
+            if self
+                .max_altitude_z()
+                .is_some_and(|z_max| z < z_max - ALTITUDE_TOLERANCE_M)
+            {
+                return self.refuse(
+                    Severity::Critical,
+                    "Takeoff denied: above geofence max altitude",
+                    CommandOutcome::Denied("takeoff altitude above GF_MAX_VER_DIST"),
+                );
+            }
             self.navigator
                 .enter_takeoff(Vector3::new(here.x, here.y, z), Some(hold));
             self.say
@@ -319,9 +403,13 @@ impl Autopilot {
     }
 
     fn offboard_setpoint(&mut self, sp: &OffboardSetpoint, m: &Measurement) -> CommandOutcome {
-        let local = sp.resolve(m, &self.origin, &self.home);
+        let mut local = sp.resolve(m, &self.origin, &self.home);
         if !sp.position_in_range() || !local.is_valid() {
             return CommandOutcome::Denied("invalid offboard setpoint");
+        }
+        if let Some(z_max) = self.max_altitude_z() {
+            let clamped = local.clamp_position_z(z_max);
+            self.offboard_clamped(clamped);
         }
         self.navigator.set_offboard(local, m.time_s);
         CommandOutcome::Accepted

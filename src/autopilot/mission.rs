@@ -10,7 +10,9 @@
 //! mission is DENIED. A new mission, or a cleared one, starts over from its
 //! first item; one cleared while it is flown gives way to Hold.
 
-use super::navigator::{Nav, SetHome};
+use nalgebra::Vector3;
+
+use super::navigator::{self, Nav, SetHome};
 use super::telemetry::{MissionState, MissionStatus};
 use super::{Autopilot, CommandOutcome, FlightMode, Severity};
 use crate::mission::MissionType;
@@ -48,7 +50,7 @@ impl Autopilot {
         self.navigator.mission.reset();
         if self.navigator.nav == Nav::Mission {
             if self.plans.get(MissionType::Mission).is_empty() {
-                self.navigator.enter_hold(false);
+                self.navigator.enter_hold();
                 self.say.announce(Severity::Warning, "Mission cleared: holding");
             } else {
                 self.navigator.enter_mission();
@@ -69,6 +71,29 @@ impl Autopilot {
         CommandOutcome::Accepted
     }
 
+    /// Refuse the mission when one of its points lies outside the geofence
+    /// (zones, `GF_MAX_HOR_DIST`, `GF_MAX_VER_DIST`), as a Reposition there
+    /// is refused (PX4's mission feasibility check).
+    fn refuse_mission_outside_geofence(&mut self, m: &Measurement) -> Option<CommandOutcome> {
+        let here = m.position_ned;
+        let points: Vec<(usize, Vector3<f64>)> = self
+            .plans
+            .get(MissionType::Mission)
+            .items()
+            .iter()
+            .enumerate()
+            .filter(|(_, it)| it.has_position())
+            .map(|(i, it)| (i, navigator::item_point_ned(it, &self.origin, &self.home, &here)))
+            .collect();
+        let outside = points.into_iter().find(|(_, p)| self.outside_geofence(p))?;
+        let text = format!("Mission start denied: item {} outside geofence", outside.0);
+        Some(self.refuse(
+            Severity::Critical,
+            &text,
+            CommandOutcome::Denied("mission outside the geofence"),
+        ))
+    }
+
     /// MISSION_START: AUTO.MISSION from `first` (or where it stands), and arm.
     pub(super) fn start_mission(&mut self, first: Option<u16>, m: &Measurement) -> CommandOutcome {
         let total = self.plans.get(MissionType::Mission).len();
@@ -81,6 +106,12 @@ impl Autopilot {
         }
         if first.is_some_and(|f| usize::from(f) >= total) {
             return CommandOutcome::Denied("first item beyond the mission");
+        }
+        if let Some(refused) = self.refuse_without_position("Mission start") {
+            return refused;
+        }
+        if let Some(refused) = self.refuse_mission_outside_geofence(m) {
+            return refused;
         }
         let was = (self.navigator.nav, self.navigator.mission.clone());
         if let Some(f) = first {

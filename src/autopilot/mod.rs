@@ -45,6 +45,15 @@
 //!   either (off the ground, or trying to fly) is a takeoff. On ground
 //!   contact a mode that is not climbing idles the rotors (PX4 cuts the
 //!   thrust the same way).
+//! * Manual control (`navigator/manual`): MANUAL_CONTROL sticks, kept with
+//!   their arrival time. Position, Altitude, Stabilized, Acro and Manual are
+//!   refused without fresh sticks; arming there needs the throttle low (at
+//!   most centred where it is a climb rate). Sticks older than
+//!   `COM_RC_LOSS_T` in a manual mode: "Manual control lost", then
+//!   `NAV_RCL_ACT` (Return by default); not in the automatic modes.
+//! * GPS loss (`navigator/blind`): a mode that steers by position descends
+//!   without it (PX4's Descend, AUTO.LAND in the heartbeat), Position falls
+//!   back to Altitude; the fix back before touchdown gives Hold (Position).
 //! * References come from the jerk-limited shaper ([`crate::control::shaper`])
 //!   with the mode's speed limits; offboard attitude and rates go to
 //!   [`crate::control::Controller::update_attitude`].
@@ -80,16 +89,22 @@ mod commander;
 mod control_loop;
 mod estimate;
 mod failsafe;
+mod geofence;
 mod land_detector;
 mod mission;
 mod navigator;
+mod rotor_monitor;
 mod settings;
 mod stack;
 mod telemetry;
 
+pub use battery::BatteryWarning;
+pub use control_loop::RotorAllocation;
 pub use control_loop::{ControlLoop, ControlLoopError, ControlOutput, Demand};
 pub use failsafe::{ClientClock, ClientTimer, PendingTimer};
+pub use navigator::ManualControl;
 pub use navigator::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};
+pub use rotor_monitor::{FAILED_SPEED_RATIO, RotorEvent, RotorMonitor, RotorStatus};
 pub use stack::{Autopilot, AutopilotError};
 pub use telemetry::{LandedState, MissionState, MissionStatus, Telemetry, VehicleType};
 
@@ -102,7 +117,8 @@ use crate::geo::GeoPoint;
 /// Flight modes, as PX4 names them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub enum FlightMode {
-    /// POSCTL: hold position, move with (offboard-free) velocity input; here: hold.
+    /// POSCTL: sticks give horizontal velocity (MPC_VEL_MANUAL), climb rate
+    /// and yaw rate; centred sticks hold the position. Needs manual control.
     Position,
     /// AUTO.LOITER (Hold): hold the current position; PX4's idle mode.
     Hold,
@@ -116,6 +132,18 @@ pub enum FlightMode {
     Offboard,
     /// AUTO.MISSION: fly the stored mission.
     Mission,
+    /// ALTCTL: sticks give tilt (MPC_MAN_TILT_MAX), climb rate and yaw rate;
+    /// centred throttle holds the altitude. Needs manual control.
+    Altitude,
+    /// STABILIZED: sticks give tilt and yaw rate, throttle the collective thrust.
+    Stabilized,
+    /// ACRO: sticks give body rates (MC_ACRO_*_MAX), throttle the thrust.
+    Acro,
+    /// MANUAL: on a multicopter flown as Stabilized (PX4).
+    Manual,
+    /// PX4's Descend (shown as AUTO.LAND): land without a position estimate —
+    /// level, no horizontal control, sinking at MPC_LAND_SPEED (GPS loss).
+    Descend,
 }
 
 /// What MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN asks for.
@@ -185,6 +213,8 @@ pub enum AutopilotCommand {
     SetHome(Option<GeoPoint>),
     /// A new offboard setpoint.
     Offboard(OffboardSetpoint),
+    /// The pilot's sticks (MANUAL_CONTROL), kept with their arrival time.
+    ManualControl(ManualControl),
     /// Reboot or shut down: accepted only disarmed; the runtime carries it out.
     Power(PowerAction),
     /// MAV_CMD_INJECT_FAILURE, PX4's numbers: accepted only with

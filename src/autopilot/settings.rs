@@ -7,15 +7,81 @@ use crate::control::ControllerKind;
 use crate::estimation::Polynomial;
 use crate::params::{Param, ParamStore};
 
-/// What to do when the offboard setpoints stop (`COM_OBL_RC_ACT`, without RC).
+use super::failsafe::FailsafeAction;
+
+/// What to do when the rotor monitor flags a failed or degraded rotor in
+/// flight (`COM_ACT_FAIL_ACT`, PX4's values; PX4's 4, terminate, is outside its range).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum OffboardLossAction {
-    /// 0, 1, 2, 5 (and 6, 7: no termination or disarm in the air here).
+pub(super) enum ActuatorFailureAction {
+    /// 0: warn only, keep the mode (a mission goes on).
+    Warn,
+    /// 1: Hold.
     Hold,
-    /// 3.
-    Return,
-    /// 4.
+    /// 2: Land.
     Land,
+    /// 3: Return.
+    Return,
+}
+
+impl ActuatorFailureAction {
+    /// The one failsafe runner's action (`Warn` keeps the mode), for
+    /// `rotors_changed` to route through [`super::Autopilot::failsafe_action`].
+    #[must_use]
+    pub(super) fn action(self) -> FailsafeAction {
+        match self {
+            Self::Warn => FailsafeAction::Warn,
+            Self::Hold => FailsafeAction::Hold,
+            Self::Land => FailsafeAction::Land,
+            Self::Return => FailsafeAction::Return,
+        }
+    }
+}
+
+/// The manual-control parameters (sticks, RC loss), SI units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct ManualSettings {
+    /// `COM_RC_LOSS_T` [s].
+    pub(super) loss_s: f64,
+    /// `NAV_RCL_ACT` (PX4's values, as `NAV_DLL_ACT`).
+    pub(super) loss_action: FailsafeAction,
+    /// `MPC_VEL_MANUAL` [m/s].
+    pub(super) vel_max_m_s: f64,
+    /// `MPC_MAN_Y_MAX` [rad/s].
+    pub(super) yaw_rate_max_rad_s: f64,
+    /// `MPC_HOLD_DZ` (stick units).
+    pub(super) deadzone: f64,
+    /// `MPC_MAN_TILT_MAX` [rad].
+    pub(super) tilt_max_rad: f64,
+    /// `MPC_MANTHR_MIN` (0..1 of the maximum thrust).
+    pub(super) thrust_min: f64,
+    /// `MC_ACRO_R_MAX`, `MC_ACRO_P_MAX`, `MC_ACRO_Y_MAX` [rad/s], body FRD.
+    pub(super) acro_rate_max_rad_s: [f64; 3],
+    /// `MC_ACRO_EXPO`, `MC_ACRO_EXPO_Y`.
+    pub(super) acro_expo: [f64; 2],
+    /// `MC_ACRO_SUPEXPO`, `MC_ACRO_SUPEXPOY`.
+    pub(super) acro_superexpo: [f64; 2],
+}
+
+impl ManualSettings {
+    fn from_store(p: &ParamStore) -> Self {
+        let rad = |x: Param| p.real(x).to_radians();
+        Self {
+            loss_s: p.real(Param::COM_RC_LOSS_T),
+            loss_action: FailsafeAction::from_nav_dll_act(i64::from(p.int(Param::NAV_RCL_ACT))),
+            vel_max_m_s: p.real(Param::MPC_VEL_MANUAL),
+            yaw_rate_max_rad_s: rad(Param::MPC_MAN_Y_MAX),
+            deadzone: p.real(Param::MPC_HOLD_DZ),
+            tilt_max_rad: rad(Param::MPC_MAN_TILT_MAX),
+            thrust_min: p.real(Param::MPC_MANTHR_MIN),
+            acro_rate_max_rad_s: [
+                rad(Param::MC_ACRO_R_MAX),
+                rad(Param::MC_ACRO_P_MAX),
+                rad(Param::MC_ACRO_Y_MAX),
+            ],
+            acro_expo: [p.real(Param::MC_ACRO_EXPO), p.real(Param::MC_ACRO_EXPO_Y)],
+            acro_superexpo: [p.real(Param::MC_ACRO_SUPEXPO), p.real(Param::MC_ACRO_SUPEXPOY)],
+        }
+    }
 }
 
 /// The flight stack's view of the parameter store.
@@ -34,7 +100,7 @@ pub(super) struct Settings {
     pub(super) land_speed_m_s: f64,
     pub(super) land_alt1_m: f64,
     pub(super) offboard_loss_s: f64,
-    pub(super) offboard_loss_action: OffboardLossAction,
+    pub(super) offboard_loss_action: FailsafeAction,
     pub(super) disarm_land_s: f64,
     pub(super) disarm_preflight_s: f64,
     pub(super) failure_injection: bool,
@@ -47,6 +113,11 @@ pub(super) struct Settings {
     pub(super) estimator_cutoff_rad_s: f64,
     pub(super) feedback: bool,
     pub(super) model_mass_kg: f64,
+    /// Data-link, battery and geofence failsafes.
+    pub(super) failsafe: super::failsafe::FailsafeSettings,
+    pub(super) actuator_failure_action: ActuatorFailureAction,
+    /// Manual control and its loss.
+    pub(super) manual: ManualSettings,
 }
 
 impl Settings {
@@ -65,12 +136,14 @@ impl Settings {
         let order = p.int(Param::EST_ORDER);
         let estimator_order =
             usize::try_from(order).map_err(|_| AutopilotError::Param(format!("EST_ORDER {order} is negative")))?;
-        let offboard_loss_action = match p.int(Param::COM_OBL_RC_ACT) {
-            3 => OffboardLossAction::Return,
-            4 => OffboardLossAction::Land,
-            _ => OffboardLossAction::Hold,
+        let offboard_loss_action = FailsafeAction::from_com_obl_rc_act(i64::from(p.int(Param::COM_OBL_RC_ACT)));
+        let actuator_failure_action = match p.int(Param::COM_ACT_FAIL_ACT) {
+            1 => ActuatorFailureAction::Hold,
+            2 => ActuatorFailureAction::Land,
+            3 => ActuatorFailureAction::Return,
+            _ => ActuatorFailureAction::Warn,
         };
-        let s = Self {
+        let mut s = Self {
             takeoff_alt_m: p.real(Param::MIS_TAKEOFF_ALT),
             rtl_return_alt_m: p.real(Param::RTL_RETURN_ALT),
             rtl_descend_alt_m: p.real(Param::RTL_DESCEND_ALT),
@@ -97,7 +170,12 @@ impl Settings {
             estimator_cutoff_rad_s: p.real(Param::EST_CUTOFF),
             feedback: p.int(Param::EST_COMP) != 0,
             model_mass_kg: p.real(Param::MDL_MASS),
+            failsafe: super::failsafe::FailsafeSettings::from_store(p),
+            actuator_failure_action,
+            manual: ManualSettings::from_store(p),
         };
+        // the return altitude stays inside GF_MAX_VER_DIST (PX4's RTL)
+        s.rtl_return_alt_m = s.failsafe.cap_height(s.rtl_return_alt_m);
         let positive = [
             ("MPC_XY_CRUISE", s.cruise_m_s),
             ("MPC_XY_VEL_MAX", s.xy_vel_max_m_s),
@@ -131,7 +209,7 @@ mod tests {
         assert_eq!(s.takeoff_alt_m, 2.5);
         assert_eq!(s.controller, ControllerKind::Geometric);
         assert_eq!(s.model_mass_kg, 2.0);
-        assert_eq!(s.offboard_loss_action, OffboardLossAction::Hold);
+        assert_eq!(s.offboard_loss_action, FailsafeAction::Hold);
         assert!(!s.feedback && !s.failure_injection);
     }
 }

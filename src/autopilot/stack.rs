@@ -5,15 +5,17 @@
 use nalgebra::Vector3;
 
 use super::battery::BatteryMonitor;
-use super::control_loop::{ControlLoop, ControlLoopError, ControlOutput};
+use super::control_loop::{ControlLoop, ControlLoopError, ControlOutput, RotorAllocation};
 use super::estimate::EstimateFeedback;
+use super::failsafe::FailsafeAction;
 use super::land_detector::{LandDetector, LandEvent};
 use super::navigator::Navigator;
+use super::rotor_monitor::{RotorEvent, RotorMonitor, RotorStatus};
 use super::settings::Settings;
 use super::telemetry::{Telemetry, VehicleType};
 use super::{Announcements, ClientClock, Severity, StatusText};
 use crate::airframe::{Actuation, Airframe};
-use crate::control::{ControlGains, ControllerKind, GainError, ShaperError, ShaperLimits};
+use crate::control::{ControlGains, ControllerKind, GainError, RelaxedHoverError, ShaperError, ShaperLimits};
 use crate::estimation::{Discretization, EstimatorConfig, EstimatorError, MomentumEstimator};
 use crate::geo::GeoPoint;
 use crate::mission::{MissionResult, PlanChange, Plans};
@@ -112,7 +114,9 @@ pub struct Autopilot {
     feedback: EstimateFeedback,
     pub(super) navigator: Navigator,
     pub(super) land: LandDetector,
-    battery: BatteryMonitor,
+    pub(super) battery: BatteryMonitor,
+    /// Commanded versus ESC-reported rotor speeds.
+    rotors: RotorMonitor,
     pub(super) origin: GeoPoint,
     pub(super) home: GeoPoint,
     pub(super) armed: bool,
@@ -127,6 +131,8 @@ pub struct Autopilot {
     pub(super) plans: Plans,
     /// The clock of the timers that wait for a client.
     pub(super) client_clock: ClientClock,
+    /// Data-link, battery and geofence failsafe state.
+    pub(super) failsafes: super::failsafe::FailsafeState,
 }
 
 impl Autopilot {
@@ -154,6 +160,15 @@ impl Autopilot {
         let mut ap = Self {
             airframe: airframe.clone(),
             battery: BatteryMonitor::new(settings.battery_cells),
+            rotors: RotorMonitor::new(
+                match airframe.actuation {
+                    Actuation::Rotors => airframe.rotor_count(),
+                    Actuation::Ideal => 0,
+                },
+                airframe.rotor.time_constant_s,
+                airframe.rotor.speed_min_rad_s,
+                airframe.rotor.speed_max_rad_s,
+            ),
             settings,
             dt: dt_s,
             control,
@@ -170,6 +185,7 @@ impl Autopilot {
             say: Announcements::default(),
             plans: Plans::default(),
             client_clock: ClientClock::Simulated,
+            failsafes: super::failsafe::FailsafeState::default(),
         };
         ap.apply_params(params)?;
         Ok(ap)
@@ -261,14 +277,134 @@ impl Autopilot {
         }
         let estimate = self.control.sense(m);
         self.battery.update(&readings.battery, self.dt);
+        self.supervise_battery(readings);
+        let rotor_events = self.rotors.update(now, &readings.rotor_speeds_rad_s);
+        if !rotor_events.is_empty() {
+            self.rotors_changed(&rotor_events, m);
+        }
+        if self.land.ground_contact() && self.control.relaxed_hover().is_some_and(|f| !f.landed()) {
+            // on the ground before relaxed hover's touchdown height (the
+            // ground is higher than where the vehicle last rested)
+            self.control.cut_relaxed_hover();
+        }
         self.supervise(m);
+        self.supervise_gps(readings);
+        self.supervise_manual(m);
         let cx = situation!(self, m);
         let demand = self.navigator.guidance(self.armed, &cx, &mut self.say);
         if let Some(h) = self.navigator.mission.new_home.take() {
             self.mission_set_home(h, m);
         }
         let feedback = self.settings.feedback.then(|| self.feedback.feed_back(&estimate, now));
-        self.control.act(m, &demand, feedback.as_ref(), self.dt)
+        let out = self.control.act(m, &demand, feedback.as_ref(), self.dt);
+        self.rotors.commanded(&out.actuator);
+        self.control.output()
+    }
+
+    /// The rotor monitor changed its verdict on some rotors: announce each
+    /// (Critical failed, Warning degraded, Info recovered), reallocate over
+    /// what remains ([`ControlLoop::set_rotor_gains`]), and react in the air:
+    /// a quad with one dead rotor (rank-deficient allocation) flies relaxed
+    /// hover ([`ControlLoop::engage_relaxed_hover`]): yaw given up, it holds
+    /// the point where the failure was detected and descends at
+    /// `MPC_LAND_SPEED` in Land mode, rotors stopped at touchdown, disarmed as
+    /// after any landing. Without a static hover that holds yaw otherwise
+    /// (hover on the boundary or beyond the remaining rotors, or relaxed
+    /// hover impossible, e.g. no rotational drag in the airframe: the heading
+    /// is given up and the spin grows) land at once; otherwise a rotor that got worse
+    /// triggers `COM_ACT_FAIL_ACT` (0 warn only and keep the mode, 1 Hold, 2 Land, 3 Return).
+    fn rotors_changed(&mut self, events: &[RotorEvent], m: &crate::signals::Measurement) {
+        let gains: Vec<f64> = self.rotors.status().iter().map(|r| r.thrust_fraction()).collect();
+        let allocation = self.control.set_rotor_gains(&gains).clone();
+        let flying = self.armed && !self.land.landed();
+        // relaxed hover: land on the ground below the point of detection
+        // (the resting height the land detector learned, plus the gear)
+        let relaxed = match &allocation {
+            RotorAllocation::RelaxedHover { .. } if flying => {
+                let ground_z = self.land.rest_z(m) + self.airframe.gear_height_m;
+                let target = Vector3::new(m.position_ned.x, m.position_ned.y, ground_z);
+                Some(
+                    self.control
+                        .engage_relaxed_hover(target, self.settings.land_speed_m_s)
+                        .map(|_| ()),
+                )
+            }
+            _ => None,
+        };
+        let what = match (&allocation, &relaxed) {
+            (RotorAllocation::Full | RotorAllocation::Reduced { .. }, _) => "reallocated",
+            (RotorAllocation::LostYaw { .. }, _) => "heading free",
+            (RotorAllocation::RelaxedHover { .. }, Some(Ok(()))) => "yaw given up, descending",
+            (RotorAllocation::RelaxedHover { .. }, _) => "no hover",
+        };
+        let mut worse = false;
+        for e in events {
+            let label = e.index + 1;
+            match e.to {
+                RotorStatus::Failed => {
+                    worse = true;
+                    self.say
+                        .announce(Severity::Critical, format!("Motor {label} failed: {what}"));
+                }
+                RotorStatus::Degraded { thrust_fraction } => {
+                    worse |= thrust_fraction < e.from.thrust_fraction();
+                    self.say.announce(
+                        Severity::Warning,
+                        format!("Motor {label} degraded: {:.0}% thrust, {what}", 100.0 * thrust_fraction),
+                    );
+                }
+                RotorStatus::Healthy => {
+                    self.say.announce(Severity::Info, format!("Motor {label} recovered"));
+                }
+            }
+        }
+        // heading given up: the yaw rate is free to grow (no rotational drag
+        // holds it), so no hover lasts; land while attitude holds
+        let no_hover = allocation.heading_free();
+        if !flying || !worse {
+            return;
+        }
+        // the emergency landings go through the one failsafe runner (a
+        // landing under way goes on; without a fix it descends blind)
+        match relaxed {
+            Some(Ok(())) => {
+                self.say
+                    .announce(Severity::Emergency, "Rotor loss: yaw given up, emergency descent");
+                self.failsafe_action("rotor loss", FailsafeAction::Land, m);
+            }
+            Some(Err(e)) => {
+                // (a STATUSTEXT holds 50 characters: the reason in short)
+                let why = match e {
+                    RelaxedHoverError::NoRotationalDrag => "no rotational drag",
+                    RelaxedHoverError::NoEquilibrium(_) => "no equilibrium",
+                    _ => "no relaxed hover",
+                };
+                self.say
+                    .announce(Severity::Emergency, format!("Rotor loss: yaw lost, landing: {why}"));
+                self.failsafe_action("rotor loss", FailsafeAction::Land, m);
+            }
+            None if no_hover => {
+                self.say
+                    .announce(Severity::Emergency, "Rotor loss: yaw uncontrollable, landing");
+                self.failsafe_action("rotor loss", FailsafeAction::Land, m);
+            }
+            None => {
+                let action = self.settings.actuator_failure_action.action();
+                self.failsafe_action("rotor failure", action, m);
+            }
+        }
+    }
+
+    /// The rotor monitor's verdict per rotor (rotor 1 first).
+    #[must_use]
+    pub fn rotor_status(&self) -> &[RotorStatus] {
+        self.rotors.status()
+    }
+
+    /// What the allocation flies with after rotor faults.
+    #[must_use]
+    pub fn rotor_allocation(&self) -> &RotorAllocation {
+        self.control.rotor_allocation()
     }
 
     /// What the latest [`Self::step`] decided.
@@ -287,6 +423,7 @@ impl Autopilot {
         }
         self.navigator.drop_reference();
         self.control.rotors_stopped();
+        self.rotors.resync();
     }
 
     /// A snapshot for telemetry (SI units, NED/FRD) at the instant of `readings`.
@@ -316,6 +453,7 @@ impl Autopilot {
             battery_current_a: readings.battery.current_a,
             battery_consumed_mah: self.battery.consumed_mah(),
             battery_remaining: self.battery.remaining(&readings.battery),
+            battery_warning: self.battery_warning(),
             throttle: if max_thrust > 0.0 {
                 (thrust / max_thrust).clamp(0.0, 1.0)
             } else {
@@ -324,6 +462,8 @@ impl Autopilot {
             estimate: self.control.estimate(),
             prearm_ok: self.prearm_failure(m).is_none(),
             mission: self.mission_status(),
+            failed_rotors: rotor_mask(self.rotors.status(), |r| r == RotorStatus::Failed),
+            degraded_rotors: rotor_mask(self.rotors.status(), |r| matches!(r, RotorStatus::Degraded { .. })),
         }
     }
 
@@ -450,4 +590,13 @@ impl Autopilot {
             }
         }
     }
+}
+
+/// Bit `i` set for each rotor `i` (from 0) whose status passes `pick`.
+fn rotor_mask(status: &[RotorStatus], pick: impl Fn(RotorStatus) -> bool) -> u16 {
+    status
+        .iter()
+        .enumerate()
+        .filter(|(i, r)| *i < 16 && pick(**r))
+        .fold(0, |m, (i, _)| m | (1 << i))
 }

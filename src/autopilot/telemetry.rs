@@ -97,6 +97,8 @@ pub struct Telemetry {
     pub battery_consumed_mah: f64,
     /// Remaining charge, 0..1.
     pub battery_remaining: f64,
+    /// The battery warning level in force (BATTERY_STATUS `charge_state`).
+    pub battery_warning: super::BatteryWarning,
     /// Normalised collective thrust commanded, 0..1 (VFR_HUD throttle).
     pub throttle: f64,
     /// The wrench estimate (force NED, torque FRD, real mass).
@@ -105,6 +107,10 @@ pub struct Telemetry {
     pub prearm_ok: bool,
     /// The mission's progress (MISSION_CURRENT).
     pub mission: MissionStatus,
+    /// Rotors the rotor monitor flags failed: bit `i - 1` for rotor `i` (PX4's motor failure mask).
+    pub failed_rotors: u16,
+    /// Rotors flagged degraded (below ~90 % thrust): bit `i - 1` for rotor `i`.
+    pub degraded_rotors: u16,
 }
 
 /// MISSION_CURRENT's `mission_state`.

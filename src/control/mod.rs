@@ -28,6 +28,7 @@ mod gains;
 mod geometric;
 mod hierarchical;
 mod passivity;
+mod relaxed_hover;
 pub mod shaper;
 
 pub use gains::{
@@ -35,6 +36,9 @@ pub use gains::{
     HierarchicalGains, HierarchicalOverrides, LimitsOverrides, PassivityGains, PassivityOverrides,
 };
 pub use geometric::JUMP_RATE_RAD_S;
+pub use relaxed_hover::{
+    Equilibrium, RelaxedHover, RelaxedHoverError, RelaxedHoverGains, RelaxedHoverPhase, UpSchedule,
+};
 pub use shaper::{Setpoint, Shaper, ShaperError, ShaperLimits, TranslationSetpoint, YawSetpoint};
 
 use nalgebra::{Rotation3, UnitQuaternion, Vector3};

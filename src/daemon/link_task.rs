@@ -2,7 +2,9 @@
 //! its socket, receives datagrams, sends the streams when due (wall-time
 //! rates; heartbeats keep going at 1 Hz even if the simulation is slow),
 //! forwards commands, parameter sets and plan changes to the simulation
-//! thread and sends the answers.
+//! thread and sends the answers. While the vehicle's radio is silent (an
+//! injected MAVLINK_SIGNAL failure) it sends nothing, bar the ACK of the
+//! command that silenced it, and keeps receiving.
 
 use std::net::SocketAddr;
 use std::sync::mpsc::{SyncSender, TrySendError};
@@ -28,6 +30,8 @@ pub(super) struct LinkTask {
     pub(super) socket: UdpSocket,
     pub(super) params: Arc<Mutex<ParamStore>>,
     pub(super) tel: watch::Receiver<Snapshot>,
+    /// The world's radio is silent: send nothing.
+    pub(super) link_lost: watch::Receiver<bool>,
     pub(super) sim: SyncSender<SimRequest>,
     pub(super) events: broadcast::Sender<Event>,
     pub(super) events_rx: broadcast::Receiver<Event>,
@@ -131,7 +135,12 @@ impl LinkTask {
                     return false;
                 };
                 self.link.on_outcome(ticket, &outcome);
-                self.flush().await;
+                if matches!(command, AutopilotCommand::InjectFailure { .. }) {
+                    // the answer to the injection goes out even if it silenced the radio
+                    self.flush_muted(false).await;
+                } else {
+                    self.flush().await;
+                }
                 if command == AutopilotCommand::Power(PowerAction::Shutdown) && outcome == CommandOutcome::Accepted {
                     // PX4 SITL exits after acknowledging
                     let _ = self.exit.try_send(());
@@ -177,6 +186,10 @@ impl LinkTask {
                 self.link.on_plans_changed(ticket, outcome);
                 self.flush().await;
             }
+            Effect::GcsHeartbeat => {
+                // a dropped one is replaced by the next (GCSs send at 1 Hz)
+                let _ = self.to_sim(SimRequest::GcsHeartbeat);
+            }
             Effect::SetMissionCurrent { seq } => {
                 let Some(outcome) = self.command(AutopilotCommand::SetMissionCurrent { seq }).await else {
                     return false;
@@ -213,8 +226,14 @@ impl LinkTask {
     }
 
     async fn flush(&mut self) {
+        let muted = *self.link_lost.borrow();
+        self.flush_muted(muted).await;
+    }
+
+    /// Send what the link has queued, or drop it when `muted`.
+    async fn flush_muted(&mut self, muted: bool) {
         let out = self.link.drain();
-        if out.is_empty() {
+        if out.is_empty() || muted {
             return;
         }
         let now = Instant::now().into_std();

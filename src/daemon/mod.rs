@@ -21,6 +21,11 @@
 //! transaction applies the change or undoes it). The lock is never held
 //! across an `.await`.
 //!
+//! MAV_CMD_INJECT_FAILURE MAVLINK_SIGNAL OFF silences the vehicle's radio:
+//! the simulation thread publishes the world's `link_lost` on a `watch`, and
+//! every link task sends nothing while it is set (the command's own ACK
+//! excepted) but still receives, so that the OK that undoes it arrives.
+//!
 //! PREFLIGHT_REBOOT_SHUTDOWN: reboot (p1 = 1) restarts the vehicle from the
 //! current parameters, on the ground at the configured home, disarmed; the
 //! simulated clock keeps counting, so `time_boot_ms` stays monotonic for the
@@ -223,6 +228,7 @@ impl Daemon {
         let (sim_tx, sim_rx) = std::sync::mpsc::sync_channel::<SimRequest>(256);
         let (tel_tx, tel_rx) = watch::channel(core.snapshot(sim_thread::VEHICLE));
         let (ev_tx, _) = broadcast::channel::<Event>(256);
+        let (link_lost_tx, link_lost_rx) = watch::channel(false);
         let save = Arc::new(Notify::new());
         // Save once at start: a --reset-params run overwrites the old file,
         // and the state directory shows the parameters in force.
@@ -242,6 +248,7 @@ impl Daemon {
             tick: config.tick,
             plans_changed: plans_changed.clone(),
             wall_timers: Vec::new(),
+            link_lost: link_lost_tx,
         };
         let (sim_done_tx, sim_done_rx) = oneshot::channel::<()>();
         let sim_thread = std::thread::Builder::new()
@@ -283,6 +290,7 @@ impl Daemon {
                 socket,
                 params: params.clone(),
                 tel: tel_rx.clone(),
+                link_lost: link_lost_rx.clone(),
                 sim: sim_tx.clone(),
                 events: ev_tx.clone(),
                 events_rx: ev_tx.subscribe(),

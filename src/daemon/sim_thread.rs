@@ -49,6 +49,8 @@ pub(super) enum SimRequest {
         change: PlanChange,
         reply: oneshot::Sender<Result<u32, MissionResult>>,
     },
+    /// A ground station's HEARTBEAT arrived (data-link loss supervision; no answer).
+    GcsHeartbeat,
     /// Stop the thread.
     Stop,
 }
@@ -75,6 +77,9 @@ pub(super) struct Sim {
     /// The client timers being timed on the wall clock (above real-time speed):
     /// each with the simulated instant it started and the wall instant it was first seen.
     pub(super) wall_timers: Vec<(PendingTimer, Instant)>,
+    /// Whether the vehicle's radio is silent (an injected MAVLINK_SIGNAL
+    /// failure): the link tasks send nothing meanwhile.
+    pub(super) link_lost: watch::Sender<bool>,
 }
 
 impl Sim {
@@ -177,6 +182,8 @@ impl Sim {
     pub(super) fn publish(&mut self) {
         self.time_client_timers();
         self.tel.send_replace(self.core.snapshot(VEHICLE));
+        let lost = self.core.world().faults(VEHICLE).link_lost;
+        self.link_lost.send_if_modified(|l| std::mem::replace(l, lost) != lost);
         for s in self.core.drain_status_texts(VEHICLE) {
             info!(text = %s.text, "status");
             let _ = self.events.send(Event::StatusText(s));
@@ -226,6 +233,7 @@ impl Sim {
                 }
                 let _ = reply.send(outcome);
             }
+            SimRequest::GcsHeartbeat => self.core.gcs_heartbeat(VEHICLE),
             // the loop returns on Stop before handing requests here
             SimRequest::Stop => {}
         }

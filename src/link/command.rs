@@ -399,7 +399,11 @@ mod tests {
         assert_eq!(a, Action::Autopilot(AutopilotCommand::SetMode(FlightMode::Hold)));
         let a = classify(&long(176, [129.0, 6.0, 0.0, N, N, N, N]));
         assert_eq!(a, Action::Autopilot(AutopilotCommand::SetMode(FlightMode::Offboard)));
+        // manual modes go to the autopilot, which refuses them without manual control
         let a = classify(&long(176, [81.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]));
+        assert_eq!(a, Action::Autopilot(AutopilotCommand::SetMode(FlightMode::Manual)));
+        // AUTO.FOLLOW_TARGET exists in PX4 but is not flown here
+        let a = classify(&long(176, [1.0, 4.0, 8.0, 0.0, 0.0, 0.0, 0.0]));
         assert!(matches!(a, Action::Answer(result::TEMPORARILY_REJECTED, _)));
         // Mission goes to the autopilot, which refuses it without a mission
         let a = classify(&long(176, [1.0, 4.0, 4.0, N, N, N, N]));

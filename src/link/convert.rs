@@ -52,6 +52,12 @@ pub fn px4_mode(mode: FlightMode) -> (u8, u8) {
         FlightMode::ReturnToLaunch => (main_mode::AUTO, auto_sub::RTL),
         FlightMode::Offboard => (main_mode::OFFBOARD, 0),
         FlightMode::Mission => (main_mode::AUTO, auto_sub::MISSION),
+        FlightMode::Altitude => (main_mode::ALTCTL, 0),
+        FlightMode::Stabilized => (main_mode::STABILIZED, 0),
+        FlightMode::Acro => (main_mode::ACRO, 0),
+        FlightMode::Manual => (main_mode::MANUAL, 0),
+        // PX4 shows its Descend failsafe as AUTO.LAND (`get_px4_custom_mode`)
+        FlightMode::Descend => (main_mode::AUTO, auto_sub::LAND),
     }
 }
 
@@ -67,19 +73,24 @@ pub fn custom_mode(mode: FlightMode) -> u32 {
 pub enum ModeRequest {
     /// A mode rotorpilot flies.
     Mode(FlightMode),
-    /// A PX4 mode that exists but that we cannot fly (manual modes need RC):
-    /// PX4 answers TEMPORARILY_REJECTED when a mode is not available.
+    /// A PX4 mode that exists but that we cannot fly (follow-me, precision
+    /// land, ...): PX4 answers TEMPORARILY_REJECTED when a mode is not available.
     NotAvailable,
     /// Not a PX4 mode at all.
     Unknown,
 }
 
 /// Map a PX4 (main, sub) pair to a flight mode. AUTO with sub 0 is MISSION
-/// (PX4); POSCTL and OFFBOARD ignore the sub-mode.
+/// (PX4); the other main modes ignore the sub-mode (POSCTL's ORBIT and
+/// SLOW are flown as POSCTL).
 #[must_use]
 pub fn mode_from_px4(main: u8, sub: u8) -> ModeRequest {
     match (main, sub) {
         (main_mode::POSCTL, _) => ModeRequest::Mode(FlightMode::Position),
+        (main_mode::MANUAL, _) => ModeRequest::Mode(FlightMode::Manual),
+        (main_mode::ALTCTL, _) => ModeRequest::Mode(FlightMode::Altitude),
+        (main_mode::ACRO, _) => ModeRequest::Mode(FlightMode::Acro),
+        (main_mode::STABILIZED, _) => ModeRequest::Mode(FlightMode::Stabilized),
         (main_mode::OFFBOARD, _) => ModeRequest::Mode(FlightMode::Offboard),
         (main_mode::AUTO, auto_sub::LOITER) => ModeRequest::Mode(FlightMode::Hold),
         (main_mode::AUTO, auto_sub::TAKEOFF) => ModeRequest::Mode(FlightMode::Takeoff),
@@ -87,9 +98,7 @@ pub fn mode_from_px4(main: u8, sub: u8) -> ModeRequest {
         (main_mode::AUTO, auto_sub::RTL) => ModeRequest::Mode(FlightMode::ReturnToLaunch),
         (main_mode::AUTO, 0 | auto_sub::MISSION) => ModeRequest::Mode(FlightMode::Mission),
         (main_mode::AUTO, auto_sub::READY | auto_sub::FOLLOW_TARGET | 7 | 9..=18) => ModeRequest::NotAvailable,
-        (main_mode::MANUAL | main_mode::ALTCTL | main_mode::ACRO | main_mode::STABILIZED | 8..=11, _) => {
-            ModeRequest::NotAvailable
-        }
+        (8..=11, _) => ModeRequest::NotAvailable,
         _ => ModeRequest::Unknown,
     }
 }
@@ -112,17 +121,22 @@ pub mod mode_flag {
 
 /// The mode a DO_SET_MODE / SET_MODE asks for, read as PX4 does: with
 /// CUSTOM_MODE_ENABLED in `base_mode`, from main and sub; without it, from the
-/// base flags (AUTO gives Mission, MANUAL + GUIDED gives POSCTL).
+/// base flags (AUTO gives Mission; MANUAL_INPUT with GUIDED POSCTL, with
+/// STABILIZE STABILIZED, alone MANUAL).
 #[must_use]
 pub fn mode_from_set_mode(base_mode: u8, main: u8, sub: u8) -> ModeRequest {
     if base_mode & mode_flag::CUSTOM != 0 {
         mode_from_px4(main, sub)
     } else if base_mode & mode_flag::AUTO != 0 {
         ModeRequest::Mode(FlightMode::Mission)
-    } else if base_mode & mode_flag::GUIDED != 0 && base_mode & mode_flag::MANUAL != 0 {
-        ModeRequest::Mode(FlightMode::Position)
-    } else if base_mode & (mode_flag::MANUAL | mode_flag::STABILIZE) != 0 {
-        ModeRequest::NotAvailable
+    } else if base_mode & mode_flag::MANUAL != 0 {
+        ModeRequest::Mode(if base_mode & mode_flag::GUIDED != 0 {
+            FlightMode::Position
+        } else if base_mode & mode_flag::STABILIZE != 0 {
+            FlightMode::Stabilized
+        } else {
+            FlightMode::Manual
+        })
     } else {
         ModeRequest::Unknown
     }
@@ -135,7 +149,10 @@ pub fn base_mode(mode: FlightMode, armed: bool) -> u8 {
     let mut b = mode_flag::CUSTOM;
     b |= match mode {
         FlightMode::Position => mode_flag::MANUAL | mode_flag::STABILIZE | mode_flag::GUIDED,
-        FlightMode::Hold
+        FlightMode::Altitude | FlightMode::Stabilized | FlightMode::Manual => mode_flag::MANUAL | mode_flag::STABILIZE,
+        FlightMode::Acro => mode_flag::MANUAL,
+        FlightMode::Descend
+        | FlightMode::Hold
         | FlightMode::Takeoff
         | FlightMode::Land
         | FlightMode::ReturnToLaunch
@@ -219,6 +236,20 @@ pub fn finite(v: f32) -> Option<f64> {
     v.is_finite().then_some(f64::from(v))
 }
 
+/// BATTERY_STATUS `charge_state` of a warning level (PX4: warning + 1):
+/// OK, LOW, CRITICAL, EMERGENCY.
+#[must_use]
+pub fn charge_state(w: crate::autopilot::BatteryWarning) -> mavlink::dialects::common::MavBatteryChargeState {
+    use crate::autopilot::BatteryWarning as W;
+    use mavlink::dialects::common::MavBatteryChargeState as S;
+    match w {
+        W::None => S::MAV_BATTERY_CHARGE_STATE_OK,
+        W::Low => S::MAV_BATTERY_CHARGE_STATE_LOW,
+        W::Critical => S::MAV_BATTERY_CHARGE_STATE_CRITICAL,
+        W::Emergency => S::MAV_BATTERY_CHARGE_STATE_EMERGENCY,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -232,6 +263,12 @@ mod tests {
         assert_eq!(custom_mode(FlightMode::Land), 100_925_440);
         assert_eq!(custom_mode(FlightMode::Offboard), 393_216);
         assert_eq!(custom_mode(FlightMode::Position), 196_608);
+        assert_eq!(custom_mode(FlightMode::Manual), 65_536);
+        assert_eq!(custom_mode(FlightMode::Altitude), 131_072);
+        assert_eq!(custom_mode(FlightMode::Acro), 327_680);
+        assert_eq!(custom_mode(FlightMode::Stabilized), 458_752);
+        // PX4's Descend is shown as AUTO.LAND
+        assert_eq!(custom_mode(FlightMode::Descend), 100_925_440);
     }
 
     #[test]
@@ -244,6 +281,10 @@ mod tests {
             FlightMode::ReturnToLaunch,
             FlightMode::Offboard,
             FlightMode::Mission,
+            FlightMode::Altitude,
+            FlightMode::Stabilized,
+            FlightMode::Acro,
+            FlightMode::Manual,
         ] {
             let (main, sub) = px4_mode(m);
             assert_eq!(mode_from_px4(main, sub), ModeRequest::Mode(m));
@@ -259,7 +300,19 @@ mod tests {
         assert_eq!(mode_from_set_mode(29, 4, 3), ModeRequest::Mode(FlightMode::Hold));
         // MAVSDK sends 129 when armed: 128 is ignored
         assert_eq!(mode_from_set_mode(129, 6, 0), ModeRequest::Mode(FlightMode::Offboard));
-        assert_eq!(mode_from_set_mode(81, 1, 0), ModeRequest::NotAvailable);
+        assert_eq!(mode_from_set_mode(81, 1, 0), ModeRequest::Mode(FlightMode::Manual));
+        assert_eq!(mode_from_set_mode(1, 8, 0), ModeRequest::NotAvailable);
+        // without CUSTOM_MODE_ENABLED, PX4 reads the manual flags
+        assert_eq!(
+            mode_from_set_mode(64 | 8, 0, 0),
+            ModeRequest::Mode(FlightMode::Position)
+        );
+        assert_eq!(
+            mode_from_set_mode(64 | 16, 0, 0),
+            ModeRequest::Mode(FlightMode::Stabilized)
+        );
+        assert_eq!(mode_from_set_mode(64, 0, 0), ModeRequest::Mode(FlightMode::Manual));
+        assert_eq!(mode_from_set_mode(16, 0, 0), ModeRequest::Unknown);
         assert_eq!(mode_from_set_mode(4, 0, 0), ModeRequest::Mode(FlightMode::Mission));
         assert_eq!(mode_from_px4(4, 0), ModeRequest::Mode(FlightMode::Mission));
         assert_eq!(mode_from_px4(42, 0), ModeRequest::Unknown);

@@ -23,6 +23,7 @@
 //! | [`param`] | PARAM_* protocol, INT32 bytewise |
 //! | [`mission`] | MISSION_* protocol: upload, download, clear, set current, progress |
 //! | [`offboard`] | SET_POSITION_TARGET_* and SET_ATTITUDE_TARGET to setpoints |
+//! | [`manual`] | MANUAL_CONTROL to sticks |
 //! | [`streams`] | stream rates, scheduler, message builders from a [`Snapshot`] |
 //! | [`peers`] | default remote plus learned peers with a timeout |
 
@@ -32,6 +33,7 @@
 
 pub mod command;
 pub mod convert;
+pub mod manual;
 pub mod mission;
 pub mod offboard;
 pub mod param;
@@ -158,6 +160,9 @@ pub enum Effect {
         /// The item to make current.
         seq: u16,
     },
+    /// A ground station's HEARTBEAT (MAV_TYPE_GCS) arrived: tell the
+    /// autopilot the data link is alive (no answer).
+    GcsHeartbeat,
 }
 
 /// One MAVLink link (one UDP socket's worth of protocol state).
@@ -498,6 +503,13 @@ impl Link {
                     });
                 }
             }
+            // PX4 takes MANUAL_CONTROL aimed at it or at everyone (target 0)
+            MavMessage::MANUAL_CONTROL(m) if m.target == 0 || m.target == self.config.identity.system_id => {
+                effects.push(Effect::Autopilot {
+                    command: AutopilotCommand::ManualControl(manual::sticks(&m)),
+                    ack: None,
+                });
+            }
             MavMessage::TIMESYNC(m) if m.tc1 == 0 => {
                 let now_ns = (t.telemetry.time_s * 1e9) as i64;
                 self.send(
@@ -553,6 +565,9 @@ impl Link {
                     Ok(()) => effects.push(Effect::SetMissionCurrent { seq: m.seq }),
                     Err(why) => self.text(reply, Severity::Warning, &why),
                 }
+            }
+            MavMessage::HEARTBEAT(m) if m.mavtype == mavlink::dialects::common::MavType::MAV_TYPE_GCS => {
+                effects.push(Effect::GcsHeartbeat);
             }
             MavMessage::FILE_TRANSFER_PROTOCOL(m) if self.for_me(m.target_system, m.target_component) => {
                 if let Some(answer) = ftp_answer(&m, requester) {

@@ -25,7 +25,7 @@ use mavlink::dialects::common::{
 };
 
 use super::convert;
-use crate::autopilot::{FlightMode, LandedState, MissionState, Telemetry, VehicleType};
+use crate::autopilot::{BatteryWarning, FlightMode, LandedState, MissionState, Telemetry, VehicleType};
 use crate::lockstep::Snapshot;
 use crate::signals::GpsFix;
 
@@ -332,7 +332,8 @@ pub fn build(stream: Stream, snapshot: &Snapshot, unix_time_us: u64) -> Vec<MavM
         Stream::Heartbeat => MavMessage::HEARTBEAT(heartbeat(t)),
         Stream::SysStatus => {
             let gps = if t.gps_fix == GpsFix::None { GPS } else { 0 };
-            let health = (SENSORS & !gps) | if t.prearm_ok || t.armed { PREARM_CHECK } else { 0 };
+            let health =
+                (SENSORS & !gps & !battery_unhealthy(t)) | if t.prearm_ok || t.armed { PREARM_CHECK } else { 0 };
             MavMessage::SYS_STATUS(SYS_STATUS_DATA {
                 onboard_control_sensors_present: MavSysStatusSensor::from_bits_retain(SENSORS | PREARM_CHECK),
                 onboard_control_sensors_enabled: MavSysStatusSensor::from_bits_retain(SENSORS | PREARM_CHECK),
@@ -449,7 +450,8 @@ pub fn build(stream: Stream, snapshot: &Snapshot, unix_time_us: u64) -> Vec<MavM
                 battery_function: MavBatteryFunction::MAV_BATTERY_FUNCTION_ALL,
                 mavtype: MavBatteryType::MAV_BATTERY_TYPE_LIPO,
                 battery_remaining: battery_percent(t),
-                // MAVLink 2 extensions: not reported (zero, cut off the wire)
+                charge_state: convert::charge_state(t.battery_warning),
+                // other MAVLink 2 extensions: not reported (zero, cut off the wire)
                 ..Default::default()
             })
         }
@@ -553,6 +555,18 @@ pub fn home_position(t: &Telemetry) -> HOME_POSITION_DATA {
         approach_z: 0.0,
         // MAVLink 2 extension: not reported (zero, cut off the wire)
         ..Default::default()
+    }
+}
+
+/// MAV_SYS_STATUS_SENSOR_BATTERY: unhealthy from the critical level on (PX4's battery health check).
+pub const BATTERY: u32 = 0x0020_0000;
+
+/// The battery bit when it is unhealthy, else 0.
+fn battery_unhealthy(t: &Telemetry) -> u32 {
+    if t.battery_warning >= BatteryWarning::Critical {
+        BATTERY
+    } else {
+        0
     }
 }
 

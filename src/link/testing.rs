@@ -64,6 +64,7 @@ pub(crate) fn snapshot() -> Snapshot {
             battery_current_a: 0.5,
             battery_consumed_mah: 12.0,
             battery_remaining: 0.97,
+            battery_warning: crate::autopilot::BatteryWarning::None,
             throttle: 0.0,
             estimate: WrenchEstimate {
                 force_ned: Vector3::new(0.5, 0.5, 0.0),
@@ -80,6 +81,8 @@ pub(crate) fn snapshot() -> Snapshot {
                 fence_id: 0,
                 rally_id: 0,
             },
+            failed_rotors: 0,
+            degraded_rotors: 0,
         },
         truth: Truth {
             force_ned: Vector3::new(0.5, 0.5, 0.0),

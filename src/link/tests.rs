@@ -294,3 +294,25 @@ fn ftp_is_refused_at_once() {
     assert_eq!(f[3 + 5], 4);
     assert_eq!(f[3 + 12], 10);
 }
+
+#[test]
+fn a_gcs_heartbeat_tells_the_autopilot_the_data_link_is_alive() {
+    let t0 = Instant::now();
+    let mut l = link(t0);
+    let p = FakeParams::standard();
+    let gcs_hb = v2(&MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        mavtype: mavlink::dialects::common::MavType::MAV_TYPE_GCS,
+        ..HEARTBEAT_DATA::default()
+    }));
+    assert_eq!(
+        l.on_datagram(t0, addr(50000), &gcs_hb, &snapshot(), &p),
+        vec![Effect::GcsHeartbeat]
+    );
+    assert!(l.drain().is_empty(), "no answer");
+    // an onboard computer's heartbeat is no ground station
+    let other = v2(&MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        mavtype: mavlink::dialects::common::MavType::MAV_TYPE_ONBOARD_CONTROLLER,
+        ..HEARTBEAT_DATA::default()
+    }));
+    assert!(l.on_datagram(t0, addr(50001), &other, &snapshot(), &p).is_empty());
+}

@@ -112,12 +112,35 @@ parameters! {
     ),
     // --- PX4: commander ------------------------------------------------------------------------
     COM_OF_LOSS_T: real(1.0, 0.0, 60.0, "s", "Offboard: setpoints older than this are lost (OFFBOARD refused or left)"),
-    COM_OBL_RC_ACT: int(0, 0, 7, "Offboard loss action: 3 Return, 4 Land, any other Hold (no RC, no termination here)"),
+    COM_OBL_RC_ACT: int(0, 0, 7, "Offboard loss action: 3 Return, 4 Land, 6 Terminate, 7 Disarm, any other Hold (no RC here)"),
     COM_DISARM_LAND: real(2.0, -1.0, 20.0, "s", "Disarm this long after a landing (<= 0: never)"),
     COM_DISARM_PRFLT: real(
         10.0, -1.0, 20.0, "s",
         "Disarm this long after arming if the vehicle has not taken off (<= 0: never)",
     ),
+    // --- PX4: commander, actuator failure (rotor monitor) --------------------------------------
+    COM_ACT_FAIL_ACT: int(
+        0, 0, 3,
+        "Rotor failed or degraded in flight (ESC speed vs command): 0 warn and go on, 1 Hold, 2 Land, 3 Return",
+    ),
+    // --- PX4: manual control (MANUAL_CONTROL sticks), RC loss ---------------------------------
+    COM_RC_LOSS_T: real(0.5, 0.0, 35.0, "s", "Manual control (MANUAL_CONTROL) older than this is lost"),
+    NAV_RCL_ACT: int(
+        2, 0, 6,
+        "Manual control loss action in a manual mode: 0 none, 1 Hold, 2 Return, 3 Land, 5 Terminate, 6 Disarm",
+    ),
+    MPC_VEL_MANUAL: real(10.0, 3.0, 20.0, "m/s", "Position mode: horizontal speed at full stick"),
+    MPC_MAN_Y_MAX: real(150.0, 0.0, 400.0, "deg/s", "Position, Altitude, Stabilized: yaw rate at full stick"),
+    MPC_HOLD_DZ: real(0.1, 0.0, 1.0, "", "Stick deadzone of Position and Altitude: centred sticks hold"),
+    MPC_MAN_TILT_MAX: real(35.0, 0.0, 90.0, "deg", "Altitude, Stabilized: tilt at full stick"),
+    MPC_MANTHR_MIN: real(0.08, 0.0, 1.0, "", "Stabilized: collective thrust at zero throttle in the air"),
+    MC_ACRO_R_MAX: real(720.0, 0.0, 1800.0, "deg/s", "Acro: roll rate at full stick"),
+    MC_ACRO_P_MAX: real(720.0, 0.0, 1800.0, "deg/s", "Acro: pitch rate at full stick"),
+    MC_ACRO_Y_MAX: real(540.0, 0.0, 1800.0, "deg/s", "Acro: yaw rate at full stick"),
+    MC_ACRO_EXPO: real(0.69, 0.0, 1.0, "", "Acro: roll and pitch expo (0 linear, 1 cubic)"),
+    MC_ACRO_EXPO_Y: real(0.69, 0.0, 1.0, "", "Acro: yaw expo (0 linear, 1 cubic)"),
+    MC_ACRO_SUPEXPO: real(0.7, 0.0, 0.95, "", "Acro: roll and pitch super-expo"),
+    MC_ACRO_SUPEXPOY: real(0.7, 0.0, 0.95, "", "Acro: yaw super-expo"),
     // --- PX4: system, MAVLink, battery ---------------------------------------------------------
     SYS_FAILURE_EN: int(0, 0, 1, "Allow failure injection (MAV_CMD_INJECT_FAILURE)"),
     MAV_SYS_ID: int_reboot(1, 1, 250, "MAVLink system id"),
@@ -155,6 +178,22 @@ parameters! {
     SIM_GE_EN: int(1, 0, 1, "Simulate ground effect"),
     SIM_CE_EN: int(1, 0, 1, "Simulate ceiling effect (needs SIM_CEIL_Z > 0)"),
     SIM_CEIL_Z: real(0.0, 0.0, 100.0, "m", "Height of a flat ceiling above the home ground (0: no ceiling)"),
+    // --- PX4: failsafes (data link, battery, geofence) -------------------------------------------
+    COM_DL_LOSS_T: int(10, 5, 300, "GCS connection loss: no GCS HEARTBEAT for this long [s] while armed"),
+    NAV_DLL_ACT: int(0, 0, 6, "GCS connection loss action: 0 disabled, 1 Hold, 2 Return, 3 Land, 5 Terminate, 6 Disarm"),
+    BAT_LOW_THR: real(0.15, 0.12, 0.4, "norm", "Battery low below this remaining charge (warning)"),
+    BAT_CRIT_THR: real(0.07, 0.05, 0.1, "norm", "Battery critical below this remaining charge (COM_LOW_BAT_ACT)"),
+    BAT_EMERGEN_THR: real(0.05, 0.03, 0.07, "norm", "Battery emergency below this remaining charge (COM_LOW_BAT_ACT)"),
+    COM_LOW_BAT_ACT: int(0, 0, 3, "Low battery action: 0 warning, 2 Land, 3 Return at critical and Land at emergency (1: Return)"),
+    GF_ACTION: int(2, 0, 5, "Geofence breach action: 0 none, 1 warning, 2 Hold, 3 Return, 4 Terminate, 5 Land"),
+    GF_MAX_HOR_DIST: real(0.0, 0.0, 10_000.0, "m", "Geofence: largest horizontal distance from home (0: no limit)"),
+    GF_MAX_VER_DIST: real(0.0, 0.0, 1_000.0, "m", "Geofence: largest height above home, also for targets (0: no limit)"),
+    // --- rotorpilot: failure injection (MAV_CMD_INJECT_FAILURE, FAILURE_TYPE_WRONG) ------------
+    SIM_MOT_WRONG_FR: real(0.5, 0.0, 1.0, "", "Injected MOTOR WRONG: the motor gives this fraction of its thrust"),
+    SIM_GPS_WRONG_M: real(
+        10.0, 0.0, 1000.0, "m",
+        "Injected GPS WRONG: the position reported is this far north (world NED) of the truth",
+    ),
 }
 
 /// The table as Markdown (name, type, default, range, unit, description),

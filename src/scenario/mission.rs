@@ -14,6 +14,11 @@
 //! [params]                     # PX4 parameters by name
 //! MPC_XY_CRUISE = 8.0
 //!
+//! [[fault]]                    # failures injected (see `scenario::fault`);
+//! at_s = 30.0                  # SYS_FAILURE_EN is set to 1 unless [params] says
+//! unit = "gps"
+//! type = "off"
+//!
 //! [mission]
 //! file = "survey.plan"         # relative to this file; or the items below
 //! max_tracking_error_m = 3.0   # pass only below this (optional)
@@ -42,6 +47,7 @@ use std::path::Path;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
+use super::fault::{self, AppliedFault, FileFault, ScheduledFault};
 use super::run::{csv_header, csv_row};
 use crate::airframe::Airframe;
 use crate::autopilot::{Autopilot, AutopilotCommand, CommandOutcome, LandedState, MissionState};
@@ -72,6 +78,8 @@ struct File {
     noise: SensorNoise,
     #[serde(default)]
     params: toml::Table,
+    #[serde(default, rename = "fault")]
+    faults: Vec<FileFault>,
     mission: FileMission,
 }
 
@@ -128,6 +136,8 @@ pub struct MissionFlight {
     pub duration_s: f64,
     /// Pass only below this tracking error [m].
     pub max_tracking_error_m: Option<f64>,
+    /// Failures injected, sorted by time (empty for a `.plan` or WPL file).
+    pub faults: Vec<ScheduledFault>,
 }
 
 /// Whether `path` names a mission rather than a scenario: a `.plan`, a WPL
@@ -174,6 +184,7 @@ impl MissionFlight {
             plans,
             duration_s: DEFAULT_DURATION_S,
             max_tracking_error_m: None,
+            faults: Vec::new(),
         })
     }
 
@@ -226,6 +237,13 @@ impl MissionFlight {
             params
                 .set(name, value)
                 .map_err(|e| fail(&format!("params.{name}"), e.to_string()))?;
+        }
+        let faults = fault::validate(&raw.faults, raw.duration_s, &airframe).map_err(|(f, p)| fail(&f, p))?;
+        if !faults.is_empty() && !raw.params.contains_key("SYS_FAILURE_EN") {
+            // a scenario that injects failures allows them (PX4 needs it for MAV_CMD_INJECT_FAILURE)
+            params
+                .set("SYS_FAILURE_EN", ParamValue::Int32(1))
+                .map_err(|e| fail("params.SYS_FAILURE_EN", e.to_string()))?;
         }
         let m = &raw.mission;
         let plans = match (&m.file, m.items.is_empty()) {
@@ -283,6 +301,7 @@ impl MissionFlight {
             plans,
             duration_s: raw.duration_s,
             max_tracking_error_m: m.max_tracking_error_m,
+            faults,
         })
     }
 }
@@ -335,6 +354,9 @@ pub struct MissionSummary {
     pub upright: bool,
     /// No NaN or infinity.
     pub finite: bool,
+    /// The `[[fault]]`s applied, when and with what answer (absent when none).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub faults: Vec<AppliedFault>,
 }
 
 /// Whether a mission ends on the ground (its last item lands or returns).
@@ -403,8 +425,22 @@ pub fn run_mission(f: &MissionFlight, mut csv: Option<&mut dyn Write>) -> anyhow
     let (mut started_s, mut complete_s) = (None, None);
     let (mut sum_sq, mut n_air, mut max_err) = (0.0, 0u64, 0.0_f64);
     let (mut upright, mut finite) = (true, true);
+    let (mut applied, mut next_fault) = (Vec::new(), 0);
     let mut k = 0;
     while k < steps {
+        for sf in &f.faults[fault::due(&f.faults, &mut next_fault, core.time_s())] {
+            // as a client injects it: through the flight stack's command
+            applied.push(fault::apply(&mut core, sf, |c, inj| {
+                c.command(
+                    0,
+                    AutopilotCommand::InjectFailure {
+                        unit: inj.unit,
+                        kind: inj.kind,
+                        instance: inj.instance,
+                    },
+                )
+            }));
+        }
         core.step();
         k += 1;
         let rec = core.last_step(0);
@@ -502,6 +538,7 @@ pub fn run_mission(f: &MissionFlight, mut csv: Option<&mut dyn Write>) -> anyhow
         landed_and_disarmed,
         upright,
         finite,
+        faults: applied,
     })
 }
 
@@ -535,6 +572,9 @@ impl MissionSummary {
             "tracking error: max {:.3} m, RMS {:.3} m; final position {:.2?} m NED; landed and disarmed: {}\n",
             self.max_tracking_error_m, self.rms_tracking_error_m, self.final_position_ned, self.landed_and_disarmed
         ));
+        for f in &self.faults {
+            s.push_str(&format!("fault injected: {}\n", f.to_line()));
+        }
         s.push_str(&format!("verdict: {}\n", self.verdict.to_uppercase()));
         for r in &self.reasons {
             s.push_str(&format!("  - {r}\n"));

@@ -5,14 +5,17 @@
 //! state, a disturbance schedule (external force in NED, torque in FRD, true
 //! mass), either an analytic reference (`[reference]`) or timed setpoints
 //! shaped into smooth references (`[[setpoint]]`), controller switches, the
-//! estimator and whether it is fed back, sensor noise and its seed, and the
+//! estimator and whether it is fed back, sensor noise and its seed, failures
+//! injected at given instants (`[[fault]]`, see [`fault`]), and the
 //! duration. See `tools/scenarios/` for examples. Errors name the file, the
 //! field and the problem.
 
+pub mod fault;
 mod mission;
 mod run;
 mod trajectory;
 
+pub use fault::{AppliedFault, FaultType, FaultUnit, ScheduledFault};
 pub use mission::{ItemResult, MissionFlight, MissionSummary, is_mission, mission_lockstep, run_mission};
 pub use run::{ScenarioPilot, Summary, lockstep, run};
 pub use trajectory::Trajectory;
@@ -79,6 +82,8 @@ struct File {
     disturbances: Vec<FileDisturbance>,
     #[serde(default, rename = "switch")]
     switches: Vec<FileSwitch>,
+    #[serde(default, rename = "fault")]
+    faults: Vec<fault::FileFault>,
 }
 
 fn default_controller() -> ControllerKind {
@@ -205,6 +210,8 @@ pub struct Scenario {
     pub disturbances: Vec<DisturbanceChange>,
     /// Controller switches `(time [s], law)`, sorted.
     pub switches: Vec<(f64, ControllerKind)>,
+    /// Failures injected, sorted by time.
+    pub faults: Vec<ScheduledFault>,
 }
 
 impl Scenario {
@@ -363,6 +370,7 @@ impl Scenario {
             switches.push((s.at_s, s.controller));
         }
         switches.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let faults = fault::validate(&raw.faults, raw.duration_s, &airframe).map_err(|(f, p)| fail(&f, p))?;
         Ok(Self {
             source: file.to_string(),
             airframe,
@@ -379,6 +387,7 @@ impl Scenario {
             reference,
             disturbances,
             switches,
+            faults,
         })
     }
 }

@@ -21,6 +21,7 @@ use std::io::Write;
 use nalgebra::Vector3;
 use serde::Serialize;
 
+use super::fault::{self, AppliedFault};
 use super::{ReferencePlan, Scenario};
 use crate::autopilot::{ControlLoop, ControlOutput, Demand};
 use crate::control::{Reference, Setpoint, Shaper, ShaperLimits, TranslationSetpoint, feedforward_attitude};
@@ -77,6 +78,9 @@ pub struct Summary {
     pub est_torque_rpy: [f64; 3],
     /// Final real-mass estimate [kg].
     pub est_mass_kg: f64,
+    /// The `[[fault]]`s applied, when and with what answer (absent when none).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub faults: Vec<AppliedFault>,
 }
 
 /// The flight software of a scenario: its reference (an analytic curve, or
@@ -275,8 +279,14 @@ pub fn run(s: &Scenario, mut csv: Option<&mut dyn Write>) -> anyhow::Result<Summ
     let mut finite = true;
     let mut fault = None;
     let mut flown = 0u64;
+    let mut applied = Vec::new();
+    let mut next_fault = 0;
     for k in 0..steps {
         let t = k as f64 * dt;
+        for f in &s.faults[fault::due(&s.faults, &mut next_fault, t)] {
+            // a bare control law: no flight stack to ask (SYS_FAILURE_EN)
+            applied.push(fault::apply(&mut core, f, |c, inj| c.inject_failure(0, inj)));
+        }
         core.step();
         let rec = core.last_step(0);
         if let Some(e) = rec.world.fault {
@@ -340,6 +350,7 @@ pub fn run(s: &Scenario, mut csv: Option<&mut dyn Write>) -> anyhow::Result<Summ
         est_torque_frd: arr(est.torque_frd),
         est_torque_rpy: arr(est.torque_rpy),
         est_mass_kg: est.mass_kg,
+        faults: applied,
     })
 }
 
@@ -386,6 +397,9 @@ impl Summary {
             self.est_torque_frd[2],
             self.est_mass_kg,
         );
+        for f in &self.faults {
+            s.push_str(&format!("fault injected: {}\n", f.to_line()));
+        }
         if let Some(f) = &self.fault {
             s.push_str(&format!("stopped early: {f}\n"));
         }

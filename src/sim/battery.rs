@@ -5,12 +5,14 @@
 //! P = T^1.5 / sqrt(2 rho A) / (FM eta)          momentum theory: total thrust T [N], disk area A [m^2]
 //! I = P / V_oc + I_avionics                     [A]
 //! soc -= I dt / (3.6 C)                         C [mAh]; PX4 SITL's SIM_BAT_MIN_PCT: never below `min`
-//! V_oc = n (3.5 + 0.7 soc)                      [V]: 4.2 V per cell full, 3.5 V empty
+//! V_oc = (n - n_failed) (3.5 + 0.7 soc)         [V]: 4.2 V per cell full, 3.5 V empty
 //! V = V_oc - n R_cell I                         [V]
 //! ```
 //! With `rho` = 1.225 kg/m^3, figure of merit `FM` = 0.65, motor and ESC
 //! efficiency `eta` = 0.8, `I_avionics` = 0.3 A, `R_cell` = 10 mOhm. An
-//! x500-class quad at hover draws about 16 A from 4S.
+//! x500-class quad at hover draws about 16 A from 4S. A failed cell
+//! (`n_failed` = 1, an injected fault) gives no voltage: a monitor that
+//! counts `n` cells reads a low charge.
 
 /// Air density [kg/m^3].
 const RHO: f64 = 1.225;
@@ -32,6 +34,8 @@ pub(super) struct Battery {
     cells: f64,
     capacity_mah: f64,
     min_fraction: f64,
+    /// Cells that give no voltage (0 or 1: an injected fault).
+    failed_cells: f64,
     /// State of charge, `min_fraction..1`.
     soc: f64,
     current_a: f64,
@@ -51,6 +55,7 @@ impl Battery {
             cells,
             capacity_mah,
             min_fraction: min_fraction.clamp(0.0, 1.0),
+            failed_cells: 0.0,
             soc: 1.0,
             current_a: AVIONICS_A,
             voltage_v: 0.0,
@@ -75,8 +80,14 @@ impl Battery {
         self.soc
     }
 
+    /// Fail one cell (`true`) or mend it; the terminal voltage follows at once.
+    pub(super) fn set_cell_failed(&mut self, failed: bool) {
+        self.failed_cells = if failed { 1.0_f64.min(self.cells) } else { 0.0 };
+        self.voltage_v = self.terminal_v();
+    }
+
     fn open_circuit_v(&self) -> f64 {
-        self.cells * (CELL_EMPTY_V + (CELL_FULL_V - CELL_EMPTY_V) * self.soc)
+        (self.cells - self.failed_cells) * (CELL_EMPTY_V + (CELL_FULL_V - CELL_EMPTY_V) * self.soc)
     }
 
     fn terminal_v(&self) -> f64 {
@@ -129,5 +140,20 @@ mod tests {
         }
         let used_mah = (1.0 - fresh.remaining()) * 5000.0;
         assert!((used_mah - fresh.current_a() * 60.0 / 3.6).abs() < 3.0, "{used_mah}");
+    }
+
+    #[test]
+    fn a_failed_cell_takes_its_voltage_and_mending_gives_it_back() {
+        let mut b = Battery::new(0.25, 4.0, 5000.0, 0.0);
+        let whole = b.voltage_v();
+        b.set_cell_failed(true);
+        // 3 of 4 cells at 4.2 V, the avionics' current through 4 cells' resistance
+        assert!(
+            (b.voltage_v() - (12.6 - 4.0 * CELL_R_OHM * AVIONICS_A)).abs() < 1e-9,
+            "{}",
+            b.voltage_v()
+        );
+        b.set_cell_failed(false);
+        assert_eq!(b.voltage_v(), whole);
     }
 }

@@ -1,7 +1,8 @@
 //! What can go wrong with a simulated vehicle. Faults are the world's doing:
 //! the flight stack never sees them, only what its sensors then report (a
 //! rotor speed that does not follow its command, a receiver without a fix,
-//! noisier measurements).
+//! noisier or wrong measurements, a pack short of a cell). A silent radio is
+//! the world's too: the runtime reads it and stops sending.
 
 /// The state of one motor and its propeller.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -31,6 +32,8 @@ impl RotorHealth {
     }
 }
 
+use nalgebra::Vector3;
+
 use super::SensorNoise;
 
 /// One fault (or its repair) injected into one vehicle.
@@ -51,6 +54,19 @@ pub enum Fault {
     /// The navigation solution's noise at this level (`None`: back to the
     /// configured one).
     SensorNoise(Option<SensorNoise>),
+    /// The GNSS receiver reports a wrong but plausible position: the
+    /// navigation solution is off by this offset [m], world NED,
+    /// `p~ = p + offset` (`None`: right again).
+    GpsOffset(Option<Vector3<f64>>),
+    /// One cell of the pack fails (`true`: the pack gives one cell's voltage
+    /// less) or the pack is whole again (`false`).
+    BatteryCell {
+        /// Whether one cell has failed.
+        failed: bool,
+    },
+    /// The vehicle's telemetry radio goes silent (`true`) or works again
+    /// (`false`): the runtime stops sending on every link meanwhile.
+    LinkLost(bool),
 }
 
 /// Why a fault cannot be injected.
@@ -70,7 +86,7 @@ pub enum FaultError {
     /// The airframe's thrust and torque act directly: it has no rotors to fail.
     #[error("the airframe has ideal actuation: no rotor can fail")]
     NoRotors,
-    /// A thrust fraction or noise level outside its range, or not a number.
+    /// A thrust fraction, noise level or offset outside its range, or not a number.
     #[error("fault value {0} is out of range")]
     OutOfRange(f64),
 }
@@ -84,6 +100,12 @@ pub struct ActiveFaults {
     pub gps_available: bool,
     /// The noise forced on the navigation solution, if any.
     pub noise: Option<SensorNoise>,
+    /// The wrong-position offset of the GNSS receiver [m], world NED, if any.
+    pub gps_offset_ned: Option<Vector3<f64>>,
+    /// Whether one cell of the pack has failed.
+    pub battery_cell_failed: bool,
+    /// Whether the telemetry radio is silent.
+    pub link_lost: bool,
 }
 
 impl ActiveFaults {
@@ -94,12 +116,20 @@ impl ActiveFaults {
             rotors: vec![RotorHealth::Healthy; rotors],
             gps_available: true,
             noise: None,
+            gps_offset_ned: None,
+            battery_cell_failed: false,
+            link_lost: false,
         }
     }
 
     /// Whether anything is wrong.
     #[must_use]
     pub fn any(&self) -> bool {
-        !self.gps_available || self.noise.is_some() || self.rotors.iter().any(|r| *r != RotorHealth::Healthy)
+        !self.gps_available
+            || self.noise.is_some()
+            || self.gps_offset_ned.is_some()
+            || self.battery_cell_failed
+            || self.link_lost
+            || self.rotors.iter().any(|r| *r != RotorHealth::Healthy)
     }
 }

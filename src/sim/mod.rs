@@ -37,8 +37,8 @@ pub use fault::{ActiveFaults, Fault, FaultError, RotorHealth};
 pub use plant::{
     Contact, Disturbance, Environment, ExternalWrench, Plant, PlantConfig, RigidBodyState, SimFault, StepEvent,
 };
-pub use sensors::{SensorNoise, Sensors};
-pub use settings::WorldSettings;
+pub use sensors::{DEAD_RECKONING_BIAS_M_S2, SensorNoise, Sensors};
+pub use settings::{FaultSettings, WorldSettings};
 
 use nalgebra::Vector3;
 
@@ -180,6 +180,11 @@ struct Body {
     disk_area_m2: f64,
     disturbance: DisturbanceSource,
     faults: ActiveFaults,
+    /// What an injected WRONG fault does (`SIM_*_WRONG_*`).
+    fault_settings: FaultSettings,
+    /// The navigation solution at the current instant before the injected
+    /// GNSS faults' errors (its noise drawn once per instant).
+    nav: Measurement,
     /// The sensors' latest reading...
     reading: SensorReadings,
     /// ... whose navigation solution was taken at the current instant (its
@@ -194,10 +199,15 @@ impl Body {
     fn read(&mut self) {
         if !self.measured {
             let truth = self.plant.truth();
-            self.reading.measurement = self.sensors.measure(&truth);
+            self.nav = self.sensors.measure(&truth);
             self.measured = true;
         }
         let r = &mut self.reading;
+        r.measurement = if self.sensors.degraded() {
+            self.sensors.degrade(&self.nav)
+        } else {
+            self.nav
+        };
         r.acceleration_ned = self.plant.acceleration_ned();
         r.rotor_speeds_rad_s = *self.plant.rotor_speeds();
         r.battery = BatteryReading {
@@ -296,6 +306,8 @@ impl World {
             disk_area_m2,
             disturbance: DisturbanceSource::Constant(ExternalWrench::default()),
             faults: ActiveFaults::none(if airframe.actuation == Actuation::Rotors { n } else { 0 }),
+            fault_settings: FaultSettings::default(),
+            nav: Measurement::default(),
             reading: SensorReadings {
                 measurement: Measurement::default(),
                 acceleration_ned: Vector3::zeros(),
@@ -330,6 +342,8 @@ impl World {
         );
         b.plant.set_steps(steps);
         b.sensors.force_noise(None);
+        b.sensors.set_gps_lost(None);
+        b.sensors.set_gps_offset(None);
         b.battery = Battery::new(b.disk_area_m2, DEFAULT_CELLS, DEFAULT_CAPACITY_MAH, 0.0);
         b.disturbance = DisturbanceSource::Constant(ExternalWrench::default());
         b.faults = ActiveFaults::none(b.faults.rotors.len());
@@ -398,6 +412,19 @@ impl World {
         });
         b.battery
             .configure(s.battery_cells, s.battery_capacity_mah, s.battery_min_fraction);
+        b.fault_settings = s.faults;
+    }
+
+    /// Set what an injected WRONG fault does to vehicle `i` (a scenario
+    /// without parameters; [`Self::configure`] sets it from them).
+    pub fn set_fault_settings(&mut self, i: usize, settings: FaultSettings) {
+        self.bodies[i].fault_settings = settings;
+    }
+
+    /// What an injected WRONG fault does to vehicle `i` (its `SIM_*_WRONG_*` parameters).
+    #[must_use]
+    pub fn fault_settings(&self, i: usize) -> FaultSettings {
+        self.bodies[i].fault_settings
     }
 
     /// Let a schedule drive vehicle `i`'s external wrench and true mass.
@@ -445,7 +472,25 @@ impl World {
                 b.plant.set_rotor_health(rotor, health.speed_factor());
                 b.faults.rotors[rotor] = health;
             }
-            Fault::Gps { available } => b.faults.gps_available = available,
+            Fault::Gps { available } => {
+                let t = b.plant.time_s();
+                b.sensors.set_gps_lost((!available).then_some(t));
+                b.faults.gps_available = available;
+            }
+            Fault::GpsOffset(offset) => {
+                if let Some(o) = offset
+                    && let Some(bad) = o.iter().copied().find(|x| !x.is_finite())
+                {
+                    return Err(FaultError::OutOfRange(bad));
+                }
+                b.sensors.set_gps_offset(offset);
+                b.faults.gps_offset_ned = offset;
+            }
+            Fault::BatteryCell { failed } => {
+                b.battery.set_cell_failed(failed);
+                b.faults.battery_cell_failed = failed;
+            }
+            Fault::LinkLost(lost) => b.faults.link_lost = lost,
             Fault::SensorNoise(noise) => {
                 if let Some(n) = noise
                     && !n.is_valid()
@@ -587,6 +632,16 @@ mod tests {
         assert_eq!(*w.sense(0), r);
         // at rest the ground carries the weight: no acceleration
         assert_eq!(r.acceleration_ned, Vector3::zeros());
+        // without a fix the solution dead-reckons away from the still truth; the fix back, it is right
+        let drift = (r.measurement.position_ned - w.plant(0).state().position_ned).norm();
+        let tau = w.dt_s();
+        assert!(
+            (drift - DEAD_RECKONING_BIAS_M_S2 * tau * tau / 2.0).abs() < 1e-12,
+            "{drift}"
+        );
+        w.inject(0, Fault::Gps { available: true }).unwrap();
+        let fixed = w.sense(0).measurement.position_ned;
+        assert_eq!(fixed, w.plant(0).state().position_ned);
         // the noise up: a noiseless vehicle gets noisy measurements, then clean ones again
         let noisy = SensorNoise {
             position_m: 0.5,

@@ -5,7 +5,9 @@
 //! p' = v
 //! m v' = m g e3 - u_T R e3 + f_e                  (f_e world NED)
 //! q'  = 1/2 q (x) [0, w]                           (R = R(q): FRD -> NED)
-//! I w' = -w x I w + tau + tau_e - w x sum_i h_i    (tau_e body FRD, h_i = -s_i J_r omega_i e3)
+//! I w' = -w x I w + tau + tau_e - w x sum_i h_i - gamma w
+//!                                                  (tau_e body FRD, h_i = -s_i J_r omega_i e3,
+//!                                                   -gamma w: rotational drag, doc section 3b)
 //! [u_T, tau] = B (r (x) omega^2)                   (r: ground/ceiling ratio per rotor, yaw row unscaled)
 //! omega_i' = (h_i clamp(omega_cmd_i, omega_min, omega_max) - omega_i) / tau_m   (h_i: 1 healthy, 0 dead motor)
 //! ```
@@ -178,6 +180,10 @@ pub struct Plant {
     speed_min: f64,
     speed_max: f64,
     gear_height_m: f64,
+    /// Rotational drag `gamma` [N m s]: body torque `-gamma w` (0: none, and
+    /// the derivative skips the term, so a drag-free plant is bit-for-bit the
+    /// plant without it).
+    rotational_drag: f64,
     /// Longest arm [m] (bounds how far a rotor can be from the centre vertically).
     max_arm_m: f64,
     aero: AeroEffects,
@@ -296,6 +302,7 @@ impl Plant {
             speed_min: airframe.rotor.speed_min_rad_s,
             speed_max: airframe.rotor.speed_max_rad_s,
             gear_height_m: airframe.gear_height_m,
+            rotational_drag: airframe.rotational_drag_n_m_s,
             max_arm_m: airframe.rotors.iter().fold(0.0, |m, r| r.arm_m.max(m)),
             aero: AeroEffects::new(airframe),
             environment: config.environment,
@@ -381,6 +388,12 @@ impl Plant {
             self.mass = mass_kg;
             self.inv_mass = 1.0 / mass_kg;
         }
+    }
+
+    /// Rotational drag coefficient `gamma` [N m s] (body torque `-gamma w`).
+    #[must_use]
+    pub fn rotational_drag_n_m_s(&self) -> f64 {
+        self.rotational_drag
     }
 
     /// True inertia [kg m^2], FRD.
@@ -619,9 +632,12 @@ impl Plant {
         let om = s.rate_frd;
         // rotor gyroscopics: -w x sum h_i with sum h_i = [0, 0, gyro_h]
         let gyro = Vector3::new(-om.y * gyro_h, om.x * gyro_h, 0.0);
-        let alpha = self
-            .body_inertia
-            .solve(&(w.torque_frd + ext.torque_frd + gyro - om.cross(&self.body_inertia.apply(&om))));
+        let mut torque = w.torque_frd + ext.torque_frd + gyro - om.cross(&self.body_inertia.apply(&om));
+        if self.rotational_drag != 0.0 {
+            // rotational drag tau_d = -gamma w (body FRD)
+            torque -= om * self.rotational_drag;
+        }
+        let alpha = self.body_inertia.solve(&torque);
         // q' = 1/2 q (x) [0, w], written out (the product with a pure quaternion)
         let (hx, hy, hz) = (0.5 * om.x, 0.5 * om.y, 0.5 * om.z);
         let qd = Quaternion::new(
@@ -804,6 +820,38 @@ mod tests {
                 "{e}"
             );
         }
+    }
+
+    /// Rotational drag alone on a spinning body with stopped rotors decays the
+    /// yaw rate as `r(t) = r0 e^{-gamma t / I_zz}`; without drag the rate stays.
+    #[test]
+    fn rotational_drag_decays_the_spin_exponentially() {
+        let with = Airframe::load("quad").unwrap();
+        assert_eq!(with.rotational_drag_n_m_s, 0.013);
+        let text = include_str!("../../params/airframes/quad.toml")
+            .replace("rotational_drag_n_m_s = 0.013", "rotational_drag_n_m_s = 0.0");
+        let without = Airframe::from_toml(&text, "quad without drag").unwrap();
+        assert_eq!(without.rotational_drag_n_m_s, 0.0);
+        for (af, gamma) in [(with, 0.013), (without, 0.0)] {
+            let mut plant = Plant::new(&af, PlantConfig::default());
+            let mut s = RigidBodyState::at_rest(Vector3::new(0.0, 0.0, -100.0));
+            s.rate_frd = Vector3::new(0.0, 0.0, 10.0);
+            plant.set_state(s);
+            for _ in 0..1000 {
+                plant.step(&ActuatorCommand::Stop, &ExternalWrench::default()).unwrap();
+            }
+            let expected = 10.0 * (-gamma * plant.time_s() / af.inertia_kg_m2[(2, 2)]).exp();
+            let r = plant.state().rate_frd.z;
+            assert!((r - expected).abs() < 1e-9, "gamma {gamma}: {r} vs {expected}");
+            assert_eq!(plant.rotational_drag_n_m_s(), gamma);
+        }
+        let bad = include_str!("../../params/airframes/quad.toml")
+            .replace("rotational_drag_n_m_s = 0.013", "rotational_drag_n_m_s = -0.01");
+        let e = Airframe::from_toml(&bad, "bad.toml").unwrap_err().to_string();
+        assert!(
+            e.contains("bad.toml") && e.contains("body.rotational_drag_n_m_s"),
+            "{e}"
+        );
     }
 
     /// The diagonal fast path of the inertia equals the full products.

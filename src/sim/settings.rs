@@ -27,6 +27,29 @@ pub struct WorldSettings {
     pub battery_capacity_mah: f64,
     /// The charge never drops below this fraction (`SIM_BAT_MIN_PCT` / 100).
     pub battery_min_fraction: f64,
+    /// What injected WRONG faults do.
+    pub faults: FaultSettings,
+}
+
+/// What an injected FAILURE_TYPE_WRONG does, per unit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FaultSettings {
+    /// A WRONG motor gives this fraction of its commanded thrust, `T = f T_cmd`
+    /// (`SIM_MOT_WRONG_FR`, 0..1).
+    pub motor_thrust_fraction: f64,
+    /// A WRONG GNSS receiver puts the vehicle this far north of where it is
+    /// [m] (`SIM_GPS_WRONG_M`): `p~ = p + (d, 0, 0)` NED.
+    pub gps_offset_north_m: f64,
+}
+
+impl Default for FaultSettings {
+    /// The parameters' defaults: half the thrust, 10 m north.
+    fn default() -> Self {
+        Self {
+            motor_thrust_fraction: 0.5,
+            gps_offset_north_m: 10.0,
+        }
+    }
 }
 
 impl WorldSettings {
@@ -54,6 +77,10 @@ impl WorldSettings {
             battery_cells: p.real(Param::BAT1_N_CELLS),
             battery_capacity_mah: p.real(Param::BAT1_CAPACITY),
             battery_min_fraction: p.real(Param::SIM_BAT_MIN_PCT) / 100.0,
+            faults: FaultSettings {
+                motor_thrust_fraction: p.real(Param::SIM_MOT_WRONG_FR),
+                gps_offset_north_m: p.real(Param::SIM_GPS_WRONG_M),
+            },
         }
     }
 }

@@ -172,10 +172,13 @@ def test_params_modes_arming_and_a_mission_flown(session):
     cur = truth.recv("MISSION_CURRENT", 3)
     assert cur is not None and cur.mission_state == 5 and cur.seq == 5
 
-    # on the ground again: Position, then Hold, by DO_SET_MODE; the prompt follows
+    # on the ground again: Position is refused without manual control (PX4);
+    # Mission, then Hold, by DO_SET_MODE; the prompt follows
     mp.send("long DO_SET_MODE 1 3 0")
+    mp.expect(r"DO_SET_MODE: TEMPORARILY_REJECTED")
+    mp.send("long DO_SET_MODE 1 4 4")
     mp.expect(r"DO_SET_MODE: ACCEPTED")
-    mp.expect(r"Mode POSCTL")
+    mp.expect(r"Mode MISSION")
     mp.send("long DO_SET_MODE 1 4 3")
     mp.expect(r"DO_SET_MODE: ACCEPTED")
     mp.expect(r"Mode LOITER")

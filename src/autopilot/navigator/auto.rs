@@ -1,4 +1,4 @@
-//! The automatic modes: Hold (and Position, the same without RC), Takeoff,
+//! The automatic modes: Hold, Takeoff,
 //! Land and Return to launch, as PX4 flies them.
 
 use nalgebra::{Vector2, Vector3};
@@ -15,20 +15,14 @@ const LAND_SINK_M: f64 = 5.0;
 const TAKEOFF_ACCEPT_M: f64 = 0.25;
 
 impl Navigator {
-    /// Hold where it is (or Position).
-    pub(in crate::autopilot) fn enter_hold(&mut self, position_mode: bool) {
-        self.nav = Nav::Hold {
-            position_mode,
-            target: None,
-        };
+    /// Hold where it is.
+    pub(in crate::autopilot) fn enter_hold(&mut self) {
+        self.nav = Nav::Hold { target: None };
     }
 
     /// Hold at a target (a reposition in the air).
     pub(in crate::autopilot) fn enter_hold_at(&mut self, target: HoldTarget) {
-        self.nav = Nav::Hold {
-            position_mode: false,
-            target: Some(target),
-        };
+        self.nav = Nav::Hold { target: Some(target) };
     }
 
     /// Climb to `target_ned`, then hold there or at `then`.
@@ -115,7 +109,6 @@ impl Navigator {
                 let r = self.go_to(meas, target_ned, YawSetpoint::Hold, limits, dt);
                 if arrived(&r, &target_ned) && (meas.position_ned.z - target_ned.z).abs() < TAKEOFF_ACCEPT_M {
                     self.nav = Nav::Hold {
-                        position_mode: false,
                         target: Some(then.unwrap_or(HoldTarget {
                             position_ned: target_ned,
                             yaw_rad: None,
@@ -145,6 +138,8 @@ impl Navigator {
             }
             Nav::Offboard => self.offboard_demand(cx),
             Nav::Mission => self.mission_demand(cx, say),
+            Nav::Manual(mode) => self.manual_demand(cx, mode),
+            Nav::Descend { .. } => self.descend_demand(cx),
         }
     }
 

@@ -1,16 +1,22 @@
 //! Guidance: the active mode turned into this step's [`Demand`] (a shaped
 //! reference, an attitude setpoint, idle or stopped rotors), one file per
 //! mode family — `auto` (hold, takeoff, land, return to launch),
-//! `offboard` (external setpoints) and `mission` (the stored mission). The
+//! `offboard` (external setpoints), `mission` (the stored mission),
+//! `manual` (the pilot's sticks) and `blind` (Descend without a GPS fix). The
 //! [`Navigator`] owns what guidance remembers between steps: the mode and its
 //! phase, the reference shaper, the cruise-speed override, the latest
-//! offboard setpoint.
+//! offboard setpoint and sticks.
 
 mod auto;
+mod blind;
+mod manual;
 mod mission;
 mod offboard;
 
-pub(super) use mission::{MissionRun, SetHome};
+pub use manual::ManualControl;
+pub(super) use manual::ManualMode;
+
+pub(super) use mission::{MissionRun, SetHome, item_point_ned};
 
 pub use offboard::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};
 
@@ -90,10 +96,8 @@ pub(super) enum RtlPhase {
 /// The active mode with its state.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) enum Nav {
-    /// Hold (or Position, which behaves the same without RC).
+    /// Hold.
     Hold {
-        /// Report POSCTL instead of AUTO.LOITER.
-        position_mode: bool,
         /// Reposition target, or brake and hold.
         target: Option<HoldTarget>,
     },
@@ -122,6 +126,25 @@ pub(super) enum Nav {
     Offboard,
     /// Fly the stored mission ([`MissionRun`] holds where it stands).
     Mission,
+    /// Fly with the pilot's sticks.
+    Manual(ManualMode),
+    /// Descend without a position (GPS loss).
+    Descend {
+        /// What to fly when the fix returns before touchdown.
+        then: DescendThen,
+    },
+}
+
+/// What Descend gives way to when the GNSS fix returns in the air: what
+/// was intended when the position was lost.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum DescendThen {
+    /// Hold where it is.
+    Hold,
+    /// Keep landing, with the position (Land where it is).
+    Land,
+    /// Return to launch.
+    Return,
 }
 
 /// Whether a shaped reference has reached `target` and stopped.
@@ -147,6 +170,18 @@ pub(super) struct Navigator {
     rate_target: Option<UnitQuaternion<f64>>,
     /// Where the mission stands (kept while other modes fly: pause and resume).
     pub(super) mission: MissionRun,
+    /// Latest sticks and their arrival time [s].
+    manual: Option<(ManualControl, f64)>,
+    /// The sticks were declared lost (simulated or wall-clock timing).
+    pub(super) manual_lost: bool,
+    /// Vertical reference of Altitude and Descend.
+    vertical: Option<manual::Vertical>,
+    /// Heading setpoint of Altitude, Stabilized and Descend [rad].
+    yaw_sp: Option<f64>,
+    /// The GNSS receiver has no fix.
+    pub(super) gps_lost: bool,
+    /// Altitude is flown because Position lost its GPS fix (back on its return).
+    gps_fallback: bool,
 }
 
 impl Navigator {
@@ -156,10 +191,7 @@ impl Navigator {
     /// Limits the shaper refuses.
     pub(super) fn new(base_limits: ShaperLimits) -> Result<Self, ShaperError> {
         Ok(Self {
-            nav: Nav::Hold {
-                position_mode: false,
-                target: None,
-            },
+            nav: Nav::Hold { target: None },
             base_limits,
             shaper: Shaper::new(base_limits)?,
             shaper_live: false,
@@ -168,36 +200,33 @@ impl Navigator {
             offboard_lost: false,
             rate_target: None,
             mission: MissionRun::default(),
+            manual: None,
+            manual_lost: false,
+            vertical: None,
+            yaw_sp: None,
+            gps_lost: false,
+            gps_fallback: false,
         })
     }
 
     /// The mode as clients see it.
     pub(super) fn mode(&self) -> FlightMode {
         match self.nav {
-            Nav::Hold {
-                position_mode: true, ..
-            } => FlightMode::Position,
             Nav::Hold { .. } => FlightMode::Hold,
             Nav::Takeoff { .. } => FlightMode::Takeoff,
             Nav::Land { .. } => FlightMode::Land,
             Nav::Rtl { .. } => FlightMode::ReturnToLaunch,
             Nav::Offboard => FlightMode::Offboard,
             Nav::Mission => FlightMode::Mission,
+            Nav::Manual(mode) => mode.flight_mode(),
+            Nav::Descend { .. } => FlightMode::Descend,
         }
     }
 
     /// The landed state (never undefined): Takeoff while a takeoff runs,
     /// OnGround when landed, Landing while descending to land, else InAir.
     pub(super) fn landed_state(&self, armed: bool, landed: bool) -> LandedState {
-        let landing = matches!(
-            self.nav,
-            Nav::Land { .. }
-                | Nav::Rtl {
-                    phase: RtlPhase::Land,
-                    ..
-                }
-        );
-        let landing = landing || (self.nav == Nav::Mission && self.mission_landing());
+        let landing = self.landing();
         let taking_off =
             matches!(self.nav, Nav::Takeoff { .. }) || (self.nav == Nav::Mission && self.mission_taking_off());
         if armed && taking_off {
@@ -209,6 +238,21 @@ impl Navigator {
         } else {
             LandedState::InAir
         }
+    }
+
+    /// Whether the active mode is landing: Land, Descend, a return's land
+    /// phase, a mission's landing item.
+    pub(super) fn landing(&self) -> bool {
+        let landing = matches!(
+            self.nav,
+            Nav::Land { .. }
+                | Nav::Descend { .. }
+                | Nav::Rtl {
+                    phase: RtlPhase::Land,
+                    ..
+                }
+        );
+        landing || (self.nav == Nav::Mission && self.mission_landing())
     }
 
     /// Where the vehicle is meant to be: the live reference, else the measured position [m], NED.
@@ -230,20 +274,13 @@ impl Navigator {
         self.cruise_override = None;
     }
 
-    /// Disarmed: back to Hold (keeping Position), the references and rate target dropped.
+    /// Disarmed: back to Hold (a manual mode is kept, as PX4 keeps the
+    /// pilot's mode), the references and rate target dropped.
     pub(super) fn disarmed(&mut self) {
-        self.nav = match self.nav {
-            Nav::Hold { position_mode, .. } => Nav::Hold {
-                position_mode,
-                target: None,
-            },
-            _ => Nav::Hold {
-                position_mode: false,
-                target: None,
-            },
-        };
-        self.shaper_live = false;
-        self.rate_target = None;
+        if !matches!(self.nav, Nav::Manual(_)) {
+            self.nav = Nav::Hold { target: None };
+        }
+        self.restart_references();
     }
 
     /// The rotors were stopped: the reference restarts from the measurement.
@@ -298,6 +335,9 @@ impl Navigator {
         let demand = if armed { self.mode_demand(cx, say) } else { Demand::Stop };
         if matches!(demand, Demand::Stop | Demand::Idle) {
             self.shaper_live = false;
+            self.vertical = None;
+            self.yaw_sp = None;
+            self.rate_target = None;
         }
         demand
     }

@@ -198,6 +198,18 @@ impl OffboardSetpoint {
 }
 
 impl LocalSetpoint {
+    /// A position target above the altitude limit (NED z below `min_z` [m])
+    /// is lowered to it; true when it was.
+    pub(in crate::autopilot) fn clamp_position_z(&mut self, min_z: f64) -> bool {
+        match self {
+            LocalSetpoint::Local(Targets { position: Some(p), .. }) if p.z < min_z => {
+                p.z = min_z;
+                true
+            }
+            _ => false,
+        }
+    }
+
     /// Whether it can be followed: every given part finite, something given.
     pub(in crate::autopilot) fn is_valid(&self) -> bool {
         match self {
@@ -258,7 +270,7 @@ impl Navigator {
     /// a setpoint exists that the runtime has not declared lost.
     pub(in crate::autopilot) fn offboard_fresh(&self, now: f64, loss_s: f64, clock: ClientClock) -> bool {
         match clock {
-            ClientClock::Simulated => self.offboard.is_some_and(|(_, t)| now - t <= loss_s + TIME_EPS),
+            ClientClock::Simulated => self.offboard.is_some_and(|(_, t)| now - t < loss_s - TIME_EPS),
             ClientClock::Wall => self.offboard.is_some() && !self.offboard_lost,
         }
     }

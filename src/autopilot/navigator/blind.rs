@@ -1,0 +1,155 @@
+//! Flying without a position: the reaction to losing the GNSS fix, as PX4
+//! reacts (`COM_POSCTL_NAVL` 0 with a pilot, the Descend failsafe without).
+//!
+//! The flight stack sees only the receiver's status
+//! ([`crate::signals::GpsReading`]); without a fix the horizontal position
+//! and velocity of the navigation solution are not to be trusted (the
+//! world lets them drift). In a mode that needs them — Hold, Takeoff, Land,
+//! Return, Mission, Offboard with position or velocity setpoints — the
+//! vehicle **descends** (PX4's Descend, shown as AUTO.LAND): level, with no
+//! horizontal feedback at all, its height and heading held by the same
+//! blind reference as Altitude mode, sinking at `MPC_LAND_SPEED` until it
+//! lands. In Position mode the pilot keeps flying in **Altitude** mode.
+//! When the fix returns before touchdown, Descend gives way to what was
+//! intended ([`DescendThen`]: a landing keeps landing, with the position; a
+//! return returns; anything else holds where the vehicle is), and the
+//! Altitude fallback to Position; both announced. The supervision runs every
+//! step, not only on the change: a mode entered meanwhile that needs a
+//! position is corrected at once.
+//! Modes and commands that need a position are refused meanwhile.
+
+use nalgebra::Vector2;
+
+use super::manual::ManualMode;
+use super::offboard::LocalSetpoint;
+use super::{DescendThen, Nav, Navigator, RtlPhase, Situation};
+use crate::autopilot::control_loop::Demand;
+use crate::autopilot::{Autopilot, CommandOutcome, Severity};
+use crate::signals::{GpsFix, SensorReadings};
+
+impl Navigator {
+    /// Descend without a position (level, heading held), then `then` if the fix returns.
+    pub(in crate::autopilot) fn enter_descend(&mut self, then: DescendThen) {
+        self.nav = Nav::Descend { then };
+        self.restart_references();
+    }
+
+    /// What the active mode meant to do, for Descend to resume when the
+    /// fix returns: a landing lands, a return returns, the rest holds.
+    fn descend_then(&self) -> DescendThen {
+        match self.nav {
+            Nav::Descend { then } => then,
+            Nav::Rtl {
+                phase: RtlPhase::Land, ..
+            } => DescendThen::Land,
+            Nav::Rtl { .. } => DescendThen::Return,
+            _ if self.landing() => DescendThen::Land,
+            _ => DescendThen::Hold,
+        }
+    }
+
+    /// Whether the active mode steers by the horizontal position or velocity.
+    pub(in crate::autopilot) fn needs_position(&self) -> bool {
+        match self.nav {
+            Nav::Hold { .. } | Nav::Takeoff { .. } | Nav::Land { .. } | Nav::Rtl { .. } | Nav::Mission => true,
+            Nav::Manual(mode) => mode == ManualMode::Position,
+            Nav::Offboard => !matches!(self.offboard, Some((LocalSetpoint::Attitude(_), _))),
+            Nav::Descend { .. } => false,
+        }
+    }
+
+    /// Whether Offboard, entered now, would steer by the position or
+    /// velocity (the latest setpoint is not an attitude one).
+    pub(in crate::autopilot) fn offboard_needs_position(&self) -> bool {
+        !matches!(self.offboard, Some((LocalSetpoint::Attitude(_), _)))
+    }
+
+    /// Descend: `MPC_LAND_SPEED` down, no horizontal acceleration, heading held.
+    pub(super) fn descend_demand(&mut self, cx: &Situation<'_>) -> Demand {
+        if cx.resting {
+            return Demand::Idle;
+        }
+        let (meas, dt) = (cx.meas, cx.dt);
+        let (v, az) = self.vertical_step(meas, cx.settings.land_speed_m_s, self.base_limits.max_accel_z_m_s2, dt);
+        let yaw = self.yaw_step(meas, 0.0, dt);
+        Demand::Track(Self::blind_reference(meas, v, az, Vector2::zeros(), yaw, 0.0))
+    }
+}
+
+impl Autopilot {
+    /// Enter Descend, announced (Critical) with `text`; the fix back resumes
+    /// what the active mode meant to do.
+    pub(in crate::autopilot) fn descend_without_position(&mut self, text: &str) {
+        let then = self.navigator.descend_then();
+        self.navigator.enter_descend(then);
+        self.say.announce(Severity::Critical, text);
+    }
+
+    /// Refuse `what` while the GNSS fix is lost (it needs a position).
+    pub(in crate::autopilot) fn refuse_without_position(&mut self, what: &str) -> Option<CommandOutcome> {
+        self.navigator.gps_lost.then(|| {
+            self.refuse(
+                Severity::Critical,
+                &format!("{what} denied: no GPS fix"),
+                CommandOutcome::TemporarilyRejected("no position estimate"),
+            )
+        })
+    }
+
+    /// The GNSS fix at the instant of `readings`, every step: while it is
+    /// lost, armed, a mode that needs a position is replaced (the reaction
+    /// of the module doc); on its return, Descend and the Altitude fallback
+    /// give way.
+    pub(in crate::autopilot) fn supervise_gps(&mut self, readings: &SensorReadings) {
+        let lost = readings.gps.fix == GpsFix::None;
+        let changed = lost != self.navigator.gps_lost;
+        self.navigator.gps_lost = lost;
+        if !self.armed {
+            return;
+        }
+        if lost {
+            if self.navigator.manual_mode() == Some(ManualMode::Position) {
+                self.navigator.enter_manual(ManualMode::Altitude);
+                self.navigator.gps_fallback = true;
+                self.say
+                    .announce(Severity::Critical, "No GPS fix: Position falls back to Altitude");
+            } else if self.navigator.needs_position() {
+                self.descend_without_position("No GPS fix: descending without position");
+            }
+            return;
+        }
+        if !changed {
+            return;
+        }
+        match self.navigator.nav {
+            Nav::Descend { then } if !self.land.landed() => self.resume_after_descend(then, readings),
+            Nav::Manual(ManualMode::Altitude) if self.navigator.gps_fallback => {
+                self.navigator.enter_manual(ManualMode::Position);
+                self.say
+                    .announce(Severity::Warning, "GPS fix regained: back to Position");
+            }
+            _ => {}
+        }
+    }
+
+    /// The fix is back during Descend: carry on with what was intended, announced.
+    fn resume_after_descend(&mut self, then: DescendThen, readings: &SensorReadings) {
+        let m = &readings.measurement;
+        match then {
+            DescendThen::Hold => {
+                self.navigator.enter_hold();
+                self.say
+                    .announce(Severity::Warning, "GPS fix regained: holding position");
+            }
+            DescendThen::Land => {
+                self.say.announce(Severity::Warning, "GPS fix regained: landing");
+                self.navigator.enter_land(m, false, &mut self.say);
+            }
+            DescendThen::Return => {
+                self.say.announce(Severity::Warning, "GPS fix regained: returning");
+                let cx = situation!(self, m);
+                self.navigator.enter_rtl(&cx, &mut self.say);
+            }
+        }
+    }
+}

@@ -1,0 +1,69 @@
+//! MANUAL_CONTROL (QGroundControl's virtual joystick, a script's sticks) to
+//! the autopilot's [`ManualControl`], read as PX4's `mavlink_receiver` does:
+//! `x` is pitch, `y` roll, `r` yaw, each `[-1000, 1000]` to `[-1, 1]`; `z`
+//! is throttle `[0, 1000]` to `[-1, 1]` (`z / 500 - 1`, 500 centred). An
+//! axis outside its range (INT16_MAX: "invalid") is left at 0, as PX4
+//! leaves it.
+
+use mavlink::dialects::common::MANUAL_CONTROL_DATA;
+
+use crate::autopilot::ManualControl;
+
+/// One axis in `[-1000, 1000]` to `[-1, 1]`, 0 when out of range.
+fn axis(v: i16) -> f64 {
+    if (-1000..=1000).contains(&v) {
+        f64::from(v) / 1000.0
+    } else {
+        0.0
+    }
+}
+
+/// The sticks a MANUAL_CONTROL carries.
+#[must_use]
+pub fn sticks(m: &MANUAL_CONTROL_DATA) -> ManualControl {
+    ManualControl {
+        pitch: axis(m.x),
+        roll: axis(m.y),
+        throttle: if (0..=1000).contains(&m.z) {
+            f64::from(m.z) / 500.0 - 1.0
+        } else {
+            0.0
+        },
+        yaw: axis(m.r),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn msg(x: i16, y: i16, z: i16, r: i16) -> MANUAL_CONTROL_DATA {
+        MANUAL_CONTROL_DATA {
+            x,
+            y,
+            z,
+            r,
+            ..MANUAL_CONTROL_DATA::default()
+        }
+    }
+
+    #[test]
+    fn axes_scale_as_px4() {
+        let s = sticks(&msg(1000, -500, 500, 250));
+        assert_eq!(
+            s,
+            ManualControl {
+                pitch: 1.0,
+                roll: -0.5,
+                throttle: 0.0,
+                yaw: 0.25
+            }
+        );
+        assert_eq!(sticks(&msg(0, 0, 0, 0)).throttle, -1.0);
+        assert_eq!(sticks(&msg(0, 0, 1000, 0)).throttle, 1.0);
+        // out of range (INT16_MAX marks an invalid axis): left at 0
+        let s = sticks(&msg(i16::MAX, -1001, -1, i16::MAX));
+        assert_eq!(s, ManualControl::CENTRED);
+        assert!(s.is_valid());
+    }
+}

@@ -1,0 +1,121 @@
+"""MAV_CMD_INJECT_FAILURE from pymavlink against the real rotorpilot binary, as
+a test script would inject failures into PX4 SITL: DENIED while SYS_FAILURE_EN
+is 0; once set, each supported unit/type ACCEPTED with its effect on the wire
+(GPS_RAW_INT and the SYS_STATUS GPS health bit, the battery voltage, the
+motor's STATUSTEXT, a silent radio) and undone with FAILURE_TYPE_OK;
+unsupported pairs UNSUPPORTED, a motor that does not exist DENIED.
+
+Run with the pymavlink venv: `python -m pytest tests/clients/test_pymavlink_failure.py`.
+"""
+
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from harness import Vehicle  # noqa: E402
+from test_pymavlink import command, connect, drain, param_set, wait  # noqa: E402
+
+from pymavlink import mavutil  # noqa: E402
+
+mavlink = mavutil.mavlink
+INJECT = mavlink.MAV_CMD_INJECT_FAILURE
+GPS, BATTERY, MOTOR, MAVLINK_SIGNAL = 4, 100, 101, 105
+OK, OFF, STUCK, WRONG = 0, 1, 2, 4
+GPS_HEALTH = 0x20  # MAV_SYS_STATUS_SENSOR_GPS
+
+
+@pytest.fixture
+def vehicle():
+    with Vehicle(speed=5.0) as v:
+        yield v
+        print("rotorpilot log (tail):\n" + v.logs())
+
+
+def enabled(v):
+    m = connect(v)
+    pv = param_set(m, "SYS_FAILURE_EN", 1, mavlink.MAV_PARAM_TYPE_INT32)
+    assert pv is not None, "no PARAM_VALUE for SYS_FAILURE_EN"
+    return m
+
+
+def inject(m, unit, kind, instance=0):
+    return command(m, INJECT, unit, kind, instance, float("nan"), float("nan"), float("nan"), float("nan"))
+
+
+def status_text(m, part, timeout=3.0):
+    st = wait(m, "STATUSTEXT", lambda s: part in s.text, timeout)
+    assert st is not None, f"no STATUSTEXT with {part!r}"
+    return st
+
+
+def test_denied_while_disabled_unsupported_and_missing_motor(vehicle):
+    m = connect(vehicle)
+    assert inject(m, GPS, OFF) == mavlink.MAV_RESULT_DENIED
+    status_text(m, "SYS_FAILURE_EN")
+    # nothing happened: the receiver still has its fix
+    g = wait(m, "GPS_RAW_INT", timeout=3.0)
+    assert g is not None and g.fix_type == 3 and g.satellites_visible > 0
+    pv = param_set(m, "SYS_FAILURE_EN", 1, mavlink.MAV_PARAM_TYPE_INT32)
+    assert pv is not None
+    for unit, kind in [(0, OFF), (GPS, STUCK), (BATTERY, WRONG), (MAVLINK_SIGNAL, WRONG), (104, OFF)]:
+        assert inject(m, unit, kind) == mavlink.MAV_RESULT_UNSUPPORTED, (unit, kind)
+    # the default airframe is a quad: motor 9 does not exist
+    assert inject(m, MOTOR, OFF, 9) == mavlink.MAV_RESULT_DENIED
+    drain(m)
+    s = wait(m, "SYS_STATUS", timeout=3.0)
+    assert s is not None and s.onboard_control_sensors_health & GPS_HEALTH
+
+
+def test_gps_off_shows_on_the_wire_and_ok_restores_it(vehicle):
+    m = enabled(vehicle)
+    assert inject(m, GPS, OFF) == mavlink.MAV_RESULT_ACCEPTED
+    status_text(m, "CMD_INJECT_FAILURE, GPS off")
+    g = wait(m, "GPS_RAW_INT", lambda g: g.fix_type <= 1, timeout=3.0)
+    assert g is not None, "GPS_RAW_INT never lost its fix"
+    assert g.satellites_visible == 0
+    s = wait(m, "SYS_STATUS", timeout=3.0)
+    assert s is not None and not s.onboard_control_sensors_health & GPS_HEALTH
+    assert inject(m, GPS, OK) == mavlink.MAV_RESULT_ACCEPTED
+    g = wait(m, "GPS_RAW_INT", lambda g: g.fix_type == 3, timeout=3.0)
+    assert g is not None and g.satellites_visible > 0
+    s = wait(m, "SYS_STATUS", timeout=3.0)
+    assert s is not None and s.onboard_control_sensors_health & GPS_HEALTH
+
+
+def test_battery_cell_and_motors(vehicle):
+    m = enabled(vehicle)
+    drain(m)
+    full = wait(m, "SYS_STATUS", timeout=3.0).voltage_battery
+    assert full > 15000, full
+    assert inject(m, BATTERY, OFF) == mavlink.MAV_RESULT_ACCEPTED
+    status_text(m, "battery cell off")
+    low = wait(m, "SYS_STATUS", lambda s: s.voltage_battery < 0.8 * full, timeout=3.0)
+    assert low is not None, "the voltage did not drop"
+    assert low.battery_remaining < 10, low.battery_remaining
+    assert inject(m, BATTERY, OK) == mavlink.MAV_RESULT_ACCEPTED
+    back = wait(m, "SYS_STATUS", lambda s: s.voltage_battery > 0.95 * full, timeout=3.0)
+    assert back is not None, "the voltage did not come back"
+
+    assert inject(m, MOTOR, OFF, 3) == mavlink.MAV_RESULT_ACCEPTED
+    status_text(m, "CMD_INJECT_FAILURE, motor 3 off")
+    assert inject(m, MOTOR, WRONG, 3) == mavlink.MAV_RESULT_ACCEPTED
+    status_text(m, "motor 3 wrong (50% thrust)")
+    assert inject(m, MOTOR, OK, 0) == mavlink.MAV_RESULT_ACCEPTED
+    status_text(m, "CMD_INJECT_FAILURE, motors ok")
+
+
+def test_mavlink_signal_off_silences_the_vehicle_until_ok(vehicle):
+    m = enabled(vehicle)
+    assert wait(m, "HEARTBEAT", timeout=3.0) is not None
+    # the ACK of the command that silences the radio still comes
+    assert inject(m, MAVLINK_SIGNAL, OFF) == mavlink.MAV_RESULT_ACCEPTED
+    time.sleep(0.3)
+    drain(m)
+    silent = m.recv_match(blocking=True, timeout=2.0)
+    assert silent is None, f"the vehicle still sends: {silent}"
+    # it still listens: OK is answered and the heartbeats come back
+    assert inject(m, MAVLINK_SIGNAL, OK) == mavlink.MAV_RESULT_ACCEPTED
+    assert wait(m, "HEARTBEAT", timeout=3.0) is not None, "no heartbeat after OK"

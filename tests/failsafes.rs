@@ -1,0 +1,771 @@
+//! Lockstep tests of PX4's failsafes: data-link (GCS) loss, low battery,
+//! geofence (polygons and circles, inclusion and exclusion, distance and
+//! altitude limits) and the maximum altitude of targets. Each failsafe is
+//! triggered in flight, its action checked (mode, where it goes, landing and
+//! disarming), the time from the breach or threshold to the action measured
+//! and printed, and the announcement checked. One vehicle in the lockstep
+//! core; `cargo test --release --test failsafes -- --nocapture` prints the figures.
+
+use nalgebra::Vector3;
+use rotorpilot::airframe::Airframe;
+use rotorpilot::autopilot::{
+    Autopilot, AutopilotCommand, BatteryWarning, ClientClock, ClientTimer, CommandOutcome, FlightMode,
+    OffboardSetpoint, Severity, StatusText, Targets, Telemetry,
+};
+use rotorpilot::geo::GeoPoint;
+use rotorpilot::lockstep::Lockstep;
+use rotorpilot::mission::{MissionItem, MissionType, PlanChange};
+use rotorpilot::params::{ParamStore, ParamValue};
+use rotorpilot::sim::{Fault, SensorConfig};
+
+const HOME: GeoPoint = GeoPoint::PX4_SITL_HOME;
+
+struct Ap {
+    core: Lockstep<Autopilot>,
+    said: Vec<StatusText>,
+}
+
+impl Ap {
+    fn new(params: &[(&str, ParamValue)]) -> Self {
+        let af = Airframe::load("quad").unwrap();
+        let mut store = ParamStore::new(&af);
+        for (name, value) in params {
+            store.set(name, *value).unwrap();
+        }
+        let core = Lockstep::one_vehicle(&af, HOME, &store, SensorConfig::default()).unwrap();
+        Self { core, said: Vec::new() }
+    }
+
+    fn step(&mut self) {
+        self.core.step();
+        self.said.extend(self.core.drain_status_texts(0));
+    }
+
+    fn run(&mut self, seconds: f64) {
+        for _ in 0..steps(seconds) {
+            self.step();
+        }
+    }
+
+    /// Run until `done` holds (checked every step) or `max_s` passes; the time it held.
+    fn run_until(&mut self, max_s: f64, mut done: impl FnMut(&Telemetry) -> bool) -> Option<f64> {
+        for _ in 0..steps(max_s) {
+            self.step();
+            let t = self.telemetry();
+            if done(&t) {
+                return Some(t.time_s);
+            }
+        }
+        None
+    }
+
+    fn command(&mut self, cmd: AutopilotCommand) -> CommandOutcome {
+        let out = self.core.command(0, cmd);
+        self.said.extend(self.core.drain_status_texts(0));
+        out
+    }
+
+    fn telemetry(&mut self) -> Telemetry {
+        self.core.telemetry(0)
+    }
+
+    fn mode(&self) -> FlightMode {
+        self.core.pilot(0).mode()
+    }
+
+    fn armed(&self) -> bool {
+        self.core.pilot(0).armed()
+    }
+
+    fn time_s(&self) -> f64 {
+        self.core.time_s()
+    }
+
+    fn heartbeat(&mut self) {
+        self.core.gcs_heartbeat(0);
+        self.said.extend(self.core.drain_status_texts(0));
+    }
+
+    /// How many announcements contain `text`.
+    fn count(&self, text: &str) -> usize {
+        self.said.iter().filter(|s| s.text.contains(text)).count()
+    }
+
+    fn severity_of(&self, text: &str) -> Option<Severity> {
+        self.said.iter().find(|s| s.text.contains(text)).map(|s| s.severity)
+    }
+
+    /// Arm and take off to `up` m above home; hold there.
+    fn take_off_to(&mut self, up: f64) {
+        self.run(0.2);
+        assert_eq!(
+            self.command(AutopilotCommand::Arm { force: false }),
+            CommandOutcome::Accepted
+        );
+        assert_eq!(
+            self.command(AutopilotCommand::Takeoff {
+                altitude_amsl_m: Some(HOME.alt_amsl_m + up)
+            }),
+            CommandOutcome::Accepted
+        );
+        self.run_until(40.0, |t| t.mode == FlightMode::Hold)
+            .expect("takeoff completes");
+        self.run(1.0);
+    }
+
+    fn reposition(&mut self, north: f64, east: f64, up: f64) -> CommandOutcome {
+        let g = point(north, east, up);
+        self.command(AutopilotCommand::Reposition {
+            lat_deg: Some(g.lat_deg),
+            lon_deg: Some(g.lon_deg),
+            alt_amsl_m: Some(g.alt_amsl_m),
+            yaw_rad: None,
+            speed_m_s: None,
+        })
+    }
+
+    fn offboard_velocity(&mut self, v_ned: Vector3<f64>) {
+        let out = self.command(AutopilotCommand::Offboard(OffboardSetpoint::Local(Targets {
+            position: None,
+            velocity: Some(v_ned),
+            acceleration: None,
+            yaw_rad: Some(0.0),
+            yaw_rate_rad_s: None,
+        })));
+        assert_eq!(out, CommandOutcome::Accepted);
+    }
+
+    /// Stream the offboard velocity `v_ned` at 20 Hz (entering Offboard)
+    /// until the mode leaves Offboard or `max_s` passes.
+    fn fly_offboard_velocity(&mut self, v_ned: Vector3<f64>, max_s: f64) {
+        self.offboard_velocity(v_ned);
+        assert_eq!(
+            self.command(AutopilotCommand::SetMode(FlightMode::Offboard)),
+            CommandOutcome::Accepted
+        );
+        let t0 = self.time_s();
+        while self.mode() == FlightMode::Offboard && self.time_s() - t0 < max_s {
+            self.run(0.05);
+            self.offboard_velocity(v_ned);
+        }
+    }
+
+    /// The GNSS receiver loses (`false`) or regains its fix (a world fault).
+    fn gps(&mut self, available: bool) {
+        self.core.world_mut().inject(0, Fault::Gps { available }).unwrap();
+    }
+
+    fn land_and_disarm(&mut self, max_s: f64) -> Telemetry {
+        self.run_until(max_s, |t| !t.armed).expect("lands and disarms");
+        self.telemetry()
+    }
+}
+
+fn steps(seconds: f64) -> usize {
+    (seconds / 1e-3).round() as usize
+}
+
+fn real(x: f32) -> ParamValue {
+    ParamValue::Real32(x)
+}
+
+fn int(i: i32) -> ParamValue {
+    ParamValue::Int32(i)
+}
+
+/// The point `north`, `east` [m] from home, `up` [m] above it.
+fn point(north: f64, east: f64, up: f64) -> GeoPoint {
+    HOME.offset(&Vector3::new(north, east, -up))
+}
+
+fn fence_item(command: u16, p1: f32, north: f64, east: f64) -> MissionItem {
+    let g = point(north, east, 0.0);
+    MissionItem {
+        frame: 0,
+        command,
+        autocontinue: true,
+        params: [p1, 0.0, 0.0, 0.0],
+        x: rotorpilot::mission::quantise_deg(g.lat_deg),
+        y: rotorpilot::mission::quantise_deg(g.lon_deg),
+        z: 0.0,
+    }
+}
+
+fn polygon(command: u16, corners: &[(f64, f64)]) -> Vec<MissionItem> {
+    corners
+        .iter()
+        .map(|(n, e)| fence_item(command, corners.len() as f32, *n, *e))
+        .collect()
+}
+
+// ----- data-link loss ------------------------------------------------------------------------
+
+#[test]
+fn data_link_loss_returns_lands_and_is_regained() {
+    let mut ap = Ap::new(&[("NAV_DLL_ACT", int(2)), ("RTL_RETURN_ALT", real(15.0))]);
+    ap.heartbeat();
+    ap.take_off_to(5.0);
+    ap.reposition(20.0, 0.0, 5.0);
+    // a GCS at 1 Hz for 10 s, then silence
+    for _ in 0..10 {
+        ap.run(1.0);
+        ap.heartbeat();
+    }
+    let last = ap.time_s();
+    assert_eq!(ap.mode(), FlightMode::Hold, "no loss while heartbeats arrive");
+    let at = ap
+        .run_until(20.0, |t| t.mode == FlightMode::ReturnToLaunch)
+        .expect("data-link loss starts RTL");
+    let delay = at - last;
+    println!("data link: last GCS heartbeat {last:.3} s, RTL at {at:.3} s: {delay:.3} s (COM_DL_LOSS_T 10 s)");
+    assert!((delay - 10.0).abs() <= 2e-3, "RTL {delay} s after the last heartbeat");
+    assert_eq!(ap.count("Connection to ground station lost"), 1);
+    assert_eq!(
+        ap.severity_of("Connection to ground station lost"),
+        Some(Severity::Critical)
+    );
+    assert_eq!(ap.count("Failsafe: GCS connection lost, triggering Return"), 1);
+    // the link comes back during the return: announced, the return goes on
+    ap.run(2.0);
+    ap.heartbeat();
+    assert_eq!(ap.count("Data link regained"), 1);
+    assert_eq!(ap.mode(), FlightMode::ReturnToLaunch);
+    let t = ap.land_and_disarm(120.0);
+    let off = t.position_ned.xy().norm();
+    println!("data link: landed {off:.2} m from home at {:.1} s", t.time_s);
+    assert!(off < 1.0, "landed {off} m from home");
+}
+
+#[test]
+fn data_link_loss_never_without_a_gcs_and_no_action_when_disabled() {
+    // NAV_DLL_ACT = Return, but no GCS ever: nothing happens
+    let mut ap = Ap::new(&[("NAV_DLL_ACT", int(2))]);
+    ap.take_off_to(3.0);
+    ap.run(25.0);
+    assert_eq!(ap.mode(), FlightMode::Hold);
+    assert_eq!(ap.count("ground station"), 0);
+    // a GCS that goes silent with PX4's default NAV_DLL_ACT = 0: announced, no mode change
+    let mut ap = Ap::new(&[]);
+    ap.heartbeat();
+    ap.take_off_to(3.0);
+    ap.run(15.0);
+    assert_eq!(ap.count("Connection to ground station lost"), 1);
+    assert_eq!(ap.count("Failsafe"), 0);
+    assert_eq!(ap.mode(), FlightMode::Hold);
+    assert!(ap.armed());
+}
+
+#[test]
+fn data_link_loss_on_the_wall_clock_acts_on_the_runtime_timeout() {
+    let mut ap = Ap::new(&[("NAV_DLL_ACT", int(3))]);
+    ap.core.pilot_mut(0).set_client_clock(ClientClock::Wall);
+    ap.heartbeat();
+    let heard = ap.time_s();
+    ap.take_off_to(3.0);
+    ap.run(10.0);
+    // long past COM_DL_LOSS_T in simulated time: on the wall clock only the runtime decides
+    assert!(ap.time_s() - heard > 10.0);
+    assert_eq!(ap.mode(), FlightMode::Hold);
+    let pending = ap.core.pilot(0).client_timers();
+    let timer = pending
+        .iter()
+        .find(|p| p.timer == ClientTimer::DataLinkLoss)
+        .expect("the data-link timer is pending while armed");
+    assert_eq!(timer.started_s, heard);
+    assert_eq!(timer.duration_s, 10.0);
+    // a stale timer (an older heartbeat) is ignored; the live one acts
+    assert!(!ap.core.client_timeout(0, ClientTimer::DataLinkLoss, heard - 1.0));
+    assert!(ap.core.client_timeout(0, ClientTimer::DataLinkLoss, heard));
+    assert_eq!(ap.mode(), FlightMode::Land);
+    assert!(
+        ap.core
+            .pilot(0)
+            .client_timers()
+            .iter()
+            .all(|p| p.timer != ClientTimer::DataLinkLoss)
+    );
+}
+
+// ----- battery -------------------------------------------------------------------------------
+
+/// A 100 mAh pack (BAT1_CAPACITY's minimum) that may drain to empty: about 22 s of hover.
+fn small_pack() -> Vec<(&'static str, ParamValue)> {
+    vec![("BAT1_CAPACITY", real(100.0)), ("SIM_BAT_MIN_PCT", real(0.0))]
+}
+
+#[test]
+fn battery_drains_in_flight_through_each_threshold_return_then_land() {
+    let mut params = small_pack();
+    params.push(("COM_LOW_BAT_ACT", int(3)));
+    params.push(("RTL_RETURN_ALT", real(8.0)));
+    let mut ap = Ap::new(&params);
+    ap.take_off_to(5.0);
+    assert_eq!(ap.telemetry().battery_warning, BatteryWarning::None);
+    // fly away so that the return has somewhere to go
+    assert_eq!(ap.reposition(10.0, 0.0, 5.0), CommandOutcome::Accepted);
+    let mut crossed: Vec<(BatteryWarning, f64, f64, FlightMode)> = Vec::new();
+    let thresholds = [
+        (0.15, BatteryWarning::Low),
+        (0.07, BatteryWarning::Critical),
+        (0.05, BatteryWarning::Emergency),
+    ];
+    let mut level = BatteryWarning::None;
+    let mut below_at = [None; 3];
+    for _ in 0..steps(60.0) {
+        ap.step();
+        let t = ap.telemetry();
+        for (k, (thr, _)) in thresholds.iter().enumerate() {
+            if below_at[k].is_none() && t.battery_remaining < *thr {
+                below_at[k] = Some(t.time_s);
+            }
+        }
+        if t.battery_warning != level {
+            level = t.battery_warning;
+            crossed.push((level, t.time_s, t.battery_remaining, t.mode));
+        }
+        if level == BatteryWarning::Emergency {
+            break;
+        }
+    }
+    for ((w, at, soc, mode), below) in crossed.iter().zip(below_at) {
+        let below = below.expect("the charge crossed the threshold");
+        println!(
+            "battery: {w:?} at {at:.3} s (charge {soc:.4}, below the threshold at {below:.3} s: {:.3} s), mode {mode:?}",
+            at - below
+        );
+        assert!(
+            (at - below).abs() < 1.5e-3,
+            "{w:?} acted {} s after the threshold",
+            at - below
+        );
+    }
+    let levels: Vec<_> = crossed.iter().map(|c| (c.0, c.3)).collect();
+    assert_eq!(
+        levels,
+        [
+            (BatteryWarning::Low, FlightMode::Hold),
+            (BatteryWarning::Critical, FlightMode::ReturnToLaunch),
+            (BatteryWarning::Emergency, FlightMode::Land),
+        ]
+    );
+    assert_eq!(
+        ap.severity_of("Low battery level, return advised"),
+        Some(Severity::Warning)
+    );
+    assert_eq!(
+        ap.severity_of("Critical battery level, land now"),
+        Some(Severity::Critical)
+    );
+    assert_eq!(
+        ap.severity_of("Emergency battery level, land immediately"),
+        Some(Severity::Emergency)
+    );
+    assert_eq!(ap.count("Failsafe: battery critical, triggering Return"), 1);
+    assert_eq!(ap.count("Failsafe: battery emergency, triggering Land"), 1);
+    let t = ap.land_and_disarm(60.0);
+    println!(
+        "battery: landed and disarmed at {:.1} s, charge {:.3}, warning {:?}",
+        t.time_s, t.battery_remaining, t.battery_warning
+    );
+    assert_eq!(t.battery_warning, BatteryWarning::Emergency, "never de-escalates");
+}
+
+#[test]
+fn battery_critical_lands_with_com_low_bat_act_2_and_only_warns_by_default() {
+    let mut params = small_pack();
+    params.push(("COM_LOW_BAT_ACT", int(2)));
+    let mut ap = Ap::new(&params);
+    ap.take_off_to(4.0);
+    let at = ap
+        .run_until(40.0, |t| t.battery_warning == BatteryWarning::Critical)
+        .expect("critical");
+    assert_eq!(ap.mode(), FlightMode::Land, "land at critical ({at:.2} s)");
+    ap.land_and_disarm(60.0);
+    // PX4's default COM_LOW_BAT_ACT = 0: warnings only, the vehicle keeps holding
+    let mut ap = Ap::new(&small_pack());
+    ap.take_off_to(4.0);
+    ap.run_until(40.0, |t| t.battery_warning == BatteryWarning::Emergency)
+        .expect("emergency");
+    assert_eq!(ap.mode(), FlightMode::Hold);
+    assert_eq!(ap.count("Critical battery level, land now"), 1);
+    assert_eq!(ap.count("Failsafe"), 0);
+}
+
+// ----- geofence ------------------------------------------------------------------------------
+
+/// Inclusion: a 40 m square around home and a 15 m circle 60 m east;
+/// exclusion: a square 10..15 m north and a 4 m circle 12 m south.
+fn fence() -> Vec<MissionItem> {
+    let mut items = polygon(5001, &[(-20.0, -20.0), (20.0, -20.0), (20.0, 20.0), (-20.0, 20.0)]);
+    items.push(fence_item(5003, 15.0, 0.0, 60.0));
+    items.extend(polygon(5002, &[(10.0, -5.0), (15.0, -5.0), (15.0, 5.0), (10.0, 5.0)]));
+    items.push(fence_item(5004, 4.0, -12.0, 0.0));
+    items
+}
+
+fn store_fence(ap: &mut Ap, items: Vec<MissionItem>) {
+    ap.core
+        .change_plans(
+            0,
+            PlanChange::Store {
+                kind: MissionType::Fence,
+                items,
+                base_id: None,
+            },
+        )
+        .expect("fence stored");
+}
+
+#[test]
+fn geofence_zones_hold_once_per_breach_and_rearm_inside() {
+    let mut ap = Ap::new(&[]);
+    store_fence(&mut ap, fence());
+    ap.take_off_to(5.0);
+    // a target outside every inclusion zone is refused
+    assert!(matches!(ap.reposition(30.0, 0.0, 5.0), CommandOutcome::Denied(_)));
+    assert_eq!(ap.count("Reposition is outside geofence"), 1);
+    // inside the far inclusion circle: accepted, but the way there leaves the fence
+    assert_eq!(ap.reposition(0.0, 60.0, 5.0), CommandOutcome::Accepted);
+    let (mut crossed, mut acted) = (None, None);
+    for _ in 0..steps(30.0) {
+        ap.step();
+        let t = ap.telemetry();
+        if crossed.is_none() && t.position_ned.y > 20.0 {
+            crossed = Some(t.time_s);
+        }
+        if ap.count("Geofence breached") > 0 {
+            acted = Some(t.time_s);
+            break;
+        }
+    }
+    let (crossed, at) = (crossed.expect("left the square"), acted.expect("breach announced"));
+    // the telemetry after a step shows the next sample: one step is the sampling itself
+    println!(
+        "geofence: left the inclusion square at {crossed:.3} s, breach acted at {at:.3} s ({:.3} s)",
+        at - crossed
+    );
+    assert!(at - crossed < 1.5e-3);
+    assert_eq!(ap.mode(), FlightMode::Hold);
+    assert_eq!(ap.count("Geofence breached: outside geofence"), 1);
+    assert_eq!(ap.count("Failsafe: geofence breach, triggering Hold"), 1);
+    ap.run(6.0);
+    let t = ap.telemetry();
+    println!("geofence: stopped {:.2} m beyond the fence", t.position_ned.y - 20.0);
+    assert!(
+        t.velocity_ned.norm() < 0.2 && t.position_ned.y < 25.0,
+        "stopped near the border: {t:?}"
+    );
+    assert_eq!(ap.count("Failsafe: geofence breach"), 1, "one action per breach");
+    // back inside re-arms it; into the exclusion square by offboard velocity: the second breach
+    assert_eq!(ap.reposition(0.0, 0.0, 5.0), CommandOutcome::Accepted);
+    ap.run_until(30.0, |t| {
+        t.position_ned.xy().norm() < 0.3 && t.velocity_ned.norm() < 0.1
+    })
+    .expect("back home");
+    ap.fly_offboard_velocity(Vector3::new(2.0, 0.0, 0.0), 15.0);
+    let t = ap.telemetry();
+    assert_eq!(t.mode, FlightMode::Hold);
+    assert_eq!(ap.count("Geofence breached: inside exclusion zone"), 1);
+    assert_eq!(ap.count("Failsafe: geofence breach, triggering Hold"), 2);
+    println!(
+        "geofence: exclusion square entered, Hold at {:.2} m north",
+        t.position_ned.x
+    );
+    assert!(
+        t.position_ned.x >= 10.0 && t.position_ned.x < 10.2,
+        "held at its edge: {}",
+        t.position_ned.x
+    );
+    // the exclusion circle is refused as a target
+    assert!(matches!(ap.reposition(-12.0, 0.0, 5.0), CommandOutcome::Denied(_)));
+}
+
+#[test]
+fn geofence_max_distance_returns_and_lands() {
+    let mut ap = Ap::new(&[
+        ("GF_ACTION", int(3)),
+        ("GF_MAX_HOR_DIST", real(15.0)),
+        ("RTL_RETURN_ALT", real(8.0)),
+    ]);
+    ap.take_off_to(5.0);
+    let t0 = ap.time_s();
+    ap.fly_offboard_velocity(Vector3::new(0.0, 3.0, 0.0), 20.0);
+    let t = ap.telemetry();
+    assert_eq!(t.mode, FlightMode::ReturnToLaunch);
+    let d = t.position_ned.xy().norm();
+    println!(
+        "geofence: max distance 15 m breached at {d:.3} m, {:.2} s after leaving",
+        t.time_s - t0
+    );
+    assert!((15.0..15.2).contains(&d), "breach acted at {d} m");
+    assert_eq!(ap.count("Geofence breached: max distance exceeded"), 1);
+    assert_eq!(ap.count("Failsafe: geofence breach, triggering Return"), 1);
+    let t = ap.land_and_disarm(90.0);
+    assert!(t.position_ned.xy().norm() < 1.0, "landed at home: {:?}", t.position_ned);
+}
+
+// ----- maximum altitude ----------------------------------------------------------------------
+
+#[test]
+fn max_altitude_refuses_targets_clamps_offboard_and_holds_on_breach() {
+    let mut ap = Ap::new(&[("GF_MAX_VER_DIST", real(10.0))]);
+    ap.run(0.2);
+    let z0 = ap.telemetry().position_ned.z;
+    assert_eq!(
+        ap.command(AutopilotCommand::Arm { force: false }),
+        CommandOutcome::Accepted
+    );
+    // takeoff above the limit: DENIED and announced, never flown
+    let out = ap.command(AutopilotCommand::Takeoff {
+        altitude_amsl_m: Some(HOME.alt_amsl_m + 15.0),
+    });
+    assert!(matches!(out, CommandOutcome::Denied(_)), "{out:?}");
+    assert_eq!(
+        ap.severity_of("Takeoff denied: above geofence max altitude"),
+        Some(Severity::Critical)
+    );
+    ap.run(1.0);
+    assert!(ap.telemetry().position_ned.z > z0 - 0.05, "did not climb");
+    ap.take_off_to(8.0);
+    // a reposition above it: DENIED
+    assert!(matches!(ap.reposition(0.0, 0.0, 12.0), CommandOutcome::Denied(_)));
+    assert_eq!(ap.count("Reposition is outside geofence"), 1);
+    // an offboard position above it: clamped to it, announced once
+    let sp = |z: f64| {
+        AutopilotCommand::Offboard(OffboardSetpoint::Local(Targets {
+            position: Some(Vector3::new(0.0, 0.0, z)),
+            velocity: None,
+            acceleration: None,
+            yaw_rad: Some(0.0),
+            yaw_rate_rad_s: None,
+        }))
+    };
+    assert_eq!(ap.command(sp(-20.0)), CommandOutcome::Accepted);
+    assert_eq!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::Offboard)),
+        CommandOutcome::Accepted
+    );
+    let mut highest: f64 = 0.0;
+    for _ in 0..200 {
+        ap.run(0.05);
+        ap.command(sp(-20.0));
+        highest = highest.max(-ap.telemetry().position_ned.z);
+    }
+    println!(
+        "max altitude: offboard setpoint 20 m clamped to 10 m, highest {highest:.3} m, mode {:?}",
+        ap.mode()
+    );
+    assert_eq!(ap.count("Offboard setpoint clamped to max altitude"), 1);
+    assert!(highest < 10.1 && highest > 9.8, "flew to the limit: {highest}");
+    // a climb by velocity crosses it: Hold at once
+    if ap.mode() == FlightMode::Offboard {
+        ap.fly_offboard_velocity(Vector3::new(0.0, 0.0, -1.0), 10.0);
+    }
+    assert_eq!(ap.mode(), FlightMode::Hold);
+    assert_eq!(ap.count("Geofence breached: max altitude exceeded"), 1);
+    ap.run(4.0);
+    let up = -ap.telemetry().position_ned.z;
+    println!("max altitude: held at {up:.3} m after the breach");
+    assert!(up < 10.5, "held near the limit: {up}");
+}
+
+// ----- interactions between failsafes (one runner) -------------------------------------------
+
+#[test]
+fn gps_lost_then_battery_critical_still_descends_blind() {
+    // COM_LOW_BAT_ACT 1: Return at critical, which needs a position
+    let mut params = small_pack();
+    params.push(("COM_LOW_BAT_ACT", int(1)));
+    let mut ap = Ap::new(&params);
+    ap.take_off_to(10.0);
+    ap.run_until(60.0, |t| t.battery_warning >= BatteryWarning::Low)
+        .expect("low");
+    ap.gps(false);
+    ap.run(0.1);
+    assert_eq!(ap.mode(), FlightMode::Descend);
+    let at = ap
+        .run_until(20.0, |t| t.battery_warning >= BatteryWarning::Critical)
+        .expect("critical");
+    ap.run(0.1);
+    println!(
+        "GPS lost, then battery critical at {at:.2} s, {:.1} m up: {:?}",
+        -ap.telemetry().position_ned.z,
+        ap.mode()
+    );
+    assert!(ap.armed(), "critical before touchdown");
+    assert_eq!(ap.mode(), FlightMode::Descend, "no Return on the drifting solution");
+    assert_eq!(ap.count("triggering Return"), 0);
+    assert!(matches!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::Hold)),
+        CommandOutcome::TemporarilyRejected(_)
+    ));
+}
+
+#[test]
+fn no_geofence_breach_while_the_fix_is_lost() {
+    let mut ap = Ap::new(&[("GF_ACTION", int(3))]);
+    ap.take_off_to(20.0);
+    ap.gps(false);
+    ap.run(0.1);
+    assert_eq!(ap.mode(), FlightMode::Descend);
+    // a fence that excludes where the vehicle is: not checked without a position
+    store_fence(&mut ap, vec![fence_item(5004, 30.0, 0.0, 0.0)]);
+    ap.run(2.0);
+    assert_eq!(ap.count("Geofence breached"), 0);
+    assert_eq!(ap.mode(), FlightMode::Descend);
+    // with the fix back it is checked (the control: the test can fail)
+    ap.gps(true);
+    ap.run(0.5);
+    assert_eq!(ap.count("Geofence breached"), 1);
+}
+
+#[test]
+fn a_geofence_hold_does_not_interrupt_a_landing() {
+    let mut ap = Ap::new(&[("GF_ACTION", int(2))]);
+    ap.take_off_to(10.0);
+    assert_eq!(ap.command(AutopilotCommand::Land), CommandOutcome::Accepted);
+    ap.run(1.0);
+    assert_eq!(ap.mode(), FlightMode::Land);
+    store_fence(&mut ap, vec![fence_item(5004, 30.0, 0.0, 0.0)]);
+    ap.run(1.0);
+    assert_eq!(ap.count("Geofence breached"), 1, "announced");
+    assert_eq!(ap.count("triggering Hold"), 0);
+    assert_eq!(ap.mode(), FlightMode::Land, "keeps landing");
+    ap.land_and_disarm(40.0);
+}
+
+#[test]
+fn fix_back_during_a_land_started_descend_keeps_landing() {
+    let mut ap = Ap::new(&[]);
+    ap.take_off_to(20.0);
+    assert_eq!(ap.command(AutopilotCommand::Land), CommandOutcome::Accepted);
+    ap.run(1.0);
+    ap.gps(false);
+    ap.run(2.0);
+    assert_eq!(ap.mode(), FlightMode::Descend);
+    ap.gps(true);
+    ap.run(0.1);
+    assert_eq!(ap.mode(), FlightMode::Land, "the landing goes on with the position");
+    assert_eq!(ap.count("GPS fix regained: landing"), 1);
+    ap.land_and_disarm(60.0);
+}
+
+#[test]
+fn a_mode_that_needs_a_position_entered_without_fix_is_corrected_and_mission_start_refused() {
+    let mut ap = Ap::new(&[]);
+    ap.take_off_to(20.0);
+    ap.gps(false);
+    ap.run(0.1);
+    assert_eq!(ap.mode(), FlightMode::Descend);
+    // Return is refused; Offboard with a velocity setpoint too
+    assert!(matches!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::ReturnToLaunch)),
+        CommandOutcome::TemporarilyRejected(_)
+    ));
+    ap.offboard_velocity(Vector3::zeros());
+    assert!(matches!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::Offboard)),
+        CommandOutcome::TemporarilyRejected(_)
+    ));
+    assert_eq!(ap.count("Switching to Offboard denied: no GPS fix"), 1);
+    assert_eq!(ap.mode(), FlightMode::Descend);
+}
+
+#[test]
+fn arming_is_refused_with_the_data_link_lost_and_nav_dll_act_set() {
+    // the link is tracked disarmed: lost 10 s after the last GCS HEARTBEAT
+    let mut ap = Ap::new(&[("NAV_DLL_ACT", int(2))]);
+    ap.heartbeat();
+    ap.run(11.0);
+    assert_eq!(ap.count("Connection to ground station lost"), 1);
+    assert!(matches!(
+        ap.command(AutopilotCommand::Arm { force: false }),
+        CommandOutcome::TemporarilyRejected(_)
+    ));
+    assert_eq!(
+        ap.count("Arming denied: no ground station connection"),
+        1,
+        "{:?}",
+        ap.said
+    );
+    // the link back: arming works and the loss does not fire at once
+    ap.heartbeat();
+    assert_eq!(ap.count("Data link regained"), 1);
+    assert_eq!(
+        ap.command(AutopilotCommand::Arm { force: false }),
+        CommandOutcome::Accepted
+    );
+    ap.run(1.0);
+    assert!(ap.armed());
+    assert_eq!(ap.count("Failsafe"), 0);
+    // NAV_DLL_ACT 0 (PX4's default): the lost link does not stop arming
+    let mut ap = Ap::new(&[]);
+    ap.heartbeat();
+    ap.run(11.0);
+    assert_eq!(ap.count("Connection to ground station lost"), 1);
+    assert_eq!(
+        ap.command(AutopilotCommand::Arm { force: false }),
+        CommandOutcome::Accepted
+    );
+}
+
+#[test]
+fn arming_is_refused_at_critical_battery() {
+    // land at critical (COM_LOW_BAT_ACT 2), then try again on the ground
+    let mut params = small_pack();
+    params.push(("COM_LOW_BAT_ACT", int(2)));
+    let mut ap = Ap::new(&params);
+    ap.take_off_to(4.0);
+    ap.run_until(60.0, |t| t.battery_warning == BatteryWarning::Critical)
+        .expect("critical");
+    ap.land_and_disarm(60.0);
+    ap.run(0.5);
+    assert!(matches!(
+        ap.command(AutopilotCommand::Arm { force: false }),
+        CommandOutcome::TemporarilyRejected(_)
+    ));
+    assert_eq!(ap.count("Arming denied: battery critical"), 1);
+}
+
+#[test]
+fn a_mission_outside_the_geofence_is_refused_at_start() {
+    let mut ap = Ap::new(&[("GF_MAX_VER_DIST", real(20.0))]);
+    ap.run(0.2);
+    let g = point(10.0, 0.0, 30.0);
+    let wp = |command: u16, g: GeoPoint, up: f32| MissionItem {
+        frame: 3, // MAV_FRAME_GLOBAL_RELATIVE_ALT
+        command,
+        autocontinue: true,
+        params: [0.0, 0.0, 0.0, f32::NAN],
+        x: rotorpilot::mission::quantise_deg(g.lat_deg),
+        y: rotorpilot::mission::quantise_deg(g.lon_deg),
+        z: up,
+    };
+    let store = |ap: &mut Ap, items: Vec<MissionItem>| {
+        ap.core
+            .change_plans(
+                0,
+                PlanChange::Store {
+                    kind: MissionType::Mission,
+                    items,
+                    base_id: None,
+                },
+            )
+            .expect("mission stored");
+    };
+    // 30 m up, above GF_MAX_VER_DIST = 20 m: denied, announced, still disarmed
+    store(&mut ap, vec![wp(22, HOME, 5.0), wp(16, g, 30.0)]);
+    assert!(matches!(
+        ap.command(AutopilotCommand::StartMission { first: None }),
+        CommandOutcome::Denied(_)
+    ));
+    assert_eq!(ap.count("Mission start denied: item 1 outside geofence"), 1);
+    assert!(!ap.armed());
+    // the same point at 15 m starts
+    store(&mut ap, vec![wp(22, HOME, 5.0), wp(16, g, 15.0)]);
+    assert_eq!(
+        ap.command(AutopilotCommand::StartMission { first: None }),
+        CommandOutcome::Accepted
+    );
+    assert!(ap.armed());
+}

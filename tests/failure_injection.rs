@@ -1,0 +1,438 @@
+//! Failure injection in the lockstep core, as MAV_CMD_INJECT_FAILURE brings it
+//! (PX4's FAILURE_UNIT / FAILURE_TYPE numbers) and as a scenario's
+//! `[[fault]]` does: each supported pair changes the world as it should and
+//! FAILURE_TYPE_OK undoes it; instance 0 is every instance; unsupported pairs
+//! are UNSUPPORTED, instances that do not exist DENIED, and both change
+//! nothing; SYS_FAILURE_EN = 0 denies everything.
+
+use rotorpilot::airframe::Airframe;
+use rotorpilot::autopilot::{Autopilot, AutopilotCommand, CommandOutcome, FlightMode, Severity, StatusText};
+use rotorpilot::geo::GeoPoint;
+use rotorpilot::lockstep::{FailureInjection, Lockstep};
+use rotorpilot::params::{ParamStore, ParamValue};
+use rotorpilot::scenario::{MissionFlight, Scenario, ScenarioError, run, run_mission};
+use rotorpilot::signals::GpsFix;
+use rotorpilot::sim::{ActiveFaults, DEAD_RECKONING_BIAS_M_S2, RotorHealth, SensorConfig};
+use rotorpilot::tomlfile::FileError;
+
+const GPS: u8 = 4;
+const BATTERY: u8 = 100;
+const MOTOR: u8 = 101;
+const MAVLINK_SIGNAL: u8 = 105;
+const OK: u8 = 0;
+const OFF: u8 = 1;
+const WRONG: u8 = 4;
+
+type Core = Lockstep<Autopilot>;
+
+fn vehicle(airframe: &str, params: &[(&str, ParamValue)]) -> (Core, ParamStore) {
+    let af = Airframe::load(airframe).unwrap();
+    let mut store = ParamStore::new(&af);
+    store.set("SYS_FAILURE_EN", ParamValue::Int32(1)).unwrap();
+    for (name, value) in params {
+        store.set(name, *value).unwrap();
+    }
+    let mut core = Lockstep::one_vehicle(&af, GeoPoint::PX4_SITL_HOME, &store, SensorConfig::default()).unwrap();
+    core.step();
+    (core, store)
+}
+
+fn inject(core: &mut Core, unit: u8, kind: u8, instance: u8) -> CommandOutcome {
+    core.command(0, AutopilotCommand::InjectFailure { unit, kind, instance })
+}
+
+fn run_s(core: &mut Core, seconds: f64) {
+    for _ in 0..(seconds / core.dt_s()).round() as usize {
+        core.step();
+    }
+}
+
+fn texts(core: &mut Core) -> Vec<StatusText> {
+    core.drain_status_texts(0)
+}
+
+fn faults(core: &Core) -> ActiveFaults {
+    core.world().faults(0).clone()
+}
+
+/// Arm and take off to MIS_TAKEOFF_ALT, then hover a moment.
+fn airborne(core: &mut Core) {
+    assert_eq!(
+        core.command(0, AutopilotCommand::Arm { force: false }),
+        CommandOutcome::Accepted
+    );
+    assert_eq!(
+        core.command(0, AutopilotCommand::Takeoff { altitude_amsl_m: None }),
+        CommandOutcome::Accepted
+    );
+    run_s(core, 8.0);
+    assert_eq!(core.pilot(0).mode(), FlightMode::Hold);
+}
+
+/// GIVEN SYS_FAILURE_EN = 0 (PX4's default)
+/// WHEN a client injects a supported failure
+/// THEN it is DENIED with a STATUSTEXT saying why, and the world is unchanged.
+#[test]
+fn failure_injection_is_denied_while_sys_failure_en_is_0() {
+    let (mut core, mut store) = vehicle("quad", &[]);
+    core.set_param(0, &mut store, "SYS_FAILURE_EN", ParamValue::Int32(0))
+        .unwrap();
+    let before = faults(&core);
+    assert!(matches!(inject(&mut core, GPS, OFF, 0), CommandOutcome::Denied(_)));
+    assert_eq!(faults(&core), before);
+    let t = texts(&mut core);
+    assert!(t.iter().any(|s| s.text.contains("SYS_FAILURE_EN")), "{t:?}");
+    assert!(!t.iter().any(|s| s.text.starts_with("CMD_INJECT_FAILURE")), "{t:?}");
+    // allowed again: accepted
+    core.set_param(0, &mut store, "SYS_FAILURE_EN", ParamValue::Int32(1))
+        .unwrap();
+    assert_eq!(inject(&mut core, GPS, OFF, 0), CommandOutcome::Accepted);
+    assert!(!faults(&core).gps_available);
+}
+
+/// GIVEN a hovering quad
+/// WHEN motor 2 is switched off, then made WRONG (SIM_MOT_WRONG_FR = 0.25), then OK
+/// THEN its ESC reads no speed, then half the others' (a quarter of the thrust
+/// is half the speed), then the commanded speed again; each announced.
+#[test]
+fn motor_off_wrong_and_ok_reach_the_rotor() {
+    let (mut core, mut store) = vehicle("quad", &[]);
+    airborne(&mut core);
+    texts(&mut core);
+    assert_eq!(inject(&mut core, MOTOR, OFF, 2), CommandOutcome::Accepted);
+    assert_eq!(faults(&core).rotors[1], RotorHealth::Off);
+    assert_eq!(
+        texts(&mut core),
+        vec![StatusText {
+            severity: Severity::Warning,
+            text: "CMD_INJECT_FAILURE, motor 2 off".into()
+        }]
+    );
+    run_s(&mut core, 0.3);
+    let esc = core.world_mut().sense(0).rotor_speeds_rad_s;
+    assert!(esc[1] < 1.0, "dead rotor spins at {}", esc[1]);
+    assert!(esc[0] > 100.0 && esc[2] > 100.0 && esc[3] > 100.0, "{esc:?}");
+
+    core.set_param(0, &mut store, "SIM_MOT_WRONG_FR", ParamValue::Real32(0.25))
+        .unwrap();
+    assert_eq!(inject(&mut core, MOTOR, WRONG, 2), CommandOutcome::Accepted);
+    assert_eq!(faults(&core).rotors[1], RotorHealth::Degraded { thrust_fraction: 0.25 });
+    // the flight stack has said its own piece meanwhile (the rotor monitor's verdict)
+    let said = texts(&mut core);
+    assert!(
+        said.iter()
+            .any(|s| s.text == "CMD_INJECT_FAILURE, motor 2 wrong (25% thrust)"),
+        "{said:?}"
+    );
+
+    assert_eq!(inject(&mut core, MOTOR, OK, 2), CommandOutcome::Accepted);
+    assert!(!faults(&core).any());
+    assert_eq!(
+        texts(&mut core),
+        vec![StatusText {
+            severity: Severity::Info,
+            text: "CMD_INJECT_FAILURE, motor 2 ok".into()
+        }]
+    );
+}
+
+/// GIVEN an octocopter
+/// WHEN instance 0 (all) is switched off, then OK
+/// THEN every rotor is off, then every rotor is healthy.
+#[test]
+fn instance_0_is_every_motor() {
+    let (mut core, _) = vehicle("octo", &[]);
+    assert_eq!(inject(&mut core, MOTOR, OFF, 0), CommandOutcome::Accepted);
+    let f = faults(&core);
+    assert_eq!(f.rotors.len(), 8);
+    assert!(f.rotors.iter().all(|r| *r == RotorHealth::Off));
+    assert_eq!(texts(&mut core)[0].text, "CMD_INJECT_FAILURE, motors off");
+    assert_eq!(inject(&mut core, MOTOR, OK, 0), CommandOutcome::Accepted);
+    assert!(!faults(&core).any());
+}
+
+/// GIVEN a quad at rest (its true state still)
+/// WHEN its GPS goes off for 10 s
+/// THEN the receiver has no fix and no satellites, and the navigation solution
+/// dead-reckons: horizontal velocity off by `a tau`, position by `a tau^2 / 2`
+/// (a = the dead-reckoning bias), vertical untouched; GPS OK puts it back on
+/// the truth at once. GPS WRONG puts it SIM_GPS_WRONG_M north.
+#[test]
+fn gps_off_drifts_wrong_offsets_and_ok_restores() {
+    let (mut core, mut store) = vehicle("quad", &[]);
+    assert_eq!(inject(&mut core, GPS, OFF, 1), CommandOutcome::Accepted);
+    assert_eq!(texts(&mut core)[0].text, "CMD_INJECT_FAILURE, GPS off");
+    run_s(&mut core, 10.0);
+    let truth = *core.world().plant(0).state();
+    let r = *core.world_mut().sense(0);
+    assert_eq!((r.gps.fix, r.gps.satellites), (GpsFix::None, 0));
+    let t = core.telemetry(0);
+    assert_eq!((t.gps_fix, t.gps_satellites), (GpsFix::None, 0));
+    let dp = r.measurement.position_ned - truth.position_ned;
+    let dv = r.measurement.velocity_ned - truth.velocity_ned;
+    let a = DEAD_RECKONING_BIAS_M_S2;
+    assert!((dv.norm() - a * 10.0).abs() < 1e-9, "velocity error {dv}");
+    assert!((dp.norm() - a * 50.0).abs() < 1e-6, "position error {dp}");
+    assert_eq!((dp.z, dv.z), (0.0, 0.0), "the drift is horizontal");
+    assert!((dp.normalize() - dv.normalize()).norm() < 1e-9, "one direction");
+
+    assert_eq!(inject(&mut core, GPS, OK, 0), CommandOutcome::Accepted);
+    assert_eq!(texts(&mut core)[0].text, "CMD_INJECT_FAILURE, GPS ok");
+    let r = *core.world_mut().sense(0);
+    assert_eq!(r.gps.fix, GpsFix::Fix3d);
+    assert_eq!(r.measurement.position_ned, core.world().plant(0).state().position_ned);
+
+    core.set_param(0, &mut store, "SIM_GPS_WRONG_M", ParamValue::Real32(25.0))
+        .unwrap();
+    assert_eq!(inject(&mut core, GPS, WRONG, 0), CommandOutcome::Accepted);
+    run_s(&mut core, 1.0);
+    let truth = core.world().plant(0).state().position_ned;
+    let m = core.world_mut().sense(0).measurement.position_ned;
+    assert_eq!(m - truth, nalgebra::Vector3::new(25.0, 0.0, 0.0));
+    assert_eq!(inject(&mut core, GPS, OK, 0), CommandOutcome::Accepted);
+    let m = core.world_mut().sense(0).measurement.position_ned;
+    assert_eq!(m, core.world().plant(0).state().position_ned);
+    assert!(!faults(&core).any());
+}
+
+/// GIVEN a full 4S pack
+/// WHEN one cell fails (BATTERY OFF)
+/// THEN the pack reads one cell's voltage less and the monitor (counting four
+/// cells) sees an almost empty pack; BATTERY OK gives the voltage back.
+#[test]
+fn battery_off_loses_a_cell_and_ok_gives_it_back() {
+    let (mut core, _) = vehicle("quad", &[]);
+    let before = core.telemetry(0);
+    assert!(before.battery_remaining > 0.9, "{}", before.battery_remaining);
+    assert_eq!(inject(&mut core, BATTERY, OFF, 0), CommandOutcome::Accepted);
+    assert_eq!(texts(&mut core)[0].text, "CMD_INJECT_FAILURE, battery cell off");
+    let failed = core.telemetry(0);
+    let ratio = failed.battery_voltage_v / before.battery_voltage_v;
+    assert!((ratio - 0.75).abs() < 0.01, "{ratio}");
+    assert!(failed.battery_remaining < 0.05, "{}", failed.battery_remaining);
+    assert_eq!(inject(&mut core, BATTERY, OK, 0), CommandOutcome::Accepted);
+    assert_eq!(core.telemetry(0).battery_voltage_v, before.battery_voltage_v);
+}
+
+/// MAVLINK_SIGNAL OFF and OK set and clear the world's radio (the daemon mutes its links on it).
+#[test]
+fn mavlink_signal_off_and_ok_switch_the_radio() {
+    let (mut core, _) = vehicle("quad", &[]);
+    assert_eq!(inject(&mut core, MAVLINK_SIGNAL, OFF, 0), CommandOutcome::Accepted);
+    assert!(faults(&core).link_lost);
+    assert_eq!(texts(&mut core)[0].text, "CMD_INJECT_FAILURE, MAVLink off");
+    assert_eq!(inject(&mut core, MAVLINK_SIGNAL, OK, 0), CommandOutcome::Accepted);
+    assert!(!faults(&core).any());
+}
+
+/// GIVEN a hovering quad with a battery cell failed and GPS off
+/// WHEN a client asks for pairs PX4 does not carry out here (gyro, GPS stuck,
+/// battery wrong, radio wrong, an unknown unit) or for a part that does not
+/// exist (motor 9 of four, a second GPS)
+/// THEN they are UNSUPPORTED or DENIED, and neither the world's faults nor
+/// the autopilot's state changes, nor is anything announced.
+#[test]
+fn unsupported_and_missing_parts_change_nothing() {
+    let (mut core, _) = vehicle("quad", &[]);
+    airborne(&mut core);
+    assert_eq!(inject(&mut core, BATTERY, OFF, 0), CommandOutcome::Accepted);
+    texts(&mut core);
+    let before = faults(&core);
+    let state = |c: &Core| (c.pilot(0).armed(), c.pilot(0).mode());
+    let s0 = state(&core);
+    for (unit, kind) in [
+        (0, OFF),
+        (GPS, 2),
+        (BATTERY, WRONG),
+        (MAVLINK_SIGNAL, WRONG),
+        (104, OFF),
+        (255, OFF),
+    ] {
+        assert_eq!(
+            inject(&mut core, unit, kind, 0),
+            CommandOutcome::Unsupported,
+            "{unit}/{kind}"
+        );
+    }
+    for (unit, kind, instance) in [(MOTOR, OFF, 9), (MOTOR, OK, 5), (GPS, OFF, 2), (BATTERY, OK, 3)] {
+        assert!(
+            matches!(inject(&mut core, unit, kind, instance), CommandOutcome::Denied(_)),
+            "{unit}/{kind}/{instance}"
+        );
+    }
+    assert_eq!(faults(&core), before);
+    assert_eq!(state(&core), s0);
+    assert!(texts(&mut core).is_empty());
+}
+
+/// An airframe whose thrust and torque act directly has no motor to fail: DENIED.
+#[test]
+fn ideal_actuation_has_no_motor_to_fail() {
+    let (mut core, _) = vehicle("fsr-quad", &[]);
+    let before = faults(&core);
+    assert!(matches!(inject(&mut core, MOTOR, OFF, 1), CommandOutcome::Denied(_)));
+    assert_eq!(faults(&core), before);
+    // its GPS fails as any other
+    assert_eq!(inject(&mut core, GPS, OFF, 0), CommandOutcome::Accepted);
+}
+
+/// GIVEN two identical hovering vehicles
+/// WHEN one gets every failure switched off and back OK at one instant
+/// THEN both fly on bit for bit: OK restores exactly what was.
+#[test]
+fn off_then_ok_at_one_instant_leaves_the_flight_as_it_was() {
+    let (mut a, _) = vehicle("quad", &[]);
+    let (mut b, _) = vehicle("quad", &[]);
+    airborne(&mut a);
+    airborne(&mut b);
+    for (unit, instance) in [(MOTOR, 0), (GPS, 0), (BATTERY, 0), (MAVLINK_SIGNAL, 0)] {
+        assert_eq!(inject(&mut b, unit, OFF, instance), CommandOutcome::Accepted);
+        assert_eq!(inject(&mut b, unit, OK, instance), CommandOutcome::Accepted);
+    }
+    run_s(&mut a, 3.0);
+    run_s(&mut b, 3.0);
+    assert_eq!(a.world().plant(0).state(), b.world().plant(0).state());
+    assert_eq!(a.telemetry(0), b.telemetry(0));
+}
+
+/// The lockstep's own injection (what a scenario without an autopilot uses)
+/// does not ask SYS_FAILURE_EN but maps the same way.
+#[test]
+fn inject_failure_maps_without_the_autopilot_gate() {
+    let (mut core, mut store) = vehicle("quad", &[]);
+    core.set_param(0, &mut store, "SYS_FAILURE_EN", ParamValue::Int32(0))
+        .unwrap();
+    let inj = |unit, kind, instance| FailureInjection { unit, kind, instance };
+    assert_eq!(core.inject_failure(0, inj(MOTOR, OFF, 4)), CommandOutcome::Accepted);
+    assert_eq!(faults(&core).rotors[3], RotorHealth::Off);
+    assert_eq!(core.inject_failure(0, inj(GPS, 3, 0)), CommandOutcome::Unsupported);
+    assert!(matches!(
+        core.inject_failure(0, inj(MOTOR, OFF, 5)),
+        CommandOutcome::Denied(_)
+    ));
+    assert_eq!(core.drain_world_texts(0).len(), 1);
+}
+
+// --- scenarios -------------------------------------------------------------------------------
+
+const HOVER: &str = r#"
+airframe = "quad"
+duration_s = 3.0
+
+[[setpoint]]
+at_s = 0.0
+position_ned = [0.0, 0.0, -2.0]
+"#;
+
+fn scenario(extra: &str) -> Result<Scenario, ScenarioError> {
+    Scenario::from_toml(&format!("{HOVER}{extra}"), "hover.toml", None)
+}
+
+fn invalid(extra: &str) -> (String, String) {
+    match scenario(extra) {
+        Err(ScenarioError::File(FileError::Invalid { file, field, problem })) => {
+            assert_eq!(file, "hover.toml");
+            (field, problem)
+        }
+        other => panic!("expected an invalid field, got {other:?}"),
+    }
+}
+
+/// Bad `[[fault]]` entries are errors that name the file and the field (and
+/// for a wrong name or key, the line).
+#[test]
+fn scenario_fault_errors_name_file_field_and_line() {
+    // an unknown unit: a syntax error at its line
+    match scenario("\n[[fault]]\nat_s = 1.0\nunit = \"rotor\"\ntype = \"off\"\n") {
+        Err(ScenarioError::File(FileError::Syntax {
+            file, line, message, ..
+        })) => {
+            assert_eq!(file, "hover.toml");
+            assert_eq!(line, 11, "{message}");
+            assert!(message.contains("rotor") && message.contains("motor"), "{message}");
+        }
+        other => panic!("{other:?}"),
+    }
+    match scenario("\n[[fault]]\nat_s = 1.0\nunit = \"gps\"\ntype = \"stuck\"\n") {
+        Err(ScenarioError::File(FileError::Syntax { line, .. })) => assert_eq!(line, 12),
+        other => panic!("{other:?}"),
+    }
+    match scenario("\n[[fault]]\nat_s = 1.0\nunit = \"gps\"\ntype = \"off\"\nfraction = 1\n") {
+        Err(ScenarioError::File(FileError::Syntax { message, .. })) => assert!(message.contains("fraction")),
+        other => panic!("{other:?}"),
+    }
+    let two = "\n[[fault]]\nat_s = 1.0\nunit = \"gps\"\ntype = \"off\"\n[[fault]]\n";
+    let (field, problem) = invalid(&format!(
+        "{two}at_s = 9.0\nunit = \"motor\"\ntype = \"off\"\ninstance = 1\n"
+    ));
+    assert_eq!(field, "fault[2].at_s");
+    assert!(problem.contains("duration_s"), "{problem}");
+    let (field, problem) = invalid(&format!(
+        "{two}at_s = 2.0\nunit = \"motor\"\ntype = \"off\"\ninstance = 9\n"
+    ));
+    assert_eq!(field, "fault[2].instance");
+    assert!(problem.contains("4 motors"), "{problem}");
+    let (field, _) = invalid(&format!("{two}at_s = 2.0\nunit = \"battery\"\ntype = \"wrong\"\n"));
+    assert_eq!(field, "fault[2].type");
+    let (field, _) = invalid(&format!(
+        "{two}at_s = 2.0\nunit = \"gps\"\ntype = \"wrong\"\nthrust_fraction = 0.5\n"
+    ));
+    assert_eq!(field, "fault[2].thrust_fraction");
+    let (field, problem) = invalid(&format!(
+        "{two}at_s = 2.0\nunit = \"motor\"\ntype = \"wrong\"\ninstance = 1\nthrust_fraction = 1.5\n"
+    ));
+    assert_eq!(field, "fault[2].thrust_fraction");
+    assert!(problem.contains("[0, 1]"), "{problem}");
+}
+
+/// GIVEN a hover scenario with motor 1 made WRONG at 1 s (thrust fraction 0.3)
+/// and GPS off at 2 s
+/// THEN the summary lists both, at their instants, accepted, in time order,
+/// and the JSON carries them; a scenario without faults has no `faults` key.
+#[test]
+fn scenario_faults_are_applied_at_their_instant_and_listed() {
+    let s = scenario(
+        "\n[[fault]]\nat_s = 2.0\nunit = \"gps\"\ntype = \"off\"\n\
+         \n[[fault]]\nat_s = 1.0\nunit = \"motor\"\ntype = \"wrong\"\ninstance = 1\nthrust_fraction = 0.3\n",
+    )
+    .unwrap();
+    let summary = run(&s, None).unwrap();
+    let lines: Vec<String> = summary.faults.iter().map(|f| f.to_line()).collect();
+    assert_eq!(
+        lines,
+        vec![
+            "t = 1.000 s: motor 1 wrong: accepted".to_string(),
+            "t = 2.000 s: gps (all) off: accepted".to_string()
+        ]
+    );
+    let json = serde_json::to_value(&summary).unwrap();
+    assert_eq!(json["faults"][0]["unit"], "motor");
+    assert_eq!(json["faults"][0]["type"], "wrong");
+    assert_eq!(json["faults"][0]["time_s"], 1.0);
+    assert_eq!(json["faults"][1]["outcome"], "accepted");
+    // the flight felt it: a weak rotor pulls the hover off its point
+    let clean = run(&scenario("").unwrap(), None).unwrap();
+    assert!(summary.max_pos_err_m > clean.max_pos_err_m + 1e-3);
+    assert!(serde_json::to_value(&clean).unwrap().get("faults").is_none());
+}
+
+/// A mission TOML's `[[fault]]` goes through the autopilot's command (as a
+/// client's MAV_CMD_INJECT_FAILURE), SYS_FAILURE_EN set for it; one the
+/// scenario's parameters forbid is listed as denied.
+#[test]
+fn mission_faults_go_through_the_command() {
+    let mission = "duration_s = 40\n\
+        [[fault]]\nat_s = 5.0\nunit = \"battery\"\ntype = \"off\"\n\
+        [[fault]]\nat_s = 6.0\nunit = \"battery\"\ntype = \"ok\"\n\
+        [mission]\n\
+        [[mission.item]]\ncommand = 22\nx = 47.397742\ny = 8.545594\nz = 5.0\n";
+    let f = MissionFlight::from_toml(mission, "m.toml", None).unwrap();
+    let s = run_mission(&f, None).unwrap();
+    let outcomes: Vec<&str> = s.faults.iter().map(|f| f.outcome.as_str()).collect();
+    assert_eq!(outcomes, ["accepted", "accepted"]);
+    assert_eq!(s.faults[0].time_s, 5.0);
+    let forbidden = mission.replace("[mission]", "[params]\nSYS_FAILURE_EN = 0\n[mission]");
+    let f = MissionFlight::from_toml(&forbidden, "m.toml", None).unwrap();
+    let s = run_mission(&f, None).unwrap();
+    assert!(s.faults[0].outcome.starts_with("denied"), "{:?}", s.faults);
+}

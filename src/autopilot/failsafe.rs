@@ -1,8 +1,11 @@
 //! Supervision, once per step: what happens without anyone asking — the
-//! offboard setpoints stopped (`COM_OF_LOSS_T`, then `COM_OBL_RC_ACT`), and
-//! the auto-disarm after a landing (`COM_DISARM_LAND`) or after arming
-//! without taking off (`COM_DISARM_PRFLT`). The failsafes of later issues
-//! (data link, battery, geofence) join here.
+//! offboard setpoints stopped (`COM_OF_LOSS_T`, then `COM_OBL_RC_ACT`), the
+//! pilot's sticks stopped (`COM_RC_LOSS_T`, then `NAV_RCL_ACT`), the
+//! auto-disarm after a landing (`COM_DISARM_LAND`) or after arming without
+//! taking off (`COM_DISARM_PRFLT`), and PX4's failsafes below. Every
+//! failsafe acts through one runner ([`Autopilot::failsafe_action`]: one
+//! [`FailsafeAction`] per parameter value, one announcement, a landing under
+//! way never interrupted, a blind descent without a GPS fix).
 //!
 //! # PX4's failsafes
 //! * Data-link loss: no GCS HEARTBEAT (MAV_TYPE_GCS, any link) for
@@ -21,8 +24,8 @@
 //! A timer about the flight itself (landing, hold and loiter times, the
 //! disarm after a landing) runs on simulated time, always. A timer that
 //! waits for a client to act — the preflight auto-disarm (will the script
-//! take off?) and the offboard loss (is the setpoint stream still there?)
-//! — runs on simulated time headless and at speeds up to real time, and on
+//! take off?), the offboard loss (is the setpoint stream still there?), the
+//! data-link loss and the manual-control loss — runs on simulated time headless and at speeds up to real time, and on
 //! the wall clock when the runtime runs faster ([`ClientClock::Wall`]): a
 //! script that works at 1x keeps working at 20x without editing a
 //! parameter. The core never reads a clock: it lists its pending client

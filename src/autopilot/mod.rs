@@ -10,12 +10,14 @@
 //! |---|---|
 //! | `stack` | [`Autopilot`]: the state, parameters, and one step in order (sense, detect, supervise, guide, act) |
 //! | `commander` | commands: arming and prearm checks, the mode state machine, home, reboot and failure-injection gates |
-//! | `navigator/` | guidance per mode family: `auto` (hold, takeoff, land, return), `offboard` (setpoints and their frames), `mission` (the stored mission flown as paths) |
+//! | `navigator/` | guidance per mode family: `auto` (hold, takeoff, land, return), `offboard` (setpoints and their frames), `mission` (the stored mission flown as paths), `manual` (sticks and the manual modes), `blind` (the descent without a GPS fix) |
 //! | `mission` | the mission as the commander sees it: start, set current, what a new upload does, MISSION_CURRENT's state |
-//! | `failsafe` | supervision: offboard loss, auto-disarm; which clock the timers that wait for a client run on |
+//! | `failsafe` | supervision: offboard, data-link, manual-control loss, battery, geofence, auto-disarm, all through one action runner; which clock the timers that wait for a client run on |
+//! | `geofence` | the stored fence's zones and PX4's distance limits, as pure geometry |
+//! | `rotor_monitor` | dead and degraded rotors from commanded versus ESC-reported speeds |
 //! | `land_detector` | landed or flying, from the measurements and the commanded thrust |
 //! | `estimate` | the wrench estimate fed back: held on the ground, cross-faded after a rebuild |
-//! | `control_loop` | estimator update, control law, allocation: the loop every pilot shares |
+//! | `control_loop` | estimator update, control law, allocation (without a lost rotor, or relaxed hover for a quad): the loop every pilot shares |
 //! | `battery` | the battery monitor: charge used and remaining from voltage and current |
 //! | `telemetry` | the snapshot clients are told |
 //! | `settings` | the parameters as typed values |

@@ -17,7 +17,7 @@
 //! | `rotor_monitor` | dead and degraded rotors from commanded versus ESC-reported speeds |
 //! | `land_detector` | landed or flying, from the measurements and the commanded thrust |
 //! | `estimate` | the wrench estimate fed back: held on the ground, cross-faded after a rebuild |
-//! | `control_loop` | estimator update, control law, allocation (without a lost rotor, or relaxed hover for a quad): the loop every pilot shares |
+//! | `control_loop` | estimator update, control law, allocation (around a lost rotor; relaxed hover for a quad): the loop every pilot shares |
 //! | `battery` | the battery monitor: charge used and remaining from voltage and current |
 //! | `telemetry` | the snapshot clients are told |
 //! | `settings` | the parameters as typed values |

@@ -25,7 +25,7 @@ pub struct Cli {
 /// Options of the vehicle daemon (`rotorpilot` without a command).
 #[derive(Debug, Clone, clap::Args)]
 pub struct DaemonArgs {
-    /// Built-in airframe name (quad, hexa, octo, fsr-quad) or path to a TOML file.
+    /// Built-in airframe name (quad, hexa, hexa-ppnnpn, octo, fsr-quad) or path to a TOML file.
     #[arg(long, default_value = DEFAULT_AIRFRAME)]
     pub airframe: String,
     /// PX4 SITL instance N: system id N+1, ports 18570+N and 14580+N, state in rotorpilot-state/N.
@@ -109,7 +109,7 @@ pub enum Command {
     /// Print an airframe's allocation matrix, ranks, degrees of freedom, hover
     /// rotor speeds and single-rotor-failure verdicts.
     Airframe {
-        /// Built-in airframe name (quad, hexa, octo, fsr-quad) or path to a TOML file.
+        /// Built-in airframe name (quad, hexa, hexa-ppnnpn, octo, fsr-quad) or path to a TOML file.
         #[arg(default_value = DEFAULT_AIRFRAME)]
         airframe: String,
         /// Print one JSON object instead of text.

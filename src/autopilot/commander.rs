@@ -97,6 +97,19 @@ impl Autopilot {
         )
     }
 
+    /// A takeoff to `z` [m, NED] above `GF_MAX_VER_DIST` is refused (DENIED,
+    /// announced), never flown: the refusal, or `None` when it may go.
+    fn refuse_takeoff_above_fence(&mut self, z: f64) -> Option<CommandOutcome> {
+        let z_max = self.max_altitude_z()?;
+        (z < z_max - ALTITUDE_TOLERANCE_M).then(|| {
+            self.refuse(
+                Severity::Critical,
+                "Takeoff denied: above geofence max altitude",
+                CommandOutcome::Denied("takeoff altitude above GF_MAX_VER_DIST"),
+            )
+        })
+    }
+
     /// Why arming would be refused at the instant of `m`, if it would.
     pub(super) fn prearm_failure(&self, m: &Measurement) -> Option<&'static str> {
         if !self.land.landed() {
@@ -200,15 +213,8 @@ impl Autopilot {
         }
         let here = self.navigator.current_position(m);
         let z = z.min(here.z);
-        if self
-            .max_altitude_z()
-            .is_some_and(|z_max| z < z_max - ALTITUDE_TOLERANCE_M)
-        {
-            return self.refuse(
-                Severity::Critical,
-                "Takeoff denied: above geofence max altitude",
-                CommandOutcome::Denied("takeoff altitude above GF_MAX_VER_DIST"),
-            );
+        if let Some(refused) = self.refuse_takeoff_above_fence(z) {
+            return refused;
         }
         self.navigator.enter_takeoff(Vector3::new(here.x, here.y, z), None);
         self.say
@@ -350,15 +356,8 @@ impl Autopilot {
         if self.land.landed() {
             let home = self.home_ned();
             let z = target.z.min(home.z - self.settings.takeoff_alt_m).min(here.z);
-            if self
-                .max_altitude_z()
-                .is_some_and(|z_max| z < z_max - ALTITUDE_TOLERANCE_M)
-            {
-                return self.refuse(
-                    Severity::Critical,
-                    "Takeoff denied: above geofence max altitude",
-                    CommandOutcome::Denied("takeoff altitude above GF_MAX_VER_DIST"),
-                );
+            if let Some(refused) = self.refuse_takeoff_above_fence(z) {
+                return refused;
             }
             self.navigator
                 .enter_takeoff(Vector3::new(here.x, here.y, z), Some(hold));

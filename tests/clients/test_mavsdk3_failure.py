@@ -18,20 +18,16 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE / "mavsdk_examples"))
 from harness import Vehicle  # noqa: E402
 from test_mavsdk3 import free_tcp_port  # noqa: E402
+from test_mavsdk3_mission import at, item, until  # noqa: E402
 
 import common  # noqa: E402
 from mavsdk import System  # noqa: E402
 from mavsdk.failure import FailureType, FailureUnit  # noqa: E402
-from mavsdk.mission import MissionItem, MissionPlan  # noqa: E402
+from mavsdk.mission import MissionPlan  # noqa: E402
 from mavsdk.telemetry import FixType, FlightMode  # noqa: E402
 
 M_PER_DEG = common.M_PER_DEG_LAT
 ENABLED = {"SYS_FAILURE_EN": 1}
-
-
-def at(home, north, east):
-    lat = home.latitude_deg + north / M_PER_DEG
-    return lat, home.longitude_deg + east / (M_PER_DEG * math.cos(math.radians(home.latitude_deg)))
 
 
 def north_east_m(home, lat, lon):
@@ -49,12 +45,6 @@ def off_segment_m(p, a, b, margin):
     if s < margin or s > length - margin:
         return None
     return abs((p[0] - a[0]) * ab[1] - (p[1] - a[1]) * ab[0]) / length
-
-
-def item(lat, lon, alt, speed):
-    nan = float("nan")
-    return MissionItem(lat, lon, alt, speed, True, nan, nan, MissionItem.CameraAction.NONE, nan, 1.0, 2.0, nan, nan,
-                       MissionItem.VehicleAction.NONE)
 
 
 def fly(vehicle, scenario, wall_limit):
@@ -79,14 +69,6 @@ def collect(stream, out, f):
             out.append(f(x))
 
     return asyncio.ensure_future(run())
-
-
-async def until(cond, wall_limit, what):
-    for _ in range(int(wall_limit / 0.02)):
-        if cond():
-            return
-        await asyncio.sleep(0.02)
-    raise AssertionError(f"no {what} within {wall_limit} s")
 
 
 def test_octo_loses_a_motor_mid_mission_and_finishes_it_on_the_path():

@@ -61,6 +61,13 @@ pub struct DaemonArgs {
     /// Override the API link's remote, or `none` (default 127.0.0.1:14540+N).
     #[arg(long, value_name = "HOST:PORT")]
     pub api_remote: Option<String>,
+    /// Write this run's flight record (for `rotorpilot replay`), ULog and
+    /// per-link .tlog files into a new directory below DIR (default: no logs).
+    #[arg(long, value_name = "DIR")]
+    pub log_dir: Option<std::path::PathBuf>,
+    /// With --log-dir: also write the per-step flight CSV (as `simulate --csv`).
+    #[arg(long, requires = "log_dir")]
+    pub log_csv: bool,
 }
 
 impl DaemonArgs {
@@ -81,6 +88,8 @@ impl DaemonArgs {
         }
         c.reset_params = self.reset_params;
         c.reset_plans = self.reset_plans;
+        c.log_dir.clone_from(&self.log_dir);
+        c.log_csv = self.log_csv;
         let remote = |s: &str| -> anyhow::Result<Option<std::net::SocketAddr>> {
             if s == "none" { Ok(None) } else { resolve(s).map(Some) }
         };

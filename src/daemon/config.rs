@@ -149,6 +149,12 @@ pub struct Config {
     pub peer_timeout: Duration,
     /// Wall-time period of the simulation batches.
     pub tick: Duration,
+    /// Where flight logs go (`--log-dir`): each run writes into a directory
+    /// of its own below this one ([`crate::daemon::logs`]); `None`: no logs.
+    pub log_dir: Option<PathBuf>,
+    /// Also write the per-step flight CSV (`simulate --csv`'s format) into
+    /// the run's log directory (`--log-csv`; large: one row per step).
+    pub log_csv: bool,
 }
 
 impl Config {
@@ -167,6 +173,8 @@ impl Config {
             reset_plans: false,
             peer_timeout: Duration::from_secs(30),
             tick: Duration::from_millis(4),
+            log_dir: None,
+            log_csv: false,
         }
     }
 

@@ -8,6 +8,7 @@
 //! | `config` | [`Config`], [`LinkSpec`]: the instance and PX4 SITL's port rules, home, speed, state directory |
 //! | `sim_thread` | the simulation thread: the only owner of the core, paced against wall time; commands and parameter sets are applied there, between steps |
 //! | `link_task` | one task per UDP link: datagrams in, streams and answers out |
+//! | `logs` | the run's log directory below `--log-dir` |
 //! | `saver` | the parameter file and the stored plans, written after each accepted change |
 //!
 //! The state directory (`--state-dir`) holds `params.toml` and
@@ -34,6 +35,7 @@
 
 mod config;
 mod link_task;
+mod logs;
 mod saver;
 mod sim_thread;
 
@@ -71,6 +73,8 @@ pub struct Daemon {
     warnings: Vec<String>,
     sockets: Vec<(LinkSpec, UdpSocket)>,
     core: Lockstep<Autopilot>,
+    /// This run's log directory (`--log-dir`), created at bind.
+    log_dir: Option<std::path::PathBuf>,
 }
 
 impl std::fmt::Debug for Daemon {
@@ -129,12 +133,17 @@ pub async fn bind(config: Config) -> anyhow::Result<Daemon> {
         })?;
         sockets.push((spec.clone(), s));
     }
+    let log_dir = match &config.log_dir {
+        Some(base) => Some(logs::create_run_dir(base, config.instance)?),
+        None => None,
+    };
     Ok(Daemon {
         config,
         params,
         warnings,
         sockets,
         core,
+        log_dir,
     })
 }
 
@@ -168,6 +177,12 @@ impl Daemon {
         &self.config
     }
 
+    /// This run's log directory, when `--log-dir` was given.
+    #[must_use]
+    pub fn log_dir(&self) -> Option<&std::path::Path> {
+        self.log_dir.as_deref()
+    }
+
     /// Where it listens and sends, for the startup message.
     #[must_use]
     pub fn summary(&self) -> String {
@@ -199,6 +214,9 @@ impl Daemon {
             plans.get(MissionType::Fence).len(),
             plans.get(MissionType::Rally).len()
         ));
+        if let Some(d) = &self.log_dir {
+            s.push_str(&format!("  logs: {}\n", d.display()));
+        }
         // last: scripts read the summary up to this line (tests/daemon_runtime.rs)
         s.push_str(&format!("  parameters: {}", c.params_path().display()));
         s
@@ -217,6 +235,7 @@ impl Daemon {
             warnings: _,
             sockets,
             mut core,
+            log_dir: _,
         } = self;
         let params = Arc::new(Mutex::new(params));
         let path = config.params_path();

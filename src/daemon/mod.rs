@@ -9,6 +9,7 @@
 //! | `sim_thread` | the simulation thread: the only owner of the core, paced against wall time; commands and parameter sets are applied there, between steps |
 //! | `link_task` | one task per UDP link: datagrams in, streams and answers out |
 //! | `logs` | the run's log directory below `--log-dir` |
+//! | `ready` | the one-time `rotorpilot: ready to arm` line on stdout |
 //! | `saver` | the parameter file and the stored plans, written after each accepted change |
 //!
 //! The state directory (`--state-dir`) holds `params.toml` and
@@ -36,6 +37,7 @@
 mod config;
 mod link_task;
 mod logs;
+mod ready;
 mod saver;
 mod sim_thread;
 
@@ -289,6 +291,8 @@ impl Daemon {
             plans_changed,
             stop_rx.clone(),
         )));
+        // issue 13: one stdout line when the vehicle first is ready to arm (ready.rs)
+        tasks.push(tokio::spawn(ready::announce(tel_rx.clone(), stop_rx.clone())));
         let identity = Identity {
             system_id: config.system_id(),
             component_id: 1,

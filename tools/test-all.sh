@@ -94,6 +94,21 @@ timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/cl
 timeout 900 "$VENV/mavsdk4/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk4.py
 timeout 600 "$VENV/mavproxy/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavproxy.py
 
+echo "== pip install . in a fresh venv; the pytest fixture flies MAVSDK 3 and pymavlink tests, plain and -n 2"
+# What a user does: a new venv each run, `pip install .` (maturin builds the
+# wheel: the rotorpilot executable plus python/rotorpilot, the pytest plugin),
+# then tests that use the fixture and know no path. maturin runs cargo with
+# the same CARGO_TARGET_DIR as above, so it compiles nothing again and only
+# relinks the stripped executable (~2 s; the next `cargo build` relinks back).
+rm -rf "${VENV:?}/pip-fresh"
+client_venv pip-fresh . "mavsdk==3.17.4" "pymavlink==2.4.50" "pytest==9.2.0" "pytest-xdist==3.8.0"
+(
+    unset ROTORPILOT_BIN  # the installed executable, found by the package itself
+    cd tests/pip
+    timeout 600 "$VENV/pip-fresh/bin/python" -m pytest -q -p no:cacheprovider .
+    timeout 600 "$VENV/pip-fresh/bin/python" -m pytest -q -p no:cacheprovider -n 2 test_user_flights.py test_first.py
+)
+
 echo "== tools: plot scripts on real logs (matplotlib)"
 client_venv tools "matplotlib==3.9.2" "pytest==9.2.0"
 timeout 600 "$VENV/tools/bin/python" -m pytest -q -p no:cacheprovider tests/tools/test_plots.py

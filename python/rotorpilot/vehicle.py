@@ -36,7 +36,6 @@ import sys
 import sysconfig
 import tempfile
 import threading
-import time
 from pathlib import Path
 
 EXE = "rotorpilot.exe" if os.name == "nt" else "rotorpilot"
@@ -209,15 +208,15 @@ class Vehicle:
         )
         ready = threading.Event()
         threading.Thread(target=self._read_stdout, args=(ready,), daemon=True).start()
-        deadline = time.monotonic() + timeout
-        while not ready.wait(0.01):
-            if self.proc.poll() is not None:
-                ready.wait(0.2)  # the reader may still hold the last lines
-                self._fail(f"rotorpilot exited with status {self.proc.returncode} before it was ready to arm")
-            if time.monotonic() > deadline:
-                self._fail(f"rotorpilot was not ready to arm within {timeout} s")
-        if self.ready_s is None:  # stdout closed without the line
-            self._fail("rotorpilot closed its output before it was ready to arm")
+        # the reader sets `ready` at the ready line, or at end of output (exit)
+        if not ready.wait(timeout):
+            self._fail(f"rotorpilot was not ready to arm within {timeout} s")
+        if self.ready_s is None:
+            try:
+                rc = self.proc.wait(2)
+                self._fail(f"rotorpilot exited with status {rc} before it was ready to arm")
+            except subprocess.TimeoutExpired:
+                self._fail("rotorpilot closed its output before it was ready to arm")
         if self.api_port is None:
             self._fail("rotorpilot's banner names no API link")
         warnings = [w for w in self.stderr().splitlines() if "params.toml:" in w]

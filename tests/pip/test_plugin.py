@@ -10,7 +10,9 @@ system ids). Needs pymavlink.
 import os
 import re
 import subprocess
+import sysconfig
 from importlib import metadata
+from pathlib import Path
 
 import pytest
 from pymavlink import mavutil
@@ -147,3 +149,17 @@ def test_vehicle_without_pytest():
         assert param(connect(v), "MIS_TAKEOFF_ALT") == pytest.approx(4.0)
         root = v.root
     assert v.returncode == 0 and not os.path.exists(root)
+
+
+def test_the_installed_package_runs_its_own_executable():
+    """After `pip install .`: the package's version is Cargo.toml's, and with
+    no ROTORPILOT_BIN it runs the executable the wheel put beside Python."""
+    try:
+        metadata.distribution("rotorpilot")
+    except metadata.PackageNotFoundError:
+        pytest.skip("rotorpilot is used from a checkout, not installed")
+    cargo = (Path(__file__).resolve().parents[2] / "Cargo.toml").read_text()
+    version = re.search(r'^version = "([^"]+)"', cargo, re.M).group(1)
+    assert rotorpilot.__version__ == version
+    if not os.environ.get("ROTORPILOT_BIN"):
+        assert binary() == os.path.join(sysconfig.get_path("scripts"), "rotorpilot")

@@ -98,8 +98,11 @@ echo "== pip install . in a fresh venv; the pytest fixture flies MAVSDK 3 and py
 # What a user does: a new venv each run, `pip install .` (maturin builds the
 # wheel: the rotorpilot executable plus python/rotorpilot, the pytest plugin),
 # then tests that use the fixture and know no path. maturin runs cargo with
-# the same CARGO_TARGET_DIR as above, so it compiles nothing again and only
-# relinks the stripped executable (~2 s; the next `cargo build` relinks back).
+# the same target dir as above (CARGO_TARGET_DIR or target/), so it compiles
+# nothing again: the first time it links a stripped copy of the executable
+# (~2 s), which cargo then keeps beside the unstripped one. The step takes
+# ~30 s, most of it pip fetching the clients from its cache; a machine with
+# an empty target dir spends ~5 CPU-minutes compiling instead.
 rm -rf "${VENV:?}/pip-fresh"
 client_venv pip-fresh . "mavsdk==3.17.4" "pymavlink==2.4.50" "pytest==9.2.0" "pytest-xdist==3.8.0"
 (

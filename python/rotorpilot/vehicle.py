@@ -130,6 +130,8 @@ class Vehicle:
         self.airframe = airframe
         self.speed = float(speed)
         self.params = dict(params or {})
+        # checked now, written to params.toml at start (read before the first step)
+        self._param_lines = [f"{name} = {_toml_value(name, value)}\n" for name, value in self.params.items()]
         self.home = tuple(home) if home is not None else None
         if self.home is not None and len(self.home) != 3:
             raise VehicleError(f"home must be (lat_deg, lon_deg, alt_amsl_m), got {home!r}")
@@ -183,8 +185,7 @@ class Vehicle:
         if self.params:
             with open(os.path.join(self.state_dir, "params.toml"), "w") as f:
                 f.write("# set by the rotorpilot test fixture before start\n")
-                for name, value in self.params.items():
-                    f.write(f"{name} = {_toml_value(name, value)}\n")
+                f.writelines(self._param_lines)
         self.client_port = free_udp_port()
         self.mavsdk_server_port = free_tcp_port()
         args = [

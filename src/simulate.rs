@@ -39,7 +39,7 @@ pub struct SimulateArgs {
     /// Scenario TOML (see tools/scenarios/), a TOML with a [mission] table, a
     /// QGroundControl .plan or a QGC WPL 110 file; or a directory (its .toml,
     /// .plan, .waypoints and .mission files, sorted by name). Several, a
-    /// directory or a [campaign] table make a campaign.
+    /// directory or a [campaign] table (see tools/campaigns/) make a campaign.
     #[arg(required = true, value_name = "SCENARIO")]
     pub scenarios: Vec<PathBuf>,
     /// Print each summary as one JSON object on one line.

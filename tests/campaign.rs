@@ -455,3 +455,29 @@ fn the_shipped_monte_carlo_campaign_has_16_reproducible_draws() {
         assert_eq!(l["upright"], true);
     }
 }
+
+#[test]
+fn a_mission_campaign_varies_a_px4_parameter() {
+    let d = dir("mission-params");
+    let square = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tools/scenarios/mission-square.toml"
+    ))
+    .unwrap();
+    let file = write(
+        &d,
+        "square.toml",
+        &format!("{square}\n[campaign.grid]\n\"params.MPC_XY_CRUISE\" = [4, 12.0]\n"),
+    );
+    let run = simulate(&[&file, "--json"]);
+    assert_eq!(run.status, Some(0), "{}", run.stderr);
+    assert_eq!(run.lines.len(), 2);
+    assert_eq!(
+        run.lines[0]["values"]["params.MPC_XY_CRUISE"], 4.0,
+        "an integer where the file has a float"
+    );
+    assert!(run.lines.iter().all(|l| l["verdict"] == "pass"));
+    // faster cruise, shorter mission
+    let (slow, fast) = (f(&run.lines[0]["mission_time_s"]), f(&run.lines[1]["mission_time_s"]));
+    assert!(slow > fast + 5.0, "{slow} s at 4 m/s, {fast} s at 12 m/s");
+}

@@ -172,7 +172,7 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
     let single = args.shard.is_none()
         && args.scenarios.len() == 1
         && !args.scenarios[0].is_dir()
-        && files.first().is_none_or(|f| f.as_ref().is_ok_and(|f| !f.is_varied()));
+        && files.first().is_none_or(|f| f.as_ref().map_or(true, |f| !f.is_varied()));
     let csv_dir = match (&args.csv, single) {
         (Some(dir), false) => {
             std::fs::create_dir_all(dir)

@@ -194,9 +194,9 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             }
             Ok(())
         }
-        Some(Command::Simulate(args)) => match crate::simulate::run(&args)? {
+        Some(Command::Simulate(args)) => match crate::simulate::main(&args) {
             0 => Ok(()),
-            // 1: a mission failed its verdict, 2: a scenario could not be read or flown
+            // 1: a mission failed its verdict, 2: a scenario could not be read or flown (printed)
             status => std::process::exit(i32::from(status)),
         },
         Some(Command::Estimate {

@@ -61,7 +61,7 @@ pub struct SimulateArgs {
 
 /// Exit status: a mission failed its verdict.
 pub const EXIT_MISSION_FAILED: u8 = 1;
-/// Exit status: a scenario could not be read or flown.
+/// Exit status: a scenario could not be read or flown, or the arguments name no campaign.
 pub const EXIT_BAD_SCENARIO: u8 = 2;
 
 /// One entry of the campaign this run flies.
@@ -138,13 +138,23 @@ fn short(v: &toml::Value) -> String {
     }
 }
 
-/// Run `rotorpilot simulate`; the exit status (0, [`EXIT_MISSION_FAILED`], [`EXIT_BAD_SCENARIO`]).
-///
-/// # Errors
-/// Arguments that name no campaign (an empty or unreadable directory), or a
-/// CSV directory that cannot be made; bad scenario files are entries, not errors.
+/// Run `rotorpilot simulate`; the exit status: 0, [`EXIT_MISSION_FAILED`],
+/// or [`EXIT_BAD_SCENARIO`] (also for arguments that name no campaign, such
+/// as an empty directory, printed to stderr), so that 1 always means a
+/// failed verdict.
+#[must_use]
+pub fn main(args: &SimulateArgs) -> u8 {
+    run(args).unwrap_or_else(|e| {
+        eprintln!("rotorpilot: {e:#}");
+        EXIT_BAD_SCENARIO
+    })
+}
+
+/// [`main`]; `Err` for arguments that name no campaign (an empty or
+/// unreadable directory), a CSV directory that cannot be made, or stdout
+/// closed. Bad scenario files are entries, not errors.
 #[allow(clippy::too_many_lines)]
-pub fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
+fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
     let paths = expand(&args.scenarios)?;
     let files: Vec<Result<CampaignFile, String>> = paths
         .iter()
@@ -172,7 +182,9 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
     let single = args.shard.is_none()
         && args.scenarios.len() == 1
         && !args.scenarios[0].is_dir()
-        && files.first().is_none_or(|f| f.as_ref().map_or(true, |f| !f.is_varied()));
+        && files
+            .first()
+            .is_none_or(|f| f.as_ref().map_or(true, |f| !f.is_varied()));
     let csv_dir = match (&args.csv, single) {
         (Some(dir), false) => {
             std::fs::create_dir_all(dir)

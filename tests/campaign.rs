@@ -322,6 +322,11 @@ fn bad_shards_are_refused_clearly() {
     let run = simulate(&["tools/campaigns", "--jobs", "0"]);
     assert_eq!(run.status, Some(2));
     assert!(run.stderr.contains("--jobs"), "{}", run.stderr);
+    // a directory with no scenario is no campaign: 2 as well (1 only ever means a failed verdict)
+    let empty = dir("empty");
+    let run = simulate(&[empty.to_str().unwrap()]);
+    assert_eq!(run.status, Some(2));
+    assert!(run.stderr.contains("no scenario files"), "{}", run.stderr);
 }
 
 #[test]

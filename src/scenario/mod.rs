@@ -10,6 +10,7 @@
 //! duration. See `tools/scenarios/` for examples. Errors name the file, the
 //! field and the problem.
 
+pub mod campaign;
 pub mod fault;
 mod mission;
 mod run;

@@ -25,6 +25,7 @@
 //! | [`lockstep`] | the one loop: sense, decide, act, integrate for every vehicle; parameter routing and transaction; telemetry with the injected truth | `sim`, `autopilot`, `signals`, `params`, `airframe`, `geo` |
 //! | [`scenario`] | scenario files and the flat-out runner behind `rotorpilot simulate` | `lockstep`, `sim`, `autopilot`, `control`, `estimation` |
 //! | [`flightlog`] | flight-log CSV reading and the offline estimator sweep of `rotorpilot estimate` | `estimation` |
+//! | [`ulog`] | PX4's ULog format written to any `io::Write`; `ulog::flight` fills PX4-named topics from the lockstep core (the daemon's `flight.ulg`) | `lockstep`, `autopilot`, `params` |
 //! | [`link`] | MAVLink 2 over UDP as PX4 SITL, sans I/O: translates messages to autopilot commands and telemetry to messages (never physics, never a decision) | `autopilot`, `lockstep::Snapshot` (with the world's `sim::Truth` in it), `params`, `geo`, mavlink |
 //! | [`daemon`] | the runtime: the simulation thread paced against wall time, link tasks on tokio, parameter and plan saving, shutdown | everything |
 //! | [`cli`] | the `rotorpilot` command line (thin: parses, calls the modules, prints) | everything |
@@ -61,3 +62,4 @@ pub mod signals;
 pub mod sim;
 pub mod statefile;
 pub mod tomlfile;
+pub mod ulog;

@@ -1,0 +1,95 @@
+//! The run's `flight.ulg`: [`crate::ulog::flight::FlightUlog`] on a
+//! buffered file, fed by the simulation thread after every step and with
+//! every status text. The buffer reaches the file when full and when the
+//! simulation thread ends (drop). A write error stops the log with one
+//! warning; the flight goes on.
+
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+use tracing::warn;
+
+use crate::autopilot::{Autopilot, StatusText};
+use crate::lockstep::Lockstep;
+use crate::params::ParamStore;
+use crate::ulog::flight::FlightUlog;
+
+/// The file name in the run directory.
+pub(super) const FILE_NAME: &str = "flight.ulg";
+
+/// The ULog of vehicle `vehicle`, written to `flight.ulg`.
+#[derive(Debug)]
+pub(super) struct UlogFile {
+    log: Option<FlightUlog<BufWriter<File>>>,
+    path: PathBuf,
+    vehicle: usize,
+}
+
+impl UlogFile {
+    /// Start `dir/flight.ulg` (header, formats, info, parameters); `None`
+    /// with a warning if it cannot be written.
+    pub(super) fn create(dir: &Path, params: &ParamStore, core: &Lockstep<Autopilot>, vehicle: usize) -> Option<Self> {
+        let path = dir.join(FILE_NAME);
+        let started = File::create(&path)
+            .and_then(|f| FlightUlog::new(BufWriter::with_capacity(256 * 1024, f), params, core, vehicle));
+        match started {
+            Ok(log) => Some(Self {
+                log: Some(log),
+                path,
+                vehicle,
+            }),
+            Err(e) => {
+                warn!(path = %path.display(), error = %e, "cannot write the ULog; flying without it");
+                None
+            }
+        }
+    }
+
+    fn check(&mut self, r: std::io::Result<()>) {
+        if let Err(e) = r {
+            warn!(path = %self.path.display(), error = %e, "ULog write failed; the ULog stops here");
+            self.log = None;
+        }
+    }
+
+    /// After a step of the core.
+    fn on_step(&mut self, core: &mut Lockstep<Autopilot>) {
+        if let Some(log) = &mut self.log {
+            let r = log.on_step(core, self.vehicle);
+            self.check(r);
+        }
+    }
+
+    /// A status text announced at the core's current time.
+    fn status_text(&mut self, time_s: f64, text: &StatusText) {
+        if let Some(log) = &mut self.log {
+            let r = log.status_text(time_s, text);
+            self.check(r);
+        }
+    }
+}
+
+/// The simulation thread's hook after each step (nothing without a ULog).
+pub(super) fn after_step(log: &mut Option<UlogFile>, core: &mut Lockstep<Autopilot>) {
+    if let Some(l) = log {
+        l.on_step(core);
+    }
+}
+
+/// The simulation thread's hook for each status text it publishes.
+pub(super) fn status_text(log: &mut Option<UlogFile>, time_s: f64, text: &StatusText) {
+    if let Some(l) = log {
+        l.status_text(time_s, text);
+    }
+}
+
+impl Drop for UlogFile {
+    fn drop(&mut self) {
+        if let Some(log) = self.log.take() {
+            if let Err(e) = log.finish() {
+                warn!(path = %self.path.display(), error = %e, "ULog: the last writes failed");
+            }
+        }
+    }
+}

@@ -73,7 +73,8 @@ client_venv() {
     fi
     "$VENV/$name/bin/python" -m pip install -q --disable-pip-version-check "$@"
 }
-client_venv pymavlink "pymavlink==2.4.50" "pytest==9.2.0"
+# pyulog reads the daemon's flight.ulg (tests/clients/test_pymavlink_logs.py)
+client_venv pymavlink "pymavlink==2.4.50" "pytest==9.2.0" "pyulog==1.3.0"
 client_venv mavsdk3 "mavsdk==3.17.4" "pymavlink==2.4.50" "pytest==9.2.0"
 client_venv mavsdk4 "mavsdk==4.1.0" "pytest==9.2.0"
 # MAVProxy 1.8.74: the newest without vtk/opencv/matplotlib as dependencies
@@ -88,6 +89,7 @@ timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/
 timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_manual.py
 timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_failure.py
 timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_rotor_loss.py
+timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_logs.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_mission.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_failsafe.py

@@ -86,10 +86,8 @@ pub(super) fn status_text(log: &mut Option<UlogFile>, time_s: f64, text: &Status
 
 impl Drop for UlogFile {
     fn drop(&mut self) {
-        if let Some(log) = self.log.take() {
-            if let Err(e) = log.finish() {
-                warn!(path = %self.path.display(), error = %e, "ULog: the last writes failed");
-            }
+        if let Some(Err(e)) = self.log.take().map(FlightUlog::finish) {
+            warn!(path = %self.path.display(), error = %e, "ULog: the last writes failed");
         }
     }
 }

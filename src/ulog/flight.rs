@@ -384,7 +384,7 @@ impl<W: Write> FlightUlog<W> {
 
     fn due(&self, topic: u16, k: u64) -> bool {
         let e = self.every[usize::from(topic)];
-        e > 0 && k % e == 0
+        e > 0 && k.is_multiple_of(e)
     }
 
     /// Log what is due after a step of the core (decimated by the step
@@ -479,7 +479,7 @@ impl<W: Write> FlightUlog<W> {
             mode: pilot.mode(),
             landed: pilot.landed_state() == LandedState::OnGround,
         };
-        let second = k % ((1.0 / dt).round() as u64).max(1) == 0;
+        let second = k.is_multiple_of(((1.0 / dt).round() as u64).max(1));
         let status_due = second || self.last.is_none_or(|l| l.armed != now.armed || l.mode != now.mode);
         let land_due = second || self.last.is_none_or(|l| l.landed != now.landed);
         let tel_due = status_due

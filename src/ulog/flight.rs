@@ -589,6 +589,52 @@ impl<W: Write> FlightUlog<W> {
 mod tests {
     use super::*;
 
+    /// Data messages per message id in a ULog file (walking the messages).
+    fn data_counts(b: &[u8]) -> Vec<usize> {
+        let mut counts = vec![0; TOPICS.len()];
+        let mut i = 16;
+        while i + 3 <= b.len() {
+            let size = usize::from(u16::from_le_bytes([b[i], b[i + 1]]));
+            if b[i + 2] == b'D' {
+                counts[usize::from(u16::from_le_bytes([b[i + 3], b[i + 4]]))] += 1;
+            }
+            i += 3 + size;
+        }
+        assert_eq!(i, b.len(), "messages end at the file's end");
+        counts
+    }
+
+    #[test]
+    fn a_second_on_the_ground_is_decimated_to_the_topic_rates() {
+        let airframe = crate::airframe::Airframe::load("quad").unwrap();
+        let params = ParamStore::new(&airframe);
+        let mut core = Lockstep::one_vehicle(
+            &airframe,
+            crate::geo::GeoPoint::PX4_SITL_HOME,
+            &params,
+            crate::sim::SensorConfig::default(),
+        )
+        .unwrap();
+        let mut log = FlightUlog::new(Vec::new(), &params, &core, 0).unwrap();
+        for _ in 0..1000 {
+            core.step();
+            log.on_step(&mut core, 0).unwrap();
+        }
+        let counts = data_counts(&log.finish().unwrap());
+        // steps at t_k = 0 .. 0.999 s: one sample every interval from t = 0
+        assert_eq!(counts[usize::from(id::ATTITUDE)], 20);
+        assert_eq!(counts[usize::from(id::ANGULAR_VELOCITY)], 50);
+        assert_eq!(counts[usize::from(id::LOCAL_POSITION)], 10);
+        assert_eq!(counts[usize::from(id::GLOBAL_POSITION)], 5);
+        assert_eq!(counts[usize::from(id::ACTUATOR_MOTORS)], 10);
+        assert_eq!(counts[usize::from(id::SIM_TRUTH)], 50);
+        // nothing changes disarmed on the ground: once, at t = 0
+        assert_eq!(counts[usize::from(id::VEHICLE_STATUS)], 1);
+        assert_eq!(counts[usize::from(id::LAND_DETECTED)], 1);
+        // disarmed: no reference is tracked
+        assert_eq!(counts[usize::from(id::TRAJECTORY_SETPOINT)], 0);
+    }
+
     #[test]
     fn nav_states_are_px4_numbers() {
         assert_eq!(nav_state(FlightMode::Hold), 4);

@@ -240,11 +240,11 @@ impl Daemon {
             mut core,
             log_dir,
         } = self;
+        let params = Arc::new(Mutex::new(params));
         // the vehicle's ULog (`--log-dir`), started before the first step
         let ulog = log_dir
             .as_deref()
             .and_then(|d| ulog_file::UlogFile::create(d, &params, &core, sim_thread::VEHICLE));
-        let params = Arc::new(Mutex::new(params));
         let path = config.params_path();
         if let Some(dir) = path.parent() {
             std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;

@@ -7,9 +7,11 @@
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
 
 use tracing::warn;
 
+use super::saver::lock;
 use crate::autopilot::{Autopilot, StatusText};
 use crate::lockstep::Lockstep;
 use crate::params::ParamStore;
@@ -24,20 +26,37 @@ pub(super) struct UlogFile {
     log: Option<FlightUlog<BufWriter<File>>>,
     path: PathBuf,
     vehicle: usize,
+    /// The daemon's parameters, looked at every `PARAM_CHECK_EVERY` steps
+    /// for changes (logged as PX4 logs a change in flight).
+    params: Arc<Mutex<ParamStore>>,
+    generation: u64,
+    steps: u64,
 }
+
+/// Steps between two looks at the parameters' generation (0.1 s).
+const PARAM_CHECK_EVERY: u64 = 100;
 
 impl UlogFile {
     /// Start `dir/flight.ulg` (header, formats, info, parameters); `None`
     /// with a warning if it cannot be written.
-    pub(super) fn create(dir: &Path, params: &ParamStore, core: &Lockstep<Autopilot>, vehicle: usize) -> Option<Self> {
+    pub(super) fn create(
+        dir: &Path,
+        params: &Arc<Mutex<ParamStore>>,
+        core: &Lockstep<Autopilot>,
+        vehicle: usize,
+    ) -> Option<Self> {
         let path = dir.join(FILE_NAME);
+        let store = lock(params).clone();
         let started = File::create(&path)
-            .and_then(|f| FlightUlog::new(BufWriter::with_capacity(256 * 1024, f), params, core, vehicle));
+            .and_then(|f| FlightUlog::new(BufWriter::with_capacity(256 * 1024, f), &store, core, vehicle));
         match started {
             Ok(log) => Some(Self {
                 log: Some(log),
                 path,
                 vehicle,
+                params: params.clone(),
+                generation: store.generation(),
+                steps: 0,
             }),
             Err(e) => {
                 warn!(path = %path.display(), error = %e, "cannot write the ULog; flying without it");
@@ -55,6 +74,16 @@ impl UlogFile {
 
     /// After a step of the core.
     fn on_step(&mut self, core: &mut Lockstep<Autopilot>) {
+        self.steps += 1;
+        if self.steps.is_multiple_of(PARAM_CHECK_EVERY) {
+            let store = lock(&self.params);
+            if store.generation() != self.generation {
+                self.generation = store.generation();
+                let r = self.log.as_mut().map_or(Ok(()), |l| l.parameters(&store));
+                drop(store);
+                self.check(r);
+            }
+        }
         if let Some(log) = &mut self.log {
             let r = log.on_step(core, self.vehicle);
             self.check(r);

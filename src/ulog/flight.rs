@@ -19,7 +19,7 @@
 //! | `battery_status` | 5 Hz | battery |
 //! | `vehicle_status` | 1 Hz and on change | commander |
 //! | `vehicle_land_detected` | 1 Hz and on change | land detector |
-//! | `rotorpilot_wrench_estimate` | 50 Hz | the momentum-based estimator |
+//! | `rotorpilot_wrench_estimate` | 50 Hz | the momentum-based estimator (and its order) |
 //! | `rotorpilot_control_wrench` | 50 Hz | the controller's wrench |
 //! | `rotorpilot_sim_truth` | 50 Hz | the simulated world (truth) |
 //!
@@ -35,7 +35,7 @@ use super::{Field, FieldType as T, Format, LogLevel, Sample, UlogWriter, Value};
 use crate::autopilot::{Autopilot, FlightMode, LandedState, Severity, StatusText};
 use crate::control::Reference;
 use crate::lockstep::Lockstep;
-use crate::params::{ParamStore, ParamValue};
+use crate::params::{Param, ParamStore, ParamValue};
 use crate::signals::{ActuatorCommand, GpsFix};
 
 /// PX4's `actuator_motors.control` length.
@@ -199,6 +199,7 @@ const WRENCH_ESTIMATE: Topic = Topic {
             a(T::F32, 3, "force_ned"),
             a(T::F32, 3, "torque_frd"),
             s(T::F32, "mass_kg"),
+            s(T::U8, "order"),
         ],
     },
     interval_ms: 20,
@@ -300,6 +301,18 @@ pub fn log_level(severity: Severity) -> LogLevel {
     }
 }
 
+fn ulog_value(v: ParamValue) -> Value {
+    match v {
+        ParamValue::Int32(i) => Value::I32(i),
+        ParamValue::Real32(f) => Value::F32(f),
+    }
+}
+
+/// `EST_ORDER` (validated 1..20 by the parameter table).
+fn est_order(store: &ParamStore) -> u8 {
+    u8::try_from(store.int(Param::EST_ORDER)).unwrap_or(0)
+}
+
 /// Simulated seconds to ULog microseconds (rounded).
 fn us(t_s: f64) -> u64 {
     (t_s * 1e6).round().max(0.0) as u64
@@ -333,6 +346,10 @@ pub struct FlightUlog<W: Write> {
     rotor_count: usize,
     /// What the status topics last logged.
     last: Option<Status>,
+    /// Every parameter's value as last logged (by index).
+    params: Vec<ParamValue>,
+    /// The estimator's order `r` (`EST_ORDER` in force).
+    order: u8,
 }
 
 impl<W: Write> FlightUlog<W> {
@@ -358,11 +375,7 @@ impl<W: Write> FlightUlog<W> {
         ulog.info_str("rotorpilot_airframe", &airframe.name)?;
         ulog.info("time_ref_utc", Value::I32(0))?;
         for (spec, value) in params.iter() {
-            let v = match value {
-                ParamValue::Int32(i) => Value::I32(i),
-                ParamValue::Real32(f) => Value::F32(f),
-            };
-            ulog.parameter(spec.name, v)?;
+            ulog.parameter(spec.name, ulog_value(value))?;
         }
         for t in TOPICS {
             ulog.add_logged(&t.format, 0)?;
@@ -379,7 +392,29 @@ impl<W: Write> FlightUlog<W> {
             speed_max_rad_s: airframe.rotor.speed_max_rad_s,
             rotor_count: airframe.rotor_count().min(MOTORS),
             last: None,
+            params: params.iter().map(|(_, v)| v).collect(),
+            order: est_order(params),
         })
+    }
+
+    /// Log every parameter whose value differs from the one last logged
+    /// ('P' in the data section, as PX4 logs a change in flight; readers
+    /// date it by the data before it). Call after a parameter change is
+    /// applied (the daemon looks every 0.1 s of simulated time).
+    ///
+    /// # Errors
+    /// Writing fails.
+    pub fn parameters(&mut self, store: &ParamStore) -> io::Result<()> {
+        for (i, (spec, value)) in store.iter().enumerate() {
+            if self.params.get(i) != Some(&value) {
+                self.ulog.parameter(spec.name, ulog_value(value))?;
+                if let Some(old) = self.params.get_mut(i) {
+                    *old = value;
+                }
+            }
+        }
+        self.order = est_order(store);
+        Ok(())
     }
 
     fn due(&self, topic: u16, k: u64) -> bool {
@@ -449,7 +484,8 @@ impl<W: Write> FlightUlog<W> {
             let s = Sample::new(t)
                 .f32s(&v3(&e.force_ned))
                 .f32s(&v3(&e.torque_frd))
-                .f32(e.mass_kg);
+                .f32(e.mass_kg)
+                .u8(self.order);
             self.ulog.data(id::WRENCH_ESTIMATE, &s)?;
         }
         if self.due(id::CONTROL_WRENCH, k) {

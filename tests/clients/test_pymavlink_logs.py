@@ -10,6 +10,7 @@ did and saw. Run with the pymavlink venv (pymavlink, pytest, pyulog).
 """
 
 import collections
+import struct
 import subprocess
 import sys
 import tempfile
@@ -28,6 +29,8 @@ from pyulog import ULog  # noqa: E402
 mavlink = mavutil.mavlink
 SPEED = 10.0
 TAKEOFF_ALT = 3.0
+# EST_ORDER set in flight (the default is 3)
+NEW_ORDER = 5
 # topic -> rate [Hz] (PX4's default logger intervals; docs/logs.md)
 RATES = {
     "vehicle_attitude": 20,
@@ -114,6 +117,10 @@ def flight():
         assert command(gcs, mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 10) == 0
         assert wait(gcs, "EXTENDED_SYS_STATE", lambda e: e.landed_state == 2, 15, seen), "in air"
         assert wait(gcs, "GLOBAL_POSITION_INT", lambda g: g.relative_alt > (TAKEOFF_ALT - 0.2) * 1000, 15, seen)
+        # a parameter changed in flight: the estimator's order (INT32, bytewise in the float)
+        as_float = struct.unpack("<f", struct.pack("<i", NEW_ORDER))[0]
+        gcs.param_set_send("EST_ORDER", as_float, mavlink.MAV_PARAM_TYPE_INT32)
+        assert wait(gcs, "PARAM_VALUE", lambda p: p.param_id == "EST_ORDER", 3, seen), "EST_ORDER set"
         # hover a little (simulated seconds from the vehicle's clock)
         a0 = wait(gcs, "ATTITUDE", timeout=2)
         assert wait(gcs, "ATTITUDE", lambda a: a.time_boot_ms - a0.time_boot_ms > 5000, 10, seen)
@@ -258,6 +265,14 @@ def test_ulog_parameters_info_and_status_texts(ulog, flight):
     assert p["MAV_SYS_ID"] == flight["sysid"]
     assert isinstance(p["MAV_SYS_ID"], int) and isinstance(p["MIS_TAKEOFF_ALT"], float)
     assert len(p) == flight["param_count"], "every parameter"
+    # the change in flight, as PX4 logs one, and the order the estimate reports
+    assert p["EST_ORDER"] == 3
+    assert [(n, v) for _, n, v in ulog.changed_parameters] == [("EST_ORDER", NEW_ORDER)]
+    changed_at = ulog.changed_parameters[0][0]
+    est = topic(ulog, "rotorpilot_wrench_estimate")
+    assert est["order"][0] == 3 and est["order"][-1] == NEW_ORDER
+    first_new = est["timestamp"][np.argmax(est["order"] == NEW_ORDER)]
+    assert abs(int(first_new) - int(changed_at)) <= 120_000, "within 0.1 s of simulated time"
     logged = [(m.log_level, m.message) for m in ulog.logged_messages]
     # every STATUSTEXT the client saw, with its severity (syslog numbers in both)
     assert flight["seen"], "the flight announced something"

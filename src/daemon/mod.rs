@@ -10,6 +10,7 @@
 //! | `link_task` | one task per UDP link: datagrams in, streams and answers out |
 //! | `logs` | the run's log directory below `--log-dir` |
 //! | `ready` | the one-time `rotorpilot: ready to arm` line on stdout |
+//! | `tlog`, `ulog_file` | each link's `.tlog` and the vehicle's `flight.ulg` in the run's log directory |
 //! | `saver` | the parameter file and the stored plans, written after each accepted change |
 //!
 //! The state directory (`--state-dir`) holds `params.toml` and
@@ -40,6 +41,8 @@ mod logs;
 mod ready;
 mod saver;
 mod sim_thread;
+mod tlog;
+mod ulog_file;
 
 pub use config::{Config, LinkSpec, parse_home, resolve};
 
@@ -237,9 +240,13 @@ impl Daemon {
             warnings: _,
             sockets,
             mut core,
-            log_dir: _,
+            log_dir,
         } = self;
         let params = Arc::new(Mutex::new(params));
+        // the vehicle's ULog (`--log-dir`), started before the first step
+        let ulog = log_dir
+            .as_deref()
+            .and_then(|d| ulog_file::UlogFile::create(d, &params, &core, sim_thread::VEHICLE));
         let path = config.params_path();
         if let Some(dir) = path.parent() {
             std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
@@ -270,6 +277,7 @@ impl Daemon {
             plans_changed: plans_changed.clone(),
             wall_timers: Vec::new(),
             link_lost: link_lost_tx,
+            ulog,
         };
         let (sim_done_tx, sim_done_rx) = oneshot::channel::<()>();
         let sim_thread = std::thread::Builder::new()
@@ -297,7 +305,7 @@ impl Daemon {
             system_id: config.system_id(),
             component_id: 1,
         };
-        for (spec, socket) in sockets {
+        for (index, (spec, socket)) in sockets.into_iter().enumerate() {
             let link = Link::new(
                 LinkConfig {
                     name: spec.name.clone(),
@@ -321,6 +329,10 @@ impl Daemon {
                 exit: exit_tx.clone(),
                 dests: Vec::new(),
                 send_errors: 0,
+                tlog: log_dir
+                    .as_deref()
+                    .map(|d| tlog::Tlog::create(d, &tlog::file_name(index, &spec.name)))
+                    .unwrap_or_default(),
             };
             tasks.push(tokio::spawn(task.run(stop_rx.clone())));
         }

@@ -80,6 +80,8 @@ pub(super) struct Sim {
     /// Whether the vehicle's radio is silent (an injected MAVLINK_SIGNAL
     /// failure): the link tasks send nothing meanwhile.
     pub(super) link_lost: watch::Sender<bool>,
+    /// The run's `flight.ulg` (`--log-dir`), fed after every step.
+    pub(super) ulog: Option<super::ulog_file::UlogFile>,
 }
 
 impl Sim {
@@ -128,6 +130,7 @@ impl Sim {
                 let n = due.min(CHUNK);
                 for _ in 0..n {
                     self.core.step();
+                    super::ulog_file::after_step(&mut self.ulog, &mut self.core);
                 }
                 steps += n;
                 due -= n;
@@ -186,6 +189,7 @@ impl Sim {
         self.link_lost.send_if_modified(|l| std::mem::replace(l, lost) != lost);
         for s in self.core.drain_status_texts(VEHICLE) {
             info!(text = %s.text, "status");
+            super::ulog_file::status_text(&mut self.ulog, self.core.time_s(), &s);
             let _ = self.events.send(Event::StatusText(s));
         }
         for seq in self.core.drain_mission_reached(VEHICLE) {

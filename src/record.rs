@@ -162,8 +162,9 @@ pub fn apply(core: &mut Lockstep<Autopilot>, i: usize, params: &mut ParamStore, 
 }
 
 impl Header {
-    /// The header of a core about to start: `params` and the plans as the
-    /// autopilot holds them.
+    /// The header of a core about to start: the airframe's TOML text and
+    /// label (as [`Airframe::load_text`] gives them), `params` and the plans
+    /// as the autopilot holds them.
     #[must_use]
     pub fn new(
         airframe: (String, String),
@@ -174,7 +175,7 @@ impl Header {
         client_clock: ClientClock,
         step_s: f64,
     ) -> Self {
-        let (label, text) = airframe;
+        let (text, label) = airframe;
         Self {
             format: FORMAT.into(),
             version: VERSION,
@@ -199,12 +200,11 @@ impl Header {
     /// The airframe text, a parameter or a plan that this rotorpilot refuses,
     /// another step.
     pub fn build(&self) -> Result<(Lockstep<Autopilot>, ParamStore), String> {
-        let airframe = Airframe::from_toml(&self.airframe_toml, &self.airframe).map_err(|e| format!("airframe: {e}"))?;
+        let airframe =
+            Airframe::from_toml(&self.airframe_toml, &self.airframe).map_err(|e| format!("airframe: {e}"))?;
         let mut params = ParamStore::new(&airframe);
         for (name, v) in &self.params {
-            params
-                .set(name, *v)
-                .map_err(|e| format!("parameter {name}: {e}"))?;
+            params.set(name, *v).map_err(|e| format!("parameter {name}: {e}"))?;
         }
         let mut core = Lockstep::one_vehicle(&airframe, self.home, &params, self.sensors).map_err(|e| e.to_string())?;
         if core.dt_s().to_bits() != self.step_s.to_bits() {
@@ -320,11 +320,18 @@ pub fn read_record(text: &str, file: &str) -> Result<Record, String> {
             match step {
                 Some(s) if m.is_empty() => {
                     if let Some(last) = inputs.last().filter(|l| l.step > s) {
-                        return Err(format!("{at}: ends at step {s}, before the input at step {}", last.step));
+                        return Err(format!(
+                            "{at}: ends at step {s}, before the input at step {}",
+                            last.step
+                        ));
                     }
                     end = Some(s);
                 }
-                _ => return Err(format!("{at}: not a record line: an end line holds only {{\"step\": N}}")),
+                _ => {
+                    return Err(format!(
+                        "{at}: not a record line: an end line holds only {{\"step\": N}}"
+                    ));
+                }
             }
             continue;
         }
@@ -432,9 +439,7 @@ pub fn replay(record: &Record, file: &str, mut csv: Option<&mut dyn Write>) -> R
     if let Some(w) = csv.as_deref_mut() {
         writeln!(w, "{}", crate::scenario::csv_header(n)).map_err(io)?;
     }
-    let end = record
-        .end
-        .unwrap_or_else(|| record.inputs.last().map_or(0, |e| e.step));
+    let end = record.end.unwrap_or_else(|| record.inputs.last().map_or(0, |e| e.step));
     let step_to = |core: &mut Lockstep<Autopilot>, target: u64, csv: &mut Option<&mut dyn Write>| {
         while core.steps() < target {
             core.step();
@@ -721,7 +726,10 @@ impl ser::SerializeMap for MapSer {
         Ok(())
     }
     fn serialize_value<T: Serialize + ?Sized>(&mut self, v: &T) -> Result<(), serde_json::Error> {
-        let k = self.1.take().ok_or_else(|| ser::Error::custom("a map value without a key"))?;
+        let k = self
+            .1
+            .take()
+            .ok_or_else(|| ser::Error::custom("a map value without a key"))?;
         self.0.insert(k, v.serialize(ExactSer)?);
         Ok(())
     }
@@ -881,10 +889,9 @@ mod tests {
     }
 
     fn test_header() -> Header {
-        let (text, label) = Airframe::load_text("quad").unwrap();
-        let a = Airframe::from_toml(&text, &label).unwrap();
+        let a = Airframe::load("quad").unwrap();
         Header::new(
-            (label, text),
+            Airframe::load_text("quad").unwrap(),
             GeoPoint::PX4_SITL_HOME,
             &ParamStore::new(&a),
             &Plans::default(),
@@ -924,7 +931,14 @@ mod tests {
             let back: f32 = from_exact_value(serde_json::from_str(&f32_value(f).to_string()).unwrap()).unwrap();
             assert_eq!(back.to_bits(), f.to_bits(), "{f:?}");
         }
-        for f in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, f32::from_bits(0x7fc0_0001), 0.1, 16_777_217.0] {
+        for f in [
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::from_bits(0x7fc0_0001),
+            0.1,
+            16_777_217.0,
+        ] {
             let back: f32 = from_exact_value(serde_json::from_str(&f32_value(f).to_string()).unwrap()).unwrap();
             assert_eq!(back.to_bits(), f.to_bits(), "{f:?}");
         }
@@ -1013,7 +1027,11 @@ mod tests {
         assert!(e.starts_with("f.record:2: cut short"), "{e}");
         let e = read_record(&format!("{h}\n{line}\n[1, 2]\n"), "f.record").unwrap_err();
         assert!(e.starts_with("f.record:3: not a record line"), "{e}");
-        let e = read_record(&format!("{h}\n{{\"step\":1,\"fly\":null,\"outcome\":\"\"}}\n"), "f.record").unwrap_err();
+        let e = read_record(
+            &format!("{h}\n{{\"step\":1,\"fly\":null,\"outcome\":\"\"}}\n"),
+            "f.record",
+        )
+        .unwrap_err();
         assert!(e.starts_with("f.record:2: not a record line"), "{e}");
         let e = read_record("hello\n", "f.record").unwrap_err();
         assert!(e.contains("not a flight record"), "{e}");

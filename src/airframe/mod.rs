@@ -198,7 +198,10 @@ impl Airframe {
             return Ok((crate::tomlfile::read(path)?, path.display().to_string()));
         }
         if let Some((name, text)) = BUILTIN.iter().find(|(n, _)| *n == name_or_path) {
-            return Ok(((*text).to_string(), format!("built-in {name} (params/airframes/{name}.toml)")));
+            return Ok((
+                (*text).to_string(),
+                format!("built-in {name} (params/airframes/{name}.toml)"),
+            ));
         }
         if name_or_path.contains('/') || name_or_path.ends_with(".toml") {
             return Err(crate::tomlfile::FileError::Io {

@@ -9,6 +9,7 @@
 //! | `sim_thread` | the simulation thread: the only owner of the core, paced against wall time; commands and parameter sets are applied there, between steps |
 //! | `link_task` | one task per UDP link: datagrams in, streams and answers out |
 //! | `logs` | the run's log directory below `--log-dir` |
+//! | `recorder` | the run's flight record (`flight.record`, for `rotorpilot replay`) and `--log-csv` CSV (`flight.csv`) |
 //! | `saver` | the parameter file and the stored plans, written after each accepted change |
 //!
 //! The state directory (`--state-dir`) holds `params.toml` and
@@ -36,6 +37,7 @@
 mod config;
 mod link_task;
 mod logs;
+mod recorder;
 mod saver;
 mod sim_thread;
 
@@ -75,6 +77,8 @@ pub struct Daemon {
     core: Lockstep<Autopilot>,
     /// This run's log directory (`--log-dir`), created at bind.
     log_dir: Option<std::path::PathBuf>,
+    /// The flight record (and CSV) in the log directory, started at bind.
+    recorder: Option<recorder::Recorder>,
 }
 
 impl std::fmt::Debug for Daemon {
@@ -137,6 +141,17 @@ pub async fn bind(config: Config) -> anyhow::Result<Daemon> {
         Some(base) => Some(logs::create_run_dir(base, config.instance)?),
         None => None,
     };
+    let recorder = match &log_dir {
+        Some(dir) => Some(recorder::Recorder::create(
+            dir,
+            &config.airframe,
+            config.home,
+            &params,
+            &mut core,
+            config.log_csv,
+        )?),
+        None => None,
+    };
     Ok(Daemon {
         config,
         params,
@@ -144,6 +159,7 @@ pub async fn bind(config: Config) -> anyhow::Result<Daemon> {
         sockets,
         core,
         log_dir,
+        recorder,
     })
 }
 
@@ -236,6 +252,7 @@ impl Daemon {
             sockets,
             mut core,
             log_dir: _,
+            recorder,
         } = self;
         let params = Arc::new(Mutex::new(params));
         let path = config.params_path();
@@ -268,6 +285,7 @@ impl Daemon {
             plans_changed: plans_changed.clone(),
             wall_timers: Vec::new(),
             link_lost: link_lost_tx,
+            recorder,
         };
         let (sim_done_tx, sim_done_rx) = oneshot::channel::<()>();
         let sim_thread = std::thread::Builder::new()

@@ -446,7 +446,7 @@ pub fn replay(record: &Record, file: &str, mut csv: Option<&mut dyn Write>) -> R
             if let Some(w) = csv.as_deref_mut() {
                 writeln!(w, "{}", crate::scenario::csv_row(&core.last_step(0), n)).map_err(io)?;
             }
-            if core.steps() % 1024 == 0 {
+            if core.steps().is_multiple_of(1024) {
                 // as the daemon publishes: the queues do not steer the flight
                 let _ = core.drain_status_texts(0);
                 let _ = core.drain_mission_reached(0);

@@ -21,6 +21,14 @@ pub(super) fn run(path: &Path, csv: Option<&Path>, json: bool) -> anyhow::Result
     let text =
         String::from_utf8(bytes).map_err(|e| anyhow::anyhow!("{label}: not a flight record (not UTF-8: {e})"))?;
     let record = read_record(&text, &label).map_err(anyhow::Error::msg)?;
+    if record.header.rotorpilot != crate::record::ROTORPILOT_VERSION {
+        eprintln!(
+            "rotorpilot: warning: {label} was written by rotorpilot {}, this is {}: the replay is exact only when \
+             both fly alike (every input's outcome is still checked)",
+            record.header.rotorpilot,
+            crate::record::ROTORPILOT_VERSION
+        );
+    }
     if record.end.is_none() {
         eprintln!(
             "rotorpilot: warning: {label} has no end line (the daemon did not stop cleanly); replaying up to its last input"

@@ -1,5 +1,7 @@
 //! Command-line interface: `rotorpilot <command>`.
 
+mod replay;
+
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
@@ -165,6 +167,19 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Re-fly a daemon's flight record (`flight.record` in its `--log-dir`
+    /// run directory) headless and flat out, bit for bit: `--csv` writes the
+    /// same per-step CSV as the live flight's `flight.csv`.
+    Replay {
+        /// The flight record.
+        record: std::path::PathBuf,
+        /// Write the per-step CSV (`simulate --csv`'s format) here.
+        #[arg(long)]
+        csv: Option<std::path::PathBuf>,
+        /// Print the summary as one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 /// Run the CLI; errors are printed to stderr and give exit code 1.
@@ -235,6 +250,7 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             };
             estimate(&log, &order, &polys, cutoff, disc, nominal, output.as_deref(), json)
         }
+        Some(Command::Replay { record, csv, json }) => replay::run(&record, csv.as_deref(), json),
         None => run_daemon(&cli.daemon),
     }
 }

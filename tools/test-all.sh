@@ -30,7 +30,7 @@ forbid "tokio|mavlink::|std::time|SystemTime|Instant::now|thread_rng" \
     "a pure module reaches for a runtime, the protocol or a clock" \
     src/math.rs src/signals.rs src/tomlfile.rs src/statefile.rs src/geo.rs src/params src/airframe src/sim src/control \
     src/estimation src/autopilot src/lockstep.rs src/scenario src/flightlog.rs src/mission \
-    src/ulog.rs src/ulog
+    src/ulog.rs src/ulog src/record.rs
 
 echo "== the flight stack sees only sensor readings: no plant, no world faults, no SIM_* truth"
 forbid "(crate|super)::(\\{[^}]*\\b)?(sim|lockstep|scenario|link|daemon)\\b|\\bsim::|Param::SIM_|\"SIM_" \
@@ -94,6 +94,7 @@ timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/cl
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_mission.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_failsafe.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_failure.py
+timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_replay.py
 timeout 900 "$VENV/mavsdk4/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk4.py
 timeout 600 "$VENV/mavproxy/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavproxy.py
 

@@ -11,6 +11,7 @@
 //! | `logs` | the run's log directory below `--log-dir` |
 //! | `ready` | the one-time `rotorpilot: ready to arm` line on stdout |
 //! | `tlog`, `ulog_file` | each link's `.tlog` and the vehicle's `flight.ulg` in the run's log directory |
+//! | `recorder` | the run's flight record (`flight.record`, for `rotorpilot replay`) and `--log-csv` CSV (`flight.csv`) |
 //! | `saver` | the parameter file and the stored plans, written after each accepted change |
 //!
 //! The state directory (`--state-dir`) holds `params.toml` and
@@ -39,6 +40,7 @@ mod config;
 mod link_task;
 mod logs;
 mod ready;
+mod recorder;
 mod saver;
 mod sim_thread;
 mod tlog;
@@ -80,6 +82,8 @@ pub struct Daemon {
     core: Lockstep<Autopilot>,
     /// This run's log directory (`--log-dir`), created at bind.
     log_dir: Option<std::path::PathBuf>,
+    /// The flight record (and CSV) in the log directory, started at bind.
+    recorder: Option<recorder::Recorder>,
 }
 
 impl std::fmt::Debug for Daemon {
@@ -142,6 +146,17 @@ pub async fn bind(config: Config) -> anyhow::Result<Daemon> {
         Some(base) => Some(logs::create_run_dir(base, config.instance)?),
         None => None,
     };
+    let recorder = match &log_dir {
+        Some(dir) => Some(recorder::Recorder::create(
+            dir,
+            &config.airframe,
+            config.home,
+            &params,
+            &mut core,
+            config.log_csv,
+        )?),
+        None => None,
+    };
     Ok(Daemon {
         config,
         params,
@@ -149,6 +164,7 @@ pub async fn bind(config: Config) -> anyhow::Result<Daemon> {
         sockets,
         core,
         log_dir,
+        recorder,
     })
 }
 
@@ -241,6 +257,7 @@ impl Daemon {
             sockets,
             mut core,
             log_dir,
+            recorder,
         } = self;
         let params = Arc::new(Mutex::new(params));
         // the vehicle's ULog (`--log-dir`), started before the first step
@@ -278,6 +295,7 @@ impl Daemon {
             wall_timers: Vec::new(),
             link_lost: link_lost_tx,
             ulog,
+            recorder,
         };
         let (sim_done_tx, sim_done_rx) = oneshot::channel::<()>();
         let sim_thread = std::thread::Builder::new()

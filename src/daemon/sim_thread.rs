@@ -15,7 +15,6 @@ use mavlink::dialects::common::MavMessage;
 use tokio::sync::{Notify, broadcast, oneshot, watch};
 use tracing::{debug, info, warn};
 
-use super::saver::lock;
 use crate::autopilot::{
     Autopilot, AutopilotCommand, ClientClock, CommandOutcome, PendingTimer, PowerAction, Severity, StatusText,
 };
@@ -82,6 +81,8 @@ pub(super) struct Sim {
     pub(super) link_lost: watch::Sender<bool>,
     /// The run's `flight.ulg` (`--log-dir`), fed after every step.
     pub(super) ulog: Option<super::ulog_file::UlogFile>,
+    /// The flight record and CSV (`--log-dir`): every input goes through `Sim::apply`.
+    pub(super) recorder: Option<super::recorder::Recorder>,
 }
 
 impl Sim {
@@ -130,6 +131,7 @@ impl Sim {
                 let n = due.min(CHUNK);
                 for _ in 0..n {
                     self.core.step();
+                    self.after_step();
                     super::ulog_file::after_step(&mut self.ulog, &mut self.core);
                 }
                 steps += n;
@@ -171,7 +173,7 @@ impl Sim {
             match seen {
                 None => self.wall_timers.push((p, now)),
                 Some(at) if now.duration_since(at).as_secs_f64() >= p.duration_s => {
-                    if self.core.client_timeout(VEHICLE, p.timer, p.started_s) {
+                    if self.client_timeout(p.timer, p.started_s) {
                         debug!(timer = ?p.timer, "client timer ran out on the wall clock");
                     }
                     self.wall_timers.retain(|(t, _)| t.timer != p.timer);
@@ -200,7 +202,7 @@ impl Sim {
     fn handle(&mut self, r: SimRequest) {
         match r {
             SimRequest::Command { command, reply } => {
-                let mut outcome = self.core.command(VEHICLE, command);
+                let mut outcome = self.command(command);
                 if command == AutopilotCommand::Power(PowerAction::Reboot) && outcome == CommandOutcome::Accepted {
                     // carried out before the ACK, so that ACCEPTED means done
                     outcome = self.reboot();
@@ -217,10 +219,7 @@ impl Sim {
                 }
             }
             SimRequest::SetParam { name, value, reply } => {
-                let outcome = {
-                    let mut p = lock(&self.params);
-                    self.core.set_param(VEHICLE, &mut p, &name, value)
-                };
+                let outcome = self.set_param(&name, value);
                 match &outcome {
                     Ok(v) => info!(%name, value = %v, "parameter set"),
                     Err(e) => info!(%name, error = %e, "parameter refused"),
@@ -229,7 +228,7 @@ impl Sim {
                 let _ = reply.send(outcome);
             }
             SimRequest::Plans { change, reply } => {
-                let outcome = self.core.change_plans(VEHICLE, change);
+                let outcome = self.change_plans(change);
                 info!(?outcome, "plans changed");
                 self.publish();
                 if outcome.is_ok() {
@@ -237,7 +236,7 @@ impl Sim {
                 }
                 let _ = reply.send(outcome);
             }
-            SimRequest::GcsHeartbeat => self.core.gcs_heartbeat(VEHICLE),
+            SimRequest::GcsHeartbeat => self.gcs_heartbeat(),
             // the loop returns on Stop before handing requests here
             SimRequest::Stop => {}
         }
@@ -247,8 +246,7 @@ impl Sim {
     /// home, disarmed, from the current parameters; simulated time goes on.
     /// The answer for the ACK.
     fn reboot(&mut self) -> CommandOutcome {
-        let p = lock(&self.params).clone();
-        match self.core.reboot(VEHICLE, &p) {
+        match self.reboot_core() {
             Ok(()) => {
                 info!("rebooted: simulation reset");
                 let _ = self.events.send(Event::StatusText(StatusText {

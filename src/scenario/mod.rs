@@ -18,7 +18,7 @@ mod trajectory;
 
 pub use fault::{AppliedFault, FaultType, FaultUnit, ScheduledFault};
 pub use mission::{ItemResult, MissionFlight, MissionSummary, is_mission, mission_lockstep, run_mission};
-pub use run::{ScenarioPilot, Summary, lockstep, run};
+pub use run::{ScenarioPilot, Summary, csv_header, csv_row, lockstep, run};
 pub use trajectory::Trajectory;
 
 use nalgebra::Vector3;

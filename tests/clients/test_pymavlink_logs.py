@@ -149,7 +149,7 @@ def flight():
 
 def test_the_run_directory_holds_a_tlog_per_link_and_the_ulog(flight):
     names = sorted(p.name for p in flight["dir"].iterdir())
-    assert names == ["api.tlog", "flight.ulg", "gcs.tlog"]
+    assert names == ["api.tlog", "flight.record", "flight.ulg", "gcs.tlog"]
 
 
 @pytest.mark.parametrize("link,client", [("gcs", 255), ("api", 254)])

@@ -1,5 +1,7 @@
 //! Command-line interface: `rotorpilot <command>`.
 
+mod replay;
+
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
@@ -127,18 +129,11 @@ pub enum Command {
     },
     /// Fly a scenario or a mission flat out in lockstep and print a summary
     /// (for a mission: each item reached, when and how far off, and a
-    /// pass/fail verdict; the exit status is 1 on fail).
-    Simulate {
-        /// Scenario TOML (see tools/scenarios/), a TOML with a [mission]
-        /// table, a QGroundControl .plan or a QGC WPL 110 file.
-        scenario: std::path::PathBuf,
-        /// Print the summary as one JSON object.
-        #[arg(long)]
-        json: bool,
-        /// Write the full time series to this CSV file.
-        #[arg(long)]
-        csv: Option<std::path::PathBuf>,
-    },
+    /// pass/fail verdict; the exit status is 1 on fail). Several files, a
+    /// directory or a [campaign] table make a campaign: flown on every core,
+    /// one line per scenario, optionally one shard of it (exit status 2 when
+    /// a file or variant cannot be read or flown).
+    Simulate(crate::simulate::SimulateArgs),
     /// Run the momentum-based estimator over a recorded flight for several
     /// orders and polynomials; write the estimates as CSV and print metrics.
     Estimate {
@@ -172,6 +167,19 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Re-fly a daemon's flight record (`flight.record` in its `--log-dir`
+    /// run directory) headless and flat out, bit for bit: `--csv` writes the
+    /// same per-step CSV as the live flight's `flight.csv`.
+    Replay {
+        /// The flight record.
+        record: std::path::PathBuf,
+        /// Write the per-step CSV (`simulate --csv`'s format) here.
+        #[arg(long)]
+        csv: Option<std::path::PathBuf>,
+        /// Print the summary as one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 /// Run the CLI; errors are printed to stderr and give exit code 1.
@@ -201,7 +209,11 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             }
             Ok(())
         }
-        Some(Command::Simulate { scenario, json, csv }) => simulate(&scenario, json, csv.as_deref()),
+        Some(Command::Simulate(args)) => match crate::simulate::main(&args) {
+            0 => Ok(()),
+            // 1: a mission failed its verdict, 2: a scenario could not be read or flown (printed)
+            status => std::process::exit(i32::from(status)),
+        },
         Some(Command::Estimate {
             log,
             order,
@@ -238,6 +250,7 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             };
             estimate(&log, &order, &polys, cutoff, disc, nominal, output.as_deref(), json)
         }
+        Some(Command::Replay { record, csv, json }) => replay::run(&record, csv.as_deref(), json),
         None => run_daemon(&cli.daemon),
     }
 }
@@ -288,44 +301,6 @@ async fn shutdown_signal() {
     {
         let _ = tokio::signal::ctrl_c().await;
     }
-}
-
-fn simulate(path: &std::path::Path, json: bool, csv: Option<&std::path::Path>) -> anyhow::Result<()> {
-    use anyhow::Context as _;
-    use std::io::Write as _;
-    let mut writer = match csv {
-        Some(p) => Some(std::io::BufWriter::new(
-            std::fs::File::create(p).with_context(|| format!("cannot create {}", p.display()))?,
-        )),
-        None => None,
-    };
-    let out = writer.as_mut().map(|w| w as &mut dyn std::io::Write);
-    let start = std::time::Instant::now();
-    // (the summary as JSON, as text, and whether the flight passed)
-    let (as_json, as_text, passed) = if crate::scenario::is_mission(path) {
-        let flight = crate::scenario::MissionFlight::from_file(path)?;
-        let mut s = crate::scenario::run_mission(&flight, out)?;
-        s.wall_time_s = start.elapsed().as_secs_f64();
-        (serde_json::to_string_pretty(&s)?, s.to_text(), s.verdict == "pass")
-    } else {
-        let scenario = crate::scenario::Scenario::from_file(path)?;
-        let mut s = crate::scenario::run(&scenario, out)?;
-        s.wall_time_s = start.elapsed().as_secs_f64();
-        (serde_json::to_string_pretty(&s)?, s.to_text(), true)
-    };
-    if let Some(mut w) = writer {
-        w.flush().context("writing the CSV")?;
-    }
-    if json {
-        println!("{as_json}");
-    } else {
-        print!("{as_text}");
-    }
-    if !passed {
-        // a mission that failed its verdict: exit status 1, for CI
-        std::process::exit(1);
-    }
-    Ok(())
 }
 
 /// One estimator run per cell over `log`, with its metrics, in the order of

@@ -355,6 +355,12 @@ impl<P: Pilot> Lockstep<P> {
         self.world.dt_s()
     }
 
+    /// The steps taken since `t = 0` (the instant is `steps * dt_s`).
+    #[must_use]
+    pub fn steps(&self) -> u64 {
+        self.world.steps()
+    }
+
     /// The last time the world stopped vehicle `i`'s rotors on a fault, and why.
     #[must_use]
     pub fn last_fault(&self, i: usize) -> Option<SimFault> {

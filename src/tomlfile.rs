@@ -74,6 +74,19 @@ pub fn parse<T: serde::de::DeserializeOwned>(text: &str, file: &str) -> Result<T
     })
 }
 
+/// A [`FileError::Syntax`] at byte `offset` of `text` (for problems found
+/// after parsing, at a key whose span is known).
+#[must_use]
+pub fn error_at(text: &str, file: &str, offset: usize, message: String) -> FileError {
+    let (line, column) = line_column(text, offset);
+    FileError::Syntax {
+        file: file.to_string(),
+        line,
+        column,
+        message,
+    }
+}
+
 /// Line and column (1-based) of a byte offset.
 fn line_column(text: &str, offset: usize) -> (usize, usize) {
     let before = &text[..offset.min(text.len())];

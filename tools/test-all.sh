@@ -29,7 +29,8 @@ forbid() {
 forbid "tokio|mavlink::|std::time|SystemTime|Instant::now|thread_rng" \
     "a pure module reaches for a runtime, the protocol or a clock" \
     src/math.rs src/signals.rs src/tomlfile.rs src/statefile.rs src/geo.rs src/params src/airframe src/sim src/control \
-    src/estimation src/autopilot src/lockstep.rs src/scenario src/flightlog.rs src/mission
+    src/estimation src/autopilot src/lockstep.rs src/scenario src/flightlog.rs src/mission \
+    src/ulog.rs src/ulog src/record.rs
 
 echo "== the flight stack sees only sensor readings: no plant, no world faults, no SIM_* truth"
 forbid "(crate|super)::(\\{[^}]*\\b)?(sim|lockstep|scenario|link|daemon)\\b|\\bsim::|Param::SIM_|\"SIM_" \
@@ -72,7 +73,8 @@ client_venv() {
     fi
     "$VENV/$name/bin/python" -m pip install -q --disable-pip-version-check "$@"
 }
-client_venv pymavlink "pymavlink==2.4.50" "pytest==9.2.0"
+# pyulog reads the daemon's flight.ulg (tests/clients/test_pymavlink_logs.py)
+client_venv pymavlink "pymavlink==2.4.50" "pytest==9.2.0" "pyulog==1.3.0"
 client_venv mavsdk3 "mavsdk==3.17.4" "pymavlink==2.4.50" "pytest==9.2.0"
 client_venv mavsdk4 "mavsdk==4.1.0" "pytest==9.2.0"
 # MAVProxy 1.8.74: the newest without vtk/opencv/matplotlib as dependencies
@@ -87,12 +89,32 @@ timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/
 timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_manual.py
 timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_failure.py
 timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_rotor_loss.py
+timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_logs.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_mission.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_failsafe.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_failure.py
+timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_replay.py
 timeout 900 "$VENV/mavsdk4/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk4.py
 timeout 600 "$VENV/mavproxy/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavproxy.py
+
+echo "== pip install . in a fresh venv; the pytest fixture flies MAVSDK 3 and pymavlink tests, plain and -n 2"
+# What a user does: a new venv each run, `pip install .` (maturin builds the
+# wheel: the rotorpilot executable plus python/rotorpilot, the pytest plugin),
+# then tests that use the fixture and know no path. maturin runs cargo with
+# the same target dir as above (CARGO_TARGET_DIR or target/), so it compiles
+# nothing again: the first time it links a stripped copy of the executable
+# (~2 s), which cargo then keeps beside the unstripped one. The step takes
+# ~30 s, most of it pip fetching the clients from its cache; a machine with
+# an empty target dir spends ~5 CPU-minutes compiling instead.
+rm -rf "${VENV:?}/pip-fresh"
+client_venv pip-fresh . "mavsdk==3.17.4" "pymavlink==2.4.50" "pytest==9.2.0" "pytest-xdist==3.8.0"
+(
+    unset ROTORPILOT_BIN  # the installed executable, found by the package itself
+    cd tests/pip
+    timeout 600 "$VENV/pip-fresh/bin/python" -m pytest -q -p no:cacheprovider .
+    timeout 600 "$VENV/pip-fresh/bin/python" -m pytest -q -p no:cacheprovider -n 2 test_user_flights.py test_first.py
+)
 
 echo "== tools: plot scripts on real logs (matplotlib)"
 client_venv tools "matplotlib==3.9.2" "pytest==9.2.0"

@@ -182,12 +182,26 @@ impl Airframe {
     /// # Errors
     /// [`AirframeError`] naming the file, the field and the problem.
     pub fn load(name_or_path: &str) -> Result<Self, AirframeError> {
+        let (text, label) = Self::load_text(name_or_path)?;
+        Self::from_toml(&text, &label)
+    }
+
+    /// The TOML text [`Self::load`] parses for a built-in name or a file
+    /// path, with the label its messages name (a flight record keeps both,
+    /// so that a replay rebuilds the airframe without the file).
+    ///
+    /// # Errors
+    /// As [`Self::load`]: unknown name, unreadable file.
+    pub fn load_text(name_or_path: &str) -> Result<(String, String), AirframeError> {
         let path = std::path::Path::new(name_or_path);
         if path.is_file() {
-            return Self::from_file(path);
+            return Ok((crate::tomlfile::read(path)?, path.display().to_string()));
         }
         if let Some((name, text)) = BUILTIN.iter().find(|(n, _)| *n == name_or_path) {
-            return Self::from_toml(text, &format!("built-in {name} (params/airframes/{name}.toml)"));
+            return Ok((
+                (*text).to_string(),
+                format!("built-in {name} (params/airframes/{name}.toml)"),
+            ));
         }
         if name_or_path.contains('/') || name_or_path.ends_with(".toml") {
             return Err(crate::tomlfile::FileError::Io {

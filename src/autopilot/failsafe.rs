@@ -47,7 +47,7 @@ use crate::params::{Param, ParamStore};
 use crate::signals::{Measurement, SensorReadings};
 
 /// The clock of the timers that wait for a client.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, serde::Deserialize)]
 pub enum ClientClock {
     /// Simulated time (headless, and daemons at up to real-time speed).
     #[default]
@@ -57,7 +57,7 @@ pub enum ClientClock {
 }
 
 /// A timer that waits for a client to act.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, serde::Deserialize)]
 pub enum ClientTimer {
     /// Armed and not taken off: disarm after `COM_DISARM_PRFLT`.
     PreflightDisarm,

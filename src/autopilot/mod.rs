@@ -117,7 +117,7 @@ use serde::Serialize;
 use crate::geo::GeoPoint;
 
 /// Flight modes, as PX4 names them.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, serde::Deserialize)]
 pub enum FlightMode {
     /// POSCTL: sticks give horizontal velocity (MPC_VEL_MANUAL), climb rate
     /// and yaw rate; centred sticks hold the position. Needs manual control.
@@ -149,7 +149,7 @@ pub enum FlightMode {
 }
 
 /// What MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN asks for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum PowerAction {
     /// Restart the vehicle (the simulation restarts on the ground at home).
     Reboot,
@@ -158,7 +158,7 @@ pub enum PowerAction {
 }
 
 /// A command to the autopilot. NaN from MAVLink is mapped to `None` by the link.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum AutopilotCommand {
     /// Arm (prearm checks unless forced).
     Arm {

@@ -39,6 +39,8 @@ pub(super) struct LinkTask {
     pub(super) exit: mpsc::Sender<()>,
     pub(super) dests: Vec<SocketAddr>,
     pub(super) send_errors: u64,
+    /// This link's `.tlog` (`--log-dir`; inert without).
+    pub(super) tlog: super::tlog::Tlog,
 }
 
 /// How long a link waits for the autopilot's answer before ACKing FAILED
@@ -65,6 +67,7 @@ impl LinkTask {
                 _ = stop.changed() => break,
                 r = self.socket.recv_from(&mut buf) => match r {
                     Ok((n, from)) => {
+                        self.tlog.received(&buf[..n]);
                         let effects = {
                             let t = self.tel.borrow();
                             let p = lock(&self.params);
@@ -101,6 +104,7 @@ impl LinkTask {
                         let t = self.tel.borrow();
                         self.link.poll(Instant::now().into_std(), &t, unix_time_us());
                     }
+                    self.tlog.flush_if_due();
                     self.flush().await;
                 }
             }
@@ -241,6 +245,9 @@ impl LinkTask {
             self.link.destinations(now, &mut self.dests);
         }
         for Outgoing { to, bytes } in out {
+            if matches!(to, To::Peer(_)) || !self.dests.is_empty() {
+                self.tlog.sent(&bytes);
+            }
             match to {
                 To::Peer(a) => self.send(&bytes, a).await,
                 To::All => {

@@ -9,6 +9,9 @@
 //! | `sim_thread` | the simulation thread: the only owner of the core, paced against wall time; commands and parameter sets are applied there, between steps |
 //! | `link_task` | one task per UDP link: datagrams in, streams and answers out |
 //! | `logs` | the run's log directory below `--log-dir` |
+//! | `ready` | the one-time `rotorpilot: ready to arm` line on stdout |
+//! | `tlog`, `ulog_file` | each link's `.tlog` and the vehicle's `flight.ulg` in the run's log directory |
+//! | `recorder` | the run's flight record (`flight.record`, for `rotorpilot replay`) and `--log-csv` CSV (`flight.csv`) |
 //! | `saver` | the parameter file and the stored plans, written after each accepted change |
 //!
 //! The state directory (`--state-dir`) holds `params.toml` and
@@ -36,8 +39,12 @@
 mod config;
 mod link_task;
 mod logs;
+mod ready;
+mod recorder;
 mod saver;
 mod sim_thread;
+mod tlog;
+mod ulog_file;
 
 pub use config::{Config, LinkSpec, parse_home, resolve};
 
@@ -75,6 +82,8 @@ pub struct Daemon {
     core: Lockstep<Autopilot>,
     /// This run's log directory (`--log-dir`), created at bind.
     log_dir: Option<std::path::PathBuf>,
+    /// The flight record (and CSV) in the log directory, started at bind.
+    recorder: Option<recorder::Recorder>,
 }
 
 impl std::fmt::Debug for Daemon {
@@ -137,6 +146,17 @@ pub async fn bind(config: Config) -> anyhow::Result<Daemon> {
         Some(base) => Some(logs::create_run_dir(base, config.instance)?),
         None => None,
     };
+    let recorder = match &log_dir {
+        Some(dir) => Some(recorder::Recorder::create(
+            dir,
+            &config.airframe,
+            config.home,
+            &params,
+            &mut core,
+            config.log_csv,
+        )?),
+        None => None,
+    };
     Ok(Daemon {
         config,
         params,
@@ -144,6 +164,7 @@ pub async fn bind(config: Config) -> anyhow::Result<Daemon> {
         sockets,
         core,
         log_dir,
+        recorder,
     })
 }
 
@@ -235,9 +256,14 @@ impl Daemon {
             warnings: _,
             sockets,
             mut core,
-            log_dir: _,
+            log_dir,
+            recorder,
         } = self;
         let params = Arc::new(Mutex::new(params));
+        // the vehicle's ULog (`--log-dir`), started before the first step
+        let ulog = log_dir
+            .as_deref()
+            .and_then(|d| ulog_file::UlogFile::create(d, &params, &core, sim_thread::VEHICLE));
         let path = config.params_path();
         if let Some(dir) = path.parent() {
             std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
@@ -268,6 +294,8 @@ impl Daemon {
             plans_changed: plans_changed.clone(),
             wall_timers: Vec::new(),
             link_lost: link_lost_tx,
+            ulog,
+            recorder,
         };
         let (sim_done_tx, sim_done_rx) = oneshot::channel::<()>();
         let sim_thread = std::thread::Builder::new()
@@ -289,11 +317,13 @@ impl Daemon {
             plans_changed,
             stop_rx.clone(),
         )));
+        // issue 13: one stdout line when the vehicle first is ready to arm (ready.rs)
+        tasks.push(tokio::spawn(ready::announce(tel_rx.clone(), stop_rx.clone())));
         let identity = Identity {
             system_id: config.system_id(),
             component_id: 1,
         };
-        for (spec, socket) in sockets {
+        for (index, (spec, socket)) in sockets.into_iter().enumerate() {
             let link = Link::new(
                 LinkConfig {
                     name: spec.name.clone(),
@@ -317,6 +347,10 @@ impl Daemon {
                 exit: exit_tx.clone(),
                 dests: Vec::new(),
                 send_errors: 0,
+                tlog: log_dir
+                    .as_deref()
+                    .map(|d| tlog::Tlog::create(d, &tlog::file_name(index, &spec.name)))
+                    .unwrap_or_default(),
             };
             tasks.push(tokio::spawn(task.run(stop_rx.clone())));
         }

@@ -15,7 +15,6 @@ use mavlink::dialects::common::MavMessage;
 use tokio::sync::{Notify, broadcast, oneshot, watch};
 use tracing::{debug, info, warn};
 
-use super::saver::lock;
 use crate::autopilot::{
     Autopilot, AutopilotCommand, ClientClock, CommandOutcome, PendingTimer, PowerAction, Severity, StatusText,
 };
@@ -80,6 +79,10 @@ pub(super) struct Sim {
     /// Whether the vehicle's radio is silent (an injected MAVLINK_SIGNAL
     /// failure): the link tasks send nothing meanwhile.
     pub(super) link_lost: watch::Sender<bool>,
+    /// The run's `flight.ulg` (`--log-dir`), fed after every step.
+    pub(super) ulog: Option<super::ulog_file::UlogFile>,
+    /// The flight record and CSV (`--log-dir`): every input goes through `Sim::apply`.
+    pub(super) recorder: Option<super::recorder::Recorder>,
 }
 
 impl Sim {
@@ -128,6 +131,8 @@ impl Sim {
                 let n = due.min(CHUNK);
                 for _ in 0..n {
                     self.core.step();
+                    self.after_step();
+                    super::ulog_file::after_step(&mut self.ulog, &mut self.core);
                 }
                 steps += n;
                 due -= n;
@@ -168,7 +173,7 @@ impl Sim {
             match seen {
                 None => self.wall_timers.push((p, now)),
                 Some(at) if now.duration_since(at).as_secs_f64() >= p.duration_s => {
-                    if self.core.client_timeout(VEHICLE, p.timer, p.started_s) {
+                    if self.client_timeout(p.timer, p.started_s) {
                         debug!(timer = ?p.timer, "client timer ran out on the wall clock");
                     }
                     self.wall_timers.retain(|(t, _)| t.timer != p.timer);
@@ -186,6 +191,7 @@ impl Sim {
         self.link_lost.send_if_modified(|l| std::mem::replace(l, lost) != lost);
         for s in self.core.drain_status_texts(VEHICLE) {
             info!(text = %s.text, "status");
+            super::ulog_file::status_text(&mut self.ulog, self.core.time_s(), &s);
             let _ = self.events.send(Event::StatusText(s));
         }
         for seq in self.core.drain_mission_reached(VEHICLE) {
@@ -196,7 +202,7 @@ impl Sim {
     fn handle(&mut self, r: SimRequest) {
         match r {
             SimRequest::Command { command, reply } => {
-                let mut outcome = self.core.command(VEHICLE, command);
+                let mut outcome = self.command(command);
                 if command == AutopilotCommand::Power(PowerAction::Reboot) && outcome == CommandOutcome::Accepted {
                     // carried out before the ACK, so that ACCEPTED means done
                     outcome = self.reboot();
@@ -213,10 +219,7 @@ impl Sim {
                 }
             }
             SimRequest::SetParam { name, value, reply } => {
-                let outcome = {
-                    let mut p = lock(&self.params);
-                    self.core.set_param(VEHICLE, &mut p, &name, value)
-                };
+                let outcome = self.set_param(&name, value);
                 match &outcome {
                     Ok(v) => info!(%name, value = %v, "parameter set"),
                     Err(e) => info!(%name, error = %e, "parameter refused"),
@@ -225,7 +228,7 @@ impl Sim {
                 let _ = reply.send(outcome);
             }
             SimRequest::Plans { change, reply } => {
-                let outcome = self.core.change_plans(VEHICLE, change);
+                let outcome = self.change_plans(change);
                 info!(?outcome, "plans changed");
                 self.publish();
                 if outcome.is_ok() {
@@ -233,7 +236,7 @@ impl Sim {
                 }
                 let _ = reply.send(outcome);
             }
-            SimRequest::GcsHeartbeat => self.core.gcs_heartbeat(VEHICLE),
+            SimRequest::GcsHeartbeat => self.gcs_heartbeat(),
             // the loop returns on Stop before handing requests here
             SimRequest::Stop => {}
         }
@@ -243,8 +246,7 @@ impl Sim {
     /// home, disarmed, from the current parameters; simulated time goes on.
     /// The answer for the ACK.
     fn reboot(&mut self) -> CommandOutcome {
-        let p = lock(&self.params).clone();
-        match self.core.reboot(VEHICLE, &p) {
+        match self.reboot_core() {
             Ok(()) => {
                 info!("rebooted: simulation reset");
                 let _ = self.events.send(Event::StatusText(StatusText {

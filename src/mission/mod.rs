@@ -630,7 +630,7 @@ impl Plans {
 
 /// A change of the stored plans, as a client asks for it: applied whole or
 /// not at all ([`Plans::apply`]).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum PlanChange {
     /// Replace the plan of `kind` with `items` — refused (Denied) if the
     /// stored plan's id is no longer `base_id`, the id it had when the

@@ -70,7 +70,7 @@ impl std::fmt::Display for ParamType {
 }
 
 /// A typed parameter value.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub enum ParamValue {
     /// An integer.
     Int32(i32),

@@ -10,6 +10,7 @@
 //! duration. See `tools/scenarios/` for examples. Errors name the file, the
 //! field and the problem.
 
+pub mod campaign;
 pub mod fault;
 mod mission;
 mod run;
@@ -17,7 +18,7 @@ mod trajectory;
 
 pub use fault::{AppliedFault, FaultType, FaultUnit, ScheduledFault};
 pub use mission::{ItemResult, MissionFlight, MissionSummary, is_mission, mission_lockstep, run_mission};
-pub use run::{ScenarioPilot, Summary, lockstep, run};
+pub use run::{ScenarioPilot, Summary, csv_header, csv_row, lockstep, run};
 pub use trajectory::Trajectory;
 
 use nalgebra::Vector3;

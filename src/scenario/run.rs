@@ -136,7 +136,9 @@ impl Pilot for ScenarioPilot<'_> {
     }
 }
 
-pub(super) fn csv_header(n: usize) -> String {
+/// The flight CSV's header line (`rotorpilot simulate --csv`) for `n` rotors.
+#[must_use]
+pub fn csv_header(n: usize) -> String {
     let mut h = String::from(
         "time_s,pos_n,pos_e,pos_d,vel_n,vel_e,vel_d,roll,pitch,yaw,roll_rate,pitch_rate,yaw_rate,p_frd,q_frd,r_frd,\
          true_pos_n,true_pos_e,true_pos_d,true_vel_n,true_vel_e,true_vel_d,ref_n,ref_e,ref_d,ref_yaw,\
@@ -151,7 +153,9 @@ pub(super) fn csv_header(n: usize) -> String {
     h
 }
 
-pub(super) fn csv_row(rec: &StepRecord<'_>, n: usize) -> String {
+/// One step's line of the flight CSV (`rotorpilot simulate --csv`), for `n` rotors.
+#[must_use]
+pub fn csv_row(rec: &StepRecord<'_>, n: usize) -> String {
     let (m, r, w) = (rec.measurement, rec.control, rec.world);
     // the report's inputs exactly as the estimator derives them (eta, eta_dot = Q^-1 omega)
     let input = input_from(m, &r.applied);

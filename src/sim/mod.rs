@@ -121,7 +121,7 @@ impl Disturbance for DisturbanceSource {
 }
 
 /// How a vehicle's sensors are set up.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SensorConfig {
     /// Noise of the navigation solution.
     pub noise: SensorNoise,
@@ -372,6 +372,12 @@ impl World {
     #[must_use]
     pub fn time_s(&self) -> f64 {
         self.steps as f64 * self.dt_s
+    }
+
+    /// The steps taken since the world started (a reboot keeps counting).
+    #[must_use]
+    pub fn steps(&self) -> u64 {
+        self.steps
     }
 
     /// Vehicle `i`'s sensors at the current instant (read once per instant).

@@ -34,7 +34,7 @@ const THROTTLE_LOW: f64 = -0.8;
 const VERTICAL_LEASH_M: f64 = 1.0;
 
 /// The pilot's sticks as PX4's `manual_control_setpoint` holds them.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ManualControl {
     /// Pitch stick in `[-1, 1]`: forward (nose down, fly forward) positive.
     pub pitch: f64,

@@ -26,7 +26,7 @@ const TAKEOFF_TRIGGER_M_S: f64 = 0.3;
 const TAKEOFF_TRIGGER_M_S2: f64 = 0.5;
 
 /// A frame measured from where the vehicle is.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum RelativeFrame {
     /// LOCAL_OFFSET_NED (7): position is an offset from the current position, in NED.
     OffsetNed,
@@ -37,7 +37,7 @@ pub enum RelativeFrame {
 }
 
 /// What a global target's altitude is measured from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum AltitudeReference {
     /// GLOBAL (0), GLOBAL_INT (5): AMSL.
     Amsl,
@@ -48,7 +48,7 @@ pub enum AltitudeReference {
 }
 
 /// A global position target: a NaN component is unset.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct GlobalTarget {
     /// Latitude [deg].
     pub lat_deg: f64,
@@ -61,7 +61,7 @@ pub struct GlobalTarget {
 /// Position, velocity and acceleration targets with yaw, as a setpoint
 /// message carries them (SI units): `None` = ignored by the type mask, a NaN
 /// component = unset (which the autopilot refuses).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Targets<P> {
     /// Position, in the setpoint's frame.
     pub position: Option<P>,
@@ -99,7 +99,7 @@ impl<P> Targets<P> {
 }
 
 /// An attitude (or body-rate) target with its thrust (SET_ATTITUDE_TARGET).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct AttitudeTarget {
     /// Attitude, FRD to NED; `None` = rates only.
     pub attitude: Option<UnitQuaternion<f64>>,
@@ -110,7 +110,7 @@ pub struct AttitudeTarget {
 }
 
 /// An offboard setpoint as it arrives.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum OffboardSetpoint {
     /// LOCAL_NED: position [m], velocity and acceleration in local NED.
     Local(Targets<Vector3<f64>>),

@@ -1,0 +1,21 @@
+"""rotorpilot: a software-in-the-loop multirotor that speaks MAVLink like PX4 SITL.
+
+`pip install .` (from a checkout) puts the `rotorpilot` executable on the
+PATH and installs this package: a pytest plugin (fixtures
+`rotorpilot_vehicle` and `rotorpilot_vehicles`, marker `rotorpilot`, options
+`--rotorpilot-*`; see `rotorpilot.pytest_plugin`) and `Vehicle`, which
+starts one vehicle on free loopback ports and waits until it is ready to arm.
+
+Standard library only.
+"""
+
+from .vehicle import Vehicle, VehicleError, binary, free_tcp_port, free_udp_port
+
+from importlib.metadata import PackageNotFoundError, version
+
+try:
+    __version__ = version("rotorpilot")  # Cargo.toml's version (maturin)
+except PackageNotFoundError:  # used from a checkout, not installed
+    __version__ = "0+checkout"
+
+__all__ = ["Vehicle", "VehicleError", "binary", "free_tcp_port", "free_udp_port", "__version__"]

@@ -1,0 +1,182 @@
+"""pytest plugin: a rotorpilot vehicle per test, ready to arm, on free ports.
+
+Loaded by the `pytest11` entry point whenever rotorpilot is installed (from a
+checkout without installing: `pytest -p rotorpilot.pytest_plugin` with
+`python/` on PYTHONPATH and ROTORPILOT_BIN set).
+
+Fixtures
+  rotorpilot_vehicle   a started `rotorpilot.Vehicle`, ready to arm
+  rotorpilot_vehicles  a factory: `rotorpilot_vehicles(**options)` starts one
+                       more (system ids 1, 2, ... unless `instance=` is given)
+
+Options, first found wins: the factory's keyword arguments, the marker
+`@pytest.mark.rotorpilot(airframe="octo", speed=10, params={...},
+home=(lat, lon, alt))` (closest to the test: function, class, module), the
+command line (`--rotorpilot-airframe`, `--rotorpilot-speed`), the defaults
+(quad, speed 1, PX4's default parameters and SITL home).
+
+Teardown stops each vehicle (SIGTERM, wait). When the test failed (setup or
+call), its directory with the flight record (`flight.record`; replay with
+`rotorpilot replay`) and the other logs is kept and named in the failure's
+report section and in the terminal summary; otherwise it is deleted
+(`--rotorpilot-keep always|failed|never`). Every vehicle listens on ports the
+kernel picked, so `pytest -n auto` (pytest-xdist) runs tests in parallel.
+"""
+
+import os
+
+import pytest
+
+from .vehicle import Vehicle, VehicleError
+
+OPTIONS = ("airframe", "speed", "params", "home", "instance", "extra_args")
+_VEHICLES = pytest.StashKey()
+_PROPERTY = "rotorpilot_logs"
+
+
+def pytest_addoption(parser):
+    g = parser.getgroup("rotorpilot", "rotorpilot vehicles (fixture rotorpilot_vehicle)")
+    g.addoption("--rotorpilot-bin", metavar="PATH",
+                help="the rotorpilot executable (default: $ROTORPILOT_BIN, else the installed one)")
+    g.addoption("--rotorpilot-speed", type=float, metavar="FACTOR",
+                help="simulation speed factor for tests whose marker sets none (default 1)")
+    g.addoption("--rotorpilot-airframe", metavar="NAME",
+                help="airframe for tests whose marker sets none (default quad)")
+    g.addoption("--rotorpilot-log-dir", metavar="DIR",
+                help="make each vehicle's directory (state, logs, flight record) below DIR "
+                     "(default: the system temp dir); point CI's artifact upload here")
+    g.addoption("--rotorpilot-keep", choices=("failed", "always", "never"), default="failed",
+                help="keep a vehicle's directory after the test: when it failed (default), always, never")
+    g.addoption("--rotorpilot-ready-timeout", type=float, default=20.0, metavar="SECONDS",
+                help="wall seconds to wait for a vehicle to be ready to arm (default 20)")
+
+
+def pytest_configure(config):
+    config.addinivalue_line(
+        "markers",
+        "rotorpilot(airframe='quad', speed=1, params={}, home=(lat, lon, alt)): "
+        "options of the rotorpilot_vehicle fixture",
+    )
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """Keep each phase's report on the item (`item.rep_setup`, `rep_call`)
+    for the fixture's teardown, and name the kept logs in a failure's report."""
+    outcome = yield
+    rep = outcome.get_result()
+    setattr(item, "rep_" + rep.when, rep)
+    if rep.failed and rep.when in ("setup", "call"):
+        keep = item.config.getoption("rotorpilot_keep") != "never"
+        lines = [_kept_line(v) for v in item.stash.get(_VEHICLES, []) if v.root]
+        if keep and lines:
+            rep.sections.append(("rotorpilot", "\n".join(lines)))
+
+
+def _kept_line(vehicle):
+    where = vehicle.log_dir or vehicle.root
+    return (f"rotorpilot: flight record kept in {where} — replay with "
+            f"`rotorpilot replay {os.path.join(where, 'flight.record')}`")
+
+
+def _failed(item):
+    return any(getattr(item, "rep_" + w, None) is not None and getattr(item, "rep_" + w).failed
+               for w in ("setup", "call"))
+
+
+def _options(request, given):
+    """Factory keywords, then the marker, then the command line."""
+    unknown = set(given) - set(OPTIONS)
+    if unknown:
+        raise TypeError(f"rotorpilot_vehicles: unknown option(s) {sorted(unknown)}; known: {OPTIONS}")
+    opts = {}
+    marker = request.node.get_closest_marker("rotorpilot")
+    if marker is not None:
+        if marker.args:
+            raise TypeError("@pytest.mark.rotorpilot takes keyword arguments only, e.g. speed=10")
+        unknown = set(marker.kwargs) - set(OPTIONS)
+        if unknown:
+            raise TypeError(f"@pytest.mark.rotorpilot: unknown option(s) {sorted(unknown)}; known: {OPTIONS}")
+        opts.update(marker.kwargs)
+    opts.update(given)
+    cfg = request.config
+    if "speed" not in opts and cfg.getoption("rotorpilot_speed") is not None:
+        opts["speed"] = cfg.getoption("rotorpilot_speed")
+    if "airframe" not in opts and cfg.getoption("rotorpilot_airframe"):
+        opts["airframe"] = cfg.getoption("rotorpilot_airframe")
+    return opts
+
+
+@pytest.fixture
+def rotorpilot_vehicles(request):
+    """Factory: `rotorpilot_vehicles(airframe=..., speed=..., params=..., home=...,
+    instance=...)` starts a vehicle and returns it ready to arm; all are
+    stopped (and their logs kept or deleted) after the test."""
+    cfg = request.config
+    vehicles = request.node.stash.setdefault(_VEHICLES, [])
+
+    def start(**given):
+        opts = _options(request, given)
+        opts.setdefault("instance", len(vehicles))
+        v = Vehicle(bin=cfg.getoption("rotorpilot_bin"), root=cfg.getoption("rotorpilot_log_dir"), **opts)
+        # a vehicle that does not get ready raises VehicleError with its
+        # stderr and where its directory was kept; it needs no teardown
+        v.start(timeout=cfg.getoption("rotorpilot_ready_timeout"))
+        vehicles.append(v)
+        return v
+
+    yield start
+
+    keep_mode = cfg.getoption("rotorpilot_keep")
+    problems = []
+    for v in vehicles:
+        if v.proc is None:
+            continue
+        early = v.proc.poll()
+        rc = v.stop()
+        if early is not None and early != 0:
+            problems.append(f"rotorpilot (system id {v.system_id}) exited with status {early} during the test:\n"
+                            + v.stderr()[-4000:])
+        elif rc != 0:
+            problems.append(f"rotorpilot (system id {v.system_id}) did not stop cleanly (status {rc}):\n"
+                            + v.stderr()[-4000:])
+    keep = keep_mode == "always" or (keep_mode == "failed" and (_failed(request.node) or problems))
+    for v in vehicles:
+        if not v.root:
+            continue
+        if keep:
+            request.node.user_properties.append((_PROPERTY, v.log_dir or v.root))
+        else:
+            v.cleanup()
+    if problems:
+        raise VehicleError("\n\n".join(problems))
+
+
+@pytest.fixture
+def rotorpilot_vehicle(rotorpilot_vehicles):
+    """A started rotorpilot vehicle, ready to arm (`rotorpilot.Vehicle`):
+    `pymavlink_url`, `mavsdk_url`, `mavsdk_server_port`, `system_id`, `speed`,
+    `state_dir`, `log_dir`, `record`, `proc`. Options from the `rotorpilot`
+    marker and the `--rotorpilot-*` command-line options."""
+    return rotorpilot_vehicles()
+
+
+def pytest_terminal_summary(terminalreporter):
+    """Name every kept vehicle directory (on the xdist controller too: the
+    paths travel in the reports' user_properties)."""
+    kept = {}
+    for reports in terminalreporter.stats.values():
+        for rep in reports:
+            for name, value in getattr(rep, "user_properties", ()) or ():
+                if name == _PROPERTY:
+                    kept.setdefault(value, getattr(rep, "nodeid", ""))
+    if not kept:
+        return
+    terminalreporter.section("rotorpilot")
+    for where, nodeid in kept.items():
+        record = os.path.join(where, "flight.record")
+        if os.path.exists(record):
+            terminalreporter.write_line(
+                f"rotorpilot: flight record kept in {where} — replay with `rotorpilot replay {record}` ({nodeid})")
+        else:
+            terminalreporter.write_line(f"rotorpilot: logs kept in {where} ({nodeid})")

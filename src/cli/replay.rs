@@ -1,0 +1,76 @@
+//! `rotorpilot replay RECORD [--csv OUT] [--json]`: re-fly a daemon's flight
+//! record headless and flat out ([`crate::record`]); the CSV is byte for byte
+//! the live flight's `flight.csv`.
+
+use std::io::Write as _;
+use std::path::Path;
+
+use anyhow::Context as _;
+
+use crate::record::{read_record, replay};
+
+/// Read, replay, report. A record without an end line (the daemon was
+/// killed) replays to its last input, with a warning on stderr.
+///
+/// # Errors
+/// An unreadable or bad record (with the file and line), a diverging
+/// replay, a CSV that cannot be written.
+pub(super) fn run(path: &Path, csv: Option<&Path>, json: bool) -> anyhow::Result<()> {
+    let label = path.display().to_string();
+    let bytes = std::fs::read(path).with_context(|| format!("cannot read {label}"))?;
+    let text =
+        String::from_utf8(bytes).map_err(|e| anyhow::anyhow!("{label}: not a flight record (not UTF-8: {e})"))?;
+    let record = read_record(&text, &label).map_err(anyhow::Error::msg)?;
+    if record.header.rotorpilot != crate::record::ROTORPILOT_VERSION {
+        eprintln!(
+            "rotorpilot: warning: {label} was written by rotorpilot {}, this is {}: the replay is exact only when \
+             both fly alike (every input's outcome is still checked)",
+            record.header.rotorpilot,
+            crate::record::ROTORPILOT_VERSION
+        );
+    }
+    if record.end.is_none() {
+        eprintln!(
+            "rotorpilot: warning: {label} has no end line (the daemon did not stop cleanly); replaying up to its last input"
+        );
+    }
+    let mut writer = match csv {
+        Some(p) => Some(std::io::BufWriter::with_capacity(
+            256 * 1024,
+            std::fs::File::create(p).with_context(|| format!("cannot create {}", p.display()))?,
+        )),
+        None => None,
+    };
+    let start = std::time::Instant::now();
+    let s =
+        replay(&record, &label, writer.as_mut().map(|w| w as &mut dyn std::io::Write)).map_err(anyhow::Error::msg)?;
+    if let Some(mut w) = writer {
+        w.flush().context("writing the CSV")?;
+    }
+    let wall_s = start.elapsed().as_secs_f64();
+    let steps_per_s = s.steps as f64 / wall_s.max(1e-9);
+    if json {
+        let mut v = serde_json::to_value(&s)?;
+        v["wall_time_s"] = wall_s.into();
+        v["steps_per_s"] = steps_per_s.into();
+        println!("{}", serde_json::to_string_pretty(&v)?);
+    } else {
+        let [n, e, d] = s.position_ned_m;
+        println!(
+            "replayed {label}: {} steps, {:.3} s simulated in {:.3} s wall ({:.0} steps/s), {} inputs{}",
+            s.steps,
+            s.sim_time_s,
+            wall_s,
+            steps_per_s,
+            s.inputs,
+            if s.complete { "" } else { " (no end line)" }
+        );
+        println!(
+            "final state: {}, mode {}, {}, position NED {n:.2}, {e:.2}, {d:.2} m",
+            if s.armed { "armed" } else { "disarmed" },
+            s.mode,
+            s.landed_state
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,222 @@
+//! The run's flight record (`flight.record`, [`crate::record`]'s format)
+//! and, with `--log-csv`, its flight CSV (`flight.csv`, the rows of
+//! `rotorpilot simulate --csv`, one per step), written by the simulation
+//! thread. Every input reaches the core through [`Sim::apply`], which
+//! records it; each record line is flushed as it is written, so a killed
+//! daemon leaves a record that replays up to its last input. The CSV is
+//! buffered (written out whenever 256 KiB are due, and at shutdown).
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::Path;
+
+use anyhow::Context as _;
+use tracing::warn;
+
+use super::saver::lock;
+use super::sim_thread::{Sim, VEHICLE};
+use crate::airframe::Airframe;
+use crate::autopilot::{Autopilot, AutopilotCommand, AutopilotError, ClientTimer, CommandOutcome};
+use crate::geo::GeoPoint;
+use crate::lockstep::Lockstep;
+use crate::mission::{MissionResult, PlanChange};
+use crate::params::{ParamStore, ParamValue};
+use crate::record::{Applied, Header, Input, end_line, header_line, input_line};
+use crate::scenario::{csv_header, csv_row};
+use crate::sim::SensorConfig;
+
+/// The record file's name in the run directory.
+pub(super) const RECORD_FILE: &str = "flight.record";
+/// The CSV file's name in the run directory.
+pub(super) const CSV_FILE: &str = "flight.csv";
+
+/// Writes the run's record and CSV.
+pub(super) struct Recorder {
+    record: Option<File>,
+    csv: Option<BufWriter<File>>,
+    rotors: usize,
+    /// The core's step count as last seen (for the end line).
+    steps: u64,
+}
+
+impl std::fmt::Debug for Recorder {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Recorder")
+            .field("steps", &self.steps)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Recorder {
+    /// Start the record in `dir` with the header of `core` at step 0 (and
+    /// the CSV with its header line when `csv`). The header is checked by
+    /// rebuilding a core from it: a header that would not replay stops the start.
+    ///
+    /// # Errors
+    /// A file that cannot be created or written (with its path), the
+    /// airframe unreadable, a header that does not rebuild `core`.
+    pub(super) fn create(
+        dir: &Path,
+        airframe: &str,
+        home: GeoPoint,
+        params: &ParamStore,
+        core: &mut Lockstep<Autopilot>,
+        csv: bool,
+    ) -> anyhow::Result<Self> {
+        let ap = core.pilot(VEHICLE);
+        let header = Header::new(
+            Airframe::load_text(airframe)?,
+            home,
+            params,
+            ap.plans(),
+            SensorConfig::default(),
+            ap.client_clock(),
+            core.dt_s(),
+        );
+        let (mut rebuilt, rebuilt_params) = header
+            .build()
+            .map_err(|e| anyhow::anyhow!("the flight record's header does not rebuild the vehicle: {e}"))?;
+        anyhow::ensure!(
+            core.steps() == 0
+                // as Debug text: a NaN in the telemetry equals itself there
+                && format!("{:?}", rebuilt.snapshot(VEHICLE)) == format!("{:?}", core.snapshot(VEHICLE))
+                && rebuilt_params.iter().eq(params.iter()),
+            "the flight record's header does not rebuild the vehicle as it starts"
+        );
+        let path = dir.join(RECORD_FILE);
+        let mut record = File::create(&path).with_context(|| format!("--log-dir: cannot create {}", path.display()))?;
+        writeln!(record, "{}", header_line(&header)?).with_context(|| format!("writing {}", path.display()))?;
+        let rotors = core.pilot(VEHICLE).airframe().rotor_count();
+        let csv = if csv {
+            let path = dir.join(CSV_FILE);
+            let f = File::create(&path).with_context(|| format!("--log-csv: cannot create {}", path.display()))?;
+            let mut w = BufWriter::with_capacity(256 * 1024, f);
+            writeln!(w, "{}", csv_header(rotors)).with_context(|| format!("writing {}", path.display()))?;
+            Some(w)
+        } else {
+            None
+        };
+        Ok(Self {
+            record: Some(record),
+            csv,
+            rotors,
+            steps: 0,
+        })
+    }
+
+    /// After each step: the CSV row.
+    pub(super) fn after_step(&mut self, core: &Lockstep<Autopilot>) {
+        self.steps = core.steps();
+        if let Some(w) = &mut self.csv
+            && let Err(e) = writeln!(w, "{}", csv_row(&core.last_step(VEHICLE), self.rotors))
+        {
+            warn!(error = %e, "cannot write {CSV_FILE}; the CSV stops here");
+            self.csv = None;
+        }
+    }
+
+    /// One input line, written out at once.
+    fn input(&mut self, step: u64, input: &Input, applied: &Applied) {
+        self.steps = step;
+        let Some(f) = &mut self.record else { return };
+        let line = input_line(step, input, &applied.text());
+        if let Err(e) = line
+            .map_err(std::io::Error::other)
+            .and_then(|l| f.write_all(format!("{l}\n").as_bytes()))
+        {
+            warn!(error = %e, "cannot write {RECORD_FILE}; the record stops here (it replays up to here)");
+            self.record = None;
+        }
+    }
+}
+
+impl Drop for Recorder {
+    /// At a clean stop: the end line and the rest of the CSV (not after a
+    /// panic: a record without its end replays up to its last input).
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            return;
+        }
+        if let Some(f) = &mut self.record
+            && let Err(e) = writeln!(f, "{}", end_line(self.steps))
+        {
+            warn!(error = %e, "cannot end {RECORD_FILE}");
+        }
+        if let Some(w) = &mut self.csv
+            && let Err(e) = w.flush()
+        {
+            warn!(error = %e, "cannot write {CSV_FILE}");
+        }
+    }
+}
+
+impl Sim {
+    /// Apply one input to the core at the current instant (between steps),
+    /// recording it when recording: the only way inputs reach the core.
+    pub(super) fn apply(&mut self, input: Input) -> Applied {
+        let step = self.core.steps();
+        let applied = {
+            let mut p = lock(&self.params);
+            crate::record::apply(&mut self.core, VEHICLE, &mut p, &input)
+        };
+        if let Some(r) = &mut self.recorder {
+            r.input(step, &input, &applied);
+        }
+        applied
+    }
+
+    /// [`Self::apply`] a command.
+    pub(super) fn command(&mut self, command: AutopilotCommand) -> CommandOutcome {
+        match self.apply(Input::Command(command)) {
+            Applied::Command(o) => o,
+            other => unreachable!("a command answered {other:?}"),
+        }
+    }
+
+    /// [`Self::apply`] a parameter set.
+    pub(super) fn set_param(&mut self, name: &str, value: ParamValue) -> Result<ParamValue, String> {
+        match self.apply(Input::SetParam {
+            name: name.to_string(),
+            value,
+        }) {
+            Applied::SetParam(r) => r,
+            other => unreachable!("a parameter set answered {other:?}"),
+        }
+    }
+
+    /// [`Self::apply`] a plan change.
+    pub(super) fn change_plans(&mut self, change: PlanChange) -> Result<u32, MissionResult> {
+        match self.apply(Input::ChangePlans(change)) {
+            Applied::Plans(r) => r,
+            other => unreachable!("a plan change answered {other:?}"),
+        }
+    }
+
+    /// [`Self::apply`] a ground station's heartbeat.
+    pub(super) fn gcs_heartbeat(&mut self) {
+        self.apply(Input::GcsHeartbeat);
+    }
+
+    /// [`Self::apply`] a client timer's expiry on the wall clock.
+    pub(super) fn client_timeout(&mut self, timer: ClientTimer, started_s: f64) -> bool {
+        match self.apply(Input::ClientTimeout { timer, started_s }) {
+            Applied::ClientTimeout(b) => b,
+            other => unreachable!("a client timeout answered {other:?}"),
+        }
+    }
+
+    /// [`Self::apply`] a reboot from the parameters in force.
+    pub(super) fn reboot_core(&mut self) -> Result<(), AutopilotError> {
+        match self.apply(Input::Reboot) {
+            Applied::Reboot(r) => r,
+            other => unreachable!("a reboot answered {other:?}"),
+        }
+    }
+
+    /// After each step (the CSV row).
+    pub(super) fn after_step(&mut self) {
+        if let Some(r) = &mut self.recorder {
+            r.after_step(&self.core);
+        }
+    }
+}

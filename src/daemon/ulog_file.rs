@@ -1,0 +1,122 @@
+//! The run's `flight.ulg`: [`crate::ulog::flight::FlightUlog`] on a
+//! buffered file, fed by the simulation thread after every step and with
+//! every status text. The buffer reaches the file when full and when the
+//! simulation thread ends (drop). A write error stops the log with one
+//! warning; the flight goes on.
+
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+
+use tracing::warn;
+
+use super::saver::lock;
+use crate::autopilot::{Autopilot, StatusText};
+use crate::lockstep::Lockstep;
+use crate::params::ParamStore;
+use crate::ulog::flight::FlightUlog;
+
+/// The file name in the run directory.
+pub(super) const FILE_NAME: &str = "flight.ulg";
+
+/// The ULog of vehicle `vehicle`, written to `flight.ulg`.
+#[derive(Debug)]
+pub(super) struct UlogFile {
+    log: Option<FlightUlog<BufWriter<File>>>,
+    path: PathBuf,
+    vehicle: usize,
+    /// The daemon's parameters, looked at every `PARAM_CHECK_EVERY` steps
+    /// for changes (logged as PX4 logs a change in flight).
+    params: Arc<Mutex<ParamStore>>,
+    generation: u64,
+    steps: u64,
+}
+
+/// Steps between two looks at the parameters' generation (0.1 s).
+const PARAM_CHECK_EVERY: u64 = 100;
+
+impl UlogFile {
+    /// Start `dir/flight.ulg` (header, formats, info, parameters); `None`
+    /// with a warning if it cannot be written.
+    pub(super) fn create(
+        dir: &Path,
+        params: &Arc<Mutex<ParamStore>>,
+        core: &Lockstep<Autopilot>,
+        vehicle: usize,
+    ) -> Option<Self> {
+        let path = dir.join(FILE_NAME);
+        let store = lock(params).clone();
+        let started = File::create(&path)
+            .and_then(|f| FlightUlog::new(BufWriter::with_capacity(256 * 1024, f), &store, core, vehicle));
+        match started {
+            Ok(log) => Some(Self {
+                log: Some(log),
+                path,
+                vehicle,
+                params: params.clone(),
+                generation: store.generation(),
+                steps: 0,
+            }),
+            Err(e) => {
+                warn!(path = %path.display(), error = %e, "cannot write the ULog; flying without it");
+                None
+            }
+        }
+    }
+
+    fn check(&mut self, r: std::io::Result<()>) {
+        if let Err(e) = r {
+            warn!(path = %self.path.display(), error = %e, "ULog write failed; the ULog stops here");
+            self.log = None;
+        }
+    }
+
+    /// After a step of the core.
+    fn on_step(&mut self, core: &mut Lockstep<Autopilot>) {
+        self.steps += 1;
+        if self.steps.is_multiple_of(PARAM_CHECK_EVERY) {
+            let store = lock(&self.params);
+            if store.generation() != self.generation {
+                self.generation = store.generation();
+                let r = self.log.as_mut().map_or(Ok(()), |l| l.parameters(&store));
+                drop(store);
+                self.check(r);
+            }
+        }
+        if let Some(log) = &mut self.log {
+            let r = log.on_step(core, self.vehicle);
+            self.check(r);
+        }
+    }
+
+    /// A status text announced at the core's current time.
+    fn status_text(&mut self, time_s: f64, text: &StatusText) {
+        if let Some(log) = &mut self.log {
+            let r = log.status_text(time_s, text);
+            self.check(r);
+        }
+    }
+}
+
+/// The simulation thread's hook after each step (nothing without a ULog).
+pub(super) fn after_step(log: &mut Option<UlogFile>, core: &mut Lockstep<Autopilot>) {
+    if let Some(l) = log {
+        l.on_step(core);
+    }
+}
+
+/// The simulation thread's hook for each status text it publishes.
+pub(super) fn status_text(log: &mut Option<UlogFile>, time_s: f64, text: &StatusText) {
+    if let Some(l) = log {
+        l.status_text(time_s, text);
+    }
+}
+
+impl Drop for UlogFile {
+    fn drop(&mut self) {
+        if let Some(Err(e)) = self.log.take().map(FlightUlog::finish) {
+            warn!(path = %self.path.display(), error = %e, "ULog: the last writes failed");
+        }
+    }
+}

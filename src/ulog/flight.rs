@@ -1,0 +1,707 @@
+//! A flight's ULog: PX4-named topics filled from the lockstep core, decimated
+//! from the simulation step to PX4's default logger rates. The daemon calls
+//! [`FlightUlog::on_step`] after every step; a replay can do the same.
+//!
+//! `timestamp` is the simulated time [us] since boot (PX4 SITL's lockstep
+//! clock); `timestamp_sample` the instant the data describes (equal here).
+//! Units and frames are PX4's: SI, world NED, body FRD, attitude the
+//! quaternion (w, x, y, z) rotating FRD into NED.
+//!
+//! | topic | rate | source |
+//! |---|---|---|
+//! | `vehicle_attitude` | 20 Hz | navigation solution |
+//! | `vehicle_angular_velocity` | 50 Hz | navigation solution |
+//! | `vehicle_local_position` | 10 Hz | navigation solution |
+//! | `vehicle_global_position` | 5 Hz | navigation solution |
+//! | `vehicle_attitude_setpoint` | 20 Hz | the controller |
+//! | `trajectory_setpoint` | 5 Hz | the reference tracked (only while one is) |
+//! | `actuator_motors` | 10 Hz | rotor commands |
+//! | `battery_status` | 5 Hz | battery |
+//! | `vehicle_status` | 1 Hz and on change | commander |
+//! | `vehicle_land_detected` | 1 Hz and on change | land detector |
+//! | `rotorpilot_wrench_estimate` | 50 Hz | the momentum-based estimator (and its order) |
+//! | `rotorpilot_control_wrench` | 50 Hz | the controller's wrench |
+//! | `rotorpilot_sim_truth` | 50 Hz | the simulated world (truth) |
+//!
+//! The rates are the intervals of PX4's default logger profile
+//! (`logged_topics.cpp`); status and land detection are logged on change, as
+//! PX4 logs every publication of those, plus once a second.
+
+use std::io::{self, Write};
+
+use nalgebra::{UnitQuaternion, Vector3};
+
+use super::{Field, FieldType as T, Format, LogLevel, Sample, UlogWriter, Value};
+use crate::autopilot::{Autopilot, FlightMode, LandedState, Severity, StatusText};
+use crate::control::Reference;
+use crate::lockstep::Lockstep;
+use crate::params::{Param, ParamStore, ParamValue};
+use crate::signals::{ActuatorCommand, GpsFix};
+
+/// PX4's `actuator_motors.control` length.
+const MOTORS: usize = 12;
+
+/// A topic and its logging interval [ms] (0: on change and once a second).
+struct Topic {
+    format: Format,
+    interval_ms: u32,
+}
+
+const fn s(ty: T, name: &'static str) -> Field {
+    Field::scalar(ty, name)
+}
+const fn a(ty: T, len: usize, name: &'static str) -> Field {
+    Field::array(ty, len, name)
+}
+
+const ATTITUDE: Topic = Topic {
+    format: Format {
+        name: "vehicle_attitude",
+        fields: &[s(T::U64, "timestamp"), s(T::U64, "timestamp_sample"), a(T::F32, 4, "q")],
+    },
+    interval_ms: 50,
+};
+const ANGULAR_VELOCITY: Topic = Topic {
+    format: Format {
+        name: "vehicle_angular_velocity",
+        fields: &[
+            s(T::U64, "timestamp"),
+            s(T::U64, "timestamp_sample"),
+            a(T::F32, 3, "xyz"),
+        ],
+    },
+    interval_ms: 20,
+};
+const LOCAL_POSITION: Topic = Topic {
+    format: Format {
+        name: "vehicle_local_position",
+        fields: &[
+            s(T::U64, "timestamp"),
+            s(T::U64, "timestamp_sample"),
+            s(T::F64, "ref_lat"),
+            s(T::F64, "ref_lon"),
+            s(T::F32, "x"),
+            s(T::F32, "y"),
+            s(T::F32, "z"),
+            s(T::F32, "vx"),
+            s(T::F32, "vy"),
+            s(T::F32, "vz"),
+            s(T::F32, "z_deriv"),
+            s(T::F32, "ax"),
+            s(T::F32, "ay"),
+            s(T::F32, "az"),
+            s(T::F32, "heading"),
+            s(T::F32, "ref_alt"),
+            s(T::Bool, "xy_valid"),
+            s(T::Bool, "z_valid"),
+            s(T::Bool, "v_xy_valid"),
+            s(T::Bool, "v_z_valid"),
+            s(T::Bool, "xy_global"),
+            s(T::Bool, "z_global"),
+        ],
+    },
+    interval_ms: 100,
+};
+const GLOBAL_POSITION: Topic = Topic {
+    format: Format {
+        name: "vehicle_global_position",
+        fields: &[
+            s(T::U64, "timestamp"),
+            s(T::U64, "timestamp_sample"),
+            s(T::F64, "lat"),
+            s(T::F64, "lon"),
+            s(T::F32, "alt"),
+            s(T::Bool, "lat_lon_valid"),
+            s(T::Bool, "alt_valid"),
+        ],
+    },
+    interval_ms: 200,
+};
+const ATTITUDE_SETPOINT: Topic = Topic {
+    format: Format {
+        name: "vehicle_attitude_setpoint",
+        fields: &[
+            s(T::U64, "timestamp"),
+            s(T::F32, "yaw_sp_move_rate"),
+            a(T::F32, 4, "q_d"),
+            a(T::F32, 3, "thrust_body"),
+        ],
+    },
+    interval_ms: 50,
+};
+const TRAJECTORY_SETPOINT: Topic = Topic {
+    format: Format {
+        name: "trajectory_setpoint",
+        fields: &[
+            s(T::U64, "timestamp"),
+            a(T::F32, 3, "position"),
+            a(T::F32, 3, "velocity"),
+            a(T::F32, 3, "acceleration"),
+            a(T::F32, 3, "jerk"),
+            s(T::F32, "yaw"),
+            s(T::F32, "yawspeed"),
+        ],
+    },
+    interval_ms: 200,
+};
+const ACTUATOR_MOTORS: Topic = Topic {
+    format: Format {
+        name: "actuator_motors",
+        fields: &[
+            s(T::U64, "timestamp"),
+            s(T::U64, "timestamp_sample"),
+            s(T::U16, "reversible_flags"),
+            a(T::F32, MOTORS, "control"),
+        ],
+    },
+    interval_ms: 100,
+};
+const BATTERY_STATUS: Topic = Topic {
+    format: Format {
+        name: "battery_status",
+        fields: &[
+            s(T::U64, "timestamp"),
+            s(T::F32, "voltage_v"),
+            s(T::F32, "current_a"),
+            s(T::F32, "discharged_mah"),
+            s(T::F32, "remaining"),
+            s(T::Bool, "connected"),
+            s(T::U8, "warning"),
+        ],
+    },
+    interval_ms: 200,
+};
+const VEHICLE_STATUS: Topic = Topic {
+    format: Format {
+        name: "vehicle_status",
+        fields: &[
+            s(T::U64, "timestamp"),
+            s(T::U8, "arming_state"),
+            s(T::U8, "nav_state"),
+            s(T::U8, "vehicle_type"),
+            s(T::Bool, "pre_flight_checks_pass"),
+        ],
+    },
+    interval_ms: 0,
+};
+const LAND_DETECTED: Topic = Topic {
+    format: Format {
+        name: "vehicle_land_detected",
+        fields: &[s(T::U64, "timestamp"), s(T::Bool, "landed")],
+    },
+    interval_ms: 0,
+};
+const WRENCH_ESTIMATE: Topic = Topic {
+    format: Format {
+        name: "rotorpilot_wrench_estimate",
+        fields: &[
+            s(T::U64, "timestamp"),
+            a(T::F32, 3, "force_ned"),
+            a(T::F32, 3, "torque_frd"),
+            s(T::F32, "mass_kg"),
+            s(T::U8, "order"),
+        ],
+    },
+    interval_ms: 20,
+};
+const CONTROL_WRENCH: Topic = Topic {
+    format: Format {
+        name: "rotorpilot_control_wrench",
+        fields: &[
+            s(T::U64, "timestamp"),
+            s(T::F32, "thrust_n"),
+            a(T::F32, 3, "torque_frd"),
+            s(T::F32, "applied_thrust_n"),
+            a(T::F32, 3, "applied_torque_frd"),
+            s(T::Bool, "saturated"),
+        ],
+    },
+    interval_ms: 20,
+};
+const SIM_TRUTH: Topic = Topic {
+    format: Format {
+        name: "rotorpilot_sim_truth",
+        fields: &[
+            s(T::U64, "timestamp"),
+            a(T::F32, 3, "position_ned"),
+            a(T::F32, 3, "velocity_ned"),
+            a(T::F32, 4, "q"),
+            a(T::F32, 3, "rate_frd"),
+            a(T::F32, 3, "external_force_ned"),
+            a(T::F32, 3, "external_torque_frd"),
+            s(T::F32, "mass_kg"),
+        ],
+    },
+    interval_ms: 20,
+};
+
+/// Every topic, in subscription order (message id = index).
+const TOPICS: [&Topic; 13] = [
+    &ATTITUDE,
+    &ANGULAR_VELOCITY,
+    &LOCAL_POSITION,
+    &GLOBAL_POSITION,
+    &ATTITUDE_SETPOINT,
+    &TRAJECTORY_SETPOINT,
+    &ACTUATOR_MOTORS,
+    &BATTERY_STATUS,
+    &VEHICLE_STATUS,
+    &LAND_DETECTED,
+    &WRENCH_ESTIMATE,
+    &CONTROL_WRENCH,
+    &SIM_TRUTH,
+];
+
+/// Message ids (indices into [`TOPICS`]).
+mod id {
+    pub(super) const ATTITUDE: u16 = 0;
+    pub(super) const ANGULAR_VELOCITY: u16 = 1;
+    pub(super) const LOCAL_POSITION: u16 = 2;
+    pub(super) const GLOBAL_POSITION: u16 = 3;
+    pub(super) const ATTITUDE_SETPOINT: u16 = 4;
+    pub(super) const TRAJECTORY_SETPOINT: u16 = 5;
+    pub(super) const ACTUATOR_MOTORS: u16 = 6;
+    pub(super) const BATTERY_STATUS: u16 = 7;
+    pub(super) const VEHICLE_STATUS: u16 = 8;
+    pub(super) const LAND_DETECTED: u16 = 9;
+    pub(super) const WRENCH_ESTIMATE: u16 = 10;
+    pub(super) const CONTROL_WRENCH: u16 = 11;
+    pub(super) const SIM_TRUTH: u16 = 12;
+}
+
+/// PX4's `vehicle_status.nav_state` for a mode (`NAVIGATION_STATE_*`).
+#[must_use]
+pub fn nav_state(mode: FlightMode) -> u8 {
+    match mode {
+        FlightMode::Manual => 0,
+        FlightMode::Altitude => 1,
+        FlightMode::Position => 2,
+        FlightMode::Mission => 3,
+        FlightMode::Hold => 4,
+        FlightMode::ReturnToLaunch => 5,
+        FlightMode::Acro => 10,
+        FlightMode::Descend => 12,
+        FlightMode::Offboard => 14,
+        FlightMode::Stabilized => 15,
+        FlightMode::Takeoff => 17,
+        FlightMode::Land => 18,
+    }
+}
+
+/// The ULog level of a STATUSTEXT severity (both are syslog's numbers).
+#[must_use]
+pub fn log_level(severity: Severity) -> LogLevel {
+    match severity {
+        Severity::Emergency => LogLevel::Emergency,
+        Severity::Critical => LogLevel::Critical,
+        Severity::Error => LogLevel::Error,
+        Severity::Warning => LogLevel::Warning,
+        Severity::Notice => LogLevel::Notice,
+        Severity::Info => LogLevel::Info,
+    }
+}
+
+fn ulog_value(v: ParamValue) -> Value {
+    match v {
+        ParamValue::Int32(i) => Value::I32(i),
+        ParamValue::Real32(f) => Value::F32(f),
+    }
+}
+
+/// `EST_ORDER` (validated 1..20 by the parameter table).
+fn est_order(store: &ParamStore) -> u8 {
+    u8::try_from(store.int(Param::EST_ORDER)).unwrap_or(0)
+}
+
+/// Simulated seconds to ULog microseconds (rounded).
+fn us(t_s: f64) -> u64 {
+    (t_s * 1e6).round().max(0.0) as u64
+}
+
+/// The (w, x, y, z) components of a quaternion, PX4's order.
+fn wxyz(q: &UnitQuaternion<f64>) -> [f64; 4] {
+    [q.w, q.i, q.j, q.k]
+}
+
+fn v3(v: &Vector3<f64>) -> [f64; 3] {
+    [v.x, v.y, v.z]
+}
+
+/// What `vehicle_status` and `vehicle_land_detected` last logged.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Status {
+    armed: bool,
+    mode: FlightMode,
+    landed: bool,
+}
+
+/// One vehicle's flight as a ULog, written to `W`.
+#[derive(Debug)]
+pub struct FlightUlog<W: Write> {
+    ulog: UlogWriter<W>,
+    /// `interval_ms` of each topic in steps (0: on change).
+    every: [u64; TOPICS.len()],
+    /// The full-thrust rotor speed [rad/s] (`actuator_motors` = (w / w_max)^2).
+    speed_max_rad_s: f64,
+    rotor_count: usize,
+    /// What the status topics last logged.
+    last: Option<Status>,
+    /// Every parameter's value as last logged (by index).
+    params: Vec<ParamValue>,
+    /// The estimator's order `r` (`EST_ORDER` in force).
+    order: u8,
+}
+
+impl<W: Write> FlightUlog<W> {
+    /// Start the log of vehicle `vehicle` at the core's current instant:
+    /// header, formats, info (`sys_name` "rotorpilot", `ver_sw`, the
+    /// airframe, `time_ref_utc` 0), every parameter of `params`, one
+    /// subscription per topic.
+    ///
+    /// # Errors
+    /// Writing fails.
+    pub fn new(w: W, params: &ParamStore, core: &Lockstep<Autopilot>, vehicle: usize) -> io::Result<Self> {
+        let dt = core.dt_s();
+        let mut ulog = UlogWriter::new(w, us(core.time_s()))?;
+        for t in TOPICS {
+            ulog.format(&t.format)?;
+        }
+        let pilot = core.pilot(vehicle);
+        let airframe = pilot.airframe();
+        ulog.info_str("sys_name", "rotorpilot")?;
+        ulog.info_str("ver_sw", env!("CARGO_PKG_VERSION"))?;
+        ulog.info_str("ver_hw", "ROTORPILOT_SITL")?;
+        ulog.info_str("sys_os_name", std::env::consts::OS)?;
+        ulog.info_str("rotorpilot_airframe", &airframe.name)?;
+        ulog.info("time_ref_utc", Value::I32(0))?;
+        for (spec, value) in params.iter() {
+            ulog.parameter(spec.name, ulog_value(value))?;
+        }
+        for t in TOPICS {
+            ulog.add_logged(&t.format, 0)?;
+        }
+        let mut every = [0; TOPICS.len()];
+        for (e, t) in every.iter_mut().zip(TOPICS) {
+            if t.interval_ms > 0 {
+                *e = ((f64::from(t.interval_ms) * 1e-3 / dt).round() as u64).max(1);
+            }
+        }
+        Ok(Self {
+            ulog,
+            every,
+            speed_max_rad_s: airframe.rotor.speed_max_rad_s,
+            rotor_count: airframe.rotor_count().min(MOTORS),
+            last: None,
+            params: params.iter().map(|(_, v)| v).collect(),
+            order: est_order(params),
+        })
+    }
+
+    /// Log every parameter whose value differs from the one last logged
+    /// ('P' in the data section, as PX4 logs a change in flight; readers
+    /// date it by the data before it). Call after a parameter change is
+    /// applied (the daemon looks every 0.1 s of simulated time).
+    ///
+    /// # Errors
+    /// Writing fails.
+    pub fn parameters(&mut self, store: &ParamStore) -> io::Result<()> {
+        for (i, (spec, value)) in store.iter().enumerate() {
+            if self.params.get(i) != Some(&value) {
+                self.ulog.parameter(spec.name, ulog_value(value))?;
+                if let Some(old) = self.params.get_mut(i) {
+                    *old = value;
+                }
+            }
+        }
+        self.order = est_order(store);
+        Ok(())
+    }
+
+    fn due(&self, topic: u16, k: u64) -> bool {
+        let e = self.every[usize::from(topic)];
+        e > 0 && k.is_multiple_of(e)
+    }
+
+    /// Log what is due after a step of the core (decimated by the step
+    /// index of the step's instant `t_k`).
+    ///
+    /// # Errors
+    /// Writing fails.
+    pub fn on_step(&mut self, core: &mut Lockstep<Autopilot>, vehicle: usize) -> io::Result<()> {
+        let dt = core.dt_s();
+        let step = core.last_step(vehicle);
+        let m = *step.measurement;
+        let k = (m.time_s / dt).round() as u64;
+        let t = us(m.time_s);
+        let c = step.control;
+        if self.due(id::ATTITUDE, k) {
+            let s = Sample::new(t).u64(t).f32s(&wxyz(&m.attitude));
+            self.ulog.data(id::ATTITUDE, &s)?;
+        }
+        if self.due(id::ANGULAR_VELOCITY, k) {
+            let s = Sample::new(t).u64(t).f32s(&v3(&m.rate_frd));
+            self.ulog.data(id::ANGULAR_VELOCITY, &s)?;
+        }
+        if self.due(id::ATTITUDE_SETPOINT, k) {
+            let max = core.pilot(vehicle).max_thrust_n();
+            let thrust = if max > 0.0 { c.command.thrust_n / max } else { 0.0 };
+            let s = Sample::new(t)
+                .f32(c.reference.yaw_rate_rad_s)
+                .f32s(&wxyz(&c.attitude_sp))
+                // normalised, along body z (FRD): upward thrust is negative
+                .f32s(&[0.0, 0.0, -thrust]);
+            self.ulog.data(id::ATTITUDE_SETPOINT, &s)?;
+        }
+        if self.due(id::TRAJECTORY_SETPOINT, k) && c.reference != Reference::default() {
+            let r = &c.reference;
+            let s = Sample::new(t)
+                .f32s(&v3(&r.position_ned))
+                .f32s(&v3(&r.velocity_ned))
+                .f32s(&v3(&r.acceleration_ned))
+                .f32s(&v3(&r.jerk_ned))
+                .f32(r.yaw_rad)
+                .f32(r.yaw_rate_rad_s);
+            self.ulog.data(id::TRAJECTORY_SETPOINT, &s)?;
+        }
+        if self.due(id::ACTUATOR_MOTORS, k) {
+            let mut control = [f64::NAN; MOTORS];
+            match c.actuator {
+                ActuatorCommand::Stop => control[..self.rotor_count].fill(0.0),
+                ActuatorCommand::RotorSpeeds(w) => {
+                    for (u, w) in control.iter_mut().zip(w.iter()).take(self.rotor_count) {
+                        // thrust over full thrust: T = c_T w^2
+                        *u = (w / self.speed_max_rad_s).powi(2).clamp(0.0, 1.0);
+                    }
+                }
+                // a wrench acts directly (ideal actuation): no rotor commands
+                ActuatorCommand::Wrench(_) => {}
+            }
+            let s = Sample::new(t).u64(t).u16(0).f32s(&control);
+            self.ulog.data(id::ACTUATOR_MOTORS, &s)?;
+        }
+        if self.due(id::WRENCH_ESTIMATE, k) {
+            let e = &c.estimate;
+            let s = Sample::new(t)
+                .f32s(&v3(&e.force_ned))
+                .f32s(&v3(&e.torque_frd))
+                .f32(e.mass_kg)
+                .u8(self.order);
+            self.ulog.data(id::WRENCH_ESTIMATE, &s)?;
+        }
+        if self.due(id::CONTROL_WRENCH, k) {
+            let s = Sample::new(t)
+                .f32(c.command.thrust_n)
+                .f32s(&v3(&c.command.torque_frd))
+                .f32(c.applied.thrust_n)
+                .f32s(&v3(&c.applied.torque_frd))
+                .bool(c.saturated);
+            self.ulog.data(id::CONTROL_WRENCH, &s)?;
+        }
+        if self.due(id::SIM_TRUTH, k) {
+            let w = step.world;
+            let s = Sample::new(t)
+                .f32s(&v3(&w.truth.position_ned))
+                .f32s(&v3(&w.truth.velocity_ned))
+                .f32s(&wxyz(&w.truth.attitude))
+                .f32s(&v3(&w.truth.rate_frd))
+                .f32s(&v3(&w.external.force_ned))
+                .f32s(&v3(&w.external.torque_frd))
+                .f32(w.true_mass_kg);
+            self.ulog.data(id::SIM_TRUTH, &s)?;
+        }
+        let pilot = core.pilot(vehicle);
+        let now = Status {
+            armed: pilot.armed(),
+            mode: pilot.mode(),
+            landed: pilot.landed_state() == LandedState::OnGround,
+        };
+        let second = k.is_multiple_of(((1.0 / dt).round() as u64).max(1));
+        let status_due = second || self.last.is_none_or(|l| l.armed != now.armed || l.mode != now.mode);
+        let land_due = second || self.last.is_none_or(|l| l.landed != now.landed);
+        let tel_due = status_due
+            || self.due(id::LOCAL_POSITION, k)
+            || self.due(id::GLOBAL_POSITION, k)
+            || self.due(id::BATTERY_STATUS, k);
+        if !(tel_due || land_due) {
+            return Ok(());
+        }
+        // the autopilot's telemetry at the instant after the step
+        let tel = core.telemetry(vehicle);
+        let tt = us(tel.time_s);
+        if self.due(id::LOCAL_POSITION, k) {
+            let xy = tel.gps_fix == GpsFix::Fix3d;
+            let (_, _, heading) = tel.attitude.euler_angles();
+            let (p, v, acc) = (&tel.position_ned, &tel.velocity_ned, &tel.acceleration_ned);
+            let s = Sample::new(tt)
+                .u64(tt)
+                .f64(tel.origin.lat_deg)
+                .f64(tel.origin.lon_deg)
+                .f32s(&v3(p))
+                .f32s(&v3(v))
+                .f32(v.z)
+                .f32s(&v3(acc))
+                .f32(heading)
+                .f32(tel.origin.alt_amsl_m)
+                .bool(xy)
+                .bool(true)
+                .bool(xy)
+                .bool(true)
+                .bool(xy)
+                .bool(true);
+            self.ulog.data(id::LOCAL_POSITION, &s)?;
+        }
+        if self.due(id::GLOBAL_POSITION, k) {
+            let xy = tel.gps_fix == GpsFix::Fix3d;
+            let s = Sample::new(tt)
+                .u64(tt)
+                .f64(tel.global.lat_deg)
+                .f64(tel.global.lon_deg)
+                .f32(tel.global.alt_amsl_m)
+                .bool(xy)
+                .bool(true);
+            self.ulog.data(id::GLOBAL_POSITION, &s)?;
+        }
+        if self.due(id::BATTERY_STATUS, k) {
+            let s = Sample::new(tt)
+                .f32(tel.battery_voltage_v)
+                .f32(tel.battery_current_a)
+                .f32(tel.battery_consumed_mah)
+                .f32(tel.battery_remaining)
+                .bool(true)
+                // PX4's BATTERY_WARNING_NONE/LOW/CRITICAL/EMERGENCY
+                .u8(tel.battery_warning as u8);
+            self.ulog.data(id::BATTERY_STATUS, &s)?;
+        }
+        if status_due {
+            let s = Sample::new(tt)
+                // ARMING_STATE_DISARMED = 1, ARMED = 2
+                .u8(if tel.armed { 2 } else { 1 })
+                .u8(nav_state(tel.mode))
+                // VEHICLE_TYPE_ROTARY_WING
+                .u8(1)
+                .bool(tel.prearm_ok);
+            self.ulog.data(id::VEHICLE_STATUS, &s)?;
+        }
+        if land_due {
+            let s = Sample::new(tt).bool(tel.landed == LandedState::OnGround);
+            self.ulog.data(id::LAND_DETECTED, &s)?;
+        }
+        self.last = Some(Status {
+            armed: tel.armed,
+            mode: tel.mode,
+            landed: tel.landed == LandedState::OnGround,
+        });
+        Ok(())
+    }
+
+    /// Log a status text ('L') at simulated time `time_s` [s], with its severity.
+    ///
+    /// # Errors
+    /// Writing fails.
+    pub fn status_text(&mut self, time_s: f64, text: &StatusText) -> io::Result<()> {
+        self.ulog
+            .logged_string(log_level(text.severity), us(time_s), &text.text)
+    }
+
+    /// Flush what is buffered.
+    ///
+    /// # Errors
+    /// Flushing fails.
+    pub fn flush(&mut self) -> io::Result<()> {
+        self.ulog.flush()
+    }
+
+    /// Flush and hand back the writer (ULog needs no trailer).
+    ///
+    /// # Errors
+    /// Flushing fails.
+    pub fn finish(mut self) -> io::Result<W> {
+        self.ulog.flush()?;
+        Ok(self.ulog.into_inner())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Data messages per message id in a ULog file (walking the messages).
+    fn data_counts(b: &[u8]) -> Vec<usize> {
+        let mut counts = vec![0; TOPICS.len()];
+        let mut i = 16;
+        while i + 3 <= b.len() {
+            let size = usize::from(u16::from_le_bytes([b[i], b[i + 1]]));
+            if b[i + 2] == b'D' {
+                counts[usize::from(u16::from_le_bytes([b[i + 3], b[i + 4]]))] += 1;
+            }
+            i += 3 + size;
+        }
+        assert_eq!(i, b.len(), "messages end at the file's end");
+        counts
+    }
+
+    #[test]
+    fn a_second_on_the_ground_is_decimated_to_the_topic_rates() {
+        let airframe = crate::airframe::Airframe::load("quad").unwrap();
+        let params = ParamStore::new(&airframe);
+        let mut core = Lockstep::one_vehicle(
+            &airframe,
+            crate::geo::GeoPoint::PX4_SITL_HOME,
+            &params,
+            crate::sim::SensorConfig::default(),
+        )
+        .unwrap();
+        let mut log = FlightUlog::new(Vec::new(), &params, &core, 0).unwrap();
+        for _ in 0..1000 {
+            core.step();
+            log.on_step(&mut core, 0).unwrap();
+        }
+        let counts = data_counts(&log.finish().unwrap());
+        // steps at t_k = 0 .. 0.999 s: one sample every interval from t = 0
+        assert_eq!(counts[usize::from(id::ATTITUDE)], 20);
+        assert_eq!(counts[usize::from(id::ANGULAR_VELOCITY)], 50);
+        assert_eq!(counts[usize::from(id::LOCAL_POSITION)], 10);
+        assert_eq!(counts[usize::from(id::GLOBAL_POSITION)], 5);
+        assert_eq!(counts[usize::from(id::ACTUATOR_MOTORS)], 10);
+        assert_eq!(counts[usize::from(id::SIM_TRUTH)], 50);
+        // nothing changes disarmed on the ground: once, at t = 0
+        assert_eq!(counts[usize::from(id::VEHICLE_STATUS)], 1);
+        assert_eq!(counts[usize::from(id::LAND_DETECTED)], 1);
+        // disarmed: no reference is tracked
+        assert_eq!(counts[usize::from(id::TRAJECTORY_SETPOINT)], 0);
+    }
+
+    #[test]
+    fn nav_states_are_px4_numbers() {
+        assert_eq!(nav_state(FlightMode::Hold), 4);
+        assert_eq!(nav_state(FlightMode::Takeoff), 17);
+        assert_eq!(nav_state(FlightMode::Land), 18);
+        assert_eq!(nav_state(FlightMode::Offboard), 14);
+        assert_eq!(nav_state(FlightMode::Mission), 3);
+    }
+
+    #[test]
+    fn topic_ids_follow_the_table() {
+        let names = [
+            (id::ATTITUDE, "vehicle_attitude"),
+            (id::ANGULAR_VELOCITY, "vehicle_angular_velocity"),
+            (id::LOCAL_POSITION, "vehicle_local_position"),
+            (id::GLOBAL_POSITION, "vehicle_global_position"),
+            (id::ATTITUDE_SETPOINT, "vehicle_attitude_setpoint"),
+            (id::TRAJECTORY_SETPOINT, "trajectory_setpoint"),
+            (id::ACTUATOR_MOTORS, "actuator_motors"),
+            (id::BATTERY_STATUS, "battery_status"),
+            (id::VEHICLE_STATUS, "vehicle_status"),
+            (id::LAND_DETECTED, "vehicle_land_detected"),
+            (id::WRENCH_ESTIMATE, "rotorpilot_wrench_estimate"),
+            (id::CONTROL_WRENCH, "rotorpilot_control_wrench"),
+            (id::SIM_TRUTH, "rotorpilot_sim_truth"),
+        ];
+        for (i, name) in names {
+            assert_eq!(TOPICS[usize::from(i)].format.name, name);
+        }
+        for t in TOPICS {
+            assert_eq!(t.format.fields[0], s(T::U64, "timestamp"), "{}", t.format.name);
+        }
+    }
+}

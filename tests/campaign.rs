@@ -1,0 +1,488 @@
+//! `rotorpilot simulate` campaigns: many files and directories flown on
+//! every core with one JSON line per scenario in entry order, whatever the
+//! job count; `--shard I/N` partitions the campaign; `[campaign]` grids and
+//! seeded random draws vary a scenario's own values, reproducibly, and the
+//! flights show the values; bad shards, bad `[campaign]` tables and bad
+//! variants get clear errors while the rest still runs.
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use serde_json::Value;
+
+/// What a run gave: exit status, the JSON lines of stdout, stderr.
+struct Run {
+    status: Option<i32>,
+    lines: Vec<Value>,
+    stderr: String,
+}
+
+fn simulate(args: &[&str]) -> Run {
+    let out = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+        .arg("simulate")
+        .args(args)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    let lines = if args.contains(&"--json") {
+        stdout
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("not one JSON object per line ({e}): {l}")))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    Run {
+        status: out.status.code(),
+        lines,
+        stderr,
+    }
+}
+
+/// The lines without what depends on the machine (the wall time).
+fn results(lines: &[Value]) -> Vec<Value> {
+    lines
+        .iter()
+        .map(|l| {
+            let mut l = l.clone();
+            if let Some(o) = l.as_object_mut() {
+                o.remove("wall_time_s");
+            }
+            l
+        })
+        .collect()
+}
+
+fn dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("rp-campaign-{name}-{}", std::process::id()));
+    std::fs::remove_dir_all(&d).ok();
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> String {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p.to_str().unwrap().to_string()
+}
+
+/// A quad hovering 2 m up with the geometric law for `duration_s`, a true
+/// mass and external force from the start (the values a campaign varies).
+fn hover(duration_s: f64) -> String {
+    format!(
+        "airframe = \"quad\"\ncontroller = \"geometric\"\nduration_s = {duration_s:?}\n\
+         [reference]\nkind = \"hover\"\nposition_ned = [0.0, 0.0, -2.0]\n\
+         [[disturbance]]\nat_s = 0.0\nforce_ned = [0.0, 0.0, 0.0]\ntrue_mass_kg = 2.0\n"
+    )
+}
+
+fn f(v: &Value) -> f64 {
+    v.as_f64().unwrap_or_else(|| panic!("not a number: {v}"))
+}
+
+fn names(lines: &[Value]) -> Vec<String> {
+    lines
+        .iter()
+        .map(|l| {
+            Path::new(l["scenario"].as_str().unwrap())
+                .file_name()
+                .unwrap()
+                .to_string_lossy()
+                .into_owned()
+        })
+        .collect()
+}
+
+#[test]
+fn a_directory_campaign_gives_one_line_per_file_in_input_order_whatever_the_jobs() {
+    let d = dir("dir");
+    // the longest first: with two jobs the second finishes first
+    write(&d, "a-long.toml", &hover(4.0));
+    write(&d, "b-short.toml", &hover(0.5));
+    write(
+        &d,
+        "c-mid.toml",
+        &hover(1.5).replace("[0.0, 0.0, 0.0]", "[0.3, 0.0, 0.0]"),
+    );
+    write(&d, "README.md", "not a scenario");
+    let extra = write(&dir("dir-extra"), "z-first.toml", &hover(1.0));
+    let ds = d.to_str().unwrap();
+    let one = simulate(&[&extra, ds, "--json", "--jobs", "1"]);
+    let two = simulate(&[&extra, ds, "--json", "--jobs", "2"]);
+    assert_eq!(one.status, Some(0), "{}", one.stderr);
+    assert_eq!(two.status, Some(0), "{}", two.stderr);
+    assert_eq!(
+        names(&two.lines),
+        ["z-first.toml", "a-long.toml", "b-short.toml", "c-mid.toml"]
+    );
+    let idx: Vec<_> = two.lines.iter().map(|l| l["index"].as_u64().unwrap()).collect();
+    assert_eq!(idx, [0, 1, 2, 3]);
+    assert_eq!(results(&one.lines), results(&two.lines), "results depend on --jobs");
+    // each line is the scenario's own summary (plain files: no values)
+    assert!((f(&two.lines[1]["sim_time_s"]) - 4.0).abs() < 1e-9);
+    assert!((f(&two.lines[2]["sim_time_s"]) - 0.5).abs() < 1e-9);
+    assert_eq!(two.lines[0]["values"], serde_json::json!({}));
+    assert_ne!(two.lines[3]["est_force_ned"], two.lines[1]["est_force_ned"]);
+    assert!(
+        two.stderr.contains("4 scenarios") && two.stderr.contains("2 jobs"),
+        "{}",
+        two.stderr
+    );
+    // text: one line per scenario, in order
+    let out = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+        .args(["simulate", &extra, ds])
+        .output()
+        .unwrap();
+    let text = String::from_utf8(out.stdout).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines.len(), 4, "{text}");
+    assert!(
+        lines[2].starts_with("2 ") && lines[2].contains("b-short.toml"),
+        "{text}"
+    );
+}
+
+/// A campaign of 10 entries: 3 files of a directory, a file of 2 x 3
+/// variants, and a bad file.
+fn ten_entries() -> Vec<String> {
+    let d = dir("shards");
+    for (name, t) in [("a.toml", 0.5), ("b.toml", 0.7), ("c.toml", 0.9)] {
+        write(&d, name, &hover(t));
+    }
+    let other = dir("shards-files");
+    let varied = write(
+        &other,
+        "varied.toml",
+        &format!(
+            "{}[campaign]\nseed = 5\ndraws = 3\n[campaign.grid]\n\"disturbance[1].true_mass_kg\" = [1.9, 2.1]\n\
+             [campaign.random]\n\"disturbance[1].force_ned[2]\" = {{ uniform = [-0.5, 0.5] }}\n",
+            hover(0.6)
+        ),
+    );
+    let missing = other.join("missing.toml").to_str().unwrap().to_string();
+    vec![d.to_str().unwrap().to_string(), varied, missing]
+}
+
+#[test]
+fn shards_partition_the_campaign() {
+    let args = ten_entries();
+    let mut base: Vec<&str> = args.iter().map(String::as_str).collect();
+    base.push("--json");
+    let whole = simulate(&base);
+    assert_eq!(whole.lines.len(), 10);
+    assert_eq!(whole.status, Some(2), "the missing file: {}", whole.stderr);
+    let mut seen = BTreeSet::new();
+    for i in 0..3u64 {
+        let shard = format!("{i}/3");
+        let mut a = base.clone();
+        a.extend(["--shard", &shard, "--jobs", "1"]);
+        let part = simulate(&a);
+        for l in &part.lines {
+            let index = l["index"].as_u64().unwrap();
+            assert_eq!(index % 3, i, "{l}");
+            assert!(seen.insert(index), "entry {index} in two shards");
+            assert_eq!(
+                results(std::slice::from_ref(l)),
+                results(&whole.lines[index as usize..=index as usize]),
+                "entry {index} differs in shard {shard}"
+            );
+        }
+        // the missing file is entry 9: only its shard fails
+        assert_eq!(
+            part.status,
+            Some(if i == 0 { 2 } else { 0 }),
+            "{shard}: {}",
+            part.stderr
+        );
+        assert!(
+            part.stderr.contains(&format!("shard {shard} of a campaign of 10")),
+            "{}",
+            part.stderr
+        );
+    }
+    assert_eq!(seen, (0..10).collect::<BTreeSet<_>>(), "the shards cover the campaign");
+    // the enumeration: files in order, a file's variants in order
+    let variants: Vec<_> = whole.lines.iter().map(|l| l["variant"].as_u64()).collect();
+    assert_eq!(
+        variants,
+        [
+            Some(0),
+            Some(0),
+            Some(0),
+            Some(0),
+            Some(1),
+            Some(2),
+            Some(3),
+            Some(4),
+            Some(5),
+            None
+        ]
+    );
+    assert!(
+        whole.lines[9]["error"]
+            .as_str()
+            .unwrap()
+            .contains("missing.toml: cannot read")
+    );
+}
+
+#[test]
+fn a_true_mass_grid_shows_in_the_flights() {
+    let d = dir("mass");
+    let file = write(
+        &d,
+        "mass.toml",
+        &format!(
+            "{}[campaign.grid]\n\"disturbance[1].true_mass_kg\" = [1.6, 2.0, 2.4]\n",
+            hover(6.0)
+        ),
+    );
+    let run = simulate(&[&file, "--json"]);
+    assert_eq!(run.status, Some(0), "{}", run.stderr);
+    assert_eq!(run.lines.len(), 3);
+    let mut sag = Vec::new();
+    for (l, mass) in run.lines.iter().zip([1.6, 2.0, 2.4]) {
+        assert_eq!(f(&l["values"]["disturbance[1].true_mass_kg"]), mass);
+        assert!(l["scenario"].as_str().unwrap().ends_with("mass.toml"), "{l}");
+        // the estimator finds the true mass the variant gave the plant
+        assert!((f(&l["est_mass_kg"]) - mass).abs() < 0.01 * mass, "{l}");
+        sag.push(f(&l["final_pos_err_ned"][2]));
+    }
+    // the geometric law has no integrator: (m - 2 kg) g / kp_z below (NED down > 0) the setpoint
+    let kp_z = 12.5;
+    for (s, mass) in sag.iter().zip([1.6, 2.0, 2.4]) {
+        let expect = (mass - 2.0) * 9.80665 / kp_z;
+        assert!((s - expect).abs() < 0.05, "sag {s} m for {mass} kg, expected {expect}");
+    }
+}
+
+#[test]
+fn seeded_random_disturbance_draws_are_applied_and_reproducible() {
+    let d = dir("random");
+    let campaign = |seed: u64| {
+        write(
+            &d,
+            &format!("wind-{seed}.toml"),
+            &format!(
+                "{}[campaign]\nseed = {seed}\ndraws = 5\n[campaign.random]\n\
+                 \"disturbance[1].force_ned[1]\" = {{ normal = [0.0, 0.5] }}\n\
+                 \"disturbance[1].force_ned[2]\" = {{ uniform = [-0.5, 0.5] }}\n",
+                hover(5.0)
+            ),
+        )
+    };
+    let file = campaign(42);
+    let first = simulate(&[&file, "--json", "--jobs", "2"]);
+    assert_eq!(first.status, Some(0), "{}", first.stderr);
+    assert_eq!(first.lines.len(), 5);
+    let mut drawn = BTreeSet::new();
+    for l in &first.lines {
+        let north = f(&l["values"]["disturbance[1].force_ned[1]"]);
+        let east = f(&l["values"]["disturbance[1].force_ned[2]"]);
+        assert!((-0.5..0.5).contains(&east), "{east}");
+        drawn.insert(format!("{north} {east}"));
+        // the estimator sees the force the draw applied
+        assert!((f(&l["est_force_ned"][0]) - north).abs() < 0.02, "{l}");
+        assert!((f(&l["est_force_ned"][1]) - east).abs() < 0.02, "{l}");
+    }
+    assert_eq!(drawn.len(), 5, "every draw differs");
+    let again = simulate(&[&file, "--json", "--jobs", "1"]);
+    assert_eq!(results(&first.lines), results(&again.lines), "a second run differs");
+    // a shard's draws are the whole run's
+    let odd = simulate(&[&file, "--json", "--shard", "1/2"]);
+    assert_eq!(
+        results(&odd.lines),
+        results(&[first.lines[1].clone(), first.lines[3].clone()])
+    );
+    // another seed, other draws
+    let other = simulate(&[&campaign(43), "--json"]);
+    assert_ne!(other.lines[0]["values"], first.lines[0]["values"]);
+}
+
+#[test]
+fn bad_shards_are_refused_clearly() {
+    for (shard, says) in [
+        ("3/3", "I must be below N"),
+        ("0/0", "N must be at least 1"),
+        ("x", "expected I/N"),
+        ("1/", "not a whole number"),
+        ("-1/2", "not a whole number"),
+    ] {
+        let run = simulate(&["tools/campaigns", &format!("--shard={shard}")]);
+        assert_eq!(run.status, Some(2), "{shard} accepted");
+        assert!(
+            run.stderr.contains("--shard") && run.stderr.contains(says),
+            "{shard}: {}",
+            run.stderr
+        );
+    }
+    let run = simulate(&["tools/campaigns", "--jobs", "0"]);
+    assert_eq!(run.status, Some(2));
+    assert!(run.stderr.contains("--jobs"), "{}", run.stderr);
+    // a directory with no scenario is no campaign: 2 as well (1 only ever means a failed verdict)
+    let empty = dir("empty");
+    let run = simulate(&[empty.to_str().unwrap()]);
+    assert_eq!(run.status, Some(2));
+    assert!(run.stderr.contains("no scenario files"), "{}", run.stderr);
+}
+
+#[test]
+fn bad_campaign_tables_and_variants_are_reported_and_the_rest_still_runs() {
+    let d = dir("bad");
+    let good = write(&d, "good.toml", &hover(0.5));
+    let base = hover(0.5);
+    let line = base.lines().count() + 2;
+    let unknown = write(
+        &d,
+        "unknown.toml",
+        &format!("{base}[campaign.grid]\n\"vehicle.mass_kg\" = [1.0, 2.0]\n"),
+    );
+    let dist = write(
+        &d,
+        "dist.toml",
+        &format!("{base}[campaign]\ndraws = 2\n[campaign.random]\n\"duration_s\" = {{ gauss = [1.0, 0.1] }}\n"),
+    );
+    let range = write(
+        &d,
+        "range.toml",
+        &format!("{base}[campaign.grid]\n\"disturbance[1].true_mass_kg\" = [2.0, -1.0]\n"),
+    );
+    let run = simulate(&[&good, &unknown, &dist, &range, "--json"]);
+    assert_eq!(run.status, Some(2), "{}", run.stderr);
+    assert_eq!(run.lines.len(), 5, "good, unknown, dist, range#0, range#1");
+    assert!(run.lines[0]["error"].is_null() && run.lines[3]["error"].is_null());
+    let e = run.lines[1]["error"].as_str().unwrap();
+    assert!(
+        e.contains(&format!("unknown.toml:{line}:"))
+            && e.contains("campaign.grid.\"vehicle.mass_kg\"")
+            && e.contains("has no `vehicle`"),
+        "{e}"
+    );
+    assert!(run.lines[1]["variant"].is_null());
+    let e = run.lines[2]["error"].as_str().unwrap();
+    assert!(
+        e.contains("dist.toml:")
+            && e.contains("campaign.random.\"duration_s\"")
+            && e.contains("unknown distribution `gauss`"),
+        "{e}"
+    );
+    let e = run.lines[4]["error"].as_str().unwrap();
+    assert!(
+        e.contains("range.toml#1: disturbance[1].true_mass_kg: must be finite and > 0"),
+        "{e}"
+    );
+    assert_eq!(run.lines[4]["variant"], 1);
+    assert_eq!(f(&run.lines[4]["values"]["disturbance[1].true_mass_kg"]), -1.0);
+    for needle in [
+        "unknown.toml:",
+        "dist.toml:",
+        "range.toml#1",
+        "2 ok, 0 missions failed, 3 errors",
+    ] {
+        assert!(run.stderr.contains(needle), "`{needle}` not in {}", run.stderr);
+    }
+}
+
+#[test]
+fn a_failed_mission_in_a_campaign_gives_exit_status_1() {
+    let d = dir("mission");
+    let good = write(&d, "good.toml", &hover(0.5));
+    let short = write(
+        &d,
+        "short.toml",
+        "duration_s = 5\n[mission]\n[[mission.item]]\ncommand = 16\nparams = [0.0, 1.0, 0.0, nan]\n\
+         x = 47.3986\ny = 8.5456\nz = 20.0\n",
+    );
+    let run = simulate(&[&good, &short, "--json"]);
+    assert_eq!(run.status, Some(1), "{}", run.stderr);
+    assert_eq!(run.lines[1]["verdict"], "fail");
+    assert!(
+        run.stderr.contains("1 ok, 1 missions failed, 0 errors"),
+        "{}",
+        run.stderr
+    );
+    // an error as well: 2 wins
+    let run = simulate(&[&good, &short, "no-such-file.toml", "--json"]);
+    assert_eq!(run.status, Some(2));
+}
+
+#[test]
+fn campaign_logs_go_into_a_directory_and_an_unchanged_variant_logs_the_same_bytes() {
+    let d = dir("csv");
+    let plain = write(&d, "plain.toml", &hover(0.8));
+    let varied = write(
+        &d,
+        "varied.toml",
+        &format!(
+            "{}[campaign.grid]\n\"disturbance[1].true_mass_kg\" = [2.0, 2.2]\n",
+            hover(0.8)
+        ),
+    );
+    let logs = d.join("logs");
+    let run = simulate(&[&plain, &varied, "--csv", logs.to_str().unwrap()]);
+    assert_eq!(run.status, Some(0), "{}", run.stderr);
+    let mut files: Vec<String> = std::fs::read_dir(&logs)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    files.sort();
+    assert_eq!(files, ["0-plain.csv", "1-varied-v0.csv", "2-varied-v1.csv"]);
+    let read = |n: &str| std::fs::read(logs.join(n)).unwrap();
+    // the variant is written back as TOML and read again: not a bit moves
+    assert_eq!(read("0-plain.csv"), read("1-varied-v0.csv"));
+    assert_ne!(read("1-varied-v0.csv"), read("2-varied-v1.csv"));
+    // one file: --csv is the file, as ever
+    let single = d.join("single.csv");
+    let run = simulate(&[&plain, "--csv", single.to_str().unwrap()]);
+    assert_eq!(run.status, Some(0));
+    assert_eq!(std::fs::read(&single).unwrap(), read("0-plain.csv"));
+}
+
+#[test]
+fn the_shipped_monte_carlo_campaign_has_16_reproducible_draws() {
+    let file = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tools/campaigns/figure-eight-monte-carlo.toml"
+    );
+    let run = simulate(&[file, "--json", "--shard", "3/8"]);
+    assert_eq!(run.status, Some(0), "{}", run.stderr);
+    assert!(run.stderr.contains("shard 3/8 of a campaign of 16"), "{}", run.stderr);
+    let idx: Vec<_> = run.lines.iter().map(|l| l["index"].as_u64().unwrap()).collect();
+    assert_eq!(idx, [3, 11]);
+    for l in &run.lines {
+        let mass = f(&l["values"]["disturbance[1].true_mass_kg"]);
+        assert!((1.8..2.2).contains(&mass));
+        assert!((f(&l["est_mass_kg"]) - mass).abs() < 0.01, "{l}");
+        assert!((f(&l["sim_time_s"]) - 60.0).abs() < 1e-9);
+        assert_eq!(l["upright"], true);
+    }
+}
+
+#[test]
+fn a_mission_campaign_varies_a_px4_parameter() {
+    let d = dir("mission-params");
+    let square = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tools/scenarios/mission-square.toml"
+    ))
+    .unwrap();
+    let file = write(
+        &d,
+        "square.toml",
+        &format!("{square}\n[campaign.grid]\n\"params.MPC_XY_CRUISE\" = [4, 12.0]\n"),
+    );
+    let run = simulate(&[&file, "--json"]);
+    assert_eq!(run.status, Some(0), "{}", run.stderr);
+    assert_eq!(run.lines.len(), 2);
+    assert_eq!(
+        run.lines[0]["values"]["params.MPC_XY_CRUISE"], 4.0,
+        "an integer where the file has a float"
+    );
+    assert!(run.lines.iter().all(|l| l["verdict"] == "pass"));
+    // faster cruise, shorter mission
+    let (slow, fast) = (f(&run.lines[0]["mission_time_s"]), f(&run.lines[1]["mission_time_s"]));
+    assert!(slow > fast + 5.0, "{slow} s at 4 m/s, {fast} s at 12 m/s");
+}

@@ -1,0 +1,165 @@
+"""The pytest plugin's own behaviour, through inner pytest sessions
+(`pytester`, in a subprocess, as a user's run): a failing test keeps its
+vehicle's directory and flight record and says where, a passing one leaves
+nothing behind, a vehicle that cannot start fails the fixture with its
+stderr, misspelled parameters are refused, and the marker's options reach
+the vehicle (airframe, parameters, home, several vehicles with their own
+system ids). Needs pymavlink.
+"""
+
+import os
+import re
+import subprocess
+import sysconfig
+from importlib import metadata
+from pathlib import Path
+
+import pytest
+from pymavlink import mavutil
+
+import rotorpilot
+from rotorpilot import Vehicle, binary
+
+
+def plugin_args():
+    """`-p rotorpilot.pytest_plugin` when the package is used from a checkout
+    (not installed, so no pytest11 entry point loads it)."""
+    try:
+        metadata.distribution("rotorpilot")
+        return []
+    except metadata.PackageNotFoundError:
+        return ["-p", "rotorpilot.pytest_plugin"]
+
+
+def run_inner(pytester, source, *args):
+    pytester.makepyfile(test_inner=source)
+    # the inner run imports this rotorpilot package, installed or not
+    package_root = os.path.dirname(os.path.dirname(rotorpilot.__file__))
+    pytester._monkeypatch.setenv("PYTHONPATH", os.pathsep.join([package_root, str(pytester.path)]))
+    return pytester.runpytest_subprocess("-p", "no:cacheprovider", *plugin_args(), *args, timeout=120)
+
+
+def records_replay():
+    """Whether this binary writes flight records (it has `rotorpilot replay`)."""
+    return subprocess.run([binary(), "replay", "--help"], capture_output=True).returncode == 0
+
+
+FAILING = """
+def test_fails(rotorpilot_vehicle):
+    assert rotorpilot_vehicle.proc.poll() is None
+    assert rotorpilot_vehicle.speed == 20
+    assert False, "on purpose"
+
+def test_passes(rotorpilot_vehicle):
+    assert rotorpilot_vehicle.proc.poll() is None
+"""
+
+
+@pytest.mark.parametrize("xdist", [False, True], ids=["plain", "xdist"])
+def test_a_failed_test_keeps_its_record_and_says_where(pytester, tmp_path, xdist):
+    if xdist:
+        pytest.importorskip("xdist")
+    base = tmp_path / "vehicles"
+    args = ["--rotorpilot-speed", "20", "--rotorpilot-log-dir", str(base)] + (["-n", "2"] if xdist else [])
+    r = run_inner(pytester, FAILING, *args)
+    out = r.stdout.str()
+    r.assert_outcomes(passed=1, failed=1)
+    kept = re.findall(r"rotorpilot: (?:flight record|logs) kept in (\S+)", out)
+    assert kept, out
+    where = kept[-1]
+    assert os.path.isdir(where) and where.startswith(str(base)), out
+    # exactly one vehicle directory is left: the passing test's was deleted
+    assert len(os.listdir(base)) == 1, os.listdir(base)
+    assert "test_fails" in out.split("rotorpilot: ")[-1] or xdist
+    if records_replay():
+        assert os.path.isfile(os.path.join(where, "flight.record")), os.listdir(where)
+        assert f"replay with `rotorpilot replay {where}/flight.record`" in out, out
+    else:  # a binary from before flight records: the logs are still kept and named
+        assert "rotorpilot: logs kept in" in out or "flight record kept in" in out
+
+
+def test_a_passing_run_leaves_nothing_and_keep_always_keeps(pytester, tmp_path):
+    base = tmp_path / "vehicles"
+    r = run_inner(pytester, "def test_ok(rotorpilot_vehicle):\n    pass\n", "--rotorpilot-log-dir", str(base))
+    r.assert_outcomes(passed=1)
+    assert os.listdir(base) == []
+    assert "kept in" not in r.stdout.str()
+    r = run_inner(pytester, "def test_ok(rotorpilot_vehicle):\n    pass\n", "--rotorpilot-log-dir", str(base),
+                  "--rotorpilot-keep", "always")
+    r.assert_outcomes(passed=1)
+    assert len(os.listdir(base)) == 1
+
+
+def test_a_vehicle_that_cannot_start_fails_the_fixture_with_its_stderr(pytester, tmp_path):
+    r = run_inner(pytester, "def test_x(rotorpilot_vehicle):\n    pass\n", "--rotorpilot-airframe", "no-such-frame",
+                  "--rotorpilot-log-dir", str(tmp_path))
+    r.assert_outcomes(errors=1)
+    out = r.stdout.str()
+    assert "exited with status" in out and "before it was ready to arm" in out, out
+    assert "no-such-frame" in out.split("--- stderr ---")[1], out
+
+
+def test_a_misspelled_parameter_fails_the_fixture(pytester, tmp_path):
+    src = ('import pytest\n@pytest.mark.rotorpilot(params={"MIS_TAKEOF_ALT": 5.0})\n'
+           "def test_x(rotorpilot_vehicle):\n    pass\n")
+    r = run_inner(pytester, src, "--rotorpilot-log-dir", str(tmp_path))
+    r.assert_outcomes(errors=1)
+    assert "unknown parameter MIS_TAKEOF_ALT" in r.stdout.str(), r.stdout.str()
+
+
+def connect(v):
+    m = mavutil.mavlink_connection(v.pymavlink_url, source_system=255)
+    assert m.wait_heartbeat(timeout=5) is not None
+    return m
+
+
+def param(m, name):
+    m.mav.param_request_read_send(m.target_system, 1, name.encode(), -1)
+    p = m.recv_match(type="PARAM_VALUE", condition=f"PARAM_VALUE.param_id == '{name}'", blocking=True, timeout=5)
+    assert p is not None, name
+    return p.param_value
+
+
+@pytest.mark.rotorpilot(airframe="octo", speed=5, params={"MIS_TAKEOFF_ALT": 7.5}, home=(45.5, 9.25, 120.0))
+def test_marker_options_reach_the_vehicle(rotorpilot_vehicle):
+    v = rotorpilot_vehicle
+    m = connect(v)
+    assert m.messages["HEARTBEAT"].type == mavutil.mavlink.MAV_TYPE_OCTOROTOR
+    assert param(m, "MIS_TAKEOFF_ALT") == pytest.approx(7.5)
+    home = m.recv_match(type="HOME_POSITION", blocking=True, timeout=5)
+    assert home is not None
+    assert (home.latitude / 1e7, home.longitude / 1e7, home.altitude / 1e3) == pytest.approx((45.5, 9.25, 120.0))
+    assert v.speed == 5 and v.ready_s is not None and v.ready_s < 0.5
+
+
+def test_several_vehicles_in_one_test(rotorpilot_vehicles):
+    a, b = rotorpilot_vehicles(speed=5), rotorpilot_vehicles(speed=5, airframe="hexa")
+    assert (a.system_id, b.system_id) == (1, 2)
+    assert len({a.client_port, b.client_port, a.api_port, b.api_port}) == 4
+    assert {a.mavsdk_server_port, b.mavsdk_server_port} and a.mavsdk_server_port != b.mavsdk_server_port
+    ma, mb = connect(a), connect(b)
+    assert (ma.target_system, mb.target_system) == (1, 2)
+    assert mb.messages["HEARTBEAT"].type == mavutil.mavlink.MAV_TYPE_HEXAROTOR
+
+
+def test_vehicle_without_pytest():
+    with Vehicle(speed=10, params={"MIS_TAKEOFF_ALT": 4.0}) as v:
+        assert v.pymavlink_url == f"udpin:127.0.0.1:{v.client_port}"
+        assert v.mavsdk_url == f"udpin://127.0.0.1:{v.client_port}"
+        assert param(connect(v), "MIS_TAKEOFF_ALT") == pytest.approx(4.0)
+        root = v.root
+    assert v.returncode == 0 and not os.path.exists(root)
+
+
+def test_the_installed_package_runs_its_own_executable():
+    """After `pip install .`: the package's version is Cargo.toml's, and with
+    no ROTORPILOT_BIN it runs the executable the wheel put beside Python."""
+    try:
+        metadata.distribution("rotorpilot")
+    except metadata.PackageNotFoundError:
+        pytest.skip("rotorpilot is used from a checkout, not installed")
+    cargo = (Path(__file__).resolve().parents[2] / "Cargo.toml").read_text()
+    version = re.search(r'^version = "([^"]+)"', cargo, re.M).group(1)
+    assert rotorpilot.__version__ == version
+    if not os.environ.get("ROTORPILOT_BIN"):
+        assert binary() == os.path.join(sysconfig.get_path("scripts"), "rotorpilot")

@@ -1,0 +1,282 @@
+//! Exact replay (issue 13): a flight driven through the daemon by a MAVLink
+//! client on UDP, with `--log-dir` and `--log-csv`, replays from its
+//! `flight.record` to the live `flight.csv` byte for byte (twice, and with a
+//! reboot and parameter changes in it); a record cut off by a kill replays
+//! to its last input; bad records and an unusable log directory get clear
+//! errors, never a panic.
+#![allow(deprecated)]
+
+mod daemon_common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Duration;
+
+use daemon_common::{Client, Vehicle, config, state_dir, wait_armable};
+use mavlink::dialects::common::*;
+use rotorpilot::record::{read_record, replay};
+
+const ACCEPTED: u8 = 0;
+
+async fn set_param(c: &mut Client, to: std::net::SocketAddr, id: &str, value: f32, kind: MavParamType) {
+    c.drain().await;
+    c.send(
+        to,
+        &MavMessage::PARAM_SET(PARAM_SET_DATA {
+            param_value: value,
+            target_system: 1,
+            target_component: 0,
+            param_id: id.into(),
+            param_type: kind,
+        }),
+    )
+    .await;
+    c.wait_for(Duration::from_secs(3), |r| match &r.msg {
+        Some(MavMessage::PARAM_VALUE(p)) if p.param_id.to_str().unwrap() == id => Some(()),
+        _ => None,
+    })
+    .await
+    .expect("PARAM_VALUE");
+}
+
+/// This run's directory below `base` (exactly one).
+fn run_dir(base: &Path) -> PathBuf {
+    let runs: Vec<PathBuf> = std::fs::read_dir(base).unwrap().map(|e| e.unwrap().path()).collect();
+    assert_eq!(runs.len(), 1, "{runs:?}");
+    runs[0].clone()
+}
+
+fn replay_csv(record: &Path) -> (Vec<u8>, rotorpilot::record::ReplaySummary) {
+    let text = std::fs::read_to_string(record).unwrap();
+    let r = read_record(&text, "flight.record").unwrap();
+    let mut csv = Vec::new();
+    let s = replay(&r, "flight.record", Some(&mut csv)).unwrap();
+    (csv, s)
+}
+
+/// Fly at `speed`: a parameter change and a reboot on the ground, another
+/// parameter (one refused), arm, take off, a reposition, hover; then stop
+/// cleanly. The run directory.
+async fn fly(speed: f64) -> PathBuf {
+    let logs = state_dir("replay-logs");
+    let mut c = Client::new().await;
+    let mut cfg = config(Some(c.addr()), None, speed);
+    cfg.log_dir = Some(logs.clone());
+    cfg.log_csv = true;
+    let v = Vehicle::start(cfg).await;
+    c.heartbeat(v.gcs).await;
+    set_param(
+        &mut c,
+        v.gcs,
+        "MPC_Z_VEL_MAX_UP",
+        2.0,
+        MavParamType::MAV_PARAM_TYPE_REAL32,
+    )
+    .await;
+    // a reboot: the vehicle restarts from the parameters in force
+    assert_eq!(
+        c.command(v.gcs, 246, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]).await.result,
+        ACCEPTED
+    );
+    set_param(
+        &mut c,
+        v.gcs,
+        "MIS_TAKEOFF_ALT",
+        4.0,
+        MavParamType::MAV_PARAM_TYPE_REAL32,
+    )
+    .await;
+    // refused (out of range): recorded all the same
+    set_param(
+        &mut c,
+        v.gcs,
+        "MPC_XY_VEL_MAX",
+        1e6,
+        MavParamType::MAV_PARAM_TYPE_REAL32,
+    )
+    .await;
+    c.heartbeat(v.gcs).await;
+    wait_armable(&mut c).await;
+    assert_eq!(
+        c.command(v.gcs, 400, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]).await.result,
+        ACCEPTED
+    );
+    assert_eq!(c.command(v.gcs, 22, [0.0; 7]).await.result, ACCEPTED);
+    for _ in 0..5 {
+        c.heartbeat(v.gcs).await;
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    let home = rotorpilot::geo::GeoPoint::PX4_SITL_HOME;
+    let reposition = [
+        -1.0,
+        1.0,
+        0.0,
+        f32::NAN,
+        (home.lat_deg + 3e-5) as f32,
+        home.lon_deg as f32,
+        495.0,
+    ];
+    assert_eq!(c.command(v.gcs, 192, reposition).await.result, ACCEPTED);
+    for _ in 0..5 {
+        c.heartbeat(v.gcs).await;
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    v.stop().await;
+    run_dir(&logs)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_flight_with_a_reboot_replays_byte_for_byte() {
+    let run = fly(20.0).await;
+    let record = run.join("flight.record");
+    let live = std::fs::read(run.join("flight.csv")).unwrap();
+    let text = std::fs::read_to_string(&record).unwrap();
+    for kind in [
+        "\"reboot\"",
+        "\"set_param\"",
+        "\"gcs_heartbeat\"",
+        "\"Takeoff\"",
+        "\"Reposition\"",
+        "\"end\"",
+    ] {
+        assert!(text.contains(kind), "{kind} missing from the record");
+    }
+    assert!(
+        text.contains("Err("),
+        "the refused parameter is recorded with its refusal"
+    );
+    let (a, s) = replay_csv(&record);
+    let (b, _) = replay_csv(&record);
+    assert!(s.complete);
+    assert!(s.steps > 10_000, "{s:?}");
+    assert_eq!(live.iter().filter(|&&b| b == b'\n').count() as u64, s.steps + 1);
+    assert!(a == b, "two replays differ");
+    assert!(a == live, "the replay differs from the live flight.csv");
+    assert!(s.armed, "it hovers at the end: {s:?}");
+    let _ = std::fs::remove_dir_all(run.parent().unwrap());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_record_without_its_end_replays_to_its_last_input() {
+    let run = fly(20.0).await;
+    let record = run.join("flight.record");
+    let text = std::fs::read_to_string(&record).unwrap();
+    // as a killed daemon leaves it: no end line
+    let cut: String = text
+        .lines()
+        .filter(|l| !l.starts_with("{\"end\""))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let r = read_record(&cut, "cut.record").unwrap();
+    assert_eq!(r.end, None);
+    let last = r.inputs.last().unwrap().step;
+    let mut csv = Vec::new();
+    let s = replay(&r, "cut.record", Some(&mut csv)).unwrap();
+    assert_eq!(s.steps, last);
+    assert!(!s.complete);
+    // the live CSV's first rows, exactly
+    let live = std::fs::read(run.join("flight.csv")).unwrap();
+    assert!(live.starts_with(&csv) && live.len() > csv.len());
+    // the CLI says so on stderr
+    std::fs::write(run.join("cut.record"), &cut).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+        .arg("replay")
+        .arg(run.join("cut.record"))
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("has no end line"));
+    let _ = std::fs::remove_dir_all(run.parent().unwrap());
+}
+
+/// `rotorpilot replay FILE`'s exit status and stderr.
+fn cli_replay(file: &Path) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+        .arg("replay")
+        .arg(file)
+        .output()
+        .unwrap();
+    (out.status.success(), String::from_utf8_lossy(&out.stderr).into_owned())
+}
+
+#[test]
+fn bad_records_get_clear_errors() {
+    let dir = state_dir("bad-records");
+    std::fs::create_dir_all(&dir).unwrap();
+    let a = rotorpilot::airframe::Airframe::load("quad").unwrap();
+    let header = rotorpilot::record::Header::new(
+        rotorpilot::airframe::Airframe::load_text("quad").unwrap(),
+        rotorpilot::geo::GeoPoint::PX4_SITL_HOME,
+        &rotorpilot::params::ParamStore::new(&a),
+        &rotorpilot::mission::Plans::default(),
+        rotorpilot::sim::SensorConfig::default(),
+        rotorpilot::autopilot::ClientClock::Simulated,
+        rotorpilot::signals::DEFAULT_STEP_S,
+    );
+    let h = rotorpilot::record::header_line(&header).unwrap();
+    let arm = rotorpilot::record::input_line(
+        10,
+        &rotorpilot::record::Input::Command(rotorpilot::autopilot::AutopilotCommand::Arm { force: false }),
+        "x",
+    )
+    .unwrap();
+    let cases: Vec<(&str, String, String)> = vec![
+        (
+            "v2.record",
+            format!("{}\n", h.replacen("\"version\":1", "\"version\":2", 1)),
+            format!(
+                "v2.record: format version 2, this rotorpilot reads version 1 (rotorpilot {})",
+                env!("CARGO_PKG_VERSION")
+            ),
+        ),
+        (
+            "cut.record",
+            format!("{h}\n{}", &arm[..20]),
+            "cut.record:2: cut short".into(),
+        ),
+        (
+            "bad.record",
+            format!("{h}\nhello\n"),
+            "bad.record:2: not a record line".into(),
+        ),
+        ("empty.record", String::new(), "empty.record: empty file".into()),
+        ("other.txt", "a,b,c\n".into(), "other.txt: not a flight record".into()),
+    ];
+    for (name, text, want) in cases {
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        let (ok, err) = cli_replay(&p);
+        assert!(!ok, "{name} replayed");
+        assert!(err.contains(&want), "{name}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+    }
+    // an input whose live outcome differs: the replay says where it diverged
+    let p = dir.join("diverged.record");
+    std::fs::write(&p, format!("{h}\n{arm}\n")).unwrap();
+    let (ok, err) = cli_replay(&p);
+    assert!(
+        !ok && err.contains("diverged.record:2: the replay diverged at step 10"),
+        "{err}"
+    );
+    let (ok, err) = cli_replay(&dir.join("missing.record"));
+    assert!(
+        !ok && err.contains("cannot read") && err.contains("missing.record"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[tokio::test]
+async fn an_unusable_log_dir_is_refused_at_start_with_its_path() {
+    let dir = state_dir("not-a-dir");
+    std::fs::create_dir_all(&dir).unwrap();
+    // a file where the log directory should be (root ignores permissions)
+    let file = dir.join("plain-file");
+    std::fs::write(&file, "x").unwrap();
+    let mut cfg = config(None, None, 1.0);
+    cfg.log_dir = Some(file.join("logs"));
+    let e = rotorpilot::daemon::bind(cfg).await.expect_err("bind must fail");
+    let msg = format!("{e:#}");
+    assert!(msg.contains(&file.join("logs").display().to_string()), "{msg}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -9,6 +9,7 @@ starts one vehicle on free loopback ports and waits until it is ready to arm.
 Standard library only.
 """
 
+from .messages import wait_message
 from .vehicle import PortReservation, Vehicle, VehicleError, binary, free_tcp_port, free_udp_port, reserve_port
 
 from importlib.metadata import PackageNotFoundError, version
@@ -19,4 +20,4 @@ except PackageNotFoundError:  # used from a checkout, not installed
     __version__ = "0+checkout"
 
 __all__ = ["Vehicle", "VehicleError", "binary", "free_tcp_port", "free_udp_port", "reserve_port",
-           "PortReservation", "__version__"]
+           "PortReservation", "wait_message", "__version__"]

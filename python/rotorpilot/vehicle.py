@@ -212,7 +212,8 @@ def free_tcp_port():
 
 _LINK = re.compile(r"^\s+(\S+)\s+link: udp (\S+):(\d+) -> ")
 _LOGS = re.compile(r"^\s+logs: (.+)$")
-_READY = re.compile(r"^rotorpilot: ready to arm \(([0-9.]+) s after start\)")
+# the daemon's ready line; group 1: its own start-to-ready seconds
+READY_LINE = re.compile(r"^rotorpilot: ready to arm \(([0-9.]+) s after start\)", re.M)
 
 
 def _toml_value(name, value):
@@ -365,7 +366,7 @@ class Vehicle:
             m = _LOGS.match(line)
             if m:
                 self.log_dir = m.group(1)
-            m = _READY.match(line)
+            m = READY_LINE.match(line)
             if m:
                 self.ready_s = float(m.group(1))
                 ready.set()

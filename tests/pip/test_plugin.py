@@ -39,11 +39,6 @@ def run_inner(pytester, source, *args):
     return pytester.runpytest_subprocess("-p", "no:cacheprovider", *plugin_args(), *args, timeout=120)
 
 
-def records_replay():
-    """Whether this binary writes flight records (it has `rotorpilot replay`)."""
-    return subprocess.run([binary(), "replay", "--help"], capture_output=True).returncode == 0
-
-
 FAILING = """
 def test_fails(rotorpilot_vehicle):
     assert rotorpilot_vehicle.proc.poll() is None
@@ -70,12 +65,15 @@ def test_a_failed_test_keeps_its_record_and_says_where(pytester, tmp_path, xdist
     assert os.path.isdir(where) and where.startswith(str(base)), out
     # exactly one vehicle directory is left: the passing test's was deleted
     assert len(os.listdir(base)) == 1, os.listdir(base)
-    assert "test_fails" in out.split("rotorpilot: ")[-1] or xdist
-    if records_replay():
-        assert os.path.isfile(os.path.join(where, "flight.record")), os.listdir(where)
-        assert f"replay with `rotorpilot replay {where}/flight.record`" in out, out
-    else:  # a binary from before flight records: the logs are still kept and named
-        assert "rotorpilot: logs kept in" in out or "flight record kept in" in out
+    # the terminal summary names the failed test beside its directory, under xdist too
+    summary = out.split("= rotorpilot =")[-1]
+    assert re.search(rf"kept in {re.escape(where)} .*\(test_inner.py::test_fails\)", summary), out
+    # the flight record is kept, named, and replays
+    record = os.path.join(where, "flight.record")
+    assert os.path.isfile(record), os.listdir(where)
+    assert f"replay with `rotorpilot replay {record}`" in out, out
+    replay = subprocess.run([binary(), "replay", record], capture_output=True, text=True, timeout=120)
+    assert replay.returncode == 0, replay.stdout + replay.stderr
 
 
 def test_a_passing_run_leaves_nothing_and_keep_always_keeps(pytester, tmp_path):

@@ -163,15 +163,16 @@ def _lock_dir():
     return d
 
 
-def reserve_port(attempts=500):
+def reserve_port(attempts=500, rng=None):
     """Reserve a loopback port outside the kernel's ephemeral range: its lock
     file `$TMPDIR/rotorpilot-ports/P.lock` is held (exclusive, non-blocking
     flock) by the returned `PortReservation` until `release()`, and the port
-    was free for UDP and TCP once locked. Ports are tried at random."""
+    was free for UDP and TCP once locked. Ports are tried at random (`rng`:
+    a `random.Random`, default the system's)."""
     ranges = _candidate_ranges()
     weights = [b - a + 1 for a, b in ranges]
     d = _lock_dir()
-    rng = random.SystemRandom()
+    rng = rng or random.SystemRandom()
     for _ in range(attempts):
         a, b = rng.choices(ranges, weights)[0]
         port = rng.randint(a, b)

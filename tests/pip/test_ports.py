@@ -4,30 +4,39 @@ ephemeral range, so no `bind(0)` (a daemon's own 127.0.0.1:0) can take them."""
 
 import json
 import os
+import random
 import subprocess
 import sys
+
+import pytest
 
 import rotorpilot
 from rotorpilot import reserve_port
 from rotorpilot.vehicle import _ephemeral_range
 
 HOLD_50 = """
-import json, sys
+import json, random, sys
 from rotorpilot import reserve_port
-held = [reserve_port() for _ in range(50)]
+rng = random.Random(int(sys.argv[1])) if len(sys.argv) > 1 else None
+held = [reserve_port(rng=rng) for _ in range(50)]
 print(json.dumps([r.port for r in held]), flush=True)
 sys.stdin.read()  # hold them until the parent has seen both lists
 """
 
 
-def test_two_processes_reserving_50_ports_at_once_never_collide():
+@pytest.mark.parametrize("seed", [None, 13], ids=["random", "same-candidates"])
+def test_two_processes_reserving_50_ports_at_once_never_collide(seed):
+    """With `seed`, all three processes try the very same ports in the same
+    order: only the locks keep them apart."""
     env = dict(os.environ, PYTHONPATH=os.path.dirname(os.path.dirname(rotorpilot.__file__)))
-    procs = [subprocess.Popen([sys.executable, "-c", HOLD_50], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+    extra = [] if seed is None else [str(seed)]
+    procs = [subprocess.Popen([sys.executable, "-c", HOLD_50, *extra], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                               text=True, env=env) for _ in range(2)]
     try:
         # both hold 50 while this process reserves 50 more
         lists = [json.loads(p.stdout.readline()) for p in procs]
-        mine = [reserve_port() for _ in range(50)]
+        rng = None if seed is None else random.Random(seed)
+        mine = [reserve_port(rng=rng) for _ in range(50)]
         lists.append([r.port for r in mine])
     finally:
         for p in procs:

@@ -1,6 +1,6 @@
 """Start and stop one rotorpilot vehicle (the `rotorpilot` daemon) for a test.
 
-A vehicle gets its own free loopback ports, a temporary state directory (its
+A vehicle gets its own reserved loopback ports (`reserve_port`), a temporary state directory (its
 `params.toml` is written before start, so parameters are in force from the
 first step, and in the flight record) and a log directory; `start()` returns
 once the daemon prints `rotorpilot: ready to arm`, which it does when its

@@ -7,8 +7,9 @@ $ROTORPILOT_BIN, else an installed one, else $CARGO_TARGET_DIR (or
 target)/release/rotorpilot; `free_udp_port()`/`free_tcp_port()` reserve a
 port outside the ephemeral range for this process's life.
 This `Vehicle` keeps PX4 SITL's fixed instance ports (API link
-14580+N -> 14540+N), which the MAVSDK example scripts expect; tests that need
-no fixed port can use `rotorpilot.Vehicle` (`RotorpilotVehicle` here).
+14580+N -> 14540+N), which the MAVSDK example scripts and the tests'
+`udpin://0.0.0.0:14540+N` expect, so it is not `rotorpilot.Vehicle` (whose
+client port is reserved, not fixed).
 """
 
 import os
@@ -26,7 +27,6 @@ REPO = Path(__file__).resolve().parents[2]
 if str(REPO / "python") not in sys.path:
     sys.path.insert(0, str(REPO / "python"))
 from rotorpilot.messages import wait_message  # noqa: E402,F401
-from rotorpilot.vehicle import Vehicle as RotorpilotVehicle  # noqa: E402,F401
 from rotorpilot.vehicle import binary as _binary  # noqa: E402
 from rotorpilot.vehicle import free_tcp_port, free_udp_port, reserve_port  # noqa: E402,F401
 

@@ -189,9 +189,8 @@ impl Sim {
         self.tel.send_replace(self.core.snapshot(VEHICLE));
         let lost = self.core.world().faults(VEHICLE).link_lost;
         self.link_lost.send_if_modified(|l| std::mem::replace(l, lost) != lost);
-        for s in self.core.drain_status_texts(VEHICLE) {
+        for s in super::ulog_file::drain_status_texts(&mut self.ulog, &mut self.core, VEHICLE) {
             info!(text = %s.text, "status");
-            super::ulog_file::status_text(&mut self.ulog, self.core.time_s(), &s);
             let _ = self.events.send(Event::StatusText(s));
         }
         for seq in self.core.drain_mission_reached(VEHICLE) {
@@ -249,10 +248,12 @@ impl Sim {
         match self.reboot_core() {
             Ok(()) => {
                 info!("rebooted: simulation reset");
-                let _ = self.events.send(Event::StatusText(StatusText {
+                let said = StatusText {
                     severity: Severity::Info,
                     text: "Rebooted: simulation reset".into(),
-                }));
+                };
+                super::ulog_file::status_text(&mut self.ulog, self.core.time_s(), &said);
+                let _ = self.events.send(Event::StatusText(said));
                 CommandOutcome::Accepted
             }
             Err(e) => {

@@ -509,7 +509,12 @@ fn an_error_in_a_campaign_files_own_values_names_its_line_once() {
     let plain = write(&d, "plain.toml", &with_unknown_key(""));
     let run = simulate(&[&varied, &plain, "--json"]);
     assert_eq!(run.status, Some(2), "{}", run.stderr);
-    assert_eq!(run.lines.len(), 2, "one entry per file, not one per variant: {:?}", run.lines);
+    assert_eq!(
+        run.lines.len(),
+        2,
+        "one entry per file, not one per variant: {:?}",
+        run.lines
+    );
     let (ev, ep) = (
         run.lines[0]["error"].as_str().unwrap(),
         run.lines[1]["error"].as_str().unwrap(),
@@ -521,7 +526,12 @@ fn an_error_in_a_campaign_files_own_values_names_its_line_once() {
     // the same message but for the file and the line
     let rest = |e: &str| e.splitn(4, ':').nth(3).unwrap().to_string();
     assert_eq!(rest(ev), rest(ep));
-    assert_eq!(run.stderr.matches("unknown field `thrust_kg`").count(), 2, "{}", run.stderr);
+    assert_eq!(
+        run.stderr.matches("unknown field `thrust_kg`").count(),
+        2,
+        "{}",
+        run.stderr
+    );
     assert!(!run.stderr.contains("varied.toml#"), "{}", run.stderr);
     // the table's own lines still count: an error in it names its line
     let bad = write(
@@ -531,7 +541,10 @@ fn an_error_in_a_campaign_files_own_values_names_its_line_once() {
     );
     let run = simulate(&[&bad, "--json"]);
     let e = run.lines[0]["error"].as_str().unwrap();
-    assert!(e.starts_with(&format!("{bad}:8:")) && e.contains("has no `mass`"), "{e}");
+    assert!(
+        e.starts_with(&format!("{bad}:8:")) && e.contains("has no `mass`"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -1070,6 +1070,51 @@ mod tests {
     }
 
     #[test]
+    fn the_file_without_its_table_keeps_its_own_lines() {
+        let text = "campaign.seed = 4\nduration_s = 2.0 # s\n[campaign]\ndraws = 2\n[reference]\nkind = \"hover\"\n\
+                    [campaign.random]\n\"seed\" = { integer = [0, 9] }\n[[disturbance]]\nat_s = [\n  [1],\n]\n";
+        let own = without_campaign(text);
+        assert_eq!(
+            own.lines().collect::<Vec<_>>(),
+            [
+                "",
+                "duration_s = 2.0 # s",
+                "",
+                "",
+                "[reference]",
+                "kind = \"hover\"",
+                "",
+                "",
+                "[[disturbance]]",
+                "at_s = [",
+                "  [1],",
+                "]"
+            ]
+        );
+        // a NaN (as a mission item may hold) is the same value as itself
+        let nan: toml::Table = "x = [nan]".parse().unwrap();
+        assert!(same(&Value::Table(nan.clone()), &Value::Table(nan)));
+    }
+
+    #[test]
+    fn a_campaign_files_own_values_are_checked_once_at_its_own_lines() {
+        let text = format!("{FIG8}[campaign.grid]\n\"duration_s\" = [1.0, 2.0]\n").replace("seed = 3", "sede = 3");
+        let e = err(&text);
+        assert!(e.contains(".toml:4:1: unknown field `sede`"), "{e}");
+        // a table that cannot be blanked line by line is refused, not misread
+        let e = err(&format!(
+            "campaign = {{\n grid = {{ \"duration_s\" = [1.0] }} }}\n{FIG8}"
+        ));
+        assert!(e.contains(".toml:1:") && e.contains("multi-line inline table"), "{e}");
+        // one line is fine
+        let f = load(&format!(
+            "campaign = {{ grid = {{ \"duration_s\" = [1.0, 3.0] }} }}\n{FIG8}"
+        ))
+        .unwrap();
+        assert_eq!(f.variants(), 2);
+    }
+
+    #[test]
     fn a_value_out_of_range_fails_its_variant_only() {
         let f = load(&format!(
             "{FIG8}[campaign.grid]\n\"disturbance[1].true_mass_kg\" = [2.0, -1.0]\n"

@@ -48,7 +48,8 @@ impl std::fmt::Debug for Recorder {
 }
 
 impl Recorder {
-    /// Start the record in `dir` with the header of `core` at step 0 (and
+    /// Start the record in `dir` with the header of `core` at step 0, built
+    /// with `sensors` (the value bind built `core` with: one source) (and
     /// the CSV with its header line when `csv`). The header is checked by
     /// rebuilding a core from it: a header that would not replay stops the start.
     ///
@@ -60,6 +61,7 @@ impl Recorder {
         airframe: &str,
         home: GeoPoint,
         params: &ParamStore,
+        sensors: SensorConfig,
         core: &mut Lockstep<Autopilot>,
         csv: bool,
     ) -> anyhow::Result<Self> {
@@ -69,7 +71,7 @@ impl Recorder {
             home,
             params,
             ap.plans(),
-            SensorConfig::default(),
+            sensors,
             ap.client_clock(),
             core.dt_s(),
         );

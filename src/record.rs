@@ -377,9 +377,6 @@ fn bad_json(at: &str, e: &serde_json::Error) -> String {
 fn read_header(raw: &str, file: &str) -> Result<Header, String> {
     let at = format!("{file}:1");
     let not_record = || format!("{file}: not a flight record (the first line is no {FORMAT} header)");
-    if !raw.ends_with('\n') && serde_json::from_str::<Value>(raw.trim_end()).is_err() {
-        return Err(format!("{at}: cut short (the header line has no end)"));
-    }
     let v: Value = serde_json::from_str(raw.trim_end()).map_err(|e| {
         if e.is_eof() {
             format!("{at}: cut short ({e})")
@@ -391,14 +388,19 @@ fn read_header(raw: &str, file: &str) -> Result<Header, String> {
     if h.get("format").and_then(Value::as_str) != Some(FORMAT) {
         return Err(not_record());
     }
-    match h.get("version").and_then(Value::as_u64) {
-        Some(VERSION) => {}
-        Some(v) => {
+    match (h.get("version"), h.get("version").and_then(Value::as_u64)) {
+        (_, Some(VERSION)) => {}
+        (_, Some(v)) => {
             return Err(format!(
                 "{file}: format version {v}, this rotorpilot reads version {VERSION} (rotorpilot {ROTORPILOT_VERSION})"
             ));
         }
-        None => return Err(format!("{at}: the header has no format version")),
+        (Some(v), None) => {
+            return Err(format!(
+                "{at}: the header's format version is {v}, not a whole number (this rotorpilot reads version {VERSION})"
+            ));
+        }
+        (None, None) => return Err(format!("{at}: the header has no format version")),
     }
     Header::deserialize(Exact(h.clone())).map_err(|e| format!("{at}: header: {e}"))
 }
@@ -775,7 +777,9 @@ impl<'de> IntoDeserializer<'de, DeError> for Exact {
     }
 }
 
-/// The non-finite float a string names, as f64 bits or f32 bits.
+/// The non-finite float a string names, as f64 bits or f32 bits:
+/// `nan`, `inf`, `-inf`, or `nan:0x<hex bits>` for a NaN of other bits
+/// (bits that are not a NaN of that width are refused: `None`).
 fn special_float(s: &str, f32_bits: bool) -> Option<u64> {
     match s {
         "nan" if f32_bits => Some(u64::from(f32::NAN.to_bits())),
@@ -784,7 +788,15 @@ fn special_float(s: &str, f32_bits: bool) -> Option<u64> {
         "inf" => Some(f64::INFINITY.to_bits()),
         "-inf" if f32_bits => Some(u64::from(f32::NEG_INFINITY.to_bits())),
         "-inf" => Some(f64::NEG_INFINITY.to_bits()),
-        _ => u64::from_str_radix(s.strip_prefix("nan:0x")?, 16).ok(),
+        _ => {
+            let bits = u64::from_str_radix(s.strip_prefix("nan:0x")?, 16).ok()?;
+            let is_nan = if f32_bits {
+                f32::from_bits(u32::try_from(bits).ok()?).is_nan()
+            } else {
+                f64::from_bits(bits).is_nan()
+            };
+            is_nan.then_some(bits)
+        }
     }
 }
 
@@ -945,6 +957,23 @@ mod tests {
     }
 
     #[test]
+    fn nan_bits_that_are_no_nan_are_refused() {
+        let read64 = |s: &str| from_exact_value::<f64>(Value::String(s.into())).map(f64::to_bits);
+        let read32 = |s: &str| from_exact_value::<f32>(Value::String(s.into())).map(f32::to_bits);
+        assert_eq!(read64("nan:0x7ff8000000000001").unwrap(), 0x7ff8_0000_0000_0001);
+        assert_eq!(read32("nan:0x7fc00001").unwrap(), 0x7fc0_0001);
+        // 1.0, an infinity, zero: bit patterns that are no NaN
+        for s in ["nan:0x3ff0000000000000", "nan:0x7ff0000000000000", "nan:0x0"] {
+            let e = read64(s).unwrap_err().to_string();
+            assert!(e.contains("expected a number"), "{s}: {e}");
+        }
+        for s in ["nan:0x3f800000", "nan:0x7f800000", "nan:0x7ff8000000000001"] {
+            let e = read32(s).unwrap_err().to_string();
+            assert!(e.contains("expected a number"), "{s}: {e}");
+        }
+    }
+
+    #[test]
     fn inputs_round_trip() {
         let items = vec![MissionItem {
             frame: 3,
@@ -1035,6 +1064,30 @@ mod tests {
         assert!(e.starts_with("f.record:2: not a record line"), "{e}");
         let e = read_record("hello\n", "f.record").unwrap_err();
         assert!(e.contains("not a flight record"), "{e}");
+        // one line, not JSON, no end of line: not a record (not "cut short")
+        let e = read_record("hello", "f.record").unwrap_err();
+        assert_eq!(
+            e,
+            "f.record: not a flight record (the first line is no rotorpilot-flight-record header)"
+        );
+        // a header cut mid-line is still cut short
+        let e = read_record(&h[..h.len() / 2], "f.record").unwrap_err();
+        assert!(e.starts_with("f.record:1: cut short"), "{e}");
+        // a version that is not a whole number says so
+        for bad in ["1.5", "\"1\"", "-1"] {
+            let hv = h.replacen("\"version\":1", &format!("\"version\":{bad}"), 1);
+            let e = read_record(&format!("{hv}\n"), "f.record").unwrap_err();
+            assert_eq!(
+                e,
+                format!(
+                    "f.record:1: the header's format version is {bad}, not a whole number (this rotorpilot reads version 1)"
+                )
+            );
+        }
+        let hv = h.replacen(",\"version\":1", "", 1);
+        assert_ne!(hv, h);
+        let e = read_record(&format!("{hv}\n"), "f.record").unwrap_err();
+        assert_eq!(e, "f.record:1: the header has no format version");
         let later = input_line(9, &Input::GcsHeartbeat, "done").unwrap();
         let e = read_record(&format!("{h}\n{later}\n{line}\n"), "f.record").unwrap_err();
         assert!(e.starts_with("f.record:3: step 5 comes after step 9"), "{e}");

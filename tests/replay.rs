@@ -2,8 +2,9 @@
 //! client on UDP, with `--log-dir` and `--log-csv`, replays from its
 //! `flight.record` to the live `flight.csv` byte for byte (twice, and with a
 //! reboot and parameter changes in it); a record cut off by a kill replays
-//! to its last input; bad records and an unusable log directory get clear
-//! errors, never a panic.
+//! to its last input; bad records (and a record from another rotorpilot
+//! version, without `--any-version`) and an unusable log directory get
+//! clear errors, never a panic.
 #![allow(deprecated)]
 
 mod daemon_common;
@@ -258,6 +259,32 @@ fn bad_records_get_clear_errors() {
         !ok && err.contains("diverged.record:2: the replay diverged at step 10"),
         "{err}"
     );
+    // another rotorpilot version: refused naming both, replayed with --any-version
+    let other = h.replacen(
+        &format!("\"rotorpilot\":\"{}\"", env!("CARGO_PKG_VERSION")),
+        "\"rotorpilot\":\"0.0.9-other\"",
+        1,
+    );
+    assert_ne!(other, h);
+    let p = dir.join("other-version.record");
+    std::fs::write(&p, format!("{other}\n")).unwrap();
+    let (ok, err) = cli_replay(&p);
+    assert!(!ok, "another version's record replayed: {err}");
+    assert!(
+        err.contains(&format!(
+            "other-version.record: written by rotorpilot 0.0.9-other, this is rotorpilot {}",
+            env!("CARGO_PKG_VERSION")
+        )) && err.contains("--any-version"),
+        "{err}"
+    );
+    let out = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+        .args(["replay", "--any-version"])
+        .arg(&p)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("warning") && err.contains("0.0.9-other"), "{err}");
     let (ok, err) = cli_replay(&dir.join("missing.record"));
     assert!(
         !ok && err.contains("cannot read") && err.contains("missing.record"),

@@ -40,6 +40,7 @@ use crate::geo::GeoPoint;
 use crate::lockstep::Lockstep;
 use crate::mission::{MissionItem, MissionResult, MissionType, Plan, PlanChange, Plans};
 use crate::params::{ParamStore, ParamValue};
+use crate::scenario::CsvLog;
 use crate::sim::SensorConfig;
 
 /// The header's `format` field.
@@ -428,25 +429,23 @@ pub struct ReplaySummary {
 
 /// Re-fly `record`: rebuild the core from the header, step it, applying
 /// each input at its step, up to the end line's step (or the last input's
-/// when the record has no end); `csv` receives the flight CSV
-/// (`rotorpilot simulate --csv`'s format, one row per step).
+/// when the record has no end); `csv` receives the flight CSV ([`CsvLog`]:
+/// `rotorpilot simulate --csv`'s format, one row per step).
 ///
 /// # Errors
 /// A header this rotorpilot cannot rebuild; an input whose outcome differs
 /// from the live one (the replay diverged); a failed CSV write.
-pub fn replay(record: &Record, file: &str, mut csv: Option<&mut dyn Write>) -> Result<ReplaySummary, String> {
+pub fn replay(record: &Record, file: &str, csv: Option<&mut dyn Write>) -> Result<ReplaySummary, String> {
     let (mut core, mut params) = record.header.build().map_err(|e| format!("{file}:1: header: {e}"))?;
     let n = core.pilot(0).airframe().rotor_count();
     let io = |e: std::io::Error| format!("writing the CSV: {e}");
-    if let Some(w) = csv.as_deref_mut() {
-        writeln!(w, "{}", crate::scenario::csv_header(n)).map_err(io)?;
-    }
+    let mut csv = csv.map(|w| CsvLog::new(w, n)).transpose().map_err(io)?;
     let end = record.end.unwrap_or_else(|| record.inputs.last().map_or(0, |e| e.step));
-    let step_to = |core: &mut Lockstep<Autopilot>, target: u64, csv: &mut Option<&mut dyn Write>| {
+    let step_to = |core: &mut Lockstep<Autopilot>, target: u64, csv: &mut Option<CsvLog<&mut dyn Write>>| {
         while core.steps() < target {
             core.step();
-            if let Some(w) = csv.as_deref_mut() {
-                writeln!(w, "{}", crate::scenario::csv_row(&core.last_step(0), n)).map_err(io)?;
+            if let Some(l) = csv {
+                l.step_row(core, 0).map_err(io)?;
             }
             if core.steps().is_multiple_of(1024) {
                 // as the daemon publishes: the queues do not steer the flight
@@ -467,8 +466,8 @@ pub fn replay(record: &Record, file: &str, mut csv: Option<&mut dyn Write>) -> R
         }
     }
     step_to(&mut core, end, &mut csv)?;
-    if let Some(w) = csv {
-        w.flush().map_err(io)?;
+    if let Some(l) = csv {
+        l.finish().map_err(io)?;
     }
     let ap = core.pilot(0);
     let p = core.last_step(0).world.truth.position_ned;

@@ -2,7 +2,6 @@
 //! record headless and flat out ([`crate::record`]); the CSV is byte for byte
 //! the live flight's `flight.csv`.
 
-use std::io::Write as _;
 use std::path::Path;
 
 use anyhow::Context as _;
@@ -42,19 +41,13 @@ pub(super) fn run(path: &Path, csv: Option<&Path>, json: bool, any_version: bool
             "rotorpilot: warning: {label} has no end line (the daemon did not stop cleanly); replaying up to its last input"
         );
     }
-    let mut writer = match csv {
-        Some(p) => Some(std::io::BufWriter::with_capacity(
-            256 * 1024,
-            std::fs::File::create(p).with_context(|| format!("cannot create {}", p.display()))?,
-        )),
-        None => None,
-    };
+    let mut writer = csv
+        .map(crate::scenario::create_csv_file)
+        .transpose()
+        .map_err(anyhow::Error::msg)?;
     let start = std::time::Instant::now();
     let s =
         replay(&record, &label, writer.as_mut().map(|w| w as &mut dyn std::io::Write)).map_err(anyhow::Error::msg)?;
-    if let Some(mut w) = writer {
-        w.flush().context("writing the CSV")?;
-    }
     let wall_s = start.elapsed().as_secs_f64();
     let steps_per_s = s.steps as f64 / wall_s.max(1e-9);
     if json {

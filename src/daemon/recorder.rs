@@ -24,7 +24,7 @@ use crate::lockstep::Lockstep;
 use crate::mission::{MissionResult, PlanChange};
 use crate::params::{ParamStore, ParamValue};
 use crate::record::{Applied, Header, Input, end_line, header_line, input_line};
-use crate::scenario::{csv_header, csv_row};
+use crate::scenario::{CsvLog, create_csv_file};
 use crate::sim::SensorConfig;
 
 /// The record file's name in the run directory.
@@ -35,8 +35,7 @@ pub(super) const CSV_FILE: &str = "flight.csv";
 /// Writes the run's record and CSV.
 pub(super) struct Recorder {
     record: Option<LineFile<File>>,
-    csv: Option<BufWriter<File>>,
-    rotors: usize,
+    csv: Option<CsvLog<BufWriter<File>>>,
     /// The core's step count as last seen (for the end line).
     steps: u64,
 }
@@ -96,17 +95,14 @@ impl Recorder {
         let rotors = core.pilot(VEHICLE).airframe().rotor_count();
         let csv = if csv {
             let path = dir.join(CSV_FILE);
-            let f = File::create(&path).with_context(|| format!("--log-csv: cannot create {}", path.display()))?;
-            let mut w = BufWriter::with_capacity(256 * 1024, f);
-            writeln!(w, "{}", csv_header(rotors)).with_context(|| format!("writing {}", path.display()))?;
-            Some(w)
+            let f = create_csv_file(&path).map_err(|e| anyhow::anyhow!("--log-csv: {e}"))?;
+            Some(CsvLog::new(f, rotors).with_context(|| format!("writing {}", path.display()))?)
         } else {
             None
         };
         Ok(Self {
             record: Some(record),
             csv,
-            rotors,
             steps: 0,
         })
     }
@@ -114,8 +110,8 @@ impl Recorder {
     /// After each step: the CSV row.
     pub(super) fn after_step(&mut self, core: &Lockstep<Autopilot>) {
         self.steps = core.steps();
-        if let Some(w) = &mut self.csv
-            && let Err(e) = writeln!(w, "{}", csv_row(&core.last_step(VEHICLE), self.rotors))
+        if let Some(l) = &mut self.csv
+            && let Err(e) = l.step_row(core, VEHICLE)
         {
             warn!(error = %e, "cannot write {CSV_FILE}; the CSV stops here");
             self.csv = None;
@@ -191,8 +187,8 @@ impl Drop for Recorder {
         {
             warn!(error = %e, "cannot end {RECORD_FILE}");
         }
-        if let Some(w) = &mut self.csv
-            && let Err(e) = w.flush()
+        if let Some(l) = self.csv.take()
+            && let Err(e) = l.finish()
         {
             warn!(error = %e, "cannot write {CSV_FILE}");
         }

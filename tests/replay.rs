@@ -154,7 +154,63 @@ async fn a_flight_with_a_reboot_replays_byte_for_byte() {
     assert!(a == b, "two replays differ");
     assert!(a == live, "the replay differs from the live flight.csv");
     assert!(s.armed, "it hovers at the end: {s:?}");
+    // the replay's ULog: the live flight.ulg's topic samples byte for byte,
+    // the same parameter changes and status texts
+    let r = read_record(&text, "flight.record").unwrap();
+    let mut ulg = Vec::new();
+    rotorpilot::record::replay_logs(&r, "flight.record", None, Some(&mut ulg)).unwrap();
+    let live_ulg = ulog_records(&std::fs::read(run.join("flight.ulg")).unwrap());
+    let replay_ulg = ulog_records(&ulg);
+    let data = |recs: &[(u8, Vec<u8>)]| -> Vec<Vec<u8>> {
+        recs.iter()
+            .filter(|(t, _)| *t == b'D')
+            .map(|(_, p)| p.clone())
+            .collect()
+    };
+    let count = |recs: &[(u8, Vec<u8>)], kind: u8| recs.iter().filter(|(t, _)| *t == kind).count();
+    assert!(data(&live_ulg).len() > 1000, "{}", data(&live_ulg).len());
+    assert!(
+        data(&live_ulg) == data(&replay_ulg),
+        "the replay's ULog data differ from flight.ulg"
+    );
+    for kind in [b'P', b'L', b'F', b'A', b'I'] {
+        assert_eq!(
+            count(&live_ulg, kind),
+            count(&replay_ulg, kind),
+            "ULog records '{}'",
+            kind as char
+        );
+    }
+    let params = rotorpilot::params::ParamStore::new(&rotorpilot::airframe::Airframe::load("quad").unwrap())
+        .iter()
+        .count();
+    // every parameter at start, then the two accepted changes
+    assert!(
+        count(&live_ulg, b'P') >= params + 2,
+        "{} parameters logged, {params} at start",
+        count(&live_ulg, b'P')
+    );
+    eprintln!(
+        "ULog: {} status texts, {} parameter records",
+        count(&live_ulg, b'L'),
+        count(&live_ulg, b'P')
+    );
     let _ = std::fs::remove_dir_all(run.parent().unwrap());
+}
+
+/// A ULog's records after its 16-byte header: (type, payload) of each
+/// (`u16` size, `u8` type, payload: the ULog file format).
+fn ulog_records(b: &[u8]) -> Vec<(u8, Vec<u8>)> {
+    assert_eq!(&b[..7], b"ULog\x01\x12\x35", "not a ULog");
+    let (mut at, mut out) = (16, Vec::new());
+    while at + 3 <= b.len() {
+        let size = usize::from(u16::from_le_bytes([b[at], b[at + 1]]));
+        let kind = b[at + 2];
+        out.push((kind, b[at + 3..at + 3 + size].to_vec()));
+        at += 3 + size;
+    }
+    assert_eq!(at, b.len(), "a record cut short");
+    out
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

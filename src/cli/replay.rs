@@ -1,4 +1,4 @@
-//! `rotorpilot replay RECORD [--csv OUT] [--json] [--any-version]`: re-fly a daemon's flight
+//! `rotorpilot replay RECORD [--csv OUT] [--ulog OUT] [--json] [--any-version]`: re-fly a daemon's flight
 //! record headless and flat out ([`crate::record`]); the CSV is byte for byte
 //! the live flight's `flight.csv`.
 
@@ -6,7 +6,7 @@ use std::path::Path;
 
 use anyhow::Context as _;
 
-use crate::record::{read_record, replay};
+use crate::record::{read_record, replay_logs};
 
 /// Read, replay, report. A record written by another rotorpilot version is
 /// refused (a different build cannot promise the same flight bit for bit)
@@ -18,7 +18,13 @@ use crate::record::{read_record, replay};
 /// An unreadable or bad record (with the file and line), a record from
 /// another rotorpilot version without `any_version`, a diverging replay, a
 /// CSV that cannot be written.
-pub(super) fn run(path: &Path, csv: Option<&Path>, json: bool, any_version: bool) -> anyhow::Result<()> {
+pub(super) fn run(
+    path: &Path,
+    csv: Option<&Path>,
+    ulog: Option<&Path>,
+    json: bool,
+    any_version: bool,
+) -> anyhow::Result<()> {
     let label = path.display().to_string();
     let bytes = std::fs::read(path).with_context(|| format!("cannot read {label}"))?;
     let text =
@@ -45,9 +51,18 @@ pub(super) fn run(path: &Path, csv: Option<&Path>, json: bool, any_version: bool
         .map(crate::scenario::create_csv_file)
         .transpose()
         .map_err(anyhow::Error::msg)?;
+    let mut ulog_writer = ulog
+        .map(crate::scenario::create_csv_file)
+        .transpose()
+        .map_err(anyhow::Error::msg)?;
     let start = std::time::Instant::now();
-    let s =
-        replay(&record, &label, writer.as_mut().map(|w| w as &mut dyn std::io::Write)).map_err(anyhow::Error::msg)?;
+    let s = replay_logs(
+        &record,
+        &label,
+        writer.as_mut().map(|w| w as &mut dyn std::io::Write),
+        ulog_writer.as_mut().map(|w| w as &mut dyn std::io::Write),
+    )
+    .map_err(anyhow::Error::msg)?;
     let wall_s = start.elapsed().as_secs_f64();
     let steps_per_s = s.steps as f64 / wall_s.max(1e-9);
     if json {

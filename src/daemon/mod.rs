@@ -117,7 +117,8 @@ pub async fn bind(config: Config) -> anyhow::Result<Daemon> {
     };
     // PX4 SITL's rcS sets MAV_SYS_ID to instance + 1 at every start.
     let _ = params.set("MAV_SYS_ID", ParamValue::Int32(i32::from(config.system_id())));
-    let mut core = Lockstep::one_vehicle(&airframe, config.home, &params, SensorConfig::default())
+    let sensors = SensorConfig::default();
+    let mut core = Lockstep::one_vehicle(&airframe, config.home, &params, sensors)
         .with_context(|| format!("starting the autopilot on {}", airframe.source))?;
     if config.speed > 1.0 {
         // faster than real time: timers that wait for a client run on the wall clock
@@ -152,6 +153,7 @@ pub async fn bind(config: Config) -> anyhow::Result<Daemon> {
             &config.airframe,
             config.home,
             &params,
+            sensors,
             &mut core,
             config.log_csv,
         )?),

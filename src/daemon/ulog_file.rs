@@ -33,8 +33,9 @@ pub(super) struct UlogFile {
     steps: u64,
 }
 
-/// Steps between two looks at the parameters' generation (0.1 s).
-const PARAM_CHECK_EVERY: u64 = 100;
+/// Steps between two looks at the parameters' generation (0.1 s): the
+/// replay's, so that `rotorpilot replay --ulog` logs the changes alike.
+use crate::record::PARAM_CHECK_EVERY;
 
 impl UlogFile {
     /// Start `dir/flight.ulg` (header, formats, info, parameters); `None`

@@ -11,11 +11,13 @@
 //! field and the problem.
 
 pub mod campaign;
+mod csv_log;
 pub mod fault;
 mod mission;
 mod run;
 mod trajectory;
 
+pub use csv_log::{CSV_BUFFER_BYTES, CsvLog, create_csv_file};
 pub use fault::{AppliedFault, FaultType, FaultUnit, ScheduledFault};
 pub use mission::{ItemResult, MissionFlight, MissionSummary, is_mission, mission_lockstep, run_mission};
 pub use run::{ScenarioPilot, Summary, csv_header, csv_row, lockstep, run};

@@ -498,6 +498,11 @@ impl Lockstep<Autopilot> {
         self.last_fault[i] = None;
         self.world_texts[i].clear();
         self.pilot_texts[i].clear();
+        let said = StatusText {
+            severity: Severity::Info,
+            text: "Rebooted: simulation reset".into(),
+        };
+        self.world_texts[i].push((self.world.time_s(), said));
         Ok(())
     }
 

@@ -456,8 +456,7 @@ pub const PARAM_CHECK_EVERY: u64 = 100;
 impl ReplayLogs<'_> {
     /// After a step, as the daemon's simulation thread: the CSV row, the
     /// parameters if they changed, the ULog's topics, the status texts
-    /// (dated at the step they are announced; the daemon dates them when it
-    /// publishes, a few steps later).
+    /// (each dated at the instant the core raised it, as the daemon dates them).
     fn after_step(&mut self, core: &mut Lockstep<Autopilot>, params: &ParamStore) -> Result<(), String> {
         self.steps += 1;
         if let Some(l) = &mut self.csv {
@@ -477,8 +476,8 @@ impl ReplayLogs<'_> {
             u.parameters(params).map_err(ue)?;
         }
         u.on_step(core, 0).map_err(ue)?;
-        for t in core.drain_status_texts(0) {
-            u.status_text(core.time_s(), &t).map_err(ue)?;
+        for (time_s, t) in core.drain_stamped_status_texts(0) {
+            u.status_text(time_s, &t).map_err(ue)?;
         }
         let _ = core.drain_mission_reached(0);
         Ok(())

@@ -16,7 +16,7 @@ use tokio::sync::{Notify, broadcast, oneshot, watch};
 use tracing::{debug, info, warn};
 
 use crate::autopilot::{
-    Autopilot, AutopilotCommand, ClientClock, CommandOutcome, PendingTimer, PowerAction, Severity, StatusText,
+    Autopilot, AutopilotCommand, ClientClock, CommandOutcome, PendingTimer, PowerAction, StatusText,
 };
 use crate::lockstep::{Lockstep, Snapshot};
 use crate::mission::{MissionResult, PlanChange};
@@ -247,13 +247,9 @@ impl Sim {
     fn reboot(&mut self) -> CommandOutcome {
         match self.reboot_core() {
             Ok(()) => {
+                // the core announces it ("Rebooted: simulation reset"); the
+                // caller publishes before the ACK
                 info!("rebooted: simulation reset");
-                let said = StatusText {
-                    severity: Severity::Info,
-                    text: "Rebooted: simulation reset".into(),
-                };
-                super::ulog_file::status_text(&mut self.ulog, self.core.time_s(), &said);
-                let _ = self.events.send(Event::StatusText(said));
                 CommandOutcome::Accepted
             }
             Err(e) => {

@@ -20,18 +20,7 @@ use rotorpilot::record::{read_record, replay};
 const ACCEPTED: u8 = 0;
 
 async fn set_param(c: &mut Client, to: std::net::SocketAddr, id: &str, value: f32, kind: MavParamType) {
-    c.drain().await;
-    c.send(
-        to,
-        &MavMessage::PARAM_SET(PARAM_SET_DATA {
-            param_value: value,
-            target_system: 1,
-            target_component: 0,
-            param_id: id.into(),
-            param_type: kind,
-        }),
-    )
-    .await;
+    c.param_set(to, id, value, kind).await;
     c.wait_for(Duration::from_secs(3), |r| match &r.msg {
         Some(MavMessage::PARAM_VALUE(p)) if p.param_id.to_str().unwrap() == id => Some(()),
         _ => None,

@@ -179,6 +179,14 @@ pub enum Command {
         /// Print the summary as one JSON object.
         #[arg(long)]
         json: bool,
+        /// Write the replayed flight's PX4 ULog (the topics of the daemon's
+        /// `flight.ulg`) here.
+        #[arg(long)]
+        ulog: Option<std::path::PathBuf>,
+        /// Replay a record written by another rotorpilot version (with a
+        /// warning) instead of refusing it.
+        #[arg(long)]
+        any_version: bool,
     },
 }
 
@@ -250,7 +258,13 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             };
             estimate(&log, &order, &polys, cutoff, disc, nominal, output.as_deref(), json)
         }
-        Some(Command::Replay { record, csv, json }) => replay::run(&record, csv.as_deref(), json),
+        Some(Command::Replay {
+            record,
+            csv,
+            ulog,
+            json,
+            any_version,
+        }) => replay::run(&record, csv.as_deref(), ulog.as_deref(), json, any_version),
         None => run_daemon(&cli.daemon),
     }
 }

@@ -30,6 +30,8 @@
 //! beyond the rotor count, any motor of an ideal-actuation airframe, a second
 //! GPS, battery or radio) is DENIED. Nothing changes then.
 
+use std::collections::VecDeque;
+
 use crate::airframe::Airframe;
 use nalgebra::Vector3;
 
@@ -172,6 +174,12 @@ pub trait Pilot {
     /// The world refused the command (it was not finite) or could not
     /// integrate it, and stopped the rotors for the step instead.
     fn rotors_stopped(&mut self, why: &SimFault);
+    /// The status texts raised since the last call, oldest first (none by
+    /// default); the lockstep takes them before every step to stamp them
+    /// with the simulated time.
+    fn take_status_texts(&mut self) -> Vec<StatusText> {
+        Vec::new()
+    }
 }
 
 impl Pilot for Autopilot {
@@ -185,6 +193,10 @@ impl Pilot for Autopilot {
 
     fn rotors_stopped(&mut self, why: &SimFault) {
         Autopilot::rotors_stopped(self, &why.to_string());
+    }
+
+    fn take_status_texts(&mut self) -> Vec<StatusText> {
+        Autopilot::drain_status_texts(self)
     }
 }
 
@@ -220,9 +232,18 @@ pub struct Lockstep<P> {
     /// The measurement each vehicle's pilot decided on last.
     measurements: Vec<Measurement>,
     last_fault: Vec<Option<SimFault>>,
-    /// Per vehicle, the world's announcements (failure injections) not yet drained.
-    world_texts: Vec<Vec<StatusText>>,
+    /// Per vehicle, the world's announcements (failure injections) not yet
+    /// drained, each with the simulated time [s] it was made.
+    world_texts: Vec<Vec<(f64, StatusText)>>,
+    /// Per vehicle, its pilot's status texts taken at the start of each step
+    /// and stamped with the simulated time [s] then (the instant they were
+    /// raised: by the last step or by an input after it), oldest first, at
+    /// most the latest [`PILOT_TEXTS_KEPT`].
+    pilot_texts: Vec<VecDeque<(f64, StatusText)>>,
 }
+
+/// Pilot status texts kept per vehicle until drained (the autopilot's own queue's size).
+const PILOT_TEXTS_KEPT: usize = 64;
 
 impl<P: Pilot> Lockstep<P> {
     /// `world` with `pilots[i]` flying its vehicle `i`.
@@ -239,6 +260,7 @@ impl<P: Pilot> Lockstep<P> {
             measurements: vec![Measurement::default(); n],
             last_fault: vec![None; n],
             world_texts: vec![Vec::new(); n],
+            pilot_texts: vec![VecDeque::new(); n],
         }
     }
 
@@ -260,7 +282,8 @@ impl<P: Pilot> Lockstep<P> {
                 return CommandOutcome::Failed("the world refused the fault");
             }
         }
-        self.world_texts[i].push(text);
+        let t = self.time_s();
+        self.world_texts[i].push((t, text));
         CommandOutcome::Accepted
     }
 
@@ -291,11 +314,27 @@ impl<P: Pilot> Lockstep<P> {
     /// Vehicle `i`'s world announcements (accepted failure injections) since
     /// the last call, oldest first.
     pub fn drain_world_texts(&mut self, i: usize) -> Vec<StatusText> {
-        std::mem::take(&mut self.world_texts[i])
+        self.world_texts[i].drain(..).map(|(_, s)| s).collect()
+    }
+
+    /// Move vehicle `i`'s pilot's queued status texts to `pilot_texts`,
+    /// stamped with the current simulated time.
+    fn stamp_pilot_texts(&mut self, i: usize) {
+        let t = self.time_s();
+        let q = &mut self.pilot_texts[i];
+        for s in self.pilots[i].take_status_texts() {
+            if q.len() >= PILOT_TEXTS_KEPT {
+                q.pop_front();
+            }
+            q.push_back((t, s));
+        }
     }
 
     /// One step of every vehicle: sense, decide, act, integrate.
     pub fn step(&mut self) {
+        for i in 0..self.pilots.len() {
+            self.stamp_pilot_texts(i);
+        }
         for (i, (pilot, measurement)) in self.pilots.iter_mut().zip(&mut self.measurements).enumerate() {
             let readings = self.world.sense(i);
             *measurement = readings.measurement;
@@ -458,6 +497,12 @@ impl Lockstep<Autopilot> {
         self.pilots[i] = autopilot;
         self.last_fault[i] = None;
         self.world_texts[i].clear();
+        self.pilot_texts[i].clear();
+        let said = StatusText {
+            severity: Severity::Info,
+            text: "Rebooted: simulation reset".into(),
+        };
+        self.world_texts[i].push((self.world.time_s(), said));
         Ok(())
     }
 
@@ -509,7 +554,16 @@ impl Lockstep<Autopilot> {
     /// Vehicle `i`'s status texts since the last call: its autopilot's, then
     /// the world's (accepted failure injections).
     pub fn drain_status_texts(&mut self, i: usize) -> Vec<StatusText> {
-        let mut texts = self.pilots[i].drain_status_texts();
+        self.drain_stamped_status_texts(i).into_iter().map(|(_, s)| s).collect()
+    }
+
+    /// [`Self::drain_status_texts`], each with the simulated time [s] it was
+    /// raised at: a text the autopilot raises in a step carries the time
+    /// after that step, one raised by an input between steps (or the world's
+    /// failure injection) the time of the input.
+    pub fn drain_stamped_status_texts(&mut self, i: usize) -> Vec<(f64, StatusText)> {
+        self.stamp_pilot_texts(i);
+        let mut texts: Vec<_> = self.pilot_texts[i].drain(..).collect();
         texts.append(&mut self.world_texts[i]);
         texts
     }

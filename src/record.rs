@@ -40,7 +40,9 @@ use crate::geo::GeoPoint;
 use crate::lockstep::Lockstep;
 use crate::mission::{MissionItem, MissionResult, MissionType, Plan, PlanChange, Plans};
 use crate::params::{ParamStore, ParamValue};
+use crate::scenario::CsvLog;
 use crate::sim::SensorConfig;
+use crate::ulog::flight::FlightUlog;
 
 /// The header's `format` field.
 pub const FORMAT: &str = "rotorpilot-flight-record";
@@ -377,9 +379,6 @@ fn bad_json(at: &str, e: &serde_json::Error) -> String {
 fn read_header(raw: &str, file: &str) -> Result<Header, String> {
     let at = format!("{file}:1");
     let not_record = || format!("{file}: not a flight record (the first line is no {FORMAT} header)");
-    if !raw.ends_with('\n') && serde_json::from_str::<Value>(raw.trim_end()).is_err() {
-        return Err(format!("{at}: cut short (the header line has no end)"));
-    }
     let v: Value = serde_json::from_str(raw.trim_end()).map_err(|e| {
         if e.is_eof() {
             format!("{at}: cut short ({e})")
@@ -391,14 +390,19 @@ fn read_header(raw: &str, file: &str) -> Result<Header, String> {
     if h.get("format").and_then(Value::as_str) != Some(FORMAT) {
         return Err(not_record());
     }
-    match h.get("version").and_then(Value::as_u64) {
-        Some(VERSION) => {}
-        Some(v) => {
+    match (h.get("version"), h.get("version").and_then(Value::as_u64)) {
+        (_, Some(VERSION)) => {}
+        (_, Some(v)) => {
             return Err(format!(
                 "{file}: format version {v}, this rotorpilot reads version {VERSION} (rotorpilot {ROTORPILOT_VERSION})"
             ));
         }
-        None => return Err(format!("{at}: the header has no format version")),
+        (Some(v), None) => {
+            return Err(format!(
+                "{at}: the header's format version is {v}, not a whole number (this rotorpilot reads version {VERSION})"
+            ));
+        }
+        (None, None) => return Err(format!("{at}: the header has no format version")),
     }
     Header::deserialize(Exact(h.clone())).map_err(|e| format!("{at}: header: {e}"))
 }
@@ -426,36 +430,95 @@ pub struct ReplaySummary {
 
 /// Re-fly `record`: rebuild the core from the header, step it, applying
 /// each input at its step, up to the end line's step (or the last input's
-/// when the record has no end); `csv` receives the flight CSV
-/// (`rotorpilot simulate --csv`'s format, one row per step).
+/// when the record has no end); `csv` receives the flight CSV ([`CsvLog`]:
+/// `rotorpilot simulate --csv`'s format, one row per step).
 ///
 /// # Errors
 /// A header this rotorpilot cannot rebuild; an input whose outcome differs
 /// from the live one (the replay diverged); a failed CSV write.
-pub fn replay(record: &Record, file: &str, mut csv: Option<&mut dyn Write>) -> Result<ReplaySummary, String> {
-    let (mut core, mut params) = record.header.build().map_err(|e| format!("{file}:1: header: {e}"))?;
-    let n = core.pilot(0).airframe().rotor_count();
-    let io = |e: std::io::Error| format!("writing the CSV: {e}");
-    if let Some(w) = csv.as_deref_mut() {
-        writeln!(w, "{}", crate::scenario::csv_header(n)).map_err(io)?;
-    }
-    let end = record.end.unwrap_or_else(|| record.inputs.last().map_or(0, |e| e.step));
-    let step_to = |core: &mut Lockstep<Autopilot>, target: u64, csv: &mut Option<&mut dyn Write>| {
-        while core.steps() < target {
-            core.step();
-            if let Some(w) = csv.as_deref_mut() {
-                writeln!(w, "{}", crate::scenario::csv_row(&core.last_step(0), n)).map_err(io)?;
-            }
+pub fn replay(record: &Record, file: &str, csv: Option<&mut dyn Write>) -> Result<ReplaySummary, String> {
+    replay_logs(record, file, csv, None)
+}
+
+/// The logs a replay writes as it steps.
+struct ReplayLogs<'a> {
+    csv: Option<CsvLog<&'a mut dyn Write>>,
+    ulog: Option<FlightUlog<&'a mut dyn Write>>,
+    /// Steps run (the parameters are looked at every [`PARAM_CHECK_EVERY`]).
+    steps: u64,
+    generation: u64,
+}
+
+/// Steps between two looks at the parameters for the ULog (0.1 s at 1 kHz),
+/// as the daemon's `flight.ulg` looks.
+pub const PARAM_CHECK_EVERY: u64 = 100;
+
+impl ReplayLogs<'_> {
+    /// After a step, as the daemon's simulation thread: the CSV row, the
+    /// parameters if they changed, the ULog's topics, the status texts
+    /// (each dated at the instant the core raised it, as the daemon dates them).
+    fn after_step(&mut self, core: &mut Lockstep<Autopilot>, params: &ParamStore) -> Result<(), String> {
+        self.steps += 1;
+        if let Some(l) = &mut self.csv {
+            l.step_row(core, 0).map_err(|e| format!("writing the CSV: {e}"))?;
+        }
+        let Some(u) = &mut self.ulog else {
             if core.steps().is_multiple_of(1024) {
                 // as the daemon publishes: the queues do not steer the flight
                 let _ = core.drain_status_texts(0);
                 let _ = core.drain_mission_reached(0);
             }
+            return Ok(());
+        };
+        let ue = |e: std::io::Error| format!("writing the ULog: {e}");
+        if self.steps.is_multiple_of(PARAM_CHECK_EVERY) && params.generation() != self.generation {
+            self.generation = params.generation();
+            u.parameters(params).map_err(ue)?;
+        }
+        u.on_step(core, 0).map_err(ue)?;
+        for (time_s, t) in core.drain_stamped_status_texts(0) {
+            u.status_text(time_s, &t).map_err(ue)?;
+        }
+        let _ = core.drain_mission_reached(0);
+        Ok(())
+    }
+}
+
+/// [`replay`], also writing the flight's PX4 ULog to `ulog`
+/// ([`FlightUlog`], the topics and rates of the daemon's `flight.ulg`).
+///
+/// # Errors
+/// As [`replay`]; a failed ULog write.
+pub fn replay_logs<'a>(
+    record: &Record,
+    file: &str,
+    csv: Option<&'a mut dyn Write>,
+    ulog: Option<&'a mut dyn Write>,
+) -> Result<ReplaySummary, String> {
+    let (mut core, mut params) = record.header.build().map_err(|e| format!("{file}:1: header: {e}"))?;
+    let n = core.pilot(0).airframe().rotor_count();
+    let mut logs = ReplayLogs {
+        csv: csv
+            .map(|w| CsvLog::new(w, n))
+            .transpose()
+            .map_err(|e| format!("writing the CSV: {e}"))?,
+        ulog: ulog
+            .map(|w| FlightUlog::new(w, &params, &core, 0))
+            .transpose()
+            .map_err(|e| format!("writing the ULog: {e}"))?,
+        steps: 0,
+        generation: params.generation(),
+    };
+    let end = record.end.unwrap_or_else(|| record.inputs.last().map_or(0, |e| e.step));
+    let step_to = |core: &mut Lockstep<Autopilot>, params: &ParamStore, target: u64, logs: &mut ReplayLogs<'_>| {
+        while core.steps() < target {
+            core.step();
+            logs.after_step(core, params)?;
         }
         Ok::<(), String>(())
     };
     for e in &record.inputs {
-        step_to(&mut core, e.step, &mut csv)?;
+        step_to(&mut core, &params, e.step, &mut logs)?;
         let got = apply(&mut core, 0, &mut params, &e.input).text();
         if got != e.outcome {
             return Err(format!(
@@ -464,9 +527,12 @@ pub fn replay(record: &Record, file: &str, mut csv: Option<&mut dyn Write>) -> R
             ));
         }
     }
-    step_to(&mut core, end, &mut csv)?;
-    if let Some(w) = csv {
-        w.flush().map_err(io)?;
+    step_to(&mut core, &params, end, &mut logs)?;
+    if let Some(l) = logs.csv {
+        l.finish().map_err(|e| format!("writing the CSV: {e}"))?;
+    }
+    if let Some(u) = logs.ulog {
+        u.finish().map_err(|e| format!("writing the ULog: {e}"))?;
     }
     let ap = core.pilot(0);
     let p = core.last_step(0).world.truth.position_ned;
@@ -775,7 +841,9 @@ impl<'de> IntoDeserializer<'de, DeError> for Exact {
     }
 }
 
-/// The non-finite float a string names, as f64 bits or f32 bits.
+/// The non-finite float a string names, as f64 bits or f32 bits:
+/// `nan`, `inf`, `-inf`, or `nan:0x<hex bits>` for a NaN of other bits
+/// (bits that are not a NaN of that width are refused: `None`).
 fn special_float(s: &str, f32_bits: bool) -> Option<u64> {
     match s {
         "nan" if f32_bits => Some(u64::from(f32::NAN.to_bits())),
@@ -784,7 +852,15 @@ fn special_float(s: &str, f32_bits: bool) -> Option<u64> {
         "inf" => Some(f64::INFINITY.to_bits()),
         "-inf" if f32_bits => Some(u64::from(f32::NEG_INFINITY.to_bits())),
         "-inf" => Some(f64::NEG_INFINITY.to_bits()),
-        _ => u64::from_str_radix(s.strip_prefix("nan:0x")?, 16).ok(),
+        _ => {
+            let bits = u64::from_str_radix(s.strip_prefix("nan:0x")?, 16).ok()?;
+            let is_nan = if f32_bits {
+                f32::from_bits(u32::try_from(bits).ok()?).is_nan()
+            } else {
+                f64::from_bits(bits).is_nan()
+            };
+            is_nan.then_some(bits)
+        }
     }
 }
 
@@ -945,6 +1021,23 @@ mod tests {
     }
 
     #[test]
+    fn nan_bits_that_are_no_nan_are_refused() {
+        let read64 = |s: &str| from_exact_value::<f64>(Value::String(s.into())).map(f64::to_bits);
+        let read32 = |s: &str| from_exact_value::<f32>(Value::String(s.into())).map(f32::to_bits);
+        assert_eq!(read64("nan:0x7ff8000000000001").unwrap(), 0x7ff8_0000_0000_0001);
+        assert_eq!(read32("nan:0x7fc00001").unwrap(), 0x7fc0_0001);
+        // 1.0, an infinity, zero: bit patterns that are no NaN
+        for s in ["nan:0x3ff0000000000000", "nan:0x7ff0000000000000", "nan:0x0"] {
+            let e = read64(s).unwrap_err().to_string();
+            assert!(e.contains("expected a number"), "{s}: {e}");
+        }
+        for s in ["nan:0x3f800000", "nan:0x7f800000", "nan:0x7ff8000000000001"] {
+            let e = read32(s).unwrap_err().to_string();
+            assert!(e.contains("expected a number"), "{s}: {e}");
+        }
+    }
+
+    #[test]
     fn inputs_round_trip() {
         let items = vec![MissionItem {
             frame: 3,
@@ -1035,6 +1128,30 @@ mod tests {
         assert!(e.starts_with("f.record:2: not a record line"), "{e}");
         let e = read_record("hello\n", "f.record").unwrap_err();
         assert!(e.contains("not a flight record"), "{e}");
+        // one line, not JSON, no end of line: not a record (not "cut short")
+        let e = read_record("hello", "f.record").unwrap_err();
+        assert_eq!(
+            e,
+            "f.record: not a flight record (the first line is no rotorpilot-flight-record header)"
+        );
+        // a header cut mid-line is still cut short
+        let e = read_record(&h[..h.len() / 2], "f.record").unwrap_err();
+        assert!(e.starts_with("f.record:1: cut short"), "{e}");
+        // a version that is not a whole number says so
+        for bad in ["1.5", "\"1\"", "-1"] {
+            let hv = h.replacen("\"version\":1", &format!("\"version\":{bad}"), 1);
+            let e = read_record(&format!("{hv}\n"), "f.record").unwrap_err();
+            assert_eq!(
+                e,
+                format!(
+                    "f.record:1: the header's format version is {bad}, not a whole number (this rotorpilot reads version 1)"
+                )
+            );
+        }
+        let hv = h.replacen(",\"version\":1", "", 1);
+        assert_ne!(hv, h);
+        let e = read_record(&format!("{hv}\n"), "f.record").unwrap_err();
+        assert_eq!(e, "f.record:1: the header has no format version");
         let later = input_line(9, &Input::GcsHeartbeat, "done").unwrap();
         let e = read_record(&format!("{h}\n{later}\n{line}\n"), "f.record").unwrap_err();
         assert!(e.starts_with("f.record:3: step 5 comes after step 9"), "{e}");

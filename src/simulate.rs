@@ -207,18 +207,10 @@ fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
         let v = e.variant.unwrap_or(0);
         let start = Instant::now();
         let flight = f.flight(v).map_err(|e| format!("{e:#}"))?;
-        let mut writer = match csv_path(e) {
-            Some(p) => Some(std::io::BufWriter::new(
-                std::fs::File::create(&p).map_err(|err| format!("cannot create {}: {err}", p.display()))?,
-            )),
-            None => None,
-        };
+        let mut writer = csv_path(e).map(|p| crate::scenario::create_csv_file(&p)).transpose()?;
         let mut outcome = flight
             .fly(writer.as_mut().map(|w| w as &mut dyn std::io::Write))
             .map_err(|e| format!("{e:#}"))?;
-        if let Some(mut w) = writer {
-            w.flush().map_err(|e| format!("writing the CSV: {e}"))?;
-        }
         outcome.set_wall_time_s(start.elapsed().as_secs_f64());
         Ok(outcome)
     };

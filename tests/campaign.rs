@@ -486,3 +486,108 @@ fn a_mission_campaign_varies_a_px4_parameter() {
     let (slow, fast) = (f(&run.lines[0]["mission_time_s"]), f(&run.lines[1]["mission_time_s"]));
     assert!(slow > fast + 5.0, "{slow} s at 4 m/s, {fast} s at 12 m/s");
 }
+
+/// A campaign file whose own values are wrong: the `[campaign]` table sits
+/// between `[reference]` and `[[disturbance]]`, and the disturbance has an
+/// unknown key on line 15 of the file (line 11 of the TOML a variant is
+/// written as, were it read there).
+fn with_unknown_key(campaign: &str) -> String {
+    format!(
+        "airframe = \"quad\"\ncontroller = \"geometric\"\nduration_s = 0.5\n\
+         [reference]\nkind = \"hover\"\nposition_ned = [0.0, 0.0, -2.0]\n\
+         {campaign}\
+         [[disturbance]]\nat_s = 0.0\nforce_ned = [0.0, 0.0, 0.0]\ntrue_mass_kg = 2.0\nthrust_kg = 1.0\n"
+    )
+}
+
+#[test]
+fn an_error_in_a_campaign_files_own_values_names_its_line_once() {
+    let d = dir("base");
+    let table = "[campaign]\nseed = 1\n[campaign.grid]\n\"disturbance[1].true_mass_kg\" = [1.8, 2.0, 2.2]\n";
+    let varied = write(&d, "varied.toml", &with_unknown_key(table));
+    // the same file without the table: 4 lines fewer above the error
+    let plain = write(&d, "plain.toml", &with_unknown_key(""));
+    let run = simulate(&[&varied, &plain, "--json"]);
+    assert_eq!(run.status, Some(2), "{}", run.stderr);
+    assert_eq!(
+        run.lines.len(),
+        2,
+        "one entry per file, not one per variant: {:?}",
+        run.lines
+    );
+    let (ev, ep) = (
+        run.lines[0]["error"].as_str().unwrap(),
+        run.lines[1]["error"].as_str().unwrap(),
+    );
+    assert!(run.lines[0]["variant"].is_null(), "{}", run.lines[0]);
+    assert!(ev.starts_with(&format!("{varied}:15:")), "the file's own line: {ev}");
+    assert!(ep.starts_with(&format!("{plain}:11:")), "a plain file as before: {ep}");
+    assert!(ev.contains("unknown field `thrust_kg`"), "{ev}");
+    // the same message but for the file and the line
+    let rest = |e: &str| e.splitn(4, ':').nth(3).unwrap().to_string();
+    assert_eq!(rest(ev), rest(ep));
+    assert_eq!(
+        run.stderr.matches("unknown field `thrust_kg`").count(),
+        2,
+        "{}",
+        run.stderr
+    );
+    assert!(!run.stderr.contains("varied.toml#"), "{}", run.stderr);
+    // the table's own lines still count: an error in it names its line
+    let bad = write(
+        &d,
+        "bad.toml",
+        &with_unknown_key("[campaign.grid]\n\"disturbance[1].mass\" = [1.8]\n"),
+    );
+    let run = simulate(&[&bad, "--json"]);
+    let e = run.lines[0]["error"].as_str().unwrap();
+    assert!(
+        e.starts_with(&format!("{bad}:8:")) && e.contains("has no `mass`"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_variant_whose_value_the_scenario_refuses_names_the_value_not_a_line() {
+    let d = dir("typed");
+    // the grid fits the file's integer, but a seed is unsigned
+    let file = write(
+        &d,
+        "seed.toml",
+        &format!("seed = 0\n{}[campaign.grid]\n\"seed\" = [1, -1]\n", hover(0.5)),
+    );
+    let run = simulate(&[&file, "--json"]);
+    assert_eq!(run.status, Some(2), "{}", run.stderr);
+    assert_eq!(run.lines.len(), 2);
+    assert!(run.lines[0]["error"].is_null(), "{}", run.lines[0]);
+    let e = run.lines[1]["error"].as_str().unwrap();
+    assert!(
+        e.starts_with(&format!("{file}#1: seed = -1: invalid value: integer `-1`")),
+        "{e}"
+    );
+}
+
+#[test]
+fn an_airframe_error_is_said_once() {
+    let d = dir("airframe");
+    let said = "unknown airframe `nope`";
+    let base = write(&d, "base.toml", &hover(0.5).replace("\"quad\"", "\"nope\""));
+    let varied = write(
+        &d,
+        "varied.toml",
+        &format!("{}[campaign.grid]\n\"airframe\" = [\"quad\", \"nope\"]\n", hover(0.5)),
+    );
+    for (args, n) in [(vec![&base], 1), (vec![&varied], 1), (vec![&base, &varied], 2)] {
+        let mut args: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
+        args.push("--json");
+        let run = simulate(&args);
+        let errors: Vec<&str> = run.lines.iter().filter_map(|l| l["error"].as_str()).collect();
+        assert_eq!(errors.len(), n, "{:?}", run.lines);
+        for e in errors {
+            assert_eq!(e.matches(said).count(), 1, "said once: {e}");
+        }
+    }
+    // a single file, as `rotorpilot simulate FILE` always reported it
+    let run = simulate(&[&base]);
+    assert_eq!(run.stderr.matches(said).count(), 1, "{}", run.stderr);
+}

@@ -36,21 +36,6 @@ async fn read(c: &mut Client, to: std::net::SocketAddr, id: &str, index: i16) ->
     .await
 }
 
-async fn set(c: &mut Client, to: std::net::SocketAddr, id: &str, value: f32, kind: MavParamType) {
-    c.drain().await;
-    c.send(
-        to,
-        &MavMessage::PARAM_SET(PARAM_SET_DATA {
-            param_value: value,
-            target_system: 1,
-            target_component: 0,
-            param_id: id.into(),
-            param_type: kind,
-        }),
-    )
-    .await;
-}
-
 /// The PARAM_VALUEs and PARAM_ERRORs for `id` within `wait`.
 async fn answers(c: &mut Client, id: &str, wait: Duration) -> Vec<MavMessage> {
     let mut out = Vec::new();
@@ -159,8 +144,7 @@ async fn int32_set_is_bytewise_echoed_rebroadcast_applied_and_saved() {
     let mut api = Client::new().await;
     let v = Vehicle::start(config(Some(gcs.addr()), Some(api.addr()), 1.0)).await;
     api.drain().await;
-    set(
-        &mut gcs,
+    gcs.param_set(
         v.gcs,
         "SYS_FAILURE_EN",
         f32::from_bits(1),
@@ -199,7 +183,7 @@ async fn refused_sets_answer_the_unchanged_value() {
         ("MIS_TAKEOFF_ALT", f32::from_bits(5), MavParamType::MAV_PARAM_TYPE_INT32), // wrong type
         ("MIS_TAKEOFF_ALT", 5.0, MavParamType::MAV_PARAM_TYPE_UINT8), // unsupported type
     ] {
-        set(&mut c, v.gcs, id, value, kind).await;
+        c.param_set(v.gcs, id, value, kind).await;
         let got = answers(&mut c, id, Duration::from_millis(400)).await;
         assert!(matches!(got.first(), Some(MavMessage::PARAM_ERROR(_))), "{got:?}");
         let values: Vec<f32> = got
@@ -219,14 +203,14 @@ async fn refused_sets_answer_the_unchanged_value() {
     let Some(MavMessage::PARAM_VALUE(before)) = read(&mut c, v.gcs, "CTRL_TYPE", -1).await else {
         panic!()
     };
-    set(&mut c, v.gcs, "CTRL_TYPE", 2.0, real).await;
+    c.param_set(v.gcs, "CTRL_TYPE", 2.0, real).await;
     let got = answers(&mut c, "CTRL_TYPE", Duration::from_millis(400)).await;
     let Some(MavMessage::PARAM_VALUE(p)) = got.last() else {
         panic!("{got:?}")
     };
     assert_eq!(p.param_value.to_bits(), before.param_value.to_bits());
     // unknown name: PARAM_ERROR only
-    set(&mut c, v.gcs, "NO_SUCH_PARAM", 1.0, real).await;
+    c.param_set(v.gcs, "NO_SUCH_PARAM", 1.0, real).await;
     let got = answers(&mut c, "NO_SUCH_PARAM", Duration::from_millis(400)).await;
     assert_eq!(got.len(), 1);
     let MavMessage::PARAM_ERROR(e) = &got[0] else { panic!() };
@@ -245,7 +229,8 @@ async fn parameters_persist_across_restarts_unless_reset() {
     let cfg = config(Some(c.addr()), None, 1.0);
     let dir = cfg.state_dir.clone();
     let v = Vehicle::start(cfg.clone()).await;
-    set(&mut c, v.gcs, "MPC_XY_CRUISE", 7.5, MavParamType::MAV_PARAM_TYPE_REAL32).await;
+    c.param_set(v.gcs, "MPC_XY_CRUISE", 7.5, MavParamType::MAV_PARAM_TYPE_REAL32)
+        .await;
     assert!(
         !answers(&mut c, "MPC_XY_CRUISE", Duration::from_millis(300))
             .await

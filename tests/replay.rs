@@ -2,8 +2,9 @@
 //! client on UDP, with `--log-dir` and `--log-csv`, replays from its
 //! `flight.record` to the live `flight.csv` byte for byte (twice, and with a
 //! reboot and parameter changes in it); a record cut off by a kill replays
-//! to its last input; bad records and an unusable log directory get clear
-//! errors, never a panic.
+//! to its last input; bad records (and a record from another rotorpilot
+//! version, without `--any-version`) and an unusable log directory get
+//! clear errors, never a panic.
 #![allow(deprecated)]
 
 mod daemon_common;
@@ -19,18 +20,7 @@ use rotorpilot::record::{read_record, replay};
 const ACCEPTED: u8 = 0;
 
 async fn set_param(c: &mut Client, to: std::net::SocketAddr, id: &str, value: f32, kind: MavParamType) {
-    c.drain().await;
-    c.send(
-        to,
-        &MavMessage::PARAM_SET(PARAM_SET_DATA {
-            param_value: value,
-            target_system: 1,
-            target_component: 0,
-            param_id: id.into(),
-            param_type: kind,
-        }),
-    )
-    .await;
+    c.param_set(to, id, value, kind).await;
     c.wait_for(Duration::from_secs(3), |r| match &r.msg {
         Some(MavMessage::PARAM_VALUE(p)) if p.param_id.to_str().unwrap() == id => Some(()),
         _ => None,
@@ -153,7 +143,64 @@ async fn a_flight_with_a_reboot_replays_byte_for_byte() {
     assert!(a == b, "two replays differ");
     assert!(a == live, "the replay differs from the live flight.csv");
     assert!(s.armed, "it hovers at the end: {s:?}");
+    // the replay's ULog is the live flight.ulg, record for record (topic
+    // samples, parameter changes, status texts at the instants they were
+    // raised, the reboot's among them)
+    let r = read_record(&text, "flight.record").unwrap();
+    let mut ulg = Vec::new();
+    rotorpilot::record::replay_logs(&r, "flight.record", None, Some(&mut ulg)).unwrap();
+    let live_ulg = ulog_records(&std::fs::read(run.join("flight.ulg")).unwrap());
+    let replay_ulg = ulog_records(&ulg);
+    let count = |recs: &[(u8, Vec<u8>)], kind: u8| recs.iter().filter(|(t, _)| *t == kind).count();
+    assert!(count(&live_ulg, b'D') > 1000, "{}", count(&live_ulg, b'D'));
+    assert!(
+        live_ulg
+            .iter()
+            .any(|(t, p)| *t == b'L' && p.windows(10).any(|w| w == b"Rebooted: ")),
+        "the reboot is announced in flight.ulg"
+    );
+    // (the daemon writes a status text when it publishes, a batch of steps
+    // later, the replay after the step that raised it: the same records,
+    // interleaved differently, so each kind is compared as its own sequence)
+    for kind in [b'D', b'P', b'L', b'F', b'A', b'I', b'B'] {
+        let of = |recs: &[(u8, Vec<u8>)]| -> Vec<Vec<u8>> {
+            recs.iter()
+                .filter(|(t, _)| *t == kind)
+                .map(|(_, p)| p.clone())
+                .collect()
+        };
+        assert!(
+            of(&live_ulg) == of(&replay_ulg),
+            "the replay's ULog records '{}' differ from flight.ulg's",
+            kind as char
+        );
+    }
+    let params = rotorpilot::params::ParamStore::new(&rotorpilot::airframe::Airframe::load("quad").unwrap())
+        .iter()
+        .count();
+    // every parameter at start, then the two accepted changes
+    assert!(
+        count(&live_ulg, b'P') >= params + 2,
+        "{} parameters logged, {params} at start",
+        count(&live_ulg, b'P')
+    );
+    assert!(count(&live_ulg, b'L') > 0, "no status text in flight.ulg");
     let _ = std::fs::remove_dir_all(run.parent().unwrap());
+}
+
+/// A ULog's records after its 16-byte header: (type, payload) of each
+/// (`u16` size, `u8` type, payload: the ULog file format).
+fn ulog_records(b: &[u8]) -> Vec<(u8, Vec<u8>)> {
+    assert_eq!(&b[..7], b"ULog\x01\x12\x35", "not a ULog");
+    let (mut at, mut out) = (16, Vec::new());
+    while at + 3 <= b.len() {
+        let size = usize::from(u16::from_le_bytes([b[at], b[at + 1]]));
+        let kind = b[at + 2];
+        out.push((kind, b[at + 3..at + 3 + size].to_vec()));
+        at += 3 + size;
+    }
+    assert_eq!(at, b.len(), "a record cut short");
+    out
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -258,6 +305,32 @@ fn bad_records_get_clear_errors() {
         !ok && err.contains("diverged.record:2: the replay diverged at step 10"),
         "{err}"
     );
+    // another rotorpilot version: refused naming both, replayed with --any-version
+    let other = h.replacen(
+        &format!("\"rotorpilot\":\"{}\"", env!("CARGO_PKG_VERSION")),
+        "\"rotorpilot\":\"0.0.9-other\"",
+        1,
+    );
+    assert_ne!(other, h);
+    let p = dir.join("other-version.record");
+    std::fs::write(&p, format!("{other}\n")).unwrap();
+    let (ok, err) = cli_replay(&p);
+    assert!(!ok, "another version's record replayed: {err}");
+    assert!(
+        err.contains(&format!(
+            "other-version.record: written by rotorpilot 0.0.9-other, this is rotorpilot {}",
+            env!("CARGO_PKG_VERSION")
+        )) && err.contains("--any-version"),
+        "{err}"
+    );
+    let out = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+        .args(["replay", "--any-version"])
+        .arg(&p)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("warning") && err.contains("0.0.9-other"), "{err}");
     let (ok, err) = cli_replay(&dir.join("missing.record"));
     assert!(
         !ok && err.contains("cannot read") && err.contains("missing.record"),

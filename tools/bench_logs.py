@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "clients"))
-from harness import Vehicle  # noqa: E402
+from harness import Vehicle, wait_message  # noqa: E402
 
 from pymavlink import mavutil  # noqa: E402
 
@@ -46,13 +46,11 @@ def process_cpu_s(pid):
     return (int(fields[11]) + int(fields[12])) / TICK
 
 
-def wait(m, kind, cond=lambda x: True, timeout=10.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        msg = m.recv_match(type=kind, blocking=True, timeout=0.5)
-        if msg is not None and cond(msg):
-            return msg
-    raise RuntimeError(f"no {kind}")
+def wait(m, kind, cond=None, timeout=10.0):
+    msg = wait_message(m, kind, cond, timeout)
+    if msg is None:
+        raise RuntimeError(f"no {kind}")
+    return msg
 
 
 def sim_s(m):

@@ -22,7 +22,6 @@ Needs pymavlink 2.4.50. Not run in CI. Options: --sizes 100,1000,10000,
 
 import argparse
 import asyncio
-import socket
 import statistics
 import sys
 import time
@@ -31,18 +30,10 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests" / "clients"))
 import mission_link as ml  # noqa: E402
-from harness import Vehicle  # noqa: E402
+from harness import Vehicle, free_tcp_port  # noqa: E402
 
 HOME = (47.397742, 8.545594)
 FIVE = REPO / "tools" / "missions" / "five-waypoints.txt"
-
-
-def free_tcp_port():
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
 
 
 def bench_pymavlink(v, sizes, repeat):

@@ -17,8 +17,6 @@ installed one, else target/release/rotorpilot (see rotorpilot.binary).
 """
 
 import argparse
-import os
-import re
 import statistics
 import subprocess
 import sys
@@ -30,6 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "python"))
 from pymavlink import mavutil  # noqa: E402
 
 from rotorpilot import binary, free_udp_port  # noqa: E402
+from rotorpilot.vehicle import READY_LINE  # noqa: E402
 
 PREARM_CHECK = 0x1000_0000
 
@@ -64,7 +63,7 @@ def one_run(exe, speed, timeout=10.0):
             proc.terminate()
             out, _ = proc.communicate(timeout=10)
             m.close()
-    own = re.search(r"ready to arm \(([0-9.]+) s after start\)", out or "")
+    own = READY_LINE.search(out or "")
     return seen, float(own.group(1)) if own else float("nan")
 
 

@@ -32,14 +32,8 @@ from pathlib import Path
 from pymavlink import mavutil
 
 REPO = Path(__file__).resolve().parents[1]
-
-
-def binary():
-    b = os.environ.get("ROTORPILOT_BIN")
-    if b:
-        return b
-    target = os.environ.get("CARGO_TARGET_DIR", str(REPO / "target"))
-    return os.path.join(target, "release", "rotorpilot")
+sys.path.insert(0, str(REPO / "python"))
+from rotorpilot import binary, free_udp_port  # noqa: E402
 
 
 class Vehicle:
@@ -47,7 +41,7 @@ class Vehicle:
 
     def __init__(self, inst, speed, extra):
         self.dir = tempfile.mkdtemp(prefix="rotorpilot-bench-")
-        gcs = 24000 + os.getpid() % 1000
+        gcs = free_udp_port()  # reserved for this process (rotorpilot.reserve_port)
         args = [binary(), "--instance", str(inst), "--speed", str(speed), "--state-dir", self.dir + "/st",
                 "--gcs-remote", f"127.0.0.1:{gcs}", "--api-remote", "none"] + extra
         self.p = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)

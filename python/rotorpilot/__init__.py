@@ -9,7 +9,8 @@ starts one vehicle on free loopback ports and waits until it is ready to arm.
 Standard library only.
 """
 
-from .vehicle import Vehicle, VehicleError, binary, free_tcp_port, free_udp_port
+from .messages import wait_message
+from .vehicle import PortReservation, Vehicle, VehicleError, binary, free_tcp_port, free_udp_port, reserve_port
 
 from importlib.metadata import PackageNotFoundError, version
 
@@ -18,4 +19,5 @@ try:
 except PackageNotFoundError:  # used from a checkout, not installed
     __version__ = "0+checkout"
 
-__all__ = ["Vehicle", "VehicleError", "binary", "free_tcp_port", "free_udp_port", "__version__"]
+__all__ = ["Vehicle", "VehicleError", "binary", "free_tcp_port", "free_udp_port", "reserve_port",
+           "PortReservation", "wait_message", "__version__"]

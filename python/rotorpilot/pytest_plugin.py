@@ -11,7 +11,8 @@ Fixtures
 
 Options, first found wins: the factory's keyword arguments, the marker
 `@pytest.mark.rotorpilot(airframe="octo", speed=10, params={...},
-home=(lat, lon, alt))` (closest to the test: function, class, module), the
+home=(lat, lon, alt))` (each option separately, from the closest marker: function,
+class, module), the
 command line (`--rotorpilot-airframe`, `--rotorpilot-speed`), the defaults
 (quad, speed 1, PX4's default parameters and SITL home).
 
@@ -19,8 +20,10 @@ Teardown stops each vehicle (SIGTERM, wait). When the test failed (setup or
 call), its directory with the flight record (`flight.record`; replay with
 `rotorpilot replay`) and the other logs is kept and named in the failure's
 report section and in the terminal summary; otherwise it is deleted
-(`--rotorpilot-keep always|failed|never`). Every vehicle listens on ports the
-kernel picked, so `pytest -n auto` (pytest-xdist) runs tests in parallel.
+(`--rotorpilot-keep always|failed|never`; a vehicle that failed to start
+too). Every vehicle's ports are reserved (outside the kernel's ephemeral
+range, under a lock file held until it stops: `rotorpilot.reserve_port`), so
+`pytest -n auto` (pytest-xdist) runs tests in parallel.
 """
 
 import os
@@ -85,20 +88,21 @@ def _failed(item):
 
 
 def _options(request, given):
-    """Factory keywords, then the marker, then the command line."""
+    """Per option, first found wins: the factory's keywords, then each
+    `rotorpilot` marker from the closest (function) to the farthest (class,
+    module), then the command line."""
     unknown = set(given) - set(OPTIONS)
     if unknown:
         raise TypeError(f"rotorpilot_vehicles: unknown option(s) {sorted(unknown)}; known: {OPTIONS}")
-    opts = {}
-    marker = request.node.get_closest_marker("rotorpilot")
-    if marker is not None:
+    opts = dict(given)
+    for marker in request.node.iter_markers("rotorpilot"):  # closest first
         if marker.args:
             raise TypeError("@pytest.mark.rotorpilot takes keyword arguments only, e.g. speed=10")
         unknown = set(marker.kwargs) - set(OPTIONS)
         if unknown:
             raise TypeError(f"@pytest.mark.rotorpilot: unknown option(s) {sorted(unknown)}; known: {OPTIONS}")
-        opts.update(marker.kwargs)
-    opts.update(given)
+        for name, value in marker.kwargs.items():
+            opts.setdefault(name, value)
     cfg = request.config
     if "speed" not in opts and cfg.getoption("rotorpilot_speed") is not None:
         opts["speed"] = cfg.getoption("rotorpilot_speed")
@@ -119,9 +123,15 @@ def rotorpilot_vehicles(request):
         opts = _options(request, given)
         opts.setdefault("instance", len(vehicles))
         v = Vehicle(bin=cfg.getoption("rotorpilot_bin"), root=cfg.getoption("rotorpilot_log_dir"), **opts)
-        # a vehicle that does not get ready raises VehicleError with its
-        # stderr and where its directory was kept; it needs no teardown
-        v.start(timeout=cfg.getoption("rotorpilot_ready_timeout"))
+        v.keep_failed = cfg.getoption("rotorpilot_keep") != "never"
+        try:
+            v.start(timeout=cfg.getoption("rotorpilot_ready_timeout"))
+        except BaseException:
+            # raises VehicleError with its stderr; the teardown below keeps
+            # its directory (the test failed) or deletes it, as for the others
+            v.start_failed = True
+            vehicles.append(v)
+            raise
         vehicles.append(v)
         return v
 
@@ -129,18 +139,27 @@ def rotorpilot_vehicles(request):
 
     keep_mode = cfg.getoption("rotorpilot_keep")
     problems = []
-    for v in vehicles:
+    first_error = None
+    for v in vehicles:  # stop every one, even when one of them cannot be stopped
         if v.proc is None:
             continue
         early = v.proc.poll()
-        rc = v.stop()
+        try:
+            rc = v.stop()
+        except Exception as e:  # noqa: BLE001 - raised after the others are stopped and cleaned
+            first_error = first_error or e
+            continue
+        if getattr(v, "start_failed", False):
+            continue  # its start() already raised with its stderr
         if early is not None and early != 0:
             problems.append(f"rotorpilot (system id {v.system_id}) exited with status {early} during the test:\n"
                             + v.stderr()[-4000:])
         elif rc != 0:
             problems.append(f"rotorpilot (system id {v.system_id}) did not stop cleanly (status {rc}):\n"
                             + v.stderr()[-4000:])
-    keep = keep_mode == "always" or (keep_mode == "failed" and (_failed(request.node) or problems))
+    failed = _failed(request.node) or problems or first_error or any(getattr(v, "start_failed", False)
+                                                                     for v in vehicles)
+    keep = keep_mode == "always" or (keep_mode == "failed" and failed)
     for v in vehicles:
         if not v.root:
             continue
@@ -148,6 +167,8 @@ def rotorpilot_vehicles(request):
             request.node.user_properties.append((_PROPERTY, v.log_dir or v.root))
         else:
             v.cleanup()
+    if first_error is not None:
+        raise first_error
     if problems:
         raise VehicleError("\n\n".join(problems))
 

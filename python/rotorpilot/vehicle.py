@@ -1,6 +1,6 @@
 """Start and stop one rotorpilot vehicle (the `rotorpilot` daemon) for a test.
 
-A vehicle gets its own free loopback ports, a temporary state directory (its
+A vehicle gets its own reserved loopback ports (`reserve_port`), a temporary state directory (its
 `params.toml` is written before start, so parameters are in force from the
 first step, and in the flight record) and a log directory; `start()` returns
 once the daemon prints `rotorpilot: ready to arm`, which it does when its
@@ -28,6 +28,7 @@ and pymavlink listen on 14540 for PX4 SITL. Every wait is bounded.
 """
 
 import os
+import random
 import re
 import shutil
 import socket
@@ -37,6 +38,11 @@ import sysconfig
 import tempfile
 import threading
 from pathlib import Path
+
+try:
+    import fcntl
+except ImportError:  # Windows: the ephemeral-range guard alone
+    fcntl = None
 
 EXE = "rotorpilot.exe" if os.name == "nt" else "rotorpilot"
 
@@ -75,23 +81,140 @@ def binary(explicit=None):
     )
 
 
+# --- port reservation -------------------------------------------------------
+# A port picked by bind-and-close is bound again later by someone else (the
+# client's `udpin`, mavsdk_server's gRPC). Two guards keep it ours meanwhile:
+# it lies outside the kernel's ephemeral range (so no `bind(0)` anywhere,
+# a daemon's `127.0.0.1:0` included, gets it), and an exclusive flock on
+# $TMPDIR/rotorpilot-ports/P.lock, held until `release()` (or the process's
+# exit), keeps every other reserving process (pytest-xdist workers, other
+# runs) off it.
+
+_PORT_LO, _PORT_HI = 20000, 65535  # candidates: above the usual fixed services
+_FALLBACK = (20000, 32767)  # below Linux's default ephemeral range 32768..60999
+
+
+def _ephemeral_range():
+    """The kernel's ephemeral (automatic `bind(0)`) port range, inclusive;
+    Linux's default when /proc does not say (other systems)."""
+    try:
+        with open("/proc/sys/net/ipv4/ip_local_port_range") as f:
+            lo, hi = (int(x) for x in f.read().split())
+        return lo, hi
+    except (OSError, ValueError):
+        return 32768, 60999
+
+
+def _candidate_ranges():
+    """Port ranges (inclusive) in _PORT_LO.._PORT_HI outside the ephemeral range."""
+    lo, hi = _ephemeral_range()
+    ranges = [(a, b) for a, b in ((_PORT_LO, min(lo - 1, _PORT_HI)), (max(hi + 1, _PORT_LO), _PORT_HI)) if b - a >= 100]
+    return ranges or [_FALLBACK]
+
+
+def _bindable(port):
+    """Whether 127.0.0.1:port is free for both UDP and TCP right now."""
+    for kind in (socket.SOCK_DGRAM, socket.SOCK_STREAM):
+        with socket.socket(socket.AF_INET, kind) as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                return False
+    return True
+
+
+class PortReservation:
+    """A loopback port held for this process: `port`, `release()`; also a
+    context manager. Free for UDP and TCP when reserved."""
+
+    def __init__(self, port, lock_fd):
+        self.port = port
+        self._fd = lock_fd
+
+    def release(self):
+        if self._fd is not None:
+            os.close(self._fd)  # closing drops the flock
+            self._fd = None
+
+    @property
+    def held(self):
+        return self._fd is not None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.release()
+
+    def __int__(self):
+        return self.port
+
+    def __repr__(self):
+        return f"<PortReservation {self.port}{'' if self.held else ' released'}>"
+
+
+def _lock_dir():
+    d = os.path.join(tempfile.gettempdir(), "rotorpilot-ports")
+    os.makedirs(d, exist_ok=True)
+    try:
+        os.chmod(d, 0o1777)  # shared by every user's runs, like /tmp
+    except OSError:
+        pass
+    return d
+
+
+def reserve_port(attempts=500, rng=None):
+    """Reserve a loopback port outside the kernel's ephemeral range: its lock
+    file `$TMPDIR/rotorpilot-ports/P.lock` is held (exclusive, non-blocking
+    flock) by the returned `PortReservation` until `release()`, and the port
+    was free for UDP and TCP once locked. Ports are tried at random (`rng`:
+    a `random.Random`, default the system's)."""
+    ranges = _candidate_ranges()
+    weights = [b - a + 1 for a, b in ranges]
+    d = _lock_dir()
+    rng = rng or random.SystemRandom()
+    for _ in range(attempts):
+        a, b = rng.choices(ranges, weights)[0]
+        port = rng.randint(a, b)
+        try:
+            fd = os.open(os.path.join(d, f"{port}.lock"), os.O_RDWR | os.O_CREAT, 0o666)
+        except OSError:  # e.g. another user's lock file
+            continue
+        if fcntl is not None:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:  # another process (or reservation) holds it
+                os.close(fd)
+                continue
+        if not _bindable(port):
+            os.close(fd)
+            continue
+        return PortReservation(port, fd)
+    raise VehicleError(f"no free loopback port outside the ephemeral range {_ephemeral_range()} "
+                       f"after {attempts} tries")
+
+
+_HELD = []  # reservations of free_udp_port/free_tcp_port: kept until exit
+
+
 def free_udp_port():
-    """A UDP port on 127.0.0.1 that was free a moment ago (the kernel's pick)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+    """A reserved loopback port for a UDP listener (see `reserve_port`),
+    held until this process exits."""
+    r = reserve_port()
+    _HELD.append(r)
+    return r.port
 
 
 def free_tcp_port():
-    """A TCP port on 127.0.0.1 that was free a moment ago (for mavsdk_server's gRPC)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+    """A reserved loopback port for a TCP listener, e.g. mavsdk_server's gRPC
+    (see `reserve_port`), held until this process exits."""
+    return free_udp_port()
 
 
 _LINK = re.compile(r"^\s+(\S+)\s+link: udp (\S+):(\d+) -> ")
 _LOGS = re.compile(r"^\s+logs: (.+)$")
-_READY = re.compile(r"^rotorpilot: ready to arm \(([0-9.]+) s after start\)")
+# the daemon's ready line; group 1: its own start-to-ready seconds
+READY_LINE = re.compile(r"^rotorpilot: ready to arm \(([0-9.]+) s after start\)", re.M)
 
 
 def _toml_value(name, value):
@@ -147,6 +270,10 @@ class Vehicle:
         self.log_dir = None
         self.ready_s = None
         self.returncode = None
+        self._ports = []
+        # whether a failed start() leaves `root` for a post-mortem (the
+        # pytest plugin clears it for --rotorpilot-keep never)
+        self.keep_failed = True
 
     # --- connection strings -------------------------------------------------
     @property
@@ -186,8 +313,9 @@ class Vehicle:
             with open(os.path.join(self.state_dir, "params.toml"), "w") as f:
                 f.write("# set by the rotorpilot test fixture before start\n")
                 f.writelines(self._param_lines)
-        self.client_port = free_udp_port()
-        self.mavsdk_server_port = free_tcp_port()
+        # both held until stop(): nobody else reserves them meanwhile
+        self._ports = [reserve_port(), reserve_port()]
+        self.client_port, self.mavsdk_server_port = (r.port for r in self._ports)
         args = [
             self.bin,
             "--airframe", str(self.airframe),
@@ -239,7 +367,7 @@ class Vehicle:
             m = _LOGS.match(line)
             if m:
                 self.log_dir = m.group(1)
-            m = _READY.match(line)
+            m = READY_LINE.match(line)
             if m:
                 self.ready_s = float(m.group(1))
                 ready.set()
@@ -253,31 +381,44 @@ class Vehicle:
             return ""
 
     def _fail(self, why):
-        self.stop()
+        try:
+            self.stop()
+        except VehicleError as e:
+            why += f" ({e})"
         tail = self.stderr()[-6000:]
         out = "\n".join(self.banner[-20:])
         raise VehicleError(
             f"{why}\ncommand: {' '.join(self.proc.args if self.proc else [])}\n"
-            f"--- stdout ---\n{out}\n--- stderr ---\n{tail}\n(kept in {self.root})"
+            f"--- stdout ---\n{out}\n--- stderr ---\n{tail}\n"
+            + (f"(kept in {self.root})" if self.keep_failed else "(its directory is deleted: keep policy never)")
         )
 
     def stop(self, timeout=5.0):
         """SIGTERM and wait (then SIGKILL); the daemon saves its state and
-        closes its logs on SIGTERM. Returns its exit status."""
-        if self.proc is not None and self.proc.returncode is None:
-            if self.proc.poll() is None:
-                self.proc.terminate()  # SIGTERM
-                try:
-                    self.proc.wait(timeout)
-                except subprocess.TimeoutExpired:
-                    self.proc.kill()
-                    self.proc.wait(5)
-        if self.proc is not None:
-            self.returncode = self.proc.returncode
-        if getattr(self, "_stderr", None):
-            self._stderr.close()
-            self._stderr = None
-        return self.returncode
+        closes its logs on SIGTERM. Returns its exit status; raises
+        VehicleError if it outlives SIGKILL too. Releases its ports either way."""
+        try:
+            if self.proc is not None and self.proc.returncode is None:
+                if self.proc.poll() is None:
+                    self.proc.terminate()  # SIGTERM
+                    try:
+                        self.proc.wait(timeout)
+                    except subprocess.TimeoutExpired:
+                        self.proc.kill()
+                        try:
+                            self.proc.wait(5)
+                        except subprocess.TimeoutExpired:
+                            raise VehicleError(f"rotorpilot (pid {self.proc.pid}) did not exit "
+                                               f"{timeout} s after SIGTERM nor 5 s after SIGKILL") from None
+            if self.proc is not None:
+                self.returncode = self.proc.returncode
+            return self.returncode
+        finally:
+            for r in self._ports:
+                r.release()
+            if getattr(self, "_stderr", None):
+                self._stderr.close()
+                self._stderr = None
 
     def cleanup(self):
         """Delete the temporary state and log directories."""

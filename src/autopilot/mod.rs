@@ -298,6 +298,10 @@ impl Announcements {
     }
 
     fn drain(&mut self) -> Vec<StatusText> {
+        // the lockstep looks every step: an empty queue must cost nothing
+        if self.0.is_empty() {
+            return Vec::new();
+        }
         self.0.drain(..).collect()
     }
 }

@@ -1,32 +1,45 @@
-//! `rotorpilot replay RECORD [--csv OUT] [--json]`: re-fly a daemon's flight
+//! `rotorpilot replay RECORD [--csv OUT] [--ulog OUT] [--json] [--any-version]`: re-fly a daemon's flight
 //! record headless and flat out ([`crate::record`]); the CSV is byte for byte
 //! the live flight's `flight.csv`.
 
-use std::io::Write as _;
 use std::path::Path;
 
 use anyhow::Context as _;
 
-use crate::record::{read_record, replay};
+use crate::record::{read_record, replay_logs};
 
-/// Read, replay, report. A record without an end line (the daemon was
-/// killed) replays to its last input, with a warning on stderr.
+/// Read, replay, report. A record written by another rotorpilot version is
+/// refused (a different build cannot promise the same flight bit for bit)
+/// unless `any_version`, then replayed with a warning on stderr. A record
+/// without an end line (the daemon was killed) replays to its last input,
+/// with a warning on stderr.
 ///
 /// # Errors
-/// An unreadable or bad record (with the file and line), a diverging
-/// replay, a CSV that cannot be written.
-pub(super) fn run(path: &Path, csv: Option<&Path>, json: bool) -> anyhow::Result<()> {
+/// An unreadable or bad record (with the file and line), a record from
+/// another rotorpilot version without `any_version`, a diverging replay, a
+/// CSV that cannot be written.
+pub(super) fn run(
+    path: &Path,
+    csv: Option<&Path>,
+    ulog: Option<&Path>,
+    json: bool,
+    any_version: bool,
+) -> anyhow::Result<()> {
     let label = path.display().to_string();
     let bytes = std::fs::read(path).with_context(|| format!("cannot read {label}"))?;
     let text =
         String::from_utf8(bytes).map_err(|e| anyhow::anyhow!("{label}: not a flight record (not UTF-8: {e})"))?;
     let record = read_record(&text, &label).map_err(anyhow::Error::msg)?;
-    if record.header.rotorpilot != crate::record::ROTORPILOT_VERSION {
+    let (written_by, this) = (&record.header.rotorpilot, crate::record::ROTORPILOT_VERSION);
+    if written_by != this {
+        anyhow::ensure!(
+            any_version,
+            "{label}: written by rotorpilot {written_by}, this is rotorpilot {this}: another build cannot promise \
+             the same flight bit for bit (replay it with that version, or give --any-version to try anyway)"
+        );
         eprintln!(
-            "rotorpilot: warning: {label} was written by rotorpilot {}, this is {}: the replay is exact only when \
-             both fly alike (every input's outcome is still checked)",
-            record.header.rotorpilot,
-            crate::record::ROTORPILOT_VERSION
+            "rotorpilot: warning: {label} was written by rotorpilot {written_by}, this is {this} (--any-version): \
+             the replay is exact only when both fly alike (every input's outcome is still checked)"
         );
     }
     if record.end.is_none() {
@@ -34,19 +47,22 @@ pub(super) fn run(path: &Path, csv: Option<&Path>, json: bool) -> anyhow::Result
             "rotorpilot: warning: {label} has no end line (the daemon did not stop cleanly); replaying up to its last input"
         );
     }
-    let mut writer = match csv {
-        Some(p) => Some(std::io::BufWriter::with_capacity(
-            256 * 1024,
-            std::fs::File::create(p).with_context(|| format!("cannot create {}", p.display()))?,
-        )),
-        None => None,
-    };
+    let mut writer = csv
+        .map(crate::scenario::create_csv_file)
+        .transpose()
+        .map_err(anyhow::Error::msg)?;
+    let mut ulog_writer = ulog
+        .map(crate::scenario::create_csv_file)
+        .transpose()
+        .map_err(anyhow::Error::msg)?;
     let start = std::time::Instant::now();
-    let s =
-        replay(&record, &label, writer.as_mut().map(|w| w as &mut dyn std::io::Write)).map_err(anyhow::Error::msg)?;
-    if let Some(mut w) = writer {
-        w.flush().context("writing the CSV")?;
-    }
+    let s = replay_logs(
+        &record,
+        &label,
+        writer.as_mut().map(|w| w as &mut dyn std::io::Write),
+        ulog_writer.as_mut().map(|w| w as &mut dyn std::io::Write),
+    )
+    .map_err(anyhow::Error::msg)?;
     let wall_s = start.elapsed().as_secs_f64();
     let steps_per_s = s.steps as f64 / wall_s.max(1e-9);
     if json {

@@ -155,6 +155,9 @@ pub struct Config {
     /// Also write the per-step flight CSV (`simulate --csv`'s format) into
     /// the run's log directory (`--log-csv`; large: one row per step).
     pub log_csv: bool,
+    /// When the process started (the configuration is made first thing):
+    /// the ready line counts from here.
+    pub started: std::time::Instant,
 }
 
 impl Config {
@@ -175,6 +178,7 @@ impl Config {
             tick: Duration::from_millis(4),
             log_dir: None,
             log_csv: false,
+            started: std::time::Instant::now(),
         }
     }
 

@@ -117,7 +117,8 @@ pub async fn bind(config: Config) -> anyhow::Result<Daemon> {
     };
     // PX4 SITL's rcS sets MAV_SYS_ID to instance + 1 at every start.
     let _ = params.set("MAV_SYS_ID", ParamValue::Int32(i32::from(config.system_id())));
-    let mut core = Lockstep::one_vehicle(&airframe, config.home, &params, SensorConfig::default())
+    let sensors = SensorConfig::default();
+    let mut core = Lockstep::one_vehicle(&airframe, config.home, &params, sensors)
         .with_context(|| format!("starting the autopilot on {}", airframe.source))?;
     if config.speed > 1.0 {
         // faster than real time: timers that wait for a client run on the wall clock
@@ -152,6 +153,7 @@ pub async fn bind(config: Config) -> anyhow::Result<Daemon> {
             &config.airframe,
             config.home,
             &params,
+            sensors,
             &mut core,
             config.log_csv,
         )?),
@@ -318,7 +320,11 @@ impl Daemon {
             stop_rx.clone(),
         )));
         // issue 13: one stdout line when the vehicle first is ready to arm (ready.rs)
-        tasks.push(tokio::spawn(ready::announce(tel_rx.clone(), stop_rx.clone())));
+        tasks.push(tokio::spawn(ready::announce(
+            config.started,
+            tel_rx.clone(),
+            stop_rx.clone(),
+        )));
         let identity = Identity {
             system_id: config.system_id(),
             component_id: 1,
@@ -376,16 +382,24 @@ impl Daemon {
         // sender gone once the links have stopped
         let _ = sim_tx.try_send(SimRequest::Stop);
         drop(sim_tx);
-        let all = async {
-            futures_join(tasks).await;
-            if !sim_died {
-                let _ = sim_done.await;
-            }
-        };
-        if tokio::time::timeout(Duration::from_millis(800), all).await.is_err() {
+        if tokio::time::timeout(Duration::from_millis(800), futures_join(tasks))
+            .await
+            .is_err()
+        {
             warn!("some tasks did not stop in time");
-        } else {
+        }
+        // The simulation thread ends within one batch of steps (told to stop,
+        // or every sender gone) and writes the end of its logs (the record's
+        // end line, the CSV and ULog tails) as it drops: wait for it on its
+        // own, so that slow link or saver tasks cannot cut the logs short.
+        let sim_ended = sim_died
+            || tokio::time::timeout(Duration::from_secs(5), &mut sim_done)
+                .await
+                .is_ok();
+        if sim_ended {
             let _ = sim_thread.join();
+        } else {
+            warn!("the simulation thread did not stop in time: its logs may end early");
         }
         // the simulation thread publishes every plan change before it
         // answers it, so the last snapshot holds the plans in force

@@ -10,7 +10,8 @@
 //! valid home; HOME_POSITION is streamed from the first message on). The
 //! health word is built by the same function the links use
 //! ([`streams::build`]), so the line cannot disagree with the link. The time
-//! is wall time since [`super::Daemon::run`] began.
+//! is wall time since the process started ([`super::Config::started`]):
+//! loading the airframe, parameters and plans and binding the sockets count.
 
 use std::io::Write as _;
 use std::time::Instant;
@@ -32,8 +33,7 @@ pub(super) fn ready_to_arm(snapshot: &Snapshot) -> bool {
 
 /// Watch the telemetry until the vehicle is first ready to arm, print the
 /// line (flushed) and end; end silently at shutdown.
-pub(super) async fn announce(mut tel: watch::Receiver<Snapshot>, mut stop: watch::Receiver<bool>) {
-    let started = Instant::now();
+pub(super) async fn announce(started: Instant, mut tel: watch::Receiver<Snapshot>, mut stop: watch::Receiver<bool>) {
     loop {
         let ready = ready_to_arm(&tel.borrow_and_update());
         if ready {

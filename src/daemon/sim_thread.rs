@@ -16,7 +16,7 @@ use tokio::sync::{Notify, broadcast, oneshot, watch};
 use tracing::{debug, info, warn};
 
 use crate::autopilot::{
-    Autopilot, AutopilotCommand, ClientClock, CommandOutcome, PendingTimer, PowerAction, Severity, StatusText,
+    Autopilot, AutopilotCommand, ClientClock, CommandOutcome, PendingTimer, PowerAction, StatusText,
 };
 use crate::lockstep::{Lockstep, Snapshot};
 use crate::mission::{MissionResult, PlanChange};
@@ -189,9 +189,8 @@ impl Sim {
         self.tel.send_replace(self.core.snapshot(VEHICLE));
         let lost = self.core.world().faults(VEHICLE).link_lost;
         self.link_lost.send_if_modified(|l| std::mem::replace(l, lost) != lost);
-        for s in self.core.drain_status_texts(VEHICLE) {
+        for s in super::ulog_file::drain_status_texts(&mut self.ulog, &mut self.core, VEHICLE) {
             info!(text = %s.text, "status");
-            super::ulog_file::status_text(&mut self.ulog, self.core.time_s(), &s);
             let _ = self.events.send(Event::StatusText(s));
         }
         for seq in self.core.drain_mission_reached(VEHICLE) {
@@ -248,11 +247,9 @@ impl Sim {
     fn reboot(&mut self) -> CommandOutcome {
         match self.reboot_core() {
             Ok(()) => {
+                // the core announces it ("Rebooted: simulation reset"); the
+                // caller publishes before the ACK
                 info!("rebooted: simulation reset");
-                let _ = self.events.send(Event::StatusText(StatusText {
-                    severity: Severity::Info,
-                    text: "Rebooted: simulation reset".into(),
-                }));
                 CommandOutcome::Accepted
             }
             Err(e) => {

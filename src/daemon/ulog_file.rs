@@ -33,8 +33,9 @@ pub(super) struct UlogFile {
     steps: u64,
 }
 
-/// Steps between two looks at the parameters' generation (0.1 s).
-const PARAM_CHECK_EVERY: u64 = 100;
+/// Steps between two looks at the parameters' generation (0.1 s): the
+/// replay's, so that `rotorpilot replay --ulog` logs the changes alike.
+use crate::record::PARAM_CHECK_EVERY;
 
 impl UlogFile {
     /// Start `dir/flight.ulg` (header, formats, info, parameters); `None`
@@ -106,6 +107,25 @@ pub(super) fn after_step(log: &mut Option<UlogFile>, core: &mut Lockstep<Autopil
     }
 }
 
+/// The simulation thread's hook for the status texts it publishes: drain
+/// vehicle `vehicle`'s texts from the core, log each at the simulated time
+/// it was raised ([`Lockstep::drain_stamped_status_texts`]), not at the
+/// drain's (up to a batch of steps later), and hand them back for the links.
+pub(super) fn drain_status_texts(
+    log: &mut Option<UlogFile>,
+    core: &mut Lockstep<Autopilot>,
+    vehicle: usize,
+) -> Vec<StatusText> {
+    let texts = core.drain_stamped_status_texts(vehicle);
+    texts
+        .into_iter()
+        .map(|(t, s)| {
+            status_text(log, t, &s);
+            s
+        })
+        .collect()
+}
+
 /// The simulation thread's hook for each status text it publishes.
 pub(super) fn status_text(log: &mut Option<UlogFile>, time_s: f64, text: &StatusText) {
     if let Some(l) = log {
@@ -118,5 +138,76 @@ impl Drop for UlogFile {
         if let Some(Err(e)) = self.log.take().map(FlightUlog::finish) {
             warn!(path = %self.path.display(), error = %e, "ULog: the last writes failed");
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::autopilot::{AutopilotCommand, CommandOutcome};
+
+    /// The ULog's logged strings (`L` messages) as (timestamp [us], text).
+    fn logged_strings(b: &[u8]) -> Vec<(u64, String)> {
+        let mut out = Vec::new();
+        let mut i = 16;
+        while i + 3 <= b.len() {
+            let size = usize::from(u16::from_le_bytes([b[i], b[i + 1]]));
+            let body = &b[i + 3..i + 3 + size];
+            if b[i + 2] == b'L' {
+                let t = u64::from_le_bytes(body[1..9].try_into().unwrap());
+                out.push((t, String::from_utf8_lossy(&body[9..]).into_owned()));
+            }
+            i += 3 + size;
+        }
+        out
+    }
+
+    #[test]
+    fn a_status_text_is_logged_at_the_step_it_was_raised_not_when_drained() {
+        let airframe = crate::airframe::Airframe::load("quad").unwrap();
+        let store = ParamStore::new(&airframe);
+        let mut core = Lockstep::one_vehicle(
+            &airframe,
+            crate::geo::GeoPoint::PX4_SITL_HOME,
+            &store,
+            crate::sim::SensorConfig::default(),
+        )
+        .unwrap();
+        let dir = std::env::temp_dir().join(format!("rotorpilot-ulog-stamp-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let params = Arc::new(Mutex::new(store));
+        let mut log = UlogFile::create(&dir, &params, &core, 0);
+        assert!(log.is_some());
+        let step = |core: &mut Lockstep<Autopilot>, log: &mut Option<UlogFile>, n: u32| {
+            for _ in 0..n {
+                core.step();
+                after_step(log, core);
+            }
+        };
+        step(&mut core, &mut log, 1234);
+        let _ = drain_status_texts(&mut log, &mut core, 0);
+        // raised between steps 1234 and 1235, at t = 1.234 s
+        let arm_us = 1_234_000;
+        assert_eq!(
+            core.command(0, AutopilotCommand::Arm { force: true }),
+            CommandOutcome::Accepted
+        );
+        // drained 2 s of simulated time later, as a slow batch would
+        step(&mut core, &mut log, 2000);
+        let texts = drain_status_texts(&mut log, &mut core, 0);
+        assert!(texts.iter().any(|s| s.text == "Armed by external command"), "{texts:?}");
+        drop(log);
+        let logged = logged_strings(&std::fs::read(dir.join(FILE_NAME)).unwrap());
+        std::fs::remove_dir_all(&dir).unwrap();
+        let armed: Vec<_> = logged
+            .iter()
+            .filter(|(_, s)| s == "Armed by external command")
+            .collect();
+        assert_eq!(armed.len(), 1, "{logged:?}");
+        assert!(
+            armed[0].0.abs_diff(arm_us) <= 1,
+            "logged at {} us, raised at {arm_us} us",
+            armed[0].0
+        );
     }
 }

@@ -56,7 +56,7 @@ use rand_distr::Distribution;
 use serde::{Deserialize, Serialize};
 use toml::{Spanned, Value};
 
-use super::{MissionFlight, MissionSummary, Scenario, Summary};
+use super::{MissionFlight, MissionSummary, Scenario, ScenarioError, Summary};
 use crate::tomlfile::{self, FileError};
 
 /// File extensions a directory argument contributes (a QGC WPL `.txt` must be named explicitly).
@@ -413,6 +413,8 @@ struct Variation {
     draws: u64,
     /// Grid points times draws.
     count: u64,
+    /// Byte offset of the `[campaign]` table in the file.
+    table_at: usize,
 }
 
 impl Variation {
@@ -492,6 +494,7 @@ impl Variation {
             seed: raw.seed,
             draws,
             count,
+            table_at,
         }))
     }
 
@@ -511,6 +514,55 @@ impl Variation {
             out.push((path.clone(), steps.clone(), d.sample(&mut rng)));
         }
         out
+    }
+}
+
+/// `text` with the lines of its `[campaign]` table made empty: each
+/// `[campaign]` or `[campaign.*]` header and the lines after it up to the
+/// next header, and a one-line `campaign = {...}` or `campaign.k = ...`
+/// before the first header. Every other line keeps its number and columns.
+fn without_campaign(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    // the first key of the table header the line is under; `None` before any
+    let mut under: Option<String> = None;
+    for line in text.split_inclusive('\n') {
+        let root = first_key(line);
+        let header = line.trim_start().starts_with('[') && root.is_some();
+        if header {
+            under.clone_from(&root);
+        }
+        let blank = if header || under.is_some() {
+            under.as_deref() == Some("campaign")
+        } else {
+            root.as_deref() == Some("campaign")
+        };
+        out.push_str(if blank {
+            &line[line.trim_end_matches(['\r', '\n']).len()..]
+        } else {
+            line
+        });
+    }
+    out
+}
+
+/// The one top key a line defines when read alone as TOML (`[a.b]` and
+/// `[[a]]` headers, `a = 1`, `a.b = 1`); `None` for any other line. A line
+/// of a multi-line value that reads so is caught by the caller, which checks
+/// that the text without the table reads as the file without it.
+fn first_key(line: &str) -> Option<String> {
+    let t = line.parse::<toml::Table>().ok()?;
+    (t.len() == 1).then(|| t.keys().next().cloned()).flatten()
+}
+
+/// `a == b`, with a NaN equal to itself (a mission item may hold `nan`).
+fn same(a: &Value, b: &Value) -> bool {
+    match (a, b) {
+        (Value::Float(x), Value::Float(y)) => x == y || (x.is_nan() && y.is_nan()),
+        (Value::Array(x), Value::Array(y)) => x.len() == y.len() && x.iter().zip(y).all(|(x, y)| same(x, y)),
+        (Value::Table(x), Value::Table(y)) => {
+            x.len() == y.len() && x.iter().all(|(k, v)| y.get(k).is_some_and(|w| same(v, w)))
+        }
+        _ => a == b,
     }
 }
 
@@ -634,11 +686,15 @@ enum Body {
 
 impl CampaignFile {
     /// Read `path` and its `[campaign]` table, if any (a `.plan` or WPL
-    /// file has none and is read when flown).
+    /// file has none and is read when flown). A file with a `[campaign]`
+    /// table has its own values read and checked here, once, as a scenario
+    /// or mission, against the file's own text with the table's lines made
+    /// empty: an error in them names this file's line, not a variant's.
     ///
     /// # Errors
-    /// The file cannot be read, or its `[campaign]` table is wrong (file, line, field, problem).
-    pub fn load(path: &Path) -> Result<Self, FileError> {
+    /// The file cannot be read, its `[campaign]` table is wrong, or its own
+    /// values are (file, line or field, problem).
+    pub fn load(path: &Path) -> anyhow::Result<Self> {
         let plain = |text, mission| CampaignFile {
             path: path.to_path_buf(),
             body: Body::Plain { text, mission },
@@ -657,17 +713,39 @@ impl CampaignFile {
             return Ok(plain(Some(text), mission));
         }
         let mut base = Value::Table(table);
-        match Variation::parse(&text, &file, &mut base)? {
-            Some(variation) => Ok(CampaignFile {
-                path: path.to_path_buf(),
-                body: Body::Varied {
-                    base,
-                    mission,
-                    variation,
-                },
-            }),
-            None => Ok(plain(Some(text), mission)),
+        let Some(variation) = Variation::parse(&text, &file, &mut base)? else {
+            return Ok(plain(Some(text), mission));
+        };
+        let own = without_campaign(&text);
+        if !own.parse::<toml::Table>().is_ok_and(|t| same(&Value::Table(t), &base)) {
+            return Err(tomlfile::error_at(
+                &text,
+                &file,
+                variation.table_at,
+                "campaign: write it as [campaign], [campaign.grid] and [campaign.random] tables \
+                 (not as a multi-line inline table) so that the file's own lines can be checked"
+                    .into(),
+            )
+            .into());
         }
+        // the one check of the file's own values; a variant then only puts
+        // in values the table's checks have fitted to them
+        let checked = if mission {
+            MissionFlight::from_toml(&own, &file, path.parent()).map(drop)
+        } else {
+            Scenario::from_toml(&own, &file, path.parent())
+                .map(drop)
+                .map_err(anyhow::Error::from)
+        };
+        checked.map_err(|e| anyhow::anyhow!("{e:#}"))?;
+        Ok(CampaignFile {
+            path: path.to_path_buf(),
+            body: Body::Varied {
+                base,
+                mission,
+                variation,
+            },
+        })
     }
 
     /// How many variants: 1 without a `[campaign]` table.
@@ -734,15 +812,38 @@ impl CampaignFile {
                 *mission,
             ),
         };
-        Ok(if mission {
-            let mut m = MissionFlight::from_toml(&text, &label, dir)?;
-            m.source = file;
-            Flight::Mission(Box::new(m))
+        let flight = if mission {
+            MissionFlight::from_toml(&text, &label, dir).map(|mut m| {
+                m.source.clone_from(&file);
+                Flight::Mission(Box::new(m))
+            })
         } else {
-            let mut s = Scenario::from_toml(&text, &label, dir)?;
-            s.source = file;
-            Flight::Scenario(Box::new(s))
-        })
+            Scenario::from_toml(&text, &label, dir)
+                .map(|mut s| {
+                    s.source.clone_from(&file);
+                    Flight::Scenario(Box::new(s))
+                })
+                .map_err(anyhow::Error::from)
+        };
+        flight.map_err(|e| self.variant_error(e, v))
+    }
+
+    /// A variant's error as it is, unless it is a TOML type error: the file's
+    /// own values were checked by [`CampaignFile::load`], so the variant's
+    /// values caused it, and its line would be one of the TOML written for
+    /// the variant, which the user never sees: name the values instead.
+    fn variant_error(&self, e: anyhow::Error, v: u64) -> anyhow::Error {
+        let syntax = match e.downcast_ref::<ScenarioError>() {
+            Some(ScenarioError::File(f)) => Some(f),
+            _ => e.downcast_ref::<FileError>(),
+        };
+        match syntax {
+            Some(FileError::Syntax { message, .. }) if self.is_varied() => {
+                let values: Vec<String> = self.values(v).iter().map(|(p, x)| format!("{p} = {x}")).collect();
+                anyhow::anyhow!("{}#{v}: {}: {message}", self.path.display(), values.join(", "))
+            }
+            _ => e,
+        }
     }
 }
 
@@ -754,7 +855,7 @@ mod tests {
         [reference]\nkind = \"figure_eight\"\nhalf_width_m = 2.0\nrate_rad_s = 0.5\naltitude_m = 2.0\n\
         [[disturbance]]\nat_s = 0.0\nforce_ned = [0.0, 0.0, 0.0]\ntrue_mass_kg = 2.0\n";
 
-    fn load(text: &str) -> Result<CampaignFile, FileError> {
+    fn load(text: &str) -> anyhow::Result<CampaignFile> {
         let dir = std::env::temp_dir().join(format!("rp-campaign-unit-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         // a file per text: the tests run in parallel
@@ -966,6 +1067,51 @@ mod tests {
             let at: usize = e.split(':').nth(1).unwrap().parse().unwrap();
             assert!(at >= line - 1, "{e}");
         }
+    }
+
+    #[test]
+    fn the_file_without_its_table_keeps_its_own_lines() {
+        let text = "campaign.seed = 4\nduration_s = 2.0 # s\n[campaign]\ndraws = 2\n[reference]\nkind = \"hover\"\n\
+                    [campaign.random]\n\"seed\" = { integer = [0, 9] }\n[[disturbance]]\nat_s = [\n  [1],\n]\n";
+        let own = without_campaign(text);
+        assert_eq!(
+            own.lines().collect::<Vec<_>>(),
+            [
+                "",
+                "duration_s = 2.0 # s",
+                "",
+                "",
+                "[reference]",
+                "kind = \"hover\"",
+                "",
+                "",
+                "[[disturbance]]",
+                "at_s = [",
+                "  [1],",
+                "]"
+            ]
+        );
+        // a NaN (as a mission item may hold) is the same value as itself
+        let nan: toml::Table = "x = [nan]".parse().unwrap();
+        assert!(same(&Value::Table(nan.clone()), &Value::Table(nan)));
+    }
+
+    #[test]
+    fn a_campaign_files_own_values_are_checked_once_at_its_own_lines() {
+        let text = format!("{FIG8}[campaign.grid]\n\"duration_s\" = [1.0, 2.0]\n").replace("seed = 3", "sede = 3");
+        let e = err(&text);
+        assert!(e.contains(".toml:4:1: unknown field `sede`"), "{e}");
+        // a table that cannot be blanked line by line is refused, not misread
+        let e = err(&format!(
+            "campaign = {{\n grid = {{ \"duration_s\" = [1.0] }} }}\n{FIG8}"
+        ));
+        assert!(e.contains(".toml:1:") && e.contains("multi-line inline table"), "{e}");
+        // one line is fine
+        let f = load(&format!(
+            "campaign = {{ grid = {{ \"duration_s\" = [1.0, 3.0] }} }}\n{FIG8}"
+        ))
+        .unwrap();
+        assert_eq!(f.variants(), 2);
     }
 
     #[test]

@@ -47,8 +47,8 @@ use std::path::Path;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
+use super::CsvLog;
 use super::fault::{self, AppliedFault, FileFault, ScheduledFault};
-use super::run::{csv_header, csv_row};
 use crate::airframe::Airframe;
 use crate::autopilot::{Autopilot, AutopilotCommand, CommandOutcome, LandedState, MissionState};
 use crate::geo::GeoPoint;
@@ -401,12 +401,10 @@ pub fn mission_lockstep(f: &MissionFlight) -> anyhow::Result<Lockstep<Autopilot>
 /// # Errors
 /// As [`mission_lockstep`], or a failed write to `csv`.
 #[allow(clippy::too_many_lines)]
-pub fn run_mission(f: &MissionFlight, mut csv: Option<&mut dyn Write>) -> anyhow::Result<MissionSummary> {
+pub fn run_mission(f: &MissionFlight, csv: Option<&mut dyn Write>) -> anyhow::Result<MissionSummary> {
     let mut core = mission_lockstep(f)?;
     let n = f.airframe.rotor_count();
-    if let Some(w) = csv.as_deref_mut() {
-        writeln!(w, "{}", csv_header(n))?;
-    }
+    let mut log = csv.map(|w| CsvLog::new(w, n)).transpose()?;
     let items = &f.plans.mission;
     let dt = core.dt_s();
     let steps = (f.duration_s / dt).round() as u64;
@@ -444,8 +442,8 @@ pub fn run_mission(f: &MissionFlight, mut csv: Option<&mut dyn Write>) -> anyhow
         core.step();
         k += 1;
         let rec = core.last_step(0);
-        if let Some(w) = csv.as_deref_mut() {
-            writeln!(w, "{}", csv_row(&rec, n))?;
+        if let Some(l) = &mut log {
+            l.row(&rec)?;
         }
         let truth = rec.world.truth;
         let reference = rec.control.reference.position_ned;
@@ -491,6 +489,9 @@ pub fn run_mission(f: &MissionFlight, mut csv: Option<&mut dyn Write>) -> anyhow
                 break;
             }
         }
+    }
+    if let Some(l) = log {
+        l.finish()?;
     }
     let t = core.telemetry(0);
     let p = core.world().plant(0).state().position_ned;

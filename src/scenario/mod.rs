@@ -11,11 +11,13 @@
 //! field and the problem.
 
 pub mod campaign;
+mod csv_log;
 pub mod fault;
 mod mission;
 mod run;
 mod trajectory;
 
+pub use csv_log::{CSV_BUFFER_BYTES, CsvLog, create_csv_file};
 pub use fault::{AppliedFault, FaultType, FaultUnit, ScheduledFault};
 pub use mission::{ItemResult, MissionFlight, MissionSummary, is_mission, mission_lockstep, run_mission};
 pub use run::{ScenarioPilot, Summary, csv_header, csv_row, lockstep, run};
@@ -37,22 +39,23 @@ pub enum ScenarioError {
     #[error(transparent)]
     File(#[from] FileError),
     /// The airframe it names could not be loaded.
-    #[error("{file}: airframe: {source}")]
+    #[error("{file}: airframe: {error}")]
     Airframe {
         /// Scenario path.
         file: String,
-        /// The airframe's own error.
-        source: AirframeError,
+        /// The airframe's own error (in the message, not also its source:
+        /// `{:#}` would print it twice).
+        error: AirframeError,
     },
     /// The airframe's `[control]` table gives invalid gains.
-    #[error("{file}: airframe {airframe}: {source}")]
+    #[error("{file}: airframe {airframe}: {error}")]
     AirframeGains {
         /// Scenario path.
         file: String,
         /// Where the airframe came from.
         airframe: String,
-        /// What is wrong.
-        source: GainError,
+        /// What is wrong (in the message only, as for `Airframe`).
+        error: GainError,
     },
 }
 
@@ -240,9 +243,9 @@ impl Scenario {
             }
             _ => raw.airframe.clone(),
         };
-        let airframe = Airframe::load(&airframe_spec).map_err(|source| ScenarioError::Airframe {
+        let airframe = Airframe::load(&airframe_spec).map_err(|error| ScenarioError::Airframe {
             file: file.to_string(),
-            source,
+            error,
         })?;
         if !(raw.duration_s.is_finite() && raw.duration_s > 0.0 && raw.duration_s <= 86_400.0) {
             return Err(fail(
@@ -254,10 +257,10 @@ impl Scenario {
             return Err(fail("step_s", format!("must be in [1e-5, 0.01] s, got {}", raw.step_s)));
         }
         let mut gains =
-            ControlGains::for_airframe(&airframe, airframe.mass_kg).map_err(|source| ScenarioError::AirframeGains {
+            ControlGains::for_airframe(&airframe, airframe.mass_kg).map_err(|error| ScenarioError::AirframeGains {
                 file: file.to_string(),
                 airframe: airframe.source.clone(),
-                source,
+                error,
             })?;
         gains.apply(&raw.gains);
         gains

@@ -22,7 +22,7 @@ use nalgebra::Vector3;
 use serde::Serialize;
 
 use super::fault::{self, AppliedFault};
-use super::{ReferencePlan, Scenario};
+use super::{CsvLog, ReferencePlan, Scenario};
 use crate::autopilot::{ControlLoop, ControlOutput, Demand};
 use crate::control::{Reference, Setpoint, Shaper, ShaperLimits, TranslationSetpoint, feedforward_attitude};
 use crate::estimation::input_from;
@@ -262,12 +262,10 @@ pub fn lockstep(s: &Scenario) -> anyhow::Result<Lockstep<ScenarioPilot<'_>>> {
 ///
 /// # Errors
 /// Invalid gains or estimator settings, or a failed write to `csv`.
-pub fn run(s: &Scenario, mut csv: Option<&mut dyn Write>) -> anyhow::Result<Summary> {
+pub fn run(s: &Scenario, csv: Option<&mut dyn Write>) -> anyhow::Result<Summary> {
     let mut core = lockstep(s)?;
     let n = s.airframe.rotor_count();
-    if let Some(w) = csv.as_deref_mut() {
-        writeln!(w, "{}", csv_header(n))?;
-    }
+    let mut log = csv.map(|w| CsvLog::new(w, n)).transpose()?;
 
     let dt = s.step_s;
     let steps = (s.duration_s / dt).round() as u64;
@@ -317,9 +315,12 @@ pub fn run(s: &Scenario, mut csv: Option<&mut dyn Write>) -> anyhow::Result<Summ
         finite &= e.as_slice().iter().all(|x| x.is_finite())
             && control.command.thrust_n.is_finite()
             && control.command.torque_frd.as_slice().iter().all(|x| x.is_finite());
-        if let Some(w) = csv.as_deref_mut() {
-            writeln!(w, "{}", csv_row(&rec, n))?;
+        if let Some(l) = &mut log {
+            l.row(&rec)?;
         }
+    }
+    if let Some(l) = log {
+        l.finish()?;
     }
     let state = core.world().plant(0).state();
     let est = core.pilot(0).control.estimate();

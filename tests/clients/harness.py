@@ -1,7 +1,15 @@
 """Start and stop a rotorpilot vehicle (the real binary) for the client tests.
 
 Standard library only, so every client venv can import it. Every wait is
-bounded. The binary is $ROTORPILOT_BIN, else target/release/rotorpilot.
+bounded. The binary, free ports and the message wait are the pip package's
+(python/rotorpilot, imported from the checkout): `binary()` is
+$ROTORPILOT_BIN, else an installed one, else $CARGO_TARGET_DIR (or
+target)/release/rotorpilot; `free_udp_port()`/`free_tcp_port()` reserve a
+port outside the ephemeral range for this process's life.
+This `Vehicle` keeps PX4 SITL's fixed instance ports (API link
+14580+N -> 14540+N), which the MAVSDK example scripts and the tests'
+`udpin://0.0.0.0:14540+N` expect, so it is not `rotorpilot.Vehicle` (whose
+client port is reserved, not fixed).
 """
 
 import os
@@ -9,20 +17,23 @@ import shutil
 import signal
 import socket
 import subprocess
+import sys
 import tempfile
 import threading
 import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
+if str(REPO / "python") not in sys.path:
+    sys.path.insert(0, str(REPO / "python"))
+from rotorpilot.messages import wait_message  # noqa: E402,F401
+from rotorpilot.vehicle import binary as _binary  # noqa: E402
+from rotorpilot.vehicle import free_tcp_port, free_udp_port, reserve_port  # noqa: E402,F401
 
 
 def binary():
-    b = os.environ.get("ROTORPILOT_BIN")
-    if b:
-        return b
-    target = os.environ.get("CARGO_TARGET_DIR", str(REPO / "target"))
-    return str(Path(target) / "release" / "rotorpilot")
+    """The rotorpilot executable (rotorpilot.binary)."""
+    return _binary()
 
 
 def udp_port_free(port, host="0.0.0.0"):
@@ -34,14 +45,6 @@ def udp_port_free(port, host="0.0.0.0"):
         return False
     finally:
         s.close()
-
-
-def free_udp_port():
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
 
 
 def free_instance():

@@ -10,7 +10,6 @@ test): `python -m pytest tests/clients/test_mavsdk3.py`.
 """
 
 import os
-import socket
 import subprocess
 import sys
 import time
@@ -20,20 +19,12 @@ import pytest
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from harness import Vehicle  # noqa: E402
+from harness import Vehicle, free_tcp_port  # noqa: E402
 
 SPEED = 5.0
 # a script written for real time also runs unchanged with the vehicle at 20x
 FAST = 20.0
 SCRIPTS = HERE / "mavsdk_examples"
-
-
-def free_tcp_port():
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
 
 
 def run_script(name, vehicle, timeout=150):

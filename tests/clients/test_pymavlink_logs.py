@@ -22,6 +22,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from harness import Vehicle  # noqa: E402
+from harness import wait_message as wait  # noqa: E402
 
 from pymavlink import mavutil  # noqa: E402
 from pyulog import ULog  # noqa: E402
@@ -48,20 +49,6 @@ RATES = {
 ON_CHANGE = ["vehicle_status", "vehicle_land_detected"]
 
 
-def wait(m, types, cond=lambda msg: True, timeout=5.0, seen=None):
-    """The first message of `types` meeting `cond`; every STATUSTEXT read on
-    the way goes into `seen`."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        msg = m.recv_match(blocking=True, timeout=min(0.5, max(0.01, deadline - time.monotonic())))
-        if msg is None:
-            continue
-        if seen is not None and msg.get_type() == "STATUSTEXT":
-            seen.append((msg.severity, msg.text))
-        want = [types] if isinstance(types, str) else types
-        if msg.get_type() in want and cond(msg):
-            return msg
-    return None
 
 
 def read_tlog(path):

@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::Duration;
 
-use mavlink::dialects::common::MavMessage;
+use mavlink::dialects::common::{MavMessage, MavParamType, PARAM_SET_DATA};
 use mavlink::{MAVLinkV1MessageRaw, MAVLinkV2MessageRaw, MavHeader, MavlinkVersion};
 use rotorpilot::daemon::{self, Config, LinkSpec};
 use rotorpilot::link::wire::{self, CommandAck, CommandInt, CommandLong, Inbound};
@@ -204,6 +204,23 @@ impl Client {
         let mut raw = MAVLinkV2MessageRaw::new();
         raw.serialize_message(self.header(), msg);
         self.sock.send_to(raw.raw_bytes(), to).await.unwrap();
+    }
+
+    /// Send PARAM_SET for `id` to system 1 (after dropping what is queued,
+    /// so that the answers read next are this set's).
+    pub async fn param_set(&mut self, to: SocketAddr, id: &str, value: f32, kind: MavParamType) {
+        self.drain().await;
+        self.send(
+            to,
+            &MavMessage::PARAM_SET(PARAM_SET_DATA {
+                param_value: value,
+                target_system: 1,
+                target_component: 0,
+                param_id: id.into(),
+                param_type: kind,
+            }),
+        )
+        .await;
     }
 
     /// Send a MAVLink 1 message.

@@ -39,11 +39,6 @@ def run_inner(pytester, source, *args):
     return pytester.runpytest_subprocess("-p", "no:cacheprovider", *plugin_args(), *args, timeout=120)
 
 
-def records_replay():
-    """Whether this binary writes flight records (it has `rotorpilot replay`)."""
-    return subprocess.run([binary(), "replay", "--help"], capture_output=True).returncode == 0
-
-
 FAILING = """
 def test_fails(rotorpilot_vehicle):
     assert rotorpilot_vehicle.proc.poll() is None
@@ -70,12 +65,15 @@ def test_a_failed_test_keeps_its_record_and_says_where(pytester, tmp_path, xdist
     assert os.path.isdir(where) and where.startswith(str(base)), out
     # exactly one vehicle directory is left: the passing test's was deleted
     assert len(os.listdir(base)) == 1, os.listdir(base)
-    assert "test_fails" in out.split("rotorpilot: ")[-1] or xdist
-    if records_replay():
-        assert os.path.isfile(os.path.join(where, "flight.record")), os.listdir(where)
-        assert f"replay with `rotorpilot replay {where}/flight.record`" in out, out
-    else:  # a binary from before flight records: the logs are still kept and named
-        assert "rotorpilot: logs kept in" in out or "flight record kept in" in out
+    # the terminal summary names the failed test beside its directory, under xdist too
+    summary = out.split("= rotorpilot =")[-1]
+    assert re.search(rf"kept in {re.escape(where)} .*\(test_inner.py::test_fails\)", summary), out
+    # the flight record is kept, named, and replays
+    record = os.path.join(where, "flight.record")
+    assert os.path.isfile(record), os.listdir(where)
+    assert f"replay with `rotorpilot replay {record}`" in out, out
+    replay = subprocess.run([binary(), "replay", record], capture_output=True, text=True, timeout=120)
+    assert replay.returncode == 0, replay.stdout + replay.stderr
 
 
 def test_a_passing_run_leaves_nothing_and_keep_always_keeps(pytester, tmp_path):
@@ -163,3 +161,71 @@ def test_the_installed_package_runs_its_own_executable():
     assert rotorpilot.__version__ == version
     if not os.environ.get("ROTORPILOT_BIN"):
         assert binary() == os.path.join(sysconfig.get_path("scripts"), "rotorpilot")
+
+
+MARKERS = """
+import pytest
+pytestmark = pytest.mark.rotorpilot(speed=10, airframe="hexa")
+
+@pytest.mark.rotorpilot(params={"MIS_TAKEOFF_ALT": 6.0}, airframe="octo")
+def test_merged(rotorpilot_vehicle):
+    v = rotorpilot_vehicle
+    # speed from the module's marker, params from the function's, airframe: the closest wins
+    assert (v.speed, v.params, v.airframe) == (10.0, {"MIS_TAKEOFF_ALT": 6.0}, "octo")
+
+def test_module_only(rotorpilot_vehicle):
+    assert (rotorpilot_vehicle.speed, rotorpilot_vehicle.airframe) == (10.0, "hexa")
+
+@pytest.mark.rotorpilot(speed=5)
+def test_factory_first(rotorpilot_vehicles):
+    v = rotorpilot_vehicles(speed=20)
+    assert (v.speed, v.airframe) == (20.0, "hexa")
+"""
+
+
+def test_marker_options_merge_across_function_and_module(pytester, tmp_path):
+    r = run_inner(pytester, MARKERS, "--rotorpilot-log-dir", str(tmp_path), "--rotorpilot-speed", "2")
+    r.assert_outcomes(passed=3)
+
+
+def test_keep_never_deletes_a_vehicle_that_failed_to_start(pytester, tmp_path):
+    src = "def test_x(rotorpilot_vehicle):\n    pass\n"
+    for keep, left in (("never", 0), ("failed", 1)):
+        base = tmp_path / keep
+        r = run_inner(pytester, src, "--rotorpilot-airframe", "no-such-frame", "--rotorpilot-log-dir", str(base),
+                      "--rotorpilot-keep", keep)
+        r.assert_outcomes(errors=1)
+        assert len(os.listdir(base)) == left, (keep, os.listdir(base))
+        out = r.stdout.str()
+        if left:
+            where = os.path.join(base, os.listdir(base)[0])
+            assert f"kept in {where}" in out, out
+        else:
+            assert f"kept in {base}" not in out and "directory is deleted" in out, out
+
+
+STOP_FAILS = """
+import pytest
+from rotorpilot import VehicleError
+
+def test_x(rotorpilot_vehicles):
+    a, b = rotorpilot_vehicles(speed=10), rotorpilot_vehicles(speed=10)
+    real_stop = a.stop
+    def stop(timeout=5.0):
+        real_stop(timeout)
+        raise VehicleError("a could not be stopped (on purpose)")
+    a.stop = stop
+    with open("pids", "w") as f:
+        f.write(f"{a.proc.pid} {b.proc.pid}")
+"""
+
+
+def test_a_vehicle_that_cannot_be_stopped_does_not_stop_the_teardown(pytester, tmp_path):
+    base = tmp_path / "v"
+    r = run_inner(pytester, STOP_FAILS, "--rotorpilot-log-dir", str(base), "--rotorpilot-keep", "never")
+    r.assert_outcomes(passed=1, errors=1)
+    assert "a could not be stopped (on purpose)" in r.stdout.str()
+    pids = [int(p) for p in (pytester.path / "pids").read_text().split()]
+    for pid in pids:  # both were stopped (reaped), the second one after the first's stop raised
+        assert not os.path.exists(f"/proc/{pid}") or "zombie" in open(f"/proc/{pid}/status").read().lower()
+    assert os.listdir(base) == []

@@ -15,6 +15,8 @@ from mavsdk import System
 from mavsdk.mission import MissionItem, MissionPlan
 from pymavlink import mavutil
 
+from rotorpilot import wait_message
+
 M_PER_DEG = 111_195.0  # metres per degree of latitude
 
 
@@ -71,9 +73,9 @@ def test_mavsdk3_takeoff_mission_land(rotorpilot_vehicle):
     asyncio.run(asyncio.wait_for(fly(), 180))
 
 
-def recv(m, kind, condition=None, timeout=10.0):
-    msg = m.recv_match(type=kind, condition=condition, blocking=True, timeout=timeout)
-    assert msg is not None, f"no {kind} with {condition} within {timeout} s"
+def recv(m, kind, cond=None, timeout=10.0):
+    msg = wait_message(m, kind, cond, timeout)
+    assert msg is not None, f"no {kind} meeting the condition within {timeout} s"
     return msg
 
 
@@ -84,13 +86,13 @@ def test_pymavlink_arm_takeoff_land(rotorpilot_vehicle):
     assert hb is not None and m.target_system == rotorpilot_vehicle.system_id
 
     m.arducopter_arm()
-    recv(m, "HEARTBEAT", "HEARTBEAT.base_mode & 128", 5)
+    recv(m, "HEARTBEAT", lambda h: h.base_mode & 128, 5)
     m.mav.command_long_send(m.target_system, 1, mavutil.mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 0, 0)
-    recv(m, "COMMAND_ACK", f"COMMAND_ACK.command == {mavutil.mavlink.MAV_CMD_NAV_TAKEOFF} and COMMAND_ACK.result == 0")
-    recv(m, "GLOBAL_POSITION_INT", "GLOBAL_POSITION_INT.relative_alt > 2000", 30)
+    recv(m, "COMMAND_ACK", lambda a: a.command == mavutil.mavlink.MAV_CMD_NAV_TAKEOFF and a.result == 0)
+    recv(m, "GLOBAL_POSITION_INT", lambda g: g.relative_alt > 2000, 30)
 
     m.mav.command_long_send(m.target_system, 1, mavutil.mavlink.MAV_CMD_NAV_LAND, 0, 0, 0, 0, 0, 0, 0, 0)
-    recv(m, "EXTENDED_SYS_STATE", "EXTENDED_SYS_STATE.landed_state == 4", 10)  # landing
+    recv(m, "EXTENDED_SYS_STATE", lambda e: e.landed_state == 4, 10)  # landing
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:  # PX4 disarms itself after touchdown
         hb = recv(m, "HEARTBEAT")

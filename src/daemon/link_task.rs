@@ -7,7 +7,7 @@
 //! command that silenced it, and keeps receiving.
 
 use std::net::SocketAddr;
-use std::sync::mpsc::{SyncSender, TrySendError};
+use std::sync::mpsc::TrySendError;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
@@ -32,7 +32,7 @@ pub(super) struct LinkTask {
     pub(super) tel: watch::Receiver<Snapshot>,
     /// The world's radio is silent: send nothing.
     pub(super) link_lost: watch::Receiver<bool>,
-    pub(super) sim: SyncSender<SimRequest>,
+    pub(super) sim: super::inbox::InboxSender<SimRequest>,
     pub(super) events: broadcast::Sender<Event>,
     pub(super) events_rx: broadcast::Receiver<Event>,
     pub(super) save: Arc<Notify>,

@@ -33,10 +33,15 @@ pub(super) fn ready_to_arm(snapshot: &Snapshot) -> bool {
 
 /// Watch the telemetry until the vehicle is first ready to arm, print the
 /// line (flushed) and end; end silently at shutdown.
-pub(super) async fn announce(started: Instant, mut tel: watch::Receiver<Snapshot>, mut stop: watch::Receiver<bool>) {
+pub(super) async fn announce(
+    started: Instant,
+    mut tels: Vec<watch::Receiver<Snapshot>>,
+    mut stop: watch::Receiver<bool>,
+) {
     loop {
-        let ready = ready_to_arm(&tel.borrow_and_update());
-        if ready {
+        // the first vehicle not ready yet (a fleet is ready when every vehicle is)
+        let waiting = tels.iter_mut().position(|t| !ready_to_arm(&t.borrow_and_update()));
+        let Some(i) = waiting else {
             let mut out = std::io::stdout().lock();
             // a closed stdout (the starter went away) is no reason to stop the vehicle
             let _ = writeln!(
@@ -46,9 +51,9 @@ pub(super) async fn announce(started: Instant, mut tel: watch::Receiver<Snapshot
             );
             let _ = out.flush();
             return;
-        }
+        };
         tokio::select! {
-            changed = tel.changed() => if changed.is_err() { return },
+            changed = tels[i].changed() => if changed.is_err() { return },
             _ = stop.changed() => return,
         }
     }

@@ -16,7 +16,7 @@ use anyhow::Context as _;
 use tracing::warn;
 
 use super::saver::lock;
-use super::sim_thread::{Sim, VEHICLE};
+use super::sim_thread::Sim;
 use crate::airframe::Airframe;
 use crate::autopilot::{Autopilot, AutopilotCommand, AutopilotError, ClientTimer, CommandOutcome};
 use crate::geo::GeoPoint;
@@ -34,6 +34,8 @@ pub(super) const CSV_FILE: &str = "flight.csv";
 
 /// Writes the run's record and CSV.
 pub(super) struct Recorder {
+    /// The vehicle recorded (its index in the fleet).
+    vehicle: usize,
     record: Option<LineFile<File>>,
     csv: Option<CsvLog<BufWriter<File>>>,
     /// The core's step count as last seen (for the end line).
@@ -49,7 +51,7 @@ impl std::fmt::Debug for Recorder {
 }
 
 impl Recorder {
-    /// Start the record in `dir` with the header of `core` at step 0, built
+    /// Start vehicle `vehicle`'s record in `dir` with the header of `core` at step 0, built
     /// with `sensors` (the value bind built `core` with: one source) (and
     /// the CSV with its header line when `csv`). The header is checked by
     /// rebuilding a core from it: a header that would not replay stops the start.
@@ -64,9 +66,11 @@ impl Recorder {
         params: &ParamStore,
         sensors: SensorConfig,
         core: &mut Lockstep<Autopilot>,
+        vehicle: usize,
         csv: bool,
     ) -> anyhow::Result<Self> {
-        let ap = core.pilot(VEHICLE);
+        const VEHICLE: usize = 0;
+        let ap = core.pilot(vehicle);
         let header = Header::new(
             Airframe::load_text(airframe)?,
             home,
@@ -82,7 +86,7 @@ impl Recorder {
         anyhow::ensure!(
             core.steps() == 0
                 // as Debug text: a NaN in the telemetry equals itself there
-                && format!("{:?}", rebuilt.snapshot(VEHICLE)) == format!("{:?}", core.snapshot(VEHICLE))
+                && format!("{:?}", rebuilt.snapshot(VEHICLE)) == format!("{:?}", core.snapshot(vehicle))
                 && rebuilt_params.iter().eq(params.iter()),
             "the flight record's header does not rebuild the vehicle as it starts"
         );
@@ -92,7 +96,7 @@ impl Recorder {
         record
             .append(&header_line(&header)?)
             .with_context(|| format!("writing {}", path.display()))?;
-        let rotors = core.pilot(VEHICLE).airframe().rotor_count();
+        let rotors = core.pilot(vehicle).airframe().rotor_count();
         let csv = if csv {
             let path = dir.join(CSV_FILE);
             let f = create_csv_file(&path).map_err(|e| anyhow::anyhow!("--log-csv: {e}"))?;
@@ -101,6 +105,7 @@ impl Recorder {
             None
         };
         Ok(Self {
+            vehicle,
             record: Some(record),
             csv,
             steps: 0,
@@ -111,7 +116,7 @@ impl Recorder {
     pub(super) fn after_step(&mut self, core: &Lockstep<Autopilot>) {
         self.steps = core.steps();
         if let Some(l) = &mut self.csv
-            && let Err(e) = l.step_row(core, VEHICLE)
+            && let Err(e) = l.step_row(core, self.vehicle)
         {
             warn!(error = %e, "cannot write {CSV_FILE}; the CSV stops here");
             self.csv = None;
@@ -196,31 +201,33 @@ impl Drop for Recorder {
 }
 
 impl Sim {
-    /// Apply one input to the core at the current instant (between steps),
-    /// recording it when recording: the only way inputs reach the core.
-    pub(super) fn apply(&mut self, input: Input) -> Applied {
+    /// Apply one input to vehicle `v` at the current instant (between
+    /// steps), recording it in its record when recording: the only way
+    /// inputs reach the core.
+    pub(super) fn apply(&mut self, v: usize, input: Input) -> Applied {
         let step = self.core.steps();
+        let io = &mut self.vehicles[v];
         let applied = {
-            let mut p = lock(&self.params);
-            crate::record::apply(&mut self.core, VEHICLE, &mut p, &input)
+            let mut p = lock(&io.params);
+            crate::record::apply(&mut self.core, v, &mut p, &input)
         };
-        if let Some(r) = &mut self.recorder {
+        if let Some(r) = &mut io.recorder {
             r.input(step, &input, &applied);
         }
         applied
     }
 
     /// [`Self::apply`] a command.
-    pub(super) fn command(&mut self, command: AutopilotCommand) -> CommandOutcome {
-        match self.apply(Input::Command(command)) {
+    pub(super) fn command(&mut self, v: usize, command: AutopilotCommand) -> CommandOutcome {
+        match self.apply(v, Input::Command(command)) {
             Applied::Command(o) => o,
             other => unreachable!("a command answered {other:?}"),
         }
     }
 
     /// [`Self::apply`] a parameter set.
-    pub(super) fn set_param(&mut self, name: &str, value: ParamValue) -> Result<ParamValue, String> {
-        match self.apply(Input::SetParam {
+    pub(super) fn set_param(&mut self, v: usize, name: &str, value: ParamValue) -> Result<ParamValue, String> {
+        match self.apply(v, Input::SetParam {
             name: name.to_string(),
             value,
         }) {
@@ -230,38 +237,41 @@ impl Sim {
     }
 
     /// [`Self::apply`] a plan change.
-    pub(super) fn change_plans(&mut self, change: PlanChange) -> Result<u32, MissionResult> {
-        match self.apply(Input::ChangePlans(change)) {
+    pub(super) fn change_plans(&mut self, v: usize, change: PlanChange) -> Result<u32, MissionResult> {
+        match self.apply(v, Input::ChangePlans(change)) {
             Applied::Plans(r) => r,
             other => unreachable!("a plan change answered {other:?}"),
         }
     }
 
     /// [`Self::apply`] a ground station's heartbeat.
-    pub(super) fn gcs_heartbeat(&mut self) {
-        self.apply(Input::GcsHeartbeat);
+    pub(super) fn gcs_heartbeat(&mut self, v: usize) {
+        self.apply(v, Input::GcsHeartbeat);
     }
 
     /// [`Self::apply`] a client timer's expiry on the wall clock.
-    pub(super) fn client_timeout(&mut self, timer: ClientTimer, started_s: f64) -> bool {
-        match self.apply(Input::ClientTimeout { timer, started_s }) {
+    pub(super) fn client_timeout(&mut self, v: usize, timer: ClientTimer, started_s: f64) -> bool {
+        match self.apply(v, Input::ClientTimeout { timer, started_s }) {
             Applied::ClientTimeout(b) => b,
             other => unreachable!("a client timeout answered {other:?}"),
         }
     }
 
     /// [`Self::apply`] a reboot from the parameters in force.
-    pub(super) fn reboot_core(&mut self) -> Result<(), AutopilotError> {
-        match self.apply(Input::Reboot) {
+    pub(super) fn reboot_core(&mut self, v: usize) -> Result<(), AutopilotError> {
+        match self.apply(v, Input::Reboot) {
             Applied::Reboot(r) => r,
             other => unreachable!("a reboot answered {other:?}"),
         }
     }
 
-    /// After each step (the CSV row).
+    /// After each step: every vehicle's CSV row and ULog topics.
     pub(super) fn after_step(&mut self) {
-        if let Some(r) = &mut self.recorder {
-            r.after_step(&self.core);
+        for io in &mut self.vehicles {
+            if let Some(r) = &mut io.recorder {
+                r.after_step(&self.core);
+            }
+            super::ulog_file::after_step(&mut io.ulog, &mut self.core);
         }
     }
 }

@@ -227,7 +227,7 @@ mod tests {
             inbox.recv_timeout(Duration::from_millis(1)),
             Err(RecvTimeoutError::Disconnected)
         ));
-        let inbox = inbox::<u32>(1);
+        let inbox = super::inbox::<u32>(1);
         let a = inbox.sender(0);
         assert!(matches!(
             inbox.recv_timeout(Duration::from_millis(1)),

@@ -258,6 +258,22 @@ pub struct Lockstep<P> {
 /// Pilot status texts kept per vehicle until drained (the autopilot's own queue's size).
 const PILOT_TEXTS_KEPT: usize = 64;
 
+/// What a vehicle is told when `other` (its label) came `kind` at `distance_m`:
+/// a warning when near, critical when touching.
+#[must_use]
+pub fn proximity_text(kind: ProximityKind, other: &str, distance_m: f64) -> StatusText {
+    match kind {
+        ProximityKind::Near => StatusText {
+            severity: Severity::Warning,
+            text: format!("Proximity: {other} at {distance_m:.1} m"),
+        },
+        ProximityKind::Collision => StatusText {
+            severity: Severity::Critical,
+            text: format!("Collision with {other} ({distance_m:.2} m)"),
+        },
+    }
+}
+
 /// Move `pilot`'s queued status texts to `q`, stamped with `t_s`, keeping
 /// the latest [`PILOT_TEXTS_KEPT`].
 fn stamp_texts<P: Pilot>(q: &mut VecDeque<(f64, StatusText)>, pilot: &mut P, t_s: f64) {
@@ -338,6 +354,20 @@ impl<P: Pilot> Lockstep<P> {
         }
     }
 
+    /// Vehicle `i`'s label in proximity texts ([`Self::set_labels`]).
+    #[must_use]
+    pub fn label(&self, i: usize) -> &str {
+        &self.labels[i]
+    }
+
+    /// Announce `text` to vehicle `i` at the current instant, as the world
+    /// announces its own events (a replay re-telling a proximity event that
+    /// another vehicle of the live fleet caused).
+    pub fn announce(&mut self, i: usize, text: StatusText) {
+        let t = self.time_s();
+        self.world_texts[i].push((t, text));
+    }
+
     /// The proximity events since the last call, oldest first, each with the
     /// simulated time [s] after the step that raised it.
     pub fn drain_proximity_events(&mut self) -> Vec<(f64, ProximityEvent)> {
@@ -364,16 +394,7 @@ impl<P: Pilot> Lockstep<P> {
         let t = self.world.time_s();
         for e in events {
             for (me, other) in [(e.a, e.b), (e.b, e.a)] {
-                let text = match e.kind {
-                    ProximityKind::Near => StatusText {
-                        severity: Severity::Warning,
-                        text: format!("Proximity: {} at {:.1} m", self.labels[other], e.distance_m),
-                    },
-                    ProximityKind::Collision => StatusText {
-                        severity: Severity::Critical,
-                        text: format!("Collision with {} ({:.2} m)", self.labels[other], e.distance_m),
-                    },
-                };
+                let text = proximity_text(e.kind, &self.labels[other], e.distance_m);
                 self.world_texts[me].push((t, text));
             }
             if self.proximity_events.len() >= EVENTS_KEPT {

@@ -13,7 +13,7 @@ use std::io::{BufWriter, Write};
 use std::path::Path;
 
 use anyhow::Context as _;
-use tracing::warn;
+use tracing::{info, warn};
 
 use super::saver::lock;
 use super::sim_thread::Sim;
@@ -262,6 +262,31 @@ impl Sim {
         match self.apply(v, Input::Reboot) {
             Applied::Reboot(r) => r,
             other => unreachable!("a reboot answered {other:?}"),
+        }
+    }
+
+    /// Record the proximity events the core raised since the last call in
+    /// both vehicles' records (the core announced them itself: recorded,
+    /// not applied; a replay applies them). Called after every chunk of
+    /// steps, before the requests waiting are served, so that the record's
+    /// lines stay in step order.
+    pub(super) fn record_proximity(&mut self) {
+        let events = self.core.drain_proximity_events();
+        let dt = self.core.dt_s();
+        for (t, e) in events {
+            // raised after the step that ended at t: before step t/dt runs
+            let step = (t / dt).round() as u64;
+            for (me, other) in [(e.a, e.b), (e.b, e.a)] {
+                info!(vehicle = me, other = %self.core.label(other), kind = e.kind.name(), distance_m = e.distance_m, "proximity");
+                if let Some(r) = &mut self.vehicles[me].recorder {
+                    let input = Input::Proximity {
+                        other: self.core.label(other).to_string(),
+                        kind: e.kind,
+                        distance_m: e.distance_m,
+                    };
+                    r.input(step, &input, &Applied::Announced);
+                }
+            }
         }
     }
 

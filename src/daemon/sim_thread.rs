@@ -145,6 +145,7 @@ impl Sim {
                 }
                 steps += n;
                 due -= n;
+                self.record_proximity();
                 // the requests waiting now, round robin (what comes in
                 // meanwhile waits for the next look)
                 for _ in 0..rx.len() {

@@ -25,7 +25,7 @@ use nalgebra::Vector3;
 pub const HYSTERESIS: f64 = 1.1;
 
 /// How close two vehicles came.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ProximityKind {
     /// Closer than the reporting distance.

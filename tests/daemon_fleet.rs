@@ -1,0 +1,218 @@
+//! A fleet in one process, in-process on loopback (`daemon::bind_fleet`):
+//! each vehicle answers with its own system id on its own links, a command
+//! moves only the vehicle it was sent to, proximity and collisions reach both
+//! vehicles' links, and a client flooding one vehicle does not stall another.
+
+mod daemon_common;
+
+use std::net::SocketAddr;
+use std::time::Duration;
+
+use daemon_common::*;
+use mavlink::dialects::common::MavMessage;
+use nalgebra::Vector3;
+use rotorpilot::daemon::{self, FleetConfig, LinkSpec};
+use rotorpilot::geo::GeoPoint;
+use tokio::sync::oneshot;
+use tokio::task::JoinHandle;
+use tokio::time::{Instant, timeout};
+
+/// A running in-process fleet.
+struct Fleet {
+    /// Each vehicle's (GCS, API) link address.
+    links: Vec<(SocketAddr, SocketAddr)>,
+    stop: Option<oneshot::Sender<()>>,
+    handle: Option<JoinHandle<anyhow::Result<()>>>,
+    dirs: Vec<std::path::PathBuf>,
+}
+
+impl Fleet {
+    /// `n` vehicles (instances 0..n), vehicle i spawned `spacing_m` x i north
+    /// of PX4's home; every GCS link sends to `gcs`.
+    async fn start(n: u8, spacing_m: f64, speed: f64, gcs: SocketAddr) -> Fleet {
+        let origin = GeoPoint::PX4_SITL_HOME;
+        let vehicles: Vec<_> = (0..n)
+            .map(|i| {
+                let mut c = config(Some(gcs), None, speed);
+                c.instance = i;
+                c.links = vec![
+                    LinkSpec {
+                        bind: "127.0.0.1:0".parse().unwrap(),
+                        remote: Some(gcs),
+                        ..LinkSpec::px4_gcs(i)
+                    },
+                    LinkSpec {
+                        bind: "127.0.0.1:0".parse().unwrap(),
+                        remote: None,
+                        ..LinkSpec::px4_api(i)
+                    },
+                ];
+                c.home = origin.offset(&Vector3::new(spacing_m * f64::from(i), 0.0, 0.0));
+                c
+            })
+            .collect();
+        let dirs = vehicles.iter().map(|c| c.state_dir.clone()).collect();
+        let d = daemon::bind_fleet(FleetConfig {
+            vehicles,
+            origin,
+            proximity_m: 2.0,
+        })
+        .await
+        .expect("bind the fleet");
+        let links = (0..usize::from(n))
+            .map(|i| {
+                let a = d.vehicle_addrs(i);
+                (a[0].1, a[1].1)
+            })
+            .collect();
+        let (tx, rx) = oneshot::channel::<()>();
+        let handle = tokio::spawn(d.run(async move {
+            let _ = rx.await;
+        }));
+        Fleet {
+            links,
+            stop: Some(tx),
+            handle: Some(handle),
+            dirs,
+        }
+    }
+
+    async fn stop(mut self) {
+        if let Some(s) = self.stop.take() {
+            let _ = s.send(());
+        }
+        if let Some(h) = self.handle.take() {
+            timeout(Duration::from_secs(10), h)
+                .await
+                .expect("the fleet stops")
+                .expect("join")
+                .expect("fleet result");
+        }
+    }
+}
+
+impl Drop for Fleet {
+    fn drop(&mut self) {
+        if let Some(s) = self.stop.take() {
+            let _ = s.send(());
+        }
+        for d in &self.dirs {
+            let _ = std::fs::remove_dir_all(d);
+        }
+    }
+}
+
+/// The latest GLOBAL_POSITION_INT of system `sysid` within `wait`.
+async fn position(c: &mut Client, sysid: u8, wait: Duration) -> (f64, bool) {
+    let mut armed = None;
+    let mut alt = None;
+    let deadline = Instant::now() + wait;
+    while alt.is_none() || armed.is_none() {
+        let left = deadline.checked_duration_since(Instant::now()).expect("telemetry in time");
+        let rx = c.recv(left).await.expect("telemetry");
+        if rx.sysid != sysid {
+            continue;
+        }
+        match &rx.msg {
+            Some(MavMessage::GLOBAL_POSITION_INT(p)) => alt = Some(f64::from(p.relative_alt) / 1000.0),
+            Some(MavMessage::HEARTBEAT(h)) => {
+                armed = Some(h.base_mode.bits() & 0x80 != 0);
+            }
+            _ => {}
+        }
+    }
+    (alt.unwrap(), armed.unwrap())
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn each_vehicle_is_its_own_system_and_only_the_one_commanded_flies() {
+    let mut gcs = Client::with_ids(255, 190).await;
+    let fleet = Fleet::start(3, 3.0, 5.0, gcs.addr()).await;
+    // every vehicle's heartbeat arrives with its own system id, from its own link
+    let mut seen = [false; 3];
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while seen.iter().any(|s| !s) {
+        let rx = gcs
+            .recv(deadline.saturating_duration_since(Instant::now()))
+            .await
+            .expect("heartbeats from every vehicle");
+        if let Some(MavMessage::HEARTBEAT(_)) = rx.msg {
+            let i = usize::from(rx.sysid) - 1;
+            assert_eq!(rx.from, fleet.links[i].0, "system {} speaks from its own GCS link", rx.sysid);
+            seen[i] = true;
+        }
+    }
+    // vehicle 1 (system 2) arms and takes off through its API link
+    let mut api = Client::new().await;
+    let (_, v1) = fleet.links[1];
+    api.heartbeat(v1).await;
+    wait_armable(&mut api).await;
+    api.command_long(v1, 400, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], (2, 1)).await;
+    let (rx, ack) = api.ack_of(400, Duration::from_secs(3)).await.expect("arm ACK");
+    assert_eq!((rx.sysid, ack.result), (2, 0), "system 2 armed");
+    api.command_long(v1, 22, [NAN, 0.0, 0.0, NAN, NAN, NAN, NAN], (2, 1))
+        .await;
+    let (_, ack) = api.ack_of(22, Duration::from_secs(3)).await.expect("takeoff ACK");
+    assert_eq!(ack.result, 0);
+    // a command for system 1 sent to system 2's link is not its to answer
+    api.drain().await;
+    api.command_long(v1, 400, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], (1, 1)).await;
+    assert!(
+        api.ack_of(400, Duration::from_millis(500)).await.is_none(),
+        "system 2 ignores a command for system 1"
+    );
+    // at x5, two wall seconds are ten simulated: system 2 is up, the others stay put
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    gcs.drain().await;
+    let (alt2, armed2) = position(&mut gcs, 2, Duration::from_secs(3)).await;
+    assert!(armed2 && alt2 > 2.0, "system 2 flies: armed {armed2}, {alt2:.2} m up");
+    for s in [1, 3] {
+        let (alt, armed) = position(&mut gcs, s, Duration::from_secs(3)).await;
+        assert!(!armed && alt.abs() < 0.5, "system {s} stays put: armed {armed}, {alt:.2} m");
+    }
+    fleet.stop().await;
+}
+
+/// The STATUSTEXTs of system `sysid` within `wait`.
+async fn texts(c: &mut Client, sysid: u8, wait: Duration) -> Vec<String> {
+    let mut out = Vec::new();
+    let deadline = Instant::now() + wait;
+    while let Some(rx) = c.recv(deadline.saturating_duration_since(Instant::now())).await {
+        if let (true, Some(MavMessage::STATUSTEXT(s))) = (rx.sysid == sysid, &rx.msg) {
+            let text: Vec<u8> = s.text.iter().copied().take_while(|&b| b != 0).collect();
+            out.push(String::from_utf8_lossy(&text).into_owned());
+        }
+    }
+    out
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn proximity_and_collisions_reach_both_vehicles_links() {
+    // spawned 1.5 m apart: closer than the 2 m reported, bodies apart
+    let mut gcs = Client::with_ids(255, 190).await;
+    let fleet = Fleet::start(2, 1.5, 1.0, gcs.addr()).await;
+    let t1 = texts(&mut gcs, 1, Duration::from_millis(1500)).await;
+    assert!(
+        t1.iter().any(|t| t == "Proximity: system 2 at 1.5 m"),
+        "system 1 told: {t1:?}"
+    );
+    assert!(!t1.iter().any(|t| t.starts_with("Collision")), "{t1:?}");
+    fleet.stop().await;
+    let mut gcs = Client::with_ids(255, 190).await;
+    let fleet = Fleet::start(2, 1.5, 1.0, gcs.addr()).await;
+    let t2 = texts(&mut gcs, 2, Duration::from_millis(1500)).await;
+    assert!(
+        t2.iter().any(|t| t == "Proximity: system 1 at 1.5 m"),
+        "system 2 told: {t2:?}"
+    );
+    fleet.stop().await;
+    // spawned 0.3 m apart: the quads' bodies (0.35 m radius each) overlap
+    let mut gcs = Client::with_ids(255, 190).await;
+    let fleet = Fleet::start(2, 0.3, 1.0, gcs.addr()).await;
+    let t1 = texts(&mut gcs, 1, Duration::from_millis(1500)).await;
+    assert!(
+        t1.iter().any(|t| t == "Collision with system 2 (0.30 m)"),
+        "system 1 told: {t1:?}"
+    );
+    fleet.stop().await;
+}

@@ -216,3 +216,104 @@ async fn proximity_and_collisions_reach_both_vehicles_links() {
     );
     fleet.stop().await;
 }
+
+/// The simulated time [ms] of system `sysid`'s next ATTITUDE.
+async fn boot_ms(c: &mut Client, sysid: u8) -> u32 {
+    c.wait_for(Duration::from_secs(2), |r| match &r.msg {
+        Some(MavMessage::ATTITUDE(a)) if r.sysid == sysid => Some(a.time_boot_ms),
+        _ => None,
+    })
+    .await
+    .expect("ATTITUDE")
+}
+
+/// A flood of COMMAND_LONGs and offboard setpoints on vehicle 0's API link,
+/// from a thread of its own, about 20,000 datagrams a second (twice the rate
+/// of issue 15's robustness flood; faster only fills the kernel's buffer),
+/// for `for_s` seconds; the datagrams sent.
+fn flood(to: SocketAddr, for_s: f64) -> std::thread::JoinHandle<u64> {
+    std::thread::spawn(move || {
+        use mavlink::dialects::common::{COMMAND_LONG_DATA, MavCmd, SET_POSITION_TARGET_LOCAL_NED_DATA};
+        let sock = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        let header = mavlink::MavHeader {
+            system_id: 245,
+            component_id: 190,
+            sequence: 0,
+        };
+        let frame = |m: &MavMessage| {
+            let mut raw = mavlink::MAVLinkV2MessageRaw::new();
+            raw.serialize_message(header, m);
+            raw.raw_bytes().to_vec()
+        };
+        let command = frame(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+            command: MavCmd::MAV_CMD_DO_SET_MODE,
+            param1: 1.0,
+            param2: 4.0,
+            param3: 3.0,
+            target_system: 1,
+            target_component: 1,
+            ..Default::default()
+        }));
+        let setpoint = frame(&MavMessage::SET_POSITION_TARGET_LOCAL_NED(SET_POSITION_TARGET_LOCAL_NED_DATA {
+            target_system: 1,
+            target_component: 1,
+            type_mask: mavlink::dialects::common::PositionTargetTypemask::from_bits_truncate(0x0DF8),
+            z: -2.0,
+            ..Default::default()
+        }));
+        let start = std::time::Instant::now();
+        let mut sent = 0u64;
+        while start.elapsed().as_secs_f64() < for_s {
+            let f = if sent % 2 == 0 { &command } else { &setpoint };
+            if sock.send_to(f, to).is_ok() {
+                sent += 1;
+            }
+            if sent % 100 == 0 {
+                std::thread::sleep(Duration::from_millis(5));
+            }
+        }
+        sent
+    })
+}
+
+#[tokio::test(flavor = "current_thread")]
+async fn a_client_flooding_one_vehicle_does_not_stall_another() {
+    // the links share one thread, as in `rotorpilot`
+    let gcs = Client::with_ids(255, 190).await;
+    let fleet = Fleet::start(2, 3.0, 1.0, gcs.addr()).await;
+    let (_, api0) = fleet.links[0];
+    let (_, api1) = fleet.links[1];
+    let mut c1 = Client::new().await;
+    c1.heartbeat(api1).await;
+    let t0 = boot_ms(&mut c1, 2).await;
+    let wall0 = Instant::now();
+    let flooder = flood(api0, 3.0);
+    // system 2 is commanded every 100 ms meanwhile: each answered, at once
+    let mut worst = Duration::ZERO;
+    for _ in 0..25 {
+        c1.drain().await;
+        let sent = Instant::now();
+        c1.command_long(api1, 176, [1.0, 4.0, 3.0, 0.0, 0.0, 0.0, 0.0], (2, 1)).await;
+        let (rx, _) = c1
+            .ack_of(176, Duration::from_secs(2))
+            .await
+            .expect("system 2 answers during the flood");
+        assert_eq!(rx.sysid, 2);
+        worst = worst.max(sent.elapsed());
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    c1.drain().await;
+    let t1 = boot_ms(&mut c1, 2).await;
+    let wall = wall0.elapsed().as_secs_f64();
+    let sent = tokio::task::spawn_blocking(move || flooder.join().unwrap()).await.unwrap();
+    let sim = f64::from(t1 - t0) / 1000.0;
+    eprintln!("flood: {sent} datagrams in 3 s; system 2: worst ACK {worst:?}, {sim:.2} s simulated in {wall:.2} s");
+    assert!(sent > 10_000, "the flood was a flood: {sent} datagrams");
+    assert!(worst < Duration::from_millis(250), "worst ACK {worst:?}");
+    assert!(sim > 0.9 * wall - 0.2, "system 2's clock kept pace: {sim:.2} s in {wall:.2} s");
+    // and the flooded vehicle still answers afterwards
+    let mut c0 = Client::new().await;
+    c0.command_long(api0, 176, [1.0, 4.0, 3.0, 0.0, 0.0, 0.0, 0.0], (1, 1)).await;
+    assert!(c0.ack_of(176, Duration::from_secs(2)).await.is_some());
+    fleet.stop().await;
+}

@@ -6,6 +6,7 @@
 mod daemon_common;
 
 use std::net::SocketAddr;
+use std::path::Path;
 use std::time::Duration;
 
 use daemon_common::*;
@@ -30,6 +31,11 @@ impl Fleet {
     /// `n` vehicles (instances 0..n), vehicle i spawned `spacing_m` x i north
     /// of PX4's home; every GCS link sends to `gcs`.
     async fn start(n: u8, spacing_m: f64, speed: f64, gcs: SocketAddr) -> Fleet {
+        Self::start_logged(n, spacing_m, speed, gcs, None).await
+    }
+
+    /// [`Self::start`], each vehicle logging below `logs` (with the CSV).
+    async fn start_logged(n: u8, spacing_m: f64, speed: f64, gcs: SocketAddr, logs: Option<&Path>) -> Fleet {
         let origin = GeoPoint::PX4_SITL_HOME;
         let vehicles: Vec<_> = (0..n)
             .map(|i| {
@@ -48,6 +54,8 @@ impl Fleet {
                     },
                 ];
                 c.home = origin.offset(&Vector3::new(spacing_m * f64::from(i), 0.0, 0.0));
+                c.log_dir = logs.map(Path::to_path_buf);
+                c.log_csv = logs.is_some();
                 c
             })
             .collect();
@@ -316,4 +324,47 @@ async fn a_client_flooding_one_vehicle_does_not_stall_another() {
     c0.command_long(api0, 176, [1.0, 4.0, 3.0, 0.0, 0.0, 0.0, 0.0], (1, 1)).await;
     assert!(c0.ack_of(176, Duration::from_secs(2)).await.is_some());
     fleet.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn each_vehicle_of_a_fleet_replays_alone_bit_for_bit_proximity_included() {
+    let logs = state_dir("fleet-logs");
+    let gcs = Client::with_ids(255, 190).await;
+    // 1.5 m apart: a proximity event at the first step, for both
+    let fleet = Fleet::start_logged(2, 1.5, 10.0, gcs.addr(), Some(&logs)).await;
+    let (_, api1) = fleet.links[1];
+    let mut c = Client::new().await;
+    c.heartbeat(api1).await;
+    wait_armable(&mut c).await;
+    c.command_long(api1, 400, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], (2, 1)).await;
+    assert_eq!(c.ack_of(400, Duration::from_secs(3)).await.expect("arm").1.result, 0);
+    c.command_long(api1, 22, [NAN, 0.0, 0.0, NAN, NAN, NAN, NAN], (2, 1)).await;
+    assert_eq!(c.ack_of(22, Duration::from_secs(3)).await.expect("takeoff").1.result, 0);
+    tokio::time::sleep(Duration::from_millis(800)).await;
+    fleet.stop().await;
+    let mut runs: Vec<_> = std::fs::read_dir(&logs).unwrap().map(|e| e.unwrap().path()).collect();
+    runs.sort();
+    assert_eq!(runs.len(), 2, "a run directory per vehicle: {runs:?}");
+    for (i, run) in runs.iter().enumerate() {
+        assert!(
+            run.to_string_lossy().ends_with(&format!("-i{i}")),
+            "{} is vehicle {i}'s",
+            run.display()
+        );
+        let text = std::fs::read_to_string(run.join("flight.record")).unwrap();
+        let other = 2 - i;
+        assert!(
+            text.lines().any(|l| l.contains("\"proximity\":")
+                && l.contains(&format!("\"other\":\"system {other}\""))
+                && l.contains("\"kind\":\"near\"")),
+            "vehicle {i}'s record holds the proximity event"
+        );
+        let r = rotorpilot::record::read_record(&text, "flight.record").unwrap();
+        let mut csv = Vec::new();
+        rotorpilot::record::replay(&r, "flight.record", Some(&mut csv)).unwrap();
+        let live = std::fs::read(run.join("flight.csv")).unwrap();
+        assert!(live.len() > 1000);
+        assert!(csv == live, "vehicle {i}: the replay's CSV is the live flight.csv, byte for byte");
+    }
+    let _ = std::fs::remove_dir_all(&logs);
 }

@@ -193,6 +193,12 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
             format!("vehicle instance {}: ", c.instance)
         }
     };
+    // two vehicles on one instance would share ports, system id and state
+    let mut instances: Vec<u8> = configs.iter().map(|c| c.instance).collect();
+    instances.sort_unstable();
+    if let Some(w) = instances.windows(2).find(|w| w[0] == w[1]) {
+        anyhow::bail!("two vehicles of the fleet are instance {}", w[0]);
+    }
     let mut airframes = Vec::with_capacity(configs.len());
     let mut stores = Vec::with_capacity(configs.len());
     for c in &configs {

@@ -97,6 +97,22 @@ impl Sim {
     /// The simulation loop (on its own thread) until [`SimRequest::Stop`] or
     /// every sender is gone.
     pub(super) fn run(mut self, rx: &Inbox<SimRequest>) {
+        let wall = Instant::now();
+        let steps = self.core.steps();
+        self.run_loop(rx);
+        // how fast it went, for the log (a fleet's user wants its real-time factor)
+        let simulated_s = (self.core.steps() - steps) as f64 * self.core.dt_s();
+        let wall_s = wall.elapsed().as_secs_f64();
+        info!(
+            vehicles = self.vehicles.len(),
+            simulated_s,
+            wall_s,
+            real_time_factor = simulated_s / wall_s.max(1e-9),
+            "simulation stopped"
+        );
+    }
+
+    fn run_loop(&mut self, rx: &Inbox<SimRequest>) {
         let dt = self.core.dt_s();
         let vehicles = self.vehicles.len().max(1) as u64;
         let chunk = (CHUNK_VEHICLE_STEPS / vehicles).max(1);

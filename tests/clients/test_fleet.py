@@ -108,14 +108,18 @@ class Board:
 
     def take(self, data, addr):
         # the GCS link streams ~270 messages/s per vehicle, most of them
-        # attitude and position at 50 Hz: decode only the few read here
-        # (MAVLink 2 header: message id in bytes 7..9)
-        if len(data) < 12 or data[0] != 0xFD or data[8] or data[9] or data[7] not in WANTED:
-            return
-        try:
-            msgs = self.m.mav.parse_buffer(data) or []
-        except mavlink.MAVError:
-            return
+        # attitude and position at 50 Hz, several frames to a datagram (as
+        # PX4 packs them): decode only the frames read here (MAVLink 2: the
+        # payload length in byte 1, the message id in bytes 7..9)
+        msgs, k = [], 0
+        while k + 12 <= len(data) and data[k] == 0xFD:
+            end = k + 12 + data[k + 1] + (13 if data[k + 2] & 1 else 0)
+            if data[k + 7] in WANTED and not data[k + 8] and not data[k + 9]:
+                try:
+                    msgs += self.m.mav.parse_buffer(data[k:end]) or []
+                except mavlink.MAVError:
+                    pass
+            k = end
         now = time.monotonic()
         with self.lock:
             for msg in msgs:

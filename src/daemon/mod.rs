@@ -37,6 +37,7 @@
 //! exits. Both are refused while armed (the autopilot decides).
 
 mod config;
+mod fleet;
 mod link_task;
 mod logs;
 mod ready;
@@ -47,6 +48,7 @@ mod tlog;
 mod ulog_file;
 
 pub use config::{Config, LinkSpec, parse_home, resolve};
+pub use fleet::{DEFAULT_PROXIMITY_M, DEFAULT_STATE_ROOT, FLEET_SPACING_M, FleetConfig, FleetOptions, MAX_INSTANCE, Remote};
 
 use std::future::Future;
 use std::net::SocketAddr;

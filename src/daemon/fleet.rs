@@ -538,3 +538,341 @@ struct RawVehicle {
     params: Option<std::collections::BTreeMap<Spanned<String>, Spanned<Value>>>,
     count: Option<Spanned<i64>>,
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The options of a bare command line (`rotorpilot --fleet F`).
+    fn opts() -> FleetOptions {
+        FleetOptions {
+            base: Config::px4_sitl(0),
+            gcs_remote: Remote::Px4,
+            api_remote: Remote::Px4,
+            state_root: PathBuf::from(DEFAULT_STATE_ROOT),
+            home: None,
+            proximity_m: None,
+        }
+    }
+
+    fn fixture(name: &str) -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/fleets").join(name)
+    }
+
+    /// The error of fleet TOML `text` (labelled `f.toml`), as printed.
+    fn error(text: &str) -> String {
+        FleetConfig::from_toml(text, "f.toml", Path::new(""), &opts())
+            .map(|f| format!("accepted: {} vehicles", f.vehicles.len()))
+            .unwrap_or_else(|e| e.to_string())
+    }
+
+    /// NED [m] of a vehicle's spawn point from the fleet's origin.
+    fn spawn(f: &FleetConfig, i: usize) -> Vector3<f64> {
+        f.vehicles[i].home.ned_from(&f.origin)
+    }
+
+    #[test]
+    fn a_file_with_two_groups_gives_each_vehicle_its_instance_ports_home_and_state() {
+        let f = FleetConfig::from_file(&fixture("two-groups.toml"), &opts()).unwrap();
+        let instances: Vec<u8> = f.vehicles.iter().map(|c| c.instance).collect();
+        assert_eq!(instances, [0, 1, 2, 3, 10, 11]);
+        let ids: Vec<u8> = f.vehicles.iter().map(Config::system_id).collect();
+        assert_eq!(ids, [1, 2, 3, 4, 11, 12]);
+        assert_eq!(f.proximity_m, 1.5);
+        assert_eq!(
+            f.origin,
+            GeoPoint {
+                lat_deg: 47.397_742,
+                lon_deg: 8.545_594,
+                alt_amsl_m: 500.0
+            }
+        );
+        let port = |c: &Config, l: usize| (c.links[l].bind.port(), c.links[l].remote.map(|r| r.port()));
+        for (c, i) in f.vehicles.iter().zip(instances) {
+            let i16 = u16::from(i);
+            assert_eq!(c.links.len(), 2, "{i}");
+            assert_eq!(port(c, 0), (18570 + i16, Some(14550)), "{i}");
+            // PX4's px4-rc.mavlink: beyond instance 9 every API link sends to 14549
+            let api_remote = if i > 9 { 14549 } else { 14540 + i16 };
+            assert_eq!(port(c, 1), (14580 + i16, Some(api_remote)), "{i}");
+            assert_eq!(c.state_dir, PathBuf::from(format!("rotorpilot-state/{i}")));
+            // the same ground everywhere
+            assert!((c.home.alt_amsl_m - 500.0).abs() < 1e-9, "{i}");
+        }
+        assert_eq!(f.vehicles[4].links[1].remote, Some("127.0.0.1:14549".parse().unwrap()));
+        // 3 m x instance north, or the group's offset and 3 m north per vehicle
+        let expected = [[0.0, 0.0], [3.0, 0.0], [6.0, 0.0], [9.0, 0.0], [-6.0, 5.0], [-3.0, 5.0]];
+        for (i, [n, e]) in expected.into_iter().enumerate() {
+            assert!((spawn(&f, i) - Vector3::new(n, e, 0.0)).norm() < 1e-6, "{i}: {}", spawn(&f, i));
+        }
+        let airframes: Vec<&str> = f.vehicles.iter().map(|c| c.airframe.as_str()).collect();
+        assert_eq!(airframes, ["quad", "quad", "quad", "quad", "octo", "octo"]);
+        let set = vec![("MPC_XY_CRUISE".to_string(), 8.0), ("CTRL_TYPE".to_string(), 2.0)];
+        assert!(f.vehicles[..4].iter().all(|c| c.param_overrides.is_empty()));
+        assert_eq!(f.vehicles[4].param_overrides, set);
+        assert_eq!(f.vehicles[5].param_overrides, set);
+    }
+
+    #[test]
+    fn a_duplicate_instance_names_the_entry_that_has_it() {
+        let e = FleetConfig::from_file(&fixture("duplicate-instance.toml"), &opts())
+            .unwrap_err()
+            .to_string();
+        let file = fixture("duplicate-instance.toml").display().to_string();
+        assert_eq!(
+            e,
+            format!("{file}:10:12: vehicle[3].instance: instance 3 is already vehicle[1]'s (line 2: instances 0..3)")
+        );
+        assert_eq!(
+            error("[[vehicle]]\ninstance = 4\n[[vehicle]]\ninstance = 2\ncount = 5\n"),
+            "f.toml:4:12: vehicle[2].instance: instances 2..6 include instance 4, already vehicle[1]'s (line 2)"
+        );
+    }
+
+    #[test]
+    fn an_unknown_airframe_is_reported_once_at_its_line() {
+        let e = FleetConfig::from_file(&fixture("unknown-airframe.toml"), &opts())
+            .unwrap_err()
+            .to_string();
+        let file = fixture("unknown-airframe.toml").display().to_string();
+        assert_eq!(
+            e,
+            format!(
+                "{file}:6:12: vehicle[2].airframe: unknown airframe `octa`: not a file and not a built-in \
+                 airframe (quad, hexa, octo, fsr-quad, hexa-ppnnpn)"
+            )
+        );
+        // --airframe for the entries that name none
+        let o = FleetOptions {
+            base: Config {
+                airframe: "nope".into(),
+                ..Config::px4_sitl(0)
+            },
+            ..opts()
+        };
+        let e = FleetConfig::from_toml("\n[[vehicle]]\ninstance = 1\n", "f.toml", Path::new(""), &o).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "f.toml:2:1: vehicle[1].airframe: not given, and --airframe does not load: unknown airframe `nope`: \
+             not a file and not a built-in airframe (quad, hexa, octo, fsr-quad, hexa-ppnnpn)"
+        );
+    }
+
+    #[test]
+    fn more_vehicles_than_system_ids_are_refused() {
+        let e = FleetConfig::from_file(&fixture("too-many.toml"), &opts())
+            .unwrap_err()
+            .to_string();
+        let file = fixture("too-many.toml").display().to_string();
+        assert_eq!(
+            e,
+            format!(
+                "{file}:7:9: vehicle[2].count: instances 200..259 need system ids up to 260; \
+                 the most is 250 (instances 0..249)"
+            )
+        );
+        assert_eq!(
+            error("[[vehicle]]\ninstance = 250\n"),
+            "f.toml:2:12: vehicle[1].instance: instance 250 needs system id 251; the most is 250 (instances 0..249)"
+        );
+        // the last one that fits
+        assert_eq!(error("[[vehicle]]\ninstance = 240\ncount = 10\n"), "accepted: 10 vehicles");
+        let e = FleetConfig::counted(&opts(), 0, 300).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "--count 300: instances 0..299 need system ids up to 300; the most is 250 (instances 0..249)"
+        );
+        let e = FleetConfig::counted(&opts(), 200, 51).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "--count 51: instances 200..250 need system ids up to 251; the most is 250 (instances 0..249)"
+        );
+        assert_eq!(FleetConfig::counted(&opts(), 200, 50).unwrap().vehicles.len(), 50);
+    }
+
+    #[test]
+    fn other_mistakes_name_the_field_and_the_line() {
+        let cases = [
+            ("[[vehicle]]\ninstance = 0\nnorth = 3\n", "f.toml:3:1: unknown field `north`"),
+            ("homes = [1, 2, 3]\n", "f.toml:1:1: unknown field `homes`"),
+            (
+                "proximity_m = 1\n",
+                "f.toml: vehicle: no [[vehicle]] entries: a fleet needs at least one vehicle",
+            ),
+            (
+                "vehicle = []\n",
+                "f.toml:1:11: vehicle: no vehicles: a fleet needs at least one [[vehicle]]",
+            ),
+            (
+                "[[vehicle]]\nairframe = \"quad\"\n",
+                "f.toml:1:1: vehicle[1].instance: missing: which PX4 SITL instance (system id instance + 1)?",
+            ),
+            (
+                "[[vehicle]]\ninstance = -1\n",
+                "f.toml:2:12: vehicle[1].instance: must be in 0..=249, got -1",
+            ),
+            (
+                "[[vehicle]]\ninstance = 0\ncount = 0\n",
+                "f.toml:3:9: vehicle[1].count: must be at least 1, got 0",
+            ),
+            (
+                "[[vehicle]]\ninstance = 0\noffset_m = [nan, 1.0]\n",
+                "f.toml:3:12: vehicle[1].offset_m: expected [NORTH, EAST] in metres, two finite numbers, got [NaN, 1.0]",
+            ),
+            (
+                "[[vehicle]]\ninstance = 0\noffset_m = [1.0, inf]\n",
+                "f.toml:3:12: vehicle[1].offset_m: expected [NORTH, EAST] in metres, two finite numbers, got [1.0, inf]",
+            ),
+            (
+                "[[vehicle]]\ninstance = 0\noffset_m = [1.0]\n",
+                "f.toml:3:12: vehicle[1].offset_m: expected [NORTH, EAST] in metres, two finite numbers, got [1.0]",
+            ),
+            (
+                "home = [95.0, 8.0, 400.0]\n[[vehicle]]\ninstance = 0\n",
+                "f.toml:1:8: home: expected [LAT, LON, ALT] (degrees, degrees, metres AMSL), got [95.0, 8.0, 400.0]",
+            ),
+            (
+                "proximity_m = 0.0\n[[vehicle]]\ninstance = 0\n",
+                "f.toml:1:15: proximity_m: must be a finite distance > 0 m, got 0",
+            ),
+            (
+                "[[vehicle]]\ninstance = 0\nparams = { MPC_XY_CRUSE = 8.0 }\n",
+                "f.toml:3:12: vehicle[1].params.MPC_XY_CRUSE: unknown parameter",
+            ),
+            (
+                "[[vehicle]]\ninstance = 0\nparams = { CTRL_TYPE = 1.5 }\n",
+                "f.toml:3:12: vehicle[1].params.CTRL_TYPE: is INT32: give an integer, got 1.5",
+            ),
+            (
+                "[[vehicle]]\ninstance = 0\nparams = { MPC_XY_CRUISE = 1e6 }\n",
+                "f.toml:3:12: vehicle[1].params.MPC_XY_CRUISE: MPC_XY_CRUISE = 1000000 is outside [0.5, 20] m/s",
+            ),
+            (
+                "[[vehicle]]\ninstance = 0\n[vehicle.params]\nMAV_SYS_ID = 7\n",
+                "f.toml:4:1: vehicle[1].params.MAV_SYS_ID: set by the instance (system id = instance + 1), as PX4 SITL does",
+            ),
+        ];
+        for (text, want) in cases {
+            let got = error(text);
+            assert!(got.starts_with(want), "{text}\n got: {got}\nwant: {want}");
+        }
+    }
+
+    #[test]
+    fn vehicles_spawned_on_top_of_each_other_are_not_an_error() {
+        let text = "[[vehicle]]\ninstance = 0\noffset_m = [1.0, 1.0]\n[[vehicle]]\ninstance = 1\noffset_m = [1.0, 1.0]\n";
+        let f = FleetConfig::from_toml(text, "f.toml", Path::new(""), &opts()).unwrap();
+        assert_eq!(f.vehicles[0].home, f.vehicles[1].home);
+    }
+
+    #[test]
+    fn the_command_line_overrides_home_and_proximity_and_applies_to_every_vehicle() {
+        let home = GeoPoint {
+            lat_deg: 10.0,
+            lon_deg: 20.0,
+            alt_amsl_m: 30.0,
+        };
+        let o = FleetOptions {
+            home: Some(home),
+            proximity_m: Some(4.0),
+            api_remote: Remote::To("127.0.0.1:9000".parse().unwrap()),
+            gcs_remote: Remote::Nowhere,
+            state_root: PathBuf::from("/tmp/fleet"),
+            base: Config {
+                speed: 5.0,
+                reset_params: true,
+                log_dir: Some(PathBuf::from("logs")),
+                ..Config::px4_sitl(0)
+            },
+        };
+        let f = FleetConfig::from_file(&fixture("two-groups.toml"), &o).unwrap();
+        assert_eq!((f.origin, f.proximity_m), (home, 4.0));
+        for c in &f.vehicles {
+            assert_eq!(c.links[0].remote, None);
+            assert_eq!(c.links[1].remote, Some("127.0.0.1:9000".parse().unwrap()));
+            assert_eq!(c.state_dir, Path::new("/tmp/fleet").join(c.instance.to_string()));
+            assert_eq!((c.speed, c.reset_params), (5.0, true));
+            assert_eq!(c.log_dir.as_deref(), Some(Path::new("logs")));
+            assert!((c.home.alt_amsl_m - 30.0).abs() < 1e-9);
+        }
+        assert!((spawn(&f, 3) - Vector3::new(9.0, 0.0, 0.0)).norm() < 1e-6);
+    }
+
+    #[test]
+    fn counted_fleets_spawn_by_absolute_instance() {
+        let f = FleetConfig::counted(&opts(), 5, 3).unwrap();
+        assert_eq!(f.origin, GeoPoint::PX4_SITL_HOME);
+        assert_eq!(f.proximity_m, DEFAULT_PROXIMITY_M);
+        for (k, c) in f.vehicles.iter().enumerate() {
+            let i = 5 + u8::try_from(k).unwrap();
+            assert_eq!(c.instance, i);
+            assert_eq!(c.links[0].bind.port(), 18570 + u16::from(i));
+            assert_eq!(c.state_dir, PathBuf::from(format!("rotorpilot-state/{i}")));
+            assert!((spawn(&f, k) - Vector3::new(3.0 * f64::from(i), 0.0, 0.0)).norm() < 1e-6);
+        }
+        // a second process continues the first one's layout
+        let all = FleetConfig::counted(&opts(), 0, 200).unwrap();
+        let second = FleetConfig::counted(&opts(), 100, 100).unwrap();
+        assert_eq!(all.vehicles[100].home, second.vehicles[0].home);
+        assert_eq!(all.vehicles[199].links, second.vehicles[99].links);
+        // --count 1: a fleet of one, spawned by its instance
+        let one = FleetConfig::counted(&opts(), 4, 1).unwrap();
+        assert_eq!(one.vehicles.len(), 1);
+        assert!((spawn(&one, 0) - Vector3::new(12.0, 0.0, 0.0)).norm() < 1e-6);
+        // the airframe is checked before any vehicle starts
+        let o = FleetOptions {
+            base: Config {
+                airframe: "nope".into(),
+                ..Config::px4_sitl(0)
+            },
+            ..opts()
+        };
+        let e = FleetConfig::counted(&o, 0, 2).unwrap_err().to_string();
+        assert!(e.starts_with("unknown airframe `nope`"), "{e}");
+    }
+
+    #[test]
+    fn a_lone_vehicle_is_its_own_origin() {
+        let mut c = Config::px4_sitl(7);
+        c.home = GeoPoint {
+            lat_deg: 1.0,
+            lon_deg: 2.0,
+            alt_amsl_m: 3.0,
+        };
+        let f = FleetConfig::lone(c.clone());
+        assert_eq!(f.origin, c.home);
+        assert_eq!(f.vehicles.len(), 1);
+        assert_eq!(f.vehicles[0].links, c.links);
+        assert_eq!(f.vehicles[0].state_dir, c.state_dir);
+    }
+
+    #[test]
+    fn relative_airframe_paths_are_read_from_the_files_directory() {
+        let dir = std::env::temp_dir().join(format!("rotorpilot-fleet-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("frames")).unwrap();
+        let (quad, _) = Airframe::load_text("quad").unwrap();
+        std::fs::write(dir.join("frames/my-quad.toml"), quad).unwrap();
+        let fleet = dir.join("fleet.toml");
+        std::fs::write(&fleet, "[[vehicle]]\ninstance = 0\nairframe = \"frames/my-quad.toml\"\n").unwrap();
+        let f = FleetConfig::from_file(&fleet, &opts());
+        let _ = std::fs::remove_dir_all(&dir);
+        let f = f.unwrap();
+        assert_eq!(f.vehicles[0].airframe, dir.join("frames/my-quad.toml").display().to_string());
+        // a built-in name stays a name
+        assert_eq!(airframe_path("octo", &dir), "octo");
+        assert_eq!(airframe_path("/abs/a.toml", &dir), "/abs/a.toml");
+    }
+
+    #[test]
+    fn the_check_listing_shows_each_vehicle() {
+        let f = FleetConfig::from_file(&fixture("two-groups.toml"), &opts()).unwrap();
+        let text = f.to_text();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 2 + 6, "{text}");
+        assert!(lines[0].starts_with("6 vehicles on one clock; origin 47.3977420, 8.5455940, 500.0 m AMSL; proximity 1.5 m"));
+        let v10: Vec<&str> = lines[6].split_whitespace().collect();
+        assert_eq!(&v10[..5], ["10", "11", "octo", "-6.00", "5.00"], "{}", lines[6]);
+        assert!(lines[6].contains("GCS 0.0.0.0:18580 -> 127.0.0.1:14550, API 0.0.0.0:14590 -> 127.0.0.1:14549"));
+        assert!(lines[6].ends_with("state rotorpilot-state/10  params MPC_XY_CRUISE=8 CTRL_TYPE=2"));
+    }
+}

@@ -149,7 +149,10 @@ impl DaemonArgs {
     pub fn fleet_config(&self) -> anyhow::Result<crate::daemon::FleetConfig> {
         use crate::daemon::{DEFAULT_STATE_ROOT, FleetConfig, FleetOptions, Remote, parse_home, resolve};
         if let Some(m) = self.proximity {
-            anyhow::ensure!(m.is_finite() && m > 0.0, "--proximity must be a finite distance > 0 m, got {m}");
+            anyhow::ensure!(
+                m.is_finite() && m > 0.0,
+                "--proximity must be a finite distance > 0 m, got {m}"
+            );
         }
         let fleet = match (&self.fleet, self.count) {
             (None, None) => {

@@ -282,7 +282,9 @@ impl FleetConfig {
                 .links
                 .iter()
                 .map(|l| {
-                    let remote = l.remote.map_or_else(|| "(whoever talks)".to_string(), |r| r.to_string());
+                    let remote = l
+                        .remote
+                        .map_or_else(|| "(whoever talks)".to_string(), |r| r.to_string());
                     format!("{} {} -> {remote}", l.name, l.bind)
                 })
                 .collect();
@@ -500,18 +502,24 @@ fn param_overrides(
                 .find(|s| s.name == name)
                 .ok_or_else(|| fail("unknown parameter".into()))?;
             if name == "MAV_SYS_ID" {
-                return Err(fail("set by the instance (system id = instance + 1), as PX4 SITL does".into()));
+                return Err(fail(
+                    "set by the instance (system id = instance + 1), as PX4 SITL does".into(),
+                ));
             }
             let v = match (spec.kind, value.get_ref()) {
-                (ParamType::Int32, Value::Integer(i)) => ParamValue::Int32(
-                    i32::try_from(*i).map_err(|_| fail(format!("{i} does not fit an INT32")))?,
-                ),
+                (ParamType::Int32, Value::Integer(i)) => {
+                    ParamValue::Int32(i32::try_from(*i).map_err(|_| fail(format!("{i} does not fit an INT32")))?)
+                }
                 (ParamType::Real32, Value::Integer(i)) => ParamValue::Real32(*i as f32),
                 (ParamType::Real32, Value::Float(x)) => ParamValue::Real32(*x as f32),
                 (kind, other) => {
                     return Err(fail(format!(
                         "is {kind}: give {}, got {other}",
-                        if kind == ParamType::Int32 { "an integer" } else { "a number" }
+                        if kind == ParamType::Int32 {
+                            "an integer"
+                        } else {
+                            "a number"
+                        }
                     )));
                 }
             };
@@ -556,7 +564,9 @@ mod tests {
     }
 
     fn fixture(name: &str) -> PathBuf {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/fleets").join(name)
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/fixtures/fleets")
+            .join(name)
     }
 
     /// The error of fleet TOML `text` (labelled `f.toml`), as printed.
@@ -603,7 +613,11 @@ mod tests {
         // 3 m x instance north, or the group's offset and 3 m north per vehicle
         let expected = [[0.0, 0.0], [3.0, 0.0], [6.0, 0.0], [9.0, 0.0], [-6.0, 5.0], [-3.0, 5.0]];
         for (i, [n, e]) in expected.into_iter().enumerate() {
-            assert!((spawn(&f, i) - Vector3::new(n, e, 0.0)).norm() < 1e-6, "{i}: {}", spawn(&f, i));
+            assert!(
+                (spawn(&f, i) - Vector3::new(n, e, 0.0)).norm() < 1e-6,
+                "{i}: {}",
+                spawn(&f, i)
+            );
         }
         let airframes: Vec<&str> = f.vehicles.iter().map(|c| c.airframe.as_str()).collect();
         assert_eq!(airframes, ["quad", "quad", "quad", "quad", "octo", "octo"]);
@@ -676,7 +690,10 @@ mod tests {
             "f.toml:2:12: vehicle[1].instance: instance 250 needs system id 251; the most is 250 (instances 0..249)"
         );
         // the last one that fits
-        assert_eq!(error("[[vehicle]]\ninstance = 240\ncount = 10\n"), "accepted: 10 vehicles");
+        assert_eq!(
+            error("[[vehicle]]\ninstance = 240\ncount = 10\n"),
+            "accepted: 10 vehicles"
+        );
         let e = FleetConfig::counted(&opts(), 0, 300).unwrap_err().to_string();
         assert_eq!(
             e,
@@ -693,7 +710,10 @@ mod tests {
     #[test]
     fn other_mistakes_name_the_field_and_the_line() {
         let cases = [
-            ("[[vehicle]]\ninstance = 0\nnorth = 3\n", "f.toml:3:1: unknown field `north`"),
+            (
+                "[[vehicle]]\ninstance = 0\nnorth = 3\n",
+                "f.toml:3:1: unknown field `north`",
+            ),
             ("homes = [1, 2, 3]\n", "f.toml:1:1: unknown field `homes`"),
             (
                 "proximity_m = 1\n",
@@ -760,7 +780,8 @@ mod tests {
 
     #[test]
     fn vehicles_spawned_on_top_of_each_other_are_not_an_error() {
-        let text = "[[vehicle]]\ninstance = 0\noffset_m = [1.0, 1.0]\n[[vehicle]]\ninstance = 1\noffset_m = [1.0, 1.0]\n";
+        let text =
+            "[[vehicle]]\ninstance = 0\noffset_m = [1.0, 1.0]\n[[vehicle]]\ninstance = 1\noffset_m = [1.0, 1.0]\n";
         let f = FleetConfig::from_toml(text, "f.toml", Path::new(""), &opts()).unwrap();
         assert_eq!(f.vehicles[0].home, f.vehicles[1].home);
     }
@@ -853,11 +874,18 @@ mod tests {
         let (quad, _) = Airframe::load_text("quad").unwrap();
         std::fs::write(dir.join("frames/my-quad.toml"), quad).unwrap();
         let fleet = dir.join("fleet.toml");
-        std::fs::write(&fleet, "[[vehicle]]\ninstance = 0\nairframe = \"frames/my-quad.toml\"\n").unwrap();
+        std::fs::write(
+            &fleet,
+            "[[vehicle]]\ninstance = 0\nairframe = \"frames/my-quad.toml\"\n",
+        )
+        .unwrap();
         let f = FleetConfig::from_file(&fleet, &opts());
         let _ = std::fs::remove_dir_all(&dir);
         let f = f.unwrap();
-        assert_eq!(f.vehicles[0].airframe, dir.join("frames/my-quad.toml").display().to_string());
+        assert_eq!(
+            f.vehicles[0].airframe,
+            dir.join("frames/my-quad.toml").display().to_string()
+        );
         // a built-in name stays a name
         assert_eq!(airframe_path("octo", &dir), "octo");
         assert_eq!(airframe_path("/abs/a.toml", &dir), "/abs/a.toml");
@@ -869,7 +897,10 @@ mod tests {
         let text = f.to_text();
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(lines.len(), 2 + 6, "{text}");
-        assert!(lines[0].starts_with("6 vehicles on one clock; origin 47.3977420, 8.5455940, 500.0 m AMSL; proximity 1.5 m"));
+        assert!(
+            lines[0]
+                .starts_with("6 vehicles on one clock; origin 47.3977420, 8.5455940, 500.0 m AMSL; proximity 1.5 m")
+        );
         let v10: Vec<&str> = lines[6].split_whitespace().collect();
         assert_eq!(&v10[..5], ["10", "11", "octo", "-6.00", "5.00"], "{}", lines[6]);
         assert!(lines[6].contains("GCS 0.0.0.0:18580 -> 127.0.0.1:14550, API 0.0.0.0:14590 -> 127.0.0.1:14549"));

@@ -48,7 +48,9 @@ mod tlog;
 mod ulog_file;
 
 pub use config::{Config, LinkSpec, parse_home, resolve};
-pub use fleet::{DEFAULT_PROXIMITY_M, DEFAULT_STATE_ROOT, FLEET_SPACING_M, FleetConfig, FleetOptions, MAX_INSTANCE, Remote};
+pub use fleet::{
+    DEFAULT_PROXIMITY_M, DEFAULT_STATE_ROOT, FLEET_SPACING_M, FleetConfig, FleetOptions, MAX_INSTANCE, Remote,
+};
 
 use std::future::Future;
 use std::net::SocketAddr;

@@ -84,7 +84,8 @@ pub struct DaemonArgs {
     /// instance and optionally airframe, offset_m = [NORTH, EAST], params =
     /// { NAME = value } and count; optional top-level home = [LAT, LON, ALT]
     /// and proximity_m. Command-line options apply to every vehicle, as with
-    /// --count; --home and --proximity override the file's.
+    /// --count (--airframe to the entries that name none); --home and
+    /// --proximity override the file's.
     #[arg(long, value_name = "FILE", conflicts_with_all = ["count", "instance"])]
     pub fleet: Option<std::path::PathBuf>,
     /// Report two vehicles of the fleet closer than M metres (default 2).

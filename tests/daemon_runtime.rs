@@ -52,6 +52,20 @@ async fn binary_prints_where_it_listens_and_stops_on_sigterm() {
     assert!(out.contains("instance 3, system id 4"), "{out}");
     assert!(out.contains("GCS  link: udp 127.0.0.1:"), "{out}");
     assert!(out.contains("API  link: udp 127.0.0.1:"), "{out}");
+    // The files written at start-up (atomically: once a file exists it is
+    // whole) are replaced behind the daemon's back. No set or plan change
+    // follows, so the background savers write nothing more: only the save at
+    // shutdown can put the vehicle's parameters and plans back.
+    let (params_file, plans_file) = (dir.join("params.toml"), dir.join("missions.json"));
+    let t_files = Instant::now();
+    while !(params_file.exists() && plans_file.exists()) {
+        assert!(t_files.elapsed() < Duration::from_secs(3), "the start-up save wrote no files");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let saved_params = std::fs::read_to_string(&params_file).unwrap();
+    let saved_plans = std::fs::read_to_string(&plans_file).unwrap();
+    std::fs::write(&params_file, "# replaced by the test\n").unwrap();
+    std::fs::write(&plans_file, "replaced by the test\n").unwrap();
     // SIGTERM: clean exit within a second, parameters saved
     let t0 = Instant::now();
     let killed = Command::new("kill")
@@ -71,8 +85,11 @@ async fn binary_prints_where_it_listens_and_stops_on_sigterm() {
     };
     assert!(status.success(), "{status}");
     assert!(t0.elapsed() < Duration::from_secs(1), "{:?}", t0.elapsed());
-    let params = std::fs::read_to_string(dir.join("params.toml")).expect("parameters saved");
+    let params = std::fs::read_to_string(&params_file).expect("parameters saved");
     assert!(params.contains("MAV_SYS_ID = 4"), "{params}");
+    assert_eq!(params, saved_params, "the shutdown save writes the parameters in force");
+    let plans = std::fs::read_to_string(&plans_file).expect("plans saved");
+    assert_eq!(plans, saved_plans, "the shutdown save writes the plans in force");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -59,7 +59,10 @@ async fn binary_prints_where_it_listens_and_stops_on_sigterm() {
     let (params_file, plans_file) = (dir.join("params.toml"), dir.join("missions.json"));
     let t_files = Instant::now();
     while !(params_file.exists() && plans_file.exists()) {
-        assert!(t_files.elapsed() < Duration::from_secs(3), "the start-up save wrote no files");
+        assert!(
+            t_files.elapsed() < Duration::from_secs(3),
+            "the start-up save wrote no files"
+        );
         std::thread::sleep(Duration::from_millis(10));
     }
     let saved_params = std::fs::read_to_string(&params_file).unwrap();

@@ -798,7 +798,8 @@ fn telemetry_is_complete_and_consistent() {
     assert!(t.battery_consumed_mah > 0.0 && t.battery_remaining < 1.0);
     assert!(t.battery_voltage_v < 16.8);
     assert!(!t.prearm_ok, "not armable in the air");
-    assert_eq!(t.estimate.mass_kg.round(), 2.0);
+    // true mass 2.0 kg; measured 1.9985 kg one second after the take-off
+    assert!((t.estimate.mass_kg - 2.0).abs() < 2e-3, "{}", t.estimate.mass_kg);
 }
 
 #[test]

@@ -144,6 +144,10 @@ async fn int32_set_is_bytewise_echoed_rebroadcast_applied_and_saved() {
     let mut api = Client::new().await;
     let v = Vehicle::start(config(Some(gcs.addr()), Some(api.addr()), 1.0)).await;
     api.drain().await;
+    // before the set: failure injection is DENIED
+    let a = gcs.command(v.gcs, 420, [4.0, 1.0, 0.0, NAN, NAN, NAN, NAN]).await;
+    assert_eq!(a.result, 2, "failure injection with SYS_FAILURE_EN = 0");
+    gcs.drain().await;
     gcs.param_set(
         v.gcs,
         "SYS_FAILURE_EN",
@@ -162,9 +166,10 @@ async fn int32_set_is_bytewise_echoed_rebroadcast_applied_and_saved() {
     // the other link hears the change once
     let other = answers(&mut api, "SYS_FAILURE_EN", Duration::from_millis(200)).await;
     assert_eq!(other.len(), 1);
-    // it applies at once: failure injection is no longer DENIED
+    // it applies at once: the next command, sent as soon as the set is
+    // answered, injects the failure (GPS off: ACCEPTED, was DENIED above)
     let a = gcs.command(v.gcs, 420, [4.0, 1.0, 0.0, NAN, NAN, NAN, NAN]).await;
-    assert_ne!(a.result, 2);
+    assert_eq!(a.result, 0, "failure injection right after SYS_FAILURE_EN = 1");
     // and persists
     tokio::time::sleep(Duration::from_millis(300)).await;
     let text = std::fs::read_to_string(v.state_dir.join("params.toml")).unwrap();

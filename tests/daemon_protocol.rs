@@ -16,6 +16,35 @@ use rotorpilot::link::wire::CommandInt;
 const S1: Duration = Duration::from_secs(1);
 const S3: Duration = Duration::from_secs(3);
 
+/// Send COMMAND_LONG to 1/1; its ACK and the STATUSTEXTs heard until 300 ms
+/// after it (a refusal's text comes with the ACK, not necessarily before it).
+async fn command_and_texts(c: &mut Client, to: std::net::SocketAddr, command: u16, p: [f32; 7]) -> (u8, Vec<String>) {
+    c.command_long(to, command, p, (1, 1)).await;
+    let mut texts = Vec::new();
+    let mut result = None;
+    let deadline = tokio::time::Instant::now() + S3;
+    let mut until = deadline;
+    while let Some(left) = until.checked_duration_since(tokio::time::Instant::now()) {
+        let Some(r) = c.recv(left).await else { break };
+        if let Some(a) = r.ack().filter(|a| a.command == command) {
+            result = Some(a.result);
+            until = tokio::time::Instant::now() + Duration::from_millis(300);
+        }
+        if let Some(MavMessage::STATUSTEXT(s)) = &r.msg {
+            texts.push(s.text.to_str().unwrap_or_default().to_string());
+        }
+    }
+    (result.unwrap_or_else(|| panic!("no ACK for command {command}")), texts)
+}
+
+/// The mode in a HEARTBEAT's custom_mode: PX4's (main, sub) mode.
+fn px4_mode(h: &HEARTBEAT_DATA) -> (u32, u32) {
+    ((h.custom_mode >> 16) & 0xFF, h.custom_mode >> 24)
+}
+
+/// Hold: PX4 main mode AUTO (4), sub mode LOITER (3).
+const HOLD: (u32, u32) = (4, 3);
+
 /// A vehicle whose GCS link sends to `gcs` from boot.
 async fn vehicle_for(gcs: &Client) -> Vehicle {
     Vehicle::start(config(Some(gcs.addr()), None, 1.0)).await
@@ -196,6 +225,19 @@ async fn offboard_needs_a_fresh_setpoint_stream() {
         })
         .await;
     assert_eq!(left, Some(4 << 16 | 3 << 24));
+    // WHEN offboard is asked again after the stream went stale (it existed,
+    // it is older than COM_OF_LOSS_T) THEN TEMPORARILY_REJECTED with PX4's
+    // text on the wire, and the vehicle stays in Hold
+    let (result, texts) = command_and_texts(&mut c, v.gcs, 176, [129.0, 6.0, 0.0, NAN, NAN, NAN, NAN]).await;
+    assert_eq!(result, 1, "offboard on a stale stream");
+    assert!(
+        texts
+            .iter()
+            .any(|t| t == "Switching to Offboard denied: no offboard signal"),
+        "{texts:?}"
+    );
+    let h = heartbeat(&mut c, Duration::from_millis(1500)).await;
+    assert_eq!(px4_mode(&h), HOLD);
     v.stop().await;
 }
 
@@ -556,34 +598,75 @@ async fn reposition_as_command_int_from_both_mavsdk_generations() {
     })
     .await
     .expect("in air");
-    for frame in [0, 5] {
-        // MAVSDK goto_location: Hold first, then DO_REPOSITION p2 = 1, yaw in rad
-        c.command_int(
-            v.gcs,
-            CommandInt {
-                params: [NAN, 1.0, NAN, 0.5],
-                x: 473_977_420 + 450,
-                y: 85_455_940,
-                z: 493.0,
-                command: 192,
-                target_system: 1,
-                target_component: 1,
-                frame,
-                current: 0,
-                autocontinue: 0,
-            },
-        )
-        .await;
+    // MAVSDK goto_location: Hold first, then DO_REPOSITION p2 = 1, yaw in
+    // rad; MAVSDK 3 sends frame 0 (GLOBAL), MAVSDK 4 frame 5 (GLOBAL_INT),
+    // both AMSL. Each goes to its own point, reached before the next is sent,
+    // so neither frame can be ignored; north and east both checked (1e-7 deg:
+    // 11.12 mm north, 7.53 mm east at home's latitude).
+    let reposition = |frame: u8, lat: i32, lon: i32, alt: f32| CommandInt {
+        params: [NAN, 1.0, NAN, 0.5],
+        x: lat,
+        y: lon,
+        z: alt,
+        command: 192,
+        target_system: 1,
+        target_component: 1,
+        frame,
+        current: 0,
+        autocontinue: 0,
+    };
+    let (lat0, lon0) = (473_977_420, 85_455_940);
+    for (frame, d_lat, d_lon, alt, want) in [
+        (0, 450, 398, 493.0, [5.0, 3.0, -5.0]),
+        (5, -270, -531, 494.0, [-3.0, -4.0, -6.0]),
+    ] {
+        c.command_int(v.gcs, reposition(frame, lat0 + d_lat, lon0 + d_lon, alt))
+            .await;
         let (_, a) = c.ack_of(192, S3).await.expect("ack");
         assert_eq!(a.result, 0, "frame {frame}");
+        // it flies there
+        let close = |p: &LOCAL_POSITION_NED_DATA| {
+            (f64::from(p.x) - want[0]).abs() < 0.3
+                && (f64::from(p.y) - want[1]).abs() < 0.3
+                && (f64::from(p.z) - want[2]).abs() < 0.3
+        };
+        let reached = c
+            .wait_for(Duration::from_secs(15), |r| match &r.msg {
+                Some(MavMessage::LOCAL_POSITION_NED(p)) if close(p) => Some(()),
+                _ => None,
+            })
+            .await;
+        assert!(reached.is_some(), "frame {frame}: never reached {want:?}");
     }
-    // it flies there: 5 m north, 5 m above home
-    let reached = c
-        .wait_for(Duration::from_secs(15), |r| match &r.msg {
-            Some(MavMessage::LOCAL_POSITION_NED(p)) if (p.x - 5.0).abs() < 0.5 && (p.z + 5.0).abs() < 0.5 => Some(()),
-            _ => None,
-        })
-        .await;
-    assert!(reached.is_some());
+    // Refusals in flight change neither the mode nor the position target:
+    // DO_REPOSITION to latitude 91 deg (DENIED), MISSION_START without a
+    // mission (DENIED), OFFBOARD without setpoints (TEMPORARILY_REJECTED).
+    c.command_int(v.gcs, reposition(5, 910_000_000, lon0, 493.0)).await;
+    let (_, a) = c.ack_of(192, S3).await.expect("ack");
+    assert_eq!(a.result, 2, "reposition to 91 deg");
+    assert_eq!(c.command(v.gcs, 300, [0.0; 7]).await.result, 2);
+    assert_eq!(
+        c.command(v.gcs, 176, [129.0, 6.0, 0.0, NAN, NAN, NAN, NAN])
+            .await
+            .result,
+        1
+    );
+    let h = heartbeat(&mut c, Duration::from_millis(1500)).await;
+    assert_eq!(px4_mode(&h), HOLD, "the mode after the refusals");
+    // the vehicle stays at the last accepted point for 2 s wall (10 s simulated)
+    let t0 = tokio::time::Instant::now();
+    let mut seen = 0;
+    while t0.elapsed() < Duration::from_secs(2) {
+        let Some(r) = c.recv(S1).await else { break };
+        if let Some(MavMessage::LOCAL_POSITION_NED(p)) = &r.msg {
+            let off = [f64::from(p.x) + 3.0, f64::from(p.y) + 4.0, f64::from(p.z) + 6.0];
+            assert!(
+                off.iter().all(|d| d.abs() < 0.3),
+                "moved off the target after a refusal: {p:?}"
+            );
+            seen += 1;
+        }
+    }
+    assert!(seen > 10, "{seen} positions in 2 s");
     v.stop().await;
 }

@@ -16,6 +16,7 @@
 //! | file | job |
 //! |---|---|
 //! | `config` | [`Config`], [`LinkSpec`]: the instance and PX4 SITL's port rules, home, speed, state directory |
+//! | `fleet` | [`FleetConfig`]: the vehicles of `--count N` and `--fleet FILE`, their spawn points, the fleet file and its errors |
 //! | `sim_thread` | the simulation thread: the only owner of the core, paced against wall time; commands and parameter sets are applied there, between steps |
 //! | `inbox` | the requests of each vehicle's links to the simulation thread: a bounded queue per vehicle, served round robin |
 //! | `link_task` | one task per UDP link: datagrams in, streams and answers out |

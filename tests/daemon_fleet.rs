@@ -116,7 +116,9 @@ async fn position(c: &mut Client, sysid: u8, wait: Duration) -> (f64, bool) {
     let mut alt = None;
     let deadline = Instant::now() + wait;
     while alt.is_none() || armed.is_none() {
-        let left = deadline.checked_duration_since(Instant::now()).expect("telemetry in time");
+        let left = deadline
+            .checked_duration_since(Instant::now())
+            .expect("telemetry in time");
         let rx = c.recv(left).await.expect("telemetry");
         if rx.sysid != sysid {
             continue;
@@ -146,7 +148,11 @@ async fn each_vehicle_is_its_own_system_and_only_the_one_commanded_flies() {
             .expect("heartbeats from every vehicle");
         if let Some(MavMessage::HEARTBEAT(_)) = rx.msg {
             let i = usize::from(rx.sysid) - 1;
-            assert_eq!(rx.from, fleet.links[i].0, "system {} speaks from its own GCS link", rx.sysid);
+            assert_eq!(
+                rx.from, fleet.links[i].0,
+                "system {} speaks from its own GCS link",
+                rx.sysid
+            );
             seen[i] = true;
         }
     }
@@ -155,7 +161,8 @@ async fn each_vehicle_is_its_own_system_and_only_the_one_commanded_flies() {
     let (_, v1) = fleet.links[1];
     api.heartbeat(v1).await;
     wait_armable(&mut api).await;
-    api.command_long(v1, 400, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], (2, 1)).await;
+    api.command_long(v1, 400, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], (2, 1))
+        .await;
     let (rx, ack) = api.ack_of(400, Duration::from_secs(3)).await.expect("arm ACK");
     assert_eq!((rx.sysid, ack.result), (2, 0), "system 2 armed");
     api.command_long(v1, 22, [NAN, 0.0, 0.0, NAN, NAN, NAN, NAN], (2, 1))
@@ -164,7 +171,8 @@ async fn each_vehicle_is_its_own_system_and_only_the_one_commanded_flies() {
     assert_eq!(ack.result, 0);
     // a command for system 1 sent to system 2's link is not its to answer
     api.drain().await;
-    api.command_long(v1, 400, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], (1, 1)).await;
+    api.command_long(v1, 400, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], (1, 1))
+        .await;
     assert!(
         api.ack_of(400, Duration::from_millis(500)).await.is_none(),
         "system 2 ignores a command for system 1"
@@ -176,7 +184,10 @@ async fn each_vehicle_is_its_own_system_and_only_the_one_commanded_flies() {
     assert!(armed2 && alt2 > 2.0, "system 2 flies: armed {armed2}, {alt2:.2} m up");
     for s in [1, 3] {
         let (alt, armed) = position(&mut gcs, s, Duration::from_secs(3)).await;
-        assert!(!armed && alt.abs() < 0.5, "system {s} stays put: armed {armed}, {alt:.2} m");
+        assert!(
+            !armed && alt.abs() < 0.5,
+            "system {s} stays put: armed {armed}, {alt:.2} m"
+        );
     }
     fleet.stop().await;
 }
@@ -262,13 +273,15 @@ fn flood(to: SocketAddr, for_s: f64) -> std::thread::JoinHandle<u64> {
             target_component: 1,
             ..Default::default()
         }));
-        let setpoint = frame(&MavMessage::SET_POSITION_TARGET_LOCAL_NED(SET_POSITION_TARGET_LOCAL_NED_DATA {
-            target_system: 1,
-            target_component: 1,
-            type_mask: mavlink::dialects::common::PositionTargetTypemask::from_bits_truncate(0x0DF8),
-            z: -2.0,
-            ..Default::default()
-        }));
+        let setpoint = frame(&MavMessage::SET_POSITION_TARGET_LOCAL_NED(
+            SET_POSITION_TARGET_LOCAL_NED_DATA {
+                target_system: 1,
+                target_component: 1,
+                type_mask: mavlink::dialects::common::PositionTargetTypemask::from_bits_truncate(0x0DF8),
+                z: -2.0,
+                ..Default::default()
+            },
+        ));
         let start = std::time::Instant::now();
         let mut sent = 0u64;
         while start.elapsed().as_secs_f64() < for_s {
@@ -301,7 +314,8 @@ async fn a_client_flooding_one_vehicle_does_not_stall_another() {
     for _ in 0..25 {
         c1.drain().await;
         let sent = Instant::now();
-        c1.command_long(api1, 176, [1.0, 4.0, 3.0, 0.0, 0.0, 0.0, 0.0], (2, 1)).await;
+        c1.command_long(api1, 176, [1.0, 4.0, 3.0, 0.0, 0.0, 0.0, 0.0], (2, 1))
+            .await;
         let (rx, _) = c1
             .ack_of(176, Duration::from_secs(2))
             .await
@@ -313,15 +327,21 @@ async fn a_client_flooding_one_vehicle_does_not_stall_another() {
     c1.drain().await;
     let t1 = boot_ms(&mut c1, 2).await;
     let wall = wall0.elapsed().as_secs_f64();
-    let sent = tokio::task::spawn_blocking(move || flooder.join().unwrap()).await.unwrap();
+    let sent = tokio::task::spawn_blocking(move || flooder.join().unwrap())
+        .await
+        .unwrap();
     let sim = f64::from(t1 - t0) / 1000.0;
     eprintln!("flood: {sent} datagrams in 3 s; system 2: worst ACK {worst:?}, {sim:.2} s simulated in {wall:.2} s");
     assert!(sent > 10_000, "the flood was a flood: {sent} datagrams");
     assert!(worst < Duration::from_millis(250), "worst ACK {worst:?}");
-    assert!(sim > 0.9 * wall - 0.2, "system 2's clock kept pace: {sim:.2} s in {wall:.2} s");
+    assert!(
+        sim > 0.9 * wall - 0.2,
+        "system 2's clock kept pace: {sim:.2} s in {wall:.2} s"
+    );
     // and the flooded vehicle still answers afterwards
     let mut c0 = Client::new().await;
-    c0.command_long(api0, 176, [1.0, 4.0, 3.0, 0.0, 0.0, 0.0, 0.0], (1, 1)).await;
+    c0.command_long(api0, 176, [1.0, 4.0, 3.0, 0.0, 0.0, 0.0, 0.0], (1, 1))
+        .await;
     assert!(c0.ack_of(176, Duration::from_secs(2)).await.is_some());
     fleet.stop().await;
 }
@@ -336,9 +356,11 @@ async fn each_vehicle_of_a_fleet_replays_alone_bit_for_bit_proximity_included() 
     let mut c = Client::new().await;
     c.heartbeat(api1).await;
     wait_armable(&mut c).await;
-    c.command_long(api1, 400, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], (2, 1)).await;
+    c.command_long(api1, 400, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], (2, 1))
+        .await;
     assert_eq!(c.ack_of(400, Duration::from_secs(3)).await.expect("arm").1.result, 0);
-    c.command_long(api1, 22, [NAN, 0.0, 0.0, NAN, NAN, NAN, NAN], (2, 1)).await;
+    c.command_long(api1, 22, [NAN, 0.0, 0.0, NAN, NAN, NAN, NAN], (2, 1))
+        .await;
     assert_eq!(c.ack_of(22, Duration::from_secs(3)).await.expect("takeoff").1.result, 0);
     tokio::time::sleep(Duration::from_millis(800)).await;
     fleet.stop().await;
@@ -364,7 +386,10 @@ async fn each_vehicle_of_a_fleet_replays_alone_bit_for_bit_proximity_included() 
         rotorpilot::record::replay(&r, "flight.record", Some(&mut csv)).unwrap();
         let live = std::fs::read(run.join("flight.csv")).unwrap();
         assert!(live.len() > 1000);
-        assert!(csv == live, "vehicle {i}: the replay's CSV is the live flight.csv, byte for byte");
+        assert!(
+            csv == live,
+            "vehicle {i}: the replay's CSV is the live flight.csv, byte for byte"
+        );
     }
     let _ = std::fs::remove_dir_all(&logs);
 }

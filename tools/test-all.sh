@@ -43,7 +43,10 @@ cargo clippy --all-targets --quiet -- -D warnings
 
 echo "== cargo test --release"
 cargo test --release --quiet 2>&1 | tee /tmp/rotorpilot-cargo-test.log
-grep -q "test result: ok" /tmp/rotorpilot-cargo-test.log
+# pipefail has already stopped on a failing test binary; this counts what ran
+# ("test result: ok. 12 passed; 0 failed; ..."), so a run in which no test ran
+# or one that reported a failure without failing cannot pass silently.
+tools/count-test-results.sh /tmp/rotorpilot-cargo-test.log
 
 echo "== benches compile"
 cargo bench --no-run --quiet

@@ -310,7 +310,10 @@ mod tests {
     fn frames_are_packed_per_destination_in_order_never_split() {
         let a: SocketAddr = "127.0.0.1:1".parse().unwrap();
         let b: SocketAddr = "127.0.0.1:2".parse().unwrap();
-        let f = |to, n: usize, tag: u8| Outgoing { to, bytes: vec![tag; n] };
+        let f = |to, n: usize, tag: u8| Outgoing {
+            to,
+            bytes: vec![tag; n],
+        };
         let frames = vec![
             f(To::All, 100, 1),
             f(To::Peer(b), 50, 2),

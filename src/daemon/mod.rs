@@ -16,6 +16,7 @@
 //! | file | job |
 //! |---|---|
 //! | `config` | [`Config`], [`LinkSpec`]: the instance and PX4 SITL's port rules, home, speed, state directory |
+//! | `fleet` | [`FleetConfig`]: the vehicles of `--count N` and `--fleet FILE`, their spawn points, the fleet file and its errors |
 //! | `sim_thread` | the simulation thread: the only owner of the core, paced against wall time; commands and parameter sets are applied there, between steps |
 //! | `inbox` | the requests of each vehicle's links to the simulation thread: a bounded queue per vehicle, served round robin |
 //! | `link_task` | one task per UDP link: datagrams in, streams and answers out |
@@ -48,6 +49,7 @@
 //! exits. Both are refused while armed (the autopilot decides).
 
 mod config;
+mod fleet;
 mod inbox;
 mod link_task;
 mod logs;
@@ -59,6 +61,9 @@ mod tlog;
 mod ulog_file;
 
 pub use config::{Config, LinkSpec, parse_home, resolve};
+pub use fleet::{
+    DEFAULT_PROXIMITY_M, DEFAULT_STATE_ROOT, FLEET_SPACING_M, FleetConfig, FleetOptions, MAX_INSTANCE, Remote,
+};
 
 use std::future::Future;
 use std::net::SocketAddr;
@@ -86,30 +91,6 @@ use crate::sim::SensorConfig;
 use link_task::LinkTask;
 use saver::{PlansFile, lock, plan_saver, saver};
 use sim_thread::{Event, Sim, SimRequest, VehicleIo};
-
-// TEMPORARY until the fleet configuration lands (src/daemon/fleet.rs).
-/// Every vehicle one process runs, on one clock.
-#[derive(Clone, Debug)]
-pub struct FleetConfig {
-    /// Each vehicle as a lone daemon would run it (its home: its spawn point).
-    pub vehicles: Vec<Config>,
-    /// The world's NED origin: the fleet's home, on the ground.
-    pub origin: GeoPoint,
-    /// Proximity is reported below this distance [m].
-    pub proximity_m: f64,
-}
-
-impl FleetConfig {
-    /// A lone vehicle.
-    #[must_use]
-    pub fn lone(c: Config) -> Self {
-        Self {
-            origin: c.home,
-            vehicles: vec![c],
-            proximity_m: 2.0,
-        }
-    }
-}
 
 /// Fleets this large are stepped on every core ([`Lockstep::set_threads`]).
 const PARALLEL_FLEET: usize = 64;
@@ -153,6 +134,16 @@ fn vehicle_params(config: &Config, airframe: &Airframe) -> anyhow::Result<(Param
         ParamStore::load_or_default(airframe, &path)?
     };
     let _ = params.set("MAV_SYS_ID", ParamValue::Int32(i32::from(config.system_id())));
+    for (name, value) in &config.param_overrides {
+        // checked when the fleet file was read (its type and range)
+        let v = match params.get(name).map(|(_, v)| v) {
+            Some(ParamValue::Int32(_)) => ParamValue::Int32(*value as i32),
+            _ => ParamValue::Real32(*value as f32),
+        };
+        params
+            .set(name, v)
+            .map_err(|e| anyhow::anyhow!("parameter {name} = {value}: {e}"))?;
+    }
     Ok((params, warnings))
 }
 
@@ -404,7 +395,10 @@ impl Daemon {
             ));
         }
         if let Some(base) = &c.log_dir {
-            s.push_str(&format!("  logs: a run directory per vehicle below {}\n", base.display()));
+            s.push_str(&format!(
+                "  logs: a run directory per vehicle below {}\n",
+                base.display()
+            ));
         }
         // last: scripts read the summary up to this line (tests/daemon_runtime.rs)
         s.push_str(&format!(

@@ -227,10 +227,13 @@ impl Sim {
 
     /// [`Self::apply`] a parameter set.
     pub(super) fn set_param(&mut self, v: usize, name: &str, value: ParamValue) -> Result<ParamValue, String> {
-        match self.apply(v, Input::SetParam {
-            name: name.to_string(),
-            value,
-        }) {
+        match self.apply(
+            v,
+            Input::SetParam {
+                name: name.to_string(),
+                value,
+            },
+        ) {
             Applied::SetParam(r) => r,
             other => unreachable!("a parameter set answered {other:?}"),
         }

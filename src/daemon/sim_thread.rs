@@ -17,13 +17,13 @@ use mavlink::dialects::common::MavMessage;
 use tokio::sync::{Notify, broadcast, oneshot, watch};
 use tracing::{debug, info, warn};
 
+use super::inbox::Inbox;
 use crate::autopilot::{
     Autopilot, AutopilotCommand, ClientClock, CommandOutcome, PendingTimer, PowerAction, StatusText,
 };
 use crate::lockstep::{Lockstep, Snapshot};
 use crate::mission::{MissionResult, PlanChange};
 use crate::params::{ParamStore, ParamValue};
-use super::inbox::Inbox;
 
 /// Vehicle-steps run between two looks at the requests (50 steps of a lone
 /// vehicle; one step of a fleet of 50 or more).

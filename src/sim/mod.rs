@@ -44,10 +44,10 @@ mod sensors;
 mod settings;
 
 pub use fault::{ActiveFaults, Fault, FaultError, RotorHealth};
-pub use proximity::{Proximity, ProximityEvent, ProximityKind};
 pub use plant::{
     Contact, Disturbance, Environment, ExternalWrench, Plant, PlantConfig, RigidBodyState, SimFault, StepEvent,
 };
+pub use proximity::{Proximity, ProximityEvent, ProximityKind};
 pub use sensors::{DEAD_RECKONING_BIAS_M_S2, SensorNoise, Sensors};
 pub use settings::{FaultSettings, WorldSettings};
 

@@ -116,7 +116,9 @@ impl Proximity {
         let spread = |k: usize| {
             let (lo, hi) = positions_ned
                 .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p[k]), hi.max(p[k])));
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+                    (lo.min(p[k]), hi.max(p[k]))
+                });
             hi - lo
         };
         let axis = usize::from(spread(1) > spread(0));

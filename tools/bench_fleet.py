@@ -442,7 +442,7 @@ def main():
             print(f"| {x} | {fmt(by_n[x], 1)} |")
         print(f"\nslope: {slope * 1024:.0f} kB per vehicle (least squares over {xs}); "
               f"intercept {my - slope * mx:.1f} MB")
-    table([x for x in rows if x[0]["speed"] == 1.0 and not x[0]["lone"] and x[0]["n"] == 64],
+    table([x for x in rows if x[0]["speed"] == 1.0 and x[0]["section"] in ("rt", "cpu") and x[0]["n"] == 64],
           "CPU of an idle fleet (on the ground, disarmed) at --speed 1")
     table([x for x in rows if x[0]["section"] == "side"],
           "Side by side: N processes `--instance k` versus one `--count N` (--speed 1, API links to a listener)")

@@ -25,6 +25,7 @@ import socket
 import sys
 import threading
 import time
+from contextlib import closing
 from pathlib import Path
 
 import pytest
@@ -293,11 +294,10 @@ def test_fleet_of_4_mission_on_2_commands_on_3_others_stay_put():
     four, sees 2 and 3 fly, and 0 and 1 never arm, never leave the ground,
     never move, and keep reporting; nothing collides."""
     need_free([14540 + k for k in range(4)], "the fleet's API links send to PX4's 14540+i")
-    gcs = gcs_socket()
-    board = Board(gcs)
     stop = threading.Event()
     # vehicle 2 keeps the short RTL in its own state directory (ROOT/2)
-    with Fleet(4, speed=5.0, params={2: SHORT_RTL}) as fleet:
+    with closing(gcs_socket()) as gcs, Fleet(4, speed=5.0, params={2: SHORT_RTL}) as fleet:
+        board = Board(gcs)
         reader = background(board, stop)
         try:
             board_until = time.monotonic() + 15
@@ -318,7 +318,6 @@ def test_fleet_of_4_mission_on_2_commands_on_3_others_stay_put():
             stop.set()
             reader.join(5)
             fleet.stop(10)
-    gcs.close()
 
     print(f"vehicle 2: progress {sorted(set(progress))}; vehicle 3: {three}")
     print(f"ever armed {sorted(board.ever_armed)}; altitude ranges {board.alt}; "
@@ -388,9 +387,8 @@ def test_fleet_of_32_every_heartbeat_own_id_all_take_off_from_one_script():
     (`--api-remote none`): PX4's 14540..14549 are left to whoever uses them."""
     n = 32
     ids = list(range(1, n + 1))
-    gcs = gcs_socket()
-    board = Board(gcs)
-    with Fleet(n, speed=10.0, api_remote="none") as fleet:
+    with closing(gcs_socket()) as gcs, Fleet(n, speed=10.0, api_remote="none") as fleet:
+        board = Board(gcs)
         try:
             board.until(lambda: len(board.heartbeats) >= n, 20,
                         lambda: f"{n} heartbeats (heard {sorted(board.heartbeats)})")
@@ -428,6 +426,5 @@ def test_fleet_of_32_every_heartbeat_own_id_all_take_off_from_one_script():
                       f"{ {s: round(board.rel_alt.get(s, 0.0), 2) for s in ids} }")
         finally:
             fleet.stop(15)
-    gcs.close()
     assert sorted(airborne()) == ids
     assert not [t for t in board.texts if "Collision" in t[1]], board.texts

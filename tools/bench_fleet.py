@@ -63,6 +63,8 @@ REPO = Path(__file__).resolve().parents[1]
 mavlink = mavutil.mavlink
 TICK = os.sysconf("SC_CLK_TCK")
 ATTITUDE = mavlink.MAVLINK_MSG_ID_ATTITUDE
+# the simulation's step rate [Hz]: vehicle-steps/s = vehicles x factor x STEP_HZ
+STEP_HZ = 1000.0
 
 
 def binary():
@@ -351,7 +353,7 @@ def fmt(xs, digits):
 def table(rows, title):
     print(f"\n### {title}\n")
     cols = ["vehicles", "processes", "links", "--speed", "runs", "reached factor (median vehicle)",
-            "slowest vehicle", "CPU % of a core", "RSS MB", "datagrams/s", "MB/s", "kernel drops", "lag warnings",
+            "slowest vehicle", "M vehicle-steps/s (1 kHz)", "CPU % of a core", "RSS MB", "datagrams/s", "MB/s", "kernel drops", "lag warnings",
             "load avg"]
     print("| " + " | ".join(cols) + " |")
     print("|" + "---|" * len(cols))
@@ -367,7 +369,7 @@ def table(rows, title):
         print("| " + " | ".join([
             str(c["n"]), str(c["n"] if c["lone"] else 1), c["links"], f"{c['speed']:g}", str(len(ok)),
             fmt(g("factor"), 3), fmt(g("min_factor"), 3) + ("" if c["links"] != "listener" else f" ({heard} heard)"),
-            fmt(g("cpu_pct"), 1), fmt(g("rss_mb"), 1), fmt(g("dgram_s"), 0), fmt(g("mb_s"), 2),
+            fmt([c["n"] * f * STEP_HZ / 1e6 for f in g("factor")], 3), fmt(g("cpu_pct"), 1), fmt(g("rss_mb"), 1), fmt(g("dgram_s"), 0), fmt(g("mb_s"), 2),
             fmt(g("drops"), 0), fmt(g("lag"), 0), fmt(g("load"), 2),
         ]) + " |")
 

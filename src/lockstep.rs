@@ -258,6 +258,27 @@ pub struct Lockstep<P> {
 /// Pilot status texts kept per vehicle until drained (the autopilot's own queue's size).
 const PILOT_TEXTS_KEPT: usize = 64;
 
+/// One vehicle's step at `t_s`: its pilot's texts stamped, sense, decide,
+/// integrate; a fault that stopped the rotors told to the pilot and kept.
+fn step_vehicle<P: Pilot>(
+    mut slot: VehicleSlot<'_>,
+    pilot: &mut P,
+    measurement: &mut Measurement,
+    fault: &mut Option<SimFault>,
+    texts: &mut VecDeque<(f64, StatusText)>,
+    t_s: f64,
+) {
+    stamp_texts(texts, pilot, t_s);
+    let readings = slot.sense();
+    *measurement = readings.measurement;
+    pilot.decide(readings);
+    let report = slot.integrate(&pilot.output().actuator);
+    if let Some(f) = report.fault {
+        pilot.rotors_stopped(&f);
+        *fault = Some(f);
+    }
+}
+
 /// What a vehicle is told when `other` (its label) came `kind` at `distance_m`:
 /// a warning when near, critical when touching.
 #[must_use]
@@ -470,19 +491,8 @@ impl<P: Pilot> Lockstep<P> {
     /// proximity is checked.
     pub fn step(&mut self) {
         let t = self.time_s();
-        let per_vehicle = |(((mut slot, pilot), measurement), (fault, texts)): (
-            ((VehicleSlot<'_>, &mut P), &mut Measurement),
-            (&mut Option<SimFault>, &mut VecDeque<(f64, StatusText)>),
-        )| {
-            stamp_texts(texts, pilot, t);
-            let readings = slot.sense();
-            *measurement = readings.measurement;
-            pilot.decide(readings);
-            let report = slot.integrate(&pilot.output().actuator);
-            if let Some(f) = report.fault {
-                pilot.rotors_stopped(&f);
-                *fault = Some(f);
-            }
+        let per_vehicle = |(((slot, pilot), measurement), (fault, texts))| {
+            step_vehicle(slot, pilot, measurement, fault, texts, t);
         };
         let n = self.pilots.len();
         let vehicles = self

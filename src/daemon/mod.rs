@@ -263,14 +263,7 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
         };
         let recorder = match &log_dir {
             Some(dir) => Some(recorder::Recorder::create(
-                dir,
-                &config.airframe,
-                config.home,
-                &params,
-                sensors,
-                &mut core,
-                i,
-                config.log_csv,
+                dir, &config, &params, sensors, &mut core, i,
             )?),
             None => None,
         };

@@ -61,15 +61,15 @@ impl Recorder {
     /// airframe unreadable, a header that does not rebuild `core`.
     pub(super) fn create(
         dir: &Path,
-        airframe: &str,
-        home: GeoPoint,
+        config: &super::Config,
         params: &ParamStore,
         sensors: SensorConfig,
         core: &mut Lockstep<Autopilot>,
         vehicle: usize,
-        csv: bool,
     ) -> anyhow::Result<Self> {
+        // the rebuilt core's one vehicle
         const VEHICLE: usize = 0;
+        let (airframe, home, csv) = (&config.airframe, config.home, config.log_csv);
         let ap = core.pilot(vehicle);
         let header = Header::new(
             Airframe::load_text(airframe)?,

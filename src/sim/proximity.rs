@@ -140,7 +140,8 @@ impl Proximity {
             let pi = positions_ned[i];
             for &j in &self.order[s + 1..] {
                 let pj = positions_ned[j];
-                if !(pj[axis] - pi[axis] < window) {
+                let gap = pj[axis] - pi[axis];
+                if gap.is_nan() || gap >= window {
                     break;
                 }
                 let (a, b) = if i < j { (i, j) } else { (j, i) };

@@ -17,7 +17,10 @@ fn root() -> PathBuf {
 }
 
 fn rotorpilot(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_rotorpilot")).args(args).output().unwrap()
+    Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+        .args(args)
+        .output()
+        .unwrap()
 }
 
 /// A scratch directory of its own for each test.
@@ -97,7 +100,9 @@ fn crossing_paths_report_the_event_at_the_expected_instant_every_run() {
     let gap = |t: f64| (reference_world(&fleet, 0, t) - reference_world(&fleet, 1, t)).norm();
     assert!(gap(0.0) > 2.0 * d, "they start apart");
     let scan = 1e-4;
-    let k = (0..100_000).find(|&k| gap(k as f64 * scan) < d).expect("the references cross");
+    let k = (0..100_000)
+        .find(|&k| gap(k as f64 * scan) < d)
+        .expect("the references cross");
     let (mut lo, mut hi) = ((k - 1) as f64 * scan, k as f64 * scan);
     for _ in 0..60 {
         let mid = 0.5 * (lo + hi);
@@ -116,7 +121,12 @@ fn crossing_paths_report_the_event_at_the_expected_instant_every_run() {
     let dt = 1e-3;
     let tolerance = dt + e01 / rate;
     assert!(tolerance < 5e-3, "a sharp bound: {tolerance} s");
-    assert_eq!(first.events.len(), 1, "one event, none among the parked: {:?}", first.events);
+    assert_eq!(
+        first.events.len(),
+        1,
+        "one event, none among the parked: {:?}",
+        first.events
+    );
     let e = first.events[0];
     assert_eq!((e.a, e.b, e.kind), (0, 1, ProximityKind::Near));
     assert!(
@@ -124,7 +134,11 @@ fn crossing_paths_report_the_event_at_the_expected_instant_every_run() {
         "event at {} s, the references cross at {expected} s (within {tolerance} s)",
         e.time_s
     );
-    assert!(e.distance_m < d && e.distance_m > d - rate * dt - e01, "{}", e.distance_m);
+    assert!(
+        e.distance_m < d && e.distance_m > d - rate * dt - e01,
+        "{}",
+        e.distance_m
+    );
     for r in &first.results {
         let Outcome::Scenario(s) = &r.outcome else { panic!() };
         assert!(s.upright && s.finite && s.fault.is_none(), "vehicle {}", r.vehicle);
@@ -148,12 +162,20 @@ fn paths_that_meet_report_a_collision() {
     let fleet = Fleet::load(&root().join("tools/fleets/fleet-collision.toml")).unwrap();
     let s = fleet::fly(&fleet, 1, None).unwrap();
     let kinds: Vec<_> = s.events.iter().map(|e| (e.a, e.b, e.kind)).collect();
-    assert_eq!(kinds, [(0, 1, ProximityKind::Near), (0, 1, ProximityKind::Collision)], "{:?}", s.events);
+    assert_eq!(
+        kinds,
+        [(0, 1, ProximityKind::Near), (0, 1, ProximityKind::Collision)],
+        "{:?}",
+        s.events
+    );
     let (near, hit) = (s.events[0], s.events[1]);
     let meet = std::f64::consts::PI;
     assert!((reference_world(&fleet, 0, meet) - reference_world(&fleet, 1, meet)).norm() < 1e-9);
     assert!(near.time_s < hit.time_s && hit.time_s < meet, "{near:?} {hit:?}");
-    assert!(hit.distance_m < 1.0 && hit.distance_m > 0.3, "quad bodies touch below ~0.8 m: {hit:?}");
+    assert!(
+        hit.distance_m < 1.0 && hit.distance_m > 0.3,
+        "quad bodies touch below ~0.8 m: {hit:?}"
+    );
 }
 
 /// Every vehicle's log in `simulate FLEET --csv DIR` is the bytes of its
@@ -196,9 +218,15 @@ fn each_vehicle_flies_exactly_as_alone_on_any_threads() {
     let (two, v2) = csv("2");
     assert_eq!(v1["vehicles"], 18);
     assert_eq!(v1["events"], v2["events"]);
-    assert!(!v1["events"].as_array().unwrap().is_empty(), "they start within 3 m: {}", v1["events"]);
+    assert!(
+        !v1["events"].as_array().unwrap().is_empty(),
+        "they start within 3 m: {}",
+        v1["events"]
+    );
     let loaded = Fleet::load(&fleet).unwrap();
-    let FleetFlights::Plain(list) = &loaded.flights else { panic!() };
+    let FleetFlights::Plain(list) = &loaded.flights else {
+        panic!()
+    };
     for (i, s) in list.iter().enumerate() {
         let name = fleet::csv_name(i, 18, &s.source);
         let a = std::fs::read(one.join(&name)).unwrap();
@@ -246,10 +274,22 @@ fn bad_fleets_are_answered_clearly() {
     let dir = scratch("bad");
     let hover = "scenario = \"FLEETS/vehicles/hover-2m.toml\"\noffset_m = [0.0, 0.0]\n";
     for (text, says) in [
-        (format!("[fleet]\nproximity_m = -1.0\n[[vehicle]]\n{hover}"), ":2:15: fleet.proximity_m: must be a positive"),
-        (format!("[fleet]\nproximity_m = 2.0\n[[vehicle]]\n{hover}speed = 3\n"), ":6:1: unknown field `speed`"),
-        (format!("[fleet]\nproximity_m = 2.0\n[[vehicle]]\n{hover}count = 0\n"), ":6:9: vehicle[1].count: must be 1"),
-        (format!("[fleet]\nproximity_m = 2.0\n[[vehicle]]\n{hover}count = 3\n"), "vehicle[1].spacing_m: needed"),
+        (
+            format!("[fleet]\nproximity_m = -1.0\n[[vehicle]]\n{hover}"),
+            ":2:15: fleet.proximity_m: must be a positive",
+        ),
+        (
+            format!("[fleet]\nproximity_m = 2.0\n[[vehicle]]\n{hover}speed = 3\n"),
+            ":6:1: unknown field `speed`",
+        ),
+        (
+            format!("[fleet]\nproximity_m = 2.0\n[[vehicle]]\n{hover}count = 0\n"),
+            ":6:9: vehicle[1].count: must be 1",
+        ),
+        (
+            format!("[fleet]\nproximity_m = 2.0\n[[vehicle]]\n{hover}count = 3\n"),
+            "vehicle[1].spacing_m: needed",
+        ),
         ("[fleet]\nproximity_m = 2.0\n".into(), "no [[vehicle]]"),
         (
             format!(
@@ -265,7 +305,10 @@ fn bad_fleets_are_answered_clearly() {
     ] {
         let p = fleet_file(&dir, "bad.toml", &text);
         let e = format!("{:#}", Fleet::load(&p).unwrap_err());
-        assert!(e.contains("bad.toml") && e.contains(says), "{text}\n-> {e}\n(wanted {says})");
+        assert!(
+            e.contains("bad.toml") && e.contains(says),
+            "{text}\n-> {e}\n(wanted {says})"
+        );
     }
     let mixed = fleet_file(
         &dir,
@@ -283,10 +326,16 @@ fn bad_fleets_are_answered_clearly() {
     let p = fleet_file(
         &dir,
         "outer.toml",
-        &format!("[fleet]\nproximity_m = 2.0\n[[vehicle]]\nscenario = \"{}\"\noffset_m = [0.0, 0.0]\n", broken.display()),
+        &format!(
+            "[fleet]\nproximity_m = 2.0\n[[vehicle]]\nscenario = \"{}\"\noffset_m = [0.0, 0.0]\n",
+            broken.display()
+        ),
     );
     let e = format!("{:#}", Fleet::load(&p).unwrap_err());
-    assert!(e.contains("outer.toml") && e.contains("broken.toml:3:1") && e.contains("wobble"), "{e}");
+    assert!(
+        e.contains("outer.toml") && e.contains("broken.toml:3:1") && e.contains("wobble"),
+        "{e}"
+    );
     // through the CLI: exit 2 and the message
     let o = rotorpilot(&["simulate", p.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(2));

@@ -193,24 +193,40 @@ impl Fleet {
                 (None, _) => {
                     return Err(at(
                         start,
-                        format!("{}: needed with count > 1 (north, east [m] between copies)", field("spacing_m")),
+                        format!(
+                            "{}: needed with count > 1 (north, east [m] between copies)",
+                            field("spacing_m")
+                        ),
                     ));
                 }
             };
             if !v.offset_m.iter().chain(&spacing).all(|x| x.is_finite()) {
-                return Err(at(start, format!("{}: offset_m and spacing_m must be finite", field("offset_m"))));
+                return Err(at(
+                    start,
+                    format!("{}: offset_m and spacing_m must be finite", field("offset_m")),
+                ));
             }
             if offsets_m.len() + count > MAX_VEHICLES {
-                return Err(at(start, format!("{}: more than {MAX_VEHICLES} vehicles", field("count"))));
+                return Err(at(
+                    start,
+                    format!("{}: more than {MAX_VEHICLES} vehicles", field("count")),
+                ));
             }
             let rel = Path::new(v.scenario.get_ref());
-            let sub: PathBuf = if rel.is_absolute() { rel.to_path_buf() } else { dir.join(rel) };
+            let sub: PathBuf = if rel.is_absolute() {
+                rel.to_path_buf()
+            } else {
+                dir.join(rel)
+            };
             let line = |msg: &str| at(v.scenario.span().start, format!("{}: {msg}", field("scenario")));
             if !sub.is_file() {
                 return Err(line(&format!("{} is not a file", sub.display())));
             }
             if is_fleet(&sub) {
-                return Err(line(&format!("{} is a fleet itself: list its vehicles here", sub.display())));
+                return Err(line(&format!(
+                    "{} is a fleet itself: list its vehicles here",
+                    sub.display()
+                )));
             }
             let mission = is_mission(&sub);
             let context = || format!("{file}: {} ({})", field("scenario"), v.scenario.get_ref());
@@ -388,7 +404,11 @@ impl FleetSummary {
                 r.outcome.to_line()
             ));
         }
-        let collisions = self.events.iter().filter(|e| e.kind == ProximityKind::Collision).count();
+        let collisions = self
+            .events
+            .iter()
+            .filter(|e| e.kind == ProximityKind::Collision)
+            .count();
         s.push_str(&format!(
             "proximity (closer than {} m): {} events, {collisions} collisions\n",
             self.proximity_m,
@@ -427,8 +447,12 @@ pub fn csv_name(i: usize, n: usize, source: &str) -> String {
 trait Track<P: Pilot> {
     fn is_over(&self) -> bool;
     fn before_step(&mut self, core: &mut Lockstep<P>, i: usize);
-    fn after_step(&mut self, core: &mut Lockstep<P>, i: usize, log: Option<&mut CsvLog<BufWriter<FsFile>>>)
-    -> anyhow::Result<()>;
+    fn after_step(
+        &mut self,
+        core: &mut Lockstep<P>,
+        i: usize,
+        log: Option<&mut CsvLog<BufWriter<FsFile>>>,
+    ) -> anyhow::Result<()>;
     fn outcome(self, core: &mut Lockstep<P>, i: usize) -> Outcome;
 }
 
@@ -548,7 +572,10 @@ pub fn fly(fleet: &Fleet, threads: usize, csv_dir: Option<&Path>) -> anyhow::Res
                     FleetFlights::Plain(v) => v[i].airframe.rotor_count(),
                     FleetFlights::Mission(v) => v[i].airframe.rotor_count(),
                 };
-                Some(CsvLog::new(BufWriter::with_capacity(FLEET_CSV_BUFFER_BYTES, f), rotors)?)
+                Some(CsvLog::new(
+                    BufWriter::with_capacity(FLEET_CSV_BUFFER_BYTES, f),
+                    rotors,
+                )?)
             }
             None => None,
         });

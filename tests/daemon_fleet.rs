@@ -285,11 +285,11 @@ fn flood(to: SocketAddr, for_s: f64) -> std::thread::JoinHandle<u64> {
         let start = std::time::Instant::now();
         let mut sent = 0u64;
         while start.elapsed().as_secs_f64() < for_s {
-            let f = if sent % 2 == 0 { &command } else { &setpoint };
+            let f = if sent.is_multiple_of(2) { &command } else { &setpoint };
             if sock.send_to(f, to).is_ok() {
                 sent += 1;
             }
-            if sent % 100 == 0 {
+            if sent.is_multiple_of(100) {
                 std::thread::sleep(Duration::from_millis(5));
             }
         }

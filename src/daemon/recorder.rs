@@ -19,7 +19,6 @@ use super::saver::lock;
 use super::sim_thread::Sim;
 use crate::airframe::Airframe;
 use crate::autopilot::{Autopilot, AutopilotCommand, AutopilotError, ClientTimer, CommandOutcome};
-use crate::geo::GeoPoint;
 use crate::lockstep::Lockstep;
 use crate::mission::{MissionResult, PlanChange};
 use crate::params::{ParamStore, ParamValue};
@@ -307,6 +306,7 @@ impl Sim {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geo::GeoPoint;
 
     /// A disk that fills up: takes `room` bytes, then fails.
     struct Filling {

@@ -246,7 +246,8 @@ pub struct Lockstep<P> {
     /// Each vehicle's name in proximity texts (`vehicle i` unless set).
     labels: Vec<String>,
     /// The proximity events not yet drained, each with the simulated time [s]
-    /// after the step that raised it, at most [`EVENTS_KEPT`].
+    /// after the step that raised it (every one: the runtimes drain them
+    /// after each batch of steps; a pair is told once per rise).
     proximity_events: VecDeque<(f64, ProximityEvent)>,
     /// Scratch: the vehicles' world positions and radii for the proximity check.
     positions: Vec<Vector3<f64>>,
@@ -305,8 +306,6 @@ fn stamp_texts<P: Pilot>(q: &mut VecDeque<(f64, StatusText)>, pilot: &mut P, t_s
         q.push_back((t_s, s));
     }
 }
-/// Proximity events kept until drained.
-const EVENTS_KEPT: usize = 4096;
 /// Vehicles per parallel task: below this a fleet is stepped on one thread.
 const VEHICLES_PER_TASK: usize = 8;
 
@@ -417,9 +416,6 @@ impl<P: Pilot> Lockstep<P> {
             for (me, other) in [(e.a, e.b), (e.b, e.a)] {
                 let text = proximity_text(e.kind, &self.labels[other], e.distance_m);
                 self.world_texts[me].push((t, text));
-            }
-            if self.proximity_events.len() >= EVENTS_KEPT {
-                self.proximity_events.pop_front();
             }
             self.proximity_events.push_back((t, e));
         }

@@ -124,7 +124,9 @@ impl Recorder {
 
     /// One input line, written out at once.
     fn input(&mut self, step: u64, input: &Input, applied: &Applied) {
-        self.steps = step;
+        // a proximity event is recorded after its chunk, at the older step
+        // that raised it: the end line counts the steps flown, not that
+        self.steps = self.steps.max(step);
         let Some(f) = &mut self.record else { return };
         let line = input_line(step, input, &applied.text());
         if let Err(e) = line.map_err(std::io::Error::other).and_then(|l| f.append(&l)) {

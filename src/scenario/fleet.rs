@@ -31,8 +31,9 @@
 //!
 //! The fleet is stepped until every vehicle's flight is over; a vehicle whose
 //! flight is over (its duration, its mission, or a fault of the world) is
-//! judged then, and keeps flying (holding its last reference, or as its
-//! autopilot does) so that it stays in the others' way.
+//! judged then, and keeps flying (its reference goes on as its formula
+//! does, a mission vehicle as its autopilot does) so that it stays in the
+//! others' way.
 
 use std::fs::File as FsFile;
 use std::io::BufWriter;

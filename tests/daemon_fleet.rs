@@ -393,6 +393,29 @@ async fn each_vehicle_of_a_fleet_replays_alone_bit_for_bit_proximity_included() 
             csv == live,
             "vehicle {i}: the replay's CSV is the live flight.csv, byte for byte"
         );
+        // the status texts (logged messages, with their timestamps) of the
+        // replay's ULog are the live ones, the proximity text included
+        let mut ulg = Vec::new();
+        rotorpilot::record::replay_logs(&r, "flight.record", None, Some(&mut ulg)).unwrap();
+        let texts = |b: &[u8]| -> Vec<Vec<u8>> {
+            ulog_records(b)
+                .into_iter()
+                .filter(|(t, _)| *t == b'L')
+                .map(|(_, p)| p)
+                .collect()
+        };
+        let live_texts = texts(&std::fs::read(run.join("flight.ulg")).unwrap());
+        let proximity = format!("Proximity: system {other} at 1.5 m");
+        assert!(
+            live_texts
+                .iter()
+                .any(|p| p.windows(proximity.len()).any(|w| w == proximity.as_bytes())),
+            "vehicle {i}'s flight.ulg logs {proximity:?}"
+        );
+        assert!(
+            texts(&ulg) == live_texts,
+            "vehicle {i}: the replay's ULog messages are the live ones"
+        );
     }
     let _ = std::fs::remove_dir_all(&logs);
 }
@@ -442,4 +465,18 @@ async fn each_vehicle_saves_its_own_parameters_at_shutdown() {
         assert_eq!(set, i == 1, "only system 2 had MPC_XY_CRUISE set: vehicle {i}");
         let _ = std::fs::remove_dir_all(d);
     }
+}
+
+/// A ULog's records after its 16-byte header: (type, payload) of each
+/// (`u16` size, `u8` type, payload: the ULog file format).
+fn ulog_records(b: &[u8]) -> Vec<(u8, Vec<u8>)> {
+    assert_eq!(&b[..7], b"ULog\x01\x12\x35", "not a ULog");
+    let (mut at, mut out) = (16, Vec::new());
+    while at + 3 <= b.len() {
+        let size = usize::from(u16::from_le_bytes([b[at], b[at + 1]]));
+        out.push((b[at + 2], b[at + 3..at + 3 + size].to_vec()));
+        at += 3 + size;
+    }
+    assert_eq!(at, b.len(), "a record cut short");
+    out
 }

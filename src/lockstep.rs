@@ -246,7 +246,8 @@ pub struct Lockstep<P> {
     /// Each vehicle's name in proximity texts (`vehicle i` unless set).
     labels: Vec<String>,
     /// The proximity events not yet drained, each with the simulated time [s]
-    /// after the step that raised it, at most [`EVENTS_KEPT`].
+    /// after the step that raised it (every one: the runtimes drain them
+    /// after each batch of steps; a pair is told once per rise).
     proximity_events: VecDeque<(f64, ProximityEvent)>,
     /// Scratch: the vehicles' world positions and radii for the proximity check.
     positions: Vec<Vector3<f64>>,
@@ -257,6 +258,27 @@ pub struct Lockstep<P> {
 
 /// Pilot status texts kept per vehicle until drained (the autopilot's own queue's size).
 const PILOT_TEXTS_KEPT: usize = 64;
+
+/// One vehicle's step at `t_s`: its pilot's texts stamped, sense, decide,
+/// integrate; a fault that stopped the rotors told to the pilot and kept.
+fn step_vehicle<P: Pilot>(
+    mut slot: VehicleSlot<'_>,
+    pilot: &mut P,
+    measurement: &mut Measurement,
+    fault: &mut Option<SimFault>,
+    texts: &mut VecDeque<(f64, StatusText)>,
+    t_s: f64,
+) {
+    stamp_texts(texts, pilot, t_s);
+    let readings = slot.sense();
+    *measurement = readings.measurement;
+    pilot.decide(readings);
+    let report = slot.integrate(&pilot.output().actuator);
+    if let Some(f) = report.fault {
+        pilot.rotors_stopped(&f);
+        *fault = Some(f);
+    }
+}
 
 /// What a vehicle is told when `other` (its label) came `kind` at `distance_m`:
 /// a warning when near, critical when touching.
@@ -284,8 +306,6 @@ fn stamp_texts<P: Pilot>(q: &mut VecDeque<(f64, StatusText)>, pilot: &mut P, t_s
         q.push_back((t_s, s));
     }
 }
-/// Proximity events kept until drained.
-const EVENTS_KEPT: usize = 4096;
 /// Vehicles per parallel task: below this a fleet is stepped on one thread.
 const VEHICLES_PER_TASK: usize = 8;
 
@@ -397,9 +417,6 @@ impl<P: Pilot> Lockstep<P> {
                 let text = proximity_text(e.kind, &self.labels[other], e.distance_m);
                 self.world_texts[me].push((t, text));
             }
-            if self.proximity_events.len() >= EVENTS_KEPT {
-                self.proximity_events.pop_front();
-            }
             self.proximity_events.push_back((t, e));
         }
     }
@@ -470,19 +487,8 @@ impl<P: Pilot> Lockstep<P> {
     /// proximity is checked.
     pub fn step(&mut self) {
         let t = self.time_s();
-        let per_vehicle = |(((mut slot, pilot), measurement), (fault, texts)): (
-            ((VehicleSlot<'_>, &mut P), &mut Measurement),
-            (&mut Option<SimFault>, &mut VecDeque<(f64, StatusText)>),
-        )| {
-            stamp_texts(texts, pilot, t);
-            let readings = slot.sense();
-            *measurement = readings.measurement;
-            pilot.decide(readings);
-            let report = slot.integrate(&pilot.output().actuator);
-            if let Some(f) = report.fault {
-                pilot.rotors_stopped(&f);
-                *fault = Some(f);
-            }
+        let per_vehicle = |(((slot, pilot), measurement), (fault, texts))| {
+            step_vehicle(slot, pilot, measurement, fault, texts, t);
         };
         let n = self.pilots.len();
         let vehicles = self

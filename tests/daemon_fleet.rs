@@ -285,11 +285,11 @@ fn flood(to: SocketAddr, for_s: f64) -> std::thread::JoinHandle<u64> {
         let start = std::time::Instant::now();
         let mut sent = 0u64;
         while start.elapsed().as_secs_f64() < for_s {
-            let f = if sent % 2 == 0 { &command } else { &setpoint };
+            let f = if sent.is_multiple_of(2) { &command } else { &setpoint };
             if sock.send_to(f, to).is_ok() {
                 sent += 1;
             }
-            if sent % 100 == 0 {
+            if sent.is_multiple_of(100) {
                 std::thread::sleep(Duration::from_millis(5));
             }
         }
@@ -316,11 +316,12 @@ async fn a_client_flooding_one_vehicle_does_not_stall_another() {
         let sent = Instant::now();
         c1.command_long(api1, 176, [1.0, 4.0, 3.0, 0.0, 0.0, 0.0, 0.0], (2, 1))
             .await;
-        let (rx, _) = c1
+        let (rx, ack) = c1
             .ack_of(176, Duration::from_secs(2))
             .await
             .expect("system 2 answers during the flood");
-        assert_eq!(rx.sysid, 2);
+        // ACCEPTED: neither "busy" nor "did not answer"
+        assert_eq!((rx.sysid, ack.result), (2, 0));
         worst = worst.max(sent.elapsed());
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
@@ -333,7 +334,9 @@ async fn a_client_flooding_one_vehicle_does_not_stall_another() {
     let sim = f64::from(t1 - t0) / 1000.0;
     eprintln!("flood: {sent} datagrams in 3 s; system 2: worst ACK {worst:?}, {sim:.2} s simulated in {wall:.2} s");
     assert!(sent > 10_000, "the flood was a flood: {sent} datagrams");
-    assert!(worst < Duration::from_millis(250), "worst ACK {worst:?}");
+    // a few requests of the flood at most go before it (a few microseconds
+    // each); 50 ms leaves room for a loaded test machine
+    assert!(worst < Duration::from_millis(50), "worst ACK {worst:?}");
     assert!(
         sim > 0.9 * wall - 0.2,
         "system 2's clock kept pace: {sim:.2} s in {wall:.2} s"
@@ -390,6 +393,90 @@ async fn each_vehicle_of_a_fleet_replays_alone_bit_for_bit_proximity_included() 
             csv == live,
             "vehicle {i}: the replay's CSV is the live flight.csv, byte for byte"
         );
+        // the status texts (logged messages, with their timestamps) of the
+        // replay's ULog are the live ones, the proximity text included
+        let mut ulg = Vec::new();
+        rotorpilot::record::replay_logs(&r, "flight.record", None, Some(&mut ulg)).unwrap();
+        let texts = |b: &[u8]| -> Vec<Vec<u8>> {
+            ulog_records(b)
+                .into_iter()
+                .filter(|(t, _)| *t == b'L')
+                .map(|(_, p)| p)
+                .collect()
+        };
+        let live_texts = texts(&std::fs::read(run.join("flight.ulg")).unwrap());
+        let proximity = format!("Proximity: system {other} at 1.5 m");
+        assert!(
+            live_texts
+                .iter()
+                .any(|p| p.windows(proximity.len()).any(|w| w == proximity.as_bytes())),
+            "vehicle {i}'s flight.ulg logs {proximity:?}"
+        );
+        assert!(
+            texts(&ulg) == live_texts,
+            "vehicle {i}: the replay's ULog messages are the live ones"
+        );
     }
     let _ = std::fs::remove_dir_all(&logs);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn each_vehicle_saves_its_own_parameters_at_shutdown() {
+    let gcs = Client::with_ids(255, 190).await;
+    let fleet = Fleet::start(3, 3.0, 1.0, gcs.addr()).await;
+    let dirs = fleet.dirs.clone();
+    let (_, api1) = fleet.links[1];
+    let mut c = Client::new().await;
+    c.send(
+        api1,
+        &MavMessage::PARAM_SET(mavlink::dialects::common::PARAM_SET_DATA {
+            param_value: 7.5,
+            target_system: 2,
+            target_component: 1,
+            param_id: "MPC_XY_CRUISE".into(),
+            param_type: mavlink::dialects::common::MavParamType::MAV_PARAM_TYPE_REAL32,
+        }),
+    )
+    .await;
+    c.wait_for(Duration::from_secs(3), |r| match &r.msg {
+        Some(MavMessage::PARAM_VALUE(p)) if r.sysid == 2 && p.param_value == 7.5 => Some(()),
+        _ => None,
+    })
+    .await
+    .expect("system 2 took the value");
+    // the files now, then wipe them: only the shutdown saves can write them back
+    for d in &dirs {
+        std::fs::write(d.join("params.toml"), "# wiped by the test\n").unwrap();
+    }
+    let mut fleet = fleet;
+    fleet.dirs.clear(); // keep them for the check
+    fleet.stop().await;
+    for (i, d) in dirs.iter().enumerate() {
+        let text = std::fs::read_to_string(d.join("params.toml")).unwrap();
+        assert!(
+            // vehicle 0's MAV_SYS_ID = 1 is the default: commented out
+            text.lines().any(|l| l
+                .trim_start_matches("# ")
+                .starts_with(&format!("MAV_SYS_ID = {} ", i + 1))
+                || l == format!("MAV_SYS_ID = {}", i + 1)),
+            "vehicle {i}'s own file, saved at shutdown: {text}"
+        );
+        let set = text.lines().any(|l| l.starts_with("MPC_XY_CRUISE = 7.5"));
+        assert_eq!(set, i == 1, "only system 2 had MPC_XY_CRUISE set: vehicle {i}");
+        let _ = std::fs::remove_dir_all(d);
+    }
+}
+
+/// A ULog's records after its 16-byte header: (type, payload) of each
+/// (`u16` size, `u8` type, payload: the ULog file format).
+fn ulog_records(b: &[u8]) -> Vec<(u8, Vec<u8>)> {
+    assert_eq!(&b[..7], b"ULog\x01\x12\x35", "not a ULog");
+    let (mut at, mut out) = (16, Vec::new());
+    while at + 3 <= b.len() {
+        let size = usize::from(u16::from_le_bytes([b[at], b[at + 1]]));
+        out.push((b[at + 2], b[at + 3..at + 3 + size].to_vec()));
+        at += 3 + size;
+    }
+    assert_eq!(at, b.len(), "a record cut short");
+    out
 }

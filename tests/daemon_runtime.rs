@@ -117,6 +117,19 @@ fn bad_options_are_refused_with_a_message() {
         assert!(err.contains("rotorpilot:"), "{args:?}: {err}");
         let _ = std::fs::remove_dir_all(&dir);
     }
+    // the whole message, once: no empty context before the cause
+    let dir = state_dir("bad");
+    let out = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+        .args(["--airframe", "no-such-frame", "--state-dir"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        "rotorpilot: unknown airframe `no-such-frame`: not a file and not a built-in airframe \
+         (quad, hexa, octo, fsr-quad, hexa-ppnnpn)\n"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Out-of-range numbers are refused with the whole message (the value as

@@ -27,6 +27,9 @@ struct State<T> {
     senders: usize,
     /// The receiver is gone.
     closed: bool,
+    /// Told to stop ([`Stopper::stop`]): the receiver sees the end at once,
+    /// whatever waits in the queues.
+    stopped: bool,
 }
 
 struct Shared<T> {
@@ -61,6 +64,7 @@ pub(super) fn inbox<T>(vehicles: usize) -> Inbox<T> {
                 ready: VecDeque::new(),
                 senders: 0,
                 closed: false,
+                stopped: false,
             }),
             bell: Condvar::new(),
         }),
@@ -87,9 +91,20 @@ impl<T> Inbox<T> {
         Some((v, r))
     }
 
-    /// The next request, round robin over the vehicles, without waiting.
+    /// Something that stops the receiver from another thread.
+    pub(super) fn stopper(&self) -> Stopper<T> {
+        Stopper {
+            shared: self.shared.clone(),
+        }
+    }
+
+    /// The next request, round robin over the vehicles, without waiting;
+    /// `Disconnected` once stopped or every sender is gone.
     pub(super) fn try_recv(&self) -> Result<(usize, T), TryRecvError> {
         let mut s = self.shared.lock();
+        if s.stopped {
+            return Err(TryRecvError::Disconnected);
+        }
         match Self::take(&mut s) {
             Some(x) => Ok(x),
             None if s.senders == 0 => Err(TryRecvError::Disconnected),
@@ -102,6 +117,9 @@ impl<T> Inbox<T> {
         let mut s = self.shared.lock();
         let deadline = std::time::Instant::now() + timeout;
         loop {
+            if s.stopped {
+                return Err(RecvTimeoutError::Disconnected);
+            }
             if let Some(x) = Self::take(&mut s) {
                 return Ok(x);
             }
@@ -135,6 +153,20 @@ impl<T> Drop for Inbox<T> {
             q.clear();
         }
         s.ready.clear();
+    }
+}
+
+/// Stops the receiver ([`Inbox::stopper`]): out of band, so a vehicle's
+/// full queue cannot hold up the daemon's shutdown.
+pub(super) struct Stopper<T> {
+    shared: Arc<Shared<T>>,
+}
+
+impl<T> Stopper<T> {
+    /// From now on the receiver gets `Disconnected`.
+    pub(super) fn stop(&self) {
+        self.shared.lock().stopped = true;
+        self.shared.bell.notify_all();
     }
 }
 
@@ -235,5 +267,21 @@ mod tests {
         ));
         drop(inbox);
         assert!(matches!(a.try_send(1), Err(TrySendError::Disconnected(1))));
+    }
+
+    #[test]
+    fn a_stop_gets_through_a_full_queue_at_once() {
+        let inbox = super::inbox::<u32>(1);
+        let a = inbox.sender(0);
+        for k in 0..QUEUE_CAP as u32 {
+            a.try_send(k).unwrap();
+        }
+        let stopper = inbox.stopper();
+        std::thread::spawn(move || stopper.stop()).join().unwrap();
+        assert!(matches!(inbox.try_recv(), Err(TryRecvError::Disconnected)));
+        assert!(matches!(
+            inbox.recv_timeout(Duration::from_secs(5)),
+            Err(RecvTimeoutError::Disconnected)
+        ));
     }
 }

@@ -194,7 +194,7 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
     let mut stores = Vec::with_capacity(configs.len());
     for c in &configs {
         anyhow::ensure!(c.instance < 250, "{}--instance must be below 250", which(c));
-        let airframe = Airframe::load(&c.airframe).with_context(|| which(c).trim_end_matches(": ").to_string())?;
+        let airframe = Airframe::load(&c.airframe).map_err(|e| anyhow::anyhow!("{}{e}", which(c)))?;
         let (params, warnings) = vehicle_params(c, &airframe).map_err(|e| anyhow::anyhow!("{}{e:#}", which(c)))?;
         airframes.push(airframe);
         stores.push((params, warnings));
@@ -263,14 +263,7 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
         };
         let recorder = match &log_dir {
             Some(dir) => Some(recorder::Recorder::create(
-                dir,
-                &config.airframe,
-                config.home,
-                &params,
-                sensors,
-                &mut core,
-                i,
-                config.log_csv,
+                dir, &config, &params, sensors, &mut core, i,
             )?),
             None => None,
         };
@@ -563,8 +556,8 @@ impl Daemon {
             }
             finals.push((config.instance, params, path, plans_file, tel_rx));
         }
-        // the stop request goes through vehicle 0's queue
-        let sim_tx = inbox.sender(0);
+        // stops the simulation thread out of band (a full queue cannot hold it up)
+        let stopper = inbox.stopper();
         let sim = Sim {
             core,
             speed,
@@ -602,10 +595,7 @@ impl Daemon {
             }
         };
         let _ = stop_tx.send(true);
-        // never block here; if the queue is full the simulation sees every
-        // sender gone once the links have stopped
-        let _ = sim_tx.try_send(SimRequest::Stop);
-        drop(sim_tx);
+        stopper.stop();
         if tokio::time::timeout(Duration::from_millis(800), futures_join(tasks))
             .await
             .is_err()

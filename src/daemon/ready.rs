@@ -38,9 +38,14 @@ pub(super) async fn announce(
     mut tels: Vec<watch::Receiver<Snapshot>>,
     mut stop: watch::Receiver<bool>,
 ) {
+    // a fleet is ready when every vehicle has been ready once (one may be
+    // armed, or faulted, before the last is ready)
+    let mut was_ready = vec![false; tels.len()];
     loop {
-        // the first vehicle not ready yet (a fleet is ready when every vehicle is)
-        let waiting = tels.iter_mut().position(|t| !ready_to_arm(&t.borrow_and_update()));
+        for (t, r) in tels.iter_mut().zip(&mut was_ready) {
+            *r = *r || ready_to_arm(&t.borrow_and_update());
+        }
+        let waiting = was_ready.iter().position(|r| !r);
         let Some(i) = waiting else {
             let mut out = std::io::stdout().lock();
             // a closed stdout (the starter went away) is no reason to stop the vehicle

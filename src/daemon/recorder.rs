@@ -19,7 +19,6 @@ use super::saver::lock;
 use super::sim_thread::Sim;
 use crate::airframe::Airframe;
 use crate::autopilot::{Autopilot, AutopilotCommand, AutopilotError, ClientTimer, CommandOutcome};
-use crate::geo::GeoPoint;
 use crate::lockstep::Lockstep;
 use crate::mission::{MissionResult, PlanChange};
 use crate::params::{ParamStore, ParamValue};
@@ -61,15 +60,15 @@ impl Recorder {
     /// airframe unreadable, a header that does not rebuild `core`.
     pub(super) fn create(
         dir: &Path,
-        airframe: &str,
-        home: GeoPoint,
+        config: &super::Config,
         params: &ParamStore,
         sensors: SensorConfig,
         core: &mut Lockstep<Autopilot>,
         vehicle: usize,
-        csv: bool,
     ) -> anyhow::Result<Self> {
+        // the rebuilt core's one vehicle
         const VEHICLE: usize = 0;
+        let (airframe, home, csv) = (&config.airframe, config.home, config.log_csv);
         let ap = core.pilot(vehicle);
         let header = Header::new(
             Airframe::load_text(airframe)?,
@@ -125,7 +124,9 @@ impl Recorder {
 
     /// One input line, written out at once.
     fn input(&mut self, step: u64, input: &Input, applied: &Applied) {
-        self.steps = step;
+        // a proximity event is recorded after its chunk, at the older step
+        // that raised it: the end line counts the steps flown, not that
+        self.steps = self.steps.max(step);
         let Some(f) = &mut self.record else { return };
         let line = input_line(step, input, &applied.text());
         if let Err(e) = line.map_err(std::io::Error::other).and_then(|l| f.append(&l)) {
@@ -307,6 +308,7 @@ impl Sim {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geo::GeoPoint;
 
     /// A disk that fills up: takes `room` bytes, then fails.
     struct Filling {

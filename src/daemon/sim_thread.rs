@@ -9,7 +9,7 @@
 //! at most one request per turn. If the machine cannot keep up, simulated
 //! time falls behind instead of bursting (a warning says so).
 
-use std::sync::mpsc::RecvTimeoutError;
+use std::sync::mpsc::{RecvTimeoutError, TryRecvError};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -52,8 +52,6 @@ pub(super) enum SimRequest {
     },
     /// A ground station's HEARTBEAT arrived (data-link loss supervision; no answer).
     GcsHeartbeat,
-    /// Stop the thread.
-    Stop,
 }
 
 /// Messages to every link task.
@@ -94,8 +92,8 @@ pub(super) struct VehicleIo {
 }
 
 impl Sim {
-    /// The simulation loop (on its own thread) until [`SimRequest::Stop`] or
-    /// every sender is gone.
+    /// The simulation loop (on its own thread) until the inbox is stopped
+    /// ([`super::inbox::Stopper`]) or every sender is gone.
     pub(super) fn run(mut self, rx: &Inbox<SimRequest>) {
         let wall = Instant::now();
         let steps = self.core.steps();
@@ -126,7 +124,7 @@ impl Sim {
             let now = Instant::now();
             if now < next_tick {
                 match rx.recv_timeout(next_tick - now) {
-                    Ok((_, SimRequest::Stop)) | Err(RecvTimeoutError::Disconnected) => return,
+                    Err(RecvTimeoutError::Disconnected) => return,
                     Ok((v, r)) => self.handle(v, r),
                     Err(RecvTimeoutError::Timeout) => {}
                 }
@@ -166,9 +164,9 @@ impl Sim {
                 // meanwhile waits for the next look)
                 for _ in 0..rx.len() {
                     match rx.try_recv() {
-                        Ok((_, SimRequest::Stop)) => return,
                         Ok((v, r)) => self.handle(v, r),
-                        Err(_) => break,
+                        Err(TryRecvError::Disconnected) => return,
+                        Err(TryRecvError::Empty) => break,
                     }
                 }
                 if now.elapsed() > MAX_BATCH_WALL {
@@ -270,8 +268,6 @@ impl Sim {
                 let _ = reply.send(outcome);
             }
             SimRequest::GcsHeartbeat => self.gcs_heartbeat(v),
-            // the loop returns on Stop before handing requests here
-            SimRequest::Stop => {}
         }
     }
 

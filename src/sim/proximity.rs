@@ -124,7 +124,7 @@ impl Proximity {
         let axis = usize::from(spread(1) > spread(0));
         self.axis = axis;
         let key = |i: usize| positions_ned[i][axis];
-        // insertion sort: O(n) when nearly sorted (NaN positions sort last)
+        // insertion sort: O(n) when nearly sorted (NaN positions sort to an end)
         for j in 1..n {
             let mut k = j;
             while k > 0 && key(self.order[k - 1]).total_cmp(&key(self.order[k])).is_gt() {
@@ -140,7 +140,8 @@ impl Proximity {
             let pi = positions_ned[i];
             for &j in &self.order[s + 1..] {
                 let pj = positions_ned[j];
-                if !(pj[axis] - pi[axis] < window) {
+                let gap = pj[axis] - pi[axis];
+                if gap.is_nan() || gap > window {
                     break;
                 }
                 let (a, b) = if i < j { (i, j) } else { (j, i) };

@@ -42,7 +42,9 @@ pub struct DaemonArgs {
     /// Extra link, repeatable: udpout:HOST:PORT (send there) or udpin:HOST:PORT (listen there).
     #[arg(long = "link", value_name = "udpout:HOST:PORT|udpin:HOST:PORT")]
     pub links: Vec<String>,
-    /// Where parameters and plans persist (default rotorpilot-state/N).
+    /// Where parameters and plans persist: a lone vehicle's own directory
+    /// (default rotorpilot-state/N); with --count or --fleet, the root of one
+    /// directory per vehicle, DIR/N for instance N (default rotorpilot-state).
     #[arg(long, value_name = "DIR")]
     pub state_dir: Option<std::path::PathBuf>,
     /// Start from default parameters (the saved file is overwritten).
@@ -70,6 +72,30 @@ pub struct DaemonArgs {
     /// With --log-dir: also write the per-step flight CSV (as `simulate --csv`).
     #[arg(long, requires = "log_dir")]
     pub log_csv: bool,
+    /// Run N vehicles in one process on one simulated clock: instances
+    /// K..K+N-1 (K = --instance), each exactly as `--instance i` runs alone
+    /// (system id i+1, PX4's ports for i, state in --state-dir/i), spawned
+    /// 3 m x i north of --home as PX4's sitl_multiple_run.sh spawns them.
+    /// --count 1 is a fleet of one, spawned 3 m x K north. Every option
+    /// applies to each vehicle, except --gcs-bind, --api-bind and --link.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pub count: Option<u32>,
+    /// Run the fleet a TOML file describes: [[vehicle]] entries with an
+    /// instance and optionally airframe, offset_m = [NORTH, EAST], params =
+    /// { NAME = value } and count; optional top-level home = [LAT, LON, ALT]
+    /// and proximity_m. Command-line options apply to every vehicle, as with
+    /// --count (--airframe to the entries that name none); --home and
+    /// --proximity override the file's.
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["count", "instance"])]
+    pub fleet: Option<std::path::PathBuf>,
+    /// Report two vehicles of the fleet closer than M metres (default 2).
+    #[arg(long, value_name = "M")]
+    pub proximity: Option<f64>,
+    /// Print the vehicles these options run (instance, system id, airframe,
+    /// spawn point, links, state directory, parameters set) and exit
+    /// without starting any: checks a fleet file.
+    #[arg(long)]
+    pub check: bool,
 }
 
 impl DaemonArgs {
@@ -111,6 +137,64 @@ impl DaemonArgs {
             c.links.push(LinkSpec::parse(l)?);
         }
         Ok(c)
+    }
+
+    /// The vehicles these options describe: the lone vehicle of
+    /// [`Self::config`] without --count and --fleet, else the fleet
+    /// ([`crate::daemon::FleetConfig`]).
+    ///
+    /// # Errors
+    /// As [`Self::config`]; with a fleet, an option that names one vehicle's
+    /// socket, instances beyond the system ids, an airframe that does not
+    /// load, a fleet file's errors (file, field with its line, problem).
+    pub fn fleet_config(&self) -> anyhow::Result<crate::daemon::FleetConfig> {
+        use crate::daemon::{DEFAULT_STATE_ROOT, FleetConfig, FleetOptions, Remote, parse_home, resolve};
+        if let Some(m) = self.proximity {
+            anyhow::ensure!(
+                m.is_finite() && m > 0.0,
+                "--proximity must be a finite distance > 0 m, got {m}"
+            );
+        }
+        let fleet = match (&self.fleet, self.count) {
+            (None, None) => {
+                let mut f = FleetConfig::lone(self.config()?);
+                f.proximity_m = self.proximity.unwrap_or(f.proximity_m);
+                return Ok(f);
+            }
+            (Some(_), _) => "--fleet",
+            (None, Some(_)) => "--count",
+        };
+        for (given, flag) in [
+            (self.gcs_bind.is_some(), "--gcs-bind"),
+            (self.api_bind.is_some(), "--api-bind"),
+            (!self.links.is_empty(), "--link"),
+        ] {
+            anyhow::ensure!(
+                !given,
+                "{flag} cannot be used with {fleet}: it names one vehicle's socket, and a fleet binds \
+                 PX4's ports for each instance i (GCS 18570+i, API 14580+i); --gcs-remote and \
+                 --api-remote apply to every vehicle"
+            );
+        }
+        let remote = |s: Option<&str>| -> anyhow::Result<Remote> {
+            Ok(match s {
+                None => Remote::Px4,
+                Some("none") => Remote::Nowhere,
+                Some(a) => Remote::To(resolve(a)?),
+            })
+        };
+        let opts = FleetOptions {
+            base: self.config()?,
+            gcs_remote: remote(self.gcs_remote.as_deref())?,
+            api_remote: remote(self.api_remote.as_deref())?,
+            state_root: self.state_dir.clone().unwrap_or_else(|| DEFAULT_STATE_ROOT.into()),
+            home: self.home.as_deref().map(parse_home).transpose()?,
+            proximity_m: self.proximity,
+        };
+        match &self.fleet {
+            Some(path) => Ok(FleetConfig::from_file(path, &opts)?),
+            None => FleetConfig::counted(&opts, self.instance, self.count.unwrap_or(1)),
+        }
     }
 }
 
@@ -265,6 +349,10 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             json,
             any_version,
         }) => replay::run(&record, csv.as_deref(), ulog.as_deref(), json, any_version),
+        None if cli.daemon.check => {
+            print!("{}", cli.daemon.fleet_config()?.to_text());
+            Ok(())
+        }
         None => run_daemon(&cli.daemon),
     }
 }
@@ -280,12 +368,12 @@ fn run_daemon(args: &DaemonArgs) -> anyhow::Result<()> {
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .with_target(false)
         .try_init();
-    let config = args.config()?;
+    let fleet = args.fleet_config()?;
     // The links share one thread (no cross-thread wake-ups: an idle vehicle
     // stays cheap); the simulation has its own thread (see `daemon`).
     let rt = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
     rt.block_on(async {
-        let daemon = crate::daemon::bind(config).await?;
+        let daemon = crate::daemon::bind_fleet(fleet).await?;
         for w in daemon.warnings() {
             eprintln!("rotorpilot: {w}");
         }

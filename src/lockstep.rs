@@ -44,8 +44,8 @@ use crate::mission::{MissionResult, PlanChange, Plans};
 use crate::params::{ParamStore, ParamValue};
 use crate::signals::{DEFAULT_STEP_S, Measurement, SensorReadings};
 use crate::sim::{
-    ActiveFaults, Environment, Fault, FaultSettings, RotorHealth, SensorConfig, SimFault, StepReport, Truth, World,
-    WorldSettings,
+    ActiveFaults, Environment, Fault, FaultSettings, Proximity, ProximityEvent, ProximityKind, RotorHealth,
+    SensorConfig, SimFault, StepReport, Truth, VehicleSlot, World, WorldSettings,
 };
 
 /// MAVLink FAILURE_UNIT and FAILURE_TYPE numbers (PX4's `vehicle_command`).
@@ -165,8 +165,9 @@ pub fn failure_faults(
 }
 
 /// Flight software in the loop: from the sensor readings at `t_k` to what
-/// the actuators get over `[t_k, t_{k+1})`.
-pub trait Pilot {
+/// the actuators get over `[t_k, t_{k+1})`. `Send`: a fleet's vehicles may
+/// be stepped on several threads ([`Lockstep::set_threads`]).
+pub trait Pilot: Send {
     /// Decide this step ([`Self::output`] holds the decision).
     fn decide(&mut self, readings: &SensorReadings);
     /// What the latest [`Self::decide`] decided.
@@ -240,10 +241,73 @@ pub struct Lockstep<P> {
     /// raised: by the last step or by an input after it), oldest first, at
     /// most the latest [`PILOT_TEXTS_KEPT`].
     pilot_texts: Vec<VecDeque<(f64, StatusText)>>,
+    /// Vehicle–vehicle proximity, when watched ([`Self::watch_proximity`]).
+    proximity: Option<Proximity>,
+    /// Each vehicle's name in proximity texts (`vehicle i` unless set).
+    labels: Vec<String>,
+    /// The proximity events not yet drained, each with the simulated time [s]
+    /// after the step that raised it (every one: the runtimes drain them
+    /// after each batch of steps; a pair is told once per rise).
+    proximity_events: VecDeque<(f64, ProximityEvent)>,
+    /// Scratch: the vehicles' world positions and radii for the proximity check.
+    positions: Vec<Vector3<f64>>,
+    radii: Vec<f64>,
+    /// Threads stepping the vehicles (none: on the caller's thread).
+    pool: Option<rayon::ThreadPool>,
 }
 
 /// Pilot status texts kept per vehicle until drained (the autopilot's own queue's size).
 const PILOT_TEXTS_KEPT: usize = 64;
+
+/// One vehicle's step at `t_s`: its pilot's texts stamped, sense, decide,
+/// integrate; a fault that stopped the rotors told to the pilot and kept.
+fn step_vehicle<P: Pilot>(
+    mut slot: VehicleSlot<'_>,
+    pilot: &mut P,
+    measurement: &mut Measurement,
+    fault: &mut Option<SimFault>,
+    texts: &mut VecDeque<(f64, StatusText)>,
+    t_s: f64,
+) {
+    stamp_texts(texts, pilot, t_s);
+    let readings = slot.sense();
+    *measurement = readings.measurement;
+    pilot.decide(readings);
+    let report = slot.integrate(&pilot.output().actuator);
+    if let Some(f) = report.fault {
+        pilot.rotors_stopped(&f);
+        *fault = Some(f);
+    }
+}
+
+/// What a vehicle is told when `other` (its label) came `kind` at `distance_m`:
+/// a warning when near, critical when touching.
+#[must_use]
+pub fn proximity_text(kind: ProximityKind, other: &str, distance_m: f64) -> StatusText {
+    match kind {
+        ProximityKind::Near => StatusText {
+            severity: Severity::Warning,
+            text: format!("Proximity: {other} at {distance_m:.1} m"),
+        },
+        ProximityKind::Collision => StatusText {
+            severity: Severity::Critical,
+            text: format!("Collision with {other} ({distance_m:.2} m)"),
+        },
+    }
+}
+
+/// Move `pilot`'s queued status texts to `q`, stamped with `t_s`, keeping
+/// the latest [`PILOT_TEXTS_KEPT`].
+fn stamp_texts<P: Pilot>(q: &mut VecDeque<(f64, StatusText)>, pilot: &mut P, t_s: f64) {
+    for s in pilot.take_status_texts() {
+        if q.len() >= PILOT_TEXTS_KEPT {
+            q.pop_front();
+        }
+        q.push_back((t_s, s));
+    }
+}
+/// Vehicles per parallel task: below this a fleet is stepped on one thread.
+const VEHICLES_PER_TASK: usize = 8;
 
 impl<P: Pilot> Lockstep<P> {
     /// `world` with `pilots[i]` flying its vehicle `i`.
@@ -261,6 +325,99 @@ impl<P: Pilot> Lockstep<P> {
             last_fault: vec![None; n],
             world_texts: vec![Vec::new(); n],
             pilot_texts: vec![VecDeque::new(); n],
+            proximity: None,
+            labels: (0..n).map(|i| format!("vehicle {i}")).collect(),
+            proximity_events: VecDeque::new(),
+            positions: Vec::new(),
+            radii: Vec::new(),
+            pool: None,
+        }
+    }
+
+    /// Step the vehicles on `threads` threads (1: on the caller's, the
+    /// default). Every vehicle's step is the same arithmetic either way (the
+    /// vehicles do not interact within a step), so the flight is the same
+    /// to the bit; only wall time changes.
+    ///
+    /// # Errors
+    /// The threads could not be started.
+    pub fn set_threads(&mut self, threads: usize) -> Result<(), String> {
+        self.pool = if threads > 1 {
+            Some(
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .thread_name(|k| format!("rotorpilot-step-{k}"))
+                    .build()
+                    .map_err(|e| e.to_string())?,
+            )
+        } else {
+            None
+        };
+        Ok(())
+    }
+
+    /// Report every pair of vehicles that comes closer than `distance_m` [m]
+    /// and every pair whose bodies touch ([`crate::sim::proximity`]): after
+    /// each step, a status text to both vehicles (a warning when near,
+    /// critical when touching, naming the other by its label) and an event
+    /// ([`Self::drain_proximity_events`]). Vehicles pass through each other:
+    /// a collision is reported, not simulated as contact.
+    pub fn watch_proximity(&mut self, distance_m: f64) {
+        self.proximity = Some(Proximity::new(distance_m));
+    }
+
+    /// Name the vehicles in proximity texts (`labels[i]` for vehicle `i`,
+    /// e.g. `system 3`); missing ones keep `vehicle i`.
+    pub fn set_labels(&mut self, labels: Vec<String>) {
+        for (l, new) in self.labels.iter_mut().zip(labels) {
+            *l = new;
+        }
+    }
+
+    /// Vehicle `i`'s label in proximity texts ([`Self::set_labels`]).
+    #[must_use]
+    pub fn label(&self, i: usize) -> &str {
+        &self.labels[i]
+    }
+
+    /// Announce `text` to vehicle `i` at the current instant, as the world
+    /// announces its own events (a replay re-telling a proximity event that
+    /// another vehicle of the live fleet caused).
+    pub fn announce(&mut self, i: usize, text: StatusText) {
+        let t = self.time_s();
+        self.world_texts[i].push((t, text));
+    }
+
+    /// The proximity events since the last call, oldest first, each with the
+    /// simulated time [s] after the step that raised it.
+    pub fn drain_proximity_events(&mut self) -> Vec<(f64, ProximityEvent)> {
+        self.proximity_events.drain(..).collect()
+    }
+
+    /// Check proximity after a step (module doc of [`crate::sim::proximity`]).
+    fn check_proximity(&mut self) {
+        let Some(prox) = &mut self.proximity else {
+            return;
+        };
+        let n = self.world.len();
+        if n < 2 {
+            return;
+        }
+        self.positions.clear();
+        self.radii.clear();
+        for i in 0..n {
+            self.positions.push(self.world.position_ned(i));
+            self.radii.push(self.world.body_radius_m(i));
+        }
+        let mut events = Vec::new();
+        prox.check(&self.positions, &self.radii, &mut events);
+        let t = self.world.time_s();
+        for e in events {
+            for (me, other) in [(e.a, e.b), (e.b, e.a)] {
+                let text = proximity_text(e.kind, &self.labels[other], e.distance_m);
+                self.world_texts[me].push((t, text));
+            }
+            self.proximity_events.push_back((t, e));
         }
     }
 
@@ -321,33 +478,39 @@ impl<P: Pilot> Lockstep<P> {
     /// stamped with the current simulated time.
     fn stamp_pilot_texts(&mut self, i: usize) {
         let t = self.time_s();
-        let q = &mut self.pilot_texts[i];
-        for s in self.pilots[i].take_status_texts() {
-            if q.len() >= PILOT_TEXTS_KEPT {
-                q.pop_front();
-            }
-            q.push_back((t, s));
-        }
+        stamp_texts(&mut self.pilot_texts[i], &mut self.pilots[i], t);
     }
 
-    /// One step of every vehicle: sense, decide, act, integrate.
+    /// One step of every vehicle: sense, decide, act, integrate (each
+    /// vehicle on its own: they do not interact within a step; on the
+    /// threads of [`Self::set_threads`] when set), then the clock ticks and
+    /// proximity is checked.
     pub fn step(&mut self) {
-        for i in 0..self.pilots.len() {
-            self.stamp_pilot_texts(i);
-        }
-        for (i, (pilot, measurement)) in self.pilots.iter_mut().zip(&mut self.measurements).enumerate() {
-            let readings = self.world.sense(i);
-            *measurement = readings.measurement;
-            pilot.decide(readings);
-        }
-        let pilots = &self.pilots;
-        let reports = self.world.step(|i| &pilots[i].output().actuator);
-        for ((report, pilot), fault) in reports.iter().zip(&mut self.pilots).zip(&mut self.last_fault) {
-            if let Some(f) = report.fault {
-                pilot.rotors_stopped(&f);
-                *fault = Some(f);
+        let t = self.time_s();
+        let per_vehicle = |(((slot, pilot), measurement), (fault, texts))| {
+            step_vehicle(slot, pilot, measurement, fault, texts, t);
+        };
+        let n = self.pilots.len();
+        let vehicles = self
+            .world
+            .slots()
+            .zip(self.pilots.iter_mut())
+            .zip(self.measurements.iter_mut())
+            .zip(self.last_fault.iter_mut().zip(self.pilot_texts.iter_mut()));
+        match &self.pool {
+            Some(pool) if n >= 2 * VEHICLES_PER_TASK => {
+                use rayon::iter::{IndexedParallelIterator as _, IntoParallelIterator as _, ParallelIterator as _};
+                let all: Vec<_> = vehicles.collect();
+                pool.install(|| {
+                    all.into_par_iter()
+                        .with_min_len(VEHICLES_PER_TASK)
+                        .for_each(per_vehicle);
+                });
             }
+            _ => vehicles.for_each(per_vehicle),
         }
+        self.world.tick();
+        self.check_proximity();
     }
 
     /// Vehicle `i`'s latest step.
@@ -407,6 +570,19 @@ impl<P: Pilot> Lockstep<P> {
     }
 }
 
+/// One vehicle of a fleet ([`Lockstep::fleet`]).
+#[derive(Clone, Copy, Debug)]
+pub struct FleetVehicle<'a> {
+    /// Its airframe.
+    pub airframe: &'a Airframe,
+    /// Its home: where it rests at start, its NED origin.
+    pub home: GeoPoint,
+    /// Its parameters (the autopilot's and the world's `SIM_*`).
+    pub params: &'a ParamStore,
+    /// Its sensors' noise and seed.
+    pub sensors: SensorConfig,
+}
+
 impl Lockstep<Autopilot> {
     /// A world of one vehicle on `airframe`, resting on the ground at `home`
     /// (the NED origin), flown by an autopilot with `params`; the world takes
@@ -420,11 +596,36 @@ impl Lockstep<Autopilot> {
         params: &ParamStore,
         sensors: SensorConfig,
     ) -> Result<Self, AutopilotError> {
+        let vehicle = FleetVehicle {
+            airframe,
+            home,
+            params,
+            sensors,
+        };
+        Self::fleet(home, &[vehicle]).map_err(|(_, e)| e)
+    }
+
+    /// A world whose NED origin is `origin` (the fleet's home, on the ground)
+    /// holding `vehicles[i]` as vehicle `i`: each resting on the ground at its
+    /// own home, which is also its autopilot's home and NED origin, placed in
+    /// the world at the home's north and east offset from `origin`
+    /// ([`World::set_origin_ned`]); each world body takes its vehicle's
+    /// `SIM_*` parameters. Vehicle `i` flies exactly as it would alone.
+    ///
+    /// # Errors
+    /// The first vehicle whose autopilot cannot start, with its index.
+    pub fn fleet(origin: GeoPoint, vehicles: &[FleetVehicle<'_>]) -> Result<Self, (usize, AutopilotError)> {
         let mut world = World::new(DEFAULT_STEP_S, Environment::default());
-        world.add_vehicle(airframe, sensors);
-        world.configure(0, &WorldSettings::from_store(params));
-        let autopilot = Autopilot::new(airframe, home, params, DEFAULT_STEP_S)?;
-        Ok(Self::new(world, vec![autopilot]))
+        let mut pilots = Vec::with_capacity(vehicles.len());
+        for (i, v) in vehicles.iter().enumerate() {
+            world.add_vehicle(v.airframe, v.sensors);
+            world.configure(i, &WorldSettings::from_store(v.params));
+            if i > 0 || v.home != origin {
+                world.set_origin_ned(i, v.home.ned_from(&origin));
+            }
+            pilots.push(Autopilot::new(v.airframe, v.home, v.params, DEFAULT_STEP_S).map_err(|e| (i, e))?);
+        }
+        Ok(Self::new(world, pilots))
     }
 
     /// Carry out a command for vehicle `i`, judged by its autopilot at the

@@ -109,6 +109,18 @@ pub enum Input {
     },
     /// [`Lockstep::reboot`] from the parameters in force.
     Reboot,
+    /// Another vehicle of the fleet came near (or touched): the text
+    /// [`crate::lockstep::proximity_text`] announced ([`Lockstep::announce`]).
+    /// The live fleet's core raised it itself (it sees every vehicle); the
+    /// record keeps it so that a replay of this one vehicle tells it alike.
+    Proximity {
+        /// The other vehicle's label (`system 3`).
+        other: String,
+        /// Near or touching.
+        kind: crate::sim::ProximityKind,
+        /// Their distance [m].
+        distance_m: f64,
+    },
 }
 
 /// What the core answered to an [`Input`].
@@ -126,6 +138,8 @@ pub enum Applied {
     ClientTimeout(bool),
     /// To a reboot.
     Reboot(Result<(), AutopilotError>),
+    /// To a proximity event (announced).
+    Announced,
 }
 
 impl Applied {
@@ -142,6 +156,7 @@ impl Applied {
                 Ok(()) => "Ok".into(),
                 Err(e) => format!("Err({e})"),
             },
+            Applied::Announced => "announced".into(),
         }
     }
 }
@@ -160,6 +175,14 @@ pub fn apply(core: &mut Lockstep<Autopilot>, i: usize, params: &mut ParamStore, 
         }
         Input::ClientTimeout { timer, started_s } => Applied::ClientTimeout(core.client_timeout(i, *timer, *started_s)),
         Input::Reboot => Applied::Reboot(core.reboot(i, params)),
+        Input::Proximity {
+            other,
+            kind,
+            distance_m,
+        } => {
+            core.announce(i, crate::lockstep::proximity_text(*kind, other, *distance_m));
+            Applied::Announced
+        }
     }
 }
 

@@ -32,6 +32,7 @@ use anyhow::Context as _;
 use serde::Serialize;
 
 use crate::scenario::campaign::{self, CampaignFile, EXTENSIONS, Outcome, Shard, Values};
+use crate::scenario::fleet::{self, Fleet};
 
 /// The arguments of `rotorpilot simulate`.
 #[derive(Debug, Clone, clap::Args)]
@@ -57,6 +58,10 @@ pub struct SimulateArgs {
     /// $JOB_COMPLETION_INDEX/N in a Kubernetes Indexed Job).
     #[arg(long, value_name = "I/N")]
     pub shard: Option<Shard>,
+    /// A fleet file ([fleet] table, see tools/fleets/): step its vehicles
+    /// on N threads (default 1; the flight is the same to the bit on any N).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pub threads: Option<u32>,
 }
 
 /// Exit status: a mission failed its verdict.
@@ -156,6 +161,21 @@ pub fn main(args: &SimulateArgs) -> u8 {
 #[allow(clippy::too_many_lines)]
 fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
     let paths = expand(&args.scenarios)?;
+    match (paths.as_slice(), args.shard) {
+        ([one], None) if !args.scenarios[0].is_dir() && fleet::is_fleet(one) => return run_fleet(args, one),
+        _ => {
+            if let Some(f) = paths.iter().find(|p| fleet::is_fleet(p)) {
+                anyhow::bail!(
+                    "{}: a fleet flies on its own, not in a campaign or a directory (`rotorpilot simulate {0}`)",
+                    f.display()
+                );
+            }
+            anyhow::ensure!(
+                args.threads.is_none(),
+                "--threads steps the vehicles of one fleet file; scenarios are flown at once with --jobs"
+            );
+        }
+    }
     let files: Vec<Result<CampaignFile, String>> = paths
         .iter()
         .map(|p| CampaignFile::load(p).map_err(|e| e.to_string()))
@@ -341,4 +361,46 @@ fn csv_name(index: u64, width: usize, path: &Path, variant: Option<u64>) -> Stri
         Some(v) => format!("{index:0width$}-{stem}-v{v}.csv"),
         None => format!("{index:0width$}-{stem}.csv"),
     }
+}
+
+/// `rotorpilot simulate FLEET.toml`: fly the fleet on `--threads` threads;
+/// print its summary (text: a header, a line per vehicle, a line per
+/// proximity event; `--json`: one object on one line); `--csv DIR` writes
+/// one `NNNN-STEM.csv` per vehicle into DIR (made if missing), each the
+/// bytes its file flown alone writes. Exit status as for a campaign: 2 for
+/// a fleet that cannot be read or flown, 1 when a mission vehicle failed.
+fn run_fleet(args: &SimulateArgs, path: &Path) -> anyhow::Result<u8> {
+    let threads = args.threads.map_or(1, |t| t as usize);
+    anyhow::ensure!(
+        args.jobs.is_none(),
+        "--jobs flies several scenarios at once; a fleet's vehicles are stepped on --threads"
+    );
+    let fleet = match Fleet::load(path) {
+        Ok(f) => f,
+        Err(e) => {
+            eprintln!("rotorpilot: {e:#}");
+            return Ok(EXIT_BAD_SCENARIO);
+        }
+    };
+    if let Some(dir) = &args.csv {
+        std::fs::create_dir_all(dir).with_context(|| format!("--csv {}: cannot make the directory", dir.display()))?;
+    }
+    let start = Instant::now();
+    let mut summary = match fleet::fly(&fleet, threads, args.csv.as_deref()) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("rotorpilot: {e:#}");
+            return Ok(EXIT_BAD_SCENARIO);
+        }
+    };
+    summary.set_wall_time_s(start.elapsed().as_secs_f64());
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    if args.json {
+        writeln!(out, "{}", serde_json::to_string(&summary)?).context("writing the results")?;
+    } else {
+        write!(out, "{}", summary.to_text()).context("writing the results")?;
+    }
+    out.flush().context("writing the results")?;
+    Ok(if summary.passed() { 0 } else { EXIT_MISSION_FAILED })
 }

@@ -281,6 +281,45 @@ fn every_shipped_airframe_loads() {
     assert!(matches!(Airframe::load("nope"), Err(AirframeError::Unknown { .. })));
 }
 
+/// A non-positive rotor constant is refused with the whole message: the
+/// file, the line and column of the value, the field and the problem, from
+/// the library and from the CLI (exit status 1, no panic).
+#[test]
+fn non_positive_rotor_constants_are_refused_at_their_line() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/airframes");
+    for (file, line_column, field, got) in [
+        (
+            "zero-thrust-coefficient.toml",
+            "22:27",
+            "rotor.thrust_coefficient_n_s2",
+            "0",
+        ),
+        (
+            "negative-torque-coefficient.toml",
+            "23:29",
+            "rotor.torque_coefficient_n_m_s2",
+            "-0.00000013677728",
+        ),
+        ("zero-time-constant.toml", "25:19", "rotor.time_constant_s", "0"),
+        ("negative-radius.toml", "24:12", "rotor.radius_m", "-0.1396"),
+    ] {
+        let path = format!("{dir}/{file}");
+        let want = format!("{path}:{line_column}: {field}: must be a finite number > 0, got {got}");
+        let err = Airframe::load(&path).expect_err(file).to_string();
+        assert_eq!(err, want, "{file}");
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+            .args(["airframe", &path])
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(1), "{file}");
+        assert_eq!(
+            String::from_utf8_lossy(&out.stderr),
+            format!("rotorpilot: {want}\n"),
+            "{file}"
+        );
+    }
+}
+
 /// Every malformed fixture is refused with the file, the field and the problem named.
 #[test]
 fn malformed_airframes_get_named_errors() {

@@ -348,7 +348,9 @@ fn rpy_laws_steady_error_under_seed_disturbance() {
 }
 
 /// Doc section 10 circle results for the RPY laws without estimate: max |e| for
-/// t > 8 s about [30.9, 31.1, 102.9] mm; with the estimate below 1 mm.
+/// t > 8 s about [30.9, 31.1, 102.9] mm; with the estimate below 1 mm (the
+/// doc: 0.78 mm; measured here with the oracle estimate [0.16, 0.21, 0.03] mm,
+/// held to 0.3 mm per axis).
 #[test]
 fn rpy_laws_track_the_report_circle_under_seed_disturbance() {
     let (af, model) = fsr();
@@ -379,7 +381,7 @@ fn rpy_laws_track_the_report_circle_under_seed_disturbance() {
                 mm(max / 1e3, 2)
             );
             if with_estimate {
-                assert!(max.max() < 2.0, "{max}");
+                assert!(max.max() < 0.3, "{kind}: {max} mm");
             } else {
                 let doc = Vector3::new(30.9, 31.1, 102.9);
                 for k in 0..3 {
@@ -595,9 +597,10 @@ fn all_laws_fly_a_figure_eight_at_rotor_level() {
 
 /// GIVEN the same flight WHEN the law changes every 2 s (hierarchical,
 /// geometric, passivity, ...) THEN the error stays within the RPY laws' bound
-/// (measured 4.1 mm on quad, 3.9 mm on octo) and the switch is bumpless: the
-/// output step at a switch (measured 0.019 / 0.023 N m, 0.001 N) is below
-/// 0.05 N m and 0.05 N, the size of ordinary step-to-step changes (0.015 / 0.018 N m).
+/// (measured 4.2 mm on quad, 3.9 mm on octo) and the switch is bumpless: the
+/// output step at a switch (measured 0.0192 / 0.0232 N m, 0.001 N) is below
+/// 0.05 N m and 0.05 N and within 1.6 times the largest ordinary step-to-step
+/// change of the same flight (0.0137 / 0.0183 N m; ratios 1.40 / 1.27).
 #[test]
 fn switching_laws_every_two_seconds_keeps_the_error_bounded() {
     for airframe in ["quad", "octo"] {
@@ -627,6 +630,10 @@ fn switching_laws_every_two_seconds_keeps_the_error_bounded() {
             elsewhere.1
         );
         assert!(at_switch.0 < 0.05 && at_switch.1 < 0.05, "{at_switch:?}");
+        assert!(
+            at_switch.1 < 1.6 * elsewhere.1 && at_switch.0 < 1.6 * elsewhere.0.max(1e-3),
+            "{airframe}: a switch steps the output by {at_switch:?}, ordinary steps {elsewhere:?}"
+        );
     }
 }
 

@@ -144,6 +144,10 @@ async fn int32_set_is_bytewise_echoed_rebroadcast_applied_and_saved() {
     let mut api = Client::new().await;
     let v = Vehicle::start(config(Some(gcs.addr()), Some(api.addr()), 1.0)).await;
     api.drain().await;
+    // before the set: failure injection is DENIED
+    let a = gcs.command(v.gcs, 420, [4.0, 1.0, 0.0, NAN, NAN, NAN, NAN]).await;
+    assert_eq!(a.result, 2, "failure injection with SYS_FAILURE_EN = 0");
+    gcs.drain().await;
     gcs.param_set(
         v.gcs,
         "SYS_FAILURE_EN",
@@ -162,9 +166,10 @@ async fn int32_set_is_bytewise_echoed_rebroadcast_applied_and_saved() {
     // the other link hears the change once
     let other = answers(&mut api, "SYS_FAILURE_EN", Duration::from_millis(200)).await;
     assert_eq!(other.len(), 1);
-    // it applies at once: failure injection is no longer DENIED
+    // it applies at once: the next command, sent as soon as the set is
+    // answered, injects the failure (GPS off: ACCEPTED, was DENIED above)
     let a = gcs.command(v.gcs, 420, [4.0, 1.0, 0.0, NAN, NAN, NAN, NAN]).await;
-    assert_ne!(a.result, 2);
+    assert_eq!(a.result, 0, "failure injection right after SYS_FAILURE_EN = 1");
     // and persists
     tokio::time::sleep(Duration::from_millis(300)).await;
     let text = std::fs::read_to_string(v.state_dir.join("params.toml")).unwrap();
@@ -258,4 +263,64 @@ async fn parameters_persist_across_restarts_unless_reset() {
     };
     assert_eq!(p.param_value, 5.0);
     v.stop().await;
+}
+
+/// The rollback: a value in the table's range that the autopilot refuses in
+/// combination with the airframe (CTRL_POS_SCALE = 3 scales a 1e308 N/m
+/// passivity stiffness past f64::MAX) gets PARAM_ERROR, the unchanged value
+/// once, and a STATUSTEXT naming the gain, read off the wire; a read and the
+/// saved file still show the old value; a value the autopilot takes is then
+/// accepted as usual.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_set_the_autopilot_rejects_is_rolled_back_and_explained() {
+    let mut c = Client::new().await;
+    let mut cfg = config(Some(c.addr()), None, 1.0);
+    cfg.airframe = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/fixtures/airframes/quad-huge-passivity-gain.toml"
+    )
+    .to_string();
+    let v = Vehicle::start(cfg).await;
+    let real = MavParamType::MAV_PARAM_TYPE_REAL32;
+    c.drain().await;
+    c.param_set(v.gcs, "CTRL_POS_SCALE", 3.0, real).await;
+    let mut got = Vec::new();
+    let mut texts = Vec::new();
+    let t0 = tokio::time::Instant::now();
+    while let Some(r) = c.recv(Duration::from_millis(500).saturating_sub(t0.elapsed())).await {
+        match r.msg {
+            Some(MavMessage::PARAM_VALUE(p)) if name(&p) == "CTRL_POS_SCALE" => got.push(("value", p.param_value)),
+            Some(MavMessage::PARAM_ERROR(e)) if e.param_id.to_str().unwrap() == "CTRL_POS_SCALE" => {
+                assert_eq!(e.error, MavParamError::MAV_PARAM_ERROR_VALUE_OUT_OF_RANGE);
+                got.push(("error", f32::NAN));
+            }
+            Some(MavMessage::STATUSTEXT(s)) => texts.push(s.text.to_str().unwrap().to_string()),
+            _ => {}
+        }
+    }
+    assert_eq!(got.len(), 2, "PARAM_ERROR then the unchanged value: {got:?}");
+    assert_eq!(got[0].0, "error", "{got:?}");
+    assert_eq!(got[1], ("value", 1.0), "{got:?}");
+    assert!(
+        texts
+            .iter()
+            .any(|t| t.starts_with("param: ") && t.contains("passivity.kp_n_per_m")),
+        "{texts:?}"
+    );
+    let Some(MavMessage::PARAM_VALUE(p)) = read(&mut c, v.gcs, "CTRL_POS_SCALE", -1).await else {
+        panic!("read")
+    };
+    assert_eq!(p.param_value, 1.0, "read back after the refusal");
+    // a scale the autopilot takes (1.25^2 x 1e308 is finite): accepted
+    c.param_set(v.gcs, "CTRL_POS_SCALE", 1.25, real).await;
+    let got = answers(&mut c, "CTRL_POS_SCALE", Duration::from_millis(400)).await;
+    assert!(
+        matches!(got.first(), Some(MavMessage::PARAM_VALUE(p)) if p.param_value == 1.25),
+        "{got:?}"
+    );
+    let dir = v.state_dir.clone();
+    v.stop_keep_state().await;
+    let text = std::fs::read_to_string(dir.join("params.toml")).unwrap();
+    assert!(text.lines().any(|l| l.trim() == "CTRL_POS_SCALE = 1.25"), "{text}");
+    let _ = std::fs::remove_dir_all(&dir);
 }

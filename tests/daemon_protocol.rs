@@ -16,6 +16,35 @@ use rotorpilot::link::wire::CommandInt;
 const S1: Duration = Duration::from_secs(1);
 const S3: Duration = Duration::from_secs(3);
 
+/// Send COMMAND_LONG to 1/1; its ACK and the STATUSTEXTs heard until 300 ms
+/// after it (a refusal's text comes with the ACK, not necessarily before it).
+async fn command_and_texts(c: &mut Client, to: std::net::SocketAddr, command: u16, p: [f32; 7]) -> (u8, Vec<String>) {
+    c.command_long(to, command, p, (1, 1)).await;
+    let mut texts = Vec::new();
+    let mut result = None;
+    let deadline = tokio::time::Instant::now() + S3;
+    let mut until = deadline;
+    while let Some(left) = until.checked_duration_since(tokio::time::Instant::now()) {
+        let Some(r) = c.recv(left).await else { break };
+        if let Some(a) = r.ack().filter(|a| a.command == command) {
+            result = Some(a.result);
+            until = tokio::time::Instant::now() + Duration::from_millis(300);
+        }
+        if let Some(MavMessage::STATUSTEXT(s)) = &r.msg {
+            texts.push(s.text.to_str().unwrap_or_default().to_string());
+        }
+    }
+    (result.unwrap_or_else(|| panic!("no ACK for command {command}")), texts)
+}
+
+/// The mode in a HEARTBEAT's custom_mode: PX4's (main, sub) mode.
+fn px4_mode(h: &HEARTBEAT_DATA) -> (u32, u32) {
+    ((h.custom_mode >> 16) & 0xFF, h.custom_mode >> 24)
+}
+
+/// Hold: PX4 main mode AUTO (4), sub mode LOITER (3).
+const HOLD: (u32, u32) = (4, 3);
+
 /// A vehicle whose GCS link sends to `gcs` from boot.
 async fn vehicle_for(gcs: &Client) -> Vehicle {
     Vehicle::start(config(Some(gcs.addr()), None, 1.0)).await
@@ -104,6 +133,94 @@ async fn speaks_first_with_px4_identity_and_default_streams() {
         "EST_FORCE at 10 Hz: {est_force} in 2.6 s"
     );
     v.stop().await;
+}
+
+/// The test client's codec (and the daemon's) against an independent
+/// encoder: the COMMAND_LONG and COMMAND_INT frames the client sends are
+/// byte for byte pymavlink's for the same fields, the daemon's decoders read
+/// pymavlink's frames back to those fields, the client reads pymavlink's
+/// COMMAND_ACKs (extensions included, trailing zeros truncated) to its
+/// fields, and the daemon's ACK encoder writes the same bytes.
+#[test]
+fn command_codec_matches_pymavlink_golden_frames() {
+    use daemon_common::{command_int_frame, command_long_frame, golden_frames, received};
+    use rotorpilot::link::wire::{CommandAck, CommandLong, Encoder};
+    let hex = |b: &[u8]| b.iter().map(|x| format!("{x:02x}")).collect::<String>();
+    let bits = |p: &[f32]| p.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let mut seen = HashMap::new();
+    for g in golden_frames() {
+        *seen.entry(g.name.clone()).or_insert(0) += 1;
+        let want = hex(&g.bytes);
+        let param = |k: usize| g.get::<f32>(&format!("param{k}"));
+        match g.name.as_str() {
+            "command_long" => {
+                let c = CommandLong {
+                    params: [param(1), param(2), param(3), param(4), param(5), param(6), param(7)],
+                    command: g.get("command"),
+                    target_system: g.get("target_system"),
+                    target_component: g.get("target_component"),
+                    confirmation: g.get("confirmation"),
+                };
+                assert_eq!(hex(&command_long_frame(g.header, &c)), want, "{g:?}");
+                let rx = received(&g.bytes, "127.0.0.1:1".parse().unwrap());
+                assert_eq!(rx.len(), 1, "{g:?}");
+                let back = CommandLong::decode(&rx[0].payload);
+                assert_eq!(bits(&back.params), bits(&c.params), "{g:?}");
+                assert_eq!(
+                    (
+                        back.command,
+                        back.target_system,
+                        back.target_component,
+                        back.confirmation
+                    ),
+                    (c.command, c.target_system, c.target_component, c.confirmation),
+                    "{g:?}"
+                );
+            }
+            "command_int" => {
+                let c = CommandInt {
+                    params: [param(1), param(2), param(3), param(4)],
+                    x: g.get("x"),
+                    y: g.get("y"),
+                    z: g.get("z"),
+                    command: g.get("command"),
+                    target_system: g.get("target_system"),
+                    target_component: g.get("target_component"),
+                    frame: g.get("frame"),
+                    current: g.get("current"),
+                    autocontinue: g.get("autocontinue"),
+                };
+                assert_eq!(hex(&command_int_frame(g.header, &c)), want, "{g:?}");
+                let rx = received(&g.bytes, "127.0.0.1:1".parse().unwrap());
+                assert_eq!(CommandInt::decode(&rx[0].payload), c, "{g:?}");
+            }
+            "command_ack" => {
+                let rx = received(&g.bytes, "127.0.0.1:1".parse().unwrap());
+                assert_eq!(rx.len(), 1, "{g:?}");
+                assert_eq!(
+                    (u32::from(rx[0].sysid), rx[0].compid, rx[0].msgid),
+                    (g.header.system_id, g.header.component_id, 77)
+                );
+                let a = rx[0].ack().expect("a COMMAND_ACK");
+                let want_ack = CommandAck {
+                    command: g.get("command"),
+                    result: g.get("result"),
+                    progress: g.get("progress"),
+                    result_param2: g.get("result_param2"),
+                    target_system: g.get("target_system"),
+                    target_component: g.get("target_component"),
+                };
+                assert_eq!(a, want_ack, "{g:?}");
+                let mut e = Encoder::new(rx[0].sysid, rx[0].compid);
+                e.sequence = g.header.sequence;
+                assert_eq!(hex(&e.command_ack(&want_ack)), want, "{g:?}");
+            }
+            other => panic!("unknown golden frame {other}"),
+        }
+    }
+    assert_eq!(seen.get("command_long"), Some(&3), "{seen:?}");
+    assert_eq!(seen.get("command_int"), Some(&2), "{seen:?}");
+    assert_eq!(seen.get("command_ack"), Some(&3), "{seen:?}");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -196,6 +313,19 @@ async fn offboard_needs_a_fresh_setpoint_stream() {
         })
         .await;
     assert_eq!(left, Some(4 << 16 | 3 << 24));
+    // WHEN offboard is asked again after the stream went stale (it existed,
+    // it is older than COM_OF_LOSS_T) THEN TEMPORARILY_REJECTED with PX4's
+    // text on the wire, and the vehicle stays in Hold
+    let (result, texts) = command_and_texts(&mut c, v.gcs, 176, [129.0, 6.0, 0.0, NAN, NAN, NAN, NAN]).await;
+    assert_eq!(result, 1, "offboard on a stale stream");
+    assert!(
+        texts
+            .iter()
+            .any(|t| t == "Switching to Offboard denied: no offboard signal"),
+        "{texts:?}"
+    );
+    let h = heartbeat(&mut c, Duration::from_millis(1500)).await;
+    assert_eq!(px4_mode(&h), HOLD);
     v.stop().await;
 }
 
@@ -556,34 +686,75 @@ async fn reposition_as_command_int_from_both_mavsdk_generations() {
     })
     .await
     .expect("in air");
-    for frame in [0, 5] {
-        // MAVSDK goto_location: Hold first, then DO_REPOSITION p2 = 1, yaw in rad
-        c.command_int(
-            v.gcs,
-            CommandInt {
-                params: [NAN, 1.0, NAN, 0.5],
-                x: 473_977_420 + 450,
-                y: 85_455_940,
-                z: 493.0,
-                command: 192,
-                target_system: 1,
-                target_component: 1,
-                frame,
-                current: 0,
-                autocontinue: 0,
-            },
-        )
-        .await;
+    // MAVSDK goto_location: Hold first, then DO_REPOSITION p2 = 1, yaw in
+    // rad; MAVSDK 3 sends frame 0 (GLOBAL), MAVSDK 4 frame 5 (GLOBAL_INT),
+    // both AMSL. Each goes to its own point, reached before the next is sent,
+    // so neither frame can be ignored; north and east both checked (1e-7 deg:
+    // 11.12 mm north, 7.53 mm east at home's latitude).
+    let reposition = |frame: u8, lat: i32, lon: i32, alt: f32| CommandInt {
+        params: [NAN, 1.0, NAN, 0.5],
+        x: lat,
+        y: lon,
+        z: alt,
+        command: 192,
+        target_system: 1,
+        target_component: 1,
+        frame,
+        current: 0,
+        autocontinue: 0,
+    };
+    let (lat0, lon0) = (473_977_420, 85_455_940);
+    for (frame, d_lat, d_lon, alt, want) in [
+        (0, 450, 398, 493.0, [5.0, 3.0, -5.0]),
+        (5, -270, -531, 494.0, [-3.0, -4.0, -6.0]),
+    ] {
+        c.command_int(v.gcs, reposition(frame, lat0 + d_lat, lon0 + d_lon, alt))
+            .await;
         let (_, a) = c.ack_of(192, S3).await.expect("ack");
         assert_eq!(a.result, 0, "frame {frame}");
+        // it flies there
+        let close = |p: &LOCAL_POSITION_NED_DATA| {
+            (f64::from(p.x) - want[0]).abs() < 0.3
+                && (f64::from(p.y) - want[1]).abs() < 0.3
+                && (f64::from(p.z) - want[2]).abs() < 0.3
+        };
+        let reached = c
+            .wait_for(Duration::from_secs(15), |r| match &r.msg {
+                Some(MavMessage::LOCAL_POSITION_NED(p)) if close(p) => Some(()),
+                _ => None,
+            })
+            .await;
+        assert!(reached.is_some(), "frame {frame}: never reached {want:?}");
     }
-    // it flies there: 5 m north, 5 m above home
-    let reached = c
-        .wait_for(Duration::from_secs(15), |r| match &r.msg {
-            Some(MavMessage::LOCAL_POSITION_NED(p)) if (p.x - 5.0).abs() < 0.5 && (p.z + 5.0).abs() < 0.5 => Some(()),
-            _ => None,
-        })
-        .await;
-    assert!(reached.is_some());
+    // Refusals in flight change neither the mode nor the position target:
+    // DO_REPOSITION to latitude 91 deg (DENIED), MISSION_START without a
+    // mission (DENIED), OFFBOARD without setpoints (TEMPORARILY_REJECTED).
+    c.command_int(v.gcs, reposition(5, 910_000_000, lon0, 493.0)).await;
+    let (_, a) = c.ack_of(192, S3).await.expect("ack");
+    assert_eq!(a.result, 2, "reposition to 91 deg");
+    assert_eq!(c.command(v.gcs, 300, [0.0; 7]).await.result, 2);
+    assert_eq!(
+        c.command(v.gcs, 176, [129.0, 6.0, 0.0, NAN, NAN, NAN, NAN])
+            .await
+            .result,
+        1
+    );
+    let h = heartbeat(&mut c, Duration::from_millis(1500)).await;
+    assert_eq!(px4_mode(&h), HOLD, "the mode after the refusals");
+    // the vehicle stays at the last accepted point for 2 s wall (10 s simulated)
+    let t0 = tokio::time::Instant::now();
+    let mut seen = 0;
+    while t0.elapsed() < Duration::from_secs(2) {
+        let Some(r) = c.recv(S1).await else { break };
+        if let Some(MavMessage::LOCAL_POSITION_NED(p)) = &r.msg {
+            let off = [f64::from(p.x) + 3.0, f64::from(p.y) + 4.0, f64::from(p.z) + 6.0];
+            assert!(
+                off.iter().all(|d| d.abs() < 0.3),
+                "moved off the target after a refusal: {p:?}"
+            );
+            seen += 1;
+        }
+    }
+    assert!(seen > 10, "{seen} positions in 2 s");
     v.stop().await;
 }

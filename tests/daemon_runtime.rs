@@ -52,6 +52,23 @@ async fn binary_prints_where_it_listens_and_stops_on_sigterm() {
     assert!(out.contains("instance 3, system id 4"), "{out}");
     assert!(out.contains("GCS  link: udp 127.0.0.1:"), "{out}");
     assert!(out.contains("API  link: udp 127.0.0.1:"), "{out}");
+    // The files written at start-up (atomically: once a file exists it is
+    // whole) are replaced behind the daemon's back. No set or plan change
+    // follows, so the background savers write nothing more: only the save at
+    // shutdown can put the vehicle's parameters and plans back.
+    let (params_file, plans_file) = (dir.join("params.toml"), dir.join("missions.json"));
+    let t_files = Instant::now();
+    while !(params_file.exists() && plans_file.exists()) {
+        assert!(
+            t_files.elapsed() < Duration::from_secs(3),
+            "the start-up save wrote no files"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let saved_params = std::fs::read_to_string(&params_file).unwrap();
+    let saved_plans = std::fs::read_to_string(&plans_file).unwrap();
+    std::fs::write(&params_file, "# replaced by the test\n").unwrap();
+    std::fs::write(&plans_file, "replaced by the test\n").unwrap();
     // SIGTERM: clean exit within a second, parameters saved
     let t0 = Instant::now();
     let killed = Command::new("kill")
@@ -71,8 +88,11 @@ async fn binary_prints_where_it_listens_and_stops_on_sigterm() {
     };
     assert!(status.success(), "{status}");
     assert!(t0.elapsed() < Duration::from_secs(1), "{:?}", t0.elapsed());
-    let params = std::fs::read_to_string(dir.join("params.toml")).expect("parameters saved");
+    let params = std::fs::read_to_string(&params_file).expect("parameters saved");
     assert!(params.contains("MAV_SYS_ID = 4"), "{params}");
+    assert_eq!(params, saved_params, "the shutdown save writes the parameters in force");
+    let plans = std::fs::read_to_string(&plans_file).expect("plans saved");
+    assert_eq!(plans, saved_plans, "the shutdown save writes the plans in force");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -96,6 +116,69 @@ fn bad_options_are_refused_with_a_message() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains("rotorpilot:"), "{args:?}: {err}");
         let _ = std::fs::remove_dir_all(&dir);
+    }
+    // the whole message, once: no empty context before the cause
+    let dir = state_dir("bad");
+    let out = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+        .args(["--airframe", "no-such-frame", "--state-dir"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        "rotorpilot: unknown airframe `no-such-frame`: not a file and not a built-in airframe \
+         (quad, hexa, octo, fsr-quad, hexa-ppnnpn)\n"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Out-of-range numbers are refused with the whole message (the value as
+/// given, the range), the exit status 1 from rotorpilot's own check and 2
+/// from the argument parser's, and nothing else on stderr.
+#[test]
+fn out_of_range_speed_and_instance_are_refused_with_the_whole_message() {
+    for (args, status, message) in [
+        (
+            ["--speed", "1000.5"],
+            1,
+            "rotorpilot: --speed must be in (0, 1000], got 1000.5\n",
+        ),
+        (
+            ["--speed", "NaN"],
+            1,
+            "rotorpilot: --speed must be in (0, 1000], got NaN\n",
+        ),
+        (
+            ["--instance", "250"],
+            2,
+            "error: invalid value '250' for '--instance <INSTANCE>': 250 is not in 0..=249\n\n\
+             For more information, try '--help'.\n",
+        ),
+    ] {
+        let dir = state_dir("range");
+        let mut child = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+            .args(args)
+            .arg("--state-dir")
+            .arg(&dir)
+            .args(["--gcs-bind", "127.0.0.1:0", "--api-bind", "127.0.0.1:0"])
+            .args(["--gcs-remote", "none", "--api-remote", "none"])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        // a value let through would start the daemon: stop it, and fail below
+        let t0 = Instant::now();
+        while child.try_wait().unwrap().is_none() && t0.elapsed() < Duration::from_secs(5) {
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        let _ = child.kill();
+        let out = child.wait_with_output().unwrap();
+        let made_state = dir.exists();
+        let _ = std::fs::remove_dir_all(&dir);
+        assert_eq!(out.status.code(), Some(status), "{args:?}");
+        assert_eq!(String::from_utf8_lossy(&out.stderr), message, "{args:?}");
+        assert!(out.stdout.is_empty(), "{args:?}");
+        assert!(!made_state, "{args:?}: refused before making the state directory");
     }
 }
 

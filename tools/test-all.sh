@@ -43,7 +43,10 @@ cargo clippy --all-targets --quiet -- -D warnings
 
 echo "== cargo test --release"
 cargo test --release --quiet 2>&1 | tee /tmp/rotorpilot-cargo-test.log
-grep -q "test result: ok" /tmp/rotorpilot-cargo-test.log
+# pipefail has already stopped on a failing test binary; this counts what ran
+# ("test result: ok. 12 passed; 0 failed; ..."), so a run in which no test ran
+# or one that reported a failure without failing cannot pass silently.
+tools/count-test-results.sh /tmp/rotorpilot-cargo-test.log
 
 echo "== benches compile"
 cargo bench --no-run --quiet
@@ -95,6 +98,8 @@ timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/cl
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_failsafe.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_failure.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_replay.py
+# a fleet in one process on PX4's ports: needs UDP 14550, 14540..14543 and the instances' ports free
+timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_fleet.py
 timeout 900 "$VENV/mavsdk4/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk4.py
 timeout 600 "$VENV/mavproxy/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavproxy.py
 

@@ -2,7 +2,12 @@
 //!
 //! Every key carries its unit in its name; unknown keys are refused. Errors
 //! name the file, the field (`body.mass_kg`, `rotors[3].angle_deg`, rotors
-//! counted from 1 as they are labelled) and the problem.
+//! counted from 1 as they are labelled) and the problem; a value the file
+//! spells out is also located by its line and column:
+//!
+//! ```text
+//! quad.toml:19:27: rotor.radius_m: must be a finite number > 0, got 0
+//! ```
 
 use super::{Actuation, Airframe, CeilingEffectParams, GroundEffectParams, RotorGeometry, RotorParams, Spin};
 use crate::signals::{GRAVITY, MAX_ROTORS};
@@ -98,7 +103,51 @@ struct FileCeilingEffect {
 
 pub(super) fn parse(text: &str, file: &str) -> Result<Airframe, AirframeError> {
     let raw: FileAirframe = tomlfile::parse(text, file)?;
-    Ok(validate(raw, file)?)
+    Ok(validate(raw, file).map_err(|e| at_its_line(e, text))?)
+}
+
+/// A value found wrong after parsing, moved to its line in `text` when the
+/// file spells the field out (`file:line:column: field: problem`); as it
+/// was otherwise (a default, or a problem of the whole file).
+fn at_its_line(e: FileError, text: &str) -> FileError {
+    if let FileError::Invalid { file, field, problem } = &e
+        && let Some(at) = field_offset(text, field)
+    {
+        return tomlfile::error_at(text, file, at, format!("{field}: {problem}"));
+    }
+    e
+}
+
+/// Byte offset in `text` of the value a field name points at:
+/// `body.mass_kg`, `rotors[2].arm_m` (rotors counted from 1) or
+/// `body.inertia_diag_kg_m2 (x)` (the words after the path ignored).
+fn field_offset(text: &str, field: &str) -> Option<usize> {
+    use toml::de::{DeTable, DeValue};
+    let path = field.split(' ').next()?;
+    let doc = DeTable::parse(text).ok()?;
+    let mut table = doc.get_ref();
+    let mut segments = path.split('.').peekable();
+    while let Some(segment) = segments.next() {
+        let (key, label) = match segment.split_once('[') {
+            Some((k, rest)) => (k, Some(rest.strip_suffix(']')?.parse::<usize>().ok()?)),
+            None => (segment, None),
+        };
+        let mut value = table.get(key)?;
+        if let Some(n) = label {
+            let DeValue::Array(items) = value.get_ref() else {
+                return None;
+            };
+            value = items.get(n.checked_sub(1)?)?;
+        }
+        if segments.peek().is_none() {
+            return Some(value.span().start);
+        }
+        let DeValue::Table(t) = value.get_ref() else {
+            return None;
+        };
+        table = t;
+    }
+    None
 }
 
 struct Checker<'a> {

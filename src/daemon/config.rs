@@ -158,6 +158,10 @@ pub struct Config {
     /// When the process started (the configuration is made first thing):
     /// the ready line counts from here.
     pub started: std::time::Instant,
+    /// Parameters set at start over the stored file (a fleet file's
+    /// `params`), in the file's order: name and value, applied with the
+    /// parameter's own type (the fleet file checked name, type and range).
+    pub param_overrides: Vec<(String, f64)>,
 }
 
 impl Config {
@@ -179,6 +183,7 @@ impl Config {
             log_dir: None,
             log_csv: false,
             started: std::time::Instant::now(),
+            param_overrides: Vec::new(),
         }
     }
 

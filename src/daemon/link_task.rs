@@ -7,7 +7,7 @@
 //! command that silenced it, and keeps receiving.
 
 use std::net::SocketAddr;
-use std::sync::mpsc::{SyncSender, TrySendError};
+use std::sync::mpsc::TrySendError;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
@@ -32,7 +32,7 @@ pub(super) struct LinkTask {
     pub(super) tel: watch::Receiver<Snapshot>,
     /// The world's radio is silent: send nothing.
     pub(super) link_lost: watch::Receiver<bool>,
-    pub(super) sim: SyncSender<SimRequest>,
+    pub(super) sim: super::inbox::InboxSender<SimRequest>,
     pub(super) events: broadcast::Sender<Event>,
     pub(super) events_rx: broadcast::Receiver<Event>,
     pub(super) save: Arc<Notify>,
@@ -51,6 +51,41 @@ fn unix_time_us() -> u64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0, |d| u64::try_from(d.as_micros()).unwrap_or(u64::MAX))
+}
+
+/// The largest datagram a link sends: several MAVLink frames share one
+/// datagram up to this size, as PX4's UDP links send them (one system call
+/// per datagram, not per frame; every MAVLink client parses all the frames
+/// of a datagram). 1472 bytes: an Ethernet MTU less the IP and UDP headers.
+pub(super) const MAX_DATAGRAM: usize = 1472;
+
+/// `frames` as datagrams: for each destination (a frame's peer, or every
+/// address of `all` for [`To::All`]) its frames in order, packed into
+/// datagrams of at most [`MAX_DATAGRAM`] bytes (a frame is never split).
+fn pack_datagrams(frames: &[Outgoing], all: &[SocketAddr]) -> Vec<(SocketAddr, Vec<u8>)> {
+    let mut out: Vec<(SocketAddr, Vec<u8>)> = Vec::new();
+    // each destination's open datagram, by index in `out`
+    let mut open: Vec<(SocketAddr, usize)> = Vec::new();
+    for Outgoing { to, bytes } in frames {
+        let dests = match to {
+            To::Peer(a) => std::slice::from_ref(a),
+            To::All => all,
+        };
+        for &a in dests {
+            match open.iter_mut().find(|(d, _)| *d == a) {
+                Some((_, k)) if out[*k].1.len() + bytes.len() <= MAX_DATAGRAM => out[*k].1.extend_from_slice(bytes),
+                Some((_, k)) => {
+                    *k = out.len();
+                    out.push((a, bytes.clone()));
+                }
+                None => {
+                    open.push((a, out.len()));
+                    out.push((a, bytes.clone()));
+                }
+            }
+        }
+    }
+    out
 }
 
 impl LinkTask {
@@ -234,7 +269,9 @@ impl LinkTask {
         self.flush_muted(muted).await;
     }
 
-    /// Send what the link has queued, or drop it when `muted`.
+    /// Send what the link has queued, or drop it when `muted`: the frames
+    /// for each destination packed into as few datagrams as fit
+    /// ([`pack_datagrams`]).
     async fn flush_muted(&mut self, muted: bool) {
         let out = self.link.drain();
         if out.is_empty() || muted {
@@ -244,19 +281,13 @@ impl LinkTask {
         if out.iter().any(|o| o.to == To::All) {
             self.link.destinations(now, &mut self.dests);
         }
-        for Outgoing { to, bytes } in out {
-            if matches!(to, To::Peer(_)) || !self.dests.is_empty() {
-                self.tlog.sent(&bytes);
+        for o in &out {
+            if matches!(o.to, To::Peer(_)) || !self.dests.is_empty() {
+                self.tlog.sent(&o.bytes);
             }
-            match to {
-                To::Peer(a) => self.send(&bytes, a).await,
-                To::All => {
-                    for i in 0..self.dests.len() {
-                        let a = self.dests[i];
-                        self.send(&bytes, a).await;
-                    }
-                }
-            }
+        }
+        for (to, datagram) in pack_datagrams(&out, &self.dests) {
+            self.send(&datagram, to).await;
         }
     }
 
@@ -268,5 +299,41 @@ impl LinkTask {
                 debug!(link = %self.link.config().name, %to, error = %e, count = self.send_errors, "send failed");
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frames_are_packed_per_destination_in_order_never_split() {
+        let a: SocketAddr = "127.0.0.1:1".parse().unwrap();
+        let b: SocketAddr = "127.0.0.1:2".parse().unwrap();
+        let f = |to, n: usize, tag: u8| Outgoing {
+            to,
+            bytes: vec![tag; n],
+        };
+        let frames = vec![
+            f(To::All, 100, 1),
+            f(To::Peer(b), 50, 2),
+            f(To::All, 1300, 3),
+            f(To::All, 60, 4),
+        ];
+        let d = pack_datagrams(&frames, &[a, b]);
+        let summary: Vec<(SocketAddr, Vec<u8>)> = d
+            .iter()
+            .map(|(to, bytes)| {
+                let mut tags: Vec<u8> = bytes.clone();
+                tags.dedup();
+                (*to, tags)
+            })
+            .collect();
+        // a: 100 + 1300 + 60 = 1460 bytes fit one datagram; b: 100 + 50 +
+        // 1300 = 1450, and 60 more would not: frame 4 opens b's second
+        assert_eq!(summary, vec![(a, vec![1, 3, 4]), (b, vec![1, 2, 3]), (b, vec![4])]);
+        assert!(d.iter().all(|(_, x)| x.len() <= MAX_DATAGRAM));
+        let total: usize = d.iter().map(|(_, x)| x.len()).sum();
+        assert_eq!(total, 2 * (100 + 1300 + 60) + 50);
     }
 }

@@ -1,12 +1,24 @@
-//! The tokio runtime of one simulated vehicle: it owns the UDP sockets and
+//! The tokio runtime of the simulated vehicles: it owns the UDP sockets and
 //! the lockstep core, paces simulated time against the wall clock, and shuts
 //! down cleanly (shaped like mini-redis: [`bind`] takes a [`Config`] whose
 //! addresses may use port 0, [`Daemon::run`] takes the stop trigger).
 //!
+//! **A fleet on one clock** ([`bind_fleet`], `rotorpilot --count N` or
+//! `--fleet FILE`): every vehicle of a [`FleetConfig`] lives in one world
+//! and one lockstep core, stepped by the one simulation thread, and is on
+//! the wire exactly what a lone daemon with its `--instance` would be: its
+//! own links (PX4's ports for its instance), system id, parameters, state
+//! directory, plans, logs and flight record. Each vehicle's channels to the
+//! simulation thread are its own (the [`inbox`]: one bounded queue per
+//! vehicle, served round robin), so a client flooding one vehicle fills that
+//! vehicle's queue only. A lone vehicle is a fleet of one.
+//!
 //! | file | job |
 //! |---|---|
 //! | `config` | [`Config`], [`LinkSpec`]: the instance and PX4 SITL's port rules, home, speed, state directory |
+//! | `fleet` | [`FleetConfig`]: the vehicles of `--count N` and `--fleet FILE`, their spawn points, the fleet file and its errors |
 //! | `sim_thread` | the simulation thread: the only owner of the core, paced against wall time; commands and parameter sets are applied there, between steps |
+//! | `inbox` | the requests of each vehicle's links to the simulation thread: a bounded queue per vehicle, served round robin |
 //! | `link_task` | one task per UDP link: datagrams in, streams and answers out |
 //! | `logs` | the run's log directory below `--log-dir` |
 //! | `ready` | the one-time `rotorpilot: ready to arm` line on stdout |
@@ -37,6 +49,8 @@
 //! exits. Both are refused while armed (the autopilot decides).
 
 mod config;
+mod fleet;
+mod inbox;
 mod link_task;
 mod logs;
 mod ready;
@@ -47,9 +61,13 @@ mod tlog;
 mod ulog_file;
 
 pub use config::{Config, LinkSpec, parse_home, resolve};
+pub use fleet::{
+    DEFAULT_PROXIMITY_M, DEFAULT_STATE_ROOT, FLEET_SPACING_M, FleetConfig, FleetOptions, MAX_INSTANCE, Remote,
+};
 
 use std::future::Future;
 use std::net::SocketAddr;
+use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -62,111 +80,207 @@ use tracing::{info, warn};
 
 use crate::airframe::Airframe;
 use crate::autopilot::{Autopilot, ClientClock};
+use crate::geo::GeoPoint;
 use crate::link::streams::Identity;
 use crate::link::{Link, LinkConfig};
-use crate::lockstep::Lockstep;
+use crate::lockstep::{FleetVehicle, Lockstep};
 use crate::mission::file::load_plans;
 use crate::mission::{MissionType, Plans};
 use crate::params::{ParamStore, ParamValue};
 use crate::sim::SensorConfig;
 use link_task::LinkTask;
 use saver::{PlansFile, lock, plan_saver, saver};
-use sim_thread::{Event, Sim, SimRequest};
+use sim_thread::{Event, Sim, SimRequest, VehicleIo};
 
-/// A daemon with its sockets bound, ready to [`Daemon::run`].
-pub struct Daemon {
+/// Fleets this large are stepped on every core ([`Lockstep::set_threads`]).
+const PARALLEL_FLEET: usize = 64;
+
+/// One vehicle of a bound daemon.
+struct Vehicle {
     config: Config,
     params: ParamStore,
     warnings: Vec<String>,
     sockets: Vec<(LinkSpec, UdpSocket)>,
-    core: Lockstep<Autopilot>,
     /// This run's log directory (`--log-dir`), created at bind.
-    log_dir: Option<std::path::PathBuf>,
+    log_dir: Option<PathBuf>,
     /// The flight record (and CSV) in the log directory, started at bind.
     recorder: Option<recorder::Recorder>,
+}
+
+/// A daemon with its sockets bound, ready to [`Daemon::run`].
+pub struct Daemon {
+    origin: GeoPoint,
+    proximity_m: f64,
+    vehicles: Vec<Vehicle>,
+    core: Lockstep<Autopilot>,
 }
 
 impl std::fmt::Debug for Daemon {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Daemon")
-            .field("config", &self.config)
+            .field("vehicles", &self.vehicles.len())
             .field("addrs", &self.local_addrs())
             .finish_non_exhaustive()
     }
 }
 
-/// Load the airframe, parameters and stored plans and bind every link's socket.
+/// A vehicle's parameters: its file (or the defaults), MAV_SYS_ID = instance
+/// + 1 as PX4 SITL's rcS sets it, then the fleet file's overrides.
+fn vehicle_params(config: &Config, airframe: &Airframe) -> anyhow::Result<(ParamStore, Vec<String>)> {
+    let path = config.params_path();
+    let (mut params, warnings) = if config.reset_params {
+        (ParamStore::new(airframe), Vec::new())
+    } else {
+        ParamStore::load_or_default(airframe, &path)?
+    };
+    let _ = params.set("MAV_SYS_ID", ParamValue::Int32(i32::from(config.system_id())));
+    for (name, value) in &config.param_overrides {
+        // checked when the fleet file was read (its type and range)
+        let v = match params.get(name).map(|(_, v)| v) {
+            Some(ParamValue::Int32(_)) => ParamValue::Int32(*value as i32),
+            _ => ParamValue::Real32(*value as f32),
+        };
+        params
+            .set(name, v)
+            .map_err(|e| anyhow::anyhow!("parameter {name} = {value}: {e}"))?;
+    }
+    Ok((params, warnings))
+}
+
+/// Load the airframe, parameters and stored plans and bind every link's
+/// socket of one lone vehicle ([`bind_fleet`] of a fleet of one).
 ///
 /// # Errors
 /// Unknown airframe, unreadable parameter file, a plans file that does not
 /// read or holds a plan the vehicle refuses, bad speed, a socket that cannot
 /// be bound (port in use: try another `--instance`).
 pub async fn bind(config: Config) -> anyhow::Result<Daemon> {
+    bind_fleet(FleetConfig::lone(config)).await
+}
+
+/// [`bind`] every vehicle of `fleet` into one world on one clock.
+///
+/// # Errors
+/// As [`bind`], for any vehicle (the message names its instance when the
+/// fleet has more than one); no vehicle at all.
+pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
+    let FleetConfig {
+        vehicles: configs,
+        origin,
+        proximity_m,
+    } = fleet;
+    anyhow::ensure!(!configs.is_empty(), "a fleet needs at least one vehicle");
+    let lone = configs.len() == 1;
+    let speed = configs[0].speed;
     anyhow::ensure!(
-        config.speed.is_finite() && config.speed > 0.0 && config.speed <= 1000.0,
-        "--speed must be in (0, 1000], got {}",
-        config.speed
+        speed.is_finite() && speed > 0.0 && speed <= 1000.0,
+        "--speed must be in (0, 1000], got {speed}"
     );
-    anyhow::ensure!(config.instance < 250, "--instance must be below 250");
-    let airframe = Airframe::load(&config.airframe)?;
-    let path = config.params_path();
-    let (mut params, warnings) = if config.reset_params {
-        (ParamStore::new(&airframe), Vec::new())
-    } else {
-        ParamStore::load_or_default(&airframe, &path)?
+    // names a fleet vehicle in its errors
+    let which = |c: &Config| {
+        if lone {
+            String::new()
+        } else {
+            format!("vehicle instance {}: ", c.instance)
+        }
     };
-    // PX4 SITL's rcS sets MAV_SYS_ID to instance + 1 at every start.
-    let _ = params.set("MAV_SYS_ID", ParamValue::Int32(i32::from(config.system_id())));
+    // two vehicles on one instance would share ports, system id and state
+    let mut instances: Vec<u8> = configs.iter().map(|c| c.instance).collect();
+    instances.sort_unstable();
+    if let Some(w) = instances.windows(2).find(|w| w[0] == w[1]) {
+        anyhow::bail!("two vehicles of the fleet are instance {}", w[0]);
+    }
+    let mut airframes = Vec::with_capacity(configs.len());
+    let mut stores = Vec::with_capacity(configs.len());
+    for c in &configs {
+        anyhow::ensure!(c.instance < 250, "{}--instance must be below 250", which(c));
+        let airframe = Airframe::load(&c.airframe).map_err(|e| anyhow::anyhow!("{}{e}", which(c)))?;
+        let (params, warnings) = vehicle_params(c, &airframe).map_err(|e| anyhow::anyhow!("{}{e:#}", which(c)))?;
+        airframes.push(airframe);
+        stores.push((params, warnings));
+    }
     let sensors = SensorConfig::default();
-    let mut core = Lockstep::one_vehicle(&airframe, config.home, &params, sensors)
-        .with_context(|| format!("starting the autopilot on {}", airframe.source))?;
-    if config.speed > 1.0 {
-        // faster than real time: timers that wait for a client run on the wall clock
-        core.pilot_mut(sim_thread::VEHICLE).set_client_clock(ClientClock::Wall);
-    }
-    let plans = if config.reset_plans {
-        Plans::default()
-    } else {
-        load_plans(&config.plans_path()).context(
-            "cannot restore the stored mission, geofence and rally points \
-             (mend or remove the file, or start with --reset-plans to discard them)",
-        )?
-    };
-    core.pilot_mut(sim_thread::VEHICLE).restore_plans(plans);
-    let mut sockets = Vec::new();
-    for spec in &config.links {
-        let s = UdpSocket::bind(spec.bind).await.with_context(|| {
-            format!(
-                "{} link: cannot bind {} (in use? try another --instance)",
-                spec.name, spec.bind
-            )
-        })?;
-        sockets.push((spec.clone(), s));
-    }
-    let log_dir = match &config.log_dir {
-        Some(base) => Some(logs::create_run_dir(base, config.instance)?),
-        None => None,
-    };
-    let recorder = match &log_dir {
-        Some(dir) => Some(recorder::Recorder::create(
-            dir,
-            &config.airframe,
-            config.home,
-            &params,
+    let list: Vec<FleetVehicle<'_>> = configs
+        .iter()
+        .zip(&airframes)
+        .zip(&stores)
+        .map(|((c, airframe), (params, _))| FleetVehicle {
+            airframe,
+            home: c.home,
+            params,
             sensors,
-            &mut core,
-            config.log_csv,
-        )?),
-        None => None,
-    };
+        })
+        .collect();
+    let mut core = Lockstep::fleet(origin, &list).map_err(|(i, e)| {
+        anyhow::anyhow!(
+            "{}starting the autopilot on {}: {e}",
+            which(&configs[i]),
+            airframes[i].source
+        )
+    })?;
+    drop(list);
+    if !lone {
+        core.watch_proximity(proximity_m);
+        core.set_labels(configs.iter().map(|c| format!("system {}", c.system_id())).collect());
+    }
+    if configs.len() >= PARALLEL_FLEET {
+        let threads = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
+        core.set_threads(threads)
+            .map_err(|e| anyhow::anyhow!("cannot start the stepping threads: {e}"))?;
+    }
+    let mut vehicles = Vec::with_capacity(configs.len());
+    for (i, (config, (params, warnings))) in configs.into_iter().zip(stores).enumerate() {
+        if speed > 1.0 {
+            // faster than real time: timers that wait for a client run on the wall clock
+            core.pilot_mut(i).set_client_clock(ClientClock::Wall);
+        }
+        let plans = if config.reset_plans {
+            Plans::default()
+        } else {
+            load_plans(&config.plans_path())
+                .context(
+                    "cannot restore the stored mission, geofence and rally points \
+                     (mend or remove the file, or start with --reset-plans to discard them)",
+                )
+                .map_err(|e| anyhow::anyhow!("{}{e:#}", which(&config)))?
+        };
+        core.pilot_mut(i).restore_plans(plans);
+        let mut sockets = Vec::new();
+        for spec in &config.links {
+            let s = UdpSocket::bind(spec.bind).await.with_context(|| {
+                format!(
+                    "{}{} link: cannot bind {} (in use? try another --instance)",
+                    which(&config),
+                    spec.name,
+                    spec.bind
+                )
+            })?;
+            sockets.push((spec.clone(), s));
+        }
+        let log_dir = match &config.log_dir {
+            Some(base) => Some(logs::create_run_dir(base, config.instance)?),
+            None => None,
+        };
+        let recorder = match &log_dir {
+            Some(dir) => Some(recorder::Recorder::create(
+                dir, &config, &params, sensors, &mut core, i,
+            )?),
+            None => None,
+        };
+        vehicles.push(Vehicle {
+            config,
+            params,
+            warnings,
+            sockets,
+            log_dir,
+            recorder,
+        });
+    }
     Ok(Daemon {
-        config,
-        params,
-        warnings,
-        sockets,
+        origin,
+        proximity_m,
+        vehicles,
         core,
-        log_dir,
-        recorder,
     })
 }
 
@@ -179,37 +293,118 @@ pub async fn run(config: Config, shutdown: impl Future<Output = ()>) -> anyhow::
 }
 
 impl Daemon {
-    /// The bound address of each link, by name.
+    /// The bound address of each link of the first vehicle (a lone
+    /// vehicle's), by name.
     #[must_use]
     pub fn local_addrs(&self) -> Vec<(String, SocketAddr)> {
-        self.sockets
+        self.vehicle_addrs(0)
+    }
+
+    /// The bound address of each link of vehicle `i`, by name.
+    #[must_use]
+    pub fn vehicle_addrs(&self, i: usize) -> Vec<(String, SocketAddr)> {
+        self.vehicles.get(i).map_or_else(Vec::new, |v| {
+            v.sockets
+                .iter()
+                .filter_map(|(spec, s)| s.local_addr().ok().map(|a| (spec.name.clone(), a)))
+                .collect()
+        })
+    }
+
+    /// Warnings from reading the parameter files, each naming its vehicle in a fleet.
+    #[must_use]
+    pub fn warnings(&self) -> Vec<String> {
+        let lone = self.vehicles.len() == 1;
+        self.vehicles
             .iter()
-            .filter_map(|(spec, s)| s.local_addr().ok().map(|a| (spec.name.clone(), a)))
+            .flat_map(|v| {
+                v.warnings.iter().map(move |w| {
+                    if lone {
+                        w.clone()
+                    } else {
+                        format!("vehicle instance {}: {w}", v.config.instance)
+                    }
+                })
+            })
             .collect()
     }
 
-    /// Warnings from reading the parameter file.
-    #[must_use]
-    pub fn warnings(&self) -> &[String] {
-        &self.warnings
-    }
-
-    /// The configuration.
+    /// The configuration of the first vehicle (a lone vehicle's).
     #[must_use]
     pub fn config(&self) -> &Config {
-        &self.config
+        &self.vehicles[0].config
     }
 
-    /// This run's log directory, when `--log-dir` was given.
+    /// Each vehicle's configuration, in fleet order.
+    pub fn configs(&self) -> impl Iterator<Item = &Config> {
+        self.vehicles.iter().map(|v| &v.config)
+    }
+
+    /// The first vehicle's log directory of this run, when `--log-dir` was given.
     #[must_use]
     pub fn log_dir(&self) -> Option<&std::path::Path> {
-        self.log_dir.as_deref()
+        self.vehicles[0].log_dir.as_deref()
     }
 
     /// Where it listens and sends, for the startup message.
     #[must_use]
     pub fn summary(&self) -> String {
-        let c = &self.config;
+        if self.vehicles.len() == 1 {
+            return self.lone_summary();
+        }
+        let c = self.config();
+        let n = self.vehicles.len();
+        let o = self.origin;
+        let mut s = format!(
+            "rotorpilot: a fleet of {n} vehicles on one clock; home {:.7}, {:.7}, {:.1} m AMSL; speed x{}; \
+             proximity reported below {} m\n",
+            o.lat_deg, o.lon_deg, o.alt_amsl_m, c.speed, self.proximity_m
+        );
+        for (i, v) in self.vehicles.iter().enumerate() {
+            let c = &v.config;
+            let at = self.core.world().origin_ned(i);
+            let links: Vec<String> = v
+                .sockets
+                .iter()
+                .map(|(spec, sock)| {
+                    let local = sock
+                        .local_addr()
+                        .map_or_else(|_| spec.bind.to_string(), |a| a.to_string());
+                    let remote = spec
+                        .remote
+                        .map_or_else(|| "(whoever talks)".to_string(), |r| r.to_string());
+                    format!("{} {local} -> {remote}", spec.name)
+                })
+                .collect();
+            s.push_str(&format!(
+                "  instance {} (system id {}): {} at {:.1} m N, {:.1} m E; {}; state {}\n",
+                c.instance,
+                c.system_id(),
+                c.airframe,
+                at.x,
+                at.y,
+                links.join(", "),
+                c.state_dir.display()
+            ));
+        }
+        if let Some(base) = &c.log_dir {
+            s.push_str(&format!(
+                "  logs: a run directory per vehicle below {}\n",
+                base.display()
+            ));
+        }
+        // last: scripts read the summary up to this line (tests/daemon_runtime.rs)
+        s.push_str(&format!(
+            "  parameters: params.toml in each vehicle's state directory ({} vehicles)",
+            n
+        ));
+        s
+    }
+
+    /// The startup message of a lone vehicle.
+    fn lone_summary(&self) -> String {
+        let v = &self.vehicles[0];
+        let c = &v.config;
         let mut s = format!(
             "rotorpilot: {} at {:.7}, {:.7}, {:.1} m AMSL; instance {}, system id {}; speed x{}\n",
             c.airframe,
@@ -220,7 +415,7 @@ impl Daemon {
             c.system_id(),
             c.speed
         );
-        for (spec, sock) in &self.sockets {
+        for (spec, sock) in &v.sockets {
             let local = sock
                 .local_addr()
                 .map_or_else(|_| spec.bind.to_string(), |a| a.to_string());
@@ -229,7 +424,7 @@ impl Daemon {
                 .map_or_else(|| "(whoever talks)".to_string(), |r| r.to_string());
             s.push_str(&format!("  {:<4} link: udp {local} -> {remote}\n", spec.name));
         }
-        let plans = self.core.pilot(sim_thread::VEHICLE).plans();
+        let plans = self.core.pilot(0).plans();
         s.push_str(&format!(
             "  plans: {} (mission {} items, fence {}, rally {})\n",
             c.plans_path().display(),
@@ -237,7 +432,7 @@ impl Daemon {
             plans.get(MissionType::Fence).len(),
             plans.get(MissionType::Rally).len()
         ));
-        if let Some(d) = &self.log_dir {
+        if let Some(d) = &v.log_dir {
             s.push_str(&format!("  logs: {}\n", d.display()));
         }
         // last: scripts read the summary up to this line (tests/daemon_runtime.rs)
@@ -247,117 +442,139 @@ impl Daemon {
 
     /// Run until `shutdown` completes or a client sends
     /// PREFLIGHT_REBOOT_SHUTDOWN with p1 = 2; then stop every task and save
-    /// the plans and the parameters.
+    /// every vehicle's plans and parameters.
     ///
     /// # Errors
-    /// The parameter or plans file cannot be written at shutdown.
+    /// A parameter or plans file cannot be written at shutdown.
     pub async fn run(self, shutdown: impl Future<Output = ()>) -> anyhow::Result<()> {
         let Daemon {
-            config,
-            params,
-            warnings: _,
-            sockets,
+            origin: _,
+            proximity_m: _,
+            vehicles,
             mut core,
-            log_dir,
-            recorder,
         } = self;
-        let params = Arc::new(Mutex::new(params));
-        // the vehicle's ULog (`--log-dir`), started before the first step
-        let ulog = log_dir
-            .as_deref()
-            .and_then(|d| ulog_file::UlogFile::create(d, &params, &core, sim_thread::VEHICLE));
-        let path = config.params_path();
-        if let Some(dir) = path.parent() {
-            std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-        }
+        let lone = vehicles.len() == 1;
         let (stop_tx, stop_rx) = watch::channel(false);
         let (exit_tx, mut exit_rx) = mpsc::channel::<()>(1);
-        let (sim_tx, sim_rx) = std::sync::mpsc::sync_channel::<SimRequest>(256);
-        let (tel_tx, tel_rx) = watch::channel(core.snapshot(sim_thread::VEHICLE));
-        let (ev_tx, _) = broadcast::channel::<Event>(256);
-        let (link_lost_tx, link_lost_rx) = watch::channel(false);
-        let save = Arc::new(Notify::new());
-        // Save once at start: a --reset-params run overwrites the old file,
-        // and the state directory shows the parameters in force.
-        save.notify_one();
-        let plans_file = PlansFile::new(config.plans_path());
-        let plans_changed = Arc::new(Notify::new());
-        // the same for the plans (--reset-plans)
-        plans_changed.notify_one();
-
+        let inbox = inbox::inbox::<SimRequest>(vehicles.len());
+        let started = vehicles[0].config.started;
+        let (speed, tick, peer_timeout) = {
+            let c = &vehicles[0].config;
+            (c.speed, c.tick, c.peer_timeout)
+        };
         let mut tasks: Vec<JoinHandle<()>> = Vec::new();
+        let mut ios = Vec::with_capacity(vehicles.len());
+        let mut tels = Vec::with_capacity(vehicles.len());
+        // what is saved at shutdown, per vehicle
+        let mut finals = Vec::with_capacity(vehicles.len());
+        let mut links = Vec::new();
+        for (i, v) in vehicles.into_iter().enumerate() {
+            let Vehicle {
+                config,
+                params,
+                warnings: _,
+                sockets,
+                log_dir,
+                recorder,
+            } = v;
+            let params = Arc::new(Mutex::new(params));
+            // the vehicle's ULog (`--log-dir`), started before the first step
+            let ulog = log_dir
+                .as_deref()
+                .and_then(|d| ulog_file::UlogFile::create(d, &params, &core, i));
+            let path = config.params_path();
+            if let Some(dir) = path.parent() {
+                std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+            }
+            let (tel_tx, tel_rx) = watch::channel(core.snapshot(i));
+            let (ev_tx, _) = broadcast::channel::<Event>(256);
+            let (link_lost_tx, link_lost_rx) = watch::channel(false);
+            let save = Arc::new(Notify::new());
+            // Save once at start: a --reset-params run overwrites the old file,
+            // and the state directory shows the parameters in force.
+            save.notify_one();
+            let plans_file = PlansFile::new(config.plans_path());
+            let plans_changed = Arc::new(Notify::new());
+            // the same for the plans (--reset-plans)
+            plans_changed.notify_one();
+            ios.push(VehicleIo {
+                params: params.clone(),
+                tel: tel_tx,
+                events: ev_tx.clone(),
+                plans_changed: plans_changed.clone(),
+                wall_timers: Vec::new(),
+                link_lost: link_lost_tx,
+                ulog,
+                recorder,
+            });
+            tasks.push(tokio::spawn(saver(
+                params.clone(),
+                path.clone(),
+                save.clone(),
+                stop_rx.clone(),
+            )));
+            tasks.push(tokio::spawn(plan_saver(
+                tel_rx.clone(),
+                plans_file.clone(),
+                plans_changed,
+                stop_rx.clone(),
+            )));
+            tels.push(tel_rx.clone());
+            let identity = Identity {
+                system_id: config.system_id(),
+                component_id: 1,
+            };
+            for (index, (spec, socket)) in sockets.into_iter().enumerate() {
+                let link = Link::new(
+                    LinkConfig {
+                        name: spec.name.clone(),
+                        identity,
+                        default_remote: spec.remote,
+                        rates: spec.rates.clone(),
+                        peer_timeout,
+                    },
+                    Instant::now().into_std(),
+                );
+                links.push(LinkTask {
+                    link,
+                    socket,
+                    params: params.clone(),
+                    tel: tel_rx.clone(),
+                    link_lost: link_lost_rx.clone(),
+                    sim: inbox.sender(i),
+                    events: ev_tx.clone(),
+                    events_rx: ev_tx.subscribe(),
+                    save: save.clone(),
+                    exit: exit_tx.clone(),
+                    dests: Vec::new(),
+                    send_errors: 0,
+                    tlog: log_dir
+                        .as_deref()
+                        .map(|d| tlog::Tlog::create(d, &tlog::file_name(index, &spec.name)))
+                        .unwrap_or_default(),
+                });
+            }
+            finals.push((config.instance, params, path, plans_file, tel_rx));
+        }
+        // stops the simulation thread out of band (a full queue cannot hold it up)
+        let stopper = inbox.stopper();
         let sim = Sim {
             core,
-            params: params.clone(),
-            tel: tel_tx,
-            events: ev_tx.clone(),
-            speed: config.speed,
-            tick: config.tick,
-            plans_changed: plans_changed.clone(),
-            wall_timers: Vec::new(),
-            link_lost: link_lost_tx,
-            ulog,
-            recorder,
+            speed,
+            tick,
+            vehicles: ios,
         };
         let (sim_done_tx, sim_done_rx) = oneshot::channel::<()>();
         let sim_thread = std::thread::Builder::new()
             .name("rotorpilot-sim".into())
             .spawn(move || {
-                sim.run(&sim_rx);
+                sim.run(&inbox);
                 let _ = sim_done_tx.send(());
             })
             .context("starting the simulation thread")?;
-        tasks.push(tokio::spawn(saver(
-            params.clone(),
-            path.clone(),
-            save.clone(),
-            stop_rx.clone(),
-        )));
-        tasks.push(tokio::spawn(plan_saver(
-            tel_rx.clone(),
-            plans_file.clone(),
-            plans_changed,
-            stop_rx.clone(),
-        )));
-        // issue 13: one stdout line when the vehicle first is ready to arm (ready.rs)
-        tasks.push(tokio::spawn(ready::announce(
-            config.started,
-            tel_rx.clone(),
-            stop_rx.clone(),
-        )));
-        let identity = Identity {
-            system_id: config.system_id(),
-            component_id: 1,
-        };
-        for (index, (spec, socket)) in sockets.into_iter().enumerate() {
-            let link = Link::new(
-                LinkConfig {
-                    name: spec.name.clone(),
-                    identity,
-                    default_remote: spec.remote,
-                    rates: spec.rates.clone(),
-                    peer_timeout: config.peer_timeout,
-                },
-                Instant::now().into_std(),
-            );
-            let task = LinkTask {
-                link,
-                socket,
-                params: params.clone(),
-                tel: tel_rx.clone(),
-                link_lost: link_lost_rx.clone(),
-                sim: sim_tx.clone(),
-                events: ev_tx.clone(),
-                events_rx: ev_tx.subscribe(),
-                save: save.clone(),
-                exit: exit_tx.clone(),
-                dests: Vec::new(),
-                send_errors: 0,
-                tlog: log_dir
-                    .as_deref()
-                    .map(|d| tlog::Tlog::create(d, &tlog::file_name(index, &spec.name)))
-                    .unwrap_or_default(),
-            };
+        // issue 13: one stdout line when the vehicles first are ready to arm (ready.rs)
+        tasks.push(tokio::spawn(ready::announce(started, tels, stop_rx.clone())));
+        for task in links {
             tasks.push(tokio::spawn(task.run(stop_rx.clone())));
         }
         drop(exit_tx);
@@ -378,10 +595,7 @@ impl Daemon {
             }
         };
         let _ = stop_tx.send(true);
-        // never block here; if the queue is full the simulation sees every
-        // sender gone once the links have stopped
-        let _ = sim_tx.try_send(SimRequest::Stop);
-        drop(sim_tx);
+        stopper.stop();
         if tokio::time::timeout(Duration::from_millis(800), futures_join(tasks))
             .await
             .is_err()
@@ -401,19 +615,37 @@ impl Daemon {
         } else {
             warn!("the simulation thread did not stop in time: its logs may end early");
         }
-        // the simulation thread publishes every plan change before it
-        // answers it, so the last snapshot holds the plans in force
-        let plans = tel_rx.borrow().plans.clone();
-        let plans_saved = plans_file.save_final(&plans);
-        if plans_saved.is_ok() {
-            info!(path = %plans_file.path().display(), "plans saved");
+        // every vehicle's files, even when one fails; the first error is returned
+        let mut first_error: Option<anyhow::Error> = None;
+        for (instance, params, path, plans_file, tel_rx) in finals {
+            let who = if lone {
+                String::new()
+            } else {
+                format!("vehicle instance {instance}: ")
+            };
+            // the simulation thread publishes every plan change before it
+            // answers it, so the last snapshot holds the plans in force
+            let plans = tel_rx.borrow().plans.clone();
+            let plans_saved = plans_file.save_final(&plans);
+            if plans_saved.is_ok() {
+                info!(path = %plans_file.path().display(), "plans saved");
+            }
+            let snapshot = lock(&params).clone();
+            let saved = snapshot
+                .save(&path)
+                .with_context(|| format!("{who}saving parameters to {}", path.display()));
+            if saved.is_ok() {
+                info!(path = %path.display(), "parameters saved");
+            }
+            let result = saved.and(plans_saved.with_context(|| format!("{who}saving the plans")));
+            if let Err(e) = result {
+                tracing::error!("{e:#}");
+                first_error.get_or_insert(e);
+            }
         }
-        let snapshot = lock(&params).clone();
-        snapshot
-            .save(&path)
-            .with_context(|| format!("saving parameters to {}", path.display()))?;
-        info!(path = %path.display(), "parameters saved");
-        plans_saved.context("saving the plans")?;
+        if let Some(e) = first_error {
+            return Err(e);
+        }
         anyhow::ensure!(!sim_died, "the simulation thread stopped unexpectedly");
         Ok(())
     }

@@ -33,10 +33,20 @@ pub(super) fn ready_to_arm(snapshot: &Snapshot) -> bool {
 
 /// Watch the telemetry until the vehicle is first ready to arm, print the
 /// line (flushed) and end; end silently at shutdown.
-pub(super) async fn announce(started: Instant, mut tel: watch::Receiver<Snapshot>, mut stop: watch::Receiver<bool>) {
+pub(super) async fn announce(
+    started: Instant,
+    mut tels: Vec<watch::Receiver<Snapshot>>,
+    mut stop: watch::Receiver<bool>,
+) {
+    // a fleet is ready when every vehicle has been ready once (one may be
+    // armed, or faulted, before the last is ready)
+    let mut was_ready = vec![false; tels.len()];
     loop {
-        let ready = ready_to_arm(&tel.borrow_and_update());
-        if ready {
+        for (t, r) in tels.iter_mut().zip(&mut was_ready) {
+            *r = *r || ready_to_arm(&t.borrow_and_update());
+        }
+        let waiting = was_ready.iter().position(|r| !r);
+        let Some(i) = waiting else {
             let mut out = std::io::stdout().lock();
             // a closed stdout (the starter went away) is no reason to stop the vehicle
             let _ = writeln!(
@@ -46,9 +56,9 @@ pub(super) async fn announce(started: Instant, mut tel: watch::Receiver<Snapshot
             );
             let _ = out.flush();
             return;
-        }
+        };
         tokio::select! {
-            changed = tel.changed() => if changed.is_err() { return },
+            changed = tels[i].changed() => if changed.is_err() { return },
             _ = stop.changed() => return,
         }
     }

@@ -13,13 +13,12 @@ use std::io::{BufWriter, Write};
 use std::path::Path;
 
 use anyhow::Context as _;
-use tracing::warn;
+use tracing::{info, warn};
 
 use super::saver::lock;
-use super::sim_thread::{Sim, VEHICLE};
+use super::sim_thread::Sim;
 use crate::airframe::Airframe;
 use crate::autopilot::{Autopilot, AutopilotCommand, AutopilotError, ClientTimer, CommandOutcome};
-use crate::geo::GeoPoint;
 use crate::lockstep::Lockstep;
 use crate::mission::{MissionResult, PlanChange};
 use crate::params::{ParamStore, ParamValue};
@@ -34,6 +33,8 @@ pub(super) const CSV_FILE: &str = "flight.csv";
 
 /// Writes the run's record and CSV.
 pub(super) struct Recorder {
+    /// The vehicle recorded (its index in the fleet).
+    vehicle: usize,
     record: Option<LineFile<File>>,
     csv: Option<CsvLog<BufWriter<File>>>,
     /// The core's step count as last seen (for the end line).
@@ -49,7 +50,7 @@ impl std::fmt::Debug for Recorder {
 }
 
 impl Recorder {
-    /// Start the record in `dir` with the header of `core` at step 0, built
+    /// Start vehicle `vehicle`'s record in `dir` with the header of `core` at step 0, built
     /// with `sensors` (the value bind built `core` with: one source) (and
     /// the CSV with its header line when `csv`). The header is checked by
     /// rebuilding a core from it: a header that would not replay stops the start.
@@ -59,14 +60,16 @@ impl Recorder {
     /// airframe unreadable, a header that does not rebuild `core`.
     pub(super) fn create(
         dir: &Path,
-        airframe: &str,
-        home: GeoPoint,
+        config: &super::Config,
         params: &ParamStore,
         sensors: SensorConfig,
         core: &mut Lockstep<Autopilot>,
-        csv: bool,
+        vehicle: usize,
     ) -> anyhow::Result<Self> {
-        let ap = core.pilot(VEHICLE);
+        // the rebuilt core's one vehicle
+        const VEHICLE: usize = 0;
+        let (airframe, home, csv) = (&config.airframe, config.home, config.log_csv);
+        let ap = core.pilot(vehicle);
         let header = Header::new(
             Airframe::load_text(airframe)?,
             home,
@@ -82,7 +85,7 @@ impl Recorder {
         anyhow::ensure!(
             core.steps() == 0
                 // as Debug text: a NaN in the telemetry equals itself there
-                && format!("{:?}", rebuilt.snapshot(VEHICLE)) == format!("{:?}", core.snapshot(VEHICLE))
+                && format!("{:?}", rebuilt.snapshot(VEHICLE)) == format!("{:?}", core.snapshot(vehicle))
                 && rebuilt_params.iter().eq(params.iter()),
             "the flight record's header does not rebuild the vehicle as it starts"
         );
@@ -92,7 +95,7 @@ impl Recorder {
         record
             .append(&header_line(&header)?)
             .with_context(|| format!("writing {}", path.display()))?;
-        let rotors = core.pilot(VEHICLE).airframe().rotor_count();
+        let rotors = core.pilot(vehicle).airframe().rotor_count();
         let csv = if csv {
             let path = dir.join(CSV_FILE);
             let f = create_csv_file(&path).map_err(|e| anyhow::anyhow!("--log-csv: {e}"))?;
@@ -101,6 +104,7 @@ impl Recorder {
             None
         };
         Ok(Self {
+            vehicle,
             record: Some(record),
             csv,
             steps: 0,
@@ -111,7 +115,7 @@ impl Recorder {
     pub(super) fn after_step(&mut self, core: &Lockstep<Autopilot>) {
         self.steps = core.steps();
         if let Some(l) = &mut self.csv
-            && let Err(e) = l.step_row(core, VEHICLE)
+            && let Err(e) = l.step_row(core, self.vehicle)
         {
             warn!(error = %e, "cannot write {CSV_FILE}; the CSV stops here");
             self.csv = None;
@@ -120,7 +124,9 @@ impl Recorder {
 
     /// One input line, written out at once.
     fn input(&mut self, step: u64, input: &Input, applied: &Applied) {
-        self.steps = step;
+        // a proximity event is recorded after its chunk, at the older step
+        // that raised it: the end line counts the steps flown, not that
+        self.steps = self.steps.max(step);
         let Some(f) = &mut self.record else { return };
         let line = input_line(step, input, &applied.text());
         if let Err(e) = line.map_err(std::io::Error::other).and_then(|l| f.append(&l)) {
@@ -196,72 +202,105 @@ impl Drop for Recorder {
 }
 
 impl Sim {
-    /// Apply one input to the core at the current instant (between steps),
-    /// recording it when recording: the only way inputs reach the core.
-    pub(super) fn apply(&mut self, input: Input) -> Applied {
+    /// Apply one input to vehicle `v` at the current instant (between
+    /// steps), recording it in its record when recording: the only way
+    /// inputs reach the core.
+    pub(super) fn apply(&mut self, v: usize, input: Input) -> Applied {
         let step = self.core.steps();
+        let io = &mut self.vehicles[v];
         let applied = {
-            let mut p = lock(&self.params);
-            crate::record::apply(&mut self.core, VEHICLE, &mut p, &input)
+            let mut p = lock(&io.params);
+            crate::record::apply(&mut self.core, v, &mut p, &input)
         };
-        if let Some(r) = &mut self.recorder {
+        if let Some(r) = &mut io.recorder {
             r.input(step, &input, &applied);
         }
         applied
     }
 
     /// [`Self::apply`] a command.
-    pub(super) fn command(&mut self, command: AutopilotCommand) -> CommandOutcome {
-        match self.apply(Input::Command(command)) {
+    pub(super) fn command(&mut self, v: usize, command: AutopilotCommand) -> CommandOutcome {
+        match self.apply(v, Input::Command(command)) {
             Applied::Command(o) => o,
             other => unreachable!("a command answered {other:?}"),
         }
     }
 
     /// [`Self::apply`] a parameter set.
-    pub(super) fn set_param(&mut self, name: &str, value: ParamValue) -> Result<ParamValue, String> {
-        match self.apply(Input::SetParam {
-            name: name.to_string(),
-            value,
-        }) {
+    pub(super) fn set_param(&mut self, v: usize, name: &str, value: ParamValue) -> Result<ParamValue, String> {
+        match self.apply(
+            v,
+            Input::SetParam {
+                name: name.to_string(),
+                value,
+            },
+        ) {
             Applied::SetParam(r) => r,
             other => unreachable!("a parameter set answered {other:?}"),
         }
     }
 
     /// [`Self::apply`] a plan change.
-    pub(super) fn change_plans(&mut self, change: PlanChange) -> Result<u32, MissionResult> {
-        match self.apply(Input::ChangePlans(change)) {
+    pub(super) fn change_plans(&mut self, v: usize, change: PlanChange) -> Result<u32, MissionResult> {
+        match self.apply(v, Input::ChangePlans(change)) {
             Applied::Plans(r) => r,
             other => unreachable!("a plan change answered {other:?}"),
         }
     }
 
     /// [`Self::apply`] a ground station's heartbeat.
-    pub(super) fn gcs_heartbeat(&mut self) {
-        self.apply(Input::GcsHeartbeat);
+    pub(super) fn gcs_heartbeat(&mut self, v: usize) {
+        self.apply(v, Input::GcsHeartbeat);
     }
 
     /// [`Self::apply`] a client timer's expiry on the wall clock.
-    pub(super) fn client_timeout(&mut self, timer: ClientTimer, started_s: f64) -> bool {
-        match self.apply(Input::ClientTimeout { timer, started_s }) {
+    pub(super) fn client_timeout(&mut self, v: usize, timer: ClientTimer, started_s: f64) -> bool {
+        match self.apply(v, Input::ClientTimeout { timer, started_s }) {
             Applied::ClientTimeout(b) => b,
             other => unreachable!("a client timeout answered {other:?}"),
         }
     }
 
     /// [`Self::apply`] a reboot from the parameters in force.
-    pub(super) fn reboot_core(&mut self) -> Result<(), AutopilotError> {
-        match self.apply(Input::Reboot) {
+    pub(super) fn reboot_core(&mut self, v: usize) -> Result<(), AutopilotError> {
+        match self.apply(v, Input::Reboot) {
             Applied::Reboot(r) => r,
             other => unreachable!("a reboot answered {other:?}"),
         }
     }
 
-    /// After each step (the CSV row).
+    /// Record the proximity events the core raised since the last call in
+    /// both vehicles' records (the core announced them itself: recorded,
+    /// not applied; a replay applies them). Called after every chunk of
+    /// steps, before the requests waiting are served, so that the record's
+    /// lines stay in step order.
+    pub(super) fn record_proximity(&mut self) {
+        let events = self.core.drain_proximity_events();
+        let dt = self.core.dt_s();
+        for (t, e) in events {
+            // raised after the step that ended at t: before step t/dt runs
+            let step = (t / dt).round() as u64;
+            for (me, other) in [(e.a, e.b), (e.b, e.a)] {
+                info!(vehicle = me, other = %self.core.label(other), kind = e.kind.name(), distance_m = e.distance_m, "proximity");
+                if let Some(r) = &mut self.vehicles[me].recorder {
+                    let input = Input::Proximity {
+                        other: self.core.label(other).to_string(),
+                        kind: e.kind,
+                        distance_m: e.distance_m,
+                    };
+                    r.input(step, &input, &Applied::Announced);
+                }
+            }
+        }
+    }
+
+    /// After each step: every vehicle's CSV row and ULog topics.
     pub(super) fn after_step(&mut self) {
-        if let Some(r) = &mut self.recorder {
-            r.after_step(&self.core);
+        for io in &mut self.vehicles {
+            if let Some(r) = &mut io.recorder {
+                r.after_step(&self.core);
+            }
+            super::ulog_file::after_step(&mut io.ulog, &mut self.core);
         }
     }
 }
@@ -269,6 +308,7 @@ impl Sim {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geo::GeoPoint;
 
     /// A disk that fills up: takes `room` bytes, then fails.
     struct Filling {

@@ -1,13 +1,15 @@
-//! The simulation thread: the only owner of the lockstep core, paced against
-//! the wall clock. Every tick of wall time it runs the steps that are due so
-//! that simulated time = speed x wall time (batched: no per-step syscall;
-//! requests are served between chunks of steps), then publishes a
-//! [`Snapshot`] on a `watch` and status texts on a `broadcast`. Between
-//! ticks it sleeps in `recv_timeout` on its bounded request channel, so a
-//! command is served at once. If the machine cannot keep up, simulated time
-//! falls behind instead of bursting (a warning says so).
+//! The simulation thread: the only owner of the lockstep core (every vehicle
+//! of the fleet, on one clock), paced against the wall clock. Every tick of
+//! wall time it runs the steps that are due so that simulated time = speed x
+//! wall time (batched: no per-step syscall; requests are served between
+//! chunks of steps), then publishes each vehicle's [`Snapshot`] on its
+//! `watch` and its status texts on its `broadcast`. Between ticks it sleeps
+//! in the [`Inbox`] (one bounded queue per vehicle, served round robin), so
+//! a command is served at once and a flooding client delays the others by
+//! at most one request per turn. If the machine cannot keep up, simulated
+//! time falls behind instead of bursting (a warning says so).
 
-use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::sync::mpsc::{RecvTimeoutError, TryRecvError};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -15,6 +17,7 @@ use mavlink::dialects::common::MavMessage;
 use tokio::sync::{Notify, broadcast, oneshot, watch};
 use tracing::{debug, info, warn};
 
+use super::inbox::Inbox;
 use crate::autopilot::{
     Autopilot, AutopilotCommand, ClientClock, CommandOutcome, PendingTimer, PowerAction, StatusText,
 };
@@ -22,10 +25,9 @@ use crate::lockstep::{Lockstep, Snapshot};
 use crate::mission::{MissionResult, PlanChange};
 use crate::params::{ParamStore, ParamValue};
 
-/// The vehicle this daemon flies (one today; the fleet addresses more).
-pub(super) const VEHICLE: usize = 0;
-/// Steps run between two looks at the request queue.
-const CHUNK: u64 = 50;
+/// Vehicle-steps run between two looks at the requests (50 steps of a lone
+/// vehicle; one step of a fleet of 50 or more).
+const CHUNK_VEHICLE_STEPS: u64 = 50;
 /// At most this much wall time is spent stepping per tick; the rest waits.
 const MAX_BATCH_WALL: Duration = Duration::from_millis(20);
 
@@ -50,8 +52,6 @@ pub(super) enum SimRequest {
     },
     /// A ground station's HEARTBEAT arrived (data-link loss supervision; no answer).
     GcsHeartbeat,
-    /// Stop the thread.
-    Stop,
 }
 
 /// Messages to every link task.
@@ -66,11 +66,17 @@ pub(super) enum Event {
 /// The simulation thread's state.
 pub(super) struct Sim {
     pub(super) core: Lockstep<Autopilot>,
+    pub(super) speed: f64,
+    pub(super) tick: Duration,
+    /// Vehicle `i`'s channels and logs.
+    pub(super) vehicles: Vec<VehicleIo>,
+}
+
+/// What the simulation thread holds for one vehicle.
+pub(super) struct VehicleIo {
     pub(super) params: Arc<Mutex<ParamStore>>,
     pub(super) tel: watch::Sender<Snapshot>,
     pub(super) events: broadcast::Sender<Event>,
-    pub(super) speed: f64,
-    pub(super) tick: Duration,
     /// Notified after every accepted plan change (the plan saver writes the file).
     pub(super) plans_changed: Arc<Notify>,
     /// The client timers being timed on the wall clock (above real-time speed):
@@ -86,10 +92,28 @@ pub(super) struct Sim {
 }
 
 impl Sim {
-    /// The simulation loop (on its own thread) until [`SimRequest::Stop`] or
-    /// every sender is gone.
-    pub(super) fn run(mut self, rx: &Receiver<SimRequest>) {
+    /// The simulation loop (on its own thread) until the inbox is stopped
+    /// ([`super::inbox::Stopper`]) or every sender is gone.
+    pub(super) fn run(mut self, rx: &Inbox<SimRequest>) {
+        let wall = Instant::now();
+        let steps = self.core.steps();
+        self.run_loop(rx);
+        // how fast it went, for the log (a fleet's user wants its real-time factor)
+        let simulated_s = (self.core.steps() - steps) as f64 * self.core.dt_s();
+        let wall_s = wall.elapsed().as_secs_f64();
+        info!(
+            vehicles = self.vehicles.len(),
+            simulated_s,
+            wall_s,
+            real_time_factor = simulated_s / wall_s.max(1e-9),
+            "simulation stopped"
+        );
+    }
+
+    fn run_loop(&mut self, rx: &Inbox<SimRequest>) {
         let dt = self.core.dt_s();
+        let vehicles = self.vehicles.len().max(1) as u64;
+        let chunk = (CHUNK_VEHICLE_STEPS / vehicles).max(1);
         let start = Instant::now();
         let mut base = start;
         let mut base_steps: u64 = 0;
@@ -100,8 +124,8 @@ impl Sim {
             let now = Instant::now();
             if now < next_tick {
                 match rx.recv_timeout(next_tick - now) {
-                    Ok(SimRequest::Stop) | Err(RecvTimeoutError::Disconnected) => return,
-                    Ok(r) => self.handle(r),
+                    Err(RecvTimeoutError::Disconnected) => return,
+                    Ok((v, r)) => self.handle(v, r),
                     Err(RecvTimeoutError::Timeout) => {}
                 }
                 continue;
@@ -128,87 +152,95 @@ impl Sim {
                 due = 0;
             }
             while due > 0 {
-                let n = due.min(CHUNK);
+                let n = due.min(chunk);
                 for _ in 0..n {
                     self.core.step();
                     self.after_step();
-                    super::ulog_file::after_step(&mut self.ulog, &mut self.core);
                 }
                 steps += n;
                 due -= n;
-                loop {
+                self.record_proximity();
+                // the requests waiting now, round robin (what comes in
+                // meanwhile waits for the next look)
+                for _ in 0..rx.len() {
                     match rx.try_recv() {
-                        Ok(SimRequest::Stop) => return,
-                        Ok(r) => self.handle(r),
-                        Err(_) => break,
+                        Ok((v, r)) => self.handle(v, r),
+                        Err(TryRecvError::Disconnected) => return,
+                        Err(TryRecvError::Empty) => break,
                     }
                 }
                 if now.elapsed() > MAX_BATCH_WALL {
                     break;
                 }
             }
-            self.publish();
-        }
-    }
-
-    /// Above real-time speed, time the autopilot's client timers on the wall
-    /// clock and report each expiry to it (module doc of `autopilot::failsafe`).
-    fn time_client_timers(&mut self) {
-        if self.core.pilot(VEHICLE).client_clock() != ClientClock::Wall {
-            return;
-        }
-        let now = Instant::now();
-        let pending = self.core.pilot(VEHICLE).client_timers();
-        self.wall_timers.retain(|(t, _)| {
-            pending
-                .iter()
-                .any(|p| p.timer == t.timer && p.started_s.to_bits() == t.started_s.to_bits())
-        });
-        for p in pending {
-            let seen = self
-                .wall_timers
-                .iter()
-                .find(|(t, _)| t.timer == p.timer)
-                .map(|(_, at)| *at);
-            match seen {
-                None => self.wall_timers.push((p, now)),
-                Some(at) if now.duration_since(at).as_secs_f64() >= p.duration_s => {
-                    if self.client_timeout(p.timer, p.started_s) {
-                        debug!(timer = ?p.timer, "client timer ran out on the wall clock");
-                    }
-                    self.wall_timers.retain(|(t, _)| t.timer != p.timer);
-                }
-                Some(_) => {}
+            for v in 0..self.vehicles.len() {
+                self.publish(v);
             }
         }
     }
 
-    /// Publish the snapshot and the status texts.
-    pub(super) fn publish(&mut self) {
-        self.time_client_timers();
-        self.tel.send_replace(self.core.snapshot(VEHICLE));
-        let lost = self.core.world().faults(VEHICLE).link_lost;
-        self.link_lost.send_if_modified(|l| std::mem::replace(l, lost) != lost);
-        for s in super::ulog_file::drain_status_texts(&mut self.ulog, &mut self.core, VEHICLE) {
-            info!(text = %s.text, "status");
-            let _ = self.events.send(Event::StatusText(s));
+    /// Above real-time speed, time vehicle `v`'s autopilot's client timers on
+    /// the wall clock and report each expiry to it (module doc of
+    /// `autopilot::failsafe`).
+    fn time_client_timers(&mut self, v: usize) {
+        if self.core.pilot(v).client_clock() != ClientClock::Wall {
+            return;
         }
-        for seq in self.core.drain_mission_reached(VEHICLE) {
-            let _ = self.events.send(Event::MissionItemReached(seq));
+        let now = Instant::now();
+        let pending = self.core.pilot(v).client_timers();
+        let timers = &mut self.vehicles[v].wall_timers;
+        timers.retain(|(t, _)| {
+            pending
+                .iter()
+                .any(|p| p.timer == t.timer && p.started_s.to_bits() == t.started_s.to_bits())
+        });
+        let mut expired = Vec::new();
+        for p in pending {
+            let seen = timers.iter().find(|(t, _)| t.timer == p.timer).map(|(_, at)| *at);
+            match seen {
+                None => timers.push((p, now)),
+                Some(at) if now.duration_since(at).as_secs_f64() >= p.duration_s => {
+                    expired.push(p);
+                    timers.retain(|(t, _)| t.timer != p.timer);
+                }
+                Some(_) => {}
+            }
+        }
+        for p in expired {
+            if self.client_timeout(v, p.timer, p.started_s) {
+                debug!(vehicle = v, timer = ?p.timer, "client timer ran out on the wall clock");
+            }
         }
     }
 
-    fn handle(&mut self, r: SimRequest) {
+    /// Publish vehicle `v`'s snapshot and status texts.
+    pub(super) fn publish(&mut self, v: usize) {
+        self.time_client_timers(v);
+        let io = &mut self.vehicles[v];
+        io.tel.send_replace(self.core.snapshot(v));
+        let lost = self.core.world().faults(v).link_lost;
+        io.link_lost.send_if_modified(|l| std::mem::replace(l, lost) != lost);
+        for s in super::ulog_file::drain_status_texts(&mut io.ulog, &mut self.core, v) {
+            info!(vehicle = v, text = %s.text, "status");
+            let _ = io.events.send(Event::StatusText(s));
+        }
+        for seq in self.core.drain_mission_reached(v) {
+            let _ = io.events.send(Event::MissionItemReached(seq));
+        }
+    }
+
+    /// Serve vehicle `v`'s request.
+    fn handle(&mut self, v: usize, r: SimRequest) {
         match r {
             SimRequest::Command { command, reply } => {
-                let mut outcome = self.command(command);
+                let mut outcome = self.command(v, command);
                 if command == AutopilotCommand::Power(PowerAction::Reboot) && outcome == CommandOutcome::Accepted {
                     // carried out before the ACK, so that ACCEPTED means done
-                    outcome = self.reboot();
+                    outcome = self.reboot(v);
                 }
                 // Publish before answering: a client that acts on the ACK (disarm,
                 // then shutdown) must find the links already seeing the new state.
-                self.publish();
+                self.publish(v);
                 // setpoints stream without a reply: log only their refusals
                 if reply.is_some() || outcome != CommandOutcome::Accepted {
                     debug!(?command, ?outcome, "command");
@@ -218,42 +250,40 @@ impl Sim {
                 }
             }
             SimRequest::SetParam { name, value, reply } => {
-                let outcome = self.set_param(&name, value);
+                let outcome = self.set_param(v, &name, value);
                 match &outcome {
-                    Ok(v) => info!(%name, value = %v, "parameter set"),
-                    Err(e) => info!(%name, error = %e, "parameter refused"),
+                    Ok(x) => info!(vehicle = v, %name, value = %x, "parameter set"),
+                    Err(e) => info!(vehicle = v, %name, error = %e, "parameter refused"),
                 }
-                self.publish();
+                self.publish(v);
                 let _ = reply.send(outcome);
             }
             SimRequest::Plans { change, reply } => {
-                let outcome = self.change_plans(change);
-                info!(?outcome, "plans changed");
-                self.publish();
+                let outcome = self.change_plans(v, change);
+                info!(vehicle = v, ?outcome, "plans changed");
+                self.publish(v);
                 if outcome.is_ok() {
-                    self.plans_changed.notify_one();
+                    self.vehicles[v].plans_changed.notify_one();
                 }
                 let _ = reply.send(outcome);
             }
-            SimRequest::GcsHeartbeat => self.gcs_heartbeat(),
-            // the loop returns on Stop before handing requests here
-            SimRequest::Stop => {}
+            SimRequest::GcsHeartbeat => self.gcs_heartbeat(v),
         }
     }
 
     /// PREFLIGHT_REBOOT_SHUTDOWN p1 = 1: the vehicle restarts on the ground at
     /// home, disarmed, from the current parameters; simulated time goes on.
     /// The answer for the ACK.
-    fn reboot(&mut self) -> CommandOutcome {
-        match self.reboot_core() {
+    fn reboot(&mut self, v: usize) -> CommandOutcome {
+        match self.reboot_core(v) {
             Ok(()) => {
                 // the core announces it ("Rebooted: simulation reset"); the
                 // caller publishes before the ACK
-                info!("rebooted: simulation reset");
+                info!(vehicle = v, "rebooted: simulation reset");
                 CommandOutcome::Accepted
             }
             Err(e) => {
-                warn!(error = %e, "reboot failed");
+                warn!(vehicle = v, error = %e, "reboot failed");
                 CommandOutcome::Failed("reboot failed")
             }
         }

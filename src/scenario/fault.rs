@@ -148,19 +148,20 @@ impl ScheduledFault {
     }
 }
 
-/// Apply `f` to vehicle 0 now through `inject` (the lockstep's injection for
+/// Apply `f` to vehicle `i` now through `inject` (the lockstep's injection for
 /// a bare control law, the MAV_CMD_INJECT_FAILURE command for a flight
 /// stack), with this entry's WRONG values in force for that instant only;
 /// what happened, for the summary.
 pub(super) fn apply<P: Pilot>(
     core: &mut Lockstep<P>,
+    i: usize,
     f: &ScheduledFault,
     inject: impl FnOnce(&mut Lockstep<P>, FailureInjection) -> CommandOutcome,
 ) -> AppliedFault {
-    let base = core.world().fault_settings(0);
-    core.world_mut().set_fault_settings(0, f.settings(base));
+    let base = core.world().fault_settings(i);
+    core.world_mut().set_fault_settings(i, f.settings(base));
     let outcome = inject(core, f.injection());
-    core.world_mut().set_fault_settings(0, base);
+    core.world_mut().set_fault_settings(i, base);
     AppliedFault::new(f, core.time_s(), &outcome)
 }
 

@@ -374,6 +374,16 @@ fn ends_on_ground(items: &[MissionItem]) -> bool {
 /// Parameters the autopilot refuses, or a plan it refuses (with the item).
 pub fn mission_lockstep(f: &MissionFlight) -> anyhow::Result<Lockstep<Autopilot>> {
     let mut core = Lockstep::one_vehicle(&f.airframe, f.home, &f.params, f.sensors)?;
+    store_plans(&mut core, 0, f)?;
+    Ok(core)
+}
+
+/// Store `f`'s mission, geofence and rally points in vehicle `i`'s autopilot,
+/// as a client uploads them.
+///
+/// # Errors
+/// A plan the autopilot refuses (with the item).
+pub(super) fn store_plans(core: &mut Lockstep<Autopilot>, i: usize, f: &MissionFlight) -> anyhow::Result<()> {
     for (kind, items) in [
         (MissionType::Mission, &f.plans.mission),
         (MissionType::Fence, &f.plans.fence),
@@ -383,7 +393,7 @@ pub fn mission_lockstep(f: &MissionFlight) -> anyhow::Result<Lockstep<Autopilot>
             continue;
         }
         core.change_plans(
-            0,
+            i,
             PlanChange::Store {
                 kind,
                 items: items.clone(),
@@ -392,7 +402,7 @@ pub fn mission_lockstep(f: &MissionFlight) -> anyhow::Result<Lockstep<Autopilot>
         )
         .map_err(|r| anyhow::anyhow!("{}: {} refused: {}", f.source, kind.name(), r.reason()))?;
     }
-    Ok(core)
+    Ok(())
 }
 
 /// Fly the mission; `csv` receives the flight log (the format of
@@ -400,37 +410,94 @@ pub fn mission_lockstep(f: &MissionFlight) -> anyhow::Result<Lockstep<Autopilot>
 ///
 /// # Errors
 /// As [`mission_lockstep`], or a failed write to `csv`.
-#[allow(clippy::too_many_lines)]
 pub fn run_mission(f: &MissionFlight, csv: Option<&mut dyn Write>) -> anyhow::Result<MissionSummary> {
     let mut core = mission_lockstep(f)?;
-    let n = f.airframe.rotor_count();
-    let mut log = csv.map(|w| CsvLog::new(w, n)).transpose()?;
-    let items = &f.plans.mission;
-    let dt = core.dt_s();
-    let steps = (f.duration_s / dt).round() as u64;
-    let mut results: Vec<ItemResult> = items
-        .iter()
-        .enumerate()
-        .map(|(k, it)| ItemResult {
-            seq: u16::try_from(k).unwrap_or(u16::MAX),
-            command: it.command,
-            reached_s: None,
-            times_reached: 0,
-            distance_m: None,
-        })
-        .collect();
-    let lands = ends_on_ground(items);
-    let (mut started_s, mut complete_s) = (None, None);
-    let (mut sum_sq, mut n_air, mut max_err) = (0.0, 0u64, 0.0_f64);
-    let (mut upright, mut finite) = (true, true);
-    let (mut applied, mut next_fault) = (Vec::new(), 0);
-    let mut k = 0;
-    while k < steps {
-        for sf in &f.faults[fault::due(&f.faults, &mut next_fault, core.time_s())] {
+    let mut log = csv.map(|w| CsvLog::new(w, f.airframe.rotor_count())).transpose()?;
+    let mut flight = MissionFlown::new(f, core.dt_s());
+    while !flight.is_over() {
+        flight.before_step(&mut core, 0);
+        core.step();
+        flight.after_step(&mut core, 0, log.as_mut())?;
+    }
+    if let Some(l) = log {
+        l.finish()?;
+    }
+    Ok(flight.summary(&mut core, 0))
+}
+
+/// A mission vehicle's flight as it goes, step by step: its `[[fault]]`s
+/// injected through the flight stack when due, the mission started once
+/// the prearm checks pass, the items reached and the tracking error
+/// tallied, its log written, until the mission is over or the time limit;
+/// then its [`MissionSummary`]. The same code judges a vehicle flown alone
+/// ([`run_mission`]) and one of a fleet.
+#[derive(Debug)]
+pub(super) struct MissionFlown<'f> {
+    f: &'f MissionFlight,
+    /// Steps to fly at most: `round(duration / dt)`.
+    steps: u64,
+    /// Steps flown.
+    k: u64,
+    over: bool,
+    results: Vec<ItemResult>,
+    lands: bool,
+    started_s: Option<f64>,
+    complete_s: Option<f64>,
+    sum_sq: f64,
+    n_air: u64,
+    max_err: f64,
+    upright: bool,
+    finite: bool,
+    applied: Vec<AppliedFault>,
+    next_fault: usize,
+}
+
+impl<'f> MissionFlown<'f> {
+    /// Before the first step of `f`, stepped by `dt_s` [s].
+    pub(super) fn new(f: &'f MissionFlight, dt_s: f64) -> Self {
+        let items = &f.plans.mission;
+        Self {
+            f,
+            steps: (f.duration_s / dt_s).round() as u64,
+            k: 0,
+            over: false,
+            results: items
+                .iter()
+                .enumerate()
+                .map(|(k, it)| ItemResult {
+                    seq: u16::try_from(k).unwrap_or(u16::MAX),
+                    command: it.command,
+                    reached_s: None,
+                    times_reached: 0,
+                    distance_m: None,
+                })
+                .collect(),
+            lands: ends_on_ground(items),
+            started_s: None,
+            complete_s: None,
+            sum_sq: 0.0,
+            n_air: 0,
+            max_err: 0.0,
+            upright: true,
+            finite: true,
+            applied: Vec::new(),
+            next_fault: 0,
+        }
+    }
+
+    /// The flight is over (the mission done, the time limit, or a fault of the world).
+    pub(super) fn is_over(&self) -> bool {
+        self.over || self.k >= self.steps
+    }
+
+    /// Before the next step of vehicle `i`: the faults due now.
+    pub(super) fn before_step(&mut self, core: &mut Lockstep<Autopilot>, i: usize) {
+        let f = self.f;
+        for sf in &f.faults[fault::due(&f.faults, &mut self.next_fault, core.time_s())] {
             // as a client injects it: through the flight stack's command
-            applied.push(fault::apply(&mut core, sf, |c, inj| {
+            self.applied.push(fault::apply(core, i, sf, |c, inj| {
                 c.command(
-                    0,
+                    i,
                     AutopilotCommand::InjectFailure {
                         unit: inj.unit,
                         kind: inj.kind,
@@ -439,108 +506,128 @@ pub fn run_mission(f: &MissionFlight, csv: Option<&mut dyn Write>) -> anyhow::Re
                 )
             }));
         }
-        core.step();
-        k += 1;
-        let rec = core.last_step(0);
-        if let Some(l) = &mut log {
+    }
+
+    /// After a step of vehicle `i`: log it, tally it, start the mission
+    /// once it may, and see whether it is over.
+    ///
+    /// # Errors
+    /// A failed write to `log`, or a mission that would not start.
+    pub(super) fn after_step<W: Write>(
+        &mut self,
+        core: &mut Lockstep<Autopilot>,
+        i: usize,
+        log: Option<&mut CsvLog<W>>,
+    ) -> anyhow::Result<()> {
+        let f = self.f;
+        self.k += 1;
+        let rec = core.last_step(i);
+        if let Some(l) = log {
             l.row(&rec)?;
         }
         let truth = rec.world.truth;
         let reference = rec.control.reference.position_ned;
-        upright &= (truth.attitude * Vector3::z()).z > 0.0;
-        finite &= truth.position_ned.iter().all(|x| x.is_finite());
+        self.upright &= (truth.attitude * Vector3::z()).z > 0.0;
+        self.finite &= truth.position_ned.iter().all(|x| x.is_finite());
         if rec.world.fault.is_some() {
-            finite = false;
-            break;
+            self.finite = false;
+            self.over = true;
+            return Ok(());
         }
         let time_s = core.time_s();
-        let ap = core.pilot(0);
+        let ap = core.pilot(i);
         let (armed, progress) = (ap.armed(), ap.mission_progress());
         if ap.landed_state() == LandedState::InAir {
             let e = (truth.position_ned - reference).norm();
-            sum_sq += e * e;
-            n_air += 1;
-            max_err = max_err.max(e);
+            self.sum_sq += e * e;
+            self.n_air += 1;
+            self.max_err = self.max_err.max(e);
         }
-        for seq in core.drain_mission_reached(0) {
-            if let Some(r) = results.get_mut(usize::from(seq)) {
+        for seq in core.drain_mission_reached(i) {
+            if let Some(r) = self.results.get_mut(usize::from(seq)) {
                 r.times_reached += 1;
                 if r.reached_s.is_none() {
                     r.reached_s = Some(time_s);
-                    let it = &items[usize::from(seq)];
+                    let it = &f.plans.mission[usize::from(seq)];
                     r.distance_m = it
                         .geo_point(f.home.alt_amsl_m)
-                        .map(|g| (core.world().plant(0).state().position_ned - g.ned_from(&f.home)).norm());
+                        .map(|g| (core.world().plant(i).state().position_ned - g.ned_from(&f.home)).norm());
                 }
             }
         }
-        if started_s.is_none() && !armed && core.telemetry(0).prearm_ok {
-            match core.command(0, AutopilotCommand::StartMission { first: Some(0) }) {
-                CommandOutcome::Accepted => started_s = Some(time_s),
+        if self.started_s.is_none() && !armed && core.telemetry(i).prearm_ok {
+            match core.command(i, AutopilotCommand::StartMission { first: Some(0) }) {
+                CommandOutcome::Accepted => self.started_s = Some(time_s),
                 other => anyhow::bail!("{}: the mission would not start: {other:?}", f.source),
             }
         }
-        if progress.state == MissionState::Complete && complete_s.is_none() {
-            complete_s = Some(time_s);
+        if progress.state == MissionState::Complete && self.complete_s.is_none() {
+            self.complete_s = Some(time_s);
         }
-        if let Some(c) = complete_s {
-            let over = if lands { !armed } else { time_s - c >= SETTLE_S };
-            if over {
-                break;
+        if let Some(c) = self.complete_s {
+            self.over = if self.lands { !armed } else { time_s - c >= SETTLE_S };
+        }
+        Ok(())
+    }
+
+    /// The summary and verdict of vehicle `i`'s flight (at its end).
+    pub(super) fn summary(self, core: &mut Lockstep<Autopilot>, i: usize) -> MissionSummary {
+        let f = self.f;
+        let items = &f.plans.mission;
+        let t = core.telemetry(i);
+        let p = core.world().plant(i).state().position_ned;
+        let complete = self.complete_s.is_some();
+        let landed_and_disarmed = !t.armed && t.landed == LandedState::OnGround;
+        let mut reasons = Vec::new();
+        if !complete {
+            reasons.push(format!(
+                "the mission did not complete in {:.0} s (at item {} of {})",
+                f.duration_s, t.mission.seq, t.mission.total
+            ));
+        }
+        for r in &self.results {
+            if r.reached_s.is_none() && items[usize::from(r.seq)].geo_point(f.home.alt_amsl_m).is_some() {
+                reasons.push(format!("item {} (command {}) was never reached", r.seq, r.command));
             }
         }
-    }
-    if let Some(l) = log {
-        l.finish()?;
-    }
-    let t = core.telemetry(0);
-    let p = core.world().plant(0).state().position_ned;
-    let complete = complete_s.is_some();
-    let landed_and_disarmed = !t.armed && t.landed == LandedState::OnGround;
-    let mut reasons = Vec::new();
-    if !complete {
-        reasons.push(format!(
-            "the mission did not complete in {:.0} s (at item {} of {})",
-            f.duration_s, t.mission.seq, t.mission.total
-        ));
-    }
-    for r in &results {
-        if r.reached_s.is_none() && items[usize::from(r.seq)].geo_point(f.home.alt_amsl_m).is_some() {
-            reasons.push(format!("item {} (command {}) was never reached", r.seq, r.command));
+        if self.lands && complete && !landed_and_disarmed {
+            reasons.push("the mission ends on the ground but the vehicle did not land and disarm".into());
+        }
+        if !self.upright {
+            reasons.push("the vehicle tipped over".into());
+        }
+        if !self.finite {
+            reasons.push("the simulation stopped on a non-finite state".into());
+        }
+        let max_err = self.max_err;
+        if let Some(limit) = f.max_tracking_error_m
+            && max_err > limit
+        {
+            reasons.push(format!("tracking error {max_err:.3} m above the limit {limit} m"));
+        }
+        MissionSummary {
+            scenario: f.source.clone(),
+            airframe: f.airframe.name.clone(),
+            verdict: if reasons.is_empty() { "pass" } else { "fail" },
+            reasons,
+            complete,
+            items: self.results,
+            mission_time_s: self.started_s.map_or(0.0, |s| t.time_s - s),
+            sim_time_s: t.time_s,
+            wall_time_s: 0.0,
+            max_tracking_error_m: max_err,
+            rms_tracking_error_m: if self.n_air > 0 {
+                (self.sum_sq / self.n_air as f64).sqrt()
+            } else {
+                0.0
+            },
+            final_position_ned: [p.x, p.y, p.z],
+            landed_and_disarmed,
+            upright: self.upright,
+            finite: self.finite,
+            faults: self.applied,
         }
     }
-    if lands && complete && !landed_and_disarmed {
-        reasons.push("the mission ends on the ground but the vehicle did not land and disarm".into());
-    }
-    if !upright {
-        reasons.push("the vehicle tipped over".into());
-    }
-    if !finite {
-        reasons.push("the simulation stopped on a non-finite state".into());
-    }
-    if let Some(limit) = f.max_tracking_error_m
-        && max_err > limit
-    {
-        reasons.push(format!("tracking error {max_err:.3} m above the limit {limit} m"));
-    }
-    Ok(MissionSummary {
-        scenario: f.source.clone(),
-        airframe: f.airframe.name.clone(),
-        verdict: if reasons.is_empty() { "pass" } else { "fail" },
-        reasons,
-        complete,
-        items: results,
-        mission_time_s: started_s.map_or(0.0, |s| t.time_s - s),
-        sim_time_s: t.time_s,
-        wall_time_s: 0.0,
-        max_tracking_error_m: max_err,
-        rms_tracking_error_m: if n_air > 0 { (sum_sq / n_air as f64).sqrt() } else { 0.0 },
-        final_position_ned: [p.x, p.y, p.z],
-        landed_and_disarmed,
-        upright,
-        finite,
-        faults: applied,
-    })
 }
 
 impl MissionSummary {

@@ -13,6 +13,7 @@
 pub mod campaign;
 mod csv_log;
 pub mod fault;
+pub mod fleet;
 mod mission;
 mod run;
 mod trajectory;

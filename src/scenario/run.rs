@@ -194,24 +194,43 @@ pub fn csv_row(rec: &StepRecord<'_>, n: usize) -> String {
 /// Invalid gains or estimator settings.
 pub fn lockstep(s: &Scenario) -> anyhow::Result<Lockstep<ScenarioPilot<'_>>> {
     let mut world = World::new(s.step_s, s.world);
+    add_vehicle(&mut world, s);
+    let mut core = Lockstep::new(world, vec![pilot(s)?]);
+    place(&mut core, 0);
+    Ok(core)
+}
+
+/// Add `s`'s vehicle to `world` (its airframe and sensors); its index.
+pub(super) fn add_vehicle(world: &mut World, s: &Scenario) -> usize {
     world.add_vehicle(
         &s.airframe,
         SensorConfig {
             noise: s.noise,
             seed: s.seed,
         },
-    );
+    )
+}
+
+/// `s`'s pilot, at `t = 0`, before its vehicle is [`place`]d.
+///
+/// # Errors
+/// Invalid gains or estimator settings.
+pub(super) fn pilot(s: &Scenario) -> anyhow::Result<ScenarioPilot<'_>> {
     let control = ControlLoop::new(&s.airframe, s.controller, s.gains, s.estimator.clone())
         .map_err(|e| anyhow::anyhow!("{}: {e}", s.source))?;
-    let pilot = ScenarioPilot {
+    Ok(ScenarioPilot {
         scenario: s,
         control,
         shaper: Shaper::new(ShaperLimits::for_airframe(&s.airframe))?,
         next_switch: 0,
-    };
-    let mut core = Lockstep::new(world, vec![pilot]);
+    })
+}
 
-    // Initial state.
+/// Put vehicle `i` at its scenario's initial state (given, or on the
+/// reference with its feedforward attitude and thrust), set its disturbance
+/// schedule and reset its pilot there.
+pub(super) fn place(core: &mut Lockstep<ScenarioPilot<'_>>, i: usize) {
+    let s = core.pilot(i).scenario;
     let r0 = match &s.reference {
         ReferencePlan::Trajectory(tr) => tr.at(0.0),
         ReferencePlan::Setpoints(list) => {
@@ -223,14 +242,14 @@ pub fn lockstep(s: &Scenario) -> anyhow::Result<Lockstep<ScenarioPilot<'_>>> {
         }
     };
     let (state, hover) = match s.initial {
-        Some(i) => (
+        Some(init) => (
             RigidBodyState {
-                position_ned: i.position_ned,
-                velocity_ned: i.velocity_ned,
-                attitude: from_euler_zyx(&i.euler_rad),
-                rate_frd: i.rate_frd,
+                position_ned: init.position_ned,
+                velocity_ned: init.velocity_ned,
+                attitude: from_euler_zyx(&init.euler_rad),
+                rate_frd: init.rate_frd,
             },
-            core.pilot(0).control.hover_wrench(),
+            core.pilot(i).control.hover_wrench(),
         ),
         None => {
             // on the reference with its feedforward attitude and thrust
@@ -248,14 +267,13 @@ pub fn lockstep(s: &Scenario) -> anyhow::Result<Lockstep<ScenarioPilot<'_>>> {
         }
     };
     let world = core.world_mut();
-    world.set_disturbance(0, DisturbanceSource::Schedule(s.disturbances.clone()));
-    world.start_in_flight(0, state, &hover);
-    let pilot = core.pilot_mut(0);
+    world.set_disturbance(i, DisturbanceSource::Schedule(s.disturbances.clone()));
+    world.start_in_flight(i, state, &hover);
+    let pilot = core.pilot_mut(i);
     pilot.control.restart();
     pilot
         .shaper
         .reset(state.position_ned, state.velocity_ned, euler_zyx(&state.attitude).z);
-    Ok(core)
 }
 
 /// Fly the scenario. `csv` receives the time series when given.
@@ -264,99 +282,170 @@ pub fn lockstep(s: &Scenario) -> anyhow::Result<Lockstep<ScenarioPilot<'_>>> {
 /// Invalid gains or estimator settings, or a failed write to `csv`.
 pub fn run(s: &Scenario, csv: Option<&mut dyn Write>) -> anyhow::Result<Summary> {
     let mut core = lockstep(s)?;
-    let n = s.airframe.rotor_count();
-    let mut log = csv.map(|w| CsvLog::new(w, n)).transpose()?;
-
-    let dt = s.step_s;
-    let steps = (s.duration_s / dt).round() as u64;
-    let tail_from = (steps as f64 * 0.9) as u64;
-    let mut sum_sq = Vector3::<f64>::zeros();
-    let mut max_abs = Vector3::<f64>::zeros();
-    let mut max_norm: f64 = 0.0;
-    let mut tail_sum = Vector3::<f64>::zeros();
-    let mut tail_n = 0u64;
-    let mut max_att: f64 = 0.0;
-    let mut saturated_steps = 0u64;
-    let mut upright = true;
-    let mut finite = true;
-    let mut fault = None;
-    let mut flown = 0u64;
-    let mut applied = Vec::new();
-    let mut next_fault = 0;
-    for k in 0..steps {
-        let t = k as f64 * dt;
-        for f in &s.faults[fault::due(&s.faults, &mut next_fault, t)] {
-            // a bare control law: no flight stack to ask (SYS_FAILURE_EN)
-            applied.push(fault::apply(&mut core, f, |c, inj| c.inject_failure(0, inj)));
-        }
+    let mut log = csv.map(|w| CsvLog::new(w, s.airframe.rotor_count())).transpose()?;
+    let mut flight = Flown::new(s);
+    while !flight.is_over() {
+        flight.before_step(&mut core, 0);
         core.step();
-        let rec = core.last_step(0);
-        if let Some(e) = rec.world.fault {
-            fault = Some(format!("t = {t:.3} s: {e}"));
-            finite = false;
-            break;
-        }
-        flown += 1;
-        let (truth, control) = (&rec.world.truth, rec.control);
-        let e = truth.position_ned - control.reference.position_ned;
-        sum_sq += e.component_mul(&e);
-        max_abs = max_abs.sup(&e.abs());
-        max_norm = max_norm.max(e.norm());
-        if k >= tail_from {
-            tail_sum += e;
-            tail_n += 1;
-        }
-        let att_err = truth.attitude.angle_to(&control.attitude_sp);
-        if att_err.is_finite() {
-            max_att = max_att.max(att_err);
-        }
-        saturated_steps += u64::from(control.saturated);
-        upright &= (truth.attitude * Vector3::z()).z > 0.0;
-        finite &= e.as_slice().iter().all(|x| x.is_finite())
-            && control.command.thrust_n.is_finite()
-            && control.command.torque_frd.as_slice().iter().all(|x| x.is_finite());
-        if let Some(l) = &mut log {
-            l.row(&rec)?;
-        }
+        flight.after_step(&core, 0, log.as_mut())?;
     }
     if let Some(l) = log {
         l.finish()?;
     }
-    let state = core.world().plant(0).state();
-    let est = core.pilot(0).control.estimate();
-    let flown_f = flown.max(1) as f64;
-    let rms = (sum_sq / flown_f).map(f64::sqrt);
-    let tail = if tail_n > 0 {
-        tail_sum / tail_n as f64
-    } else {
-        Vector3::zeros()
-    };
-    let arr = |v: Vector3<f64>| [v.x, v.y, v.z];
-    Ok(Summary {
-        scenario: s.source.clone(),
-        airframe: s.airframe.name.clone(),
-        controller: core.pilot(0).control.controller().kind().name().to_string(),
-        steps: flown,
-        sim_time_s: flown as f64 * dt,
-        wall_time_s: 0.0,
-        rms_pos_err_m: (sum_sq.sum() / flown_f).sqrt(),
-        max_pos_err_m: max_norm,
-        rms_pos_err_ned: arr(rms),
-        max_pos_err_ned: arr(max_abs),
-        final_pos_err_ned: arr(tail),
-        max_att_err_rad: max_att,
-        final_position_ned: arr(state.position_ned),
-        final_euler_rad: arr(euler_zyx(&state.attitude)),
-        saturation_time_s: saturated_steps as f64 * dt,
-        upright,
-        finite,
-        fault,
-        est_force_ned: arr(est.force_ned),
-        est_torque_frd: arr(est.torque_frd),
-        est_torque_rpy: arr(est.torque_rpy),
-        est_mass_kg: est.mass_kg,
-        faults: applied,
-    })
+    Ok(flight.summary(&core, 0))
+}
+
+/// A scenario vehicle's flight as it goes, step by step: its `[[fault]]`s
+/// applied when due, its errors tallied, its log written, until its
+/// duration or a fault of the world stops it; then its [`Summary`]. The
+/// same code judges a vehicle flown alone ([`run`]) and one of a fleet.
+#[derive(Debug)]
+pub(super) struct Flown {
+    /// Steps to fly: `round(duration / dt)`.
+    steps: u64,
+    /// The step `k` to fly next.
+    k: u64,
+    tail_from: u64,
+    sum_sq: Vector3<f64>,
+    max_abs: Vector3<f64>,
+    max_norm: f64,
+    tail_sum: Vector3<f64>,
+    tail_n: u64,
+    max_att: f64,
+    saturated_steps: u64,
+    upright: bool,
+    finite: bool,
+    fault: Option<String>,
+    flown: u64,
+    applied: Vec<AppliedFault>,
+    next_fault: usize,
+}
+
+impl Flown {
+    /// Before the first step of `s`.
+    pub(super) fn new(s: &Scenario) -> Self {
+        let steps = (s.duration_s / s.step_s).round() as u64;
+        Self {
+            steps,
+            k: 0,
+            tail_from: (steps as f64 * 0.9) as u64,
+            sum_sq: Vector3::zeros(),
+            max_abs: Vector3::zeros(),
+            max_norm: 0.0,
+            tail_sum: Vector3::zeros(),
+            tail_n: 0,
+            max_att: 0.0,
+            saturated_steps: 0,
+            upright: true,
+            finite: true,
+            fault: None,
+            flown: 0,
+            applied: Vec::new(),
+            next_fault: 0,
+        }
+    }
+
+    /// The flight is over (its duration flown, or stopped on a fault).
+    pub(super) fn is_over(&self) -> bool {
+        self.k >= self.steps || self.fault.is_some()
+    }
+
+    /// Before step `k` of vehicle `i`: the faults due at `t_k = k dt`.
+    pub(super) fn before_step(&mut self, core: &mut Lockstep<ScenarioPilot<'_>>, i: usize) {
+        let s = core.pilot(i).scenario;
+        let t = self.k as f64 * s.step_s;
+        for f in &s.faults[fault::due(&s.faults, &mut self.next_fault, t)] {
+            // a bare control law: no flight stack to ask (SYS_FAILURE_EN)
+            self.applied
+                .push(fault::apply(core, i, f, |c, inj| c.inject_failure(i, inj)));
+        }
+    }
+
+    /// After step `k` of vehicle `i`: tally it and log it.
+    ///
+    /// # Errors
+    /// A failed write to `log`.
+    pub(super) fn after_step<W: Write>(
+        &mut self,
+        core: &Lockstep<ScenarioPilot<'_>>,
+        i: usize,
+        log: Option<&mut CsvLog<W>>,
+    ) -> std::io::Result<()> {
+        let t = self.k as f64 * core.pilot(i).scenario.step_s;
+        let k = self.k;
+        self.k += 1;
+        let rec = core.last_step(i);
+        if let Some(e) = rec.world.fault {
+            self.fault = Some(format!("t = {t:.3} s: {e}"));
+            self.finite = false;
+            return Ok(());
+        }
+        self.flown += 1;
+        let (truth, control) = (&rec.world.truth, rec.control);
+        let e = truth.position_ned - control.reference.position_ned;
+        self.sum_sq += e.component_mul(&e);
+        self.max_abs = self.max_abs.sup(&e.abs());
+        self.max_norm = self.max_norm.max(e.norm());
+        if k >= self.tail_from {
+            self.tail_sum += e;
+            self.tail_n += 1;
+        }
+        let att_err = truth.attitude.angle_to(&control.attitude_sp);
+        if att_err.is_finite() {
+            self.max_att = self.max_att.max(att_err);
+        }
+        self.saturated_steps += u64::from(control.saturated);
+        self.upright &= (truth.attitude * Vector3::z()).z > 0.0;
+        self.finite &= e.as_slice().iter().all(|x| x.is_finite())
+            && control.command.thrust_n.is_finite()
+            && control.command.torque_frd.as_slice().iter().all(|x| x.is_finite());
+        if let Some(l) = log {
+            l.row(&rec)?;
+        }
+        Ok(())
+    }
+
+    /// The summary of vehicle `i`'s flight (at its end).
+    pub(super) fn summary(self, core: &Lockstep<ScenarioPilot<'_>>, i: usize) -> Summary {
+        let s = core.pilot(i).scenario;
+        let dt = s.step_s;
+        let flown = self.flown;
+        let state = core.world().plant(i).state();
+        let est = core.pilot(i).control.estimate();
+        let flown_f = flown.max(1) as f64;
+        let rms = (self.sum_sq / flown_f).map(f64::sqrt);
+        let tail = if self.tail_n > 0 {
+            self.tail_sum / self.tail_n as f64
+        } else {
+            Vector3::zeros()
+        };
+        let arr = |v: Vector3<f64>| [v.x, v.y, v.z];
+        Summary {
+            scenario: s.source.clone(),
+            airframe: s.airframe.name.clone(),
+            controller: core.pilot(i).control.controller().kind().name().to_string(),
+            steps: flown,
+            sim_time_s: flown as f64 * dt,
+            wall_time_s: 0.0,
+            rms_pos_err_m: (self.sum_sq.sum() / flown_f).sqrt(),
+            max_pos_err_m: self.max_norm,
+            rms_pos_err_ned: arr(rms),
+            max_pos_err_ned: arr(self.max_abs),
+            final_pos_err_ned: arr(tail),
+            max_att_err_rad: self.max_att,
+            final_position_ned: arr(state.position_ned),
+            final_euler_rad: arr(euler_zyx(&state.attitude)),
+            saturation_time_s: self.saturated_steps as f64 * dt,
+            upright: self.upright,
+            finite: self.finite,
+            fault: self.fault,
+            est_force_ned: arr(est.force_ned),
+            est_torque_frd: arr(est.torque_frd),
+            est_torque_rpy: arr(est.torque_rpy),
+            est_mass_kg: est.mass_kg,
+            faults: self.applied,
+        }
+    }
 }
 
 impl Summary {

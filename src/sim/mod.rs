@@ -25,11 +25,21 @@
 //! | `battery` | the pack: discharge with the power drawn |
 //! | `fault` | faults and their effect on the plant and sensors |
 //! | `settings` | the `SIM_*` parameters |
+//! | [`proximity`] | vehicle–vehicle proximity and collisions |
+//!
+//! **One world frame.** Each vehicle's plant lives in its own NED frame,
+//! whose origin is the vehicle's home (where it was put on the ground);
+//! [`World::set_origin_ned`] places that origin in the world's frame (NED
+//! from the world's origin, the fleet's home; every vehicle rests on the
+//! one ground, so the origin's down component is 0). A vehicle's position
+//! in the world is `p_world = origin + p_vehicle` ([`World::position_ned`]),
+//! which is what proximity compares. A lone vehicle's origin is the world's.
 
 pub mod aero;
 mod battery;
 mod fault;
 pub mod plant;
+pub mod proximity;
 mod sensors;
 mod settings;
 
@@ -37,6 +47,7 @@ pub use fault::{ActiveFaults, Fault, FaultError, RotorHealth};
 pub use plant::{
     Contact, Disturbance, Environment, ExternalWrench, Plant, PlantConfig, RigidBodyState, SimFault, StepEvent,
 };
+pub use proximity::{Proximity, ProximityEvent, ProximityKind};
 pub use sensors::{DEAD_RECKONING_BIAS_M_S2, SensorNoise, Sensors};
 pub use settings::{FaultSettings, WorldSettings};
 
@@ -190,6 +201,10 @@ struct Body {
     /// ... whose navigation solution was taken at the current instant (its
     /// noise is drawn once per instant; the other sensors are read each time).
     measured: bool,
+    /// Where this vehicle's NED origin (its home) lies in the world's NED frame [m].
+    origin_ned: Vector3<f64>,
+    /// The body's radius [m]: the farthest rotor hub plus a rotor radius.
+    radius_m: f64,
 }
 
 impl Body {
@@ -260,6 +275,39 @@ impl Body {
     }
 }
 
+/// One vehicle of the world for one step ([`World::slots`]).
+#[derive(Debug)]
+pub struct VehicleSlot<'w> {
+    body: &'w mut Body,
+    report: &'w mut StepReport,
+}
+
+impl VehicleSlot<'_> {
+    /// The vehicle's sensors at the current instant (as [`World::sense`]).
+    pub fn sense(&mut self) -> &SensorReadings {
+        self.body.read();
+        &self.body.reading
+    }
+
+    /// Integrate the vehicle over `[t, t + dt)` under `command` (as
+    /// [`World::step`] does for each vehicle); what happened.
+    pub fn integrate(&mut self, command: &ActuatorCommand) -> &StepReport {
+        self.body.step(command, self.report);
+        self.report
+    }
+}
+
+/// A body's radius [m]: `max_i |r_i| + rotor radius`, the rotor hubs `r_i`
+/// in FRD (an airframe without rotor geometry: the rotor radius alone).
+fn body_radius_m(airframe: &Airframe) -> f64 {
+    let arm = airframe
+        .rotors
+        .iter()
+        .map(|r| r.position_frd().norm())
+        .fold(0.0, f64::max);
+    arm + airframe.rotor.radius_m
+}
+
 /// Every simulated vehicle on one clock.
 #[derive(Clone, Debug)]
 pub struct World {
@@ -299,6 +347,7 @@ impl World {
         );
         let n = airframe.rotor_count();
         let disk_area_m2 = n as f64 * std::f64::consts::PI * airframe.rotor.radius_m.powi(2);
+        let radius_m = body_radius_m(airframe);
         self.bodies.push(Body {
             plant,
             sensors: Sensors::new(sensors.noise, sensors.seed),
@@ -322,6 +371,8 @@ impl World {
                 },
             },
             measured: false,
+            origin_ned: Vector3::zeros(),
+            radius_m,
         });
         self.reports.push(StepReport::default());
         self.bodies.len() - 1
@@ -395,6 +446,49 @@ impl World {
         }
         self.steps += 1;
         &self.reports
+    }
+
+    /// Each vehicle on its own, to step them one by one or in parallel (they
+    /// do not interact): [`VehicleSlot::sense`] then [`VehicleSlot::integrate`]
+    /// for every slot, then [`Self::tick`] once. The same as [`Self::step`].
+    pub fn slots(&mut self) -> impl Iterator<Item = VehicleSlot<'_>> {
+        self.bodies
+            .iter_mut()
+            .zip(&mut self.reports)
+            .map(|(body, report)| VehicleSlot { body, report })
+    }
+
+    /// Advance the clock by one step once every vehicle was integrated
+    /// through its [`VehicleSlot`].
+    pub fn tick(&mut self) {
+        self.steps += 1;
+    }
+
+    /// Place vehicle `i`'s NED origin (its home) at `origin_ned` [m] in the
+    /// world's frame (module doc); the down component is ignored (one ground).
+    pub fn set_origin_ned(&mut self, i: usize, origin_ned: Vector3<f64>) {
+        self.bodies[i].origin_ned = Vector3::new(origin_ned.x, origin_ned.y, 0.0);
+    }
+
+    /// Vehicle `i`'s NED origin in the world's frame [m].
+    #[must_use]
+    pub fn origin_ned(&self, i: usize) -> Vector3<f64> {
+        self.bodies[i].origin_ned
+    }
+
+    /// Vehicle `i`'s position in the world's frame [m, NED]:
+    /// `p_world = origin + p_vehicle`.
+    #[must_use]
+    pub fn position_ned(&self, i: usize) -> Vector3<f64> {
+        let b = &self.bodies[i];
+        b.origin_ned + b.plant.state().position_ned
+    }
+
+    /// Vehicle `i`'s body radius [m] (the farthest rotor hub plus a rotor
+    /// radius): two bodies touch when their centres are closer than the sum.
+    #[must_use]
+    pub fn body_radius_m(&self, i: usize) -> f64 {
+        self.bodies[i].radius_m
     }
 
     /// What the latest step did to vehicle `i`.

@@ -146,3 +146,76 @@ class Vehicle:
             self.cleanup()
         else:
             print("rotorpilot log:\n" + self.logs())
+
+
+def busy_udp_ports(ports, host="0.0.0.0"):
+    """The ones of `ports` this machine cannot bind now (another process has them)."""
+    return [p for p in ports if not udp_port_free(p, host)]
+
+
+def fleet_ports(first, count):
+    """The UDP ports a fleet of instances first..first+count-1 binds (PX4
+    SITL's layout: GCS link 18570+i, API link 14580+i)."""
+    ks = range(first, first + count)
+    return [18570 + k for k in ks] + [14580 + k for k in ks]
+
+
+class Fleet(Vehicle):
+    """`rotorpilot --count N --instance K`: N vehicles in one process, each
+    on PX4 SITL's ports for its instance (system id i+1, GCS link
+    18570+i -> `gcs_remote`, API link 14580+i -> `api_remote`, default PX4's
+    14540+i, 14549 beyond instance 9), state in `state_dir/i`. `params`
+    maps an instance to the parameters preset in its state directory.
+    `gcs_remote`/`api_remote` None keep PX4's remotes (GCS 127.0.0.1:14550);
+    "none" serves whoever talks. Stopped, logs and cleaned up as `Vehicle`."""
+
+    def __init__(self, count, first=0, speed=5.0, gcs_remote=None, api_remote=None, extra=(), params=None):
+        self.count = count
+        self.instance = first
+        self.sysid = first + 1
+        self.speed = speed
+        self.gcs_remote = gcs_remote
+        self.api_remote = api_remote
+        self.state_dir = tempfile.mkdtemp(prefix="rotorpilot-fleet-")
+        self.log_path = os.path.join(self.state_dir, "rotorpilot.log")
+        for k, preset in (params or {}).items():
+            d = os.path.join(self.state_dir, str(k))
+            os.makedirs(d, exist_ok=True)
+            with open(os.path.join(d, "params.toml"), "w") as f:
+                for name, value in preset.items():
+                    f.write(f"{name} = {value}\n")
+        self.extra = list(extra)
+        self.proc = None
+        self.banner = []
+
+    def args(self):
+        a = [binary(), "--count", str(self.count), "--instance", str(self.instance), "--speed", str(self.speed),
+             "--state-dir", self.state_dir]
+        if self.gcs_remote is not None:
+            a += ["--gcs-remote", self.gcs_remote]
+        if self.api_remote is not None:
+            a += ["--api-remote", self.api_remote]
+        return a + self.extra
+
+    def start(self, timeout=30.0):
+        """Start it; returns once the banner's last line ("parameters:") is out."""
+        busy = busy_udp_ports(fleet_ports(self.instance, self.count))
+        if busy:
+            raise RuntimeError(f"UDP ports {busy} are taken by another process: the fleet of {self.count} from "
+                               f"instance {self.instance} binds PX4's ports 18570+i and 14580+i")
+        self.log = open(self.log_path, "w")
+        self.proc = subprocess.Popen(self.args(), stdout=subprocess.PIPE, stderr=self.log, text=True)
+        done = threading.Event()
+
+        def read():
+            for line in self.proc.stdout:
+                self.banner.append(line.rstrip())
+                if "parameters:" in line:
+                    break
+            done.set()
+
+        threading.Thread(target=read, daemon=True).start()
+        if not done.wait(timeout) or self.proc.poll() is not None:
+            self.stop()
+            raise RuntimeError("rotorpilot fleet did not start:\n" + "\n".join(self.banner[-5:]) + self.logs())
+        return self

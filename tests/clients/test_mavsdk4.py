@@ -2,12 +2,14 @@
 through ctypes, no mavsdk_server) against the rotorpilot binary: connect as a
 ground station with udpin://0.0.0.0:14540+N, wait for health, params, arm,
 take off, goto (MAVSDK 4 sends DO_REPOSITION in frame 0), offboard position
-and velocity, offboard refusal without setpoints, land; and a three-waypoint
+and velocity, the vehicle's own refusals (an unknown or out-of-range parameter,
+offboard without setpoints, sent past MAVSDK's own check) read off its answers, land; and a three-waypoint
 mission uploaded, read back and flown at 1x and 20x.
 
 Run with the mavsdk 4.x venv: `python -m pytest tests/clients/test_mavsdk4.py`.
 """
 
+import json
 import math
 import sys
 import time
@@ -19,10 +21,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from harness import Vehicle  # noqa: E402
 
 from mavsdk import ComponentType, Configuration, Mavsdk  # noqa: E402
-from mavsdk.plugins.action import Action, ActionError  # noqa: E402
+from mavsdk.plugins.action import Action, ActionError, ActionResult  # noqa: E402
+from mavsdk.plugins.mavlink_direct import MavlinkDirect, MavlinkMessage  # noqa: E402
 from mavsdk.plugins.mission import Mission, MissionItem, MissionPlan  # noqa: E402
-from mavsdk.plugins.offboard import Offboard, OffboardError, PositionNedYaw, VelocityNedYaw  # noqa: E402
-from mavsdk.plugins.param import Param  # noqa: E402
+from mavsdk.plugins.offboard import Offboard, PositionNedYaw, VelocityNedYaw  # noqa: E402
+from mavsdk.plugins.param import Param, ParamError, ParamResult  # noqa: E402
 from mavsdk.plugins.telemetry import FlightMode, Telemetry  # noqa: E402
 
 SPEED = 5.0
@@ -55,6 +58,7 @@ class Drone:
         self.action = Action(self.system)
         self.offboard = Offboard(self.system)
         self.param = Param(self.system)
+        self.sysid = vehicle.sysid
 
     def healthy(self):
         h = self.telemetry.health()
@@ -73,9 +77,18 @@ def drone(request):
         d.mavsdk.destroy()
 
 
-def test_version_and_identity(drone):
-    assert drone.mavsdk.version().startswith("v4")
+def test_identity(drone):
     assert drone.system.has_autopilot()
+
+
+def refused(call):
+    """Run call(), which must raise; the error and how long the answer took."""
+    t0 = time.monotonic()
+    try:
+        call()
+    except ParamError as e:
+        return e, time.monotonic() - t0
+    pytest.fail(f"{call} was not refused")
 
 
 def test_params(drone):
@@ -87,19 +100,41 @@ def test_params(drone):
     assert drone.param.get_param_float("MIS_TAKEOFF_ALT") == pytest.approx(3.5)
     drone.param.set_param_int("SYS_FAILURE_EN", 1)
     assert drone.param.get_param_int("SYS_FAILURE_EN") == 1
-    # an unknown parameter fails at once (PARAM_ERROR), not after MAVSDK's 3 s timeout
+    # The vehicle's answers, as MAVSDK reports them: an unknown name gets
+    # PARAM_ERROR DOES_NOT_EXIST and a value out of range PARAM_ERROR
+    # VALUE_OUT_OF_RANGE, each at once (MAVSDK's own timeout would report
+    # TIMEOUT after seconds); the refused value changes nothing.
+    e, took = refused(lambda: drone.param.get_param_float("NO_SUCH_PARAM"))
+    assert e.result == ParamResult.DOES_NOT_EXIST, e
+    assert took < 1.0, f"unknown parameter answered after {took:.2f} s"
+    e, took = refused(lambda: drone.param.set_param_float("MIS_TAKEOFF_ALT", 1000.0))
+    assert e.result == ParamResult.VALUE_OUT_OF_RANGE, e
+    assert took < 1.0, f"refused set answered after {took:.2f} s"
+    assert drone.param.get_param_float("MIS_TAKEOFF_ALT") == pytest.approx(3.5)
+
+
+def test_offboard_refused_by_the_vehicle(drone):
+    """MAVSDK refuses offboard on its own side until a setpoint is set
+    (NO_SETPOINT_SET: a test of MAVSDK), and once one is set it streams it,
+    so the vehicle never refuses. Here the mode change goes to the vehicle
+    itself through MavlinkDirect (DO_SET_MODE to PX4's OFFBOARD, no setpoint
+    ever sent) and its answers are read off the wire: COMMAND_ACK
+    TEMPORARILY_REJECTED at once, PX4's STATUSTEXT, still in Hold."""
+    direct = MavlinkDirect(drone.system)
+    acks, texts = [], []
+    direct.subscribe_message("COMMAND_ACK", lambda m, _: acks.append((time.monotonic(), json.loads(m.fields_json))))
+    direct.subscribe_message("STATUSTEXT", lambda m, _: texts.append(json.loads(m.fields_json)["text"]))
+    fields = {"target_system": drone.sysid, "target_component": 1, "command": 176, "confirmation": 0,
+              "param1": 129.0, "param2": 6.0, "param3": 0.0, "param4": 0.0, "param5": 0.0, "param6": 0.0,
+              "param7": 0.0}
     t0 = time.monotonic()
-    with pytest.raises(Exception):
-        drone.param.get_param_float("NO_SUCH_PARAM")
-    print(f"unknown parameter refused in {time.monotonic() - t0:.2f} s")
-
-
-def test_offboard_refused_without_setpoints(drone):
-    drone.action.arm()
-    with pytest.raises(OffboardError):
-        # MAVSDK refuses on its own side before any setpoint (NoSetpointSet)
-        drone.offboard.start()
-    drone.action.disarm()
+    direct.send_message(MavlinkMessage("COMMAND_LONG", 0, 0, drone.sysid, 1, json.dumps(fields)))
+    t, ack = until("COMMAND_ACK of DO_SET_MODE", lambda: next((a for a in acks if a[1]["command"] == 176), None), 3)
+    assert ack["result"] == 1, ack  # MAV_RESULT_TEMPORARILY_REJECTED
+    assert t - t0 < 1.0, f"answered after {t - t0:.2f} s"
+    until("the refusal's text", lambda: "Switching to Offboard denied: no offboard signal" in texts, 2)
+    time.sleep(0.5)
+    assert drone.telemetry.flight_mode() == FlightMode.HOLD
 
 
 @pytest.mark.parametrize("drone", [SPEED, FAST], ids=lambda s: f"x{s:g}", indirect=True)
@@ -158,8 +193,13 @@ def test_disarm_in_air_refused(drone):
     drone.action.arm()
     drone.action.takeoff()
     until("in air", drone.telemetry.in_air, 20)
-    with pytest.raises(ActionError):
+    # the vehicle's TEMPORARILY_REJECTED (MAVSDK reports COMMAND_DENIED), at once, not a timeout
+    t0 = time.monotonic()
+    with pytest.raises(ActionError) as e:
         drone.action.disarm()
+    took = time.monotonic() - t0
+    assert e.value.result == ActionResult.COMMAND_DENIED, e.value
+    assert took < 1.0, f"disarm refusal answered after {took:.2f} s"
     assert drone.telemetry.armed()
     drone.action.land()
     until("landed", lambda: not drone.telemetry.in_air(), 60)

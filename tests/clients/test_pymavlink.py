@@ -89,6 +89,30 @@ def param_set(m, name, value, kind=mavlink.MAV_PARAM_TYPE_REAL32, timeout=3.0):
     return wait(m, "PARAM_VALUE", lambda p: p.param_id == name, timeout)
 
 
+def param_answers(m, name, value, kind=mavlink.MAV_PARAM_TYPE_REAL32, window=0.5):
+    """Send PARAM_SET and return this set's answers: the PARAM_ERROR and
+    PARAM_VALUE messages for `name`, in order, within `window` s. Answers to
+    an earlier set (an accepted set's rebroadcast follows its echo by ~5 ms)
+    are waited out first (100 ms without one), so none can pass for this
+    set's."""
+    if kind == mavlink.MAV_PARAM_TYPE_INT32:
+        value = int32_as_float(int(value))
+    types = ["PARAM_VALUE", "PARAM_ERROR"]
+    while wait(m, types, lambda p: p.param_id == name, 0.1) is not None:
+        pass
+    drain(m)
+    m.param_set_send(name, value, kind)
+    out = []
+    deadline = time.monotonic() + window
+    while (a := wait(m, types, lambda p: p.param_id == name, deadline - time.monotonic())) is not None:
+        out.append(a)
+    return out
+
+
+def kinds(answers):
+    return [a.get_type() for a in answers]
+
+
 def wait_armable(m, timeout=10.0):
     ok = wait(m, "SYS_STATUS", lambda s: s.onboard_control_sensors_health & 0x10000000, timeout)
     assert ok is not None, "never armable"
@@ -153,24 +177,36 @@ def test_param_fetch_set_and_refuse(vehicle):
     assert count and len(seen) == count, f"{len(seen)} of {count}"
     assert sorted(seen) == list(range(count))
     print(f"full parameter list: {count} parameters in {took * 1000:.1f} ms")
-    # REAL32 set: echoed exactly
-    p = param_set(m, "MIS_TAKEOFF_ALT", 3.0)
-    assert p is not None and p.param_value == pytest.approx(3.0)
-    # out of range: the unchanged value comes back
-    p = param_set(m, "MIS_TAKEOFF_ALT", 1000.0)
-    assert p is not None and p.param_value == pytest.approx(3.0)
+    # Each set's own answers (param_answers): accepted, the echo and the
+    # rebroadcast; refused, PARAM_ERROR then the unchanged value; and the
+    # value read back afterwards by a fresh request.
+    # REAL32 set: echoed exactly, then rebroadcast
+    a = param_answers(m, "MIS_TAKEOFF_ALT", 3.0)
+    assert kinds(a) == ["PARAM_VALUE", "PARAM_VALUE"], a
+    assert all(v.param_value == 3.0 for v in a), a
+    # out of range: refused, the unchanged value comes back
+    a = param_answers(m, "MIS_TAKEOFF_ALT", 1000.0)
+    assert kinds(a) == ["PARAM_ERROR", "PARAM_VALUE"], a
+    assert a[0].error == mavlink.MAV_PARAM_ERROR_VALUE_OUT_OF_RANGE
+    assert a[1].param_value == 3.0
+    assert param_get(m, "MIS_TAKEOFF_ALT").param_value == 3.0
     # INT32, bytewise
-    p = param_set(m, "SYS_FAILURE_EN", 1, mavlink.MAV_PARAM_TYPE_INT32)
-    assert p.param_type == mavlink.MAV_PARAM_TYPE_INT32
-    assert float_as_int32(p.param_value) == 1
-    # REAL32 for an INT32 parameter: refused, unchanged
-    p = param_set(m, "SYS_FAILURE_EN", 0.0)
-    assert float_as_int32(p.param_value) == 1
+    a = param_answers(m, "SYS_FAILURE_EN", 1, mavlink.MAV_PARAM_TYPE_INT32)
+    assert kinds(a) == ["PARAM_VALUE", "PARAM_VALUE"], a
+    assert all(v.param_type == mavlink.MAV_PARAM_TYPE_INT32 for v in a)
+    assert all(float_as_int32(v.param_value) == 1 for v in a), a
+    # REAL32 for an INT32 parameter: refused (MAV_PARAM_ERROR_TYPE_MISMATCH,
+    # 7, newer than pymavlink 2.4.50's enum), unchanged
+    a = param_answers(m, "SYS_FAILURE_EN", 0.0)
+    assert kinds(a) == ["PARAM_ERROR", "PARAM_VALUE"], a
+    assert a[0].error == 7
+    assert float_as_int32(a[1].param_value) == 1
+    assert float_as_int32(param_get(m, "SYS_FAILURE_EN").param_value) == 1
     # unknown name: PARAM_ERROR, no PARAM_VALUE
-    m.param_set_send("NO_SUCH_PARAM", 1.0)
-    err = wait(m, "PARAM_ERROR", timeout=2.0)
-    assert err is not None and err.error == 1
-    assert param_get(m, "MIS_TAKEOFF_ALT").param_value == pytest.approx(3.0)
+    a = param_answers(m, "NO_SUCH_PARAM", 1.0)
+    assert kinds(a) == ["PARAM_ERROR"], a
+    assert a[0].error == mavlink.MAV_PARAM_ERROR_DOES_NOT_EXIST
+    assert param_get(m, "MIS_TAKEOFF_ALT").param_value == 3.0
 
 
 @pytest.mark.parametrize("vehicle", [SPEED, FAST], ids=lambda s: f"x{s:g}", indirect=True)

@@ -2,6 +2,9 @@
 //! loopback ports, and a small MAVLink client on its own UDP socket. Client
 //! messages are encoded with the `mavlink` crate (MAVLink 2, or 1 where a test
 //! says so); received datagrams are split with rotorpilot's checked framer.
+//! COMMAND_LONG and COMMAND_INT are written, and COMMAND_ACK read, with
+//! rotorpilot's own codec: `tests/daemon_protocol.rs` checks those helpers
+//! against frames pymavlink packed (`tests/fixtures/mavlink/command-frames.txt`).
 #![allow(dead_code, deprecated)]
 
 use std::net::SocketAddr;
@@ -240,19 +243,13 @@ impl Client {
             confirmation: 0,
         };
         let h = self.header();
-        self.sock
-            .send_to(&wire::encode_v2(h, 76, &c.encode()), to)
-            .await
-            .unwrap();
+        self.sock.send_to(&command_long_frame(h, &c), to).await.unwrap();
     }
 
     /// Send a COMMAND_INT.
     pub async fn command_int(&mut self, to: SocketAddr, c: CommandInt) {
         let h = self.header();
-        self.sock
-            .send_to(&wire::encode_v2(h, 75, &c.encode()), to)
-            .await
-            .unwrap();
+        self.sock.send_to(&command_int_frame(h, &c), to).await.unwrap();
     }
 
     /// Send a HEARTBEAT as a GCS.
@@ -279,21 +276,7 @@ impl Client {
         loop {
             let left = deadline.checked_duration_since(Instant::now())?;
             let (n, from) = timeout(left, self.sock.recv_from(&mut b)).await.ok()?.ok()?;
-            for f in wire::frames(&b[..n]) {
-                let msg = match wire::decode(&f) {
-                    Some(Inbound::Other(m)) => Some(*m),
-                    _ => None,
-                };
-                self.buf.push(Rx {
-                    from,
-                    sysid: f.system_id,
-                    compid: f.component_id,
-                    msgid: f.message_id,
-                    version: f.version,
-                    payload: f.payload.to_vec(),
-                    msg,
-                });
-            }
+            self.buf.extend(received(&b[..n], from));
             if !self.buf.is_empty() {
                 return Some(self.buf.remove(0));
             }
@@ -334,6 +317,93 @@ impl Client {
         self.buf.clear();
         while self.recv(Duration::from_millis(1)).await.is_some() {}
     }
+}
+
+/// The COMMAND_LONG frame [`Client::command_long`] sends.
+pub fn command_long_frame(header: MavHeader, c: &CommandLong) -> Vec<u8> {
+    wire::encode_v2(header, 76, &c.encode())
+}
+
+/// The COMMAND_INT frame [`Client::command_int`] sends.
+pub fn command_int_frame(header: MavHeader, c: &CommandInt) -> Vec<u8> {
+    wire::encode_v2(header, 75, &c.encode())
+}
+
+/// The frames of one datagram as [`Client::recv`] hands them out.
+pub fn received(datagram: &[u8], from: SocketAddr) -> Vec<Rx> {
+    wire::frames(datagram)
+        .map(|f| {
+            let msg = match wire::decode(&f) {
+                Some(Inbound::Other(m)) => Some(*m),
+                _ => None,
+            };
+            Rx {
+                from,
+                sysid: f.system_id,
+                compid: f.component_id,
+                msgid: f.message_id,
+                version: f.version,
+                payload: f.payload.to_vec(),
+                msg,
+            }
+        })
+        .collect()
+}
+
+/// One frame of `tests/fixtures/mavlink/command-frames.txt`, packed by
+/// pymavlink (tools/golden_frames.py): an encoder independent of ours.
+#[derive(Clone, Debug)]
+pub struct GoldenFrame {
+    /// `command_long`, `command_int` or `command_ack`.
+    pub name: String,
+    /// The sender and the sequence number.
+    pub header: MavHeader,
+    /// The message's fields as pymavlink was given them.
+    pub fields: std::collections::HashMap<String, String>,
+    /// The frame's bytes.
+    pub bytes: Vec<u8>,
+}
+
+impl GoldenFrame {
+    /// A field as a number (`nan` for NaN).
+    pub fn get<T: std::str::FromStr>(&self, name: &str) -> T {
+        let text = &self.fields[name];
+        text.parse()
+            .unwrap_or_else(|_| panic!("{}: field {name} = {text} is not a number", self.name))
+    }
+}
+
+/// Every frame of the golden file.
+pub fn golden_frames() -> Vec<GoldenFrame> {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/mavlink/command-frames.txt");
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .map(|l| {
+            let w: Vec<&str> = l.split_whitespace().collect();
+            let hex = w[w.len() - 1];
+            GoldenFrame {
+                name: w[0].to_string(),
+                header: MavHeader {
+                    system_id: w[1].parse().unwrap(),
+                    component_id: w[2].parse().unwrap(),
+                    sequence: w[3].parse().unwrap(),
+                },
+                fields: w[4..w.len() - 1]
+                    .iter()
+                    .map(|kv| {
+                        let (k, v) = kv.split_once('=').unwrap();
+                        (k.to_string(), v.to_string())
+                    })
+                    .collect(),
+                bytes: (0..hex.len())
+                    .step_by(2)
+                    .map(|i| u8::from_str_radix(&hex[i..i + 2], 16).unwrap())
+                    .collect(),
+            }
+        })
+        .collect()
 }
 
 /// NaN, MAVSDK's "unset".

@@ -1,0 +1,351 @@
+//! Headless fleets (issue 14): several vehicles in one scenario, flown flat
+//! out in lockstep. Each vehicle flies exactly as it would alone (its log
+//! byte for byte), the proximity events come at the instant the references
+//! say, the same on every run and on any number of threads, and bad fleet
+//! files are answered with the file, the field's line and the problem.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use rotorpilot::scenario::campaign::Outcome;
+use rotorpilot::scenario::fleet::{self, Fleet, FleetEvent, FleetFlights, FleetSummary};
+use rotorpilot::scenario::{MissionFlight, ReferencePlan, Scenario, run, run_mission};
+use rotorpilot::sim::ProximityKind;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn rotorpilot(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// A scratch directory of its own for each test.
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("rp-fleet-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A fleet file in `dir` whose vehicle paths are relative to the repository's tools/fleets.
+fn fleet_file(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let fleets = root().join("tools/fleets");
+    let text = text.replace("FLEETS/", &format!("{}/", fleets.display()));
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// Events compared to the bit.
+fn bits(events: &[FleetEvent]) -> Vec<(u64, usize, usize, u64, ProximityKind)> {
+    events
+        .iter()
+        .map(|e| (e.time_s.to_bits(), e.a, e.b, e.distance_m.to_bits(), e.kind))
+        .collect()
+}
+
+/// The summary without its wall times, as JSON text.
+fn without_wall(s: &FleetSummary) -> String {
+    let mut v = serde_json::to_value(s).unwrap();
+    for k in ["wall_time_s", "vehicle_steps_per_s", "real_time_factor", "threads"] {
+        v[k] = serde_json::json!(0);
+    }
+    for r in v["results"].as_array_mut().unwrap() {
+        r["wall_time_s"] = serde_json::json!(0);
+    }
+    v.to_string()
+}
+
+fn max_err(o: &Outcome) -> f64 {
+    match o {
+        Outcome::Scenario(s) => s.max_pos_err_m,
+        Outcome::Mission(m) => m.max_tracking_error_m,
+    }
+}
+
+/// Vehicle `i`'s reference position in the world at `t` [m, NED].
+fn reference_world(fleet: &Fleet, i: usize, t: f64) -> nalgebra::Vector3<f64> {
+    let FleetFlights::Plain(list) = &fleet.flights else {
+        panic!("a plain fleet")
+    };
+    let ReferencePlan::Trajectory(tr) = &list[i].reference else {
+        panic!("vehicle {i} flies an analytic reference")
+    };
+    let o = fleet.offsets_m[i];
+    tr.at(t).position_ned + nalgebra::Vector3::new(o[0], o[1], 0.0)
+}
+
+/// The fleet of 100: vehicle 0's figure-eight and vehicle 1's circle cross;
+/// the first instant their references are closer than the reporting
+/// distance `d` is found from the analytic curves (a fine scan, then
+/// bisection). The flown event must come within
+/// `dt + (e_0 + e_1) / rate`: the true distance differs from the
+/// references' by at most the two tracking errors `e_i` (each vehicle's
+/// measured max `|p - p_d|`, ~2 mm), which shifts the crossing by at most
+/// that over the closing rate `rate = -d|dp|/dt` there; and the event is
+/// stamped after the step that crosses (at most one step `dt` late). That
+/// bound is a few ms; the event must be the only one (the 98 parked
+/// vehicles, 10 m apart and 50 m away, raise none) and two runs (one of
+/// them on 2 threads) must give the same events and summaries to the bit.
+#[test]
+fn crossing_paths_report_the_event_at_the_expected_instant_every_run() {
+    let path = root().join("tools/fleets/fleet-crossing.toml");
+    let fleet = Fleet::load(&path).unwrap();
+    assert_eq!(fleet.len(), 100);
+    let d = fleet.proximity_m;
+    let gap = |t: f64| (reference_world(&fleet, 0, t) - reference_world(&fleet, 1, t)).norm();
+    assert!(gap(0.0) > 2.0 * d, "they start apart");
+    let scan = 1e-4;
+    let k = (0..100_000)
+        .find(|&k| gap(k as f64 * scan) < d)
+        .expect("the references cross");
+    let (mut lo, mut hi) = ((k - 1) as f64 * scan, k as f64 * scan);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if gap(mid) < d {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    let expected = hi;
+    let rate = (gap(expected - 1e-6) - gap(expected + 1e-6)) / 2e-6;
+    assert!(rate > 0.5, "a real crossing, closing at {rate} m/s");
+
+    let first = fleet::fly(&fleet, 1, None).unwrap();
+    let e01 = max_err(&first.results[0].outcome) + max_err(&first.results[1].outcome);
+    let dt = 1e-3;
+    let tolerance = dt + e01 / rate;
+    assert!(tolerance < 5e-3, "a sharp bound: {tolerance} s");
+    assert_eq!(
+        first.events.len(),
+        1,
+        "one event, none among the parked: {:?}",
+        first.events
+    );
+    let e = first.events[0];
+    assert_eq!((e.a, e.b, e.kind), (0, 1, ProximityKind::Near));
+    assert!(
+        (e.time_s - expected).abs() <= tolerance,
+        "event at {} s, the references cross at {expected} s (within {tolerance} s)",
+        e.time_s
+    );
+    assert!(
+        e.distance_m < d && e.distance_m > d - rate * dt - e01,
+        "{}",
+        e.distance_m
+    );
+    for r in &first.results {
+        let Outcome::Scenario(s) = &r.outcome else { panic!() };
+        assert!(s.upright && s.finite && s.fault.is_none(), "vehicle {}", r.vehicle);
+        assert_eq!(s.steps, 8000);
+    }
+    assert_eq!(first.vehicle_steps, 800_000);
+
+    let again = fleet::fly(&fleet, 1, None).unwrap();
+    let threaded = fleet::fly(&fleet, 2, None).unwrap();
+    assert_eq!(bits(&first.events), bits(&again.events));
+    assert_eq!(bits(&first.events), bits(&threaded.events));
+    assert_eq!(without_wall(&first), without_wall(&again));
+    assert_eq!(without_wall(&first), without_wall(&threaded));
+}
+
+/// Two paths that meet (vehicle 0's figure-eight through the point where
+/// vehicle 1 hovers, reached at `t = pi`): near first, then a collision
+/// before the references meet, bodies closer than the sum of their radii.
+#[test]
+fn paths_that_meet_report_a_collision() {
+    let fleet = Fleet::load(&root().join("tools/fleets/fleet-collision.toml")).unwrap();
+    let s = fleet::fly(&fleet, 1, None).unwrap();
+    let kinds: Vec<_> = s.events.iter().map(|e| (e.a, e.b, e.kind)).collect();
+    assert_eq!(
+        kinds,
+        [(0, 1, ProximityKind::Near), (0, 1, ProximityKind::Collision)],
+        "{:?}",
+        s.events
+    );
+    let (near, hit) = (s.events[0], s.events[1]);
+    let meet = std::f64::consts::PI;
+    assert!((reference_world(&fleet, 0, meet) - reference_world(&fleet, 1, meet)).norm() < 1e-9);
+    assert!(near.time_s < hit.time_s && hit.time_s < meet, "{near:?} {hit:?}");
+    assert!(
+        hit.distance_m < 1.0 && hit.distance_m > 0.3,
+        "quad bodies touch below ~0.8 m: {hit:?}"
+    );
+}
+
+/// Every vehicle's log in `simulate FLEET --csv DIR` is the bytes of its
+/// file flown alone (`simulate FILE --csv`): plain scenarios of different
+/// airframes, references, faults and durations (each its own), and, in a
+/// fleet of missions, the flight stack's flights. Stepped on 2 threads with
+/// 18 vehicles (parallel from 16), the logs are the same to the bit.
+#[test]
+fn each_vehicle_flies_exactly_as_alone_on_any_threads() {
+    let dir = scratch("alone");
+    let scen = root().join("tools/scenarios");
+    let fleet = fleet_file(
+        &dir,
+        "mixed.toml",
+        &format!(
+            "[fleet]\nproximity_m = 3.0\n\
+             [[vehicle]]\nscenario = \"{s}/quad-step-10m.toml\"\noffset_m = [0.0, 0.0]\n\
+             [[vehicle]]\nscenario = \"{s}/octo-rotor-loss.toml\"\noffset_m = [2.0, 0.0]\n\
+             [[vehicle]]\nscenario = \"FLEETS/vehicles/circle-3m.toml\"\noffset_m = [0.0, 1.0]\n\
+             [[vehicle]]\nscenario = \"FLEETS/vehicles/hover-2m.toml\"\noffset_m = [40.0, 0.0]\ncount = 15\nspacing_m = [5.0, 0.0]\n",
+            s = scen.display()
+        ),
+    );
+    let csv = |threads: &str| {
+        let out = dir.join(format!("csv-{threads}"));
+        let o = rotorpilot(&[
+            "simulate",
+            fleet.to_str().unwrap(),
+            "--threads",
+            threads,
+            "--json",
+            "--csv",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        (out, v)
+    };
+    let (one, v1) = csv("1");
+    let (two, v2) = csv("2");
+    assert_eq!(v1["vehicles"], 18);
+    assert_eq!(v1["events"], v2["events"]);
+    assert!(
+        !v1["events"].as_array().unwrap().is_empty(),
+        "they start within 3 m: {}",
+        v1["events"]
+    );
+    let loaded = Fleet::load(&fleet).unwrap();
+    let FleetFlights::Plain(list) = &loaded.flights else {
+        panic!()
+    };
+    for (i, s) in list.iter().enumerate() {
+        let name = fleet::csv_name(i, 18, &s.source);
+        let a = std::fs::read(one.join(&name)).unwrap();
+        let b = std::fs::read(two.join(&name)).unwrap();
+        assert!(a == b, "{name}: 1 and 2 threads differ");
+        if i < 4 {
+            let mut alone = Vec::new();
+            run(&Scenario::from_file(Path::new(&s.source)).unwrap(), Some(&mut alone)).unwrap();
+            assert!(a == alone, "{name}: not the bytes of {} alone", s.source);
+        }
+    }
+    // the rotor loss was applied to its own vehicle only
+    let faults = |i: usize| v1["results"][i]["faults"].as_array().map_or(0, Vec::len);
+    assert!(faults(1) > 0 && faults(0) == 0 && faults(2) == 0);
+
+    // a fleet of missions: each the flight stack's flight alone
+    let mission = root().join("tools/scenarios/mission-square.toml");
+    let mfleet = fleet_file(
+        &dir,
+        "missions.toml",
+        &format!(
+            "[fleet]\nproximity_m = 2.0\n[[vehicle]]\nscenario = \"{}\"\noffset_m = [0.0, 0.0]\ncount = 2\nspacing_m = [0.0, 30.0]\n",
+            mission.display()
+        ),
+    );
+    let out = dir.join("csv-missions");
+    let o = rotorpilot(&["simulate", mfleet.to_str().unwrap(), "--csv", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(text.matches("PASS").count(), 2, "{text}");
+    let mut alone = Vec::new();
+    run_mission(&MissionFlight::from_file(&mission).unwrap(), Some(&mut alone)).unwrap();
+    for i in 0..2 {
+        let name = fleet::csv_name(i, 2, &mission.display().to_string());
+        assert!(std::fs::read(out.join(&name)).unwrap() == alone, "mission vehicle {i}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A bad fleet file is answered with the file, the field and its line; a
+/// vehicle's file's own errors are that file's; a fleet is refused in a
+/// campaign or a directory, and `--threads` outside a fleet.
+#[test]
+fn bad_fleets_are_answered_clearly() {
+    let dir = scratch("bad");
+    let hover = "scenario = \"FLEETS/vehicles/hover-2m.toml\"\noffset_m = [0.0, 0.0]\n";
+    for (text, says) in [
+        (
+            format!("[fleet]\nproximity_m = -1.0\n[[vehicle]]\n{hover}"),
+            ":2:15: fleet.proximity_m: must be a positive",
+        ),
+        (
+            format!("[fleet]\nproximity_m = 2.0\n[[vehicle]]\n{hover}speed = 3\n"),
+            ":6:1: unknown field `speed`",
+        ),
+        (
+            format!("[fleet]\nproximity_m = 2.0\n[[vehicle]]\n{hover}count = 0\n"),
+            ":6:9: vehicle[1].count: must be 1",
+        ),
+        (
+            format!("[fleet]\nproximity_m = 2.0\n[[vehicle]]\n{hover}count = 3\n"),
+            "vehicle[1].spacing_m: needed",
+        ),
+        ("[fleet]\nproximity_m = 2.0\n".into(), "no [[vehicle]]"),
+        (
+            format!(
+                "[fleet]\nproximity_m = 2.0\n[[vehicle]]\n{hover}[[vehicle]]\nscenario = \"{}\"\noffset_m = [9.0, 0.0]\n",
+                root().join("tools/scenarios/mission-square.toml").display()
+            ),
+            ":7:12: vehicle[2].scenario: ",
+        ),
+        (
+            "[fleet]\nproximity_m = 2.0\n[[vehicle]]\nscenario = \"nowhere.toml\"\noffset_m = [0.0, 0.0]\n".into(),
+            ":4:12: vehicle[1].scenario: ",
+        ),
+    ] {
+        let p = fleet_file(&dir, "bad.toml", &text);
+        let e = format!("{:#}", Fleet::load(&p).unwrap_err());
+        assert!(
+            e.contains("bad.toml") && e.contains(says),
+            "{text}\n-> {e}\n(wanted {says})"
+        );
+    }
+    let mixed = fleet_file(
+        &dir,
+        "mixed.toml",
+        &format!(
+            "[fleet]\nproximity_m = 2.0\n[[vehicle]]\n{hover}[[vehicle]]\nscenario = \"{}\"\noffset_m = [9.0, 0.0]\n",
+            root().join("tools/scenarios/mission-square.toml").display()
+        ),
+    );
+    let e = format!("{:#}", Fleet::load(&mixed).unwrap_err());
+    assert!(e.contains("all plain scenarios or all missions"), "{e}");
+    // a vehicle's own file's error names that file and its line
+    let broken = dir.join("broken.toml");
+    std::fs::write(&broken, "airframe = \"quad\"\nduration_s = 5.0\nwobble = 1\n").unwrap();
+    let p = fleet_file(
+        &dir,
+        "outer.toml",
+        &format!(
+            "[fleet]\nproximity_m = 2.0\n[[vehicle]]\nscenario = \"{}\"\noffset_m = [0.0, 0.0]\n",
+            broken.display()
+        ),
+    );
+    let e = format!("{:#}", Fleet::load(&p).unwrap_err());
+    assert!(
+        e.contains("outer.toml") && e.contains("broken.toml:3:1") && e.contains("wobble"),
+        "{e}"
+    );
+    // through the CLI: exit 2 and the message
+    let o = rotorpilot(&["simulate", p.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("broken.toml:3:1"));
+    let o = rotorpilot(&["simulate", root().join("tools/fleets").to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("a fleet flies on its own"));
+    let quad = root().join("tools/scenarios/quad-step-10m.toml");
+    let o = rotorpilot(&["simulate", quad.to_str().unwrap(), "--threads", "2"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--threads"));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -12,7 +12,9 @@ use crate::airframe::{Airframe, AirframeReport, DEFAULT_AIRFRAME};
 ///
 /// Without a command it runs one simulated vehicle that speaks MAVLink 2 over
 /// UDP where PX4 SITL does (GCS link 18570+N -> 14550, API link 14580+N ->
-/// 14540+N), until Ctrl-C or SIGTERM.
+/// 14540+N; all API links beyond instance 9 send to 14549, as PX4), until
+/// Ctrl-C or SIGTERM; with --count N or --fleet FILE, a fleet of such
+/// vehicles in one process on one simulated clock.
 #[derive(Debug, Parser)]
 #[command(name = "rotorpilot", version, about, args_conflicts_with_subcommands = true)]
 pub struct Cli {

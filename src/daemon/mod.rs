@@ -367,12 +367,7 @@ impl Daemon {
                 .sockets
                 .iter()
                 .map(|(spec, sock)| {
-                    let local = sock
-                        .local_addr()
-                        .map_or_else(|_| spec.bind.to_string(), |a| a.to_string());
-                    let remote = spec
-                        .remote
-                        .map_or_else(|| "(whoever talks)".to_string(), |r| r.to_string());
+                    let (local, remote) = link_ends(spec, sock);
                     format!("{} {local} -> {remote}", spec.name)
                 })
                 .collect();
@@ -416,12 +411,7 @@ impl Daemon {
             c.speed
         );
         for (spec, sock) in &v.sockets {
-            let local = sock
-                .local_addr()
-                .map_or_else(|_| spec.bind.to_string(), |a| a.to_string());
-            let remote = spec
-                .remote
-                .map_or_else(|| "(whoever talks)".to_string(), |r| r.to_string());
+            let (local, remote) = link_ends(spec, sock);
             s.push_str(&format!("  {:<4} link: udp {local} -> {remote}\n", spec.name));
         }
         let plans = self.core.pilot(0).plans();
@@ -649,6 +639,17 @@ impl Daemon {
         anyhow::ensure!(!sim_died, "the simulation thread stopped unexpectedly");
         Ok(())
     }
+}
+
+/// A link's bound address and where it sends, as the banner shows them.
+fn link_ends(spec: &LinkSpec, sock: &UdpSocket) -> (String, String) {
+    let local = sock
+        .local_addr()
+        .map_or_else(|_| spec.bind.to_string(), |a| a.to_string());
+    let remote = spec
+        .remote
+        .map_or_else(|| "(whoever talks)".to_string(), |r| r.to_string());
+    (local, remote)
 }
 
 async fn futures_join(tasks: Vec<JoinHandle<()>>) {

@@ -88,7 +88,8 @@ pub fn error_at(text: &str, file: &str, offset: usize, message: String) -> FileE
 }
 
 /// Line and column (1-based) of a byte offset.
-fn line_column(text: &str, offset: usize) -> (usize, usize) {
+#[must_use]
+pub fn line_column(text: &str, offset: usize) -> (usize, usize) {
     let before = &text[..offset.min(text.len())];
     let line = before.matches('\n').count() + 1;
     let column = before.rsplit('\n').next().map_or(0, str::len) + 1;

@@ -192,48 +192,35 @@ async fn each_vehicle_is_its_own_system_and_only_the_one_commanded_flies() {
     fleet.stop().await;
 }
 
-/// The STATUSTEXTs of system `sysid` within `wait`.
-async fn texts(c: &mut Client, sysid: u8, wait: Duration) -> Vec<String> {
+/// The STATUSTEXTs a fleet of two spawned `spacing_m` apart tells in its
+/// first 1.5 s, as (system id, text).
+async fn texts_of_two(spacing_m: f64) -> Vec<(u8, String)> {
+    let mut gcs = Client::with_ids(255, 190).await;
+    let fleet = Fleet::start(2, spacing_m, 1.0, gcs.addr()).await;
     let mut out = Vec::new();
-    let deadline = Instant::now() + wait;
-    while let Some(rx) = c.recv(deadline.saturating_duration_since(Instant::now())).await {
-        if let (true, Some(MavMessage::STATUSTEXT(s))) = (rx.sysid == sysid, &rx.msg) {
+    let deadline = Instant::now() + Duration::from_millis(1500);
+    while let Some(rx) = gcs.recv(deadline.saturating_duration_since(Instant::now())).await {
+        if let Some(MavMessage::STATUSTEXT(s)) = &rx.msg {
             let text: Vec<u8> = s.text.iter().copied().take_while(|&b| b != 0).collect();
-            out.push(String::from_utf8_lossy(&text).into_owned());
+            out.push((rx.sysid, String::from_utf8_lossy(&text).into_owned()));
         }
     }
+    fleet.stop().await;
     out
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn proximity_and_collisions_reach_both_vehicles_links() {
+    let told = |texts: &[(u8, String)], sysid: u8, text: &str| texts.iter().any(|(s, t)| *s == sysid && t == text);
     // spawned 1.5 m apart: closer than the 2 m reported, bodies apart
-    let mut gcs = Client::with_ids(255, 190).await;
-    let fleet = Fleet::start(2, 1.5, 1.0, gcs.addr()).await;
-    let t1 = texts(&mut gcs, 1, Duration::from_millis(1500)).await;
-    assert!(
-        t1.iter().any(|t| t == "Proximity: system 2 at 1.5 m"),
-        "system 1 told: {t1:?}"
-    );
-    assert!(!t1.iter().any(|t| t.starts_with("Collision")), "{t1:?}");
-    fleet.stop().await;
-    let mut gcs = Client::with_ids(255, 190).await;
-    let fleet = Fleet::start(2, 1.5, 1.0, gcs.addr()).await;
-    let t2 = texts(&mut gcs, 2, Duration::from_millis(1500)).await;
-    assert!(
-        t2.iter().any(|t| t == "Proximity: system 1 at 1.5 m"),
-        "system 2 told: {t2:?}"
-    );
-    fleet.stop().await;
-    // spawned 0.3 m apart: the quads' bodies (0.35 m radius each) overlap
-    let mut gcs = Client::with_ids(255, 190).await;
-    let fleet = Fleet::start(2, 0.3, 1.0, gcs.addr()).await;
-    let t1 = texts(&mut gcs, 1, Duration::from_millis(1500)).await;
-    assert!(
-        t1.iter().any(|t| t == "Collision with system 2 (0.30 m)"),
-        "system 1 told: {t1:?}"
-    );
-    fleet.stop().await;
+    let t = texts_of_two(1.5).await;
+    assert!(told(&t, 1, "Proximity: system 2 at 1.5 m"), "{t:?}");
+    assert!(told(&t, 2, "Proximity: system 1 at 1.5 m"), "{t:?}");
+    assert!(!t.iter().any(|(_, x)| x.starts_with("Collision")), "{t:?}");
+    // spawned 0.3 m apart: the quads' bodies (0.39 m radius each) overlap
+    let t = texts_of_two(0.3).await;
+    assert!(told(&t, 1, "Collision with system 2 (0.30 m)"), "{t:?}");
+    assert!(told(&t, 2, "Collision with system 1 (0.30 m)"), "{t:?}");
 }
 
 /// The simulated time [ms] of system `sysid`'s next ATTITUDE.

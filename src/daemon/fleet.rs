@@ -146,11 +146,6 @@ fn check_ids(first: u64, n: u64) -> Result<(), String> {
     })
 }
 
-/// The 1-based line of byte `offset` in `text`.
-fn line_of(text: &str, offset: usize) -> usize {
-    text[..offset.min(text.len())].matches('\n').count() + 1
-}
-
 impl FleetConfig {
     /// A lone vehicle: today's daemon exactly (its home is the origin).
     #[must_use]
@@ -395,7 +390,7 @@ impl Reader<'_> {
             } else {
                 format!("instance {x} is already")
             };
-            let line = line_of(self.text, other_at);
+            let (line, _) = tomlfile::line_column(self.text, other_at);
             let theirs = if a == b {
                 format!("line {line}")
             } else {

@@ -176,14 +176,7 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
         speed.is_finite() && speed > 0.0 && speed <= 1000.0,
         "--speed must be in (0, 1000], got {speed}"
     );
-    // names a fleet vehicle in its errors
-    let which = |c: &Config| {
-        if lone {
-            String::new()
-        } else {
-            format!("vehicle instance {}: ", c.instance)
-        }
-    };
+    let which = |c: &Config| vehicle_prefix(lone, c.instance);
     // two vehicles on one instance would share ports, system id and state
     let mut instances: Vec<u8> = configs.iter().map(|c| c.instance).collect();
     instances.sort_unstable();
@@ -318,13 +311,9 @@ impl Daemon {
         self.vehicles
             .iter()
             .flat_map(|v| {
-                v.warnings.iter().map(move |w| {
-                    if lone {
-                        w.clone()
-                    } else {
-                        format!("vehicle instance {}: {w}", v.config.instance)
-                    }
-                })
+                v.warnings
+                    .iter()
+                    .map(move |w| format!("{}{w}", vehicle_prefix(lone, v.config.instance)))
             })
             .collect()
     }
@@ -608,11 +597,7 @@ impl Daemon {
         // every vehicle's files, even when one fails; the first error is returned
         let mut first_error: Option<anyhow::Error> = None;
         for (instance, params, path, plans_file, tel_rx) in finals {
-            let who = if lone {
-                String::new()
-            } else {
-                format!("vehicle instance {instance}: ")
-            };
+            let who = vehicle_prefix(lone, instance);
             // the simulation thread publishes every plan change before it
             // answers it, so the last snapshot holds the plans in force
             let plans = tel_rx.borrow().plans.clone();
@@ -638,6 +623,16 @@ impl Daemon {
         }
         anyhow::ensure!(!sim_died, "the simulation thread stopped unexpectedly");
         Ok(())
+    }
+}
+
+/// What names a vehicle in a message: nothing for a lone vehicle, else
+/// `vehicle instance N: `.
+fn vehicle_prefix(lone: bool, instance: u8) -> String {
+    if lone {
+        String::new()
+    } else {
+        format!("vehicle instance {instance}: ")
     }
 }
 

@@ -48,6 +48,11 @@ cargo test --release --quiet 2>&1 | tee /tmp/rotorpilot-cargo-test.log
 # or one that reported a failure without failing cannot pass silently.
 tools/count-test-results.sh /tmp/rotorpilot-cargo-test.log
 
+echo "== fuzz: the wire parser and every handler behind a link, 20 s each (tests/fuzz.rs)"
+# The run above gave each target 3 s; this one prints inputs/s and the seed
+# (ROTORPILOT_FUZZ_SEED=... replays a failure; longer runs: see tests/fuzz.rs).
+ROTORPILOT_FUZZ_SECONDS=20 cargo test --release --quiet --test fuzz -- --nocapture
+
 echo "== benches compile"
 cargo bench --no-run --quiet
 

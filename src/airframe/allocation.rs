@@ -48,8 +48,12 @@ pub fn wrench_map(b: &DMatrix<f64>) -> DMatrix<f64> {
 
 /// Numerical rank: singular values above `1e-9` times the largest, after
 /// scaling each row to unit norm (rows mix N and N m with very different sizes).
+/// An empty matrix (every rotor failed: no column left) has rank 0.
 #[must_use]
 pub fn rank(m: &DMatrix<f64>) -> usize {
+    if m.is_empty() {
+        return 0;
+    }
     let mut scaled = m.clone();
     for mut row in scaled.row_iter_mut() {
         let n = row.norm();

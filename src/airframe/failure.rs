@@ -175,6 +175,17 @@ pub fn degraded_verdict(airframe: &Airframe, gains: &[f64], mass_kg: f64) -> Fai
 mod degraded_tests {
     use super::*;
 
+    /// Found by the fuzzer (tests/fuzz.rs): a client that fails every rotor
+    /// left no column, and the rank's SVD of an empty matrix panicked.
+    #[test]
+    fn every_rotor_failed_is_a_verdict_not_a_panic() {
+        let af = Airframe::load("quad").unwrap();
+        let v = degraded_verdict(&af, &[0.0; 4], af.mass_kg);
+        assert_eq!(v.rank, 0);
+        assert_eq!(v.rotor, 1);
+        assert_eq!(v.verdict, HoverVerdict::RankDeficient, "{v:?}");
+    }
+
     #[test]
     fn one_failed_rotor_matches_the_failure_table() {
         let af = Airframe::load("octo").unwrap();

@@ -9,7 +9,11 @@ fn rotorpilot(args: &[&str]) -> String {
         .args(args)
         .output()
         .expect("run rotorpilot");
-    assert!(out.status.success(), "rotorpilot {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "rotorpilot {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     String::from_utf8(out.stdout).expect("UTF-8")
 }
 

@@ -49,7 +49,11 @@ fn number(p: &ParamSpec, x: f64) -> String {
 
 /// `x unit`, or `x` for a unitless parameter.
 fn with_unit(p: &ParamSpec, x: f64) -> String {
-    if p.unit.is_empty() { number(p, x) } else { format!("{} {}", number(p, x), p.unit) }
+    if p.unit.is_empty() {
+        number(p, x)
+    } else {
+        format!("{} {}", number(p, x), p.unit)
+    }
 }
 
 /// `0: hierarchical, 1: geometric, 2: passivity`.
@@ -179,32 +183,55 @@ mod tests {
         let list = js.as_array().unwrap();
         assert_eq!(list.len(), PARAMS.len());
         for (i, p) in PARAMS.iter().enumerate() {
-            assert_eq!(t.matches(&format!("\n{} (", p.name)).count() + usize::from(i == 0), 1, "{}", p.name);
+            let heading = format!("{} ({})", p.name, p.kind);
+            assert_eq!(t.lines().filter(|l| *l == heading).count(), 1, "{}", p.name);
             assert_eq!(md.matches(&format!("| `{}` |", p.name)).count(), 1, "{}", p.name);
             assert_eq!(list[i]["name"], p.name);
             assert_eq!(list[i]["values"].as_array().unwrap().len(), p.values.len());
         }
-        assert!(t.starts_with(&format!("{} (", PARAMS[0].name)));
+        assert!(t.starts_with(&format!("{} (REAL32)\n", PARAMS[0].name)));
     }
 
     #[test]
     fn formats_carry_type_range_unit_values_and_reboot() {
         let md = markdown();
-        assert!(md.contains("| `MIS_TAKEOFF_ALT` | REAL32 | 2.5 | 0 | 80 | m | Takeoff altitude"), "{md}");
-        assert!(md.contains("| `CTRL_TYPE` | INT32 | 1 | 0 | 2 |  | Control law"), "{md}");
-        assert!(md.contains("Values: 0: hierarchical, 1: geometric, 2: passivity |"), "{md}");
+        assert!(
+            md.contains("| `MIS_TAKEOFF_ALT` | REAL32 | 2.5 | 0 | 80 | m | Takeoff altitude"),
+            "{md}"
+        );
+        assert!(
+            md.contains("| `CTRL_TYPE` | INT32 | 1 | 0 | 2 |  | Control law"),
+            "{md}"
+        );
+        assert!(
+            md.contains("Values: 0: hierarchical, 1: geometric, 2: passivity |"),
+            "{md}"
+        );
         assert!(md.contains("| `MAV_SYS_ID` | INT32 | 1 | 1 | 250 |  | MAVLink system id. Reboot required"));
         let t = text();
         assert!(t.contains("MPC_XY_CRUISE (REAL32)\n  Cruise ground speed"));
         assert!(t.contains("  Default 5 m/s, range 0.5 .. 20 m/s\n"));
         assert!(t.contains("GF_ACTION (INT32)\n  Geofence breach action\n  Values: 0: none, 1: warning, 2: Hold"));
         let js = json();
-        let gf = js.as_array().unwrap().iter().find(|p| p["name"] == "GF_ACTION").unwrap();
+        let gf = js
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["name"] == "GF_ACTION")
+            .unwrap();
         assert_eq!(gf["type"], "INT32");
         assert_eq!(gf["default"], serde_json::json!(2));
-        assert_eq!(gf["values"][3], serde_json::json!({"value": 3, "description": "Return"}));
+        assert_eq!(
+            gf["values"][3],
+            serde_json::json!({"value": 3, "description": "Return"})
+        );
         assert_eq!(gf["reboot_required"], false);
-        let alt = js.as_array().unwrap().iter().find(|p| p["name"] == "MIS_TAKEOFF_ALT").unwrap();
+        let alt = js
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["name"] == "MIS_TAKEOFF_ALT")
+            .unwrap();
         assert_eq!(alt["default"], serde_json::json!(2.5));
         assert_eq!(alt["unit"], "m");
     }

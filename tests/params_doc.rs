@@ -27,7 +27,7 @@ fn docs_parameters_md_is_the_generated_reference() {
             .lines()
             .zip(generated.lines())
             .position(|(a, b)| a != b)
-            .map_or_else(|| committed.lines().count().min(generated.lines().count()), |i| i);
+            .unwrap_or_else(|| committed.lines().count().min(generated.lines().count()));
         panic!(
             "docs/parameters.md differs from the parameter table (first at line {}): regenerate it with\n    {}",
             line + 1,

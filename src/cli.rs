@@ -1,5 +1,6 @@
 //! Command-line interface: `rotorpilot <command>`.
 
+pub mod params;
 mod replay;
 
 use std::process::ExitCode;
@@ -274,6 +275,9 @@ pub enum Command {
         #[arg(long)]
         any_version: bool,
     },
+    /// Print the parameter reference (every parameter: type, default, range,
+    /// unit, description, values, reboot required) as text, JSON or Markdown.
+    Params(params::ParamsArgs),
 }
 
 /// Run the CLI; errors are printed to stderr and give exit code 1.
@@ -351,6 +355,7 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             json,
             any_version,
         }) => replay::run(&record, csv.as_deref(), ulog.as_deref(), json, any_version),
+        Some(Command::Params(args)) => params::run(&args),
         None if cli.daemon.check => {
             print!("{}", cli.daemon.fleet_config()?.to_text());
             Ok(())

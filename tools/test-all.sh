@@ -127,7 +127,7 @@ client_venv pip-fresh . "mavsdk==3.17.4" "pymavlink==2.4.50" "pytest==9.2.0" "py
 )
 
 echo "== tools: plot scripts on real logs (matplotlib)"
-client_venv tools "matplotlib==3.9.2" "pytest==9.2.0"
+client_venv tools -r tools/requirements.txt "pytest==9.2.0"
 timeout 600 "$VENV/tools/bin/python" -m pytest -q -p no:cacheprovider tests/tools/test_plots.py
 
 echo "== tools: fly_mission.py against a scripted vehicle and the real one (pymavlink)"

@@ -1,4 +1,4 @@
-//! Hover feasibility with a rotor removed (doc `model-and-control.md` section 3).
+//! Hover feasibility with a rotor removed (`docs/model.md` section 3).
 //!
 //! Delete column `j` of `B`; check `rank B_f = 4`; then check that the hover
 //! wrench `[m g, 0, 0, 0]` lies in the *interior* of the attainable set

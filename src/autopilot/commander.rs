@@ -1,5 +1,5 @@
 //! The commander: what each [`AutopilotCommand`] does and when it is refused
-//! (PX4 behaviour, doc `mavlink-compat.md` sections 3, 5 and 8) — arming and
+//! (PX4 behaviour, `docs/mavlink.md` sections 3, 5 and 8) — arming and
 //! its prearm checks, the mode state machine, home, and the gates of reboot
 //! and failure injection. Each command is judged at the instant it is
 //! applied, against the sensor readings of that instant.

@@ -1,5 +1,5 @@
 //! The discrete r-th order integrator chain shared by every estimator channel
-//! (doc `model-and-control.md` section 7, "Discrete implementation").
+//! (`docs/model.md` section 7, "Discrete implementation").
 //!
 //! Continuous form, per channel, with momentum `q`, known part `d` of `q'`
 //! and the true wrench `w` (`q' = d + w`):

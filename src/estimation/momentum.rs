@@ -1,5 +1,5 @@
 //! The momentum-based estimator of external force, external torque and real
-//! mass (doc `model-and-control.md` sections 2, 6 and 7; Ruggiero, Cacace,
+//! mass (`docs/model.md` sections 2, 6 and 7; Ruggiero, Cacace,
 //! Sadeghian, Lippiello, Robotics and Autonomous Systems 72, 2015; the origin
 //! report, exercise 4).
 

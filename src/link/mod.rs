@@ -12,7 +12,7 @@
 //! translates only: whether a command is accepted, what a relative frame
 //! means and whether a complete plan is stored are decided by the autopilot
 //! at the instant it applies them (the ACK carries that answer). Everything
-//! the compat doc (`shared/docs/mavlink-compat.md`) requires of the wire is
+//! `docs/mavlink.md` promises a client is
 //! decided here; the files:
 //!
 //! | file | job |
@@ -748,7 +748,7 @@ mod ftp {
 
 /// The answer to an FTP request: rotorpilot serves no files, so every request
 /// gets a NAK FileNotFound (MAVProxy's `param fetch` then falls back to
-/// PARAM_REQUEST_LIST at once, compat doc section 11); session resets get an
+/// PARAM_REQUEST_LIST at once, `docs/mavlink.md` section 11); session resets get an
 /// ACK. Replies (ACK/NAK opcodes) get nothing.
 fn ftp_answer(m: &FILE_TRANSFER_PROTOCOL_DATA, requester: (u8, u8)) -> Option<MavMessage> {
     let p = &m.payload;

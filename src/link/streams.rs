@@ -5,7 +5,7 @@
 //! Rates are in wall time (a stream at 50 Hz sends 50 messages per wall
 //! second whatever `--speed` is), so traffic and CPU stay bounded when the
 //! simulation runs fast; the timestamps inside are simulated time. The
-//! default rates are PX4's (compat doc section 4) for the GCS link (normal
+//! default rates are PX4's (`docs/mavlink.md` section 4) for the GCS link (normal
 //! mode) and the API link (onboard mode). SET_MESSAGE_INTERVAL changes a
 //! stream on the link it arrives on only, as in PX4.
 //!

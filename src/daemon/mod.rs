@@ -56,6 +56,7 @@ mod logs;
 mod ready;
 mod recorder;
 mod saver;
+mod signing;
 mod sim_thread;
 mod tlog;
 mod ulog_file;
@@ -105,6 +106,8 @@ struct Vehicle {
     log_dir: Option<PathBuf>,
     /// The flight record (and CSV) in the log directory, started at bind.
     recorder: Option<recorder::Recorder>,
+    /// The MAVLink signing key (`signing.key` in the state directory), read at bind.
+    signing: signing::VehicleSigning,
 }
 
 /// A daemon with its sockets bound, ready to [`Daemon::run`].
@@ -238,6 +241,8 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
                 .map_err(|e| anyhow::anyhow!("{}{e:#}", which(&config)))?
         };
         core.pilot_mut(i).restore_plans(plans);
+        let vehicle_signing =
+            signing::load(&config.state_dir).map_err(|e| anyhow::anyhow!("{}{e:#}", which(&config)))?;
         let mut sockets = Vec::new();
         for spec in &config.links {
             let s = UdpSocket::bind(spec.bind).await.with_context(|| {
@@ -267,6 +272,7 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
             sockets,
             log_dir,
             recorder,
+            signing: vehicle_signing,
         });
     }
     Ok(Daemon {
@@ -455,7 +461,9 @@ impl Daemon {
                 sockets,
                 log_dir,
                 recorder,
+                signing: vehicle_signing,
             } = v;
+            tasks.push(tokio::spawn(signing::persist(vehicle_signing.clone(), stop_rx.clone())));
             let params = Arc::new(Mutex::new(params));
             // the vehicle's ULog (`--log-dir`), started before the first step
             let ulog = log_dir
@@ -504,7 +512,7 @@ impl Daemon {
                 component_id: 1,
             };
             for (index, (spec, socket)) in sockets.into_iter().enumerate() {
-                let link = Link::new(
+                let mut link = Link::new(
                     LinkConfig {
                         name: spec.name.clone(),
                         identity,
@@ -514,6 +522,7 @@ impl Daemon {
                     },
                     Instant::now().into_std(),
                 );
+                link.set_signing(vehicle_signing.shared.clone(), u8::try_from(index).unwrap_or(u8::MAX));
                 links.push(LinkTask {
                     link,
                     socket,
@@ -531,6 +540,7 @@ impl Daemon {
                         .as_deref()
                         .map(|d| tlog::Tlog::create(d, &tlog::file_name(index, &spec.name)))
                         .unwrap_or_default(),
+                    signing_changed: vehicle_signing.changed.clone(),
                 });
             }
             finals.push((config.instance, params, path, plans_file, tel_rx));

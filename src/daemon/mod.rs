@@ -25,6 +25,7 @@
 //! | `tlog`, `ulog_file` | each link's `.tlog` and the vehicle's `flight.ulg` in the run's log directory |
 //! | `recorder` | the run's flight record (`flight.record`, for `rotorpilot replay`) and `--log-csv` CSV (`flight.csv`) |
 //! | `saver` | the parameter file and the stored plans, written after each accepted change |
+//! | `signing` | the MAVLink signing key (`signing.key`, 0600) of each vehicle: read at bind, stored on SETUP_SIGNING, every 10 s and at shutdown |
 //!
 //! The state directory (`--state-dir`) holds `params.toml` and
 //! `missions.json` (the mission, geofence and rally points, kept across

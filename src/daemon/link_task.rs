@@ -41,6 +41,8 @@ pub(super) struct LinkTask {
     pub(super) send_errors: u64,
     /// This link's `.tlog` (`--log-dir`; inert without).
     pub(super) tlog: super::tlog::Tlog,
+    /// Notified when SETUP_SIGNING changed the vehicle's key (`signing.rs` stores it).
+    pub(super) signing_changed: Arc<Notify>,
 }
 
 /// How long a link waits for the autopilot's answer before ACKing FAILED
@@ -225,6 +227,7 @@ impl LinkTask {
                 self.link.on_plans_changed(ticket, outcome);
                 self.flush().await;
             }
+            Effect::SigningKeyChanged => self.signing_changed.notify_one(),
             Effect::GcsHeartbeat => {
                 // a dropped one is replaced by the next (GCSs send at 1 Hz)
                 let _ = self.to_sim(SimRequest::GcsHeartbeat);

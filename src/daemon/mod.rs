@@ -25,6 +25,7 @@
 //! | `tlog`, `ulog_file` | each link's `.tlog` and the vehicle's `flight.ulg` in the run's log directory |
 //! | `recorder` | the run's flight record (`flight.record`, for `rotorpilot replay`) and `--log-csv` CSV (`flight.csv`) |
 //! | `saver` | the parameter file and the stored plans, written after each accepted change |
+//! | `signing` | the MAVLink signing key (`signing.key`, 0600) of each vehicle: read at bind, stored on SETUP_SIGNING, every 10 s and at shutdown |
 //!
 //! The state directory (`--state-dir`) holds `params.toml` and
 //! `missions.json` (the mission, geofence and rally points, kept across
@@ -56,6 +57,7 @@ mod logs;
 mod ready;
 mod recorder;
 mod saver;
+mod signing;
 mod sim_thread;
 mod tlog;
 mod ulog_file;
@@ -105,6 +107,8 @@ struct Vehicle {
     log_dir: Option<PathBuf>,
     /// The flight record (and CSV) in the log directory, started at bind.
     recorder: Option<recorder::Recorder>,
+    /// The MAVLink signing key (`signing.key` in the state directory), read at bind.
+    signing: signing::VehicleSigning,
 }
 
 /// A daemon with its sockets bound, ready to [`Daemon::run`].
@@ -238,6 +242,8 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
                 .map_err(|e| anyhow::anyhow!("{}{e:#}", which(&config)))?
         };
         core.pilot_mut(i).restore_plans(plans);
+        let vehicle_signing =
+            signing::load(&config.state_dir).map_err(|e| anyhow::anyhow!("{}{e:#}", which(&config)))?;
         let mut sockets = Vec::new();
         for spec in &config.links {
             let s = UdpSocket::bind(spec.bind).await.with_context(|| {
@@ -267,6 +273,7 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
             sockets,
             log_dir,
             recorder,
+            signing: vehicle_signing,
         });
     }
     Ok(Daemon {
@@ -455,7 +462,9 @@ impl Daemon {
                 sockets,
                 log_dir,
                 recorder,
+                signing: vehicle_signing,
             } = v;
+            tasks.push(tokio::spawn(signing::persist(vehicle_signing.clone(), stop_rx.clone())));
             let params = Arc::new(Mutex::new(params));
             // the vehicle's ULog (`--log-dir`), started before the first step
             let ulog = log_dir
@@ -504,7 +513,7 @@ impl Daemon {
                 component_id: 1,
             };
             for (index, (spec, socket)) in sockets.into_iter().enumerate() {
-                let link = Link::new(
+                let mut link = Link::new(
                     LinkConfig {
                         name: spec.name.clone(),
                         identity,
@@ -514,6 +523,7 @@ impl Daemon {
                     },
                     Instant::now().into_std(),
                 );
+                link.set_signing(vehicle_signing.shared.clone(), u8::try_from(index).unwrap_or(u8::MAX));
                 links.push(LinkTask {
                     link,
                     socket,
@@ -531,6 +541,7 @@ impl Daemon {
                         .as_deref()
                         .map(|d| tlog::Tlog::create(d, &tlog::file_name(index, &spec.name)))
                         .unwrap_or_default(),
+                    signing_changed: vehicle_signing.changed.clone(),
                 });
             }
             finals.push((config.instance, params, path, plans_file, tel_rx));

@@ -26,6 +26,7 @@
 //! | [`manual`] | MANUAL_CONTROL to sticks |
 //! | [`streams`] | stream rates, scheduler, message builders from a [`Snapshot`] |
 //! | [`peers`] | default remote plus learned peers with a timeout |
+//! | [`signing`] | MAVLink 2 signing: the key, the gate on input, signatures on output |
 
 // PX4 and its clients still speak messages the XML marks deprecated
 // (SET_MODE, PING, ...): we must too.
@@ -38,12 +39,14 @@ pub mod mission;
 pub mod offboard;
 pub mod param;
 pub mod peers;
+pub mod signing;
 pub mod streams;
 #[cfg(test)]
 pub(crate) mod testing;
 pub mod wire;
 
 use std::net::SocketAddr;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::common::{
@@ -163,6 +166,9 @@ pub enum Effect {
     /// A ground station's HEARTBEAT (MAV_TYPE_GCS) arrived: tell the
     /// autopilot the data link is alive (no answer).
     GcsHeartbeat,
+    /// SETUP_SIGNING changed (or cleared) the vehicle's signing key, already
+    /// in force on every link of the vehicle: store it (no answer, as PX4).
+    SigningKeyChanged,
 }
 
 /// One MAVLink link (one UDP socket's worth of protocol state).
@@ -177,6 +183,8 @@ pub struct Link {
     delayed: Vec<(Instant, Outgoing)>,
     due: Vec<Stream>,
     stats: LinkStats,
+    /// The vehicle's signing state (shared by its links) and this link's id in it.
+    signing: (signing::Shared, u8),
 }
 
 /// Counters for logs and tests.
@@ -206,6 +214,7 @@ impl Link {
             delayed: Vec::new(),
             due: Vec::new(),
             stats: LinkStats::default(),
+            signing: (Arc::new(Mutex::new(signing::Signing::unkeyed(now, 0))), 0),
         }
     }
 
@@ -238,9 +247,59 @@ impl Link {
         self.peers.active(now, out);
     }
 
-    /// Take the frames queued so far.
+    /// Take the frames queued so far (signed, in order, when the vehicle has a key).
     pub fn drain(&mut self) -> Vec<Outgoing> {
-        std::mem::take(&mut self.outbox)
+        let mut out = std::mem::take(&mut self.outbox);
+        self.sign_all(&mut out);
+        out
+    }
+
+    /// Use the vehicle's signing state `shared` (one per vehicle, shared by
+    /// its links), signing with `link_id` (the link's index). A new link has
+    /// its own, without a key.
+    pub fn set_signing(&mut self, shared: signing::Shared, link_id: u8) {
+        self.signing = (shared, link_id);
+    }
+
+    /// The vehicle's signing state.
+    #[must_use]
+    pub fn signing(&self) -> &signing::Shared {
+        &self.signing.0
+    }
+
+    fn sign_all(&self, out: &mut [Outgoing]) {
+        let mut s = signing::lock(&self.signing.0);
+        if s.is_keyed() {
+            let now = Instant::now();
+            for o in out {
+                s.sign(&mut o.bytes, self.signing.1, now);
+            }
+        }
+    }
+
+    /// The signing gate (issue 15, [`signing`]): false when `frame` goes no
+    /// further: refused (unsigned, bad signature, replay, stale), or a
+    /// SETUP_SIGNING for us, which it applies (with no key, or signed with
+    /// the key: the refusals came first) and turns into
+    /// [`Effect::SigningKeyChanged`].
+    fn signing_gate(&mut self, now: Instant, frame: &Frame<'_>, effects: &mut Vec<Effect>) -> bool {
+        let mut s = signing::lock(&self.signing.0);
+        if let Err(why) = s.check(frame, now) {
+            tracing::debug!(link = %self.config.name, ?why, id = frame.message_id, "refused by signing");
+            return false;
+        }
+        if frame.message_id != signing::SETUP_SIGNING_ID {
+            return true;
+        }
+        if let Some(Inbound::Other(m)) = wire::decode(frame)
+            && let MavMessage::SETUP_SIGNING(m) = *m
+            && self.for_me(m.target_system, m.target_component)
+        {
+            s.setup(m.secret_key, m.initial_timestamp);
+            tracing::info!(link = %self.config.name, keyed = s.is_keyed(), "signing key set by SETUP_SIGNING");
+            effects.push(Effect::SigningKeyChanged);
+        }
+        false
     }
 
     fn send(&mut self, to: To, msg: &MavMessage) {
@@ -355,6 +414,9 @@ impl Link {
         let mut effects = Vec::new();
         for frame in wire::frames(data) {
             self.stats.frames_in += 1;
+            if !self.signing_gate(now, &frame, &mut effects) {
+                continue;
+            }
             let me = self.config.identity;
             if frame.system_id == me.system_id && frame.component_id == me.component_id {
                 // our own frames looped back (or another vehicle with our ids)

@@ -164,6 +164,25 @@ impl<const C: usize> ChainFilter<C> {
         })
     }
 
+    /// Change the sample time to `h` [s] for the following samples, keeping
+    /// the state `gamma_1..gamma_r`: the coefficients are those
+    /// [`Self::new`] computes for `h`, so a chain advanced with the step of
+    /// each sample is the chosen rule applied interval by interval (a log
+    /// with a varying step). The same `h` changes nothing.
+    ///
+    /// # Errors
+    /// `h` not finite and > 0 (the chain is then unchanged).
+    pub fn set_sample_time(&mut self, h: f64) -> Result<(), EstimatorError> {
+        if h.to_bits() == self.h.to_bits() {
+            return Ok(());
+        }
+        let stages = self.stages;
+        *self = Self::new(self.gains(), self.discretization, h)?;
+        self.stages = stages;
+        self.state_part = Self::weighted_stages(&self.stages[..self.order], &self.output_weights);
+        Ok(())
+    }
+
     /// Order r.
     #[must_use]
     pub fn order(&self) -> usize {

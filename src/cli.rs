@@ -440,7 +440,10 @@ fn estimate_nominal(
 ) -> anyhow::Result<crate::signals::NominalModel> {
     let inertia = inertia.map(parse_inertia).transpose()?;
     if let Some(m) = mass {
-        anyhow::ensure!(m.is_finite() && m > 0.0, "--mass must be a finite number > 0 kg, got {m}");
+        anyhow::ensure!(
+            m.is_finite() && m > 0.0,
+            "--mass must be a finite number > 0 kg, got {m}"
+        );
     }
     let mut nominal = match airframe {
         Some(a) => Airframe::load(a)?.nominal(),

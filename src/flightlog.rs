@@ -382,7 +382,14 @@ pub const META_VERSION: u32 = 1;
 impl LogMeta {
     /// The sidecar of a log written by `producer` (e.g. `simulate`) from `source`.
     #[must_use]
-    pub fn new(producer: &str, source: &str, airframe: &str, nominal: &NominalModel, estimator: &EstimatorConfig, step_s: f64) -> Self {
+    pub fn new(
+        producer: &str,
+        source: &str,
+        airframe: &str,
+        nominal: &NominalModel,
+        estimator: &EstimatorConfig,
+        step_s: f64,
+    ) -> Self {
         let i = &nominal.inertia_kg_m2;
         Self {
             format: META_FORMAT.into(),

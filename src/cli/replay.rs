@@ -54,7 +54,10 @@ pub(super) fn run(
         .map_err(anyhow::Error::msg)?;
     if let Some(csv) = csv {
         // the sidecar of the CSV: the vehicle as the record's header builds it
-        let (core, _) = record.header.build().map_err(|e| anyhow::anyhow!("{label}:1: header: {e}"))?;
+        let (core, _) = record
+            .header
+            .build()
+            .map_err(|e| anyhow::anyhow!("{label}:1: header: {e}"))?;
         crate::scenario::autopilot_meta(core.pilot(0), "replay", &label)
             .write_beside(csv)
             .map_err(anyhow::Error::msg)?;

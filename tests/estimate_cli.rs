@@ -80,6 +80,12 @@ fn a_quad_log_is_estimated_with_the_quads_model_from_its_sidecar() {
     let scenario = root().join("tools/scenarios/quad-step-10m.toml");
     let o = rotorpilot(&["simulate", scenario.to_str().unwrap(), "--csv", log.to_str().unwrap()]);
     assert!(o.ok, "{}", o.stderr);
+    // the text summary prints 4 decimals as its other lines, not 16 digits
+    let line = o.stdout.lines().find(|l| l.starts_with("final position")).unwrap();
+    assert_eq!(
+        line,
+        "final position [10.0000, -0.0000, -7.0000] m NED, final Euler [0.0000, -0.0000, 1.5708] rad"
+    );
     let meta = LogMeta::read_beside(&log)
         .unwrap()
         .expect("simulate --csv writes the sidecar");

@@ -222,6 +222,9 @@ pub enum Command {
     Simulate(crate::simulate::SimulateArgs),
     /// Run the momentum-based estimator over a recorded flight for several
     /// orders and polynomials; write the estimates as CSV and print metrics.
+    /// The nominal model is the one the log's sidecar LOG.meta.json records
+    /// (docs/logs.md). Time must increase; the step may vary (each sample is
+    /// integrated over its own interval).
     Estimate {
         /// Flight log CSV (as `rotorpilot simulate --csv` writes it).
         log: std::path::PathBuf,

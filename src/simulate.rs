@@ -227,7 +227,11 @@ fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
         let v = e.variant.unwrap_or(0);
         let start = Instant::now();
         let flight = f.flight(v).map_err(|e| format!("{e:#}"))?;
-        let mut writer = csv_path(e).map(|p| crate::scenario::create_csv_file(&p)).transpose()?;
+        let path = csv_path(e);
+        let mut writer = path.as_deref().map(crate::scenario::create_csv_file).transpose()?;
+        if let Some(p) = &path {
+            flight_meta(&flight).map_err(|e| format!("{e:#}"))?.write_beside(p)?;
+        }
         let mut outcome = flight
             .fly(writer.as_mut().map(|w| w as &mut dyn std::io::Write))
             .map_err(|e| format!("{e:#}"))?;
@@ -348,6 +352,18 @@ fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
     } else {
         0
     })
+}
+
+/// The sidecar of a flight's CSV (`<csv>.meta.json`, [`crate::flightlog::LogMeta`]).
+///
+/// # Errors
+/// A mission whose vehicle cannot be built.
+fn flight_meta(flight: &crate::scenario::campaign::Flight) -> anyhow::Result<crate::flightlog::LogMeta> {
+    use crate::scenario::campaign::Flight;
+    match flight {
+        Flight::Scenario(s) => Ok(crate::scenario::scenario_meta(s, "simulate")),
+        Flight::Mission(m) => crate::scenario::mission_meta(m, "simulate"),
+    }
 }
 
 /// The name of an entry's CSV in a campaign's `--csv` directory:

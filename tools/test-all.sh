@@ -133,3 +133,5 @@ timeout 600 "$VENV/tools/bin/python" -m pytest -q -p no:cacheprovider tests/tool
 
 echo "== tools: fly_mission.py against a scripted vehicle and the real one (pymavlink)"
 timeout 300 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/tools/test_fly_mission.py
+echo "== tools: show_wrench.py and inject_disturbance.py against the real vehicle (pymavlink)"
+timeout 300 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/tools/test_wrench_tools.py

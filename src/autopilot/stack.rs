@@ -559,6 +559,12 @@ impl Autopilot {
         self.control.estimate()
     }
 
+    /// The wrench estimator (its configuration and nominal model, which a flight log's sidecar records).
+    #[must_use]
+    pub fn estimator(&self) -> &MomentumEstimator {
+        self.control.estimator()
+    }
+
     /// Status texts since the last call, oldest first (at most the latest 64).
     pub fn drain_status_texts(&mut self) -> Vec<StatusText> {
         self.say.drain()

@@ -55,6 +55,7 @@ mod link_task;
 mod logs;
 mod ready;
 mod recorder;
+mod reply;
 mod saver;
 mod sim_thread;
 mod tlog;
@@ -89,7 +90,7 @@ use crate::mission::{MissionType, Plans};
 use crate::params::{ParamStore, ParamValue};
 use crate::sim::SensorConfig;
 use link_task::LinkTask;
-use saver::{PlansFile, lock, plan_saver, saver};
+use saver::{ParamsFile, PlansFile, plan_saver, saver};
 use sim_thread::{Event, Sim, SimRequest, VehicleIo};
 
 /// Fleets this large are stepped on every core ([`Lockstep::set_threads`]).
@@ -486,16 +487,20 @@ impl Daemon {
                 ulog,
                 recorder,
             });
+            // one writer per file: the saver, links' write-through and the final save share its lock
+            let params_file = ParamsFile::new(path.clone());
             tasks.push(tokio::spawn(saver(
                 params.clone(),
-                path.clone(),
+                params_file.clone(),
                 save.clone(),
+                ev_tx.clone(),
                 stop_rx.clone(),
             )));
             tasks.push(tokio::spawn(plan_saver(
                 tel_rx.clone(),
                 plans_file.clone(),
                 plans_changed,
+                ev_tx.clone(),
                 stop_rx.clone(),
             )));
             tels.push(tel_rx.clone());
@@ -524,6 +529,7 @@ impl Daemon {
                     events: ev_tx.clone(),
                     events_rx: ev_tx.subscribe(),
                     save: save.clone(),
+                    params_file: params_file.clone(),
                     exit: exit_tx.clone(),
                     dests: Vec::new(),
                     send_errors: 0,
@@ -533,7 +539,7 @@ impl Daemon {
                         .unwrap_or_default(),
                 });
             }
-            finals.push((config.instance, params, path, plans_file, tel_rx));
+            finals.push((config.instance, params, params_file, plans_file, tel_rx));
         }
         // stops the simulation thread out of band (a full queue cannot hold it up)
         let stopper = inbox.stopper();
@@ -596,7 +602,8 @@ impl Daemon {
         }
         // every vehicle's files, even when one fails; the first error is returned
         let mut first_error: Option<anyhow::Error> = None;
-        for (instance, params, path, plans_file, tel_rx) in finals {
+        for (instance, params, params_file, plans_file, tel_rx) in finals {
+            let path = params_file.path().to_path_buf();
             let who = vehicle_prefix(lone, instance);
             // the simulation thread publishes every plan change before it
             // answers it, so the last snapshot holds the plans in force
@@ -605,9 +612,8 @@ impl Daemon {
             if plans_saved.is_ok() {
                 info!(path = %plans_file.path().display(), "plans saved");
             }
-            let snapshot = lock(&params).clone();
-            let saved = snapshot
-                .save(&path)
+            let saved = params_file
+                .save_final(&params)
                 .with_context(|| format!("{who}saving parameters to {}", path.display()));
             if saved.is_ok() {
                 info!(path = %path.display(), "parameters saved");

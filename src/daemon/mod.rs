@@ -58,6 +58,7 @@ mod recorder;
 mod reply;
 mod saver;
 mod sim_thread;
+mod supervise;
 mod tlog;
 mod ulog_file;
 
@@ -132,7 +133,8 @@ fn vehicle_params(config: &Config, airframe: &Airframe) -> anyhow::Result<(Param
     let (mut params, warnings) = if config.reset_params {
         (ParamStore::new(airframe), Vec::new())
     } else {
-        ParamStore::load_or_default(airframe, &path)?
+        // a damaged file is renamed aside, not overwritten (saver::keep_bad_params)
+        saver::load_params(airframe, &path)?
     };
     let _ = params.set("MAV_SYS_ID", ParamValue::Int32(i32::from(config.system_id())));
     for (name, value) in &config.param_overrides {
@@ -448,11 +450,13 @@ impl Daemon {
         // what is saved at shutdown, per vehicle
         let mut finals = Vec::with_capacity(vehicles.len());
         let mut links = Vec::new();
+        // each link task's name for messages, in the order of `links`
+        let mut link_names: Vec<String> = Vec::new();
         for (i, v) in vehicles.into_iter().enumerate() {
             let Vehicle {
                 config,
                 params,
-                warnings: _,
+                warnings,
                 sockets,
                 log_dir,
                 recorder,
@@ -519,6 +523,7 @@ impl Daemon {
                     },
                     Instant::now().into_std(),
                 );
+                link_names.push(format!("{}{} link", vehicle_prefix(lone, config.instance), spec.name));
                 links.push(LinkTask {
                     link,
                     socket,
@@ -539,6 +544,8 @@ impl Daemon {
                         .unwrap_or_default(),
                 });
             }
+            // the links are subscribed: they send it once they run
+            saver::announce_params_warnings(&warnings, &ev_tx);
             finals.push((config.instance, params, params_file, plans_file, tel_rx));
         }
         // stops the simulation thread out of band (a full queue cannot hold it up)
@@ -559,9 +566,12 @@ impl Daemon {
             .context("starting the simulation thread")?;
         // issue 13: one stdout line when the vehicles first are ready to arm (ready.rs)
         tasks.push(tokio::spawn(ready::announce(started, tels, stop_rx.clone())));
-        for task in links {
-            tasks.push(tokio::spawn(task.run(stop_rx.clone())));
+        // watched: a link task that ends while running stops the daemon (supervise.rs)
+        let mut link_tasks = supervise::LinkTasks::default();
+        for (name, task) in link_names.into_iter().zip(links) {
+            link_tasks.spawn(name, task.run(stop_rx.clone()));
         }
+        let mut link_died: Option<String> = None;
         drop(exit_tx);
 
         let mut sim_done = sim_done_rx;
@@ -578,11 +588,19 @@ impl Daemon {
                 tracing::error!("the simulation thread stopped; shutting down");
                 true
             }
+            why = link_tasks.ended() => {
+                tracing::error!("{why}; shutting down");
+                link_died = Some(why);
+                false
+            }
         };
         let _ = stop_tx.send(true);
         stopper.stop();
-        if tokio::time::timeout(Duration::from_millis(800), futures_join(tasks))
-            .await
+        if tokio::time::timeout(Duration::from_millis(800), async {
+            futures_join(tasks).await;
+            link_tasks.join_all().await;
+        })
+        .await
             .is_err()
         {
             warn!("some tasks did not stop in time");
@@ -628,6 +646,9 @@ impl Daemon {
             return Err(e);
         }
         anyhow::ensure!(!sim_died, "the simulation thread stopped unexpectedly");
+        if let Some(why) = link_died {
+            anyhow::bail!("{why}");
+        }
         Ok(())
     }
 }

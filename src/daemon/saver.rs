@@ -34,6 +34,32 @@ pub(super) fn lock(p: &Mutex<ParamStore>) -> MutexGuard<'_, ParamStore> {
     p.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
+/// A vehicle's parameter file at start ([`ParamStore::load_keeping_bad`]):
+/// a file with lines that do not read, or an empty one, is renamed aside to
+/// `params.bad-<unix time>` (the warning names it) and the store holds its
+/// valid lines; the start's save then writes a clean file.
+pub(super) fn load_params(
+    airframe: &crate::airframe::Airframe,
+    path: &Path,
+) -> Result<(ParamStore, Vec<String>), ParamFileError> {
+    let unix_s = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let loaded = ParamStore::load_keeping_bad(airframe, path, unix_s)?;
+    if let Some(aside) = &loaded.set_aside {
+        warn!(path = %path.display(), kept = %aside.display(), "parameter file set aside");
+    }
+    Ok((loaded.store, loaded.warnings))
+}
+
+/// The warnings of [`load_params`] told to the clients at start
+/// (STATUSTEXT critical): the one saying where a damaged file went.
+pub(super) fn announce_params_warnings(warnings: &[String], events: &broadcast::Sender<Event>) {
+    for w in warnings.iter().filter(|w| w.contains(".bad-")) {
+        announce(events, Severity::Critical, &format!("Parameter file set aside: {w}"));
+    }
+}
+
 /// The first wait before a failed save is tried again; each further failure
 /// doubles it, up to [`RETRY_MAX`].
 pub(super) const RETRY_FIRST: Duration = Duration::from_secs(1);

@@ -318,7 +318,8 @@ mod tests {
         let (tel_tx, tel_rx) = watch::channel(core.snapshot(0));
         let (stop_tx, stop_rx) = watch::channel(false);
         let changed = Arc::new(Notify::new());
-        let task = tokio::spawn(plan_saver(tel_rx, file.clone(), changed.clone(), stop_rx));
+        let (ev_tx, _) = broadcast::channel(16);
+        let task = tokio::spawn(plan_saver(tel_rx, file.clone(), changed.clone(), ev_tx, stop_rx));
         // as the simulation thread does it: change, publish, notify
         for k in 0..20 {
             let items = (0..=k).map(|i| waypoint(10.0 + i as f32)).collect();
@@ -355,5 +356,60 @@ mod tests {
         file.save(core.pilot(0).plans()).unwrap();
         assert_eq!(load_plans(file.path()).unwrap(), Plans::default());
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn the_backoff_doubles_from_one_second_to_thirty() {
+        let s: Vec<u64> = (1..=7).map(|f| backoff(f).as_secs()).collect();
+        assert_eq!(s, vec![1, 2, 4, 8, 16, 30, 30]);
+        assert_eq!(backoff(u32::MAX), RETRY_MAX);
+    }
+
+    #[test]
+    fn long_texts_become_status_text_lines_cut_at_separators() {
+        let t = "Parameters not saved (retrying): parameter file /tmp/rotorpilot-client-abc/.params.toml.1234.tmp: Is a directory (os error 21)";
+        let lines = text_lines(t);
+        assert!(lines.len() >= 3, "{lines:?}");
+        assert!(lines.iter().all(|l| !l.is_empty() && l.len() <= 50), "{lines:?}");
+        assert_eq!(lines.concat().replace(' ', ""), t.replace(' ', ""));
+        assert_eq!(text_lines("short"), vec!["short".to_string()]);
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_failing_save_is_reported_retried_and_its_success_announced() {
+        use std::sync::atomic::{AtomicU32, Ordering};
+        let tries = Arc::new(AtomicU32::new(0));
+        let t = tries.clone();
+        // fails twice, then works
+        let write = move || {
+            if t.fetch_add(1, Ordering::SeqCst) < 2 {
+                Err("/state/params.toml: No space left on device (os error 28)".to_string())
+            } else {
+                Ok(())
+            }
+        };
+        let (ev_tx, mut ev_rx) = broadcast::channel(64);
+        let (stop_tx, stop_rx) = watch::channel(false);
+        let save = Arc::new(Notify::new());
+        save.notify_one();
+        let task = tokio::spawn(keep_saved("Parameters", write, save, ev_tx, stop_rx));
+        let mut said = Vec::new();
+        let deadline = tokio::time::Instant::now() + Duration::from_secs(6);
+        while !said.iter().any(|(_, t): &(Severity, String)| t.contains("saved after")) {
+            match tokio::time::timeout_at(deadline, ev_rx.recv()).await {
+                Ok(Ok(Event::StatusText(s))) => said.push((s.severity, s.text)),
+                Ok(_) => {}
+                Err(_) => panic!("no success announced: {said:?}"),
+            }
+        }
+        assert_eq!(tries.load(Ordering::SeqCst), 3, "the first try and two retries");
+        assert_eq!(said[0].0, Severity::Critical);
+        assert!(said[0].1.starts_with("Parameters not saved"), "{said:?}");
+        assert!(said.iter().any(|(_, t)| t.contains("No space left")), "{said:?}");
+        // the first failure is reported, not the second (every tenth is)
+        assert_eq!(said.iter().filter(|(_, t)| t.starts_with("Parameters not saved")).count(), 1);
+        assert_eq!(said.last().unwrap(), &(Severity::Info, "Parameters saved after 2 failed tries".to_string()));
+        let _ = stop_tx.send(true);
+        tokio::time::timeout(Duration::from_secs(2), task).await.unwrap().unwrap();
     }
 }

@@ -386,4 +386,86 @@ mod tests {
         let total: usize = d.iter().map(|(_, x)| x.len()).sum();
         assert_eq!(total, 2 * (100 + 1300 + 60) + 50);
     }
+
+    /// A link task whose simulation thread is stalled: the test holds the
+    /// inbox and serves it (or not) by hand.
+    async fn stalled() -> (LinkTask, super::super::inbox::Inbox<SimRequest>) {
+        use crate::airframe::Airframe;
+        use crate::geo::GeoPoint;
+        use crate::link::LinkConfig;
+        use crate::link::streams::{Identity, gcs_rates};
+        use crate::lockstep::Lockstep;
+        use crate::sim::SensorConfig;
+        let airframe = Airframe::load("quad").unwrap();
+        let store = ParamStore::new(&airframe);
+        let mut core =
+            Lockstep::one_vehicle(&airframe, GeoPoint::PX4_SITL_HOME, &store, SensorConfig::default()).unwrap();
+        let (_tel_tx, tel) = watch::channel(core.snapshot(0));
+        let (_lost_tx, link_lost) = watch::channel(false);
+        let (events, events_rx) = broadcast::channel(16);
+        let (exit, _) = mpsc::channel(1);
+        let inbox = super::super::inbox::inbox::<SimRequest>(1);
+        let dir = std::env::temp_dir().join(format!("rotorpilot-stalled-{}", std::process::id()));
+        let task = LinkTask {
+            link: Link::new(
+                LinkConfig {
+                    name: "gcs".into(),
+                    identity: Identity {
+                        system_id: 1,
+                        component_id: 1,
+                    },
+                    default_remote: None,
+                    rates: gcs_rates(),
+                    peer_timeout: Duration::from_secs(30),
+                },
+                Instant::now().into_std(),
+            ),
+            socket: UdpSocket::bind("127.0.0.1:0").await.unwrap(),
+            params: Arc::new(Mutex::new(store)),
+            tel,
+            link_lost,
+            sim: inbox.sender(0),
+            events,
+            events_rx,
+            save: Arc::new(Notify::new()),
+            params_file: super::super::saver::ParamsFile::new(dir.join("params.toml")),
+            exit,
+            dests: Vec::new(),
+            send_errors: 0,
+            tlog: super::super::tlog::Tlog::default(),
+        };
+        (task, inbox)
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_command_the_stalled_simulation_never_took_up_is_failed_and_never_applied() {
+        let (task, inbox) = stalled().await;
+        let t0 = std::time::Instant::now();
+        let outcome = task.command(AutopilotCommand::Land).await;
+        assert_eq!(outcome, Some(CommandOutcome::Failed("autopilot did not answer")));
+        assert!(t0.elapsed() >= COMMAND_TIMEOUT);
+        // the simulation wakes up: the request is there, and it must drop it
+        let (_, r) = inbox.try_recv().unwrap();
+        assert!(super::super::reply::given_up(&r), "a FAILED command must never be applied");
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_command_taken_up_in_time_is_acknowledged_late_with_the_autopilots_answer() {
+        let (task, inbox) = stalled().await;
+        // the simulation takes it up in time, then takes longer than the timeout to apply it
+        let sim = std::thread::spawn(move || {
+            let (_, r) = inbox.recv_timeout(Duration::from_secs(5)).unwrap();
+            assert!(!super::super::reply::given_up(&r), "taken up in time");
+            std::thread::sleep(COMMAND_TIMEOUT + Duration::from_millis(500));
+            match r {
+                SimRequest::Command { reply: Some(x), .. } => x.send(CommandOutcome::Accepted),
+                other => panic!("{other:?}"),
+            }
+        });
+        let t0 = std::time::Instant::now();
+        let outcome = task.command(AutopilotCommand::Land).await;
+        assert_eq!(outcome, Some(CommandOutcome::Accepted), "late, not refused");
+        assert!(t0.elapsed() > COMMAND_TIMEOUT);
+        sim.join().unwrap();
+    }
 }

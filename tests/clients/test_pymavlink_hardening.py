@@ -66,8 +66,15 @@ def test_an_unwritable_params_file_is_reported_to_the_setter_and_retried_until_s
     with Vehicle(speed=5.0) as v:
         path = os.path.join(v.state_dir, "params.toml")
         squat = os.path.join(v.state_dir, f".params.toml.{v.proc.pid}.tmp")
-        os.makedirs(os.path.join(squat, "in-the-way"))
         m = connect(v)
+        # after the start's save (which goes through that temporary file)
+        for _ in range(50):
+            try:
+                os.makedirs(os.path.join(squat, "in-the-way"))
+                break
+            except OSError:
+                time.sleep(0.05)
+        assert os.path.isdir(squat)
         drain(m)
         m.param_set_send("MIS_TAKEOFF_ALT", 4.25, mavlink.MAV_PARAM_TYPE_REAL32)
         got = collect(m, ["PARAM_VALUE", "PARAM_ERROR", "STATUSTEXT"], 1.5)
@@ -88,6 +95,13 @@ def test_an_unwritable_params_file_is_reported_to_the_setter_and_retried_until_s
         assert "Parameters saved after" in texts(got), texts(got)
         assert "MIS_TAKEOFF_ALT = 4.25" in open(path).read()
         assert "cannot save; will retry" in v.logs()
+        # with the way clear, the echo comes only once the value is on disk
+        drain(m)
+        m.param_set_send("MIS_TAKEOFF_ALT", 3.75, mavlink.MAV_PARAM_TYPE_REAL32)
+        echo = m.recv_match(type="PARAM_VALUE", blocking=True, timeout=2.0)
+        on_disk = open(path).read()
+        assert echo is not None and abs(echo.param_value - 3.75) < 1e-6
+        assert "MIS_TAKEOFF_ALT = 3.75" in on_disk
 
 
 def test_a_params_file_with_a_bad_line_is_kept_aside_and_said_at_start():

@@ -446,7 +446,10 @@ mod tests {
         assert!(t0.elapsed() >= COMMAND_TIMEOUT);
         // the simulation wakes up: the request is there, and it must drop it
         let (_, r) = inbox.try_recv().unwrap();
-        assert!(super::super::reply::given_up(&r), "a FAILED command must never be applied");
+        assert!(
+            super::super::reply::given_up(&r),
+            "a FAILED command must never be applied"
+        );
     }
 
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -458,7 +461,9 @@ mod tests {
             assert!(!super::super::reply::given_up(&r), "taken up in time");
             std::thread::sleep(COMMAND_TIMEOUT + Duration::from_millis(500));
             match r {
-                SimRequest::Command { reply: Some(x), .. } => x.send(CommandOutcome::Accepted),
+                SimRequest::Command { reply: Some(x), .. } => {
+                    let _ = x.send(CommandOutcome::Accepted);
+                }
                 other => panic!("{other:?}"),
             }
         });

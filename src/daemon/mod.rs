@@ -601,7 +601,7 @@ impl Daemon {
             link_tasks.join_all().await;
         })
         .await
-            .is_err()
+        .is_err()
         {
             warn!("some tasks did not stop in time");
         }

@@ -74,9 +74,12 @@ impl<T> Reply<T> {
             .is_ok()
     }
 
-    /// Answer (ignored when the link is gone).
-    pub(super) fn send(self, value: T) {
-        let _ = self.tx.send(value);
+    /// Answer; the value back when the link is gone (as `oneshot::Sender::send`).
+    ///
+    /// # Errors
+    /// The link stopped waiting.
+    pub(super) fn send(self, value: T) -> Result<(), T> {
+        self.tx.send(value)
     }
 }
 
@@ -138,7 +141,7 @@ mod tests {
         assert!(r.claim());
         let slow = tokio::spawn(async move {
             tokio::time::sleep(Duration::from_millis(100)).await;
-            r.send(7);
+            let _ = r.send(7);
         });
         assert_eq!(w.wait(Duration::from_millis(10)).await, Answer::Done(7));
         slow.await.unwrap();
@@ -148,7 +151,7 @@ mod tests {
     async fn an_answer_in_time_and_a_vanished_simulation() {
         let (r, w) = reply::<u32>();
         assert!(r.claim());
-        r.send(3);
+        let _ = r.send(3);
         assert_eq!(w.wait(Duration::from_millis(10)).await, Answer::Done(3));
         let (r, w) = reply::<u32>();
         drop(r);

@@ -24,8 +24,8 @@ use crate::autopilot::{Severity, StatusText};
 use crate::lockstep::Snapshot;
 use crate::mission::Plans;
 use crate::mission::file::{MissionFileError, save_plans};
-use crate::params::ParamStore;
 use crate::params::ParamFileError;
+use crate::params::ParamStore;
 
 /// The parameter store, locked (never across an `.await`).
 pub(super) fn lock(p: &Mutex<ParamStore>) -> MutexGuard<'_, ParamStore> {
@@ -86,7 +86,10 @@ pub(super) fn text_lines(text: &str) -> Vec<String> {
         while !rest.is_char_boundary(end) {
             end -= 1;
         }
-        let cut = rest[..end].rfind([' ', '/']).filter(|&k| k > STATUS_TEXT_LEN / 2).map_or(end, |k| k + 1);
+        let cut = rest[..end]
+            .rfind([' ', '/'])
+            .filter(|&k| k > STATUS_TEXT_LEN / 2)
+            .map_or(end, |k| k + 1);
         lines.push(rest[..cut].trim_end().to_string());
         rest = rest[cut..].trim_start();
     }
@@ -140,7 +143,11 @@ pub(super) async fn keep_saved<F>(
             Ok(()) => {
                 if failures > 0 {
                     info!(what, failures, "saved after failed tries");
-                    announce(&events, Severity::Info, &format!("{what} saved after {failures} failed tries"));
+                    announce(
+                        &events,
+                        Severity::Info,
+                        &format!("{what} saved after {failures} failed tries"),
+                    );
                 }
                 debug!(what, "saved");
                 failures = 0;
@@ -148,8 +155,12 @@ pub(super) async fn keep_saved<F>(
             Err(e) => {
                 failures += 1;
                 warn!(what, error = %e, failures, retry_s = backoff(failures).as_secs_f64(), "cannot save; will retry");
-                if failures == 1 || failures % 10 == 0 {
-                    announce(&events, Severity::Critical, &format!("{what} not saved (retrying): {e}"));
+                if failures == 1 || failures.is_multiple_of(10) {
+                    announce(
+                        &events,
+                        Severity::Critical,
+                        &format!("{what} not saved (retrying): {e}"),
+                    );
                 }
             }
         }
@@ -407,9 +418,20 @@ mod tests {
         assert!(said[0].1.starts_with("Parameters not saved"), "{said:?}");
         assert!(said.iter().any(|(_, t)| t.contains("No space left")), "{said:?}");
         // the first failure is reported, not the second (every tenth is)
-        assert_eq!(said.iter().filter(|(_, t)| t.starts_with("Parameters not saved")).count(), 1);
-        assert_eq!(said.last().unwrap(), &(Severity::Info, "Parameters saved after 2 failed tries".to_string()));
+        assert_eq!(
+            said.iter()
+                .filter(|(_, t)| t.starts_with("Parameters not saved"))
+                .count(),
+            1
+        );
+        assert_eq!(
+            said.last().unwrap(),
+            &(Severity::Info, "Parameters saved after 2 failed tries".to_string())
+        );
         let _ = stop_tx.send(true);
-        tokio::time::timeout(Duration::from_secs(2), task).await.unwrap().unwrap();
+        tokio::time::timeout(Duration::from_secs(2), task)
+            .await
+            .unwrap()
+            .unwrap();
     }
 }

@@ -344,7 +344,10 @@ mod tests {
     fn takeoff_at_an_impossible_place_is_denied_here() {
         for (lat, lon) in [(95.0, 8.5), (-90.5, 8.5), (47.4, 181.0)] {
             let a = classify(&long(22, [N, N, N, N, lat, lon, 500.0]));
-            assert!(matches!(a, Action::Answer(result::DENIED, Some(_))), "{lat}, {lon}: {a:?}");
+            assert!(
+                matches!(a, Action::Answer(result::DENIED, Some(_))),
+                "{lat}, {lon}: {a:?}"
+            );
         }
         let int = |x: i32| {
             Command::from(&CommandInt {

@@ -213,7 +213,11 @@ impl ParamStore {
             path: aside.clone(),
             source,
         })?;
-        let why = if empty { "is empty" } else { "has lines that do not read" };
+        let why = if empty {
+            "is empty"
+        } else {
+            "has lines that do not read"
+        };
         warnings.push(format!(
             "{} {why}: kept as {}; the valid lines are in force, the rest at their defaults",
             path.display(),
@@ -280,11 +284,17 @@ mod tests {
         let loaded = ParamStore::load_keeping_bad(&quad(), &path, 1_764_669_000).unwrap();
         let aside = dir.join("params.bad-1764669000");
         assert_eq!(loaded.set_aside.as_deref(), Some(aside.as_path()));
-        assert_eq!(fs::read_to_string(&aside).unwrap(), "MIS_TAKEOFF_ALT = 4.5\nNOT_A_PARAM = 1\n");
+        assert_eq!(
+            fs::read_to_string(&aside).unwrap(),
+            "MIS_TAKEOFF_ALT = 4.5\nNOT_A_PARAM = 1\n"
+        );
         assert!(!path.exists(), "moved, not copied: the caller saves the store there");
         assert_eq!(loaded.store.get("MIS_TAKEOFF_ALT").unwrap().1, ParamValue::Real32(4.5));
         let last = loaded.warnings.last().unwrap();
-        assert!(last.contains("params.bad-1764669000") && last.contains("do not read"), "{last}");
+        assert!(
+            last.contains("params.bad-1764669000") && last.contains("do not read"),
+            "{last}"
+        );
         // the same second again: a new name, the first kept
         fs::write(&path, "").unwrap();
         let loaded = ParamStore::load_keeping_bad(&quad(), &path, 1_764_669_000).unwrap();
@@ -296,7 +306,12 @@ mod tests {
         let loaded = ParamStore::load_keeping_bad(&quad(), &path, 1).unwrap();
         assert!(loaded.set_aside.is_none() && loaded.warnings.is_empty());
         ParamStore::new(&quad()).save(&path).unwrap();
-        assert!(ParamStore::load_keeping_bad(&quad(), &path, 1).unwrap().set_aside.is_none());
+        assert!(
+            ParamStore::load_keeping_bad(&quad(), &path, 1)
+                .unwrap()
+                .set_aside
+                .is_none()
+        );
         fs::remove_file(&path).unwrap();
         let loaded = ParamStore::load_keeping_bad(&quad(), &path, 1).unwrap();
         assert!(loaded.set_aside.is_none());

@@ -56,9 +56,11 @@ mod link_task;
 mod logs;
 mod ready;
 mod recorder;
+mod reply;
 mod saver;
 mod signing;
 mod sim_thread;
+mod supervise;
 mod tlog;
 mod ulog_file;
 
@@ -91,7 +93,7 @@ use crate::mission::{MissionType, Plans};
 use crate::params::{ParamStore, ParamValue};
 use crate::sim::SensorConfig;
 use link_task::LinkTask;
-use saver::{PlansFile, lock, plan_saver, saver};
+use saver::{ParamsFile, PlansFile, plan_saver, saver};
 use sim_thread::{Event, Sim, SimRequest, VehicleIo};
 
 /// Fleets this large are stepped on every core ([`Lockstep::set_threads`]).
@@ -135,7 +137,8 @@ fn vehicle_params(config: &Config, airframe: &Airframe) -> anyhow::Result<(Param
     let (mut params, warnings) = if config.reset_params {
         (ParamStore::new(airframe), Vec::new())
     } else {
-        ParamStore::load_or_default(airframe, &path)?
+        // a damaged file is renamed aside, not overwritten (saver::keep_bad_params)
+        saver::load_params(airframe, &path)?
     };
     let _ = params.set("MAV_SYS_ID", ParamValue::Int32(i32::from(config.system_id())));
     for (name, value) in &config.param_overrides {
@@ -454,11 +457,13 @@ impl Daemon {
         // what is saved at shutdown, per vehicle
         let mut finals = Vec::with_capacity(vehicles.len());
         let mut links = Vec::new();
+        // each link task's name for messages, in the order of `links`
+        let mut link_names: Vec<String> = Vec::new();
         for (i, v) in vehicles.into_iter().enumerate() {
             let Vehicle {
                 config,
                 params,
-                warnings: _,
+                warnings,
                 sockets,
                 log_dir,
                 recorder,
@@ -495,16 +500,20 @@ impl Daemon {
                 ulog,
                 recorder,
             });
+            // one writer per file: the saver, links' write-through and the final save share its lock
+            let params_file = ParamsFile::new(path.clone());
             tasks.push(tokio::spawn(saver(
                 params.clone(),
-                path.clone(),
+                params_file.clone(),
                 save.clone(),
+                ev_tx.clone(),
                 stop_rx.clone(),
             )));
             tasks.push(tokio::spawn(plan_saver(
                 tel_rx.clone(),
                 plans_file.clone(),
                 plans_changed,
+                ev_tx.clone(),
                 stop_rx.clone(),
             )));
             tels.push(tel_rx.clone());
@@ -524,6 +533,7 @@ impl Daemon {
                     Instant::now().into_std(),
                 );
                 link.set_signing(vehicle_signing.shared.clone(), u8::try_from(index).unwrap_or(u8::MAX));
+                link_names.push(format!("{}{} link", vehicle_prefix(lone, config.instance), spec.name));
                 links.push(LinkTask {
                     link,
                     socket,
@@ -534,6 +544,7 @@ impl Daemon {
                     events: ev_tx.clone(),
                     events_rx: ev_tx.subscribe(),
                     save: save.clone(),
+                    params_file: params_file.clone(),
                     exit: exit_tx.clone(),
                     dests: Vec::new(),
                     send_errors: 0,
@@ -544,7 +555,9 @@ impl Daemon {
                     signing_changed: vehicle_signing.changed.clone(),
                 });
             }
-            finals.push((config.instance, params, path, plans_file, tel_rx));
+            // the links are subscribed: they send it once they run
+            saver::announce_params_warnings(&warnings, &ev_tx);
+            finals.push((config.instance, params, params_file, plans_file, tel_rx));
         }
         // stops the simulation thread out of band (a full queue cannot hold it up)
         let stopper = inbox.stopper();
@@ -564,9 +577,12 @@ impl Daemon {
             .context("starting the simulation thread")?;
         // issue 13: one stdout line when the vehicles first are ready to arm (ready.rs)
         tasks.push(tokio::spawn(ready::announce(started, tels, stop_rx.clone())));
-        for task in links {
-            tasks.push(tokio::spawn(task.run(stop_rx.clone())));
+        // watched: a link task that ends while running stops the daemon (supervise.rs)
+        let mut link_tasks = supervise::LinkTasks::default();
+        for (name, task) in link_names.into_iter().zip(links) {
+            link_tasks.spawn(name, task.run(stop_rx.clone()));
         }
+        let mut link_died: Option<String> = None;
         drop(exit_tx);
 
         let mut sim_done = sim_done_rx;
@@ -583,12 +599,20 @@ impl Daemon {
                 tracing::error!("the simulation thread stopped; shutting down");
                 true
             }
+            why = link_tasks.ended() => {
+                tracing::error!("{why}; shutting down");
+                link_died = Some(why);
+                false
+            }
         };
         let _ = stop_tx.send(true);
         stopper.stop();
-        if tokio::time::timeout(Duration::from_millis(800), futures_join(tasks))
-            .await
-            .is_err()
+        if tokio::time::timeout(Duration::from_millis(800), async {
+            futures_join(tasks).await;
+            link_tasks.join_all().await;
+        })
+        .await
+        .is_err()
         {
             warn!("some tasks did not stop in time");
         }
@@ -607,7 +631,8 @@ impl Daemon {
         }
         // every vehicle's files, even when one fails; the first error is returned
         let mut first_error: Option<anyhow::Error> = None;
-        for (instance, params, path, plans_file, tel_rx) in finals {
+        for (instance, params, params_file, plans_file, tel_rx) in finals {
+            let path = params_file.path().to_path_buf();
             let who = vehicle_prefix(lone, instance);
             // the simulation thread publishes every plan change before it
             // answers it, so the last snapshot holds the plans in force
@@ -616,9 +641,8 @@ impl Daemon {
             if plans_saved.is_ok() {
                 info!(path = %plans_file.path().display(), "plans saved");
             }
-            let snapshot = lock(&params).clone();
-            let saved = snapshot
-                .save(&path)
+            let saved = params_file
+                .save_final(&params)
                 .with_context(|| format!("{who}saving parameters to {}", path.display()));
             if saved.is_ok() {
                 info!(path = %path.display(), "parameters saved");
@@ -633,6 +657,9 @@ impl Daemon {
             return Err(e);
         }
         anyhow::ensure!(!sim_died, "the simulation thread stopped unexpectedly");
+        if let Some(why) = link_died {
+            anyhow::bail!("{why}");
+        }
         Ok(())
     }
 }

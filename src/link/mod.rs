@@ -689,6 +689,33 @@ impl Link {
         r.changed.map(|(_, m)| *m)
     }
 
+    /// A PARAM_SET answered by [`Link::on_param_set`] (value in force) whose
+    /// value could not be written to the state directory (`why` names the
+    /// file and the error): PARAM_ERROR (PERMISSION_DENIED: the write was
+    /// refused) and a critical STATUSTEXT to the requester, after the echo.
+    pub fn on_param_not_saved(&mut self, ticket: &ParamTicket, why: &str) {
+        let index = i16::try_from(ticket.index).unwrap_or(-1);
+        let err = param::param_error(
+            &ticket.name,
+            index,
+            mavlink::dialects::common::MavParamError::MAV_PARAM_ERROR_PERMISSION_DENIED,
+            ticket.requester,
+        );
+        let to = To::Peer(ticket.to);
+        self.send(to, &err);
+        let text = format!("{} not saved: {why}", ticket.name);
+        let mut rest = text.as_str();
+        // a path and an OS error do not fit one STATUSTEXT: 50-byte lines
+        while !rest.is_empty() {
+            let mut end = rest.len().min(50);
+            while !rest.is_char_boundary(end) {
+                end -= 1;
+            }
+            self.text(to, Severity::Critical, &rest[..end]);
+            rest = &rest[end..];
+        }
+    }
+
     fn param_reply(&mut self, to: To, r: &param::SetReply) {
         for v in &r.replies {
             self.send(to, v);

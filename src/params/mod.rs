@@ -19,7 +19,7 @@ mod file;
 mod store;
 mod table;
 
-pub use file::ParamFileError;
+pub use file::{Loaded, ParamFileError, set_aside_path};
 pub use store::{ParamError, ParamStore};
 pub use table::{PARAMS, Param};
 

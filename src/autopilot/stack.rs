@@ -178,8 +178,12 @@ impl Autopilot {
             navigator: Navigator::new(ShaperLimits::for_airframe(airframe))?,
             land: LandDetector::new(),
             origin: home,
-            home,
-            home_altitude: HomeAltitude::AtOrigin,
+            // until the first measurement: resting on its gear at the origin
+            home: GeoPoint {
+                alt_amsl_m: home.alt_amsl_m + airframe.gear_height_m,
+                ..home
+            },
+            home_altitude: HomeAltitude::Assumed,
             armed: false,
             armed_at_s: 0.0,
             took_off: false,
@@ -272,7 +276,7 @@ impl Autopilot {
             }
             Some(LandEvent::TookOff) | None => {}
         }
-        if self.home_altitude == HomeAltitude::AtOrigin {
+        if self.home_altitude == HomeAltitude::Assumed {
             self.home_at_rest(m);
         }
         if self.land.landed() || self.land.ground_contact() {
@@ -612,8 +616,8 @@ impl Autopilot {
 /// Where home's altitude stands.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum HomeAltitude {
-    /// The given home's (the NED origin, on the ground), until the first step.
-    AtOrigin,
+    /// Assumed: the vehicle on its gear at the NED origin (`z = -gear_height`), until the first step.
+    Assumed,
     /// Where the vehicle rested at boot, or set by a client.
     Set,
 }

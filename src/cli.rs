@@ -39,8 +39,8 @@ pub struct DaemonArgs {
     /// Home and NED origin: LAT,LON,ALT (degrees, degrees, metres AMSL).
     #[arg(long, value_name = "LAT,LON,ALT", allow_hyphen_values = true)]
     pub home: Option<String>,
-    /// Simulated time runs FACTOR times faster than wall time.
-    #[arg(long, default_value_t = 1.0, value_name = "FACTOR")]
+    /// Simulated time runs FACTOR times faster than wall time (0 < FACTOR <= 1000).
+    #[arg(long, default_value_t = 1.0, value_name = "FACTOR", allow_negative_numbers = true)]
     pub speed: f64,
     /// Extra link, repeatable: udpout:HOST:PORT (send there) or udpin:HOST:PORT (listen there).
     #[arg(long = "link", value_name = "udpout:HOST:PORT|udpin:HOST:PORT")]
@@ -292,10 +292,29 @@ pub fn run(cli: Cli) -> ExitCode {
     match execute(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("rotorpilot: {e:#}");
+            eprintln!("rotorpilot: {}", error_chain(&e));
             ExitCode::FAILURE
         }
     }
+}
+
+/// An error and its causes as one line, `outer: cause: cause` (as anyhow's
+/// `{:#}`), each cause left out when the text so far already says it (an
+/// error whose message quotes its source, e.g. `file X: Not a directory (os
+/// error 20)`, would otherwise print its cause twice).
+#[must_use]
+pub fn error_chain(e: &anyhow::Error) -> String {
+    let mut text = String::new();
+    for cause in e.chain() {
+        let c = cause.to_string();
+        if text.is_empty() {
+            text = c;
+        } else if !text.contains(&c) {
+            text.push_str(": ");
+            text.push_str(&c);
+        }
+    }
+    text
 }
 
 fn execute(cli: Cli) -> anyhow::Result<()> {

@@ -150,7 +150,7 @@ fn short(v: &toml::Value) -> String {
 #[must_use]
 pub fn main(args: &SimulateArgs) -> u8 {
     run(args).unwrap_or_else(|e| {
-        eprintln!("rotorpilot: {e:#}");
+        eprintln!("rotorpilot: {}", crate::cli::error_chain(&e));
         EXIT_BAD_SCENARIO
     })
 }
@@ -226,15 +226,15 @@ fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
         let f = files[e.file].as_ref().map_err(Clone::clone)?;
         let v = e.variant.unwrap_or(0);
         let start = Instant::now();
-        let flight = f.flight(v).map_err(|e| format!("{e:#}"))?;
+        let flight = f.flight(v).map_err(|e| crate::cli::error_chain(&e))?;
         let path = csv_path(e);
         let mut writer = path.as_deref().map(crate::scenario::create_csv_file).transpose()?;
         if let Some(p) = &path {
-            flight_meta(&flight).map_err(|e| format!("{e:#}"))?.write_beside(p)?;
+            flight_meta(&flight).map_err(|e| crate::cli::error_chain(&e))?.write_beside(p)?;
         }
         let mut outcome = flight
             .fly(writer.as_mut().map(|w| w as &mut dyn std::io::Write))
-            .map_err(|e| format!("{e:#}"))?;
+            .map_err(|e| crate::cli::error_chain(&e))?;
         outcome.set_wall_time_s(start.elapsed().as_secs_f64());
         Ok(outcome)
     };
@@ -247,7 +247,11 @@ fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
             (Ok(f), Some(v)) if f.is_varied() => format!("{}#{v}", paths[e.file].display()),
             _ => paths[e.file].display().to_string(),
         };
-        if let Err(msg) = done {
+        // the text table's line carries the error (once, below); alone or
+        // as JSON, stderr does
+        if let Err(msg) = done
+            && (single || args.json)
+        {
             eprintln!("rotorpilot: {msg}");
         }
         if args.json {
@@ -278,7 +282,8 @@ fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
             let values: String = values.iter().map(|(k, v)| format!(" {k}={}", short(v))).collect();
             let what = match done {
                 Ok(outcome) => outcome.to_line(),
-                Err(msg) => format!("ERROR: {msg}"),
+                // the message names its file already when it starts with the label
+                Err(msg) => format!("ERROR: {}", msg.strip_prefix(&format!("{label}: ")).unwrap_or(msg)),
             };
             writeln!(out, "{:>width$} {label}{values}: {what}", e.index)
         }
@@ -394,7 +399,7 @@ fn run_fleet(args: &SimulateArgs, path: &Path) -> anyhow::Result<u8> {
     let fleet = match Fleet::load(path) {
         Ok(f) => f,
         Err(e) => {
-            eprintln!("rotorpilot: {e:#}");
+            eprintln!("rotorpilot: {}", crate::cli::error_chain(&e));
             return Ok(EXIT_BAD_SCENARIO);
         }
     };
@@ -405,7 +410,7 @@ fn run_fleet(args: &SimulateArgs, path: &Path) -> anyhow::Result<u8> {
     let mut summary = match fleet::fly(&fleet, threads, args.csv.as_deref()) {
         Ok(s) => s,
         Err(e) => {
-            eprintln!("rotorpilot: {e:#}");
+            eprintln!("rotorpilot: {}", crate::cli::error_chain(&e));
             return Ok(EXIT_BAD_SCENARIO);
         }
     };

@@ -413,14 +413,16 @@ impl Autopilot {
             Some(p) if p.is_valid() => p,
             Some(_) => return CommandOutcome::Denied("invalid home position"),
             None => {
+                // on the ground: where the vehicle rests (relative altitude 0), as PX4
                 let mut p = m.position_ned;
                 if self.land.landed() {
-                    p.z = self.land.rest_z(m) + self.airframe.gear_height_m;
+                    p.z = self.land.rest_z(m);
                 }
                 self.origin.offset(&p)
             }
         };
         self.home = home;
+        self.home_altitude = super::stack::HomeAltitude::Set;
         CommandOutcome::Accepted
     }
 

@@ -119,6 +119,8 @@ pub struct Autopilot {
     rotors: RotorMonitor,
     pub(super) origin: GeoPoint,
     pub(super) home: GeoPoint,
+    /// Whether home's altitude still waits for the resting height.
+    pub(super) home_altitude: HomeAltitude,
     pub(super) armed: bool,
     pub(super) armed_at_s: f64,
     /// Left the ground since arming.
@@ -176,7 +178,12 @@ impl Autopilot {
             navigator: Navigator::new(ShaperLimits::for_airframe(airframe))?,
             land: LandDetector::new(),
             origin: home,
-            home,
+            // until the first measurement: resting on its gear at the origin
+            home: GeoPoint {
+                alt_amsl_m: home.alt_amsl_m + airframe.gear_height_m,
+                ..home
+            },
+            home_altitude: HomeAltitude::Assumed,
             armed: false,
             armed_at_s: 0.0,
             took_off: false,
@@ -268,6 +275,9 @@ impl Autopilot {
                 }
             }
             Some(LandEvent::TookOff) | None => {}
+        }
+        if self.home_altitude == HomeAltitude::Assumed {
+            self.home_at_rest(m);
         }
         if self.land.landed() || self.land.ground_contact() {
             // The ground's reaction is no external wrench worth estimating:
@@ -580,6 +590,17 @@ impl Autopilot {
         self.control.controller_mut().reset();
     }
 
+    /// Home's altitude becomes where the vehicle rests (the land detector's
+    /// resting height, learned from the first measurement: the vehicle boots
+    /// on the ground), as PX4 sets home from the vehicle's position, so
+    /// relative altitudes read 0 on the ground and "take off to 5 m" means
+    /// 5 m above the resting point: `alt_home = alt_origin - z_rest` (NED z
+    /// down). Its latitude and longitude stay the given home's.
+    fn home_at_rest(&mut self, m: &crate::signals::Measurement) {
+        self.home.alt_amsl_m = self.origin.alt_amsl_m - self.land.rest_z(m);
+        self.home_altitude = HomeAltitude::Set;
+    }
+
     /// Home in local NED [m].
     pub(super) fn home_ned(&self) -> Vector3<f64> {
         self.home.ned_from(&self.origin)
@@ -596,6 +617,15 @@ impl Autopilot {
             }
         }
     }
+}
+
+/// Where home's altitude stands.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum HomeAltitude {
+    /// Assumed: the vehicle on its gear at the NED origin (`z = -gear_height`), until the first step.
+    Assumed,
+    /// Where the vehicle rested at boot, or set by a client.
+    Set,
 }
 
 /// Bit `i` set for each rotor `i` (from 0) whose status passes `pick`.

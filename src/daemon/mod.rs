@@ -53,6 +53,7 @@ mod config;
 mod fleet;
 mod inbox;
 mod link_task;
+mod lock;
 mod logs;
 mod ready;
 mod recorder;
@@ -111,6 +112,8 @@ struct Vehicle {
     recorder: Option<recorder::Recorder>,
     /// The MAVLink signing key (`signing.key` in the state directory), read at bind.
     signing: signing::VehicleSigning,
+    /// The state directory's lock, held for the daemon's life.
+    state_lock: lock::StateLock,
 }
 
 /// A daemon with its sockets bound, ready to [`Daemon::run`].
@@ -192,10 +195,17 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
     }
     let mut airframes = Vec::with_capacity(configs.len());
     let mut stores = Vec::with_capacity(configs.len());
+    let mut locks = Vec::with_capacity(configs.len());
     for c in &configs {
         anyhow::ensure!(c.instance < 250, "{}--instance must be below 250", which(c));
         let airframe = Airframe::load(&c.airframe).map_err(|e| anyhow::anyhow!("{}{e}", which(c)))?;
-        let (params, warnings) = vehicle_params(c, &airframe).map_err(|e| anyhow::anyhow!("{}{e:#}", which(c)))?;
+        // one daemon per state directory, before its files are read (lock.rs)
+        locks.push(
+            lock::StateLock::take(&c.state_dir)
+                .map_err(|e| anyhow::anyhow!("{}{}", which(c), crate::cli::error_chain(&e)))?,
+        );
+        let (params, warnings) =
+            vehicle_params(c, &airframe).map_err(|e| anyhow::anyhow!("{}{}", which(c), crate::cli::error_chain(&e)))?;
         airframes.push(airframe);
         stores.push((params, warnings));
     }
@@ -229,7 +239,7 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
             .map_err(|e| anyhow::anyhow!("cannot start the stepping threads: {e}"))?;
     }
     let mut vehicles = Vec::with_capacity(configs.len());
-    for (i, (config, (params, warnings))) in configs.into_iter().zip(stores).enumerate() {
+    for (i, ((config, (params, warnings)), state_lock)) in configs.into_iter().zip(stores).zip(locks).enumerate() {
         if speed > 1.0 {
             // faster than real time: timers that wait for a client run on the wall clock
             core.pilot_mut(i).set_client_clock(ClientClock::Wall);
@@ -242,7 +252,7 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
                     "cannot restore the stored mission, geofence and rally points \
                      (mend or remove the file, or start with --reset-plans to discard them)",
                 )
-                .map_err(|e| anyhow::anyhow!("{}{e:#}", which(&config)))?
+                .map_err(|e| anyhow::anyhow!("{}{}", which(&config), crate::cli::error_chain(&e)))?
         };
         core.pilot_mut(i).restore_plans(plans);
         let vehicle_signing =
@@ -277,6 +287,7 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
             log_dir,
             recorder,
             signing: vehicle_signing,
+            state_lock,
         });
     }
     Ok(Daemon {
@@ -380,6 +391,9 @@ impl Daemon {
                 links.join(", "),
                 c.state_dir.display()
             ));
+            if let Some(line) = ready::injections(&v.params) {
+                s.push_str(&format!("    {line}\n"));
+            }
         }
         if let Some(base) = &c.log_dir {
             s.push_str(&format!(
@@ -424,6 +438,9 @@ impl Daemon {
         if let Some(d) = &v.log_dir {
             s.push_str(&format!("  logs: {}\n", d.display()));
         }
+        if let Some(line) = ready::injections(&v.params) {
+            s.push_str(&format!("  {line}\n"));
+        }
         // last: scripts read the summary up to this line (tests/daemon_runtime.rs)
         s.push_str(&format!("  parameters: {}", c.params_path().display()));
         s
@@ -459,6 +476,8 @@ impl Daemon {
         let mut links = Vec::new();
         // each link task's name for messages, in the order of `links`
         let mut link_names: Vec<String> = Vec::new();
+        // each state directory stays locked until its final save is done (run returns)
+        let mut held_locks = Vec::with_capacity(vehicles.len());
         for (i, v) in vehicles.into_iter().enumerate() {
             let Vehicle {
                 config,
@@ -468,8 +487,10 @@ impl Daemon {
                 log_dir,
                 recorder,
                 signing: vehicle_signing,
+                state_lock,
             } = v;
             tasks.push(tokio::spawn(signing::persist(vehicle_signing.clone(), stop_rx.clone())));
+            held_locks.push(state_lock);
             let params = Arc::new(Mutex::new(params));
             // the vehicle's ULog (`--log-dir`), started before the first step
             let ulog = log_dir

@@ -432,6 +432,7 @@ mod tests {
             events_rx,
             save: Arc::new(Notify::new()),
             params_file: super::super::saver::ParamsFile::new(dir.join("params.toml")),
+            signing_changed: Arc::new(Notify::new()),
             exit,
             dests: Vec::new(),
             send_errors: 0,

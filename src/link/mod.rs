@@ -616,11 +616,13 @@ impl Link {
                 };
                 self.act(now, ticket, action, t, effects);
             }
-            MavMessage::PARAM_REQUEST_LIST(m) if self.for_me(m.target_system, m.target_component) => {
-                if !self.param_lists.iter().any(|l| l.to == from) {
-                    self.start_param_list(now, from, param::list(params));
-                    self.send_param_lists(now);
-                }
+            // a repeat while its list runs is ignored (falls through)
+            MavMessage::PARAM_REQUEST_LIST(m)
+                if self.for_me(m.target_system, m.target_component)
+                    && !self.param_lists.iter().any(|l| l.to == from) =>
+            {
+                self.start_param_list(now, from, param::list(params));
+                self.send_param_lists(now);
             }
             MavMessage::PARAM_REQUEST_READ(m) if self.for_me(m.target_system, m.target_component) => {
                 let name = param::name_of(&m.param_id);

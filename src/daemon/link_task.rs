@@ -108,6 +108,11 @@ fn refuse_param_set(name: &str, value: ParamValue, params: &Mutex<ParamStore>) -
 }
 
 impl LinkTask {
+    /// Serve the link until `stop`. Fair under a flood (issue 15 §2): the
+    /// branches are tried in order stop, due streams, events, socket, so
+    /// the scheduler runs whenever a deadline has passed and at most one
+    /// datagram is handled between two looks at it; a datagram whose
+    /// effects wait on the simulation looks again after each effect.
     pub(super) async fn run(mut self, mut stop: watch::Receiver<bool>) {
         let name = self.link.config().name.clone();
         let mut buf = vec![0u8; 65_536];
@@ -119,27 +124,7 @@ impl LinkTask {
             tokio::select! {
                 biased;
                 _ = stop.changed() => break,
-                r = self.socket.recv_from(&mut buf) => match r {
-                    Ok((n, from)) => {
-                        self.tlog.received(&buf[..n]);
-                        let effects = {
-                            let t = self.tel.borrow();
-                            let p = lock(&self.params);
-                            self.link.on_datagram(Instant::now().into_std(), from, &buf[..n], &t, &*p)
-                        };
-                        self.flush().await;
-                        for e in effects {
-                            if !self.effect(e).await {
-                                return;
-                            }
-                        }
-                    }
-                    Err(e) => {
-                        debug!(link = %name, error = %e, "recv failed");
-                        // do not spin if the error persists
-                        tokio::time::sleep(Duration::from_millis(10)).await;
-                    }
-                },
+                () = tokio::time::sleep_until(deadline) => self.poll_streams().await,
                 ev = self.events_rx.recv() => match ev {
                     Ok(Event::StatusText(s)) => {
                         self.link.status_text(&s);
@@ -153,18 +138,52 @@ impl LinkTask {
                     Err(broadcast::error::RecvError::Lagged(n)) => warn!(link = %name, missed = n, "events dropped"),
                     Err(broadcast::error::RecvError::Closed) => break,
                 },
-                () = tokio::time::sleep_until(deadline) => {
-                    {
-                        let t = self.tel.borrow();
-                        self.link.poll(Instant::now().into_std(), &t, unix_time_us());
+                r = self.socket.recv_from(&mut buf) => match r {
+                    Ok((n, from)) => {
+                        self.tlog.received(&buf[..n]);
+                        let effects = {
+                            let t = self.tel.borrow();
+                            let p = lock(&self.params);
+                            self.link.on_datagram(Instant::now().into_std(), from, &buf[..n], &t, &*p)
+                        };
+                        self.flush().await;
+                        for e in effects {
+                            if !self.effect(e).await {
+                                return;
+                            }
+                            if self.link.next_deadline().is_some_and(|d| d <= Instant::now().into_std()) {
+                                self.poll_streams().await;
+                            }
+                        }
                     }
-                    self.tlog.flush_if_due();
-                    self.flush().await;
-                }
+                    Err(e) => {
+                        debug!(link = %name, error = %e, "recv failed");
+                        // do not spin if the error persists
+                        tokio::time::sleep(Duration::from_millis(10)).await;
+                    }
+                },
             }
         }
         let s = self.link.stats();
-        debug!(link = %name, frames_in = s.frames_in, ignored = s.ignored, "link stopped");
+        debug!(
+            link = %name,
+            frames_in = s.frames_in,
+            ignored = s.ignored,
+            held_back = s.held_back,
+            streams_shed = s.streams_shed,
+            "link stopped"
+        );
+    }
+
+    /// Send what is due: streams, delayed frames, parameter lists, mission
+    /// retries.
+    async fn poll_streams(&mut self) {
+        {
+            let t = self.tel.borrow();
+            self.link.poll(Instant::now().into_std(), &t, unix_time_us());
+        }
+        self.tlog.flush_if_due();
+        self.flush().await;
     }
 
     /// Hand a request to the simulation thread without blocking this task

@@ -25,13 +25,15 @@
 //! | [`offboard`] | SET_POSITION_TARGET_* and SET_ATTITUDE_TARGET to setpoints |
 //! | [`manual`] | MANUAL_CONTROL to sticks |
 //! | [`streams`] | stream rates, scheduler, message builders from a [`Snapshot`] |
-//! | [`peers`] | default remote plus learned peers with a timeout |
+//! | [`peers`] | default remote plus learned peers with a timeout; proven and unproven peers |
+//! | [`budget`] | byte budgets: token buckets and an unproven peer's credit (no amplification) |
 //! | [`signing`] | MAVLink 2 signing: the key, the gate on input, signatures on output |
 
 // PX4 and its clients still speak messages the XML marks deprecated
 // (SET_MODE, PING, ...): we must too.
 #![allow(deprecated)]
 
+pub mod budget;
 pub mod command;
 pub mod convert;
 pub mod manual;
@@ -185,7 +187,40 @@ pub struct Link {
     stats: LinkStats,
     /// The vehicle's signing state (shared by its links) and this link's id in it.
     signing: (signing::Shared, u8),
+    /// The latest time given to the link: what direct answers are charged at.
+    clock: Instant,
+    /// Parameter lists being sent, paced ([`Link::poll`]).
+    param_lists: Vec<ParamList>,
+    /// The link's streams to all peers together.
+    stream_budget: budget::TokenBucket,
 }
+
+/// A PARAM_REQUEST_LIST being answered: PX4 sends one parameter per
+/// iteration of its link loop, not the whole list at once; here
+/// [`PARAMS_PER_TURN`] every [`PARAM_LIST_TURN`], each charged to the
+/// requester's budget (the list waits while the budget is spent).
+#[derive(Clone, Debug)]
+struct ParamList {
+    to: SocketAddr,
+    values: Vec<MavMessage>,
+    next: usize,
+    due: Instant,
+    /// Since when the budget has held the next value back (`None`: not held).
+    held_since: Option<Instant>,
+}
+
+/// Parameters a list sends per turn.
+const PARAMS_PER_TURN: usize = 10;
+/// A list's turn comes this often: at most 1,000 PARAM_VALUEs/s per list.
+const PARAM_LIST_TURN: Duration = Duration::from_millis(10);
+/// A list held back by the budget this long is dropped (an unproven
+/// requester that never proves it listens).
+const PARAM_LIST_STALL: Duration = Duration::from_secs(3);
+/// At most this many lists at once; a new one from a proven peer replaces
+/// one for an unproven peer.
+const MAX_PARAM_LISTS: usize = 8;
+/// A PARAM_VALUE frame's largest size (MAVLink 2, 25-byte payload, unsigned).
+const PARAM_VALUE_FRAME: usize = 12 + 25;
 
 /// Counters for logs and tests.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -195,6 +230,11 @@ pub struct LinkStats {
     /// Frames that did not decode, came back with our own ids, or were
     /// commands for another system or component.
     pub ignored: u64,
+    /// Direct answers dropped because the requester's budget was spent
+    /// ([`budget`]).
+    pub held_back: u64,
+    /// Stream messages skipped because the link's stream budget was spent.
+    pub streams_shed: u64,
 }
 
 impl Link {
@@ -202,7 +242,7 @@ impl Link {
     #[must_use]
     pub fn new(config: LinkConfig, now: Instant) -> Self {
         let encoder = Encoder::new(config.identity.system_id, config.identity.component_id);
-        let peers = peers::Peers::new(config.default_remote, config.peer_timeout);
+        let peers = peers::Peers::new(config.default_remote, config.peer_timeout, now);
         let streams = Scheduler::new(now, &config.rates);
         Self {
             config,
@@ -215,6 +255,9 @@ impl Link {
             due: Vec::new(),
             stats: LinkStats::default(),
             signing: (Arc::new(Mutex::new(signing::Signing::unkeyed(now, 0))), 0),
+            clock: now,
+            param_lists: Vec::new(),
+            stream_budget: budget::TokenBucket::new(now, budget::LINK_STREAM_RATE, 2.0 * budget::LINK_STREAM_RATE),
         }
     }
 
@@ -304,7 +347,32 @@ impl Link {
 
     fn send(&mut self, to: To, msg: &MavMessage) {
         let bytes = self.encoder.message(msg);
+        self.queue(to, bytes);
+    }
+
+    /// Queue a frame; a direct answer only if the peer's budget allows it
+    /// ([`peers::Peers::charge`]), else it is dropped and counted.
+    fn queue(&mut self, to: To, bytes: Vec<u8>) {
+        if let To::Peer(a) = to
+            && !self.peers.charge(self.clock, a, bytes.len())
+        {
+            self.stats.held_back += 1;
+            return;
+        }
         self.outbox.push(Outgoing { to, bytes });
+    }
+
+    /// Move the link's clock forward to `now` (never back).
+    fn tick(&mut self, now: Instant) {
+        if now > self.clock {
+            self.clock = now;
+        }
+    }
+
+    /// What `addr` has shown this link (`None`: not a peer).
+    #[must_use]
+    pub fn standing(&self, addr: SocketAddr) -> Option<peers::Standing> {
+        self.peers.standing(addr)
     }
 
     fn ack(&mut self, t: AckTicket, result: u8) {
@@ -316,10 +384,7 @@ impl Link {
             target_system: t.requester.0,
             target_component: t.requester.1,
         });
-        self.outbox.push(Outgoing {
-            to: To::Peer(t.to),
-            bytes,
-        });
+        self.queue(To::Peer(t.to), bytes);
     }
 
     fn text(&mut self, to: To, severity: Severity, text: &str) {
@@ -335,6 +400,7 @@ impl Link {
     /// Queue a PARAM_VALUE for every peer, [`command::PARAM_REBROADCAST_DELAY`]
     /// from `now` (PX4 rebroadcasts a changed parameter on every link).
     pub fn broadcast_param(&mut self, now: Instant, value: &MavMessage) {
+        self.tick(now);
         let bytes = self.encoder.message(value);
         self.delayed
             .push((now + command::PARAM_REBROADCAST_DELAY, Outgoing { to: To::All, bytes }));
@@ -344,14 +410,21 @@ impl Link {
     #[must_use]
     pub fn next_deadline(&self) -> Option<Instant> {
         let delayed = self.delayed.iter().map(|(t, _)| *t).min();
-        [self.streams.next_deadline(), delayed, self.missions.next_deadline()]
-            .into_iter()
-            .flatten()
-            .min()
+        let lists = self.param_lists.iter().map(|l| l.due).min();
+        [
+            self.streams.next_deadline(),
+            delayed,
+            self.missions.next_deadline(),
+            lists,
+        ]
+        .into_iter()
+        .flatten()
+        .min()
     }
 
     /// Queue the streams due at `now` (and delayed frames whose time has come).
     pub fn poll(&mut self, now: Instant, t: &Snapshot, unix_time_us: u64) {
+        self.tick(now);
         let mut i = 0;
         while i < self.delayed.len() {
             if self.delayed[i].0 <= now {
@@ -364,17 +437,87 @@ impl Link {
         let mut due = std::mem::take(&mut self.due);
         due.clear();
         self.streams.due(now, &mut due);
+        let fanout = self.peers.active_count(now);
         for s in &due {
             for m in streams::build(*s, t, unix_time_us) {
                 if let MavMessage::MISSION_CURRENT(c) = &m {
                     self.missions.note_current(c);
                 }
-                self.send(To::All, &m);
+                let bytes = self.encoder.message(&m);
+                // heartbeats always go: they are what tells a GCS the link lives
+                if *s != Stream::Heartbeat && !self.stream_budget.take(now, bytes.len() * fanout) {
+                    self.stats.streams_shed += 1;
+                    continue;
+                }
+                self.outbox.push(Outgoing { to: To::All, bytes });
             }
         }
         self.due = due;
+        self.send_param_lists(now);
         let out = self.missions.poll(now, t);
         self.mission_frames(out);
+    }
+
+    /// A PARAM_REQUEST_LIST from `to`: start sending `values` to it, unless
+    /// a list for it is already running (a repeat does not restart it, so
+    /// a datagram of many requests draws one list).
+    fn start_param_list(&mut self, now: Instant, to: SocketAddr, values: Vec<MavMessage>) {
+        if self.param_lists.iter().any(|l| l.to == to) {
+            return;
+        }
+        let proven = |s: Option<peers::Standing>| matches!(s, Some(peers::Standing::Proven | peers::Standing::Default));
+        if self.param_lists.len() >= MAX_PARAM_LISTS {
+            if !proven(self.peers.standing(to)) {
+                return;
+            }
+            match self.param_lists.iter().position(|l| !proven(self.peers.standing(l.to))) {
+                Some(i) => {
+                    self.param_lists.swap_remove(i);
+                }
+                None => return,
+            }
+        }
+        self.param_lists.push(ParamList {
+            to,
+            values,
+            next: 0,
+            due: now,
+            held_since: None,
+        });
+    }
+
+    /// Send each due list's next [`PARAMS_PER_TURN`] values its requester's
+    /// budget allows.
+    fn send_param_lists(&mut self, now: Instant) {
+        let mut lists = std::mem::take(&mut self.param_lists);
+        lists.retain_mut(|l| {
+            if l.due > now {
+                return true;
+            }
+            if self.peers.standing(l.to).is_none() {
+                return false; // forgotten
+            }
+            for _ in 0..PARAMS_PER_TURN {
+                let Some(v) = l.values.get(l.next) else { break };
+                if !self.peers.charge(now, l.to, PARAM_VALUE_FRAME) {
+                    let since = *l.held_since.get_or_insert(now);
+                    if now.saturating_duration_since(since) > PARAM_LIST_STALL {
+                        return false;
+                    }
+                    break;
+                }
+                l.held_since = None;
+                let bytes = self.encoder.message(v);
+                self.outbox.push(Outgoing {
+                    to: To::Peer(l.to),
+                    bytes,
+                });
+                l.next += 1;
+            }
+            l.due = now + PARAM_LIST_TURN;
+            l.next < l.values.len()
+        });
+        self.param_lists = lists;
     }
 
     /// Queue the mission protocol's frames.
@@ -384,10 +527,7 @@ impl Link {
                 mission::Out::Message(to, m) => self.send(to, &m),
                 mission::Out::Item(to, item) => {
                     let bytes = self.encoder.mission_item(&item);
-                    self.outbox.push(Outgoing {
-                        to: To::Peer(to),
-                        bytes,
-                    });
+                    self.queue(To::Peer(to), bytes);
                 }
                 mission::Out::Text(to, severity, text) => self.text(to, severity, &text),
             }
@@ -412,6 +552,7 @@ impl Link {
         params: &P,
     ) -> Vec<Effect> {
         let mut effects = Vec::new();
+        self.tick(now);
         for frame in wire::frames(data) {
             self.stats.frames_in += 1;
             if !self.signing_gate(now, &frame, &mut effects) {
@@ -423,8 +564,13 @@ impl Link {
                 self.stats.ignored += 1;
                 continue;
             }
-            if self.peers.heard(now, from) {
-                tracing::info!(link = %self.config.name, peer = %from, "new peer");
+            // the whole frame, signature included, earns the sender its credit
+            if self.peers.heard(now, from, frame.bytes.len()) {
+                tracing::debug!(link = %self.config.name, peer = %from, "new peer (unproven)");
+            }
+            if frame.message_id == 0 {
+                // a HEARTBEAT: every GCS, MAVSDK and MAVProxy sends one at 1 Hz
+                self.prove(now, from);
             }
             match wire::decode(&frame) {
                 Some(msg) => self.on_message(now, from, &frame, msg, t, params, &mut effects),
@@ -432,6 +578,13 @@ impl Link {
             }
         }
         effects
+    }
+
+    /// `from` has shown it listens: it gets the streams from now on.
+    fn prove(&mut self, now: Instant, from: SocketAddr) {
+        if self.peers.prove(now, from) {
+            tracing::info!(link = %self.config.name, peer = %from, "new peer");
+        }
     }
 
     fn for_me(&self, system: u8, component: u8) -> bool {
@@ -485,6 +638,10 @@ impl Link {
     ) {
         if self.for_mission(m.target_system, m.target_component) {
             let step = self.missions.on_item(now, partner(from, requester), m);
+            if !step.out.is_empty() || step.plans.is_some() {
+                // an item of a transfer we asked it for: it listens
+                self.prove(now, from);
+            }
             self.mission_step(step, effects);
         } else {
             self.stats.ignored += 1;
@@ -516,10 +673,13 @@ impl Link {
                 };
                 self.act(now, ticket, action, t, effects);
             }
-            MavMessage::PARAM_REQUEST_LIST(m) if self.for_me(m.target_system, m.target_component) => {
-                for v in param::list(params) {
-                    self.send(reply, &v);
-                }
+            // a repeat while its list runs is ignored (falls through)
+            MavMessage::PARAM_REQUEST_LIST(m)
+                if self.for_me(m.target_system, m.target_component)
+                    && !self.param_lists.iter().any(|l| l.to == from) =>
+            {
+                self.start_param_list(now, from, param::list(params));
+                self.send_param_lists(now);
             }
             MavMessage::PARAM_REQUEST_READ(m) if self.for_me(m.target_system, m.target_component) => {
                 let name = param::name_of(&m.param_id);
@@ -747,6 +907,7 @@ impl Link {
     /// The vehicle reached mission item `seq`: MISSION_ITEM_REACHED to every
     /// peer now, repeated by [`Link::poll`].
     pub fn on_mission_item_reached(&mut self, now: Instant, seq: u16) {
+        self.tick(now);
         let out = self.missions.on_item_reached(now, seq);
         self.mission_frames(vec![out]);
     }

@@ -95,10 +95,11 @@ fn unknown_command_is_unsupported_with_target_requester() {
     assert_eq!(a.len(), 1);
     assert_eq!((a[0].command, a[0].result), (31_337, convert::result::UNSUPPORTED));
     assert_eq!((a[0].target_system, a[0].target_component), (245, 190));
-    // the sender is now a peer
+    // the sender is now a peer, unproven: it gets no streams
     let mut d = Vec::new();
     l.destinations(t0, &mut d);
-    assert_eq!(d, vec![addr(14540), addr(50000)]);
+    assert_eq!(d, vec![addr(14540)]);
+    assert_eq!(l.standing(addr(50000)), Some(super::peers::Standing::Unproven));
 }
 
 #[test]
@@ -123,6 +124,8 @@ fn commands_for_other_components_are_ignored_component_zero_accepted() {
 fn outcome_acks_carry_results() {
     let t0 = Instant::now();
     let mut l = link(t0);
+    let hb = v2(&MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()));
+    l.on_datagram(t0, addr(50000), &hb, &snapshot(), &FakeParams::standard());
     let ticket = AckTicket {
         command: 176,
         to: addr(50000),
@@ -199,9 +202,18 @@ fn param_list_goes_to_the_requester_in_order() {
         target_system: 1,
         target_component: 0,
     }));
+    // unproven: three times the request's bytes, one PARAM_VALUE
     l.on_datagram(t0, addr(50000), &req, &snapshot(), &p);
-    let d = decoded(&l.drain());
-    assert_eq!(d.len(), 5);
+    assert_eq!(decoded(&l.drain()).len(), 1);
+    // after a heartbeat (proven) the rest of the list follows
+    let hb = v2(&MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()));
+    l.on_datagram(t0, addr(50000), &hb, &snapshot(), &p);
+    l.poll(t0 + Duration::from_millis(20), &snapshot(), 0);
+    let d: Vec<_> = decoded(&l.drain())
+        .into_iter()
+        .filter(|(to, _, _)| *to != To::All)
+        .collect();
+    assert_eq!(d.len(), 4);
     assert!(d.iter().all(|(to, id, _)| *to == To::Peer(addr(50000)) && *id == 22));
 }
 
@@ -266,7 +278,8 @@ fn mavlink1_and_timesync_and_ping() {
     assert!(l.drain().is_empty());
     let mut dst = Vec::new();
     l.destinations(t0, &mut dst);
-    assert_eq!(dst.len(), 3);
+    // the default remote and the peer that heartbeats (talking is not listening)
+    assert_eq!(dst, vec![addr(14540), addr(50001)]);
 }
 
 #[test]

@@ -230,7 +230,9 @@ fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
         let path = csv_path(e);
         let mut writer = path.as_deref().map(crate::scenario::create_csv_file).transpose()?;
         if let Some(p) = &path {
-            flight_meta(&flight).map_err(|e| crate::cli::error_chain(&e))?.write_beside(p)?;
+            flight_meta(&flight)
+                .map_err(|e| crate::cli::error_chain(&e))?
+                .write_beside(p)?;
         }
         let mut outcome = flight
             .fly(writer.as_mut().map(|w| w as &mut dyn std::io::Write))

@@ -517,14 +517,14 @@ fn vehicle() {
     let (execs, _) = fuzz("vehicle", |d| {
         k += 1;
         // a fresh vehicle now and then: state machines from the start again
-        if k % 5000 == 0 {
+        if k.is_multiple_of(5000) {
             rig = Rig::new();
         }
         rig.input(senders[k % senders.len()], d);
-        if k % 4 == 0 {
+        if k.is_multiple_of(4) {
             rig.pass(1 + k % 20);
         }
-        if k % 64 == 0 {
+        if k.is_multiple_of(64) {
             rig.check_state();
         }
     });

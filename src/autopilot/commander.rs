@@ -431,6 +431,13 @@ impl Autopilot {
         if !sp.position_in_range() || !local.is_valid() {
             return CommandOutcome::Denied("invalid offboard setpoint");
         }
+        // AMSL = origin altitude - NED z; a stream of setpoints gets no text
+        if local
+            .position_z()
+            .is_some_and(|z| self.origin.alt_amsl_m - z > self.settings.max_target_amsl_m)
+        {
+            return CommandOutcome::Denied("offboard setpoint above RP_ALT_MAX_AMSL");
+        }
         if let Some(z_max) = self.max_altitude_z() {
             let clamped = local.clamp_position_z(z_max);
             self.offboard_clamped(clamped);

@@ -490,6 +490,15 @@ impl Autopilot {
     /// # Errors
     /// The MAV_MISSION_RESULT naming why nothing changed.
     pub fn change_plans(&mut self, change: PlanChange) -> Result<u32, MissionResult> {
+        if let PlanChange::Store { items, .. } = &change
+            && let Some((seq, alt)) = above_ceiling(items, self.home.alt_amsl_m, self.settings.max_target_amsl_m)
+        {
+            self.say.announce(
+                Severity::Critical,
+                format!("Plan rejected: item {seq} at {alt:.0} m > RP_ALT_MAX_AMSL"),
+            );
+            return Err(MissionResult::InvalidParam7);
+        }
         let touches_mission = match &change {
             PlanChange::Store { kind, .. } => *kind == crate::mission::MissionType::Mission,
             PlanChange::Clear(k) => k.is_none_or(|k| k == crate::mission::MissionType::Mission),
@@ -635,4 +644,17 @@ fn rotor_mask(status: &[RotorStatus], pick: impl Fn(RotorStatus) -> bool) -> u16
         .enumerate()
         .filter(|(i, r)| *i < 16 && pick(**r))
         .fold(0, |m, (i, _)| m | (1 << i))
+}
+
+/// The first item of a plan whose point lies above `max_amsl_m` [m AMSL]
+/// (`RP_ALT_MAX_AMSL`), with its altitude AMSL: relative frames are read
+/// above `home_alt_amsl_m`, as the mission flies them. Items without a point
+/// (DO_JUMP, speed changes, ...) have no altitude to check.
+fn above_ceiling(items: &[crate::mission::MissionItem], home_alt_amsl_m: f64, max_amsl_m: f64) -> Option<(usize, f64)> {
+    items
+        .iter()
+        .enumerate()
+        .filter(|(_, item)| item.has_position())
+        .map(|(seq, item)| (seq, item.alt_amsl(home_alt_amsl_m)))
+        .find(|(_, alt)| *alt > max_amsl_m)
 }

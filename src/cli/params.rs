@@ -207,7 +207,7 @@ mod tests {
             md.contains("Values: 0: hierarchical, 1: geometric, 2: passivity |"),
             "{md}"
         );
-        assert!(md.contains("| `MAV_SYS_ID` | INT32 | 1 | 1 | 250 |  | MAVLink system id. Reboot required"));
+        assert!(md.contains("| `MAV_SYS_ID` | INT32 | 1 | 1 | 250 |  | MAVLink system id: --instance + 1"));
         let t = text();
         assert!(t.contains("MPC_XY_CRUISE (REAL32)\n  Cruise ground speed"));
         assert!(t.contains("  Default 5 m/s, range 0.5 .. 20 m/s\n"));

@@ -100,11 +100,20 @@ fn pack_datagrams(frames: &[Outgoing], all: &[SocketAddr]) -> Vec<(SocketAddr, V
 /// so a set would be lost at the next start; it is refused instead.
 pub(super) const SYS_ID_REFUSAL: &str = "MAV_SYS_ID is instance+1: use --instance";
 
-/// A parameter set refused before the autopilot sees it, with why:
-/// MAV_SYS_ID to another value ([`SYS_ID_REFUSAL`]; the same value is
-/// accepted and changes nothing).
+/// What MAV_COMP_ID answers when asked to change: the autopilot is
+/// component 1, as PX4's is.
+pub(super) const COMP_ID_REFUSAL: &str = "MAV_COMP_ID is 1, the autopilot's";
+
+/// A parameter set refused before the autopilot sees it, with why: the
+/// vehicle's MAVLink ids to another value ([`SYS_ID_REFUSAL`],
+/// [`COMP_ID_REFUSAL`]; the same value is accepted and changes nothing).
 fn refuse_param_set(name: &str, value: ParamValue, params: &Mutex<ParamStore>) -> Option<String> {
-    (name == "MAV_SYS_ID" && lock(params).get(name).map(|(_, v)| v) != Some(value)).then(|| SYS_ID_REFUSAL.to_string())
+    let why = match name {
+        "MAV_SYS_ID" => SYS_ID_REFUSAL,
+        "MAV_COMP_ID" => COMP_ID_REFUSAL,
+        _ => return None,
+    };
+    (lock(params).get(name).map(|(_, v)| v) != Some(value)).then(|| why.to_string())
 }
 
 impl LinkTask {

@@ -621,9 +621,16 @@ impl Daemon {
                 true
             }
             why = link_tasks.ended() => {
-                tracing::error!("{why}; shutting down");
-                link_died = Some(why);
-                false
+                // a link task also ends when the simulation thread is gone:
+                // then that is the reason to give, not the link
+                if tokio::time::timeout(Duration::from_millis(200), &mut sim_done).await.is_ok() {
+                    tracing::error!("the simulation thread stopped; shutting down");
+                    true
+                } else {
+                    tracing::error!("{why}; shutting down");
+                    link_died = Some(why);
+                    false
+                }
             }
         };
         let _ = stop_tx.send(true);

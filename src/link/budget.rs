@@ -22,11 +22,12 @@ pub const UNPROVEN_MAX_CREDIT: usize = 4096;
 /// Every unproven peer of a link together [bytes/s] (and as a burst).
 pub const UNPROVEN_POOL_RATE: f64 = 8192.0;
 /// A proven peer's direct answers (not streams) [bytes/s] (and as a burst):
-/// a full parameter list is about 1.6 kB, a mission item about 50 bytes.
+/// a full parameter list is about 2.5 kB (67 PARAM_VALUEs of 37 bytes; 3.4 kB
+/// signed), a mission item about 50 bytes.
 pub const PROVEN_RATE: f64 = 32_768.0;
 /// A link's streams to all its peers together [bytes/s] (and twice as a
 /// burst); heartbeats are never held back. Default rates to one peer are
-/// about 12 kB/s (GCS link) and 20 kB/s (API link).
+/// estimated at about 12 kB/s (GCS link) and 20 kB/s (API link).
 pub const LINK_STREAM_RATE: f64 = 1_000_000.0;
 
 /// `tokens(t) = min(burst, tokens(t0) + rate · (t − t0))`; a take of `n`

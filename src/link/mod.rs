@@ -52,7 +52,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::common::{
-    AUTOPILOT_VERSION_DATA, FILE_TRANSFER_PROTOCOL_DATA, MavMessage, MavProtocolCapability, MavSeverity, PING_DATA,
+    AUTOPILOT_VERSION_DATA, FILE_TRANSFER_PROTOCOL_DATA, HEARTBEAT_DATA, MavMessage, MavProtocolCapability, MavSeverity, PING_DATA,
     STATUSTEXT_DATA, TIMESYNC_DATA,
 };
 use mission::{ItemMode, Missions, Partner, PlanTicket};
@@ -353,8 +353,14 @@ impl Link {
     /// Queue a frame; a direct answer only if the peer's budget allows it
     /// ([`peers::Peers::charge`]), else it is dropped and counted.
     fn queue(&mut self, to: To, bytes: Vec<u8>) {
+        // signed in `drain`: the signature's bytes count against the budget too
+        let signature = if signing::lock(&self.signing.0).is_keyed() {
+            wire::SIGNATURE_LEN
+        } else {
+            0
+        };
         if let To::Peer(a) = to
-            && !self.peers.charge(self.clock, a, bytes.len())
+            && !self.peers.charge(self.clock, a, bytes.len() + signature)
         {
             self.stats.held_back += 1;
             return;
@@ -824,6 +830,14 @@ impl Link {
                 }
                 None => self.ack(ticket, convert::result::DENIED),
             },
+            // A stream's rate is the whole link's: only a peer that listens
+            // may change it (one spoofed frame could otherwise silence or
+            // speed up every client's streams), and the heartbeat is not
+            // for changing (the link's liveness for every client).
+            Action::SetInterval(..) if self.peers.standing(ticket.to) == Some(peers::Standing::Unproven) => {
+                self.ack(ticket, convert::result::DENIED);
+            }
+            Action::SetInterval(id, _) if id == HEARTBEAT_DATA::ID => self.ack(ticket, convert::result::DENIED),
             Action::SetInterval(id, interval) => match Stream::from_message_id(id) {
                 Some(s) => {
                     self.streams.set(now, s, interval);

@@ -174,6 +174,24 @@ fn set_message_interval_is_per_link() {
     let mut l = link(t0);
     let p = FakeParams::standard();
     let nan = f32::NAN;
+    // from an address that has not shown it listens: DENIED, rates unchanged
+    let before = l.streams().interval(Stream::DebugVect);
+    l.on_datagram(
+        t0,
+        addr(50000),
+        &cmd(511, [250.0, 50_000.0, nan, nan, nan, nan, nan], 1),
+        &snapshot(),
+        &p,
+    );
+    assert_eq!(acks(&l.drain())[0].result, convert::result::DENIED);
+    assert_eq!(l.streams().interval(Stream::DebugVect), before);
+    // a heartbeat proves it
+    let hb = v2(&MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()));
+    l.on_datagram(t0, addr(50000), &hb, &snapshot(), &p);
+    l.drain();
+    // the heartbeat's own rate is not for changing (every client's liveness)
+    l.on_datagram(t0, addr(50000), &cmd(511, [0.0, -1.0, nan, nan, nan, nan, nan], 1), &snapshot(), &p);
+    assert_eq!(acks(&l.drain())[0].result, convert::result::DENIED);
     l.on_datagram(
         t0,
         addr(50000),

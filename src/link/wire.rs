@@ -22,7 +22,7 @@ const STX_V2: u8 = 0xFD;
 /// MAVLink 2 incompatibility flag: the frame is signed (13 more bytes).
 const IFLAG_SIGNED: u8 = 0x01;
 /// Length of a MAVLink 2 signature.
-const SIGNATURE_LEN: usize = 13;
+pub const SIGNATURE_LEN: usize = 13;
 
 /// One checked frame inside a datagram.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

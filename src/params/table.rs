@@ -64,17 +64,9 @@ const fn switch(name: &'static str, default: i32, description: &'static str) -> 
     choice(name, default, 0, 1, description, &[(0, "disabled"), (1, "enabled")])
 }
 
-/// An INT32 parameter used only from the next start.
-const fn int_reboot(name: &'static str, default: i32, min: i32, max: i32, description: &'static str) -> ParamSpec {
-    ParamSpec {
-        reboot_required: true,
-        ..int(name, default, min, max, description)
-    }
-}
-
 /// Declares the table once: the [`Param`] enum (one variant per parameter,
 /// named as the parameter, in index order) and [`PARAMS`], each entry built
-/// by `real`, `int`, `choice`, `switch` or `int_reboot` with the name filled in from the variant.
+/// by `real`, `int`, `choice` or `switch` with the name filled in from the variant.
 macro_rules! parameters {
     ($( $(#[$meta:meta])* $name:ident : $ctor:ident ( $($arg:expr),* $(,)? ) ),* $(,)?) => {
         /// Every parameter, by its (PX4) name; `Param::X as usize` is its index.
@@ -182,8 +174,8 @@ parameters! {
     MC_ACRO_SUPEXPOY: real(0.7, 0.0, 0.95, "", "Acro: yaw super-expo"),
     // --- PX4: system, MAVLink, battery ---------------------------------------------------------
     SYS_FAILURE_EN: switch(0, "Allow failure injection (MAV_CMD_INJECT_FAILURE)"),
-    MAV_SYS_ID: int_reboot(1, 1, 250, "MAVLink system id"),
-    MAV_COMP_ID: int_reboot(1, 1, 250, "MAVLink component id"),
+    MAV_SYS_ID: int(1, 1, 250, "MAVLink system id: --instance + 1, as PX4 SITL sets it at every start (a set to another value is refused)"),
+    MAV_COMP_ID: int(1, 1, 250, "MAVLink component id: 1, the autopilot's (a set to another value is refused)"),
     BAT1_N_CELLS: int(4, 1, 14, "Battery cells in series (the monitor reads them; the simulated pack has them)"),
     BAT1_CAPACITY: real(5000.0, 100.0, 100_000.0, "mAh", "Battery capacity (of the simulated pack)"),
     SIM_BAT_MIN_PCT: real(50.0, 0.0, 100.0, "%", "Simulated battery: charge never drops below this (PX4 SITL's floor)"),

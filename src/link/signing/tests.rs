@@ -286,6 +286,7 @@ fn the_link_gate_setup_signing_refusals_and_no_learned_peers() {
     assert!(l.on_datagram(at, addr(2), &arm, &t, &p).is_empty());
     assert!(l.drain().iter().all(|o| o.to != crate::link::To::Peer(addr(2))));
     assert_eq!(peers(&mut l, at), before);
+    assert_eq!(l.standing(addr(2)), None);
     // an unsigned SETUP_SIGNING cannot change the key now
     let fx = l.on_datagram(at, addr(2), &gcs.message(&setup_signing([0; KEY_LEN], 1)), &t, &p);
     assert!(fx.is_empty() && lock(l.signing()).is_keyed());
@@ -297,7 +298,9 @@ fn the_link_gate_setup_signing_refusals_and_no_learned_peers() {
         matches!(fx.as_slice(), [Effect::Autopilot { ack: Some(_), .. }]),
         "{fx:?}"
     );
-    assert_eq!(peers(&mut l, at), before + 1);
+    // learned (unproven until it heartbeats: no streams yet)
+    assert_eq!(l.standing(addr(3)), Some(crate::link::peers::Standing::Unproven));
+    assert_eq!(peers(&mut l, at), before);
     // replayed: nothing
     assert!(l.on_datagram(at, addr(3), &signed_arm, &t, &p).is_empty());
     // what the link sends now is signed with the key

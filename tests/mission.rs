@@ -440,7 +440,9 @@ fn a_plan_with_a_point_above_rp_alt_max_amsl_is_refused_whole() {
     assert_eq!(upload(&mut v, square_high), Err(MissionResult::InvalidParam7));
     let texts = v.drain_status_texts(0);
     assert!(
-        texts.iter().any(|t| t.text.starts_with("Plan rejected: item 2 at 9001 m")),
+        texts
+            .iter()
+            .any(|t| t.text.starts_with("Plan rejected: item 2 at 9001 m")),
         "{texts:?}"
     );
     assert_eq!(v.snapshot(0).plans, before, "nothing stored");

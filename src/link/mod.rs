@@ -52,8 +52,8 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::common::{
-    AUTOPILOT_VERSION_DATA, FILE_TRANSFER_PROTOCOL_DATA, HEARTBEAT_DATA, MavMessage, MavProtocolCapability, MavSeverity, PING_DATA,
-    STATUSTEXT_DATA, TIMESYNC_DATA,
+    AUTOPILOT_VERSION_DATA, FILE_TRANSFER_PROTOCOL_DATA, HEARTBEAT_DATA, MavMessage, MavProtocolCapability,
+    MavSeverity, PING_DATA, STATUSTEXT_DATA, TIMESYNC_DATA,
 };
 use mission::{ItemMode, Missions, Partner, PlanTicket};
 
@@ -837,7 +837,9 @@ impl Link {
             Action::SetInterval(..) if self.peers.standing(ticket.to) == Some(peers::Standing::Unproven) => {
                 self.ack(ticket, convert::result::DENIED);
             }
-            Action::SetInterval(id, _) if id == HEARTBEAT_DATA::ID => self.ack(ticket, convert::result::DENIED),
+            Action::SetInterval(id, _) if id == <HEARTBEAT_DATA as mavlink::MessageData>::ID => {
+                self.ack(ticket, convert::result::DENIED)
+            }
             Action::SetInterval(id, interval) => match Stream::from_message_id(id) {
                 Some(s) => {
                     self.streams.set(now, s, interval);

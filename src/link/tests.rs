@@ -190,7 +190,13 @@ fn set_message_interval_is_per_link() {
     l.on_datagram(t0, addr(50000), &hb, &snapshot(), &p);
     l.drain();
     // the heartbeat's own rate is not for changing (every client's liveness)
-    l.on_datagram(t0, addr(50000), &cmd(511, [0.0, -1.0, nan, nan, nan, nan, nan], 1), &snapshot(), &p);
+    l.on_datagram(
+        t0,
+        addr(50000),
+        &cmd(511, [0.0, -1.0, nan, nan, nan, nan, nan], 1),
+        &snapshot(),
+        &p,
+    );
     assert_eq!(acks(&l.drain())[0].result, convert::result::DENIED);
     l.on_datagram(
         t0,

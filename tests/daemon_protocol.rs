@@ -94,9 +94,11 @@ async fn speaks_first_with_px4_identity_and_default_streams() {
     let MavMessage::HOME_POSITION(hp) = &seen[&242][0] else {
         panic!()
     };
+    // home is where the vehicle rests, as PX4 sets it: the quad's body
+    // 0.24 m above the ground at 488 m AMSL
     assert_eq!(
         (hp.latitude, hp.longitude, hp.altitude),
-        (473_977_420, 85_455_940, 488_000)
+        (473_977_420, 85_455_940, 488_240)
     );
     let MavMessage::GLOBAL_POSITION_INT(gp) = &seen[&33][0] else {
         panic!()

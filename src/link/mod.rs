@@ -407,6 +407,15 @@ impl Link {
     /// from `now` (PX4 rebroadcasts a changed parameter on every link).
     pub fn broadcast_param(&mut self, now: Instant, value: &MavMessage) {
         self.tick(now);
+        // a list still being sent sends the new value (PX4 reads each value
+        // as it sends it): a client's cache must not end older than the echo
+        if let MavMessage::PARAM_VALUE(v) = value {
+            for list in &mut self.param_lists {
+                if let Some(m) = list.values.get_mut(usize::from(v.param_index)) {
+                    *m = value.clone();
+                }
+            }
+        }
         let bytes = self.encoder.message(value);
         self.delayed
             .push((now + command::PARAM_REBROADCAST_DELAY, Outgoing { to: To::All, bytes }));

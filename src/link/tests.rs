@@ -241,6 +241,35 @@ fn param_list_goes_to_the_requester_in_order() {
     assert!(d.iter().all(|(to, id, _)| *to == To::Peer(addr(50000)) && *id == 22));
 }
 
+/// A list held back (here: its requester not yet proven) sends a value set
+/// in the meantime as it is now, not as it was when the list was asked for.
+#[test]
+fn a_list_in_progress_sends_a_value_set_meanwhile() {
+    let t0 = Instant::now();
+    let mut l = link(t0);
+    let p = FakeParams::standard();
+    let req = v2(&MavMessage::PARAM_REQUEST_LIST(PARAM_REQUEST_LIST_DATA {
+        target_system: 1,
+        target_component: 0,
+    }));
+    l.on_datagram(t0, addr(50000), &req, &snapshot(), &p);
+    l.drain();
+    let MavMessage::PARAM_VALUE(mut last) = super::param::list(&p).pop().unwrap() else {
+        panic!()
+    };
+    last.param_value = 42.0;
+    l.broadcast_param(t0, &MavMessage::PARAM_VALUE(last.clone()));
+    let hb = v2(&MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()));
+    l.on_datagram(t0, addr(50000), &hb, &snapshot(), &p);
+    l.poll(t0 + Duration::from_millis(20), &snapshot(), 0);
+    let sent: Vec<_> = decoded(&l.drain())
+        .into_iter()
+        .filter(|(to, id, _)| *to == To::Peer(addr(50000)) && *id == 22)
+        .collect();
+    let (_, _, payload) = sent.last().unwrap();
+    assert_eq!(f32::from_le_bytes(payload[0..4].try_into().unwrap()), 42.0);
+}
+
 #[test]
 fn param_set_echoes_then_rebroadcasts_via_the_daemon() {
     let t0 = Instant::now();

@@ -24,7 +24,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from harness import Vehicle  # noqa: E402
+from harness import Vehicle, drain  # noqa: E402
 
 from pymavlink import mavutil  # noqa: E402
 
@@ -40,11 +40,6 @@ def connect(v):
     m = listen(v)
     assert m.wait_heartbeat(timeout=5) is not None, "no heartbeat"
     return m
-
-
-def drain(m):
-    while m.recv_match(blocking=False) is not None:
-        pass
 
 
 def collect(m, types, window):

@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from harness import Vehicle  # noqa: E402
+from harness import Vehicle, drain, wait, command  # noqa: E402
 
 from pymavlink import mavutil  # noqa: E402
 
@@ -28,20 +28,6 @@ mavlink = mavutil.mavlink
 KEY = hashlib.sha256(b"rotorpilot signing test").digest()
 # PX4 custom mode: AUTO (4) / LAND (6)
 LAND_CUSTOM_MODE = (4 << 16) | (6 << 24)
-
-
-def wait(m, types, cond=lambda msg: True, timeout=5.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        msg = m.recv_match(type=types, blocking=True, timeout=min(0.5, max(0.01, deadline - time.monotonic())))
-        if msg is not None and cond(msg):
-            return msg
-    return None
-
-
-def drain(m):
-    while m.recv_match(blocking=False) is not None:
-        pass
 
 
 def signature_of(msg):
@@ -95,15 +81,6 @@ def armed(hb):
 
 def mode(hb):
     return mavutil.interpret_px4_mode(hb.base_mode, hb.custom_mode)
-
-
-def command(m, cmd, *params, timeout=3.0):
-    p = list(params) + [0.0] * (7 - len(params))
-    drain(m)
-    m.mav.command_long_send(m.target_system, m.target_component, cmd, 0, *p)
-    ack = wait(m, "COMMAND_ACK", lambda a: a.command == cmd, timeout)
-    assert ack is not None, f"no COMMAND_ACK for {cmd}"
-    return ack.result
 
 
 def rel_alt(m):

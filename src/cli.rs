@@ -1,5 +1,6 @@
 //! Command-line interface: `rotorpilot <command>`.
 
+pub mod params;
 mod replay;
 
 use std::process::ExitCode;
@@ -38,8 +39,8 @@ pub struct DaemonArgs {
     /// Home and NED origin: LAT,LON,ALT (degrees, degrees, metres AMSL).
     #[arg(long, value_name = "LAT,LON,ALT", allow_hyphen_values = true)]
     pub home: Option<String>,
-    /// Simulated time runs FACTOR times faster than wall time.
-    #[arg(long, default_value_t = 1.0, value_name = "FACTOR")]
+    /// Simulated time runs FACTOR times faster than wall time (0 < FACTOR <= 1000).
+    #[arg(long, default_value_t = 1.0, value_name = "FACTOR", allow_negative_numbers = true)]
     pub speed: f64,
     /// Extra link, repeatable: udpout:HOST:PORT (send there) or udpin:HOST:PORT (listen there).
     #[arg(long = "link", value_name = "udpout:HOST:PORT|udpin:HOST:PORT")]
@@ -222,6 +223,9 @@ pub enum Command {
     Simulate(crate::simulate::SimulateArgs),
     /// Run the momentum-based estimator over a recorded flight for several
     /// orders and polynomials; write the estimates as CSV and print metrics.
+    /// The nominal model is the one the log's sidecar LOG.meta.json records
+    /// (docs/logs.md). Time must increase; the step may vary (each sample is
+    /// integrated over its own interval).
     Estimate {
         /// Flight log CSV (as `rotorpilot simulate --csv` writes it).
         log: std::path::PathBuf,
@@ -237,15 +241,18 @@ pub enum Command {
         /// Forward Euler instead of the trapezoidal rule.
         #[arg(long)]
         euler: bool,
-        /// Airframe whose nominal mass and inertia the estimator assumes.
-        #[arg(long, default_value = "fsr-quad")]
-        airframe: String,
-        /// Nominal mass [kg] (overrides the airframe's).
+        /// Airframe whose nominal mass and inertia the estimator assumes
+        /// (default: the one the log's sidecar LOG.meta.json records; without
+        /// a sidecar, fsr-quad, with a warning).
         #[arg(long)]
+        airframe: Option<String>,
+        /// Nominal mass [kg] (overrides the sidecar's or the airframe's).
+        #[arg(long, value_name = "KG")]
         mass: Option<f64>,
-        /// Nominal inertia diagonal Ixx,Iyy,Izz [kg m^2] (overrides the airframe's).
-        #[arg(long, value_delimiter = ',', num_args = 3)]
-        inertia: Option<Vec<f64>>,
+        /// Nominal inertia diagonal [kg m^2], body FRD, e.g. 0.03,0.03,0.05
+        /// (overrides the sidecar's or the airframe's).
+        #[arg(long, value_name = "IXX,IYY,IZZ")]
+        inertia: Option<String>,
         /// Where to write the estimates (default: LOG with `-estimates.csv`).
         #[arg(long)]
         output: Option<std::path::PathBuf>,
@@ -274,6 +281,9 @@ pub enum Command {
         #[arg(long)]
         any_version: bool,
     },
+    /// Print the parameter reference (every parameter: type, default, range,
+    /// unit, description, values, reboot required) as text, JSON or Markdown.
+    Params(params::ParamsArgs),
 }
 
 /// Run the CLI; errors are printed to stderr and give exit code 1.
@@ -282,10 +292,29 @@ pub fn run(cli: Cli) -> ExitCode {
     match execute(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("rotorpilot: {e:#}");
+            eprintln!("rotorpilot: {}", error_chain(&e));
             ExitCode::FAILURE
         }
     }
+}
+
+/// An error and its causes as one line, `outer: cause: cause` (as anyhow's
+/// `{:#}`), each cause left out when the text so far already says it (an
+/// error whose message quotes its source, e.g. `file X: Not a directory (os
+/// error 20)`, would otherwise print its cause twice).
+#[must_use]
+pub fn error_chain(e: &anyhow::Error) -> String {
+    let mut text = String::new();
+    for cause in e.chain() {
+        let c = cause.to_string();
+        if text.is_empty() {
+            text = c;
+        } else if !text.contains(&c) {
+            text.push_str(": ");
+            text.push_str(&c);
+        }
+    }
+    text
 }
 
 fn execute(cli: Cli) -> anyhow::Result<()> {
@@ -320,18 +349,7 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             output,
             json,
         }) => {
-            let mut nominal = Airframe::load(&airframe)?.nominal();
-            if let Some(m) = mass {
-                anyhow::ensure!(m.is_finite() && m > 0.0, "--mass must be a finite number > 0, got {m}");
-                nominal.mass_kg = m;
-            }
-            if let Some(i) = inertia {
-                anyhow::ensure!(
-                    i.iter().all(|x| x.is_finite() && *x > 0.0),
-                    "--inertia must be three numbers > 0, got {i:?}"
-                );
-                nominal.inertia_kg_m2 = nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(i[0], i[1], i[2]));
-            }
+            let nominal = estimate_nominal(&log, airframe.as_deref(), mass, inertia.as_deref())?;
             let polys = poly
                 .iter()
                 .map(|p| crate::flightlog::parse_poly(p))
@@ -351,6 +369,7 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             json,
             any_version,
         }) => replay::run(&record, csv.as_deref(), ulog.as_deref(), json, any_version),
+        Some(Command::Params(args)) => params::run(&args),
         None if cli.daemon.check => {
             print!("{}", cli.daemon.fleet_config()?.to_text());
             Ok(())
@@ -430,6 +449,83 @@ fn run_cells(
     })
 }
 
+/// The airframe `estimate` assumes for a log without a sidecar (the origin report's).
+const ESTIMATE_FALLBACK_AIRFRAME: &str = "fsr-quad";
+
+/// The nominal model `estimate` runs with: `--airframe`'s, else the log's
+/// sidecar's ([`crate::flightlog::LogMeta`]), else [`ESTIMATE_FALLBACK_AIRFRAME`]'s
+/// with a warning on stderr (unless `--mass` and `--inertia` give it all);
+/// then `--mass` and `--inertia` override.
+///
+/// # Errors
+/// An unreadable or invalid sidecar, an unknown airframe, a bad `--mass` or `--inertia`.
+fn estimate_nominal(
+    log: &std::path::Path,
+    airframe: Option<&str>,
+    mass: Option<f64>,
+    inertia: Option<&str>,
+) -> anyhow::Result<crate::signals::NominalModel> {
+    let inertia = inertia.map(parse_inertia).transpose()?;
+    if let Some(m) = mass {
+        anyhow::ensure!(
+            m.is_finite() && m > 0.0,
+            "--mass must be a finite number > 0 kg, got {m}"
+        );
+    }
+    let mut nominal = match airframe {
+        Some(a) => Airframe::load(a)?.nominal(),
+        None => match crate::flightlog::LogMeta::read_beside(log).map_err(anyhow::Error::msg)? {
+            Some(meta) => meta.nominal(),
+            None => {
+                let n = Airframe::load(ESTIMATE_FALLBACK_AIRFRAME)?.nominal();
+                if mass.is_none() || inertia.is_none() {
+                    let i = n.inertia_kg_m2;
+                    eprintln!(
+                        "rotorpilot: warning: {} has no sidecar {} saying what flew it: assuming the \
+                         {ESTIMATE_FALLBACK_AIRFRAME} airframe's nominal mass {} kg and inertia {},{},{} kg m^2; \
+                         a wrong mass shows as a false vertical force. Give --airframe NAME, or --mass KG and \
+                         --inertia IXX,IYY,IZZ",
+                        log.display(),
+                        crate::flightlog::meta_path(log).display(),
+                        n.mass_kg,
+                        i[(0, 0)],
+                        i[(1, 1)],
+                        i[(2, 2)]
+                    );
+                }
+                n
+            }
+        },
+    };
+    if let Some(m) = mass {
+        nominal.mass_kg = m;
+    }
+    if let Some(i) = inertia {
+        nominal.inertia_kg_m2 = nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::from(i));
+    }
+    Ok(nominal)
+}
+
+/// `--inertia IXX,IYY,IZZ` [kg m^2]: three numbers > 0, separated by commas
+/// (or spaces, in one quoted argument).
+///
+/// # Errors
+/// Not three finite numbers > 0 (the message quotes the argument).
+fn parse_inertia(text: &str) -> anyhow::Result<[f64; 3]> {
+    let values: Vec<Option<f64>> = text
+        .split(|c: char| c == ',' || c.is_whitespace())
+        .filter(|t| !t.is_empty())
+        .map(|t| t.parse::<f64>().ok().filter(|v| v.is_finite() && *v > 0.0))
+        .collect();
+    match values.as_slice() {
+        [Some(x), Some(y), Some(z)] => Ok([*x, *y, *z]),
+        _ => anyhow::bail!(
+            "--inertia `{text}`: expected the diagonal IXX,IYY,IZZ as three numbers > 0 kg m^2 separated by commas, \
+             e.g. --inertia 0.03,0.03,0.05"
+        ),
+    }
+}
+
 #[allow(clippy::too_many_arguments)]
 fn estimate(
     path: &std::path::Path,
@@ -452,9 +548,17 @@ fn estimate(
                 .map(move |r| crate::flightlog::sweep_config(*r, p.clone(), cutoff, log.step_s, disc))
         })
         .collect();
+    let (_, max_step) = log.step_range();
     for c in &cells {
-        c.gains()
-            .map_err(|e| anyhow::anyhow!("order {} {:?}: {e}", c.order, c.polynomial))?;
+        // the estimator takes each sample's own step: it must be stable at the largest
+        let widest = crate::estimation::EstimatorConfig {
+            sample_time_s: max_step.max(c.sample_time_s),
+            ..c.clone()
+        };
+        for c in [c, &widest] {
+            c.gains()
+                .map_err(|e| anyhow::anyhow!("order {} {:?}: {e}", c.order, c.polynomial))?;
+        }
     }
     let bar = indicatif::ProgressBar::new(cells.len() as u64);
     bar.set_style(
@@ -491,12 +595,21 @@ fn estimate(
         println!("{}", serde_json::to_string_pretty(&results)?);
         return Ok(());
     }
+    let step = if log.is_regular() {
+        format!("step {} s", log.step_s)
+    } else {
+        let (lo, hi) = log.step_range();
+        format!("step varying {lo:.4e}..{hi:.4e} s (each sample integrated over its own)")
+    };
+    let i = nominal.inertia_kg_m2;
     println!(
-        "{}: {} rows, step {} s; nominal mass {} kg; estimates written to {}",
+        "{}: {} rows, {step}; nominal mass {} kg, inertia {},{},{} kg m^2; estimates written to {}",
         path.display(),
         log.rows.len(),
-        log.step_s,
         nominal.mass_kg,
+        i[(0, 0)],
+        i[(1, 1)],
+        i[(2, 2)],
         out_path.display()
     );
     println!(

@@ -7,14 +7,20 @@
 //! FRD (the command held from that row to the next). Optional: `p_frd q_frd
 //! r_frd` (body rates; otherwise `Q(eta) eta_dot`), and the truth
 //! `fext_n fext_e fext_d`, `text_x text_y text_z`, `true_mass_kg` for error
-//! metrics. Other columns are ignored. Time must increase with a constant step.
+//! metrics. Other columns are ignored. Time must increase; the step may
+//! vary (each sample is integrated over its own interval, see
+//! [`FlightLog::sample_steps`]).
+//!
+//! What produced a log (airframe, nominal model, step, estimator settings)
+//! is in its sidecar `<log>.meta.json` ([`LogMeta`]), next to it: the CSV
+//! itself carries no header comment, so the shipped logs stay byte for byte.
 //!
 //! The estimates CSV ([`write_estimates`]) holds millions of numbers: they
 //! are formatted with [`push_f64`] (shortest round-trip digits, several times
 //! faster than `Display`).
 
 use nalgebra::Vector3;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::estimation::{Discretization, EstimatorConfig, EstimatorInput, MomentumEstimator, Polynomial, step_metrics};
 use crate::math::rate_map;
@@ -64,7 +70,7 @@ pub enum LogError {
         /// The text found.
         text: String,
     },
-    /// Time does not increase with a constant step.
+    /// Time does not increase from one row to the next.
     #[error("{file}:{line}: column `time_s`: {problem}")]
     Time {
         /// Path.
@@ -108,8 +114,21 @@ pub struct LogRow {
 pub struct FlightLog {
     /// Rows in time order.
     pub rows: Vec<LogRow>,
-    /// The constant time step [s].
+    /// The log's nominal step [s]: its first interval `t_1 - t_0` (every
+    /// interval of a regular log, see [`FlightLog::sample_steps`]).
     pub step_s: f64,
+}
+
+/// Two steps closer than this are the same step: `|dt - h| <= STEP_TOLERANCE_REL h + STEP_TOLERANCE_ABS_S`
+/// (the rounding of the time column, printed in decimal, not jitter).
+pub const STEP_TOLERANCE_REL: f64 = 1e-6;
+/// See [`STEP_TOLERANCE_REL`] [s].
+pub const STEP_TOLERANCE_ABS_S: f64 = 1e-9;
+
+/// Whether `dt` [s] is the step `h` [s] up to the rounding of the time column.
+#[must_use]
+pub fn same_step(dt: f64, h: f64) -> bool {
+    (dt - h).abs() <= STEP_TOLERANCE_REL * h + STEP_TOLERANCE_ABS_S
 }
 
 const REQUIRED: [&str; 14] = [
@@ -175,7 +194,7 @@ impl FlightLog {
         let truth: Option<Vec<usize>> = TRUTH.iter().map(|n| find(n)).collect();
         let mut rows = Vec::new();
         let mut step = None;
-        let mut previous_t = None;
+        let mut previous_t: Option<f64> = None;
         let mut fields: Vec<&str> = Vec::with_capacity(header.len());
         for (index, line) in lines {
             let number = index + 1;
@@ -209,20 +228,10 @@ impl FlightLog {
                     return Err(LogError::Time {
                         file: file.to_string(),
                         line: number,
-                        problem: format!("{t} does not increase (previous {p})"),
+                        problem: format!("{t} does not increase (previous row {p}): time must increase row by row"),
                     });
                 }
-                match step {
-                    None => step = Some(dt),
-                    Some(h) if (dt - h).abs() > 1e-6 * h.max(1e-9) + 1e-9 => {
-                        return Err(LogError::Time {
-                            file: file.to_string(),
-                            line: number,
-                            problem: format!("step {dt} s differs from the log's step {h} s"),
-                        });
-                    }
-                    Some(_) => {}
-                }
+                step.get_or_insert(dt);
             }
             previous_t = Some(t);
             let eta = Vector3::new(v(4)?, v(5)?, v(6)?);
@@ -256,6 +265,42 @@ impl FlightLog {
         }
     }
 
+    /// The step each sample is integrated over [s]: `h_k = t_k - t_{k-1}`
+    /// (`h_0`, unused by the estimator's first sample, is `h`), except that an
+    /// interval within [`same_step`] of `h` is taken as `h` itself, so a
+    /// regular log (its times printed in decimal) runs at one constant step,
+    /// bit for bit as an estimator configured with `h`.
+    #[must_use]
+    pub fn sample_steps(&self, h: f64) -> Vec<f64> {
+        let mut previous = None;
+        self.rows
+            .iter()
+            .map(|r| {
+                let t = r.input.time_s;
+                let dt = previous.map_or(h, |p| t - p);
+                previous = Some(t);
+                if same_step(dt, h) { h } else { dt }
+            })
+            .collect()
+    }
+
+    /// The smallest and largest interval between rows [s].
+    #[must_use]
+    pub fn step_range(&self) -> (f64, f64) {
+        self.rows
+            .windows(2)
+            .map(|w| w[1].input.time_s - w[0].input.time_s)
+            .fold((f64::INFINITY, 0.0f64), |(lo, hi), dt| (lo.min(dt), hi.max(dt)))
+    }
+
+    /// Whether every interval is the nominal step ([`same_step`]).
+    #[must_use]
+    pub fn is_regular(&self) -> bool {
+        self.rows
+            .windows(2)
+            .all(|w| same_step(w[1].input.time_s - w[0].input.time_s, self.step_s))
+    }
+
     /// The inputs in the estimator's timing: sample `k` carries `x_k` and the
     /// wrench of row `k - 1` (applied over `[t_{k-1}, t_k)`).
     pub fn estimator_inputs(&self) -> impl Iterator<Item = EstimatorInput> + '_ {
@@ -270,17 +315,149 @@ impl FlightLog {
     }
 }
 
-/// Run one estimator over a log; one estimate per row.
+/// Run one estimator over a log; one estimate per row. Each sample is
+/// integrated over its own step ([`FlightLog::sample_steps`] of the
+/// configured sample time), so a log with a varying step is estimated as
+/// the rule says; a regular log gives the bits of a constant-step estimator.
 ///
 /// # Errors
-/// An invalid estimator configuration.
+/// An invalid estimator configuration (forward Euler unstable at one of the
+/// log's steps included).
 pub fn estimate_log(
     log: &FlightLog,
     config: EstimatorConfig,
     nominal: NominalModel,
 ) -> Result<Vec<WrenchEstimate>, crate::estimation::EstimatorError> {
+    let steps = log.sample_steps(config.sample_time_s);
     let mut est = MomentumEstimator::new(config, nominal)?;
-    Ok(log.estimator_inputs().map(|x| est.update(&x)).collect())
+    log.estimator_inputs()
+        .zip(steps)
+        .map(|(x, h)| est.update_with_step(&x, h))
+        .collect()
+}
+
+/// What produced a flight CSV: its sidecar `<csv>.meta.json`
+/// ([`meta_path`]), one JSON object written next to the CSV by every
+/// producer (`simulate --csv`, the daemon's `--log-csv`, `replay --csv`):
+///
+/// ```text
+/// { "format": "rotorpilot-flight-csv-meta", "version": 1,
+///   "producer": "rotorpilot 0.1.0 simulate", "source": "tools/scenarios/quad-step-10m.toml",
+///   "airframe": "quad", "nominal_mass_kg": 2.0,
+///   "nominal_inertia_kg_m2": [[Ixx, Ixy, Ixz], [Iyx, Iyy, Iyz], [Izx, Izy, Izz]],   (body FRD)
+///   "step_s": 0.001,
+///   "estimator": { "order": 3, "polynomial": "butterworth", "cutoff_rad_s": 10.0,
+///                  "discretization": "trapezoidal", "sample_time_s": 0.001 } }
+/// ```
+///
+/// The nominal model is the one the flight's estimator used (`MDL_MASS` for
+/// the daemon), at the start of the flight.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LogMeta {
+    /// Always [`META_FORMAT`].
+    pub format: String,
+    /// [`META_VERSION`].
+    pub version: u32,
+    /// The program and command that wrote the CSV (`rotorpilot 0.1.0 simulate`).
+    pub producer: String,
+    /// What was flown: the scenario or mission file, or the daemon's run.
+    pub source: String,
+    /// The airframe's name (`quad`, ...; a file's own name for a TOML airframe).
+    pub airframe: String,
+    /// The estimator's nominal mass [kg].
+    pub nominal_mass_kg: f64,
+    /// The estimator's nominal inertia [kg m^2], body FRD, rows.
+    pub nominal_inertia_kg_m2: [[f64; 3]; 3],
+    /// The simulation step [s] (the interval between rows).
+    pub step_s: f64,
+    /// The flight's own estimator settings.
+    pub estimator: EstimatorConfig,
+}
+
+/// [`LogMeta::format`].
+pub const META_FORMAT: &str = "rotorpilot-flight-csv-meta";
+/// [`LogMeta::version`].
+pub const META_VERSION: u32 = 1;
+
+impl LogMeta {
+    /// The sidecar of a log written by `producer` (e.g. `simulate`) from `source`.
+    #[must_use]
+    pub fn new(
+        producer: &str,
+        source: &str,
+        airframe: &str,
+        nominal: &NominalModel,
+        estimator: &EstimatorConfig,
+        step_s: f64,
+    ) -> Self {
+        let i = &nominal.inertia_kg_m2;
+        Self {
+            format: META_FORMAT.into(),
+            version: META_VERSION,
+            producer: format!("rotorpilot {} {producer}", env!("CARGO_PKG_VERSION")),
+            source: source.into(),
+            airframe: airframe.into(),
+            nominal_mass_kg: nominal.mass_kg,
+            nominal_inertia_kg_m2: std::array::from_fn(|r| std::array::from_fn(|c| i[(r, c)])),
+            step_s,
+            estimator: estimator.clone(),
+        }
+    }
+
+    /// The nominal model it records.
+    #[must_use]
+    pub fn nominal(&self) -> NominalModel {
+        let i = &self.nominal_inertia_kg_m2;
+        NominalModel {
+            mass_kg: self.nominal_mass_kg,
+            inertia_kg_m2: nalgebra::Matrix3::from_fn(|r, c| i[r][c]),
+        }
+    }
+
+    /// Write it as the sidecar of the CSV at `csv` ([`meta_path`]).
+    ///
+    /// # Errors
+    /// A file that cannot be written (the message names it).
+    pub fn write_beside(&self, csv: &std::path::Path) -> Result<(), String> {
+        let path = meta_path(csv);
+        let text = serde_json::to_string_pretty(self).map_err(|e| e.to_string())? + "\n";
+        std::fs::write(&path, text).map_err(|e| format!("cannot write {}: {e}", path.display()))
+    }
+
+    /// Read the sidecar of the CSV at `csv`: `Ok(None)` when there is none.
+    ///
+    /// # Errors
+    /// A sidecar that cannot be read or is not a valid [`LogMeta`] (the
+    /// message names the file, the line and the field).
+    pub fn read_beside(csv: &std::path::Path) -> Result<Option<Self>, String> {
+        let path = meta_path(csv);
+        let text = match std::fs::read_to_string(&path) {
+            Ok(t) => t,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+            Err(e) => return Err(format!("{}: cannot read: {e}", path.display())),
+        };
+        let meta: Self = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+        if meta.format != META_FORMAT || meta.version != META_VERSION {
+            return Err(format!(
+                "{}: format `{}` version {}, this rotorpilot reads `{META_FORMAT}` version {META_VERSION}",
+                path.display(),
+                meta.format,
+                meta.version
+            ));
+        }
+        crate::estimation::MomentumEstimator::new(meta.estimator.clone(), meta.nominal())
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        Ok(Some(meta))
+    }
+}
+
+/// The sidecar's path: the CSV's path with `.meta.json` appended
+/// (`flight.csv` -> `flight.csv.meta.json`).
+#[must_use]
+pub fn meta_path(csv: &std::path::Path) -> std::path::PathBuf {
+    let mut name = csv.as_os_str().to_owned();
+    name.push(".meta.json");
+    std::path::PathBuf::from(name)
 }
 
 /// Step metrics of one estimator run against the log's truth.

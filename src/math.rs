@@ -1,6 +1,6 @@
 //! Small SO(3) helpers shared by the plant, the controllers and the estimator.
 //!
-//! Conventions (doc `model-and-control.md` section 1): `S(a) b = a x b`;
+//! Conventions (`docs/model.md` section 1): `S(a) b = a x b`;
 //! for any 3x3 `X`, `vee(X) = vee((X - X^T)/2)`; ZYX Euler angles
 //! `eta = [phi, theta, psi]` with `R = Rz(psi) Ry(theta) Rx(phi)` mapping
 //! FRD body vectors into NED.

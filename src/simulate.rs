@@ -150,7 +150,7 @@ fn short(v: &toml::Value) -> String {
 #[must_use]
 pub fn main(args: &SimulateArgs) -> u8 {
     run(args).unwrap_or_else(|e| {
-        eprintln!("rotorpilot: {e:#}");
+        eprintln!("rotorpilot: {}", crate::cli::error_chain(&e));
         EXIT_BAD_SCENARIO
     })
 }
@@ -226,11 +226,17 @@ fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
         let f = files[e.file].as_ref().map_err(Clone::clone)?;
         let v = e.variant.unwrap_or(0);
         let start = Instant::now();
-        let flight = f.flight(v).map_err(|e| format!("{e:#}"))?;
-        let mut writer = csv_path(e).map(|p| crate::scenario::create_csv_file(&p)).transpose()?;
+        let flight = f.flight(v).map_err(|e| crate::cli::error_chain(&e))?;
+        let path = csv_path(e);
+        let mut writer = path.as_deref().map(crate::scenario::create_csv_file).transpose()?;
+        if let Some(p) = &path {
+            flight_meta(&flight)
+                .map_err(|e| crate::cli::error_chain(&e))?
+                .write_beside(p)?;
+        }
         let mut outcome = flight
             .fly(writer.as_mut().map(|w| w as &mut dyn std::io::Write))
-            .map_err(|e| format!("{e:#}"))?;
+            .map_err(|e| crate::cli::error_chain(&e))?;
         outcome.set_wall_time_s(start.elapsed().as_secs_f64());
         Ok(outcome)
     };
@@ -243,7 +249,11 @@ fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
             (Ok(f), Some(v)) if f.is_varied() => format!("{}#{v}", paths[e.file].display()),
             _ => paths[e.file].display().to_string(),
         };
-        if let Err(msg) = done {
+        // the text table's line carries the error (once, below); alone or
+        // as JSON, stderr does
+        if let Err(msg) = done
+            && (single || args.json)
+        {
             eprintln!("rotorpilot: {msg}");
         }
         if args.json {
@@ -274,7 +284,8 @@ fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
             let values: String = values.iter().map(|(k, v)| format!(" {k}={}", short(v))).collect();
             let what = match done {
                 Ok(outcome) => outcome.to_line(),
-                Err(msg) => format!("ERROR: {msg}"),
+                // the message names its file already when it starts with the label
+                Err(msg) => format!("ERROR: {}", msg.strip_prefix(&format!("{label}: ")).unwrap_or(msg)),
             };
             writeln!(out, "{:>width$} {label}{values}: {what}", e.index)
         }
@@ -350,6 +361,18 @@ fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
     })
 }
 
+/// The sidecar of a flight's CSV (`<csv>.meta.json`, [`crate::flightlog::LogMeta`]).
+///
+/// # Errors
+/// A mission whose vehicle cannot be built.
+fn flight_meta(flight: &crate::scenario::campaign::Flight) -> anyhow::Result<crate::flightlog::LogMeta> {
+    use crate::scenario::campaign::Flight;
+    match flight {
+        Flight::Scenario(s) => Ok(crate::scenario::scenario_meta(s, "simulate")),
+        Flight::Mission(m) => crate::scenario::mission_meta(m, "simulate"),
+    }
+}
+
 /// The name of an entry's CSV in a campaign's `--csv` directory:
 /// `NNNN-STEM.csv`, `NNNN-STEM-vK.csv` for variant K of a varied file (NNNN
 /// the entry's index, zero-padded to the width of the campaign's last).
@@ -378,7 +401,7 @@ fn run_fleet(args: &SimulateArgs, path: &Path) -> anyhow::Result<u8> {
     let fleet = match Fleet::load(path) {
         Ok(f) => f,
         Err(e) => {
-            eprintln!("rotorpilot: {e:#}");
+            eprintln!("rotorpilot: {}", crate::cli::error_chain(&e));
             return Ok(EXIT_BAD_SCENARIO);
         }
     };
@@ -389,7 +412,7 @@ fn run_fleet(args: &SimulateArgs, path: &Path) -> anyhow::Result<u8> {
     let mut summary = match fleet::fly(&fleet, threads, args.csv.as_deref()) {
         Ok(s) => s,
         Err(e) => {
-            eprintln!("rotorpilot: {e:#}");
+            eprintln!("rotorpilot: {}", crate::cli::error_chain(&e));
             return Ok(EXIT_BAD_SCENARIO);
         }
     };

@@ -1,5 +1,5 @@
 //! Airframes, allocation and failure analysis against the origin report and
-//! doc `model-and-control.md` sections 3 and 9.
+//! `docs/model.md` sections 3 and 9.
 
 use nalgebra::{DMatrix, Vector3};
 use proptest::prelude::*;

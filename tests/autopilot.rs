@@ -237,10 +237,11 @@ fn takeoff_reaches_mis_takeoff_alt_then_holds_in_air() {
     assert_eq!((t.mode, t.landed), (FlightMode::Hold, LandedState::InAir));
     let s = texts(&mut ap);
     assert!(has(&s, "Takeoff detected") && has(&s, "Takeoff complete"), "{s:?}");
-    // a higher AMSL target is used as given
+    // a higher AMSL target is used as given (home: where the vehicle rested)
+    let home_alt_amsl_m = ap.telemetry().home.alt_amsl_m;
     assert_eq!(
         ap.command(AutopilotCommand::Takeoff {
-            altitude_amsl_m: Some(HOME.alt_amsl_m + 6.0)
+            altitude_amsl_m: Some(home_alt_amsl_m + 6.0)
         }),
         CommandOutcome::Accepted
     );
@@ -779,7 +780,12 @@ fn invalid_or_untimely_commands_are_refused_without_panicking() {
     assert!((t.home_ned - Vector3::new(10.0, 0.0, -1.0)).norm() < 1e-6);
     assert_eq!(t.origin, HOME);
     assert_eq!(ap.command(AutopilotCommand::SetHome(None)), CommandOutcome::Accepted);
-    assert!(ap.telemetry().home_ned.norm() < 1e-9, "home under the landed vehicle");
+    let t = ap.telemetry();
+    assert!(
+        (t.home_ned - Vector3::new(0.0, 0.0, t.position_ned.z)).norm() < 1e-6,
+        "home where the landed vehicle rests: {:?}",
+        t.home_ned
+    );
 }
 
 /// Commands that are invalid in any state, each with its answer.

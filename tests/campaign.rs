@@ -429,7 +429,18 @@ fn campaign_logs_go_into_a_directory_and_an_unchanged_variant_logs_the_same_byte
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
     files.sort();
-    assert_eq!(files, ["0-plain.csv", "1-varied-v0.csv", "2-varied-v1.csv"]);
+    // each CSV with its sidecar saying what flew it (docs/logs.md)
+    assert_eq!(
+        files,
+        [
+            "0-plain.csv",
+            "0-plain.csv.meta.json",
+            "1-varied-v0.csv",
+            "1-varied-v0.csv.meta.json",
+            "2-varied-v1.csv",
+            "2-varied-v1.csv.meta.json"
+        ]
+    );
     let read = |n: &str| std::fs::read(logs.join(n)).unwrap();
     // the variant is written back as TOML and read again: not a bit moves
     assert_eq!(read("0-plain.csv"), read("1-varied-v0.csv"));

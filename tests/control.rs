@@ -1,5 +1,5 @@
 //! Closed-loop tests of the three control laws and the reference shaper on
-//! the plant (doc `model-and-control.md` sections 5, 6, 9, 10). Flights are
+//! the plant (`docs/model.md` sections 5, 6, 9, 10). Flights are
 //! long: run with `cargo test --release --test control`.
 
 use nalgebra::{UnitQuaternion, Vector3};

@@ -94,9 +94,11 @@ async fn speaks_first_with_px4_identity_and_default_streams() {
     let MavMessage::HOME_POSITION(hp) = &seen[&242][0] else {
         panic!()
     };
+    // home is where the vehicle rests, as PX4 sets it: the quad's body
+    // 0.24 m above the ground at 488 m AMSL
     assert_eq!(
         (hp.latitude, hp.longitude, hp.altitude),
-        (473_977_420, 85_455_940, 488_000)
+        (473_977_420, 85_455_940, 488_240)
     );
     let MavMessage::GLOBAL_POSITION_INT(gp) = &seen[&33][0] else {
         panic!()
@@ -602,7 +604,9 @@ async fn two_peers_are_both_served_and_a_new_port_is_served_again() {
     }
     // the second client restarts on a new port: served again at once
     drop(other);
+    // (it heartbeats, as every client does: what proves it listens, issue 15 §2)
     let mut again = Client::with_ids(255, 0).await;
+    again.heartbeat(v.gcs).await;
     again.command_long(v.gcs, 31_000, [0.0; 7], (1, 0)).await;
     assert!(again.ack_of(31_000, S3).await.is_some());
     assert!(

@@ -1,6 +1,6 @@
 //! The origin report's exercise 4 end to end: fly `tools/scenarios/fsr-exercise4.toml`,
 //! log it, run the estimator of every order and polynomial over the log, and
-//! compare with doc `model-and-control.md` sections 9 and 10.
+//! compare with `docs/model.md` sections 9 and 10.
 
 use nalgebra::Vector3;
 use rand::SeedableRng;

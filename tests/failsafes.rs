@@ -549,7 +549,9 @@ fn max_altitude_refuses_targets_clamps_offboard_and_holds_on_breach() {
     for _ in 0..200 {
         ap.run(0.05);
         ap.command(sp(-20.0));
-        highest = highest.max(-ap.telemetry().position_ned.z);
+        // above home (where the vehicle rested), as GF_MAX_VER_DIST counts
+        let t = ap.telemetry();
+        highest = highest.max(t.home_ned.z - t.position_ned.z);
     }
     println!(
         "max altitude: offboard setpoint 20 m clamped to 10 m, highest {highest:.3} m, mode {:?}",

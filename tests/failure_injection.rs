@@ -436,3 +436,20 @@ fn mission_faults_go_through_the_command() {
     let s = run_mission(&f, None).unwrap();
     assert!(s.faults[0].outcome.starts_with("denied"), "{:?}", s.faults);
 }
+
+/// GIVEN a quad in the air
+/// WHEN a client turns every motor off at once (instance 0 = all)
+/// THEN the vehicle falls and is stepped on, rather than the simulation
+/// panicking on the empty allocation left (found by tests/fuzz.rs: the
+/// rank of an effectiveness matrix with no column).
+#[test]
+fn every_motor_off_at_once_drops_the_vehicle_without_a_panic() {
+    let (mut core, _) = vehicle("quad", &[]);
+    airborne(&mut core);
+    let z0 = core.telemetry(0).position_ned.z;
+    assert_eq!(inject(&mut core, 101, 1, 0), CommandOutcome::Accepted);
+    run_s(&mut core, 3.0);
+    let t = core.telemetry(0);
+    assert!(t.position_ned.z > z0 + 1.0, "it fell: z {z0} -> {}", t.position_ned.z);
+    assert!(t.position_ned.iter().all(|x| x.is_finite()));
+}

@@ -422,3 +422,31 @@ fn rtl_lands_at_a_rally_point_closer_than_home() {
         "landed at {p:?}, not the rally point"
     );
 }
+
+/// GIVEN RP_ALT_MAX_AMSL (9,000 m by default)
+/// WHEN a plan holds a waypoint above it (relative to home or AMSL)
+/// THEN the whole plan is refused with MAV_MISSION_INVALID_PARAM7 and a
+/// critical text naming the item, and the stored mission is unchanged; the
+/// same waypoint just below the ceiling is stored.
+#[test]
+fn a_plan_with_a_point_above_rp_alt_max_amsl_is_refused_whole() {
+    let mut v = vehicle();
+    v.step();
+    let home_alt = v.telemetry(0).home.alt_amsl_m;
+    let before = v.snapshot(0).plans;
+    let high = 9_001.0; // m AMSL
+    let mut square_high = square();
+    square_high[2].z = (high - home_alt) as f32; // a relative frame
+    assert_eq!(upload(&mut v, square_high), Err(MissionResult::InvalidParam7));
+    let texts = v.drain_status_texts(0);
+    assert!(
+        texts
+            .iter()
+            .any(|t| t.text.starts_with("Plan rejected: item 2 at 9001 m")),
+        "{texts:?}"
+    );
+    assert_eq!(v.snapshot(0).plans, before, "nothing stored");
+    let mut square_ok = square();
+    square_ok[2].z = (8_990.0 - home_alt) as f32;
+    assert!(upload(&mut v, square_ok).is_ok());
+}

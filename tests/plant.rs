@@ -1,5 +1,5 @@
 //! The plant: free fall, hover, yaw direction, integrator invariants, ground
-//! contact, ground and ceiling effect (doc `model-and-control.md` sections 2, 8, 9),
+//! contact, ground and ceiling effect (`docs/model.md` sections 2, 8, 9),
 //! and determinism.
 
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};

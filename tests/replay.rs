@@ -143,6 +143,27 @@ async fn a_flight_with_a_reboot_replays_byte_for_byte() {
     assert!(a == b, "two replays differ");
     assert!(a == live, "the replay differs from the live flight.csv");
     assert!(s.armed, "it hovers at the end: {s:?}");
+    // flight.csv has its sidecar saying what flew it, and `replay --csv` writes the same
+    let live_meta = rotorpilot::flightlog::LogMeta::read_beside(&run.join("flight.csv"))
+        .unwrap()
+        .expect("--log-csv writes flight.csv.meta.json");
+    assert_eq!((live_meta.airframe.as_str(), live_meta.step_s), ("quad", 0.001));
+    assert!(
+        live_meta.producer.ends_with("daemon --log-csv"),
+        "{}",
+        live_meta.producer
+    );
+    let out_csv = run.join("replayed.csv");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+        .args(["replay", record.to_str().unwrap(), "--csv", out_csv.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let replay_meta = rotorpilot::flightlog::LogMeta::read_beside(&out_csv).unwrap().unwrap();
+    assert_eq!(
+        (replay_meta.nominal(), &replay_meta.estimator, &replay_meta.airframe),
+        (live_meta.nominal(), &live_meta.estimator, &live_meta.airframe)
+    );
     // the replay's ULog is the live flight.ulg, record for record (topic
     // samples, parameter changes, status texts at the instants they were
     // raised, the reboot's among them)

@@ -9,6 +9,13 @@ Examples (vehicle instance 0, this script as the GCS on udpin:0.0.0.0:14550):
     python3 tools/inject_disturbance.py --clear
     python3 tools/inject_disturbance.py --connect udpout:127.0.0.1:18570 --force 0,1,0
 
+Every value is checked against the parameter's range first (RANGES, the
+vehicle's parameter table): one value out of range changes nothing. Should the
+vehicle refuse one anyway, the values already set are put back: all or nothing.
+
+The estimator is held while the vehicle rests on the ground (it restarts
+there on purpose): take off first to see it find the disturbance.
+
 Needs pymavlink (pip install pymavlink).
 """
 
@@ -18,6 +25,28 @@ import sys
 import time
 
 from pymavlink import mavutil
+
+
+# (min, max, unit) of each parameter this tool sets: src/params/table.rs (a test keeps them equal)
+RANGES = {
+    "SIM_FEXT_X": (-50.0, 50.0, "N"),
+    "SIM_FEXT_Y": (-50.0, 50.0, "N"),
+    "SIM_FEXT_Z": (-50.0, 50.0, "N"),
+    "SIM_TEXT_X": (-10.0, 10.0, "N m"),
+    "SIM_TEXT_Y": (-10.0, 10.0, "N m"),
+    "SIM_TEXT_Z": (-10.0, 10.0, "N m"),
+    "SIM_MASS": (0.05, 100.0, "kg"),
+}
+
+
+def out_of_range(changes):
+    """The problems of `changes` [(name, value)] against RANGES, one line each (empty: all valid)."""
+    problems = []
+    for name, value in changes:
+        lo, hi, unit = RANGES[name]
+        if not (lo <= value <= hi):
+            problems.append(f"{name} = {value:g} {unit} is outside its range [{lo:g}, {hi:g}] {unit}")
+    return problems
 
 
 def vec3(s):
@@ -96,13 +125,31 @@ def main():
             p = get(m, name)
             print(f"  {name:<12} {p.param_value:10.4f}" if p is not None else f"  {name:<12} ?")
         return
-    failed = False
+    problems = out_of_range(changes)
+    if problems:
+        print("nothing changed:", file=sys.stderr)
+        for p in problems:
+            print(f"  {p}", file=sys.stderr)
+        sys.exit(2)
+    # the values before, to put back if the vehicle refuses one
+    before = {}
+    for name, _ in changes:
+        p = get(m, name)
+        if p is None:
+            sys.exit(f"cannot read {name}: nothing changed")
+        before[name] = p.param_value
+    done = []
     for name, value in changes:
         got = set_real(m, name, float(value))
         ok = got is not None and abs(got - value) <= 1e-6 * max(1.0, abs(value))
-        failed |= not ok
         print(f"  {name:<12} {value:10.4f} -> {'?' if got is None else f'{got:.4f}'}{'' if ok else '  REFUSED'}")
-    sys.exit(1 if failed else 0)
+        if not ok:
+            for prev in reversed(done):
+                set_real(m, prev, before[prev])
+                print(f"  {prev:<12} put back to {before[prev]:.4f}")
+            sys.exit(f"{name} refused: nothing changed")
+        done.append(name)
+    sys.exit(0)
 
 
 if __name__ == "__main__":

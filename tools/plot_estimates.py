@@ -9,11 +9,14 @@ the orders.
     python3 tools/plot_estimates.py ex4.csv ex4-estimates.csv --orders 1,5,20 --out figures/
 
 The flight CSV supplies the applied disturbance (fext_*, text_z, true_mass_kg)
-and the estimator's nominal mass is taken from --nominal-mass (default 1.5 kg,
-the report's). Force in NED [N], torque in FRD [N m]. Needs matplotlib.
+and the estimator's nominal mass is taken from --nominal-mass, by default from
+the flight's sidecar FLIGHT.meta.json (`nominal_mass_kg`, docs/logs.md), else
+1.5 kg (the report's fsr-quad) with a warning. Force in NED [N], torque in
+FRD [N m]. Needs matplotlib.
 """
 import argparse
 import csv
+import json
 import os
 import sys
 
@@ -40,16 +43,37 @@ def read(path):
     return cols
 
 
+FALLBACK_NOMINAL_MASS_KG = 1.5
+
+
+def nominal_mass(flight, given):
+    """The estimator's nominal mass [kg]: `given`, else the flight's sidecar's, else the fallback (warned)."""
+    if given is not None:
+        return given
+    meta = flight + ".meta.json"
+    try:
+        with open(meta) as f:
+            return float(json.load(f)["nominal_mass_kg"])
+    except FileNotFoundError:
+        print(f"plot_estimates.py: warning: {flight} has no sidecar {meta}: assuming the nominal mass "
+              f"{FALLBACK_NOMINAL_MASS_KG} kg (fsr-quad); give --nominal-mass KG", file=sys.stderr)
+        return FALLBACK_NOMINAL_MASS_KG
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        sys.exit(f"{meta}: cannot read nominal_mass_kg: {e}")
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("flight", help="flight CSV (truth columns)")
     p.add_argument("estimates", help="CSV written by `rotorpilot estimate`")
     p.add_argument("--orders", default="1,5,20", help="orders to draw, comma-separated")
     p.add_argument("--poly", default="butterworth", help="butterworth or binomial")
-    p.add_argument("--nominal-mass", type=float, default=1.5, help="estimator's nominal mass [kg]")
+    p.add_argument("--nominal-mass", type=float,
+                   help="estimator's nominal mass [kg] (default: the flight's sidecar FLIGHT.meta.json, else 1.5)")
     p.add_argument("--out", default=".", help="directory for the PNG files")
     a = p.parse_args()
     fl, es = read(a.flight), read(a.estimates)
+    a.nominal_mass = nominal_mass(a.flight, a.nominal_mass)
     for n in ("time_s", "fext_n", "fext_e", "fext_d", "text_z", "true_mass_kg"):
         if n not in fl:
             sys.exit(f"{a.flight}:1: missing column `{n}`")

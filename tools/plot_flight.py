@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Plot a rotorpilot flight log (the CSV of `rotorpilot simulate --csv`) as PNG
 figures like the origin report's: position and velocity errors, attitude
-error, angular-velocity error, thrust and torques.
+(roll and pitch as flown, heading error: the log has no roll/pitch setpoint),
+angular-velocity error, thrust and torques.
 
     rotorpilot simulate tools/scenarios/fsr-exercise5.toml --csv flight.csv
     python3 tools/plot_flight.py flight.csv --out figures/
@@ -88,10 +89,11 @@ def main():
                       [(f"e_v,{x} [m/s]", [(f"e_v,{x}", e_v[i])]) for i, x in enumerate(axes)],
                       "m/s", os.path.join(a.out, "velocity_error.png")))
     yaw_err = [wrap(y - r) for y, r in zip(c["yaw"], c["ref_yaw"])]
-    out.append(figure("attitude (roll, pitch) and heading error", t,
+    # roll and pitch as flown, not an error: the log has no roll/pitch setpoint (only ref_yaw)
+    out.append(figure("attitude: roll and pitch as flown, heading error", t,
                       [("roll [rad]", [("roll", c["roll"])]), ("pitch [rad]", [("pitch", c["pitch"])]),
                        ("yaw - yaw_d [rad]", [("e_yaw", yaw_err)])],
-                      "rad", os.path.join(a.out, "attitude_error.png")))
+                      "rad", os.path.join(a.out, "attitude.png")))
     yaw_rate_ref = diff([math.atan2(math.sin(y), math.cos(y)) for y in c["ref_yaw"]])
     out.append(figure("angular velocity (body FRD)", t,
                       [("p [rad/s]", [("p", c["p_frd"])]), ("q [rad/s]", [("q", c["q_frd"])]),

@@ -9,6 +9,12 @@ The vehicle streams (10 Hz by default, SET_MESSAGE_INTERVAL on ids 250/251):
 and the truth it injects (SIM_FEXT_*, SIM_TEXT_*, SIM_MASS parameters) as
 SIM_FORCE, SIM_TORQUE and SIM_MASS.
 
+While the vehicle rests on the ground (EXTENDED_SYS_STATE landed_state
+ON_GROUND) the estimator is held at zero on purpose (the ground's reaction
+is not a disturbance): the line says "on the ground: estimator held" instead
+of zeros. Take off to see the estimate. A value not yet heard prints as
+"unknown".
+
     python3 tools/show_wrench.py                       # GCS link of instance 0
     python3 tools/show_wrench.py --rate 20 --duration 30
     python3 tools/show_wrench.py --csv wrench.csv
@@ -21,6 +27,38 @@ import sys
 import time
 
 from pymavlink import mavutil
+
+
+ESTIMATE = ("EST_FORCE", "EST_TORQUE", "EST_MASS")
+TRUTH = ("SIM_FORCE", "SIM_TORQUE", "SIM_MASS")
+# how long to wait for the truth and the landed state after the first estimate [s]
+# (EXTENDED_SYS_STATE comes at 1 Hz)
+WAIT_ALL_S = 2.5
+ON_GROUND = 1  # MAV_LANDED_STATE_ON_GROUND
+
+
+def vec(v):
+    return "[" + " ".join(f"{x:7.3f}" for x in v) + "]" if v is not None else f"[{'unknown':^23}]"
+
+
+def scalar(v):
+    return f"{v:7.3f}" if v is not None else "unknown"
+
+
+def lines(latest):
+    """The two printed lines (estimate, truth) for the latest values: `latest`
+    maps EST_*/SIM_* names to their values, "time" to the vehicle time [s] and
+    "landed" to EXTENDED_SYS_STATE.landed_state (absent: not heard yet)."""
+    t = latest.get("time")
+    head = f"t={t:7.1f}s" if t is not None else f"{'t=?':>10}"
+    if latest.get("landed") == ON_GROUND:
+        est = f"{head} est   on the ground: estimator held (take off to estimate)"
+    else:
+        est = (f"{head} est   {vec(latest.get('EST_FORCE'))} | {vec(latest.get('EST_TORQUE'))} | "
+               f"{scalar(latest.get('EST_MASS'))}")
+    truth = (f"{'':>10} truth {vec(latest.get('SIM_FORCE'))} | {vec(latest.get('SIM_TORQUE'))} | "
+             f"{scalar(latest.get('SIM_MASS'))}")
+    return [est, truth]
 
 
 def main():
@@ -46,16 +84,20 @@ def main():
     t0 = time.monotonic()
     next_print = t0
     last_hb = t0
-    print(f"{'':>8} {'force N (NED)':>26} | {'torque N m (FRD)':>26} | {'mass kg':>7}")
+    first_estimate = None
+    print(f"{'':>8} {'force N (NED)':>26} | {'torque N m (FRD)':>26} | {'mass kg':>7}", flush=True)
     try:
         while a.duration is None or time.monotonic() - t0 < a.duration:
-            msg = m.recv_match(type=["DEBUG_VECT", "NAMED_VALUE_FLOAT"], blocking=True, timeout=0.2)
+            msg = m.recv_match(type=["DEBUG_VECT", "NAMED_VALUE_FLOAT", "EXTENDED_SYS_STATE"], blocking=True,
+                               timeout=0.2)
             now = time.monotonic()
             if now - last_hb > 1.0:
                 # stay a live peer when connected with udpout
                 m.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
                 last_hb = now
-            if msg is not None:
+            if msg is not None and msg.get_type() == "EXTENDED_SYS_STATE":
+                latest["landed"] = msg.landed_state
+            elif msg is not None:
                 if msg.get_type() == "DEBUG_VECT":
                     latest[msg.name] = (msg.x, msg.y, msg.z)
                     t = msg.time_usec / 1e6
@@ -67,16 +109,15 @@ def main():
                 latest["time"] = t
                 if csv:
                     csv.write(f"{now - t0:.3f},{t:.3f},{msg.name},{row[0]},{row[1]},{row[2]}\n")
-            if now >= next_print and all(k in latest for k in ("EST_FORCE", "EST_TORQUE", "EST_MASS")):
+            if first_estimate is None and all(k in latest for k in ESTIMATE):
+                first_estimate = now
+            # print once the truth and the landed state are heard too (or did not come in time)
+            ready = first_estimate is not None and (
+                all(k in latest for k in TRUTH + ("landed",)) or now - first_estimate > WAIT_ALL_S)
+            if now >= next_print and ready:
                 next_print = now + 1.0 / a.print_hz
-                f = latest.get("EST_FORCE", (0, 0, 0))
-                tq = latest.get("EST_TORQUE", (0, 0, 0))
-                sf = latest.get("SIM_FORCE", (0, 0, 0))
-                st = latest.get("SIM_TORQUE", (0, 0, 0))
-                print(f"t={latest['time']:7.1f}s est   [{f[0]:7.3f} {f[1]:7.3f} {f[2]:7.3f}] | "
-                      f"[{tq[0]:7.3f} {tq[1]:7.3f} {tq[2]:7.3f}] | {latest.get('EST_MASS', 0):7.3f}")
-                print(f"{'':>10} truth [{sf[0]:7.3f} {sf[1]:7.3f} {sf[2]:7.3f}] | "
-                      f"[{st[0]:7.3f} {st[1]:7.3f} {st[2]:7.3f}] | {latest.get('SIM_MASS', 0):7.3f}")
+                for line in lines(latest):
+                    print(line, flush=True)
     except KeyboardInterrupt:
         pass
     finally:

@@ -48,6 +48,11 @@ cargo test --release --quiet 2>&1 | tee /tmp/rotorpilot-cargo-test.log
 # or one that reported a failure without failing cannot pass silently.
 tools/count-test-results.sh /tmp/rotorpilot-cargo-test.log
 
+echo "== fuzz: the wire parser and every handler behind a link, 20 s each (tests/fuzz.rs)"
+# The run above gave each target 3 s; this one prints inputs/s and the seed
+# (ROTORPILOT_FUZZ_SEED=... replays a failure; longer runs: see tests/fuzz.rs).
+ROTORPILOT_FUZZ_SECONDS=20 cargo test --release --quiet --test fuzz -- --nocapture
+
 echo "== benches compile"
 cargo bench --no-run --quiet
 
@@ -93,6 +98,9 @@ timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/
 timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_failure.py
 timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_rotor_loss.py
 timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_logs.py
+timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_signing.py
+timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_hardening.py
+timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_first_hour.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_mission.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_failsafe.py
@@ -122,8 +130,10 @@ client_venv pip-fresh . "mavsdk==3.17.4" "pymavlink==2.4.50" "pytest==9.2.0" "py
 )
 
 echo "== tools: plot scripts on real logs (matplotlib)"
-client_venv tools "matplotlib==3.9.2" "pytest==9.2.0"
+client_venv tools -r tools/requirements.txt "pytest==9.2.0"
 timeout 600 "$VENV/tools/bin/python" -m pytest -q -p no:cacheprovider tests/tools/test_plots.py
 
 echo "== tools: fly_mission.py against a scripted vehicle and the real one (pymavlink)"
 timeout 300 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/tools/test_fly_mission.py
+echo "== tools: show_wrench.py and inject_disturbance.py against the real vehicle (pymavlink)"
+timeout 300 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/tools/test_wrench_tools.py

@@ -1,4 +1,4 @@
-//! Control allocation for a flat multirotor (doc `model-and-control.md` section 3).
+//! Control allocation for a flat multirotor (`docs/model.md` section 3).
 //!
 //! Effectiveness: `[u_T, tau_x, tau_y, tau_z]^T = B w`, `w_i = omega_i^2`, with
 //! column `B_i = [c_T, -l_i c_T sin a_i, l_i c_T cos a_i, s_i c_Q]^T`.
@@ -48,8 +48,12 @@ pub fn wrench_map(b: &DMatrix<f64>) -> DMatrix<f64> {
 
 /// Numerical rank: singular values above `1e-9` times the largest, after
 /// scaling each row to unit norm (rows mix N and N m with very different sizes).
+/// An empty matrix (every rotor failed: no column left) has rank 0.
 #[must_use]
 pub fn rank(m: &DMatrix<f64>) -> usize {
+    if m.is_empty() {
+        return 0;
+    }
     let mut scaled = m.clone();
     for mut row in scaled.row_iter_mut() {
         let n = row.norm();
@@ -135,7 +139,7 @@ impl Allocator {
         })
     }
 
-    /// The allocator after rotor faults (doc `model-and-control.md` sections 3
+    /// The allocator after rotor faults (`docs/model.md` sections 3
     /// and 3b): column `i` of the intact `B` scaled by the thrust fraction
     /// `gains[i]` the rotor still gives (1 healthy, `0 < f < 1` degraded);
     /// a rotor with `gains[i] <= 0` (failed) is dropped: its column is deleted

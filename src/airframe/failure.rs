@@ -1,4 +1,4 @@
-//! Hover feasibility with a rotor removed (doc `model-and-control.md` section 3).
+//! Hover feasibility with a rotor removed (`docs/model.md` section 3).
 //!
 //! Delete column `j` of `B`; check `rank B_f = 4`; then check that the hover
 //! wrench `[m g, 0, 0, 0]` lies in the *interior* of the attainable set
@@ -174,6 +174,17 @@ pub fn degraded_verdict(airframe: &Airframe, gains: &[f64], mass_kg: f64) -> Fai
 #[cfg(test)]
 mod degraded_tests {
     use super::*;
+
+    /// Found by the fuzzer (tests/fuzz.rs): a client that fails every rotor
+    /// left no column, and the rank's SVD of an empty matrix panicked.
+    #[test]
+    fn every_rotor_failed_is_a_verdict_not_a_panic() {
+        let af = Airframe::load("quad").unwrap();
+        let v = degraded_verdict(&af, &[0.0; 4], af.mass_kg);
+        assert_eq!(v.rank, 0);
+        assert_eq!(v.rotor, 1);
+        assert_eq!(v.verdict, HoverVerdict::RankDeficient, "{v:?}");
+    }
 
     #[test]
     fn one_failed_rotor_matches_the_failure_table() {

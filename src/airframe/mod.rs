@@ -4,7 +4,7 @@
 //! A flat multirotor's rotor `i` sits at `r_i = l_i [cos a_i, sin a_i, 0]` in
 //! FRD, with the arm angle `a_i` measured from `x_b` towards `y_b` (clockwise
 //! seen from above) and spin sign `s_i = +1` for counter-clockwise seen from
-//! above (doc `model-and-control.md` sections 2-3). Thrust `T_i = c_T w_i^2`
+//! above (`docs/model.md` sections 2-3). Thrust `T_i = c_T w_i^2`
 //! along `-z_b`, drag torque `s_i c_Q w_i^2` about `+z_b`.
 //!
 //! The mass and inertia here are the *nominal* ones that controllers and

@@ -1,5 +1,5 @@
 //! The commander: what each [`AutopilotCommand`] does and when it is refused
-//! (PX4 behaviour, doc `mavlink-compat.md` sections 3, 5 and 8) — arming and
+//! (PX4 behaviour, `docs/mavlink.md` sections 3, 5 and 8) — arming and
 //! its prearm checks, the mode state machine, home, and the gates of reboot
 //! and failure injection. Each command is judged at the instant it is
 //! applied, against the sensor readings of that instant.
@@ -29,12 +29,12 @@ impl Autopilot {
     /// |---|---|
     /// | `Arm` | TemporarilyRejected when a prearm check fails (not landed, estimator not initialised, home invalid, mode not armable: Offboard without fresh setpoints); `force` skips the checks |
     /// | `Disarm` | TemporarilyRejected in the air unless forced (forced: rotors stop, the vehicle falls) |
-    /// | `Takeoff` | Denied for a non-finite altitude or one above `GF_MAX_VER_DIST`; TemporarilyRejected when disarmed |
+    /// | `Takeoff` | Denied for a non-finite altitude, one above `GF_MAX_VER_DIST` or an AMSL altitude above `RP_ALT_MAX_AMSL`; TemporarilyRejected when disarmed |
     /// | `Land`, `ReturnToLaunch` | TemporarilyRejected when disarmed |
     /// | `SetMode` | Takeoff, Land, RTL as above; Offboard TemporarilyRejected without a fresh setpoint (COM_OF_LOSS_T, on the client clock); Mission TemporarilyRejected without a mission |
     /// | `StartMission` | Denied without a mission or with a first item beyond it; TemporarilyRejected when arming is (it arms) |
     /// | `SetMissionCurrent` | Denied beyond the mission |
-    /// | `Reposition` | Denied for non-finite parts, lat/lon out of range, or a target outside the geofence (zones, `GF_MAX_HOR_DIST`, `GF_MAX_VER_DIST`; also its takeoff); TemporarilyRejected when disarmed |
+    /// | `Reposition` | Denied for non-finite parts, lat/lon out of range, an AMSL altitude above `RP_ALT_MAX_AMSL`, or a target outside the geofence (zones, `GF_MAX_HOR_DIST`, `GF_MAX_VER_DIST`; also its takeoff); TemporarilyRejected when disarmed |
     /// | `ChangeSpeed` | Denied when not finite |
     /// | `SetHome` | Denied for an invalid point |
     /// | `Offboard` | Denied when a given part is not finite, or nothing is given; a position above `GF_MAX_VER_DIST` is clamped to it (announced once) |
@@ -106,6 +106,19 @@ impl Autopilot {
                 Severity::Critical,
                 "Takeoff denied: above geofence max altitude",
                 CommandOutcome::Denied("takeoff altitude above GF_MAX_VER_DIST"),
+            )
+        })
+    }
+
+    /// A target altitude AMSL [m] above `RP_ALT_MAX_AMSL` is refused
+    /// (DENIED, announced): the refusal, or `None` when it may go.
+    fn refuse_above_ceiling(&mut self, what: &str, altitude_amsl_m: Option<f64>) -> Option<CommandOutcome> {
+        let max = self.settings.max_target_amsl_m;
+        altitude_amsl_m.filter(|a| *a > max).map(|a| {
+            self.refuse(
+                Severity::Critical,
+                &format!("{what} denied: {a:.0} m above RP_ALT_MAX_AMSL"),
+                CommandOutcome::Denied("altitude above RP_ALT_MAX_AMSL"),
             )
         })
     }
@@ -190,6 +203,9 @@ impl Autopilot {
     fn takeoff(&mut self, altitude_amsl_m: Option<f64>, m: &Measurement) -> CommandOutcome {
         if altitude_amsl_m.is_some_and(|a| !a.is_finite()) {
             return CommandOutcome::Denied("invalid takeoff altitude");
+        }
+        if let Some(refused) = self.refuse_above_ceiling("Takeoff", altitude_amsl_m) {
+            return refused;
         }
         if !self.armed {
             return self.not_armed("Takeoff");
@@ -315,7 +331,14 @@ impl Autopilot {
             return CommandOutcome::Denied("invalid reposition value");
         }
         if lat_deg.is_some_and(|l| l.abs() > 90.0) || lon_deg.is_some_and(|l| l.abs() > 180.0) {
-            return CommandOutcome::Denied("invalid reposition position");
+            return self.refuse(
+                Severity::Critical,
+                "Reposition denied: latitude/longitude out of range",
+                CommandOutcome::Denied("invalid reposition position"),
+            );
+        }
+        if let Some(refused) = self.refuse_above_ceiling("Reposition", alt_amsl_m) {
+            return refused;
         }
         if !self.armed {
             return self.not_armed("Reposition");
@@ -390,14 +413,16 @@ impl Autopilot {
             Some(p) if p.is_valid() => p,
             Some(_) => return CommandOutcome::Denied("invalid home position"),
             None => {
+                // on the ground: where the vehicle rests (relative altitude 0), as PX4
                 let mut p = m.position_ned;
                 if self.land.landed() {
-                    p.z = self.land.rest_z(m) + self.airframe.gear_height_m;
+                    p.z = self.land.rest_z(m);
                 }
                 self.origin.offset(&p)
             }
         };
         self.home = home;
+        self.home_altitude = super::stack::HomeAltitude::Set;
         CommandOutcome::Accepted
     }
 
@@ -405,6 +430,13 @@ impl Autopilot {
         let mut local = sp.resolve(m, &self.origin, &self.home);
         if !sp.position_in_range() || !local.is_valid() {
             return CommandOutcome::Denied("invalid offboard setpoint");
+        }
+        // AMSL = origin altitude - NED z; a stream of setpoints gets no text
+        if local
+            .position_z()
+            .is_some_and(|z| self.origin.alt_amsl_m - z > self.settings.max_target_amsl_m)
+        {
+            return CommandOutcome::Denied("offboard setpoint above RP_ALT_MAX_AMSL");
         }
         if let Some(z_max) = self.max_altitude_z() {
             let clamped = local.clamp_position_z(z_max);

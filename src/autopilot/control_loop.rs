@@ -2,7 +2,7 @@
 //! references alike): the estimator, the control law and the allocation, on
 //! the nominal model, never on the plant's truth.
 //!
-//! One step at `t_k` (doc `model-and-control.md` section 2, timing
+//! One step at `t_k` (`docs/model.md` section 2, timing
 //! convention) has two phases, so that a pilot can decide its demand (and the
 //! estimate to feed back) from the fresh measurement in between:
 //!
@@ -105,7 +105,7 @@ impl ControlOutput {
     }
 }
 
-/// What the loop flies with after rotor faults (doc `model-and-control.md`
+/// What the loop flies with after rotor faults (`docs/model.md`
 /// section 3b), chosen by [`ControlLoop::set_rotor_gains`] from the hover
 /// verdict of the remaining rotors ([`degraded_verdict`]).
 #[derive(Clone, Debug, PartialEq)]

@@ -22,7 +22,7 @@
 //! | `telemetry` | the snapshot clients are told |
 //! | `settings` | the parameters as typed values |
 //!
-//! # Behaviour (PX4's, doc `mavlink-compat.md` sections 3, 5, 8, 12)
+//! # Behaviour (PX4's, `docs/mavlink.md` sections 3, 5, 8, 12)
 //! * Boot: disarmed, on the ground at home (the NED origin), Hold.
 //! * Arm: prearm checks (landed, estimator initialised, home valid, mode
 //!   armable); `force` skips them. Disarm refused in the air unless forced.

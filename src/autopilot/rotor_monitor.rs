@@ -1,5 +1,5 @@
 //! Rotor failure detection from ESC telemetry: what each motor was commanded
-//! against the speed its ESC reports (doc `model-and-control.md` section 3b).
+//! against the speed its ESC reports (`docs/model.md` section 3b).
 //!
 //! A healthy motor follows its command through the first-order lag
 //! `omega' = (c - omega) / tau_m`, `c = clamp(omega_cmd, omega_min, omega_max)`

@@ -88,6 +88,8 @@ impl ManualSettings {
 #[derive(Clone, Debug, PartialEq)]
 pub(super) struct Settings {
     pub(super) takeoff_alt_m: f64,
+    /// The highest target altitude a command may ask for, AMSL [m] (`RP_ALT_MAX_AMSL`).
+    pub(super) max_target_amsl_m: f64,
     pub(super) rtl_return_alt_m: f64,
     pub(super) rtl_descend_alt_m: f64,
     pub(super) acceptance_radius_m: f64,
@@ -145,6 +147,7 @@ impl Settings {
         };
         let mut s = Self {
             takeoff_alt_m: p.real(Param::MIS_TAKEOFF_ALT),
+            max_target_amsl_m: p.real(Param::RP_ALT_MAX_AMSL),
             rtl_return_alt_m: p.real(Param::RTL_RETURN_ALT),
             rtl_descend_alt_m: p.real(Param::RTL_DESCEND_ALT),
             acceptance_radius_m: p.real(Param::NAV_ACC_RAD),

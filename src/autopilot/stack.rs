@@ -119,6 +119,8 @@ pub struct Autopilot {
     rotors: RotorMonitor,
     pub(super) origin: GeoPoint,
     pub(super) home: GeoPoint,
+    /// Whether home's altitude still waits for the resting height.
+    pub(super) home_altitude: HomeAltitude,
     pub(super) armed: bool,
     pub(super) armed_at_s: f64,
     /// Left the ground since arming.
@@ -176,7 +178,12 @@ impl Autopilot {
             navigator: Navigator::new(ShaperLimits::for_airframe(airframe))?,
             land: LandDetector::new(),
             origin: home,
-            home,
+            // until the first measurement: resting on its gear at the origin
+            home: GeoPoint {
+                alt_amsl_m: home.alt_amsl_m + airframe.gear_height_m,
+                ..home
+            },
+            home_altitude: HomeAltitude::Assumed,
             armed: false,
             armed_at_s: 0.0,
             took_off: false,
@@ -268,6 +275,9 @@ impl Autopilot {
                 }
             }
             Some(LandEvent::TookOff) | None => {}
+        }
+        if self.home_altitude == HomeAltitude::Assumed {
+            self.home_at_rest(m);
         }
         if self.land.landed() || self.land.ground_contact() {
             // The ground's reaction is no external wrench worth estimating:
@@ -480,6 +490,15 @@ impl Autopilot {
     /// # Errors
     /// The MAV_MISSION_RESULT naming why nothing changed.
     pub fn change_plans(&mut self, change: PlanChange) -> Result<u32, MissionResult> {
+        if let PlanChange::Store { items, .. } = &change
+            && let Some((seq, alt)) = above_ceiling(items, self.home.alt_amsl_m, self.settings.max_target_amsl_m)
+        {
+            self.say.announce(
+                Severity::Critical,
+                format!("Plan rejected: item {seq} at {alt:.0} m > RP_ALT_MAX_AMSL"),
+            );
+            return Err(MissionResult::InvalidParam7);
+        }
         let touches_mission = match &change {
             PlanChange::Store { kind, .. } => *kind == crate::mission::MissionType::Mission,
             PlanChange::Clear(k) => k.is_none_or(|k| k == crate::mission::MissionType::Mission),
@@ -559,6 +578,12 @@ impl Autopilot {
         self.control.estimate()
     }
 
+    /// The wrench estimator (its configuration and nominal model, which a flight log's sidecar records).
+    #[must_use]
+    pub fn estimator(&self) -> &MomentumEstimator {
+        self.control.estimator()
+    }
+
     /// Status texts since the last call, oldest first (at most the latest 64).
     pub fn drain_status_texts(&mut self) -> Vec<StatusText> {
         self.say.drain()
@@ -572,6 +597,17 @@ impl Autopilot {
     /// The controller starts over (disarmed).
     pub(super) fn reset_controller(&mut self) {
         self.control.controller_mut().reset();
+    }
+
+    /// Home's altitude becomes where the vehicle rests (the land detector's
+    /// resting height, learned from the first measurement: the vehicle boots
+    /// on the ground), as PX4 sets home from the vehicle's position, so
+    /// relative altitudes read 0 on the ground and "take off to 5 m" means
+    /// 5 m above the resting point: `alt_home = alt_origin - z_rest` (NED z
+    /// down). Its latitude and longitude stay the given home's.
+    fn home_at_rest(&mut self, m: &crate::signals::Measurement) {
+        self.home.alt_amsl_m = self.origin.alt_amsl_m - self.land.rest_z(m);
+        self.home_altitude = HomeAltitude::Set;
     }
 
     /// Home in local NED [m].
@@ -592,6 +628,15 @@ impl Autopilot {
     }
 }
 
+/// Where home's altitude stands.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum HomeAltitude {
+    /// Assumed: the vehicle on its gear at the NED origin (`z = -gear_height`), until the first step.
+    Assumed,
+    /// Where the vehicle rested at boot, or set by a client.
+    Set,
+}
+
 /// Bit `i` set for each rotor `i` (from 0) whose status passes `pick`.
 fn rotor_mask(status: &[RotorStatus], pick: impl Fn(RotorStatus) -> bool) -> u16 {
     status
@@ -599,4 +644,17 @@ fn rotor_mask(status: &[RotorStatus], pick: impl Fn(RotorStatus) -> bool) -> u16
         .enumerate()
         .filter(|(i, r)| *i < 16 && pick(**r))
         .fold(0, |m, (i, _)| m | (1 << i))
+}
+
+/// The first item of a plan whose point lies above `max_amsl_m` [m AMSL]
+/// (`RP_ALT_MAX_AMSL`), with its altitude AMSL: relative frames are read
+/// above `home_alt_amsl_m`, as the mission flies them. Items without a point
+/// (DO_JUMP, speed changes, ...) have no altitude to check.
+fn above_ceiling(items: &[crate::mission::MissionItem], home_alt_amsl_m: f64, max_amsl_m: f64) -> Option<(usize, f64)> {
+    items
+        .iter()
+        .enumerate()
+        .filter(|(_, item)| item.has_position())
+        .map(|(seq, item)| (seq, item.alt_amsl(home_alt_amsl_m)))
+        .find(|(_, alt)| *alt > max_amsl_m)
 }

@@ -1,6 +1,7 @@
 //! `rotorpilot replay RECORD [--csv OUT] [--ulog OUT] [--json] [--any-version]`: re-fly a daemon's flight
 //! record headless and flat out ([`crate::record`]); the CSV is byte for byte
-//! the live flight's `flight.csv`.
+//! the live flight's `flight.csv`, with the same sidecar `<csv>.meta.json`
+//! (but for its `producer` and `source`).
 
 use std::path::Path;
 
@@ -51,6 +52,16 @@ pub(super) fn run(
         .map(crate::scenario::create_csv_file)
         .transpose()
         .map_err(anyhow::Error::msg)?;
+    if let Some(csv) = csv {
+        // the sidecar of the CSV: the vehicle as the record's header builds it
+        let (core, _) = record
+            .header
+            .build()
+            .map_err(|e| anyhow::anyhow!("{label}:1: header: {e}"))?;
+        crate::scenario::autopilot_meta(core.pilot(0), "replay", &label)
+            .write_beside(csv)
+            .map_err(anyhow::Error::msg)?;
+    }
     let mut ulog_writer = ulog
         .map(crate::scenario::create_csv_file)
         .transpose()

@@ -54,7 +54,7 @@ macro_rules! gains_with_overrides {
 }
 
 gains_with_overrides! {
-    /// Hierarchical (two-loop RPY) law, doc `model-and-control.md` section 4.
+    /// Hierarchical (two-loop RPY) law, `docs/model.md` section 4.
     /// Gains are per unit mass (outer) and per unit inertia (inner), so they
     /// place poles directly: `s^2 + K_D s + K_P` per axis.
     HierarchicalGains, HierarchicalOverrides {

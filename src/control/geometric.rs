@@ -1,6 +1,6 @@
 //! Geometric tracking controller on SE(3): Lee, Leok, McClamroch, "Geometric
 //! tracking control of a quadrotor UAV on SE(3)", IEEE CDC 2010, in the origin
-//! report's notation (report section 5.1; doc `model-and-control.md` section 5).
+//! report's notation (report section 5.1; `docs/model.md` section 5).
 //!
 //! NED world, FRD body, thrust along `-z_b`; `e_p = p - p_d`, `e_v = v - v_d`.
 //! ```text

@@ -1,6 +1,6 @@
 //! Hierarchical controller in ZYX Euler angles: outer position loop giving
 //! thrust and roll/pitch setpoints, inner attitude loop by partial feedback
-//! linearization (origin report section 2.2; doc `model-and-control.md`
+//! linearization (origin report section 2.2; `docs/model.md`
 //! section 4; Siciliano, Sciavicco, Villani, Oriolo style two-loop control).
 //!
 //! NED world, FRD body, `eta = [phi, theta, psi]`, `omega = Q(eta) eta_dot`,

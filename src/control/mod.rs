@@ -7,7 +7,7 @@
 //! | [`ControllerKind::Geometric`] | `geometric.rs` | SE(3), coordinate free | Lee, Leok, McClamroch 2010; report section 5, doc section 5 |
 //! | [`ControllerKind::Passivity`] | `passivity.rs` | ZYX Euler angles, Slotine-Li reference signals | Ruggiero et al. 2015; report section 2.4, doc section 6 |
 //!
-//! "doc" is `model-and-control.md`, "report" the origin homework report. Frames:
+//! "doc" is `docs/model.md`, "report" the origin homework report. Frames:
 //! world NED, body FRD, thrust `u_T` along `-z_b`, `m p'' = m g e3 - u_T R e3 + f_e`.
 //! Every law maps a [`Measurement`], a [`Reference`] and optionally a
 //! [`WrenchEstimate`] (fed back as doc section 6: `mu -= f_hat / m` and

@@ -1,7 +1,7 @@
 //! Passivity-based controller: Ruggiero, Cacace, Sadeghian, Lippiello,
 //! "Passivity-based control of VToL UAVs with a momentum-based estimator of
 //! external wrench and unmodeled dynamics", Robotics and Autonomous Systems 72
-//! (2015); origin report section 2.4; doc `model-and-control.md` section 6.
+//! (2015); origin report section 2.4; `docs/model.md` section 6.
 //!
 //! Slotine-Li style: the model is evaluated along reference signals
 //! `(.)_r`, not cancelled. NED world, FRD body, ZYX Euler angles, `M`, `C` as

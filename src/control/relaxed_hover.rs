@@ -3,7 +3,7 @@
 //! descending slowly under position control; rotors cut at touchdown.
 //! Mueller and D'Andrea, "Stability and control of a quadrocopter despite the
 //! complete loss of one, two, or three propellers" (ICRA 2014) and "Relaxed
-//! hover solutions for multicopters" (IJRR 2015); doc `model-and-control.md`
+//! hover solutions for multicopters" (IJRR 2015); `docs/model.md`
 //! section 3b.
 //!
 //! Frames: world NED, body FRD. Rotor `i` at `r_i = l_i [cos a_i, sin a_i, 0]`

@@ -116,13 +116,23 @@ pub fn parse_home(s: &str) -> anyhow::Result<GeoPoint> {
     let [lat_deg, lon_deg, alt_amsl_m] = v[..] else {
         bail!("--home `{s}`: expected three numbers LAT,LON,ALT");
     };
-    let p = GeoPoint {
+    anyhow::ensure!(
+        lat_deg.is_finite() && lat_deg.abs() <= 90.0,
+        "--home `{s}`: latitude {lat_deg} is out of range (-90 to 90 degrees)"
+    );
+    anyhow::ensure!(
+        lon_deg.is_finite() && lon_deg.abs() <= 180.0,
+        "--home `{s}`: longitude {lon_deg} is out of range (-180 to 180 degrees)"
+    );
+    anyhow::ensure!(
+        alt_amsl_m.is_finite(),
+        "--home `{s}`: altitude {alt_amsl_m} is not a number of metres"
+    );
+    Ok(GeoPoint {
         lat_deg,
         lon_deg,
         alt_amsl_m,
-    };
-    anyhow::ensure!(p.is_valid(), "--home `{s}` is not a valid position");
-    Ok(p)
+    })
 }
 
 /// Everything one daemon needs.

@@ -12,17 +12,18 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use tokio::net::UdpSocket;
-use tokio::sync::{Notify, broadcast, mpsc, oneshot, watch};
+use tokio::sync::{Notify, broadcast, mpsc, watch};
 use tokio::time::Instant;
 use tracing::{debug, warn};
 
+use super::reply::{Answer, reply};
 use super::saver::lock;
 use super::sim_thread::{Event, SimRequest};
 use crate::autopilot::{AutopilotCommand, CommandOutcome, PowerAction};
 use crate::link::{Effect, Link, Outgoing, To};
 use crate::lockstep::Snapshot;
 use crate::mission::MissionResult;
-use crate::params::ParamStore;
+use crate::params::{ParamStore, ParamValue};
 
 /// One link's task state.
 pub(super) struct LinkTask {
@@ -36,15 +37,21 @@ pub(super) struct LinkTask {
     pub(super) events: broadcast::Sender<Event>,
     pub(super) events_rx: broadcast::Receiver<Event>,
     pub(super) save: Arc<Notify>,
+    /// The parameter file, written through on each accepted set before the echo.
+    pub(super) params_file: super::saver::ParamsFile,
     pub(super) exit: mpsc::Sender<()>,
     pub(super) dests: Vec<SocketAddr>,
     pub(super) send_errors: u64,
     /// This link's `.tlog` (`--log-dir`; inert without).
     pub(super) tlog: super::tlog::Tlog,
+    /// Notified when SETUP_SIGNING changed the vehicle's key (`signing.rs` stores it).
+    pub(super) signing_changed: Arc<Notify>,
 }
 
-/// How long a link waits for the autopilot's answer before ACKing FAILED
-/// (or MISSION_ACK ERROR for a plan change).
+/// How long a link waits for the simulation thread to take a request up
+/// before giving it up: ACK FAILED ("autopilot did not answer"), PARAM_ERROR,
+/// or MISSION_ACK ERROR, and the request is never applied. One taken up in
+/// time is answered when done, however late ([`super::reply`]).
 const COMMAND_TIMEOUT: Duration = Duration::from_secs(1);
 
 fn unix_time_us() -> u64 {
@@ -88,7 +95,33 @@ fn pack_datagrams(frames: &[Outgoing], all: &[SocketAddr]) -> Vec<(SocketAddr, V
     out
 }
 
+/// What MAV_SYS_ID answers when asked to change: the system id is the
+/// instance's (instance + 1, as PX4 SITL's startup sets it on every start),
+/// so a set would be lost at the next start; it is refused instead.
+pub(super) const SYS_ID_REFUSAL: &str = "MAV_SYS_ID is instance+1: use --instance";
+
+/// What MAV_COMP_ID answers when asked to change: the autopilot is
+/// component 1, as PX4's is.
+pub(super) const COMP_ID_REFUSAL: &str = "MAV_COMP_ID is 1, the autopilot's";
+
+/// A parameter set refused before the autopilot sees it, with why: the
+/// vehicle's MAVLink ids to another value ([`SYS_ID_REFUSAL`],
+/// [`COMP_ID_REFUSAL`]; the same value is accepted and changes nothing).
+fn refuse_param_set(name: &str, value: ParamValue, params: &Mutex<ParamStore>) -> Option<String> {
+    let why = match name {
+        "MAV_SYS_ID" => SYS_ID_REFUSAL,
+        "MAV_COMP_ID" => COMP_ID_REFUSAL,
+        _ => return None,
+    };
+    (lock(params).get(name).map(|(_, v)| v) != Some(value)).then(|| why.to_string())
+}
+
 impl LinkTask {
+    /// Serve the link until `stop`. Fair under a flood (issue 15 §2): the
+    /// branches are tried in order stop, due streams, events, socket, so
+    /// the scheduler runs whenever a deadline has passed and at most one
+    /// datagram is handled between two looks at it; a datagram whose
+    /// effects wait on the simulation looks again after each effect.
     pub(super) async fn run(mut self, mut stop: watch::Receiver<bool>) {
         let name = self.link.config().name.clone();
         let mut buf = vec![0u8; 65_536];
@@ -100,27 +133,7 @@ impl LinkTask {
             tokio::select! {
                 biased;
                 _ = stop.changed() => break,
-                r = self.socket.recv_from(&mut buf) => match r {
-                    Ok((n, from)) => {
-                        self.tlog.received(&buf[..n]);
-                        let effects = {
-                            let t = self.tel.borrow();
-                            let p = lock(&self.params);
-                            self.link.on_datagram(Instant::now().into_std(), from, &buf[..n], &t, &*p)
-                        };
-                        self.flush().await;
-                        for e in effects {
-                            if !self.effect(e).await {
-                                return;
-                            }
-                        }
-                    }
-                    Err(e) => {
-                        debug!(link = %name, error = %e, "recv failed");
-                        // do not spin if the error persists
-                        tokio::time::sleep(Duration::from_millis(10)).await;
-                    }
-                },
+                () = tokio::time::sleep_until(deadline) => self.poll_streams().await,
                 ev = self.events_rx.recv() => match ev {
                     Ok(Event::StatusText(s)) => {
                         self.link.status_text(&s);
@@ -134,18 +147,52 @@ impl LinkTask {
                     Err(broadcast::error::RecvError::Lagged(n)) => warn!(link = %name, missed = n, "events dropped"),
                     Err(broadcast::error::RecvError::Closed) => break,
                 },
-                () = tokio::time::sleep_until(deadline) => {
-                    {
-                        let t = self.tel.borrow();
-                        self.link.poll(Instant::now().into_std(), &t, unix_time_us());
+                r = self.socket.recv_from(&mut buf) => match r {
+                    Ok((n, from)) => {
+                        self.tlog.received(&buf[..n]);
+                        let effects = {
+                            let t = self.tel.borrow();
+                            let p = lock(&self.params);
+                            self.link.on_datagram(Instant::now().into_std(), from, &buf[..n], &t, &*p)
+                        };
+                        self.flush().await;
+                        for e in effects {
+                            if !self.effect(e).await {
+                                return;
+                            }
+                            if self.link.next_deadline().is_some_and(|d| d <= Instant::now().into_std()) {
+                                self.poll_streams().await;
+                            }
+                        }
                     }
-                    self.tlog.flush_if_due();
-                    self.flush().await;
-                }
+                    Err(e) => {
+                        debug!(link = %name, error = %e, "recv failed");
+                        // do not spin if the error persists
+                        tokio::time::sleep(Duration::from_millis(10)).await;
+                    }
+                },
             }
         }
         let s = self.link.stats();
-        debug!(link = %name, frames_in = s.frames_in, ignored = s.ignored, "link stopped");
+        debug!(
+            link = %name,
+            frames_in = s.frames_in,
+            ignored = s.ignored,
+            held_back = s.held_back,
+            streams_shed = s.streams_shed,
+            "link stopped"
+        );
+    }
+
+    /// Send what is due: streams, delayed frames, parameter lists, mission
+    /// retries.
+    async fn poll_streams(&mut self) {
+        {
+            let t = self.tel.borrow();
+            self.link.poll(Instant::now().into_std(), &t, unix_time_us());
+        }
+        self.tlog.flush_if_due();
+        self.flush().await;
     }
 
     /// Hand a request to the simulation thread without blocking this task
@@ -186,45 +233,63 @@ impl LinkTask {
                 }
             }
             Effect::SetParam { ticket, value } => {
-                let (tx, rx) = oneshot::channel();
-                let outcome = match self.to_sim(SimRequest::SetParam {
-                    name: ticket.name.clone(),
-                    value,
-                    reply: tx,
-                }) {
-                    Err(false) => return false,
-                    Err(true) => Err("simulation busy".to_string()),
-                    Ok(()) => match tokio::time::timeout(COMMAND_TIMEOUT, rx).await {
-                        Ok(Ok(o)) => o,
-                        Ok(Err(_)) => return false,
-                        Err(_) => Err("autopilot did not answer".to_string()),
-                    },
+                let outcome = match refuse_param_set(&ticket.name, value, &self.params) {
+                    Some(why) => Err(why),
+                    None => {
+                        let (tx, rx) = reply();
+                        match self.to_sim(SimRequest::SetParam {
+                            name: ticket.name.clone(),
+                            value,
+                            reply: tx,
+                        }) {
+                            Err(false) => return false,
+                            Err(true) => Err("simulation busy".to_string()),
+                            Ok(()) => match rx.wait(COMMAND_TIMEOUT).await {
+                                Answer::Done(o) => o,
+                                Answer::Gone => return false,
+                                Answer::Expired => Err("autopilot did not answer".to_string()),
+                            },
+                        }
+                    }
+                };
+                // on disk before the echo (the saver retries a failed write)
+                let not_saved = if outcome.is_ok() {
+                    self.write_params().await.err()
+                } else {
+                    None
                 };
                 let changed = {
                     let p = lock(&self.params);
-                    self.link.on_param_set(&ticket, outcome, &*p)
+                    let changed = self.link.on_param_set(&ticket, outcome, &*p);
+                    if let Some(why) = &not_saved {
+                        self.link.on_param_not_saved(&ticket, why);
+                    }
+                    changed
                 };
                 self.flush().await;
                 if let Some(m) = changed {
                     let _ = self.events.send(Event::ParamValue(Arc::new(m)));
+                }
+                if not_saved.is_some() {
                     self.save.notify_one();
                 }
             }
             Effect::Plans { ticket, change } => {
-                let (tx, rx) = oneshot::channel();
+                let (tx, rx) = reply();
                 // a busy, slow or stuck flight stack changed nothing: ERROR
                 let outcome = match self.to_sim(SimRequest::Plans { change, reply: tx }) {
                     Err(false) => return false,
                     Err(true) => Err(MissionResult::Error),
-                    Ok(()) => match tokio::time::timeout(COMMAND_TIMEOUT, rx).await {
-                        Ok(Ok(o)) => o,
-                        Ok(Err(_)) => return false,
-                        Err(_) => Err(MissionResult::Error),
+                    Ok(()) => match rx.wait(COMMAND_TIMEOUT).await {
+                        Answer::Done(o) => o,
+                        Answer::Gone => return false,
+                        Answer::Expired => Err(MissionResult::Error),
                     },
                 };
                 self.link.on_plans_changed(ticket, outcome);
                 self.flush().await;
             }
+            Effect::SigningKeyChanged => self.signing_changed.notify_one(),
             Effect::GcsHeartbeat => {
                 // a dropped one is replaced by the next (GCSs send at 1 Hz)
                 let _ = self.to_sim(SimRequest::GcsHeartbeat);
@@ -245,23 +310,39 @@ impl LinkTask {
     }
 
     /// Give the autopilot a command and wait for its outcome (refused as
-    /// busy or unanswered when the simulation is); `None` when the
+    /// busy, or as unanswered when the simulation did not take it up within
+    /// [`COMMAND_TIMEOUT`]: then it is never applied); `None` when the
     /// daemon is going down.
     async fn command(&self, command: AutopilotCommand) -> Option<CommandOutcome> {
-        let (tx, rx) = oneshot::channel();
+        let (tx, rx) = reply();
         let outcome = match self.to_sim(SimRequest::Command {
             command,
             reply: Some(tx),
         }) {
             Err(false) => return None,
             Err(true) => CommandOutcome::TemporarilyRejected("simulation busy"),
-            Ok(()) => match tokio::time::timeout(COMMAND_TIMEOUT, rx).await {
-                Ok(Ok(o)) => o,
-                Ok(Err(_)) => return None,
-                Err(_) => CommandOutcome::Failed("autopilot did not answer"),
+            Ok(()) => match rx.wait(COMMAND_TIMEOUT).await {
+                Answer::Done(o) => o,
+                Answer::Gone => return None,
+                Answer::Expired => CommandOutcome::Failed("autopilot did not answer"),
             },
         };
         Some(outcome)
+    }
+
+    /// Write the parameters in force to the state directory now (off this
+    /// task's thread); why not, naming the file, when the write failed.
+    async fn write_params(&self) -> Result<(), String> {
+        let file = self.params_file.clone();
+        let params = self.params.clone();
+        match tokio::task::spawn_blocking(move || file.save(&params)).await {
+            Ok(Ok(())) => Ok(()),
+            Ok(Err(e)) => {
+                warn!(link = %self.link.config().name, error = %e, "parameter set not saved");
+                Err(e.to_string())
+            }
+            Err(e) => Err(format!("parameter writer failed: {e}")),
+        }
     }
 
     async fn flush(&mut self) {
@@ -335,5 +416,93 @@ mod tests {
         assert!(d.iter().all(|(_, x)| x.len() <= MAX_DATAGRAM));
         let total: usize = d.iter().map(|(_, x)| x.len()).sum();
         assert_eq!(total, 2 * (100 + 1300 + 60) + 50);
+    }
+
+    /// A link task whose simulation thread is stalled: the test holds the
+    /// inbox and serves it (or not) by hand.
+    async fn stalled() -> (LinkTask, super::super::inbox::Inbox<SimRequest>) {
+        use crate::airframe::Airframe;
+        use crate::geo::GeoPoint;
+        use crate::link::LinkConfig;
+        use crate::link::streams::{Identity, gcs_rates};
+        use crate::lockstep::Lockstep;
+        use crate::sim::SensorConfig;
+        let airframe = Airframe::load("quad").unwrap();
+        let store = ParamStore::new(&airframe);
+        let mut core =
+            Lockstep::one_vehicle(&airframe, GeoPoint::PX4_SITL_HOME, &store, SensorConfig::default()).unwrap();
+        let (_tel_tx, tel) = watch::channel(core.snapshot(0));
+        let (_lost_tx, link_lost) = watch::channel(false);
+        let (events, events_rx) = broadcast::channel(16);
+        let (exit, _) = mpsc::channel(1);
+        let inbox = super::super::inbox::inbox::<SimRequest>(1);
+        let dir = std::env::temp_dir().join(format!("rotorpilot-stalled-{}", std::process::id()));
+        let task = LinkTask {
+            link: Link::new(
+                LinkConfig {
+                    name: "gcs".into(),
+                    identity: Identity {
+                        system_id: 1,
+                        component_id: 1,
+                    },
+                    default_remote: None,
+                    rates: gcs_rates(),
+                    peer_timeout: Duration::from_secs(30),
+                },
+                Instant::now().into_std(),
+            ),
+            socket: UdpSocket::bind("127.0.0.1:0").await.unwrap(),
+            params: Arc::new(Mutex::new(store)),
+            tel,
+            link_lost,
+            sim: inbox.sender(0),
+            events,
+            events_rx,
+            save: Arc::new(Notify::new()),
+            params_file: super::super::saver::ParamsFile::new(dir.join("params.toml")),
+            signing_changed: Arc::new(Notify::new()),
+            exit,
+            dests: Vec::new(),
+            send_errors: 0,
+            tlog: super::super::tlog::Tlog::default(),
+        };
+        (task, inbox)
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_command_the_stalled_simulation_never_took_up_is_failed_and_never_applied() {
+        let (task, inbox) = stalled().await;
+        let t0 = std::time::Instant::now();
+        let outcome = task.command(AutopilotCommand::Land).await;
+        assert_eq!(outcome, Some(CommandOutcome::Failed("autopilot did not answer")));
+        assert!(t0.elapsed() >= COMMAND_TIMEOUT);
+        // the simulation wakes up: the request is there, and it must drop it
+        let (_, r) = inbox.try_recv().unwrap();
+        assert!(
+            super::super::reply::given_up(&r),
+            "a FAILED command must never be applied"
+        );
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_command_taken_up_in_time_is_acknowledged_late_with_the_autopilots_answer() {
+        let (task, inbox) = stalled().await;
+        // the simulation takes it up in time, then takes longer than the timeout to apply it
+        let sim = std::thread::spawn(move || {
+            let (_, r) = inbox.recv_timeout(Duration::from_secs(5)).unwrap();
+            assert!(!super::super::reply::given_up(&r), "taken up in time");
+            std::thread::sleep(COMMAND_TIMEOUT + Duration::from_millis(500));
+            match r {
+                SimRequest::Command { reply: Some(x), .. } => {
+                    let _ = x.send(CommandOutcome::Accepted);
+                }
+                other => panic!("{other:?}"),
+            }
+        });
+        let t0 = std::time::Instant::now();
+        let outcome = task.command(AutopilotCommand::Land).await;
+        assert_eq!(outcome, Some(CommandOutcome::Accepted), "late, not refused");
+        assert!(t0.elapsed() > COMMAND_TIMEOUT);
+        sim.join().unwrap();
     }
 }

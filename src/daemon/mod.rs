@@ -25,6 +25,7 @@
 //! | `tlog`, `ulog_file` | each link's `.tlog` and the vehicle's `flight.ulg` in the run's log directory |
 //! | `recorder` | the run's flight record (`flight.record`, for `rotorpilot replay`) and `--log-csv` CSV (`flight.csv`) |
 //! | `saver` | the parameter file and the stored plans, written after each accepted change |
+//! | `signing` | the MAVLink signing key (`signing.key`, 0600) of each vehicle: read at bind, stored on SETUP_SIGNING, every 10 s and at shutdown |
 //!
 //! The state directory (`--state-dir`) holds `params.toml` and
 //! `missions.json` (the mission, geofence and rally points, kept across
@@ -52,11 +53,15 @@ mod config;
 mod fleet;
 mod inbox;
 mod link_task;
+mod lock;
 mod logs;
 mod ready;
 mod recorder;
+mod reply;
 mod saver;
+mod signing;
 mod sim_thread;
+mod supervise;
 mod tlog;
 mod ulog_file;
 
@@ -89,7 +94,7 @@ use crate::mission::{MissionType, Plans};
 use crate::params::{ParamStore, ParamValue};
 use crate::sim::SensorConfig;
 use link_task::LinkTask;
-use saver::{PlansFile, lock, plan_saver, saver};
+use saver::{ParamsFile, PlansFile, plan_saver, saver};
 use sim_thread::{Event, Sim, SimRequest, VehicleIo};
 
 /// Fleets this large are stepped on every core ([`Lockstep::set_threads`]).
@@ -105,6 +110,10 @@ struct Vehicle {
     log_dir: Option<PathBuf>,
     /// The flight record (and CSV) in the log directory, started at bind.
     recorder: Option<recorder::Recorder>,
+    /// The MAVLink signing key (`signing.key` in the state directory), read at bind.
+    signing: signing::VehicleSigning,
+    /// The state directory's lock, held for the daemon's life.
+    state_lock: lock::StateLock,
 }
 
 /// A daemon with its sockets bound, ready to [`Daemon::run`].
@@ -131,7 +140,8 @@ fn vehicle_params(config: &Config, airframe: &Airframe) -> anyhow::Result<(Param
     let (mut params, warnings) = if config.reset_params {
         (ParamStore::new(airframe), Vec::new())
     } else {
-        ParamStore::load_or_default(airframe, &path)?
+        // a damaged file is renamed aside, not overwritten (saver::keep_bad_params)
+        saver::load_params(airframe, &path)?
     };
     let _ = params.set("MAV_SYS_ID", ParamValue::Int32(i32::from(config.system_id())));
     for (name, value) in &config.param_overrides {
@@ -185,10 +195,17 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
     }
     let mut airframes = Vec::with_capacity(configs.len());
     let mut stores = Vec::with_capacity(configs.len());
+    let mut locks = Vec::with_capacity(configs.len());
     for c in &configs {
         anyhow::ensure!(c.instance < 250, "{}--instance must be below 250", which(c));
         let airframe = Airframe::load(&c.airframe).map_err(|e| anyhow::anyhow!("{}{e}", which(c)))?;
-        let (params, warnings) = vehicle_params(c, &airframe).map_err(|e| anyhow::anyhow!("{}{e:#}", which(c)))?;
+        // one daemon per state directory, before its files are read (lock.rs)
+        locks.push(
+            lock::StateLock::take(&c.state_dir)
+                .map_err(|e| anyhow::anyhow!("{}{}", which(c), crate::cli::error_chain(&e)))?,
+        );
+        let (params, warnings) =
+            vehicle_params(c, &airframe).map_err(|e| anyhow::anyhow!("{}{}", which(c), crate::cli::error_chain(&e)))?;
         airframes.push(airframe);
         stores.push((params, warnings));
     }
@@ -222,7 +239,7 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
             .map_err(|e| anyhow::anyhow!("cannot start the stepping threads: {e}"))?;
     }
     let mut vehicles = Vec::with_capacity(configs.len());
-    for (i, (config, (params, warnings))) in configs.into_iter().zip(stores).enumerate() {
+    for (i, ((config, (params, warnings)), state_lock)) in configs.into_iter().zip(stores).zip(locks).enumerate() {
         if speed > 1.0 {
             // faster than real time: timers that wait for a client run on the wall clock
             core.pilot_mut(i).set_client_clock(ClientClock::Wall);
@@ -235,9 +252,11 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
                     "cannot restore the stored mission, geofence and rally points \
                      (mend or remove the file, or start with --reset-plans to discard them)",
                 )
-                .map_err(|e| anyhow::anyhow!("{}{e:#}", which(&config)))?
+                .map_err(|e| anyhow::anyhow!("{}{}", which(&config), crate::cli::error_chain(&e)))?
         };
         core.pilot_mut(i).restore_plans(plans);
+        let vehicle_signing =
+            signing::load(&config.state_dir).map_err(|e| anyhow::anyhow!("{}{e:#}", which(&config)))?;
         let mut sockets = Vec::new();
         for spec in &config.links {
             let s = UdpSocket::bind(spec.bind).await.with_context(|| {
@@ -267,6 +286,8 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
             sockets,
             log_dir,
             recorder,
+            signing: vehicle_signing,
+            state_lock,
         });
     }
     Ok(Daemon {
@@ -370,6 +391,9 @@ impl Daemon {
                 links.join(", "),
                 c.state_dir.display()
             ));
+            if let Some(line) = ready::injections(&v.params) {
+                s.push_str(&format!("    {line}\n"));
+            }
         }
         if let Some(base) = &c.log_dir {
             s.push_str(&format!(
@@ -414,6 +438,9 @@ impl Daemon {
         if let Some(d) = &v.log_dir {
             s.push_str(&format!("  logs: {}\n", d.display()));
         }
+        if let Some(line) = ready::injections(&v.params) {
+            s.push_str(&format!("  {line}\n"));
+        }
         // last: scripts read the summary up to this line (tests/daemon_runtime.rs)
         s.push_str(&format!("  parameters: {}", c.params_path().display()));
         s
@@ -447,15 +474,23 @@ impl Daemon {
         // what is saved at shutdown, per vehicle
         let mut finals = Vec::with_capacity(vehicles.len());
         let mut links = Vec::new();
+        // each link task's name for messages, in the order of `links`
+        let mut link_names: Vec<String> = Vec::new();
+        // each state directory stays locked until its final save is done (run returns)
+        let mut held_locks = Vec::with_capacity(vehicles.len());
         for (i, v) in vehicles.into_iter().enumerate() {
             let Vehicle {
                 config,
                 params,
-                warnings: _,
+                warnings,
                 sockets,
                 log_dir,
                 recorder,
+                signing: vehicle_signing,
+                state_lock,
             } = v;
+            tasks.push(tokio::spawn(signing::persist(vehicle_signing.clone(), stop_rx.clone())));
+            held_locks.push(state_lock);
             let params = Arc::new(Mutex::new(params));
             // the vehicle's ULog (`--log-dir`), started before the first step
             let ulog = log_dir
@@ -486,16 +521,20 @@ impl Daemon {
                 ulog,
                 recorder,
             });
+            // one writer per file: the saver, links' write-through and the final save share its lock
+            let params_file = ParamsFile::new(path.clone());
             tasks.push(tokio::spawn(saver(
                 params.clone(),
-                path.clone(),
+                params_file.clone(),
                 save.clone(),
+                ev_tx.clone(),
                 stop_rx.clone(),
             )));
             tasks.push(tokio::spawn(plan_saver(
                 tel_rx.clone(),
                 plans_file.clone(),
                 plans_changed,
+                ev_tx.clone(),
                 stop_rx.clone(),
             )));
             tels.push(tel_rx.clone());
@@ -504,7 +543,7 @@ impl Daemon {
                 component_id: 1,
             };
             for (index, (spec, socket)) in sockets.into_iter().enumerate() {
-                let link = Link::new(
+                let mut link = Link::new(
                     LinkConfig {
                         name: spec.name.clone(),
                         identity,
@@ -514,6 +553,8 @@ impl Daemon {
                     },
                     Instant::now().into_std(),
                 );
+                link.set_signing(vehicle_signing.shared.clone(), u8::try_from(index).unwrap_or(u8::MAX));
+                link_names.push(format!("{}{} link", vehicle_prefix(lone, config.instance), spec.name));
                 links.push(LinkTask {
                     link,
                     socket,
@@ -524,6 +565,7 @@ impl Daemon {
                     events: ev_tx.clone(),
                     events_rx: ev_tx.subscribe(),
                     save: save.clone(),
+                    params_file: params_file.clone(),
                     exit: exit_tx.clone(),
                     dests: Vec::new(),
                     send_errors: 0,
@@ -531,9 +573,12 @@ impl Daemon {
                         .as_deref()
                         .map(|d| tlog::Tlog::create(d, &tlog::file_name(index, &spec.name)))
                         .unwrap_or_default(),
+                    signing_changed: vehicle_signing.changed.clone(),
                 });
             }
-            finals.push((config.instance, params, path, plans_file, tel_rx));
+            // the links are subscribed: they send it once they run
+            saver::announce_params_warnings(&warnings, &ev_tx);
+            finals.push((config.instance, params, params_file, plans_file, tel_rx));
         }
         // stops the simulation thread out of band (a full queue cannot hold it up)
         let stopper = inbox.stopper();
@@ -553,9 +598,12 @@ impl Daemon {
             .context("starting the simulation thread")?;
         // issue 13: one stdout line when the vehicles first are ready to arm (ready.rs)
         tasks.push(tokio::spawn(ready::announce(started, tels, stop_rx.clone())));
-        for task in links {
-            tasks.push(tokio::spawn(task.run(stop_rx.clone())));
+        // watched: a link task that ends while running stops the daemon (supervise.rs)
+        let mut link_tasks = supervise::LinkTasks::default();
+        for (name, task) in link_names.into_iter().zip(links) {
+            link_tasks.spawn(name, task.run(stop_rx.clone()));
         }
+        let mut link_died: Option<String> = None;
         drop(exit_tx);
 
         let mut sim_done = sim_done_rx;
@@ -572,12 +620,27 @@ impl Daemon {
                 tracing::error!("the simulation thread stopped; shutting down");
                 true
             }
+            why = link_tasks.ended() => {
+                // a link task also ends when the simulation thread is gone:
+                // then that is the reason to give, not the link
+                if tokio::time::timeout(Duration::from_millis(200), &mut sim_done).await.is_ok() {
+                    tracing::error!("the simulation thread stopped; shutting down");
+                    true
+                } else {
+                    tracing::error!("{why}; shutting down");
+                    link_died = Some(why);
+                    false
+                }
+            }
         };
         let _ = stop_tx.send(true);
         stopper.stop();
-        if tokio::time::timeout(Duration::from_millis(800), futures_join(tasks))
-            .await
-            .is_err()
+        if tokio::time::timeout(Duration::from_millis(800), async {
+            futures_join(tasks).await;
+            link_tasks.join_all().await;
+        })
+        .await
+        .is_err()
         {
             warn!("some tasks did not stop in time");
         }
@@ -596,7 +659,8 @@ impl Daemon {
         }
         // every vehicle's files, even when one fails; the first error is returned
         let mut first_error: Option<anyhow::Error> = None;
-        for (instance, params, path, plans_file, tel_rx) in finals {
+        for (instance, params, params_file, plans_file, tel_rx) in finals {
+            let path = params_file.path().to_path_buf();
             let who = vehicle_prefix(lone, instance);
             // the simulation thread publishes every plan change before it
             // answers it, so the last snapshot holds the plans in force
@@ -605,9 +669,8 @@ impl Daemon {
             if plans_saved.is_ok() {
                 info!(path = %plans_file.path().display(), "plans saved");
             }
-            let snapshot = lock(&params).clone();
-            let saved = snapshot
-                .save(&path)
+            let saved = params_file
+                .save_final(&params)
                 .with_context(|| format!("{who}saving parameters to {}", path.display()));
             if saved.is_ok() {
                 info!(path = %path.display(), "parameters saved");
@@ -622,6 +685,9 @@ impl Daemon {
             return Err(e);
         }
         anyhow::ensure!(!sim_died, "the simulation thread stopped unexpectedly");
+        if let Some(why) = link_died {
+            anyhow::bail!("{why}");
+        }
         Ok(())
     }
 }

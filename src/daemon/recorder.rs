@@ -1,7 +1,8 @@
 //! The run's flight record (`flight.record`, [`crate::record`]'s format)
 //! and, with `--log-csv`, its flight CSV (`flight.csv`, the rows of
-//! `rotorpilot simulate --csv`, one per step), written by the simulation
-//! thread. Every input reaches the core through [`Sim::apply`], which
+//! `rotorpilot simulate --csv`, one per step, with its sidecar
+//! `flight.csv.meta.json`: what flew it, see [`crate::flightlog::LogMeta`]),
+//! written by the simulation thread. Every input reaches the core through [`Sim::apply`], which
 //! records it; each record line is flushed as it is written, so a killed
 //! daemon leaves a record that replays up to its last input; a write that
 //! fails (disk full, I/O error) cuts the file back to its last whole line
@@ -99,6 +100,9 @@ impl Recorder {
         let csv = if csv {
             let path = dir.join(CSV_FILE);
             let f = create_csv_file(&path).map_err(|e| anyhow::anyhow!("--log-csv: {e}"))?;
+            crate::scenario::autopilot_meta(core.pilot(vehicle), "daemon --log-csv", &dir.display().to_string())
+                .write_beside(&path)
+                .map_err(|e| anyhow::anyhow!("--log-csv: {e}"))?;
             Some(CsvLog::new(f, rotors).with_context(|| format!("writing {}", path.display()))?)
         } else {
             None

@@ -14,12 +14,17 @@
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, MutexGuard};
 
-use tokio::sync::{Notify, watch};
-use tracing::{debug, warn};
+use std::time::Duration;
 
+use tokio::sync::{Notify, broadcast, watch};
+use tracing::{debug, info, warn};
+
+use super::sim_thread::Event;
+use crate::autopilot::{Severity, StatusText};
 use crate::lockstep::Snapshot;
 use crate::mission::Plans;
 use crate::mission::file::{MissionFileError, save_plans};
+use crate::params::ParamFileError;
 use crate::params::ParamStore;
 
 /// The parameter store, locked (never across an `.await`).
@@ -29,40 +34,152 @@ pub(super) fn lock(p: &Mutex<ParamStore>) -> MutexGuard<'_, ParamStore> {
     p.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
-/// Writes the parameter file whenever notified (coalescing bursts) until `stop` changes.
-pub(super) async fn saver(
-    params: Arc<Mutex<ParamStore>>,
-    path: PathBuf,
+/// A vehicle's parameter file at start ([`ParamStore::load_keeping_bad`]):
+/// a file with lines that do not read, or an empty one, is renamed aside to
+/// `params.bad-<unix time>` (the warning names it) and the store holds its
+/// valid lines; the start's save then writes a clean file.
+pub(super) fn load_params(
+    airframe: &crate::airframe::Airframe,
+    path: &Path,
+) -> Result<(ParamStore, Vec<String>), ParamFileError> {
+    let unix_s = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let loaded = ParamStore::load_keeping_bad(airframe, path, unix_s)?;
+    if let Some(aside) = &loaded.set_aside {
+        warn!(path = %path.display(), kept = %aside.display(), "parameter file set aside");
+    }
+    Ok((loaded.store, loaded.warnings))
+}
+
+/// The warnings of [`load_params`] told to the clients at start
+/// (STATUSTEXT critical): the one saying where a damaged file went.
+pub(super) fn announce_params_warnings(warnings: &[String], events: &broadcast::Sender<Event>) {
+    for w in warnings.iter().filter(|w| w.contains(".bad-")) {
+        announce(events, Severity::Critical, &format!("Parameter file set aside: {w}"));
+    }
+}
+
+/// The first wait before a failed save is tried again; each further failure
+/// doubles it, up to [`RETRY_MAX`].
+pub(super) const RETRY_FIRST: Duration = Duration::from_secs(1);
+/// The longest wait between two tries of a failed save.
+pub(super) const RETRY_MAX: Duration = Duration::from_secs(30);
+
+/// The wait after `failures` failed tries in a row (>= 1): `RETRY_FIRST *
+/// 2^(failures - 1)`, at most [`RETRY_MAX`].
+pub(super) fn backoff(failures: u32) -> Duration {
+    let doublings = failures.saturating_sub(1).min(16);
+    (RETRY_FIRST * 2u32.pow(doublings)).min(RETRY_MAX)
+}
+
+/// The most characters of one STATUSTEXT.
+const STATUS_TEXT_LEN: usize = 50;
+
+/// `text` as status-text lines of at most 50 bytes, cut at spaces or path
+/// separators where it can (a path and an OS error do not fit one STATUSTEXT).
+pub(super) fn text_lines(text: &str) -> Vec<String> {
+    let mut lines = Vec::new();
+    let mut rest = text.trim();
+    while rest.len() > STATUS_TEXT_LEN {
+        let mut end = STATUS_TEXT_LEN;
+        while !rest.is_char_boundary(end) {
+            end -= 1;
+        }
+        let cut = rest[..end]
+            .rfind([' ', '/'])
+            .filter(|&k| k > STATUS_TEXT_LEN / 2)
+            .map_or(end, |k| k + 1);
+        lines.push(rest[..cut].trim_end().to_string());
+        rest = rest[cut..].trim_start();
+    }
+    if !rest.is_empty() {
+        lines.push(rest.to_string());
+    }
+    lines
+}
+
+/// Tell every link's clients `text` (split into STATUSTEXT lines).
+pub(super) fn announce(events: &broadcast::Sender<Event>, severity: Severity, text: &str) {
+    for line in text_lines(text) {
+        let _ = events.send(Event::StatusText(StatusText { severity, text: line }));
+    }
+}
+
+/// Keep one state file saved: write it with `write` (blocking: on the
+/// blocking pool) whenever notified, coalescing bursts, until `stop`
+/// changes. A failed write is reported to every client (STATUSTEXT
+/// critical, and the log) and tried again after [`backoff`] until it
+/// succeeds (a new notification tries at once); the success after failures
+/// is announced. Reports: the first failure, then every tenth.
+pub(super) async fn keep_saved<F>(
+    what: &'static str,
+    write: F,
     save: Arc<Notify>,
+    events: broadcast::Sender<Event>,
     mut stop: watch::Receiver<bool>,
-) {
+) where
+    F: Fn() -> Result<(), String> + Clone + Send + 'static,
+{
+    let mut failures: u32 = 0;
     loop {
+        let retry = if failures == 0 { None } else { Some(backoff(failures)) };
         tokio::select! {
             () = save.notified() => {}
+            () = async {
+                match retry {
+                    Some(d) => tokio::time::sleep(d).await,
+                    None => std::future::pending().await,
+                }
+            } => {}
             _ = stop.changed() => return,
         }
-        let snapshot = lock(&params).clone();
-        let p = path.clone();
-        match tokio::task::spawn_blocking(move || snapshot.save(&p)).await {
-            Ok(Ok(())) => debug!(path = %path.display(), "parameters saved"),
-            Ok(Err(e)) => warn!(error = %e, "cannot save parameters"),
-            Err(e) => warn!(error = %e, "parameter saver failed"),
+        let w = write.clone();
+        let result = match tokio::task::spawn_blocking(w).await {
+            Ok(r) => r,
+            Err(e) => Err(format!("the writer failed: {e}")),
+        };
+        match result {
+            Ok(()) => {
+                if failures > 0 {
+                    info!(what, failures, "saved after failed tries");
+                    announce(
+                        &events,
+                        Severity::Info,
+                        &format!("{what} saved after {failures} failed tries"),
+                    );
+                }
+                debug!(what, "saved");
+                failures = 0;
+            }
+            Err(e) => {
+                failures += 1;
+                warn!(what, error = %e, failures, retry_s = backoff(failures).as_secs_f64(), "cannot save; will retry");
+                if failures == 1 || failures.is_multiple_of(10) {
+                    announce(
+                        &events,
+                        Severity::Critical,
+                        &format!("{what} not saved (retrying): {e}"),
+                    );
+                }
+            }
         }
     }
 }
 
-/// The plans file, and the lock that keeps two writes of it (the saver's and
-/// the one at shutdown) from sharing its temporary file; it also remembers
-/// that the final write was made, so a saver write that was late (a task
-/// that did not stop in time) cannot put older plans over it.
+/// One state file and its single writer: every write (the savers', a link's
+/// write-through, the one at shutdown) holds the lock while it takes its
+/// snapshot and writes it, so writes never share the temporary file, the
+/// last write holds the latest state, and once the final write at shutdown
+/// is made no late write can put older state over it.
 #[derive(Clone, Debug)]
-pub(super) struct PlansFile {
+pub(super) struct StateFile {
     path: PathBuf,
     /// Held while writing; true once the final write is done.
     finished: Arc<Mutex<bool>>,
 }
 
-impl PlansFile {
+impl StateFile {
     pub(super) fn new(path: PathBuf) -> Self {
         Self {
             path,
@@ -74,45 +191,105 @@ impl PlansFile {
         &self.path
     }
 
-    /// Write `plans` (blocking: the file system), unless the final write was made.
-    pub(super) fn save(&self, plans: &Plans) -> Result<(), MissionFileError> {
+    /// Run `write` (blocking: the file system) under the lock, unless the
+    /// final write was made (then nothing is written).
+    fn write<E>(&self, write: impl FnOnce(&Path) -> Result<(), E>) -> Result<(), E> {
         let finished = self.finished.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
         if *finished {
             return Ok(());
         }
-        save_plans(&self.path, plans)
+        write(&self.path)
+    }
+
+    /// The last write, at shutdown; later writes do nothing.
+    fn write_final<E>(&self, write: impl FnOnce(&Path) -> Result<(), E>) -> Result<(), E> {
+        let mut finished = self.finished.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        *finished = true;
+        write(&self.path)
+    }
+}
+
+/// The parameter file ([`StateFile`]).
+#[derive(Clone, Debug)]
+pub(super) struct ParamsFile(StateFile);
+
+impl ParamsFile {
+    pub(super) fn new(path: PathBuf) -> Self {
+        Self(StateFile::new(path))
+    }
+
+    pub(super) fn path(&self) -> &Path {
+        self.0.path()
+    }
+
+    /// Write the parameters in force (blocking), the snapshot taken under the file's lock.
+    pub(super) fn save(&self, params: &Mutex<ParamStore>) -> Result<(), ParamFileError> {
+        self.0.write(|p| lock(params).clone().save(p))
+    }
+
+    /// The last write, at shutdown.
+    pub(super) fn save_final(&self, params: &Mutex<ParamStore>) -> Result<(), ParamFileError> {
+        self.0.write_final(|p| lock(params).clone().save(p))
+    }
+}
+
+/// Writes the parameter file whenever notified ([`keep_saved`]) until `stop` changes.
+pub(super) async fn saver(
+    params: Arc<Mutex<ParamStore>>,
+    file: ParamsFile,
+    save: Arc<Notify>,
+    events: broadcast::Sender<Event>,
+    stop: watch::Receiver<bool>,
+) {
+    let write = move || file.save(&params).map_err(|e| e.to_string());
+    keep_saved("Parameters", write, save, events, stop).await;
+}
+
+/// The plans file ([`StateFile`]).
+#[derive(Clone, Debug)]
+pub(super) struct PlansFile(StateFile);
+
+impl PlansFile {
+    pub(super) fn new(path: PathBuf) -> Self {
+        Self(StateFile::new(path))
+    }
+
+    pub(super) fn path(&self) -> &Path {
+        self.0.path()
+    }
+
+    /// Write `plans` (blocking: the file system), unless the final write was made.
+    #[cfg(test)]
+    pub(super) fn save(&self, plans: &Plans) -> Result<(), MissionFileError> {
+        self.0.write(|p| save_plans(p, plans))
+    }
+
+    /// Write the plans of the latest snapshot, taken under the file's lock.
+    pub(super) fn save_latest(&self, tel: &watch::Receiver<Snapshot>) -> Result<(), MissionFileError> {
+        self.0.write(|p| {
+            // shared items: a cheap clone, the lock of the watch released at once
+            let plans = tel.borrow().plans.clone();
+            save_plans(p, &plans)
+        })
     }
 
     /// The last write, at shutdown; later [`Self::save`] calls do nothing.
     pub(super) fn save_final(&self, plans: &Plans) -> Result<(), MissionFileError> {
-        let mut finished = self.finished.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-        *finished = true;
-        save_plans(&self.path, plans)
+        self.0.write_final(|p| save_plans(p, plans))
     }
 }
 
-/// Writes the plans file whenever notified (coalescing bursts), from the
+/// Writes the plans file whenever notified ([`keep_saved`]), from the
 /// latest snapshot, until `stop` changes.
 pub(super) async fn plan_saver(
     tel: watch::Receiver<Snapshot>,
     file: PlansFile,
     changed: Arc<Notify>,
-    mut stop: watch::Receiver<bool>,
+    events: broadcast::Sender<Event>,
+    stop: watch::Receiver<bool>,
 ) {
-    loop {
-        tokio::select! {
-            () = changed.notified() => {}
-            _ = stop.changed() => return,
-        }
-        // shared items: a cheap clone, the lock of the watch released at once
-        let plans = tel.borrow().plans.clone();
-        let f = file.clone();
-        match tokio::task::spawn_blocking(move || f.save(&plans)).await {
-            Ok(Ok(())) => debug!(path = %file.path().display(), "plans saved"),
-            Ok(Err(e)) => warn!(error = %e, "cannot save the plans"),
-            Err(e) => warn!(error = %e, "plan saver failed"),
-        }
-    }
+    let write = move || file.save_latest(&tel).map_err(|e| e.to_string());
+    keep_saved("Mission/fence/rally", write, changed, events, stop).await;
 }
 
 #[cfg(test)]
@@ -152,7 +329,8 @@ mod tests {
         let (tel_tx, tel_rx) = watch::channel(core.snapshot(0));
         let (stop_tx, stop_rx) = watch::channel(false);
         let changed = Arc::new(Notify::new());
-        let task = tokio::spawn(plan_saver(tel_rx, file.clone(), changed.clone(), stop_rx));
+        let (ev_tx, _) = broadcast::channel(16);
+        let task = tokio::spawn(plan_saver(tel_rx, file.clone(), changed.clone(), ev_tx, stop_rx));
         // as the simulation thread does it: change, publish, notify
         for k in 0..20 {
             let items = (0..=k).map(|i| waypoint(10.0 + i as f32)).collect();
@@ -189,5 +367,71 @@ mod tests {
         file.save(core.pilot(0).plans()).unwrap();
         assert_eq!(load_plans(file.path()).unwrap(), Plans::default());
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn the_backoff_doubles_from_one_second_to_thirty() {
+        let s: Vec<u64> = (1..=7).map(|f| backoff(f).as_secs()).collect();
+        assert_eq!(s, vec![1, 2, 4, 8, 16, 30, 30]);
+        assert_eq!(backoff(u32::MAX), RETRY_MAX);
+    }
+
+    #[test]
+    fn long_texts_become_status_text_lines_cut_at_separators() {
+        let t = "Parameters not saved (retrying): parameter file /tmp/rotorpilot-client-abc/.params.toml.1234.tmp: Is a directory (os error 21)";
+        let lines = text_lines(t);
+        assert!(lines.len() >= 3, "{lines:?}");
+        assert!(lines.iter().all(|l| !l.is_empty() && l.len() <= 50), "{lines:?}");
+        assert_eq!(lines.concat().replace(' ', ""), t.replace(' ', ""));
+        assert_eq!(text_lines("short"), vec!["short".to_string()]);
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_failing_save_is_reported_retried_and_its_success_announced() {
+        use std::sync::atomic::{AtomicU32, Ordering};
+        let tries = Arc::new(AtomicU32::new(0));
+        let t = tries.clone();
+        // fails twice, then works
+        let write = move || {
+            if t.fetch_add(1, Ordering::SeqCst) < 2 {
+                Err("/state/params.toml: No space left on device (os error 28)".to_string())
+            } else {
+                Ok(())
+            }
+        };
+        let (ev_tx, mut ev_rx) = broadcast::channel(64);
+        let (stop_tx, stop_rx) = watch::channel(false);
+        let save = Arc::new(Notify::new());
+        save.notify_one();
+        let task = tokio::spawn(keep_saved("Parameters", write, save, ev_tx, stop_rx));
+        let mut said = Vec::new();
+        let deadline = tokio::time::Instant::now() + Duration::from_secs(6);
+        while !said.iter().any(|(_, t): &(Severity, String)| t.contains("saved after")) {
+            match tokio::time::timeout_at(deadline, ev_rx.recv()).await {
+                Ok(Ok(Event::StatusText(s))) => said.push((s.severity, s.text)),
+                Ok(_) => {}
+                Err(_) => panic!("no success announced: {said:?}"),
+            }
+        }
+        assert_eq!(tries.load(Ordering::SeqCst), 3, "the first try and two retries");
+        assert_eq!(said[0].0, Severity::Critical);
+        assert!(said[0].1.starts_with("Parameters not saved"), "{said:?}");
+        assert!(said.iter().any(|(_, t)| t.contains("No space left")), "{said:?}");
+        // the first failure is reported, not the second (every tenth is)
+        assert_eq!(
+            said.iter()
+                .filter(|(_, t)| t.starts_with("Parameters not saved"))
+                .count(),
+            1
+        );
+        assert_eq!(
+            said.last().unwrap(),
+            &(Severity::Info, "Parameters saved after 2 failed tries".to_string())
+        );
+        let _ = stop_tx.send(true);
+        tokio::time::timeout(Duration::from_secs(2), task)
+            .await
+            .unwrap()
+            .unwrap();
     }
 }

@@ -14,7 +14,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::common::MavMessage;
-use tokio::sync::{Notify, broadcast, oneshot, watch};
+use tokio::sync::{Notify, broadcast, watch};
 use tracing::{debug, info, warn};
 
 use super::inbox::Inbox;
@@ -37,18 +37,18 @@ pub(super) enum SimRequest {
     /// A command, answered on `reply` (offboard setpoints have none).
     Command {
         command: AutopilotCommand,
-        reply: Option<oneshot::Sender<CommandOutcome>>,
+        reply: Option<super::reply::Reply<CommandOutcome>>,
     },
     /// A parameter set, answered with the stored value or why it was refused.
     SetParam {
         name: String,
         value: ParamValue,
-        reply: oneshot::Sender<Result<ParamValue, String>>,
+        reply: super::reply::Reply<Result<ParamValue, String>>,
     },
     /// Store or clear plans, answered with the new plan's id or why nothing changed.
     Plans {
         change: PlanChange,
-        reply: oneshot::Sender<Result<u32, MissionResult>>,
+        reply: super::reply::Reply<Result<u32, MissionResult>>,
     },
     /// A ground station's HEARTBEAT arrived (data-link loss supervision; no answer).
     GcsHeartbeat,
@@ -231,6 +231,10 @@ impl Sim {
 
     /// Serve vehicle `v`'s request.
     fn handle(&mut self, v: usize, r: SimRequest) {
+        // a request its link gave up on (timed out) is never applied (reply.rs)
+        if super::reply::given_up(&r) {
+            return;
+        }
         match r {
             SimRequest::Command { command, reply } => {
                 let mut outcome = self.command(v, command);

@@ -1,5 +1,5 @@
 //! The discrete r-th order integrator chain shared by every estimator channel
-//! (doc `model-and-control.md` section 7, "Discrete implementation").
+//! (`docs/model.md` section 7, "Discrete implementation").
 //!
 //! Continuous form, per channel, with momentum `q`, known part `d` of `q'`
 //! and the true wrench `w` (`q' = d + w`):
@@ -162,6 +162,25 @@ impl<const C: usize> ChainFilter<C> {
             stages: [[0.0; C]; MAX_ORDER],
             state_part: [0.0; C],
         })
+    }
+
+    /// Change the sample time to `h` [s] for the following samples, keeping
+    /// the state `gamma_1..gamma_r`: the coefficients are those
+    /// [`Self::new`] computes for `h`, so a chain advanced with the step of
+    /// each sample is the chosen rule applied interval by interval (a log
+    /// with a varying step). The same `h` changes nothing.
+    ///
+    /// # Errors
+    /// `h` not finite and > 0 (the chain is then unchanged).
+    pub fn set_sample_time(&mut self, h: f64) -> Result<(), EstimatorError> {
+        if h.to_bits() == self.h.to_bits() {
+            return Ok(());
+        }
+        let stages = self.stages;
+        *self = Self::new(self.gains(), self.discretization, h)?;
+        self.stages = stages;
+        self.state_part = Self::weighted_stages(&self.stages[..self.order], &self.output_weights);
+        Ok(())
     }
 
     /// Order r.
@@ -499,6 +518,33 @@ mod tests {
             for (a, b) in y.iter().zip([0.5, -2.4525, 0.2]) {
                 assert!((a - b).abs() < 1e-12, "{d:?}");
             }
+        }
+    }
+
+    /// A chain advanced with a varying step (each sample's increment `w h_k`)
+    /// converges to the constant wrench `w` as with a constant step; the same
+    /// step set again changes nothing, bit for bit.
+    #[test]
+    fn a_varying_step_converges_to_the_wrench() {
+        let k = gains_for(&Polynomial::Butterworth, 5, 10.0).unwrap();
+        for d in [Discretization::Trapezoidal, Discretization::ForwardEuler] {
+            let mut chain = ChainFilter::<1>::new(&k, d, 1e-3).unwrap();
+            let mut same = chain;
+            for i in 0..6000 {
+                // steps of 0.5, 1.0 and 1.5 ms in turn
+                let h = 1e-3 * (0.5 + 0.5 * f64::from(i % 3));
+                chain.set_sample_time(h).unwrap();
+                chain.advance(&[0.7 * h]);
+                same.set_sample_time(1e-3).unwrap();
+                same.advance(&[0.7e-3]);
+            }
+            assert!((chain.output()[0] - 0.7).abs() < 1e-6, "{d:?}: {:?}", chain.output());
+            let mut constant = ChainFilter::<1>::new(&k, d, 1e-3).unwrap();
+            for _ in 0..6000 {
+                constant.advance(&[0.7e-3]);
+            }
+            assert_eq!(constant.output()[0].to_bits(), same.output()[0].to_bits(), "{d:?}");
+            assert!(chain.set_sample_time(0.0).is_err());
         }
     }
 }

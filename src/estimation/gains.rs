@@ -1,5 +1,5 @@
 //! Filter polynomials and chain gains of the r-th order momentum-based
-//! estimator (doc `model-and-control.md` section 7, "Gains from coefficients").
+//! estimator (`docs/model.md` section 7, "Gains from coefficients").
 //!
 //! Each of the estimator's channels has the transfer function from the true
 //! wrench `w` to its estimate `gamma_r`

@@ -1,6 +1,6 @@
 //! Step-response metrics of an estimate time series against the true value
 //! (2 % settling time, overshoot, RMS error), for the offline comparison of
-//! orders and polynomials (doc `model-and-control.md` sections 7 and 10).
+//! orders and polynomials (`docs/model.md` sections 7 and 10).
 //! Pure functions on slices.
 
 /// Why a metric could not be computed.

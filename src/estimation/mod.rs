@@ -1,5 +1,5 @@
 //! Momentum-based external-wrench estimator of order r, and the real mass
-//! (doc `model-and-control.md` section 7; Ruggiero, Cacace, Sadeghian,
+//! (`docs/model.md` section 7; Ruggiero, Cacace, Sadeghian,
 //! Lippiello, "Passivity-based control of VToL UAVs with a momentum-based
 //! estimator of external wrench and unmodeled dynamics", Robotics and
 //! Autonomous Systems 72, 2015; the origin report, exercise 4).

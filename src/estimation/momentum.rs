@@ -1,5 +1,5 @@
 //! The momentum-based estimator of external force, external torque and real
-//! mass (doc `model-and-control.md` sections 2, 6 and 7; Ruggiero, Cacace,
+//! mass (`docs/model.md` sections 2, 6 and 7; Ruggiero, Cacace,
 //! Sadeghian, Lippiello, Robotics and Autonomous Systems 72, 2015; the origin
 //! report, exercise 4).
 
@@ -579,6 +579,30 @@ impl MomentumEstimator {
     /// `[t_{k-1}, t_k)` ([`EstimatorInput`]); returns the estimate at `t_k`.
     pub fn update(&mut self, x: &EstimatorInput) -> WrenchEstimate {
         input_update(self, x)
+    }
+
+    /// [`Self::update`] with the sample's own step `h` = `t_k - t_{k-1}` [s]
+    /// instead of the configured one: `d` is integrated over `[t_{k-1}, t_k)`
+    /// and the chains advance by the rule for that `h`
+    /// ([`ChainFilter::set_sample_time`]), for logs whose step varies. With
+    /// `h` equal to the configured sample time the result is that of
+    /// [`Self::update`], bit for bit; the step set stays until another is given.
+    ///
+    /// # Errors
+    /// `h` not finite and > 0, or forward Euler unstable at `h`; the
+    /// estimator is then unchanged.
+    pub fn update_with_step(&mut self, x: &EstimatorInput, h: f64) -> Result<WrenchEstimate, EstimatorError> {
+        if h.to_bits() != self.chain.sample_time_s().to_bits() {
+            if self.config.discretization == Discretization::ForwardEuler {
+                EstimatorConfig {
+                    sample_time_s: h,
+                    ..self.config.clone()
+                }
+                .gains()?;
+            }
+            self.chain.set_sample_time(h)?;
+        }
+        Ok(input_update(self, x))
     }
 
     /// The same as `update(&input_from(meas, applied))` (equal up to

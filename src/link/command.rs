@@ -150,6 +150,14 @@ impl Command {
         }
     }
 
+    /// Whether the latitude and longitude given (if any) are within ±90° and
+    /// ±180° (an unset position is in range).
+    #[must_use]
+    pub fn lat_lon_in_range(&self) -> bool {
+        self.lat_lon()
+            .is_none_or(|(lat, lon)| lat.abs() <= 90.0 && lon.abs() <= 180.0)
+    }
+
     /// param7 / z, `None` when NaN.
     #[must_use]
     pub fn z(&self) -> Option<f64> {
@@ -187,6 +195,11 @@ pub fn classify(c: &Command) -> Action {
                 0.0 => Action::Autopilot(AutopilotCommand::Disarm { force }),
                 _ => Action::Answer(result::UNSUPPORTED, None),
             }
+        }
+        // lat/lon (params 5, 6) are not flown (PX4 multirotors take off
+        // where they stand) but must be a place: beyond ±90°/±180° is malformed
+        id::NAV_TAKEOFF if !c.lat_lon_in_range() => {
+            Action::Answer(result::DENIED, Some("Takeoff denied: latitude/longitude out of range"))
         }
         id::NAV_TAKEOFF => Action::Autopilot(AutopilotCommand::Takeoff { altitude_amsl_m: c.z() }),
         id::NAV_LAND => Action::Autopilot(AutopilotCommand::Land),
@@ -325,6 +338,39 @@ mod tests {
         );
         assert_eq!(c(3.0, 0.0), Action::Answer(result::UNSUPPORTED, None));
         assert_eq!(c(N, 0.0), Action::Answer(result::UNSUPPORTED, None));
+    }
+
+    #[test]
+    fn takeoff_at_an_impossible_place_is_denied_here() {
+        for (lat, lon) in [(95.0, 8.5), (-90.5, 8.5), (47.4, 181.0)] {
+            let a = classify(&long(22, [N, N, N, N, lat, lon, 500.0]));
+            assert!(
+                matches!(a, Action::Answer(result::DENIED, Some(_))),
+                "{lat}, {lon}: {a:?}"
+            );
+        }
+        let int = |x: i32| {
+            Command::from(&CommandInt {
+                params: [N; 4],
+                x,
+                y: 85_000_000,
+                z: 500.0,
+                command: 22,
+                target_system: 1,
+                target_component: 1,
+                frame: 0,
+                current: 0,
+                autocontinue: 0,
+            })
+        };
+        assert!(matches!(classify(&int(950_000_000)), Action::Answer(result::DENIED, _)));
+        assert!(matches!(classify(&int(474_000_000)), Action::Autopilot(_)));
+        // an unset position (NaN, 0/0) takes off where it stands
+        assert!(matches!(classify(&long(22, [N; 7])), Action::Autopilot(_)));
+        assert!(matches!(
+            classify(&long(22, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 10.0])),
+            Action::Autopilot(_)
+        ));
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! The mission protocol as PX4 speaks it (`mavlink_mission.cpp`), for the
 //! three plan types (mission, geofence, rally points): upload, download,
 //! clear, set current, and the progress messages MISSION_CURRENT and
-//! MISSION_ITEM_REACHED (compat doc section 7). The link runs the transfer
+//! MISSION_ITEM_REACHED (`docs/mavlink.md` section 7). The link runs the transfer
 //! and translates; the plans are stored whole by the flight stack
 //! ([`crate::mission::Plans::apply`]), which alone decides whether a
 //! complete plan is taken. Here, each item is only checked on its own

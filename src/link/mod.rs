@@ -12,7 +12,7 @@
 //! translates only: whether a command is accepted, what a relative frame
 //! means and whether a complete plan is stored are decided by the autopilot
 //! at the instant it applies them (the ACK carries that answer). Everything
-//! the compat doc (`shared/docs/mavlink-compat.md`) requires of the wire is
+//! `docs/mavlink.md` promises a client is
 //! decided here; the files:
 //!
 //! | file | job |
@@ -25,12 +25,15 @@
 //! | [`offboard`] | SET_POSITION_TARGET_* and SET_ATTITUDE_TARGET to setpoints |
 //! | [`manual`] | MANUAL_CONTROL to sticks |
 //! | [`streams`] | stream rates, scheduler, message builders from a [`Snapshot`] |
-//! | [`peers`] | default remote plus learned peers with a timeout |
+//! | [`peers`] | default remote plus learned peers with a timeout; proven and unproven peers |
+//! | [`budget`] | byte budgets: token buckets and an unproven peer's credit (no amplification) |
+//! | [`signing`] | MAVLink 2 signing: the key, the gate on input, signatures on output |
 
 // PX4 and its clients still speak messages the XML marks deprecated
 // (SET_MODE, PING, ...): we must too.
 #![allow(deprecated)]
 
+pub mod budget;
 pub mod command;
 pub mod convert;
 pub mod manual;
@@ -38,17 +41,19 @@ pub mod mission;
 pub mod offboard;
 pub mod param;
 pub mod peers;
+pub mod signing;
 pub mod streams;
 #[cfg(test)]
 pub(crate) mod testing;
 pub mod wire;
 
 use std::net::SocketAddr;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::common::{
-    AUTOPILOT_VERSION_DATA, FILE_TRANSFER_PROTOCOL_DATA, MavMessage, MavProtocolCapability, MavSeverity, PING_DATA,
-    STATUSTEXT_DATA, TIMESYNC_DATA,
+    AUTOPILOT_VERSION_DATA, FILE_TRANSFER_PROTOCOL_DATA, HEARTBEAT_DATA, MavMessage, MavProtocolCapability,
+    MavSeverity, PING_DATA, STATUSTEXT_DATA, TIMESYNC_DATA,
 };
 use mission::{ItemMode, Missions, Partner, PlanTicket};
 
@@ -163,6 +168,9 @@ pub enum Effect {
     /// A ground station's HEARTBEAT (MAV_TYPE_GCS) arrived: tell the
     /// autopilot the data link is alive (no answer).
     GcsHeartbeat,
+    /// SETUP_SIGNING changed (or cleared) the vehicle's signing key, already
+    /// in force on every link of the vehicle: store it (no answer, as PX4).
+    SigningKeyChanged,
 }
 
 /// One MAVLink link (one UDP socket's worth of protocol state).
@@ -177,7 +185,42 @@ pub struct Link {
     delayed: Vec<(Instant, Outgoing)>,
     due: Vec<Stream>,
     stats: LinkStats,
+    /// The vehicle's signing state (shared by its links) and this link's id in it.
+    signing: (signing::Shared, u8),
+    /// The latest time given to the link: what direct answers are charged at.
+    clock: Instant,
+    /// Parameter lists being sent, paced ([`Link::poll`]).
+    param_lists: Vec<ParamList>,
+    /// The link's streams to all peers together.
+    stream_budget: budget::TokenBucket,
 }
+
+/// A PARAM_REQUEST_LIST being answered: PX4 sends one parameter per
+/// iteration of its link loop, not the whole list at once; here
+/// [`PARAMS_PER_TURN`] every [`PARAM_LIST_TURN`], each charged to the
+/// requester's budget (the list waits while the budget is spent).
+#[derive(Clone, Debug)]
+struct ParamList {
+    to: SocketAddr,
+    values: Vec<MavMessage>,
+    next: usize,
+    due: Instant,
+    /// Since when the budget has held the next value back (`None`: not held).
+    held_since: Option<Instant>,
+}
+
+/// Parameters a list sends per turn.
+const PARAMS_PER_TURN: usize = 10;
+/// A list's turn comes this often: at most 1,000 PARAM_VALUEs/s per list.
+const PARAM_LIST_TURN: Duration = Duration::from_millis(10);
+/// A list held back by the budget this long is dropped (an unproven
+/// requester that never proves it listens).
+const PARAM_LIST_STALL: Duration = Duration::from_secs(3);
+/// At most this many lists at once; a new one from a proven peer replaces
+/// one for an unproven peer.
+const MAX_PARAM_LISTS: usize = 8;
+/// A PARAM_VALUE frame's largest size (MAVLink 2, 25-byte payload, unsigned).
+const PARAM_VALUE_FRAME: usize = 12 + 25;
 
 /// Counters for logs and tests.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -187,6 +230,11 @@ pub struct LinkStats {
     /// Frames that did not decode, came back with our own ids, or were
     /// commands for another system or component.
     pub ignored: u64,
+    /// Direct answers dropped because the requester's budget was spent
+    /// ([`budget`]).
+    pub held_back: u64,
+    /// Stream messages skipped because the link's stream budget was spent.
+    pub streams_shed: u64,
 }
 
 impl Link {
@@ -194,7 +242,7 @@ impl Link {
     #[must_use]
     pub fn new(config: LinkConfig, now: Instant) -> Self {
         let encoder = Encoder::new(config.identity.system_id, config.identity.component_id);
-        let peers = peers::Peers::new(config.default_remote, config.peer_timeout);
+        let peers = peers::Peers::new(config.default_remote, config.peer_timeout, now);
         let streams = Scheduler::new(now, &config.rates);
         Self {
             config,
@@ -206,6 +254,10 @@ impl Link {
             delayed: Vec::new(),
             due: Vec::new(),
             stats: LinkStats::default(),
+            signing: (Arc::new(Mutex::new(signing::Signing::unkeyed(now, 0))), 0),
+            clock: now,
+            param_lists: Vec::new(),
+            stream_budget: budget::TokenBucket::new(now, budget::LINK_STREAM_RATE, 2.0 * budget::LINK_STREAM_RATE),
         }
     }
 
@@ -238,14 +290,95 @@ impl Link {
         self.peers.active(now, out);
     }
 
-    /// Take the frames queued so far.
+    /// Take the frames queued so far (signed, in order, when the vehicle has a key).
     pub fn drain(&mut self) -> Vec<Outgoing> {
-        std::mem::take(&mut self.outbox)
+        let mut out = std::mem::take(&mut self.outbox);
+        self.sign_all(&mut out);
+        out
+    }
+
+    /// Use the vehicle's signing state `shared` (one per vehicle, shared by
+    /// its links), signing with `link_id` (the link's index). A new link has
+    /// its own, without a key.
+    pub fn set_signing(&mut self, shared: signing::Shared, link_id: u8) {
+        self.signing = (shared, link_id);
+    }
+
+    /// The vehicle's signing state.
+    #[must_use]
+    pub fn signing(&self) -> &signing::Shared {
+        &self.signing.0
+    }
+
+    fn sign_all(&self, out: &mut [Outgoing]) {
+        let mut s = signing::lock(&self.signing.0);
+        if s.is_keyed() {
+            let now = Instant::now();
+            for o in out {
+                s.sign(&mut o.bytes, self.signing.1, now);
+            }
+        }
+    }
+
+    /// The signing gate (issue 15, [`signing`]): false when `frame` goes no
+    /// further: refused (unsigned, bad signature, replay, stale), or a
+    /// SETUP_SIGNING for us, which it applies (with no key, or signed with
+    /// the key: the refusals came first) and turns into
+    /// [`Effect::SigningKeyChanged`].
+    fn signing_gate(&mut self, now: Instant, frame: &Frame<'_>, effects: &mut Vec<Effect>) -> bool {
+        let mut s = signing::lock(&self.signing.0);
+        if let Err(why) = s.check(frame, now) {
+            tracing::debug!(link = %self.config.name, ?why, id = frame.message_id, "refused by signing");
+            return false;
+        }
+        if frame.message_id != signing::SETUP_SIGNING_ID {
+            return true;
+        }
+        if let Some(Inbound::Other(m)) = wire::decode(frame)
+            && let MavMessage::SETUP_SIGNING(m) = *m
+            && self.for_me(m.target_system, m.target_component)
+        {
+            s.setup(m.secret_key, m.initial_timestamp);
+            tracing::info!(link = %self.config.name, keyed = s.is_keyed(), "signing key set by SETUP_SIGNING");
+            effects.push(Effect::SigningKeyChanged);
+        }
+        false
     }
 
     fn send(&mut self, to: To, msg: &MavMessage) {
         let bytes = self.encoder.message(msg);
+        self.queue(to, bytes);
+    }
+
+    /// Queue a frame; a direct answer only if the peer's budget allows it
+    /// ([`peers::Peers::charge`]), else it is dropped and counted.
+    fn queue(&mut self, to: To, bytes: Vec<u8>) {
+        // signed in `drain`: the signature's bytes count against the budget too
+        let signature = if signing::lock(&self.signing.0).is_keyed() {
+            wire::SIGNATURE_LEN
+        } else {
+            0
+        };
+        if let To::Peer(a) = to
+            && !self.peers.charge(self.clock, a, bytes.len() + signature)
+        {
+            self.stats.held_back += 1;
+            return;
+        }
         self.outbox.push(Outgoing { to, bytes });
+    }
+
+    /// Move the link's clock forward to `now` (never back).
+    fn tick(&mut self, now: Instant) {
+        if now > self.clock {
+            self.clock = now;
+        }
+    }
+
+    /// What `addr` has shown this link (`None`: not a peer).
+    #[must_use]
+    pub fn standing(&self, addr: SocketAddr) -> Option<peers::Standing> {
+        self.peers.standing(addr)
     }
 
     fn ack(&mut self, t: AckTicket, result: u8) {
@@ -257,10 +390,7 @@ impl Link {
             target_system: t.requester.0,
             target_component: t.requester.1,
         });
-        self.outbox.push(Outgoing {
-            to: To::Peer(t.to),
-            bytes,
-        });
+        self.queue(To::Peer(t.to), bytes);
     }
 
     fn text(&mut self, to: To, severity: Severity, text: &str) {
@@ -276,6 +406,16 @@ impl Link {
     /// Queue a PARAM_VALUE for every peer, [`command::PARAM_REBROADCAST_DELAY`]
     /// from `now` (PX4 rebroadcasts a changed parameter on every link).
     pub fn broadcast_param(&mut self, now: Instant, value: &MavMessage) {
+        self.tick(now);
+        // a list still being sent sends the new value (PX4 reads each value
+        // as it sends it): a client's cache must not end older than the echo
+        if let MavMessage::PARAM_VALUE(v) = value {
+            for list in &mut self.param_lists {
+                if let Some(m) = list.values.get_mut(usize::from(v.param_index)) {
+                    *m = value.clone();
+                }
+            }
+        }
         let bytes = self.encoder.message(value);
         self.delayed
             .push((now + command::PARAM_REBROADCAST_DELAY, Outgoing { to: To::All, bytes }));
@@ -285,14 +425,21 @@ impl Link {
     #[must_use]
     pub fn next_deadline(&self) -> Option<Instant> {
         let delayed = self.delayed.iter().map(|(t, _)| *t).min();
-        [self.streams.next_deadline(), delayed, self.missions.next_deadline()]
-            .into_iter()
-            .flatten()
-            .min()
+        let lists = self.param_lists.iter().map(|l| l.due).min();
+        [
+            self.streams.next_deadline(),
+            delayed,
+            self.missions.next_deadline(),
+            lists,
+        ]
+        .into_iter()
+        .flatten()
+        .min()
     }
 
     /// Queue the streams due at `now` (and delayed frames whose time has come).
     pub fn poll(&mut self, now: Instant, t: &Snapshot, unix_time_us: u64) {
+        self.tick(now);
         let mut i = 0;
         while i < self.delayed.len() {
             if self.delayed[i].0 <= now {
@@ -305,17 +452,87 @@ impl Link {
         let mut due = std::mem::take(&mut self.due);
         due.clear();
         self.streams.due(now, &mut due);
+        let fanout = self.peers.active_count(now);
         for s in &due {
             for m in streams::build(*s, t, unix_time_us) {
                 if let MavMessage::MISSION_CURRENT(c) = &m {
                     self.missions.note_current(c);
                 }
-                self.send(To::All, &m);
+                let bytes = self.encoder.message(&m);
+                // heartbeats always go: they are what tells a GCS the link lives
+                if *s != Stream::Heartbeat && !self.stream_budget.take(now, bytes.len() * fanout) {
+                    self.stats.streams_shed += 1;
+                    continue;
+                }
+                self.outbox.push(Outgoing { to: To::All, bytes });
             }
         }
         self.due = due;
+        self.send_param_lists(now);
         let out = self.missions.poll(now, t);
         self.mission_frames(out);
+    }
+
+    /// A PARAM_REQUEST_LIST from `to`: start sending `values` to it, unless
+    /// a list for it is already running (a repeat does not restart it, so
+    /// a datagram of many requests draws one list).
+    fn start_param_list(&mut self, now: Instant, to: SocketAddr, values: Vec<MavMessage>) {
+        if self.param_lists.iter().any(|l| l.to == to) {
+            return;
+        }
+        let proven = |s: Option<peers::Standing>| matches!(s, Some(peers::Standing::Proven | peers::Standing::Default));
+        if self.param_lists.len() >= MAX_PARAM_LISTS {
+            if !proven(self.peers.standing(to)) {
+                return;
+            }
+            match self.param_lists.iter().position(|l| !proven(self.peers.standing(l.to))) {
+                Some(i) => {
+                    self.param_lists.swap_remove(i);
+                }
+                None => return,
+            }
+        }
+        self.param_lists.push(ParamList {
+            to,
+            values,
+            next: 0,
+            due: now,
+            held_since: None,
+        });
+    }
+
+    /// Send each due list's next [`PARAMS_PER_TURN`] values its requester's
+    /// budget allows.
+    fn send_param_lists(&mut self, now: Instant) {
+        let mut lists = std::mem::take(&mut self.param_lists);
+        lists.retain_mut(|l| {
+            if l.due > now {
+                return true;
+            }
+            if self.peers.standing(l.to).is_none() {
+                return false; // forgotten
+            }
+            for _ in 0..PARAMS_PER_TURN {
+                let Some(v) = l.values.get(l.next) else { break };
+                if !self.peers.charge(now, l.to, PARAM_VALUE_FRAME) {
+                    let since = *l.held_since.get_or_insert(now);
+                    if now.saturating_duration_since(since) > PARAM_LIST_STALL {
+                        return false;
+                    }
+                    break;
+                }
+                l.held_since = None;
+                let bytes = self.encoder.message(v);
+                self.outbox.push(Outgoing {
+                    to: To::Peer(l.to),
+                    bytes,
+                });
+                l.next += 1;
+            }
+            l.due = now + PARAM_LIST_TURN;
+            l.next < l.values.len()
+        });
+        self.param_lists = lists;
     }
 
     /// Queue the mission protocol's frames.
@@ -325,10 +542,7 @@ impl Link {
                 mission::Out::Message(to, m) => self.send(to, &m),
                 mission::Out::Item(to, item) => {
                     let bytes = self.encoder.mission_item(&item);
-                    self.outbox.push(Outgoing {
-                        to: To::Peer(to),
-                        bytes,
-                    });
+                    self.queue(To::Peer(to), bytes);
                 }
                 mission::Out::Text(to, severity, text) => self.text(to, severity, &text),
             }
@@ -353,16 +567,25 @@ impl Link {
         params: &P,
     ) -> Vec<Effect> {
         let mut effects = Vec::new();
+        self.tick(now);
         for frame in wire::frames(data) {
             self.stats.frames_in += 1;
+            if !self.signing_gate(now, &frame, &mut effects) {
+                continue;
+            }
             let me = self.config.identity;
             if frame.system_id == me.system_id && frame.component_id == me.component_id {
                 // our own frames looped back (or another vehicle with our ids)
                 self.stats.ignored += 1;
                 continue;
             }
-            if self.peers.heard(now, from) {
-                tracing::info!(link = %self.config.name, peer = %from, "new peer");
+            // the whole frame, signature included, earns the sender its credit
+            if self.peers.heard(now, from, frame.bytes.len()) {
+                tracing::debug!(link = %self.config.name, peer = %from, "new peer (unproven)");
+            }
+            if frame.message_id == 0 {
+                // a HEARTBEAT: every GCS, MAVSDK and MAVProxy sends one at 1 Hz
+                self.prove(now, from);
             }
             match wire::decode(&frame) {
                 Some(msg) => self.on_message(now, from, &frame, msg, t, params, &mut effects),
@@ -370,6 +593,13 @@ impl Link {
             }
         }
         effects
+    }
+
+    /// `from` has shown it listens: it gets the streams from now on.
+    fn prove(&mut self, now: Instant, from: SocketAddr) {
+        if self.peers.prove(now, from) {
+            tracing::info!(link = %self.config.name, peer = %from, "new peer");
+        }
     }
 
     fn for_me(&self, system: u8, component: u8) -> bool {
@@ -423,6 +653,10 @@ impl Link {
     ) {
         if self.for_mission(m.target_system, m.target_component) {
             let step = self.missions.on_item(now, partner(from, requester), m);
+            if !step.out.is_empty() || step.plans.is_some() {
+                // an item of a transfer we asked it for: it listens
+                self.prove(now, from);
+            }
             self.mission_step(step, effects);
         } else {
             self.stats.ignored += 1;
@@ -454,10 +688,13 @@ impl Link {
                 };
                 self.act(now, ticket, action, t, effects);
             }
-            MavMessage::PARAM_REQUEST_LIST(m) if self.for_me(m.target_system, m.target_component) => {
-                for v in param::list(params) {
-                    self.send(reply, &v);
-                }
+            // a repeat while its list runs is ignored (falls through)
+            MavMessage::PARAM_REQUEST_LIST(m)
+                if self.for_me(m.target_system, m.target_component)
+                    && !self.param_lists.iter().any(|l| l.to == from) =>
+            {
+                self.start_param_list(now, from, param::list(params));
+                self.send_param_lists(now);
             }
             MavMessage::PARAM_REQUEST_READ(m) if self.for_me(m.target_system, m.target_component) => {
                 let name = param::name_of(&m.param_id);
@@ -602,6 +839,16 @@ impl Link {
                 }
                 None => self.ack(ticket, convert::result::DENIED),
             },
+            // A stream's rate is the whole link's: only a peer that listens
+            // may change it (one spoofed frame could otherwise silence or
+            // speed up every client's streams), and the heartbeat is not
+            // for changing (the link's liveness for every client).
+            Action::SetInterval(..) if self.peers.standing(ticket.to) == Some(peers::Standing::Unproven) => {
+                self.ack(ticket, convert::result::DENIED);
+            }
+            Action::SetInterval(id, _) if id == <HEARTBEAT_DATA as mavlink::MessageData>::ID => {
+                self.ack(ticket, convert::result::DENIED)
+            }
             Action::SetInterval(id, interval) => match Stream::from_message_id(id) {
                 Some(s) => {
                     self.streams.set(now, s, interval);
@@ -625,6 +872,33 @@ impl Link {
         let r = param::finish_set(params, &ticket.name, ticket.index, outcome, ticket.requester);
         self.param_reply(To::Peer(ticket.to), &r);
         r.changed.map(|(_, m)| *m)
+    }
+
+    /// A PARAM_SET answered by [`Link::on_param_set`] (value in force) whose
+    /// value could not be written to the state directory (`why` names the
+    /// file and the error): PARAM_ERROR (PERMISSION_DENIED: the write was
+    /// refused) and a critical STATUSTEXT to the requester, after the echo.
+    pub fn on_param_not_saved(&mut self, ticket: &ParamTicket, why: &str) {
+        let index = i16::try_from(ticket.index).unwrap_or(-1);
+        let err = param::param_error(
+            &ticket.name,
+            index,
+            mavlink::dialects::common::MavParamError::MAV_PARAM_ERROR_PERMISSION_DENIED,
+            ticket.requester,
+        );
+        let to = To::Peer(ticket.to);
+        self.send(to, &err);
+        let text = format!("{} not saved: {why}", ticket.name);
+        let mut rest = text.as_str();
+        // a path and an OS error do not fit one STATUSTEXT: 50-byte lines
+        while !rest.is_empty() {
+            let mut end = rest.len().min(50);
+            while !rest.is_char_boundary(end) {
+                end -= 1;
+            }
+            self.text(to, Severity::Critical, &rest[..end]);
+            rest = &rest[end..];
+        }
     }
 
     fn param_reply(&mut self, to: To, r: &param::SetReply) {
@@ -658,6 +932,7 @@ impl Link {
     /// The vehicle reached mission item `seq`: MISSION_ITEM_REACHED to every
     /// peer now, repeated by [`Link::poll`].
     pub fn on_mission_item_reached(&mut self, now: Instant, seq: u16) {
+        self.tick(now);
         let out = self.missions.on_item_reached(now, seq);
         self.mission_frames(vec![out]);
     }
@@ -748,7 +1023,7 @@ mod ftp {
 
 /// The answer to an FTP request: rotorpilot serves no files, so every request
 /// gets a NAK FileNotFound (MAVProxy's `param fetch` then falls back to
-/// PARAM_REQUEST_LIST at once, compat doc section 11); session resets get an
+/// PARAM_REQUEST_LIST at once, `docs/mavlink.md` section 11); session resets get an
 /// ACK. Replies (ACK/NAK opcodes) get nothing.
 fn ftp_answer(m: &FILE_TRANSFER_PROTOCOL_DATA, requester: (u8, u8)) -> Option<MavMessage> {
     let p = &m.payload;

@@ -1,7 +1,7 @@
 //! The parameter protocol as PX4 speaks it: PARAM_REQUEST_LIST,
 //! PARAM_REQUEST_READ (by name with index -1, else by index), PARAM_SET with
 //! INT32 values carried bytewise in the float field, PARAM_VALUE answers, and
-//! PARAM_ERROR for names that do not exist and for refused values (compat doc
+//! PARAM_ERROR for names that do not exist and for refused values (`docs/mavlink.md`
 //! section 6).
 
 use mavlink::dialects::common::{MavMessage, MavParamError, MavParamType, PARAM_ERROR_DATA, PARAM_VALUE_DATA};

@@ -1,71 +1,212 @@
 //! The peers a link serves: its default remote (PX4 sends there from boot,
-//! before anyone talks) plus every address that has sent it a MAVLink frame
+//! before anyone talks) plus the addresses that have sent it a MAVLink frame
 //! within the timeout. PX4 locks onto the first sender for good; serving a set
 //! of peers instead lets a GCS and a script share a link, and a client that
 //! restarts on a new port is served again at once.
+//!
+//! A UDP source address can be forged, so a peer is learned in two stages
+//! (issue 15 §2, no amplification):
+//!
+//! - **unproven** (any valid frame): it gets direct answers only, at most
+//!   [`budget::UNPROVEN_FACTOR`] times the bytes it sent ([`budget::Credit`])
+//!   and, all unproven peers of the link together, at most
+//!   [`budget::UNPROVEN_POOL_RATE`] bytes/s. No streams.
+//! - **proven** (a HEARTBEAT, which every GCS, MAVSDK and MAVProxy sends at
+//!   1 Hz, or a mission handshake, which only a listener can carry on): it
+//!   gets the streams and direct answers up to [`budget::PROVEN_RATE`]
+//!   bytes/s. The default remote is proven from boot.
+//!
+//! The table holds at most [`MAX_PROVEN`] proven and [`MAX_UNPROVEN`]
+//! unproven peers; unproven ones never displace a proven one, and a proven
+//! one heard within [`LIVE`] is never displaced at all.
 
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
-/// At most this many learned peers per link; the one heard from longest ago
-/// is dropped to make room.
-pub const MAX_PEERS: usize = 16;
+use super::budget::{self, Credit, TokenBucket};
 
-/// Default remote plus learned peers with their last-heard time.
+/// At most this many proven peers per link (besides the default remote).
+pub const MAX_PROVEN: usize = 16;
+/// At most this many unproven peers per link; the one heard from longest
+/// ago makes room for a new one.
+pub const MAX_UNPROVEN: usize = 64;
+/// A proven peer heard within this is live (a GCS heartbeats at 1 Hz) and is
+/// never dropped to make room for another.
+pub const LIVE: Duration = Duration::from_secs(3);
+
+/// What a peer has shown.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Standing {
+    /// The default remote: served from boot, never forgotten.
+    Default,
+    /// It listens: streams and direct answers within [`budget::PROVEN_RATE`].
+    Proven,
+    /// Only talked so far: direct answers within its credit.
+    Unproven,
+}
+
+#[derive(Clone, Debug)]
+struct Peer {
+    addr: SocketAddr,
+    heard: Instant,
+    proven: bool,
+    credit: Credit,
+    budget: TokenBucket,
+}
+
+/// Default remote plus learned peers with their last-heard time and budgets.
 #[derive(Clone, Debug)]
 pub struct Peers {
     default_remote: Option<SocketAddr>,
-    learned: Vec<(SocketAddr, Instant)>,
+    default_budget: TokenBucket,
+    learned: Vec<Peer>,
+    /// What all unproven peers together may be sent.
+    pool: TokenBucket,
     timeout: Duration,
+}
+
+fn proven_bucket(now: Instant) -> TokenBucket {
+    TokenBucket::new(now, budget::PROVEN_RATE, budget::PROVEN_RATE)
 }
 
 impl Peers {
     /// A table that always includes `default_remote` and forgets a learned
     /// peer after `timeout` without a frame from it.
     #[must_use]
-    pub fn new(default_remote: Option<SocketAddr>, timeout: Duration) -> Self {
+    pub fn new(default_remote: Option<SocketAddr>, timeout: Duration, now: Instant) -> Self {
         Self {
             default_remote,
+            default_budget: proven_bucket(now),
             learned: Vec::new(),
+            pool: TokenBucket::new(now, budget::UNPROVEN_POOL_RATE, budget::UNPROVEN_POOL_RATE),
             timeout,
         }
     }
 
-    /// Note a frame from `addr`. Returns true if the peer is new.
-    pub fn heard(&mut self, now: Instant, addr: SocketAddr) -> bool {
-        if let Some(p) = self.learned.iter_mut().find(|p| p.0 == addr) {
-            p.1 = now;
+    /// Note a valid frame of `len` bytes from `addr` (an unproven peer earns
+    /// credit for it). Returns true if the peer is new.
+    pub fn heard(&mut self, now: Instant, addr: SocketAddr, len: usize) -> bool {
+        if Some(addr) == self.default_remote {
+            return false;
+        }
+        if let Some(p) = self.learned.iter_mut().find(|p| p.addr == addr) {
+            p.heard = now;
+            if !p.proven {
+                p.credit.earn(len);
+            }
             return false;
         }
         self.expire(now);
-        if self.learned.len() >= MAX_PEERS
-            && let Some(oldest) = self.learned.iter().enumerate().min_by_key(|(_, p)| p.1).map(|(i, _)| i)
+        if self.learned.iter().filter(|p| !p.proven).count() >= MAX_UNPROVEN
+            && let Some(oldest) = self.oldest(|p| !p.proven)
         {
             self.learned.swap_remove(oldest);
         }
-        self.learned.push((addr, now));
+        let mut credit = Credit::default();
+        credit.earn(len);
+        self.learned.push(Peer {
+            addr,
+            heard: now,
+            proven: false,
+            credit,
+            budget: proven_bucket(now),
+        });
         true
+    }
+
+    /// `addr` has shown it listens (heard first with [`Peers::heard`]).
+    /// Returns true if it became proven now. When the proven table is full
+    /// the peer heard from longest ago makes room, unless it is live
+    /// ([`LIVE`]): then the newcomer stays unproven.
+    pub fn prove(&mut self, now: Instant, addr: SocketAddr) -> bool {
+        let Some(i) = self.learned.iter().position(|p| p.addr == addr) else {
+            return false;
+        };
+        if self.learned[i].proven {
+            return false;
+        }
+        if self.learned.iter().filter(|p| p.proven).count() >= MAX_PROVEN {
+            match self.oldest(|p| p.proven) {
+                Some(o) if now.saturating_duration_since(self.learned[o].heard) > LIVE => {
+                    self.learned.swap_remove(o);
+                }
+                _ => return false,
+            }
+        }
+        let p = self
+            .learned
+            .iter_mut()
+            .find(|p| p.addr == addr)
+            .expect("still in the table");
+        p.proven = true;
+        p.budget = proven_bucket(now);
+        true
+    }
+
+    /// What `addr` has shown (`None`: not in the table).
+    #[must_use]
+    pub fn standing(&self, addr: SocketAddr) -> Option<Standing> {
+        if Some(addr) == self.default_remote {
+            return Some(Standing::Default);
+        }
+        self.learned
+            .iter()
+            .find(|p| p.addr == addr)
+            .map(|p| if p.proven { Standing::Proven } else { Standing::Unproven })
+    }
+
+    /// Charge `n` bytes of a direct answer to `addr`: true if they may go
+    /// (and are counted), false if they must be dropped or wait. An address
+    /// not in the table gets nothing.
+    pub fn charge(&mut self, now: Instant, addr: SocketAddr, n: usize) -> bool {
+        if Some(addr) == self.default_remote {
+            return self.default_budget.take(now, n);
+        }
+        let Some(p) = self.learned.iter_mut().find(|p| p.addr == addr) else {
+            return false;
+        };
+        if p.proven {
+            return p.budget.take(now, n);
+        }
+        if p.credit.allows(n) && self.pool.take(now, n) {
+            p.credit.spend(n);
+            true
+        } else {
+            false
+        }
+    }
+
+    fn oldest(&self, which: impl Fn(&Peer) -> bool) -> Option<usize> {
+        self.learned
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| which(p))
+            .min_by_key(|(_, p)| p.heard)
+            .map(|(i, _)| i)
     }
 
     /// Drop peers not heard from within the timeout.
     pub fn expire(&mut self, now: Instant) {
         let timeout = self.timeout;
-        self.learned.retain(|p| now.saturating_duration_since(p.1) <= timeout);
+        self.learned
+            .retain(|p| now.saturating_duration_since(p.heard) <= timeout);
     }
 
     /// Every address to send streams to: the default remote first, then the
-    /// live learned peers (each once).
+    /// live proven peers (each once).
     pub fn active(&mut self, now: Instant, out: &mut Vec<SocketAddr>) {
         self.expire(now);
         out.clear();
         if let Some(d) = self.default_remote {
             out.push(d);
         }
-        for (a, _) in &self.learned {
-            if Some(*a) != self.default_remote {
-                out.push(*a);
-            }
-        }
+        out.extend(self.learned.iter().filter(|p| p.proven).map(|p| p.addr));
+    }
+
+    /// How many addresses [`Peers::active`] lists now.
+    pub fn active_count(&mut self, now: Instant) -> usize {
+        self.expire(now);
+        usize::from(self.default_remote.is_some()) + self.learned.iter().filter(|p| p.proven).count()
     }
 
     /// The default remote.
@@ -86,32 +227,92 @@ mod tests {
     #[test]
     fn default_remote_is_always_served_and_peers_expire() {
         let t0 = Instant::now();
-        let mut p = Peers::new(Some(addr(14540)), Duration::from_secs(10));
+        let mut p = Peers::new(Some(addr(14540)), Duration::from_secs(10), t0);
         let mut out = Vec::new();
         p.active(t0, &mut out);
         assert_eq!(out, vec![addr(14540)]);
-        assert!(p.heard(t0, addr(50000)));
-        assert!(!p.heard(t0, addr(50000)));
-        assert!(p.heard(t0, addr(14540)));
+        assert!(p.heard(t0, addr(50000), 20));
+        assert!(!p.heard(t0, addr(50000), 20));
+        assert!(!p.heard(t0, addr(14540), 20), "the default remote is known from boot");
+        // talking is not listening: no streams yet
+        p.active(t0, &mut out);
+        assert_eq!(out, vec![addr(14540)]);
+        assert_eq!(p.standing(addr(50000)), Some(Standing::Unproven));
+        assert!(p.prove(t0, addr(50000)));
+        assert!(!p.prove(t0, addr(50000)), "once");
         p.active(t0 + Duration::from_secs(5), &mut out);
         assert_eq!(out, vec![addr(14540), addr(50000)]);
         // a client restarting on a new port is served next to the old one
-        assert!(p.heard(t0 + Duration::from_secs(6), addr(50001)));
+        p.heard(t0 + Duration::from_secs(6), addr(50001), 20);
+        p.prove(t0 + Duration::from_secs(6), addr(50001));
         p.active(t0 + Duration::from_secs(12), &mut out);
         assert_eq!(out, vec![addr(14540), addr(50001)]);
+        assert_eq!(p.active_count(t0 + Duration::from_secs(12)), 2);
+        assert_eq!(p.standing(addr(50000)), None);
     }
 
     #[test]
-    fn table_is_bounded() {
+    fn an_unproven_peer_gets_three_times_what_it_sent_and_a_stranger_nothing() {
         let t0 = Instant::now();
-        let mut p = Peers::new(None, Duration::from_secs(10));
-        for i in 0..(MAX_PEERS as u16 + 4) {
-            p.heard(t0 + Duration::from_millis(u64::from(i)), addr(40000 + i));
+        let mut p = Peers::new(None, Duration::from_secs(10), t0);
+        assert!(!p.charge(t0, addr(40000), 1), "never heard");
+        p.heard(t0, addr(40000), 13);
+        assert!(!p.charge(t0, addr(40000), 40));
+        assert!(p.charge(t0, addr(40000), 39));
+        assert!(!p.charge(t0, addr(40000), 1), "spent");
+        // proven: the proven budget, whatever it sent
+        p.prove(t0, addr(40000));
+        assert!(p.charge(t0, addr(40000), 20_000));
+        assert!(!p.charge(t0, addr(40000), budget::PROVEN_RATE as usize));
+    }
+
+    #[test]
+    fn unproven_peers_together_share_one_pool() {
+        let t0 = Instant::now();
+        let mut p = Peers::new(None, Duration::from_secs(10), t0);
+        let mut sent = 0;
+        for i in 0..MAX_UNPROVEN as u16 {
+            p.heard(t0, addr(40000 + i), 1000);
+            while p.charge(t0, addr(40000 + i), 100) {
+                sent += 100;
+            }
+        }
+        assert_eq!(sent, budget::UNPROVEN_POOL_RATE as usize / 100 * 100);
+    }
+
+    #[test]
+    fn strangers_never_displace_a_proven_peer_and_a_live_one_is_never_displaced() {
+        let t0 = Instant::now();
+        let mut p = Peers::new(None, Duration::from_secs(10), t0);
+        let gcs = addr(14550);
+        p.heard(t0, gcs, 20);
+        p.prove(t0, gcs);
+        for i in 0..1000u16 {
+            p.heard(t0 + Duration::from_millis(u64::from(i)), addr(20000 + i), 13);
+        }
+        assert_eq!(p.standing(gcs), Some(Standing::Proven));
+        assert_eq!(p.learned.len(), MAX_UNPROVEN + 1);
+        // the newest unproven peers are kept
+        assert_eq!(p.standing(addr(20999)), Some(Standing::Unproven));
+        assert_eq!(p.standing(addr(20000)), None);
+        // forged heartbeats from many ports fill the proven table, but the
+        // live GCS stays
+        let t1 = t0 + Duration::from_secs(1);
+        p.heard(t1, gcs, 20);
+        for i in 0..100u16 {
+            p.heard(t1, addr(30000 + i), 20);
+            p.prove(t1, addr(30000 + i));
         }
         let mut out = Vec::new();
-        p.active(t0 + Duration::from_millis(100), &mut out);
-        assert_eq!(out.len(), MAX_PEERS);
-        assert!(!out.contains(&addr(40000)));
-        assert!(out.contains(&addr(40000 + MAX_PEERS as u16 + 3)));
+        p.active(t1, &mut out);
+        assert_eq!(out.len(), MAX_PROVEN);
+        assert!(out.contains(&gcs));
+        // a silent proven peer makes room once it is no longer live
+        let t2 = t1 + LIVE + Duration::from_millis(1);
+        p.heard(t2, addr(31000), 20);
+        assert!(p.prove(t2, addr(31000)));
+        p.active(t2, &mut out);
+        assert_eq!(out.len(), MAX_PROVEN);
+        assert!(out.contains(&addr(31000)));
     }
 }

@@ -5,7 +5,7 @@
 //! Rates are in wall time (a stream at 50 Hz sends 50 messages per wall
 //! second whatever `--speed` is), so traffic and CPU stay bounded when the
 //! simulation runs fast; the timestamps inside are simulated time. The
-//! default rates are PX4's (compat doc section 4) for the GCS link (normal
+//! default rates are PX4's (`docs/mavlink.md` section 4) for the GCS link (normal
 //! mode) and the API link (onboard mode). SET_MESSAGE_INTERVAL changes a
 //! stream on the link it arrives on only, as in PX4.
 //!
@@ -215,10 +215,17 @@ struct Entry {
     default: Option<Duration>,
     interval: Option<Duration>,
     next: Instant,
+    /// When it was last sent.
+    last: Option<Instant>,
 }
 
-/// The shortest interval a stream may have (1 kHz).
-const MIN_INTERVAL: Duration = Duration::from_millis(1);
+/// The shortest interval a stream may have: 5 ms (200 Hz), per stream and
+/// so per peer (a link's streams go to each of its peers). The simulation
+/// publishes a new snapshot every 4 ms of wall time (250 Hz), so a faster
+/// stream would only repeat samples; 200 Hz is above every default rate
+/// (100 Hz at most, ATTITUDE on the API link) and what MAVSDK asks for.
+/// PX4 likewise caps a stream at its link's rate budget.
+pub const MIN_INTERVAL: Duration = Duration::from_millis(5);
 /// The longest: what MESSAGE_INTERVAL's `interval_us` (int32) can report,
 /// and far from overflowing an `Instant`.
 const MAX_INTERVAL: Duration = Duration::from_micros(i32::MAX as u64);
@@ -236,13 +243,16 @@ impl Scheduler {
                     default,
                     interval: default,
                     next: now,
+                    last: None,
                 }
             })
             .collect();
         Self { entries }
     }
 
-    /// Change one stream's interval; the stream is next due at `now`.
+    /// Change one stream's interval; the stream is next due at `now`, or
+    /// [`MIN_INTERVAL`] after its last send if that is later (so that a
+    /// flood of requests cannot send it faster than the floor).
     pub fn set(&mut self, now: Instant, stream: Stream, interval: Interval) {
         if let Some(e) = self.entries.iter_mut().find(|e| e.stream == stream) {
             e.interval = match interval {
@@ -250,7 +260,7 @@ impl Scheduler {
                 Interval::Disabled => None,
                 Interval::Every(d) => Some(clamp_interval(d)),
             };
-            e.next = now;
+            e.next = e.last.map_or(now, |l| now.max(l + MIN_INTERVAL));
         }
     }
 
@@ -270,6 +280,7 @@ impl Scheduler {
             let Some(iv) = e.interval else { continue };
             if now >= e.next {
                 out.push(e.stream);
+                e.last = Some(now);
                 e.next += iv;
                 if e.next <= now {
                     e.next = now + iv;
@@ -691,6 +702,22 @@ mod tests {
         assert_eq!(period(1e-300), Some(MAX_INTERVAL));
         assert_eq!(Stream::from_message_id(251), Some(Stream::NamedValueFloat));
         assert_eq!(Stream::from_message_id(9999), None);
+    }
+
+    #[test]
+    fn repeated_requests_cannot_send_a_stream_faster_than_the_floor() {
+        let t0 = Instant::now();
+        let mut s = Scheduler::new(t0, &vec![(Stream::Attitude, 50.0)]);
+        let mut due = Vec::new();
+        // 10,000 requests for 1 us over 1 s, each followed by a poll
+        for k in 0..10_000u64 {
+            let now = t0 + Duration::from_micros(100 * k);
+            s.set(now, Stream::Attitude, Interval::from_param_us(1.0));
+            s.due(now, &mut due);
+        }
+        let n = due.len() as u64;
+        let most = 1_000_000 / MIN_INTERVAL.as_micros() as u64 + 1;
+        assert!(n <= most && n >= most - 2, "{n} sends in 1 s, floor allows {most}");
     }
 
     #[test]

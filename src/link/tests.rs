@@ -95,10 +95,11 @@ fn unknown_command_is_unsupported_with_target_requester() {
     assert_eq!(a.len(), 1);
     assert_eq!((a[0].command, a[0].result), (31_337, convert::result::UNSUPPORTED));
     assert_eq!((a[0].target_system, a[0].target_component), (245, 190));
-    // the sender is now a peer
+    // the sender is now a peer, unproven: it gets no streams
     let mut d = Vec::new();
     l.destinations(t0, &mut d);
-    assert_eq!(d, vec![addr(14540), addr(50000)]);
+    assert_eq!(d, vec![addr(14540)]);
+    assert_eq!(l.standing(addr(50000)), Some(super::peers::Standing::Unproven));
 }
 
 #[test]
@@ -123,6 +124,8 @@ fn commands_for_other_components_are_ignored_component_zero_accepted() {
 fn outcome_acks_carry_results() {
     let t0 = Instant::now();
     let mut l = link(t0);
+    let hb = v2(&MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()));
+    l.on_datagram(t0, addr(50000), &hb, &snapshot(), &FakeParams::standard());
     let ticket = AckTicket {
         command: 176,
         to: addr(50000),
@@ -171,6 +174,30 @@ fn set_message_interval_is_per_link() {
     let mut l = link(t0);
     let p = FakeParams::standard();
     let nan = f32::NAN;
+    // from an address that has not shown it listens: DENIED, rates unchanged
+    let before = l.streams().interval(Stream::DebugVect);
+    l.on_datagram(
+        t0,
+        addr(50000),
+        &cmd(511, [250.0, 50_000.0, nan, nan, nan, nan, nan], 1),
+        &snapshot(),
+        &p,
+    );
+    assert_eq!(acks(&l.drain())[0].result, convert::result::DENIED);
+    assert_eq!(l.streams().interval(Stream::DebugVect), before);
+    // a heartbeat proves it
+    let hb = v2(&MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()));
+    l.on_datagram(t0, addr(50000), &hb, &snapshot(), &p);
+    l.drain();
+    // the heartbeat's own rate is not for changing (every client's liveness)
+    l.on_datagram(
+        t0,
+        addr(50000),
+        &cmd(511, [0.0, -1.0, nan, nan, nan, nan, nan], 1),
+        &snapshot(),
+        &p,
+    );
+    assert_eq!(acks(&l.drain())[0].result, convert::result::DENIED);
     l.on_datagram(
         t0,
         addr(50000),
@@ -199,10 +226,48 @@ fn param_list_goes_to_the_requester_in_order() {
         target_system: 1,
         target_component: 0,
     }));
+    // unproven: three times the request's bytes, one PARAM_VALUE
     l.on_datagram(t0, addr(50000), &req, &snapshot(), &p);
-    let d = decoded(&l.drain());
-    assert_eq!(d.len(), 5);
+    assert_eq!(decoded(&l.drain()).len(), 1);
+    // after a heartbeat (proven) the rest of the list follows
+    let hb = v2(&MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()));
+    l.on_datagram(t0, addr(50000), &hb, &snapshot(), &p);
+    l.poll(t0 + Duration::from_millis(20), &snapshot(), 0);
+    let d: Vec<_> = decoded(&l.drain())
+        .into_iter()
+        .filter(|(to, _, _)| *to != To::All)
+        .collect();
+    assert_eq!(d.len(), 4);
     assert!(d.iter().all(|(to, id, _)| *to == To::Peer(addr(50000)) && *id == 22));
+}
+
+/// A list held back (here: its requester not yet proven) sends a value set
+/// in the meantime as it is now, not as it was when the list was asked for.
+#[test]
+fn a_list_in_progress_sends_a_value_set_meanwhile() {
+    let t0 = Instant::now();
+    let mut l = link(t0);
+    let p = FakeParams::standard();
+    let req = v2(&MavMessage::PARAM_REQUEST_LIST(PARAM_REQUEST_LIST_DATA {
+        target_system: 1,
+        target_component: 0,
+    }));
+    l.on_datagram(t0, addr(50000), &req, &snapshot(), &p);
+    l.drain();
+    let MavMessage::PARAM_VALUE(mut last) = super::param::list(&p).pop().unwrap() else {
+        panic!()
+    };
+    last.param_value = 42.0;
+    l.broadcast_param(t0, &MavMessage::PARAM_VALUE(last.clone()));
+    let hb = v2(&MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()));
+    l.on_datagram(t0, addr(50000), &hb, &snapshot(), &p);
+    l.poll(t0 + Duration::from_millis(20), &snapshot(), 0);
+    let sent: Vec<_> = decoded(&l.drain())
+        .into_iter()
+        .filter(|(to, id, _)| *to == To::Peer(addr(50000)) && *id == 22)
+        .collect();
+    let (_, _, payload) = sent.last().unwrap();
+    assert_eq!(f32::from_le_bytes(payload[0..4].try_into().unwrap()), 42.0);
 }
 
 #[test]
@@ -266,7 +331,8 @@ fn mavlink1_and_timesync_and_ping() {
     assert!(l.drain().is_empty());
     let mut dst = Vec::new();
     l.destinations(t0, &mut dst);
-    assert_eq!(dst.len(), 3);
+    // the default remote and the peer that heartbeats (talking is not listening)
+    assert_eq!(dst, vec![addr(14540), addr(50001)]);
 }
 
 #[test]

@@ -22,7 +22,7 @@ const STX_V2: u8 = 0xFD;
 /// MAVLink 2 incompatibility flag: the frame is signed (13 more bytes).
 const IFLAG_SIGNED: u8 = 0x01;
 /// Length of a MAVLink 2 signature.
-const SIGNATURE_LEN: usize = 13;
+pub const SIGNATURE_LEN: usize = 13;
 
 /// One checked frame inside a datagram.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -39,6 +39,18 @@ pub struct Frame<'a> {
     pub message_id: u32,
     /// Payload as received (MAVLink 2 payloads may be zero-truncated).
     pub payload: &'a [u8],
+    /// The whole frame, from the start byte to the CRC or the signature's end.
+    pub bytes: &'a [u8],
+}
+
+impl<'a> Frame<'a> {
+    /// The 13-byte signature block of a signed MAVLink 2 frame (link id,
+    /// timestamp 48-bit LE, signature 6 bytes); `None` when unsigned.
+    #[must_use]
+    pub fn signature(&self) -> Option<&'a [u8]> {
+        let signed = self.version == MavlinkVersion::V2 && self.bytes[2] & IFLAG_SIGNED != 0;
+        signed.then(|| &self.bytes[self.bytes.len() - SIGNATURE_LEN..])
+    }
 }
 
 /// The frames of one datagram with a valid CRC, in order. Bytes that do not
@@ -107,6 +119,7 @@ fn parse_one(buf: &[u8]) -> Parsed<'_> {
                 component_id: buf[4],
                 message_id,
                 payload: &buf[6..6 + len],
+                bytes: &buf[..total],
             },
             total,
         )
@@ -139,6 +152,7 @@ fn parse_one(buf: &[u8]) -> Parsed<'_> {
                 component_id: buf[6],
                 message_id,
                 payload: &buf[10..10 + len],
+                bytes: &buf[..total],
             },
             total,
         )

@@ -187,6 +187,49 @@ impl ParamStore {
         }
     }
 
+    /// [`Self::load_or_default`], keeping a damaged file: when `path` has
+    /// a line that does not read (an unknown name, a malformed line, a
+    /// refused value, a name given twice) or is empty (no text at all: a
+    /// truncated file, not a reset), it is renamed aside to
+    /// [`set_aside_path`] (`params.bad-<unix_s>` next to it) before the
+    /// caller saves the store over `path`; every valid line is still in the
+    /// store. The warnings end with one naming where the file went.
+    ///
+    /// # Errors
+    /// The file exists but cannot be read, or cannot be renamed aside.
+    pub fn load_keeping_bad(airframe: &Airframe, path: &Path, unix_s: u64) -> Result<Loaded, ParamFileError> {
+        let empty = fs::metadata(path).is_ok_and(|m| m.is_file())
+            && fs::read(path).is_ok_and(|b| b.iter().all(u8::is_ascii_whitespace));
+        let (store, mut warnings) = Self::load_or_default(airframe, path)?;
+        if warnings.is_empty() && !empty {
+            return Ok(Loaded {
+                store,
+                warnings,
+                set_aside: None,
+            });
+        }
+        let aside = set_aside_path(path, unix_s)?;
+        fs::rename(path, &aside).map_err(|source| ParamFileError::Io {
+            path: aside.clone(),
+            source,
+        })?;
+        let why = if empty {
+            "is empty"
+        } else {
+            "has lines that do not read"
+        };
+        warnings.push(format!(
+            "{} {why}: kept as {}; the valid lines are in force, the rest at their defaults",
+            path.display(),
+            aside.display()
+        ));
+        Ok(Loaded {
+            store,
+            warnings,
+            set_aside: Some(aside),
+        })
+    }
+
     /// Write the store to `path` atomically (module doc).
     ///
     /// # Errors
@@ -198,8 +241,83 @@ impl ParamStore {
     }
 }
 
+/// A parameter file read by [`ParamStore::load_keeping_bad`].
+#[derive(Debug)]
+pub struct Loaded {
+    /// The defaults and every valid line.
+    pub store: ParamStore,
+    /// One per skipped line, then where the file went when it was set aside.
+    pub warnings: Vec<String>,
+    /// Where the damaged file was renamed to.
+    pub set_aside: Option<PathBuf>,
+}
+
+/// Where a damaged parameter file is kept: `<stem>.bad-<unix_s>` in the
+/// same directory (`params.bad-1764669000`), `.1`, `.2`, ... appended when
+/// that name is taken.
+///
+/// # Errors
+/// [`ParamFileError::NotAFile`] for a path without a file name.
+pub fn set_aside_path(path: &Path, unix_s: u64) -> Result<PathBuf, ParamFileError> {
+    let stem = path
+        .file_stem()
+        .ok_or_else(|| ParamFileError::NotAFile(path.to_path_buf()))?
+        .to_string_lossy()
+        .into_owned();
+    let base = format!("{stem}.bad-{unix_s}");
+    let mut candidate = path.with_file_name(&base);
+    let mut n = 0;
+    while candidate.exists() {
+        n += 1;
+        candidate = path.with_file_name(format!("{base}.{n}"));
+    }
+    Ok(candidate)
+}
+
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_file_with_bad_lines_or_empty_is_kept_aside_and_a_good_one_is_not() {
+        let dir = scratch("aside");
+        let path = dir.join("params.toml");
+        fs::write(&path, "MIS_TAKEOFF_ALT = 4.5\nNOT_A_PARAM = 1\n").unwrap();
+        let loaded = ParamStore::load_keeping_bad(&quad(), &path, 1_764_669_000).unwrap();
+        let aside = dir.join("params.bad-1764669000");
+        assert_eq!(loaded.set_aside.as_deref(), Some(aside.as_path()));
+        assert_eq!(
+            fs::read_to_string(&aside).unwrap(),
+            "MIS_TAKEOFF_ALT = 4.5\nNOT_A_PARAM = 1\n"
+        );
+        assert!(!path.exists(), "moved, not copied: the caller saves the store there");
+        assert_eq!(loaded.store.get("MIS_TAKEOFF_ALT").unwrap().1, ParamValue::Real32(4.5));
+        let last = loaded.warnings.last().unwrap();
+        assert!(
+            last.contains("params.bad-1764669000") && last.contains("do not read"),
+            "{last}"
+        );
+        // the same second again: a new name, the first kept
+        fs::write(&path, "").unwrap();
+        let loaded = ParamStore::load_keeping_bad(&quad(), &path, 1_764_669_000).unwrap();
+        assert_eq!(loaded.set_aside, Some(dir.join("params.bad-1764669000.1")));
+        assert!(loaded.warnings.last().unwrap().contains("is empty"));
+        assert_eq!(loaded.store, ParamStore::new(&quad()));
+        // a good file (all at default: only comments) and no file stay where they are
+        changed_store().save(&path).unwrap();
+        let loaded = ParamStore::load_keeping_bad(&quad(), &path, 1).unwrap();
+        assert!(loaded.set_aside.is_none() && loaded.warnings.is_empty());
+        ParamStore::new(&quad()).save(&path).unwrap();
+        assert!(
+            ParamStore::load_keeping_bad(&quad(), &path, 1)
+                .unwrap()
+                .set_aside
+                .is_none()
+        );
+        fs::remove_file(&path).unwrap();
+        let loaded = ParamStore::load_keeping_bad(&quad(), &path, 1).unwrap();
+        assert!(loaded.set_aside.is_none());
+        assert_eq!(fs::read_dir(&dir).unwrap().count(), 2);
+        fs::remove_dir_all(&dir).unwrap();
+    }
     use super::*;
     use crate::statefile::{temp_path, write_atomic};
 

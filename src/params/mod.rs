@@ -1,6 +1,7 @@
 //! Parameters declared once as data (PX4 style): name (<= 16 characters),
 //! type, default, range, unit and description in one table; MAVLink's
-//! PARAM_* protocol, the persisted file and the README table derive from it.
+//! PARAM_* protocol, the persisted file and the parameter reference
+//! (`rotorpilot params`, `docs/parameters.md`) derive from it.
 //!
 //! * [`PARAMS`] (`table.rs`): the table, in MAVLink index order.
 //! * [`ParamStore`] (`store.rs`): typed values with airframe-dependent
@@ -18,9 +19,9 @@ mod file;
 mod store;
 mod table;
 
-pub use file::ParamFileError;
+pub use file::{Loaded, ParamFileError, set_aside_path};
 pub use store::{ParamError, ParamStore};
-pub use table::{PARAMS, Param, markdown_table};
+pub use table::{PARAMS, Param};
 
 use serde::Serialize;
 
@@ -149,6 +150,10 @@ pub struct ParamSpec {
     pub unit: &'static str,
     /// One-line description.
     pub description: &'static str,
+    /// For a parameter that selects one of a few meanings (an action, a
+    /// law, a switch): each value with its meaning, ascending; empty for a
+    /// quantity.
+    pub values: &'static [(i32, &'static str)],
     /// The value is stored and persisted at once but used only from the next
     /// start (PX4's `reboot_required`), e.g. `MAV_SYS_ID`.
     pub reboot_required: bool,

@@ -1,7 +1,7 @@
 //! The parameter table: every parameter once, as data, in MAVLink index order
 //! (PX4 names and defaults first, then rotorpilot's own). PX4 defaults and
 //! ranges are from PX4 v1.14 `module.yaml`/`*_params.c` where a client reads
-//! them (doc `mavlink-compat.md` sections 5, 6, 8 and 12).
+//! them. `rotorpilot params` prints it (`--markdown` is `docs/parameters.md`).
 
 use super::{ParamSpec, ParamType};
 
@@ -22,6 +22,7 @@ const fn real(
         max,
         unit,
         description,
+        values: &[],
         reboot_required: false,
     }
 }
@@ -36,21 +37,36 @@ const fn int(name: &'static str, default: i32, min: i32, max: i32, description: 
         max: max as f64,
         unit: "",
         description,
+        values: &[],
         reboot_required: false,
     }
 }
 
-/// An INT32 parameter used only from the next start.
-const fn int_reboot(name: &'static str, default: i32, min: i32, max: i32, description: &'static str) -> ParamSpec {
+/// An INT32 parameter that selects one of a few meanings: `values` lists
+/// each value with its meaning (PX4's `values:`; a value in the range but not
+/// listed acts as the description says).
+const fn choice(
+    name: &'static str,
+    default: i32,
+    min: i32,
+    max: i32,
+    description: &'static str,
+    values: &'static [(i32, &'static str)],
+) -> ParamSpec {
     ParamSpec {
-        reboot_required: true,
+        values,
         ..int(name, default, min, max, description)
     }
 }
 
+/// An INT32 switch (PX4's `boolean`): 0 disabled, 1 enabled.
+const fn switch(name: &'static str, default: i32, description: &'static str) -> ParamSpec {
+    choice(name, default, 0, 1, description, &[(0, "disabled"), (1, "enabled")])
+}
+
 /// Declares the table once: the [`Param`] enum (one variant per parameter,
 /// named as the parameter, in index order) and [`PARAMS`], each entry built
-/// by `real`, `int` or `int_reboot` with the name filled in from the variant.
+/// by `real`, `int`, `choice` or `switch` with the name filled in from the variant.
 macro_rules! parameters {
     ($( $(#[$meta:meta])* $name:ident : $ctor:ident ( $($arg:expr),* $(,)? ) ),* $(,)?) => {
         /// Every parameter, by its (PX4) name; `Param::X as usize` is its index.
@@ -112,22 +128,37 @@ parameters! {
     ),
     // --- PX4: commander ------------------------------------------------------------------------
     COM_OF_LOSS_T: real(1.0, 0.0, 60.0, "s", "Offboard: setpoints older than this are lost (OFFBOARD refused or left)"),
-    COM_OBL_RC_ACT: int(0, 0, 7, "Offboard loss action: 3 Return, 4 Land, 6 Terminate, 7 Disarm, any other Hold (no RC here)"),
+    COM_OBL_RC_ACT: choice(
+        0, 0, 7,
+        "Offboard loss action (PX4's RC modes 0-2 need RC, absent here: they Hold)",
+        &[
+            (0, "Hold (PX4: Position)"),
+            (1, "Hold (PX4: Altitude)"),
+            (2, "Hold (PX4: Manual)"),
+            (3, "Return"),
+            (4, "Land"),
+            (5, "Hold"),
+            (6, "Terminate"),
+            (7, "Disarm"),
+        ],
+    ),
     COM_DISARM_LAND: real(2.0, -1.0, 20.0, "s", "Disarm this long after a landing (<= 0: never)"),
     COM_DISARM_PRFLT: real(
         10.0, -1.0, 20.0, "s",
         "Disarm this long after arming if the vehicle has not taken off (<= 0: never)",
     ),
     // --- PX4: commander, actuator failure (rotor monitor) --------------------------------------
-    COM_ACT_FAIL_ACT: int(
+    COM_ACT_FAIL_ACT: choice(
         0, 0, 3,
-        "Rotor failed or degraded in flight (ESC speed vs command): 0 warn and go on, 1 Hold, 2 Land, 3 Return",
+        "Action when a rotor fails or degrades in flight (ESC speed vs command)",
+        &[(0, "warning, fly on"), (1, "Hold"), (2, "Land"), (3, "Return")],
     ),
     // --- PX4: manual control (MANUAL_CONTROL sticks), RC loss ---------------------------------
     COM_RC_LOSS_T: real(0.5, 0.0, 35.0, "s", "Manual control (MANUAL_CONTROL) older than this is lost"),
-    NAV_RCL_ACT: int(
+    NAV_RCL_ACT: choice(
         2, 0, 6,
-        "Manual control loss action in a manual mode: 0 none, 1 Hold, 2 Return, 3 Land, 5 Terminate, 6 Disarm",
+        "Manual control loss action in a manual mode (4: none)",
+        &[(0, "disabled"), (1, "Hold"), (2, "Return"), (3, "Land"), (5, "Terminate"), (6, "Disarm")],
     ),
     MPC_VEL_MANUAL: real(10.0, 3.0, 20.0, "m/s", "Position mode: horizontal speed at full stick"),
     MPC_MAN_Y_MAX: real(150.0, 0.0, 400.0, "deg/s", "Position, Altitude, Stabilized: yaw rate at full stick"),
@@ -142,14 +173,18 @@ parameters! {
     MC_ACRO_SUPEXPO: real(0.7, 0.0, 0.95, "", "Acro: roll and pitch super-expo"),
     MC_ACRO_SUPEXPOY: real(0.7, 0.0, 0.95, "", "Acro: yaw super-expo"),
     // --- PX4: system, MAVLink, battery ---------------------------------------------------------
-    SYS_FAILURE_EN: int(0, 0, 1, "Allow failure injection (MAV_CMD_INJECT_FAILURE)"),
-    MAV_SYS_ID: int_reboot(1, 1, 250, "MAVLink system id"),
-    MAV_COMP_ID: int_reboot(1, 1, 250, "MAVLink component id"),
+    SYS_FAILURE_EN: switch(0, "Allow failure injection (MAV_CMD_INJECT_FAILURE)"),
+    MAV_SYS_ID: int(1, 1, 250, "MAVLink system id: --instance + 1, as PX4 SITL sets it at every start (a set to another value is refused)"),
+    MAV_COMP_ID: int(1, 1, 250, "MAVLink component id: 1, the autopilot's (a set to another value is refused)"),
     BAT1_N_CELLS: int(4, 1, 14, "Battery cells in series (the monitor reads them; the simulated pack has them)"),
     BAT1_CAPACITY: real(5000.0, 100.0, 100_000.0, "mAh", "Battery capacity (of the simulated pack)"),
     SIM_BAT_MIN_PCT: real(50.0, 0.0, 100.0, "%", "Simulated battery: charge never drops below this (PX4 SITL's floor)"),
     // --- rotorpilot: control -------------------------------------------------------------------
-    CTRL_TYPE: int(1, 0, 2, "Control law: 0 hierarchical, 1 geometric, 2 passivity (switched bumplessly in flight)"),
+    CTRL_TYPE: choice(
+        1, 0, 2,
+        "Control law (switched bumplessly in flight)",
+        &[(0, "hierarchical"), (1, "geometric"), (2, "passivity")],
+    ),
     CTRL_POS_SCALE: real(
         1.0, 0.2, 3.0, "",
         "Position loop frequency scale s: stiffness gains x s^2, damping gains x s (all laws)",
@@ -160,9 +195,9 @@ parameters! {
     ),
     // --- rotorpilot: estimator -----------------------------------------------------------------
     EST_ORDER: int(3, 1, 20, "Wrench estimator order r"),
-    EST_POLY: int(0, 0, 1, "Estimator filter polynomial: 0 Butterworth, 1 binomial"),
+    EST_POLY: choice(0, 0, 1, "Estimator filter polynomial", &[(0, "Butterworth"), (1, "binomial")]),
     EST_CUTOFF: real(10.0, 0.1, 100.0, "rad/s", "Estimator cutoff frequency"),
-    EST_COMP: int(0, 0, 1, "Feed the wrench estimate back to the controller"),
+    EST_COMP: switch(0, "Feed the wrench estimate back to the controller"),
     // --- rotorpilot: simulation ----------------------------------------------------------------
     SIM_FEXT_X: real(0.0, -50.0, 50.0, "N", "Injected external force, north (world NED)"),
     SIM_FEXT_Y: real(0.0, -50.0, 50.0, "N", "Injected external force, east (world NED)"),
@@ -175,17 +210,34 @@ parameters! {
         2.0, 0.05, 100.0, "kg",
         "Nominal mass the controller and estimator assume (default: the airframe's)",
     ),
-    SIM_GE_EN: int(1, 0, 1, "Simulate ground effect"),
-    SIM_CE_EN: int(1, 0, 1, "Simulate ceiling effect (needs SIM_CEIL_Z > 0)"),
+    SIM_GE_EN: switch(1, "Simulate ground effect"),
+    SIM_CE_EN: switch(1, "Simulate ceiling effect (needs SIM_CEIL_Z > 0)"),
     SIM_CEIL_Z: real(0.0, 0.0, 100.0, "m", "Height of a flat ceiling above the home ground (0: no ceiling)"),
     // --- PX4: failsafes (data link, battery, geofence) -------------------------------------------
     COM_DL_LOSS_T: int(10, 5, 300, "GCS connection loss: no GCS HEARTBEAT for this long [s] while armed"),
-    NAV_DLL_ACT: int(0, 0, 6, "GCS connection loss action: 0 disabled, 1 Hold, 2 Return, 3 Land, 5 Terminate, 6 Disarm"),
+    NAV_DLL_ACT: choice(
+        0, 0, 6,
+        "GCS connection loss action (4: none)",
+        &[(0, "disabled"), (1, "Hold"), (2, "Return"), (3, "Land"), (5, "Terminate"), (6, "Disarm")],
+    ),
     BAT_LOW_THR: real(0.15, 0.12, 0.4, "norm", "Battery low below this remaining charge (warning)"),
     BAT_CRIT_THR: real(0.07, 0.05, 0.1, "norm", "Battery critical below this remaining charge (COM_LOW_BAT_ACT)"),
     BAT_EMERGEN_THR: real(0.05, 0.03, 0.07, "norm", "Battery emergency below this remaining charge (COM_LOW_BAT_ACT)"),
-    COM_LOW_BAT_ACT: int(0, 0, 3, "Low battery action: 0 warning, 2 Land, 3 Return at critical and Land at emergency (1: Return)"),
-    GF_ACTION: int(2, 0, 5, "Geofence breach action: 0 none, 1 warning, 2 Hold, 3 Return, 4 Terminate, 5 Land"),
+    COM_LOW_BAT_ACT: choice(
+        0, 0, 3,
+        "Low battery action",
+        &[
+            (0, "warning"),
+            (1, "Return at critical and emergency (PX4's legacy value)"),
+            (2, "Land at critical and emergency"),
+            (3, "Return at critical, Land at emergency"),
+        ],
+    ),
+    GF_ACTION: choice(
+        2, 0, 5,
+        "Geofence breach action",
+        &[(0, "none"), (1, "warning"), (2, "Hold"), (3, "Return"), (4, "Terminate"), (5, "Land")],
+    ),
     GF_MAX_HOR_DIST: real(0.0, 0.0, 10_000.0, "m", "Geofence: largest horizontal distance from home (0: no limit)"),
     GF_MAX_VER_DIST: real(0.0, 0.0, 1_000.0, "m", "Geofence: largest height above home, also for targets (0: no limit)"),
     // --- rotorpilot: failure injection (MAV_CMD_INJECT_FAILURE, FAILURE_TYPE_WRONG) ------------
@@ -194,21 +246,11 @@ parameters! {
         10.0, 0.0, 1000.0, "m",
         "Injected GPS WRONG: the position reported is this far north (world NED) of the truth",
     ),
-}
-
-/// The table as Markdown (name, type, default, range, unit, description),
-/// for the README: `| MIS_TAKEOFF_ALT | REAL32 | 2.5 | 0 .. 80 | m | ... |`.
-#[must_use]
-pub fn markdown_table() -> String {
-    let mut out = String::from("| Name | Type | Default | Range | Unit | Description |\n|---|---|---|---|---|---|\n");
-    for p in PARAMS {
-        let reboot = if p.reboot_required { " (reboot)" } else { "" };
-        out.push_str(&format!(
-            "| `{}` | {} | {} | {} .. {} | {} | {}{reboot} |\n",
-            p.name, p.kind, p.default, p.min, p.max, p.unit, p.description
-        ));
-    }
-    out
+    // --- rotorpilot: bounds on what a client may ask (issue 15) -----------------------------------
+    RP_ALT_MAX_AMSL: real(
+        9_000.0, 0.0, 20_000.0, "m",
+        "Highest altitude AMSL a takeoff or reposition may ask for; higher is refused (DENIED)",
+    ),
 }
 
 #[cfg(test)]
@@ -253,10 +295,24 @@ mod tests {
     }
 
     #[test]
-    fn markdown_has_one_row_per_parameter() {
-        let md = markdown_table();
-        assert_eq!(md.lines().count(), PARAMS.len() + 2);
-        assert!(md.contains("| `MIS_TAKEOFF_ALT` | REAL32 | 2.5 | 0 .. 80 | m |"));
+    fn listed_values_ascend_in_range_and_name_the_default() {
+        let mut listed = 0;
+        for p in PARAMS {
+            if p.values.is_empty() {
+                continue;
+            }
+            listed += 1;
+            assert_eq!(p.kind, ParamType::Int32, "{}", p.name);
+            assert!(p.values.windows(2).all(|w| w[0].0 < w[1].0), "{}", p.name);
+            for (v, meaning) in p.values {
+                assert!(p.min <= f64::from(*v) && f64::from(*v) <= p.max, "{} {v}", p.name);
+                assert!(!meaning.is_empty(), "{} {v}", p.name);
+            }
+            assert!(p.values.iter().any(|(v, _)| f64::from(*v) == p.default), "{}", p.name);
+        }
+        // the actions, the law, the polynomial and the switches
+        assert!(listed >= 12, "{listed}");
+        assert_eq!(Param::CTRL_TYPE.spec().values[2], (2, "passivity"));
     }
 
     #[test]

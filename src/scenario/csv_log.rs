@@ -7,6 +7,9 @@ use std::io::{BufWriter, Write};
 use std::path::Path;
 
 use super::run::{csv_header, csv_row};
+use super::{MissionFlight, Scenario};
+use crate::autopilot::Autopilot;
+use crate::flightlog::LogMeta;
 use crate::lockstep::{Lockstep, StepRecord};
 
 /// A flight CSV file's write buffer: rows go out in blocks of this many bytes.
@@ -64,4 +67,41 @@ impl<W: Write> CsvLog<W> {
         self.out.flush()?;
         Ok(self.out)
     }
+}
+
+/// The sidecar ([`LogMeta`]) of a scenario's flight CSV written by `producer` (`simulate`).
+#[must_use]
+pub fn scenario_meta(s: &Scenario, producer: &str) -> LogMeta {
+    LogMeta::new(
+        producer,
+        &s.source,
+        &s.airframe.name,
+        &s.airframe.nominal(),
+        &s.estimator,
+        s.step_s,
+    )
+}
+
+/// The sidecar ([`LogMeta`]) of the flight CSV of `ap`'s vehicle, as it
+/// flies now, written by `producer` from `source`.
+#[must_use]
+pub fn autopilot_meta(ap: &Autopilot, producer: &str, source: &str) -> LogMeta {
+    let est = ap.estimator();
+    LogMeta::new(
+        producer,
+        source,
+        &ap.airframe().name,
+        est.nominal(),
+        est.config(),
+        ap.dt_s(),
+    )
+}
+
+/// The sidecar ([`LogMeta`]) of a mission's flight CSV written by `producer`.
+///
+/// # Errors
+/// A mission whose vehicle cannot be built (as flying it would say).
+pub fn mission_meta(f: &MissionFlight, producer: &str) -> anyhow::Result<LogMeta> {
+    let core = super::mission::mission_lockstep(f)?;
+    Ok(autopilot_meta(core.pilot(0), producer, &f.source))
 }

@@ -573,6 +573,11 @@ pub fn fly(fleet: &Fleet, threads: usize, csv_dir: Option<&Path>) -> anyhow::Res
                     FleetFlights::Plain(v) => v[i].airframe.rotor_count(),
                     FleetFlights::Mission(v) => v[i].airframe.rotor_count(),
                 };
+                let meta = match &fleet.flights {
+                    FleetFlights::Plain(v) => super::scenario_meta(&v[i], "simulate"),
+                    FleetFlights::Mission(v) => super::mission_meta(&v[i], "simulate")?,
+                };
+                meta.write_beside(&path).map_err(anyhow::Error::msg)?;
                 Some(CsvLog::new(
                     BufWriter::with_capacity(FLEET_CSV_BUFFER_BYTES, f),
                     rotors,

@@ -549,8 +549,10 @@ impl<'f> MissionFlown<'f> {
                 if r.reached_s.is_none() {
                     r.reached_s = Some(time_s);
                     let it = &f.plans.mission[usize::from(seq)];
+                    // relative altitudes are above the vehicle's home (where it rested)
+                    let home_alt_amsl_m = core.telemetry(i).home.alt_amsl_m;
                     r.distance_m = it
-                        .geo_point(f.home.alt_amsl_m)
+                        .geo_point(home_alt_amsl_m)
                         .map(|g| (core.world().plant(i).state().position_ned - g.ned_from(&f.home)).norm());
                 }
             }
@@ -586,7 +588,7 @@ impl<'f> MissionFlown<'f> {
             ));
         }
         for r in &self.results {
-            if r.reached_s.is_none() && items[usize::from(r.seq)].geo_point(f.home.alt_amsl_m).is_some() {
+            if r.reached_s.is_none() && items[usize::from(r.seq)].geo_point(t.home.alt_amsl_m).is_some() {
                 reasons.push(format!("item {} (command {}) was never reached", r.seq, r.command));
             }
         }

@@ -18,7 +18,7 @@ mod mission;
 mod run;
 mod trajectory;
 
-pub use csv_log::{CSV_BUFFER_BYTES, CsvLog, create_csv_file};
+pub use csv_log::{CSV_BUFFER_BYTES, CsvLog, autopilot_meta, create_csv_file, mission_meta, scenario_meta};
 pub use fault::{AppliedFault, FaultType, FaultUnit, ScheduledFault};
 pub use mission::{ItemResult, MissionFlight, MissionSummary, is_mission, mission_lockstep, run_mission};
 pub use run::{ScenarioPilot, Summary, csv_header, csv_row, lockstep, run};

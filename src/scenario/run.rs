@@ -453,12 +453,14 @@ impl Summary {
     #[must_use]
     pub fn to_text(&self) -> String {
         let mm = |v: [f64; 3]| format!("[{:.4}, {:.4}, {:.4}] mm", v[0] * 1e3, v[1] * 1e3, v[2] * 1e3);
+        // 4 decimals as the other lines (the JSON keeps every digit)
+        let v4 = |v: [f64; 3]| format!("[{:.4}, {:.4}, {:.4}]", v[0], v[1], v[2]);
         let mut s = format!(
             "scenario {} — {} with the {} controller\n\
              flew {:.3} s simulated in {:.3} s wall ({:.0}x real time), {} steps\n\
              position error: RMS {:.4e} m, max {:.4e} m\n  per axis RMS {}, max {}\n  mean over the last 10 %: {}\n\
              attitude error (to the controller's setpoint): max {:.4} rad\n\
-             final position {:?} m NED, final Euler {:?} rad\n\
+             final position {} m NED, final Euler {} rad\n\
              rotor saturation {:.3} s; upright: {}; finite: {}\n\
              estimate: force [{:.4}, {:.4}, {:.4}] N NED, torque [{:.4}, {:.4}, {:.4}] N m FRD, mass {:.4} kg\n",
             self.scenario,
@@ -478,8 +480,8 @@ impl Summary {
             mm(self.max_pos_err_ned),
             mm(self.final_pos_err_ned),
             self.max_att_err_rad,
-            self.final_position_ned,
-            self.final_euler_rad,
+            v4(self.final_position_ned),
+            v4(self.final_euler_rad),
             self.saturation_time_s,
             self.upright,
             self.finite,

@@ -1,7 +1,7 @@
 //! Analytic references with exact derivatives up to snap, for scenarios that
 //! fly a known curve instead of shaped setpoints.
 //!
-//! * Circle (doc `model-and-control.md` section 10, generalised):
+//! * Circle (`docs/model.md` section 10, generalised):
 //!   `p_d = [r cos(w t) - r, r sin(w t), -h - a sin(w_z t)]`, `psi_d = b sin(w_y t)`;
 //!   the doc's circle is `r = 1, w = 1, h = 1, a = 0.3, w_z = 0.5, b = 0.5, w_y = 0.5`.
 //! * Figure-eight (Gerono lemniscate): `p_d = [a sin(w t), (a/2) sin(2 w t), -h]`, yaw fixed.

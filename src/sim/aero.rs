@@ -1,5 +1,5 @@
 //! Ground and ceiling effect as per-rotor thrust ratios (doc
-//! `model-and-control.md` section 8).
+//! `docs/model.md` section 8).
 //!
 //! * Single rotor (Cheeseman and Bennett 1955, image method):
 //!   `T_ige / T_oge = 1 / (1 - (rho / 4z)^2)`.

@@ -1,5 +1,5 @@
 //! The plant: a multirotor as a 6-DoF rigid body in NED/FRD, stepped by
-//! simulated time only (doc `model-and-control.md` section 2).
+//! simulated time only (`docs/model.md` section 2).
 //!
 //! ```text
 //! p' = v

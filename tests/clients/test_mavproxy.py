@@ -6,7 +6,10 @@ vehicle and mode it detects, `wp load` / `wp list` / `wp clear`, `param
 fetch` / `show` / `set`, `arm throttle` / `disarm`, and mode changes by
 DO_SET_MODE through `long` (MAVProxy's own `mode NAME` cannot work with PX4
 and pymavlink 2.4.50: it hands the mode tuple to `set_mode`, which raises
-"required argument is not a float" before anything is sent).
+"required argument is not a float" before anything is sent), and the
+commands the README gives a MAVProxy user for takeoff, return and landing
+(`takeoff`, `long NAV_RETURN_TO_LAUNCH`, `long NAV_LAND`, `long DO_SET_MODE
+1 4 N`), beside the ones that do not work (`mode LAND`, `rtl`, `land`).
 
 Run with the mavproxy venv: `python -m pytest tests/clients/test_mavproxy.py`.
 """
@@ -182,3 +185,51 @@ def test_params_modes_arming_and_a_mission_flown(session):
     mp.send("long DO_SET_MODE 1 4 3")
     mp.expect(r"DO_SET_MODE: ACCEPTED")
     mp.expect(r"Mode LOITER")
+
+
+def test_the_readme_commands_take_off_return_and_land(session):
+    """The README's MAVProxy commands, in flight: each is answered and the
+    vehicle enters the mode; the MAVProxy commands it warns about fail as it
+    says (a client bug, the same against PX4: nothing reaches the vehicle)."""
+    v, mp = session
+    mp.send("mode LAND")
+    mp.expect(r"ERROR in command \['LAND'\]: required argument is not a float")
+    mp.send("rtl")
+    mp.expect(r"Unknown command 'rtl'")
+    # `land` is DO_LAND_START (a mission's landing sequence), which a multicopter does not run
+    mp.send("land")
+    mp.expect(r"DO_LAND_START: UNSUPPORTED")
+
+    # `takeoff ALT` sends p7 = ALT, which PX4 reads as AMSL: below home it is
+    # raised to MIS_TAKEOFF_ALT, so that parameter sets the height
+    mp.send("param set MIS_TAKEOFF_ALT 5")
+    time.sleep(0.5)
+    mp.send("arm throttle")
+    mp.expect(r"\bARMED$")
+    mp.send("takeoff 5")
+    mp.expect(r"NAV_TAKEOFF: ACCEPTED")
+    mp.expect(r"Takeoff to 5.0 m above home")
+    mp.expect(r"Mode TAKEOFF")
+    mp.expect(r"Mode LOITER", timeout=30)
+    truth = ml.Client(f"udpout:127.0.0.1:{v.api_bind}", sysid=254)
+    truth.drain()
+    pos = truth.recv("LOCAL_POSITION_NED", 3)
+    assert pos is not None and pos.z == pytest.approx(-5.0, abs=0.5), "5 m above home (NED z up is negative)"
+
+    mp.send("long DO_SET_MODE 1 4 5")
+    mp.expect(r"DO_SET_MODE: ACCEPTED")
+    mp.expect(r"Mode RTL")
+    mp.send("long DO_SET_MODE 1 4 6")
+    mp.expect(r"DO_SET_MODE: ACCEPTED")
+    mp.expect(r"Mode LAND")
+    mp.send("long NAV_RETURN_TO_LAUNCH")
+    mp.expect(r"NAV_RETURN_TO_LAUNCH: ACCEPTED")
+    mp.expect(r"Mode RTL")
+    mp.send("long NAV_LAND")
+    mp.expect(r"NAV_LAND: ACCEPTED")
+    mp.expect(r"Mode LAND")
+    mp.expect(r"\bDISARMED$", timeout=60)
+    truth.mav.heartbeat_send(6, 8, 0, 0, 0)  # still a peer (the link forgets a silent one after 30 s)
+    truth.drain()
+    pos = truth.recv("LOCAL_POSITION_NED", 3)
+    assert pos is not None and abs(pos.z) < 0.3, "landed where it was"

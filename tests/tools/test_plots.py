@@ -31,8 +31,10 @@ def test_plot_flight_draws_the_reports_figures(tmp_path):
     out = run(sys.executable, os.path.join(ROOT, "tools/plot_flight.py"), str(log), "--out", str(tmp_path / "fig"))
     written = out.stdout.split()
     names = {os.path.basename(p) for p in written}
-    assert {"position_error.png", "velocity_error.png", "attitude_error.png", "angular_velocity.png",
+    assert {"position_error.png", "velocity_error.png", "attitude.png", "angular_velocity.png",
             "inputs.png"} <= names
+    # roll and pitch are plotted as flown (the log has no setpoint for them): not named an error
+    assert "attitude_error.png" not in names
     assert_pngs(written)
 
 
@@ -55,3 +57,18 @@ def test_plot_flight_refuses_a_log_without_the_columns(tmp_path):
                        capture_output=True, text=True, timeout=60)
     assert r.returncode != 0
     assert "bad.csv:1: missing column" in r.stderr
+
+
+def test_plot_estimates_takes_the_nominal_mass_from_the_flights_sidecar(tmp_path, capsys):
+    sys.path.insert(0, os.path.join(ROOT, "tools"))
+    import plot_estimates
+
+    log = tmp_path / "quad.csv"
+    run(BIN, "simulate", os.path.join(ROOT, "tools/scenarios/quad-step-10m.toml"), "--csv", str(log))
+    assert plot_estimates.nominal_mass(str(log), None) == 2.0  # the quad's, from quad.csv.meta.json
+    assert plot_estimates.nominal_mass(str(log), 3.0) == 3.0  # --nominal-mass overrides
+    assert "warning" not in capsys.readouterr().err
+    os.remove(str(log) + ".meta.json")
+    assert plot_estimates.nominal_mass(str(log), None) == 1.5
+    err = capsys.readouterr().err
+    assert "warning" in err and "quad.csv.meta.json" in err and "--nominal-mass" in err

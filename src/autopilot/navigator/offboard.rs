@@ -210,6 +210,14 @@ impl LocalSetpoint {
         }
     }
 
+    /// The position target's NED z [m], if it has one.
+    pub(in crate::autopilot) fn position_z(&self) -> Option<f64> {
+        match self {
+            LocalSetpoint::Local(Targets { position: Some(p), .. }) => Some(p.z),
+            _ => None,
+        }
+    }
+
     /// Whether it can be followed: every given part finite, something given.
     pub(in crate::autopilot) fn is_valid(&self) -> bool {
         match self {

@@ -1,0 +1,169 @@
+//! The answer to a link's request to the simulation thread, with a claim
+//! that makes a timed-out request either applied (and answered late) or
+//! never applied — never refused and then applied.
+//!
+//! Each request carries one [`Reply`] (the simulation thread's end) and the
+//! link keeps its [`Waiter`]. Both ends share one state, changed once by
+//! compare-and-swap:
+//!
+//! ```text
+//! Pending --claim() by the simulation thread, before it applies--> Claimed
+//! Pending --the link's wait times out----------------------------> Abandoned
+//! ```
+//!
+//! The simulation thread applies a request only when its claim wins, so a
+//! request the link gave up on ("did not answer": FAILED, PARAM_ERROR,
+//! MISSION_ACK ERROR) is dropped unapplied; a request claimed before the
+//! link's timeout is waited for to the end and answered with what the
+//! autopilot decided, however late.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU8, Ordering};
+use std::time::Duration;
+
+use tokio::sync::oneshot;
+
+const PENDING: u8 = 0;
+const CLAIMED: u8 = 1;
+const ABANDONED: u8 = 2;
+
+/// The simulation thread's end of one request's answer.
+#[derive(Debug)]
+pub(super) struct Reply<T> {
+    tx: oneshot::Sender<T>,
+    state: Arc<AtomicU8>,
+}
+
+/// The link's end of one request's answer.
+#[derive(Debug)]
+pub(super) struct Waiter<T> {
+    rx: oneshot::Receiver<T>,
+    state: Arc<AtomicU8>,
+}
+
+/// How a request the link waited for ended.
+#[derive(Debug, PartialEq, Eq)]
+pub(super) enum Answer<T> {
+    /// Applied (or refused) by the autopilot: its answer.
+    Done(T),
+    /// Not taken up within the timeout: given up, and never applied.
+    Expired,
+    /// The simulation thread is gone (the daemon is going down).
+    Gone,
+}
+
+/// A fresh answer channel for one request.
+pub(super) fn reply<T>() -> (Reply<T>, Waiter<T>) {
+    let (tx, rx) = oneshot::channel();
+    let state = Arc::new(AtomicU8::new(PENDING));
+    (
+        Reply {
+            tx,
+            state: state.clone(),
+        },
+        Waiter { rx, state },
+    )
+}
+
+impl<T> Reply<T> {
+    /// Take the request up: true when it may be applied, false when the
+    /// link has given up on it (then it must not be applied).
+    pub(super) fn claim(&self) -> bool {
+        self.state
+            .compare_exchange(PENDING, CLAIMED, Ordering::AcqRel, Ordering::Acquire)
+            .is_ok()
+    }
+
+    /// Answer; the value back when the link is gone (as `oneshot::Sender::send`).
+    ///
+    /// # Errors
+    /// The link stopped waiting.
+    pub(super) fn send(self, value: T) -> Result<(), T> {
+        self.tx.send(value)
+    }
+}
+
+impl<T> Waiter<T> {
+    /// Wait for the answer; when none came within `timeout`, give the
+    /// request up unless the simulation thread has already claimed it, in
+    /// which case wait for its answer to the end.
+    pub(super) async fn wait(mut self, timeout: Duration) -> Answer<T> {
+        match tokio::time::timeout(timeout, &mut self.rx).await {
+            Ok(Ok(v)) => return Answer::Done(v),
+            Ok(Err(_)) => return Answer::Gone,
+            Err(_) => {}
+        }
+        if self
+            .state
+            .compare_exchange(PENDING, ABANDONED, Ordering::AcqRel, Ordering::Acquire)
+            .is_ok()
+        {
+            return Answer::Expired;
+        }
+        // claimed: being applied now; its answer follows
+        match self.rx.await {
+            Ok(v) => Answer::Done(v),
+            Err(_) => Answer::Gone,
+        }
+    }
+}
+
+/// Whether `r`'s link has given up on it: the simulation thread then drops
+/// it unapplied. Claims it otherwise (it is applied now).
+pub(super) fn given_up(r: &super::sim_thread::SimRequest) -> bool {
+    use super::sim_thread::SimRequest;
+    let claimed = match r {
+        SimRequest::Command { reply: Some(x), .. } => x.claim(),
+        SimRequest::SetParam { reply, .. } => reply.claim(),
+        SimRequest::Plans { reply, .. } => reply.claim(),
+        _ => true,
+    };
+    if !claimed {
+        tracing::debug!("a request its link gave up on is dropped unapplied");
+    }
+    !claimed
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[tokio::test]
+    async fn a_request_given_up_on_is_never_claimed() {
+        let (r, w) = reply::<u32>();
+        assert_eq!(w.wait(Duration::from_millis(20)).await, Answer::Expired);
+        assert!(!r.claim(), "the simulation thread must not apply it");
+    }
+
+    #[tokio::test]
+    async fn a_claimed_request_is_answered_late_not_expired() {
+        let (r, w) = reply::<u32>();
+        assert!(r.claim());
+        let slow = tokio::spawn(async move {
+            tokio::time::sleep(Duration::from_millis(100)).await;
+            let _ = r.send(7);
+        });
+        assert_eq!(w.wait(Duration::from_millis(10)).await, Answer::Done(7));
+        slow.await.unwrap();
+    }
+
+    #[tokio::test]
+    async fn an_answer_in_time_and_a_vanished_simulation() {
+        let (r, w) = reply::<u32>();
+        assert!(r.claim());
+        let _ = r.send(3);
+        assert_eq!(w.wait(Duration::from_millis(10)).await, Answer::Done(3));
+        let (r, w) = reply::<u32>();
+        drop(r);
+        assert_eq!(w.wait(Duration::from_millis(10)).await, Answer::Gone);
+        // claimed, then dropped unanswered (the thread died mid-request)
+        let (r, w) = reply::<u32>();
+        assert!(r.claim());
+        let t = tokio::spawn(async move {
+            tokio::time::sleep(Duration::from_millis(50)).await;
+            drop(r);
+        });
+        assert_eq!(w.wait(Duration::from_millis(10)).await, Answer::Gone);
+        t.await.unwrap();
+    }
+}

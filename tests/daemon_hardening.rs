@@ -12,7 +12,7 @@ mod daemon_common;
 use std::net::SocketAddr;
 use std::time::Duration;
 
-use daemon_common::{Client, Vehicle, config};
+use daemon_common::{Client, Vehicle, command_long_frame, config};
 use mavlink::dialects::common::*;
 use mavlink::{MAVLinkV1MessageRaw, MAVLinkV2MessageRaw, MavHeader};
 use rotorpilot::link::budget::{UNPROVEN_FACTOR, UNPROVEN_POOL_RATE};
@@ -54,7 +54,7 @@ fn command(command: u16, p: [f32; 7], target: (u8, u8)) -> Vec<u8> {
         target_component: target.1,
         confirmation: 0,
     };
-    wire::encode_v2(header(255, 190, 0), 76, &c.encode())
+    command_long_frame(header(255, 190, 0), &c)
 }
 
 /// The request kinds that draw the largest answers, each as one frame.

@@ -386,22 +386,34 @@ fn help_states_the_speed_range_and_the_api_port_rule() {
     );
 }
 
-#[test]
-fn a_second_daemon_on_one_state_dir_is_refused_naming_the_dir_and_the_holder() {
-    let dir = state_dir("locked");
-    let mut first = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+/// A daemon on `dir` (loopback ports), once it says it is ready to arm,
+/// with its stdout still open (a closed pipe could end it early).
+fn start_until_ready(
+    dir: &std::path::Path,
+) -> (
+    std::process::Child,
+    std::io::Lines<BufReader<std::process::ChildStdout>>,
+) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
         .args(["--state-dir", dir.to_str().unwrap()])
         .args(LOOPBACK)
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
-    let mut lines = BufReader::new(first.stdout.take().unwrap()).lines();
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
     let ready = lines
         .by_ref()
         .map_while(Result::ok)
         .any(|l| l.starts_with("rotorpilot: ready to arm"));
-    assert!(ready, "the first daemon starts");
+    assert!(ready, "a daemon on {} starts", dir.display());
+    (child, lines)
+}
+
+#[test]
+fn a_second_daemon_on_one_state_dir_is_refused_naming_the_dir_and_the_holder() {
+    let dir = state_dir("locked");
+    let (mut first, _stdout) = start_until_ready(&dir);
     let (code, stdout, stderr) = run(&[&["--state-dir", dir.to_str().unwrap()][..], &LOOPBACK[..]].concat());
     let _ = first.kill();
     let _ = first.wait();
@@ -417,20 +429,10 @@ fn a_second_daemon_on_one_state_dir_is_refused_naming_the_dir_and_the_holder() {
     assert_eq!(code, Some(1));
     assert!(stdout.is_empty());
     // the first gone (killed: the system released its lock), a new one starts
-    let mut again = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
-        .args(["--state-dir", dir.to_str().unwrap()])
-        .args(LOOPBACK)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let ready = BufReader::new(again.stdout.take().unwrap())
-        .lines()
-        .map_while(Result::ok)
-        .any(|l| l.starts_with("rotorpilot: ready to arm"));
+    // (it asserts that it starts: a stale lock file locks nothing)
+    let (mut again, _stdout) = start_until_ready(&dir);
     let _ = again.kill();
     let _ = again.wait();
-    assert!(ready, "a stale lock file locks nothing");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

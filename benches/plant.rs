@@ -1,6 +1,6 @@
 //! Speed of one plant step (RK4, 1 ms) at rotor level.
 //!
-//! Run: `cargo bench --bench plant`. Figures go in the README.
+//! Run: `cargo bench --bench plant`. Figures go in docs/performance.md.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::Vector3;

@@ -4,7 +4,7 @@
 //! frame as it arrives (signature and stream timestamp). Frames: ATTITUDE (28
 //! bytes of payload, the most frequent stream) and COMMAND_LONG (33).
 //!
-//! Run: `cargo bench --bench signing`. Figures go in the README.
+//! Run: `cargo bench --bench signing`. Figures go in docs/performance.md.
 
 use std::hint::black_box;
 use std::time::Instant;

@@ -5,7 +5,7 @@
 //! * one estimator update for r = 5 (and r = 3, 20), trapezoidal;
 //! * a whole mission flown headless (`rotorpilot simulate` on a mission).
 //!
-//! Run: `cargo bench --bench vehicle`. Figures go in the README.
+//! Run: `cargo bench --bench vehicle`. Figures go in docs/performance.md.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::Vector3;

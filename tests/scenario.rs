@@ -89,8 +89,8 @@ fn numbers(v: &serde_json::Value) -> Vec<f64> {
     v.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect()
 }
 
-/// The README's results table (section "Shipped in `tools/scenarios/`"), on
-/// the shipped files themselves; each bound is the README's figure with the
+/// The results table of docs/scenarios.md (section "Shipped scenarios"), on
+/// the shipped files themselves; each bound is the page's figure with the
 /// margin stated beside it, the measured value in the comment. `upright`
 /// only says the tilt stayed below 90°, so the attitude error is pinned too.
 #[test]
@@ -112,7 +112,7 @@ fn shipped_scenarios_give_the_readme_figures() {
         let max = v["max_pos_err_m"].as_f64().unwrap() * 1e3;
         assert!(
             (max - max_mm).abs() < 0.05,
-            "{name}: max error {max} mm, README {max_mm} mm"
+            "{name}: max error {max} mm, docs/scenarios.md {max_mm} mm"
         );
         // measured 3.5 / 4.0 / 4.0 mrad
         assert!(v["max_att_err_rad"].as_f64().unwrap() < 5e-3, "{name}: {v}");

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Measure rotorpilot's MAVLink link on loopback (the README's speed figures):
+"""Measure rotorpilot's MAVLink link on loopback (the figures of docs/flying.md, "Link speed"):
 
 1. COMMAND_ACK round trip, p50/p99/max over N commands, for a command the
    link answers itself (unknown id -> UNSUPPORTED) and one that goes through

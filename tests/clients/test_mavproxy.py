@@ -7,7 +7,7 @@ fetch` / `show` / `set`, `arm throttle` / `disarm`, and mode changes by
 DO_SET_MODE through `long` (MAVProxy's own `mode NAME` cannot work with PX4
 and pymavlink 2.4.50: it hands the mode tuple to `set_mode`, which raises
 "required argument is not a float" before anything is sent), and the
-commands the README gives a MAVProxy user for takeoff, return and landing
+commands docs/flying.md gives a MAVProxy user for takeoff, return and landing
 (`takeoff`, `long NAV_RETURN_TO_LAUNCH`, `long NAV_LAND`, `long DO_SET_MODE
 1 4 N`), beside the ones that do not work (`mode LAND`, `rtl`, `land`).
 
@@ -188,7 +188,7 @@ def test_params_modes_arming_and_a_mission_flown(session):
 
 
 def test_the_readme_commands_take_off_return_and_land(session):
-    """The README's MAVProxy commands, in flight: each is answered and the
+    """The MAVProxy commands of docs/flying.md, in flight: each is answered and the
     vehicle enters the mode; the MAVProxy commands it warns about fail as it
     says (a client bug, the same against PX4: nothing reaches the vehicle)."""
     v, mp = session

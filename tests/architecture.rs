@@ -37,8 +37,16 @@ const FLIGHT_STACK: &[&str] = &["autopilot", "control", "estimation"];
 const NOT_FOR_THE_FLIGHT_STACK: &[&str] = &["sim", "lockstep", "scenario", "link", "daemon", "logs"];
 /// Imports that are wrong whatever the table says: (from room, to room, why).
 const NEVER: &[(&str, &str, &str)] = &[
-    ("airframe", "control", "the [control] table is checked by control, which imports airframe"),
-    ("link", "sim", "protocol code never touches physics: it sees the world only in a lockstep::Snapshot"),
+    (
+        "airframe",
+        "control",
+        "the [control] table is checked by control, which imports airframe",
+    ),
+    (
+        "link",
+        "sim",
+        "protocol code never touches physics: it sees the world only in a lockstep::Snapshot",
+    ),
 ];
 
 // ---------------------------------------------------------------- lexing
@@ -132,7 +140,10 @@ fn lex(src: &str) -> Vec<Token> {
                 s.push(c[j]);
                 j += 1;
             }
-            out.push(Token { tok: Tok::Str(s), line: first_line });
+            out.push(Token {
+                tok: Tok::Str(s),
+                line: first_line,
+            });
             i = j;
         } else if ch == '"' || (ch == 'b' && next == '"') {
             let first_line = line;
@@ -151,7 +162,10 @@ fn lex(src: &str) -> Vec<Token> {
                 }
                 j += 1;
             }
-            out.push(Token { tok: Tok::Str(s), line: first_line });
+            out.push(Token {
+                tok: Tok::Str(s),
+                line: first_line,
+            });
             i = j + 1;
         } else if ch == '\'' || (ch == 'b' && next == '\'') {
             // a char literal ('x', '\n', '\u{..}') or a lifetime ('a)
@@ -171,11 +185,15 @@ fn lex(src: &str) -> Vec<Token> {
                 }
             }
         } else if ch.is_ascii_digit() {
-            while i < c.len() && (ident_char(c[i]) || (c[i] == '.' && c.get(i + 1).is_some_and(|d| d.is_ascii_digit()))) {
+            while i < c.len() && (ident_char(c[i]) || (c[i] == '.' && c.get(i + 1).is_some_and(|d| d.is_ascii_digit())))
+            {
                 i += 1;
             }
         } else if ch == '$' && c[i + 1..].starts_with(&['c', 'r', 'a', 't', 'e']) {
-            out.push(Token { tok: Tok::Ident("crate".into()), line });
+            out.push(Token {
+                tok: Tok::Ident("crate".into()),
+                line,
+            });
             i += 6;
         } else if ident_start(ch) {
             if ch == 'r' && next == '#' && c.get(i + 2).is_some_and(|&d| ident_start(d)) {
@@ -185,12 +203,18 @@ fn lex(src: &str) -> Vec<Token> {
             while i < c.len() && ident_char(c[i]) {
                 i += 1;
             }
-            out.push(Token { tok: Tok::Ident(c[start..i].iter().collect()), line });
+            out.push(Token {
+                tok: Tok::Ident(c[start..i].iter().collect()),
+                line,
+            });
         } else if ch == ':' && next == ':' {
             out.push(Token { tok: Tok::Sep, line });
             i += 2;
         } else {
-            out.push(Token { tok: Tok::Punct(ch), line });
+            out.push(Token {
+                tok: Tok::Punct(ch),
+                line,
+            });
             i += 1;
         }
     }
@@ -334,7 +358,12 @@ fn read_crate() -> Vec<SrcFile> {
             _ => module[0].clone(),
         };
         let text = fs::read_to_string(&path).unwrap();
-        files.push(SrcFile { name: rel, room, module, tokens: drop_test_items(lex(&text)) });
+        files.push(SrcFile {
+            name: rel,
+            room,
+            module,
+            tokens: drop_test_items(lex(&text)),
+        });
     }
     files
 }
@@ -403,7 +432,10 @@ struct Refs {
 /// it declares (`mod x;`), and its references.
 fn walk(f: &SrcFile, inline: &mut BTreeMap<ModPath, String>) -> Refs {
     let t = &f.tokens;
-    let mut refs = Refs { uses: Vec::new(), paths: Vec::new() };
+    let mut refs = Refs {
+        uses: Vec::new(),
+        paths: Vec::new(),
+    };
     let mut stack: Vec<(ModPath, i32)> = vec![(f.module.clone(), 0)];
     let mut depth = 0i32;
     let mut i = 0;
@@ -435,7 +467,13 @@ fn walk(f: &SrcFile, inline: &mut BTreeMap<ModPath, String>) -> Refs {
                 let mut leaves = Vec::new();
                 let end = use_leaves(t, i + 1, &[], &mut leaves);
                 for (written, name) in leaves {
-                    refs.uses.push(UseLeaf { module: module.clone(), written, name, line: t[i].line, resolved: None });
+                    refs.uses.push(UseLeaf {
+                        module: module.clone(),
+                        written,
+                        name,
+                        line: t[i].line,
+                        resolved: None,
+                    });
                 }
                 i = end;
                 continue;
@@ -495,7 +533,12 @@ impl Crate {
         let mut inline = BTreeMap::new();
         let refs: Vec<Refs> = files.iter().map(|f| walk(f, &mut inline)).collect();
         modules.extend(inline);
-        let mut c = Crate { aliases: vec![BTreeMap::new(); files.len()], files, modules, refs };
+        let mut c = Crate {
+            aliases: vec![BTreeMap::new(); files.len()],
+            files,
+            modules,
+            refs,
+        };
         // `use`s may build on each other (`use crate::sim; use sim::Truth;`)
         for _ in 0..4 {
             for fi in 0..c.files.len() {
@@ -504,7 +547,9 @@ impl Crate {
                         continue;
                     }
                     let u = &c.refs[fi].uses[ui];
-                    let Some(abs) = c.absolute(fi, &u.module, &u.written) else { continue };
+                    let Some(abs) = c.absolute(fi, &u.module, &u.written) else {
+                        continue;
+                    };
                     if let Some(name) = u.name.clone() {
                         c.aliases[fi].insert(name, abs.clone());
                     }
@@ -520,7 +565,7 @@ impl Crate {
     fn absolute(&self, fi: usize, module: &ModPath, written: &[String]) -> Option<Vec<String>> {
         let first = written.first()?;
         let mut at = module.clone();
-        let mut rest = &written[..];
+        let mut rest = written;
         if self.files[fi].name == "src/main.rs" {
             return (first == "rotorpilot").then(|| written[1..].to_vec());
         }
@@ -552,9 +597,15 @@ impl Crate {
 
     /// The file an absolute path leads to: its deepest existing module's.
     fn target(&self, abs: &[String]) -> Target {
-        let k = (0..=abs.len()).rev().find(|&k| self.modules.contains_key(&abs[..k])).unwrap();
+        let k = (0..=abs.len())
+            .rev()
+            .find(|&k| self.modules.contains_key(&abs[..k]))
+            .unwrap();
         let name = abs.get(k).or(abs.last()).cloned().unwrap_or_else(|| "crate".into());
-        Target { file: self.modules[&abs[..k]].clone(), name }
+        Target {
+            file: self.modules[&abs[..k]].clone(),
+            name,
+        }
     }
 
     /// Whether `file`'s module encloses `f` (its parent, grandparent, ..).
@@ -564,7 +615,11 @@ impl Crate {
     }
 
     fn room_of(&self, file: &str) -> String {
-        self.files.iter().find(|f| f.name == file).map(|f| f.room.clone()).unwrap_or_default()
+        self.files
+            .iter()
+            .find(|f| f.name == file)
+            .map(|f| f.room.clone())
+            .unwrap_or_default()
     }
 
     /// The file-level import graph: from -> to -> (names, first line).
@@ -585,7 +640,13 @@ impl Crate {
                     // a glob: everything of that module
                     None => {
                         let t = self.target(abs);
-                        add(Target { file: t.file, name: "*".into() }, u.line);
+                        add(
+                            Target {
+                                file: t.file,
+                                name: "*".into(),
+                            },
+                            u.line,
+                        );
                     }
                     // a module brought into scope is followed where it is named
                     Some(_) => {
@@ -596,10 +657,10 @@ impl Crate {
                 }
             }
             for (module, segs, line) in &r.paths {
-                if let Some(abs) = self.absolute(fi, module, segs) {
-                    if !self.modules.contains_key(&abs) {
-                        add(self.target(&abs), *line);
-                    }
+                if let Some(abs) = self.absolute(fi, module, segs)
+                    && !self.modules.contains_key(&abs)
+                {
+                    add(self.target(&abs), *line);
                 }
             }
         }
@@ -661,7 +722,14 @@ fn circles(g: &BTreeMap<String, BTreeSet<String>>) -> Vec<Vec<String>> {
             }
         }
     }
-    let mut s = St { g, index: BTreeMap::new(), low: BTreeMap::new(), on: BTreeSet::new(), stack: Vec::new(), out: Vec::new() };
+    let mut s = St {
+        g,
+        index: BTreeMap::new(),
+        low: BTreeMap::new(),
+        on: BTreeSet::new(),
+        stack: Vec::new(),
+        out: Vec::new(),
+    };
     for v in g.keys() {
         if !s.index.contains_key(v.as_str()) {
             visit(&mut s, v);
@@ -702,10 +770,15 @@ fn way_round(comp: &[String], next: impl Fn(&str) -> Vec<String>) -> Vec<String>
 
 /// Describes circles in a graph whose arrows carry names.
 fn describe_circles(g: &BTreeMap<String, BTreeMap<String, BTreeSet<String>>>, what: &str) -> Vec<String> {
-    let plain: BTreeMap<String, BTreeSet<String>> = g.iter().map(|(k, v)| (k.clone(), v.keys().cloned().collect())).collect();
+    let plain: BTreeMap<String, BTreeSet<String>> = g
+        .iter()
+        .map(|(k, v)| (k.clone(), v.keys().cloned().collect()))
+        .collect();
     let mut found = Vec::new();
     for comp in circles(&plain) {
-        let way = way_round(&comp, |v| plain.get(v).map(|s| s.iter().cloned().collect()).unwrap_or_default());
+        let way = way_round(&comp, |v| {
+            plain.get(v).map(|s| s.iter().cloned().collect()).unwrap_or_default()
+        });
         let mut s = format!("a circle of {what}: {}", way[0]);
         for pair in way.windows(2) {
             s += &format!(" -> {} ({})", pair[1], names(&g[&pair[0]][&pair[1]]));
@@ -735,21 +808,46 @@ struct Room {
 fn table() -> BTreeMap<String, Room> {
     let path = root().join("docs/architecture.md");
     let text = fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let cells = |l: &str| -> Vec<String> { l.trim().trim_matches('|').split('|').map(|c| c.trim().to_string()).collect() };
+    let cells = |l: &str| -> Vec<String> {
+        l.trim()
+            .trim_matches('|')
+            .split('|')
+            .map(|c| c.trim().to_string())
+            .collect()
+    };
     let ticked = |c: &str| -> Vec<String> { c.split('`').skip(1).step_by(2).map(String::from).collect() };
     let mut lines = text.lines().skip_while(|l| {
         let h: Vec<String> = cells(l).iter().map(|c| c.to_lowercase()).collect();
         h != ["floor", "room", "job", "may import"]
     });
-    assert!(lines.next().is_some(), "docs/architecture.md has no table `| floor | room | job | may import |`");
+    assert!(
+        lines.next().is_some(),
+        "docs/architecture.md has no table `| floor | room | job | may import |`"
+    );
     let mut rooms = BTreeMap::new();
     for l in lines.skip(1).take_while(|l| l.trim_start().starts_with('|')) {
         let c = cells(l);
-        assert_eq!(c.len(), 4, "docs/architecture.md: a row of the rooms table needs 4 cells: {l}");
-        let floor = c[0].parse().unwrap_or_else(|_| panic!("docs/architecture.md: the floor is a number: {l}"));
+        assert_eq!(
+            c.len(),
+            4,
+            "docs/architecture.md: a row of the rooms table needs 4 cells: {l}"
+        );
+        let floor = c[0]
+            .parse()
+            .unwrap_or_else(|_| panic!("docs/architecture.md: the floor is a number: {l}"));
         let name = ticked(&c[1]);
-        assert_eq!(name.len(), 1, "docs/architecture.md: one room per row, in backticks: {l}");
-        rooms.insert(name[0].clone(), Room { floor, may_import: ticked(&c[3]).into_iter().collect() });
+        assert_eq!(
+            name.len(),
+            1,
+            "docs/architecture.md: one room per row, in backticks: {l}"
+        );
+        rooms.insert(
+            name[0].clone(),
+            Room {
+                floor,
+                may_import: ticked(&c[3]).into_iter().collect(),
+            },
+        );
     }
     assert!(!rooms.is_empty(), "docs/architecture.md: the rooms table has no rows");
     rooms
@@ -766,9 +864,15 @@ fn fail_on(findings: Vec<String>, what: &str) {
 #[test]
 fn no_file_imports_itself_in_a_circle() {
     let c = Crate::read();
-    let g: BTreeMap<_, BTreeMap<_, _>> =
-        c.graph().into_iter().map(|(a, to)| (a, to.into_iter().map(|(b, (n, _))| (b, n)).collect())).collect();
-    fail_on(describe_circles(&g, "files"), "circle(s) of files importing each other (break one arrow: move the shared name down into a leaf)");
+    let g: BTreeMap<_, BTreeMap<_, _>> = c
+        .graph()
+        .into_iter()
+        .map(|(a, to)| (a, to.into_iter().map(|(b, (n, _))| (b, n)).collect()))
+        .collect();
+    fail_on(
+        describe_circles(&g, "files"),
+        "circle(s) of files importing each other (break one arrow: move the shared name down into a leaf)",
+    );
 }
 
 /// The room graph: room -> room -> "file -> file (names)" arrows.
@@ -778,7 +882,11 @@ fn room_graph(c: &Crate) -> BTreeMap<String, BTreeMap<String, BTreeSet<String>>>
         for (b, (n, line)) in to {
             let (ra, rb) = (c.room_of(&a), c.room_of(&b));
             if ra != rb {
-                rg.entry(ra).or_default().entry(rb).or_default().insert(format!("{a}:{line} -> {b}: {}", names(&n)));
+                rg.entry(ra)
+                    .or_default()
+                    .entry(rb)
+                    .or_default()
+                    .insert(format!("{a}:{line} -> {b}: {}", names(&n)));
             }
         }
     }
@@ -788,7 +896,10 @@ fn room_graph(c: &Crate) -> BTreeMap<String, BTreeMap<String, BTreeSet<String>>>
 #[test]
 fn no_room_imports_itself_in_a_circle() {
     let c = Crate::read();
-    fail_on(describe_circles(&room_graph(&c), "rooms"), "circle(s) of rooms importing each other");
+    fail_on(
+        describe_circles(&room_graph(&c), "rooms"),
+        "circle(s) of rooms importing each other",
+    );
 }
 
 #[test]
@@ -799,10 +910,13 @@ fn rooms_import_only_what_the_table_allows() {
     for (name, room) in &rooms {
         for m in &room.may_import {
             match rooms.get(m) {
-                None => findings.push(format!("docs/architecture.md: `{name}` may import `{m}`, which has no row")),
-                Some(r) if r.floor > room.floor => {
-                    findings.push(format!("docs/architecture.md: `{name}` (floor {}) may import `{m}` on floor {}, above it", room.floor, r.floor))
-                }
+                None => findings.push(format!(
+                    "docs/architecture.md: `{name}` may import `{m}`, which has no row"
+                )),
+                Some(r) if r.floor > room.floor => findings.push(format!(
+                    "docs/architecture.md: `{name}` (floor {}) may import `{m}` on floor {}, above it",
+                    room.floor, r.floor
+                )),
                 Some(_) => {}
             }
         }
@@ -810,13 +924,23 @@ fn rooms_import_only_what_the_table_allows() {
     let in_code: BTreeSet<String> = c.files.iter().map(|f| f.room.clone()).filter(|r| r != "lib").collect();
     for r in &in_code {
         if !rooms.contains_key(r) {
-            let files: Vec<_> = c.files.iter().filter(|f| &f.room == r).map(|f| f.name.as_str()).collect();
-            findings.push(format!("room `{r}` ({}) has no row in docs/architecture.md", files.join(", ")));
+            let files: Vec<_> = c
+                .files
+                .iter()
+                .filter(|f| &f.room == r)
+                .map(|f| f.name.as_str())
+                .collect();
+            findings.push(format!(
+                "room `{r}` ({}) has no row in docs/architecture.md",
+                files.join(", ")
+            ));
         }
     }
     for r in rooms.keys() {
         if !in_code.contains(r) {
-            findings.push(format!("docs/architecture.md has a row for `{r}`, which is no module of src/"));
+            findings.push(format!(
+                "docs/architecture.md has a row for `{r}`, which is no module of src/"
+            ));
         }
     }
     for (ra, to) in room_graph(&c) {
@@ -824,7 +948,10 @@ fn rooms_import_only_what_the_table_allows() {
             let allowed = rooms.get(&ra).is_some_and(|r| r.may_import.contains(&rb));
             if !allowed && rooms.contains_key(&ra) && rooms.contains_key(&rb) {
                 let arrows: Vec<_> = arrows.iter().map(|a| format!("\n    {a}")).collect();
-                findings.push(format!("`{ra}` imports `{rb}`, which docs/architecture.md does not allow:{}", arrows.concat()));
+                findings.push(format!(
+                    "`{ra}` imports `{rb}`, which docs/architecture.md does not allow:{}",
+                    arrows.concat()
+                ));
             }
         }
     }
@@ -844,7 +971,9 @@ fn rooms_never_import_what_they_must_not() {
     for from in FLIGHT_STACK {
         for to in NOT_FOR_THE_FLIGHT_STACK {
             for a in rg.get(*from).and_then(|t| t.get(*to)).into_iter().flatten() {
-                findings.push(format!("the flight stack (`{from}`) imports `{to}`: it sees only sensor readings: {a}"));
+                findings.push(format!(
+                    "the flight stack (`{from}`) imports `{to}`: it sees only sensor readings: {a}"
+                ));
             }
         }
     }
@@ -856,7 +985,8 @@ fn path_at(t: &[Token], i: usize, path: &str) -> bool {
     let segs: Vec<&str> = path.split("::").collect();
     segs.iter().enumerate().all(|(k, s)| {
         let at = i + 2 * k;
-        t.get(at).is_some_and(|tok| s.is_empty() && tok.is_sep() || tok.is_ident(s))
+        t.get(at)
+            .is_some_and(|tok| s.is_empty() && tok.is_sep() || tok.is_ident(s))
             && (k + 1 == segs.len() || t.get(at + 1).is_some_and(Token::is_sep))
     })
 }
@@ -875,12 +1005,18 @@ fn pure_floors_use_no_runtime_protocol_clock_or_global_rng() {
         for i in 0..t.len() {
             for (pat, what) in IMPURE {
                 if path_at(t, i, pat) && !(i > 0 && t[i - 1].is_sep()) {
-                    findings.push(format!("{}:{}: `{pat}` ({what}) in `{}`, floor {}", f.name, t[i].line, f.room, room.floor));
+                    findings.push(format!(
+                        "{}:{}: `{pat}` ({what}) in `{}`, floor {}",
+                        f.name, t[i].line, f.room, room.floor
+                    ));
                 }
             }
         }
     }
-    fail_on(findings, &format!("use(s) of a runtime, the protocol, a clock or the global RNG on floors 1-{PURE_UP_TO_FLOOR}"));
+    fail_on(
+        findings,
+        &format!("use(s) of a runtime, the protocol, a clock or the global RNG on floors 1-{PURE_UP_TO_FLOOR}"),
+    );
 }
 
 #[test]
@@ -891,27 +1027,43 @@ fn the_flight_stack_names_no_world_and_no_sim_parameter() {
         let t = &f.tokens;
         for i in 0..t.len() {
             let near_sep = (i > 0 && t[i - 1].is_sep()) || t.get(i + 1).is_some_and(Token::is_sep);
-            let in_group = i > 0 && (t[i - 1].is_punct('{') || t[i - 1].is_punct(',')) && t.get(i + 1).is_some_and(|n| n.is_punct(',') || n.is_punct('}'));
+            let in_group = i > 0
+                && (t[i - 1].is_punct('{') || t[i - 1].is_punct(','))
+                && t.get(i + 1).is_some_and(|n| n.is_punct(',') || n.is_punct('}'));
             match &t[i].tok {
                 Tok::Ident(s) if NOT_FOR_THE_FLIGHT_STACK.contains(&s.as_str()) && (near_sep || in_group) => {
                     findings.push(format!("{}:{}: names `{s}`", f.name, t[i].line))
                 }
-                Tok::Ident(s) if s.starts_with("SIM_") => findings.push(format!("{}:{}: names the world's parameter {s}", f.name, t[i].line)),
-                Tok::Str(s) if s.starts_with("SIM_") => findings.push(format!("{}:{}: names the world's parameter \"{s}\"", f.name, t[i].line)),
+                Tok::Ident(s) if s.starts_with("SIM_") => {
+                    findings.push(format!("{}:{}: names the world's parameter {s}", f.name, t[i].line))
+                }
+                Tok::Str(s) if s.starts_with("SIM_") => {
+                    findings.push(format!("{}:{}: names the world's parameter \"{s}\"", f.name, t[i].line))
+                }
                 _ => {}
             }
         }
     }
-    fail_on(findings, "place(s) where the flight stack reaches into the simulated world (give it a sensor reading instead)");
+    fail_on(
+        findings,
+        "place(s) where the flight stack reaches into the simulated world (give it a sensor reading instead)",
+    );
 }
 
 // ---------------------------------------------------------------- the checker's own tests
 
 #[test]
 fn the_lexer_drops_comments_strings_and_test_items() {
-    let t = drop_test_items(lex("use a::b; // crate::x\n/* crate::y /* nested */ */ let s = \"crate::z\"; let r = r#\"q\"#; let c = '\"'; fn f<'a>() {}\n#[cfg(test)]\nmod tests { use crate::w; }\nfn g() {}"));
+    let t = drop_test_items(lex(
+        "use a::b; // crate::x\n/* crate::y /* nested */ */ let s = \"crate::z\"; let r = r#\"q\"#; let c = '\"'; fn f<'a>() {}\n#[cfg(test)]\nmod tests { use crate::w; }\nfn g() {}",
+    ));
     let idents: Vec<_> = t.iter().filter_map(Token::ident).collect();
-    assert_eq!(idents, ["use", "a", "b", "let", "s", "let", "r", "let", "c", "fn", "f", "fn", "g"]);
+    assert_eq!(
+        idents,
+        [
+            "use", "a", "b", "let", "s", "let", "r", "let", "c", "fn", "f", "fn", "g"
+        ]
+    );
     assert!(t.iter().any(|k| k.tok == Tok::Str("crate::z".into())));
     assert_eq!(t.last().unwrap().line, 5);
 }
@@ -935,13 +1087,22 @@ fn use_trees_flatten_with_groups_self_and_renames() {
 
 #[test]
 fn circles_are_found_and_walked() {
-    let g: BTreeMap<String, BTreeMap<String, BTreeSet<String>>> = [("a", "b", "X"), ("b", "c", "Y"), ("c", "a", "Z"), ("c", "d", "W")]
-        .into_iter()
-        .fold(BTreeMap::new(), |mut g, (a, b, n)| {
-            g.entry(a.to_string()).or_default().entry(b.to_string()).or_default().insert(n.to_string());
-            g
-        });
+    let g: BTreeMap<String, BTreeMap<String, BTreeSet<String>>> =
+        [("a", "b", "X"), ("b", "c", "Y"), ("c", "a", "Z"), ("c", "d", "W")]
+            .into_iter()
+            .fold(BTreeMap::new(), |mut g, (a, b, n)| {
+                g.entry(a.to_string())
+                    .or_default()
+                    .entry(b.to_string())
+                    .or_default()
+                    .insert(n.to_string());
+                g
+            });
     let found = describe_circles(&g, "files");
     assert_eq!(found.len(), 1);
-    assert!(found[0].starts_with("a circle of files: a -> b (X) -> c (Y) -> a (Z)"), "{}", found[0]);
+    assert!(
+        found[0].starts_with("a circle of files: a -> b (X) -> c (Y) -> a (Z)"),
+        "{}",
+        found[0]
+    );
 }

@@ -9,7 +9,7 @@ use mavlink::dialects::common::{
 use mavlink::{MavHeader, MessageData};
 
 use super::param::ParamAccess as _;
-use super::param::fake::FakeParams;
+use super::testing::FakeParams;
 use super::testing::{addr, link, snapshot};
 use super::wire::{self, CommandAck, CommandLong};
 use super::*;

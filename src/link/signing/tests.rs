@@ -9,7 +9,7 @@ use mavlink::dialects::common::{MavMessage, SETUP_SIGNING_DATA};
 
 use super::*;
 use crate::link::Effect;
-use crate::link::param::fake::FakeParams;
+use crate::link::testing::FakeParams;
 use crate::link::testing::{addr, link, snapshot};
 use crate::link::wire::{self, CommandLong};
 

@@ -9,6 +9,7 @@ use nalgebra::{UnitQuaternion, Vector3};
 
 use super::param::ParamAccess;
 use super::streams::{self, Identity};
+use super::wire::CommandLong;
 use super::{Link, LinkConfig};
 
 use crate::autopilot::{FlightMode, LandedState, MissionState, MissionStatus, Telemetry, VehicleType};
@@ -38,6 +39,17 @@ pub(crate) fn link(now: Instant) -> Link {
         },
         now,
     )
+}
+
+/// COMMAND_LONG arm (MAV_CMD_COMPONENT_ARM_DISARM, 400) for vehicle 1/1.
+pub(crate) fn arm() -> CommandLong {
+    CommandLong {
+        params: [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        command: 400,
+        target_system: 1,
+        target_component: 1,
+        confirmation: 0,
+    }
 }
 
 /// A disarmed quad in Hold on the ground at home, 12.5 s after boot, with an

@@ -219,13 +219,9 @@ impl CommandLong {
     #[must_use]
     pub fn decode(payload: &[u8]) -> Self {
         let p = padded::<{ Self::LEN }>(payload);
-        let mut params = [0.0; 7];
-        for (i, v) in params.iter_mut().enumerate() {
-            *v = f32_at(&p, 4 * i);
-        }
         Self {
-            params,
-            command: u16::from_le_bytes([p[28], p[29]]),
+            params: f32s_at(&p, 0),
+            command: u16_at(&p, 28),
             target_system: p[30],
             target_component: p[31],
             confirmation: p[32],
@@ -236,10 +232,8 @@ impl CommandLong {
     #[must_use]
     pub fn encode(&self) -> [u8; Self::LEN] {
         let mut p = [0u8; Self::LEN];
-        for (i, v) in self.params.iter().enumerate() {
-            p[4 * i..4 * i + 4].copy_from_slice(&v.to_le_bytes());
-        }
-        p[28..30].copy_from_slice(&self.command.to_le_bytes());
+        put_f32s(&mut p, 0, &self.params);
+        put(&mut p, 28, &self.command.to_le_bytes());
         p[30] = self.target_system;
         p[31] = self.target_component;
         p[32] = self.confirmation;
@@ -280,16 +274,12 @@ impl CommandInt {
     #[must_use]
     pub fn decode(payload: &[u8]) -> Self {
         let p = padded::<{ Self::LEN }>(payload);
-        let mut params = [0.0; 4];
-        for (i, v) in params.iter_mut().enumerate() {
-            *v = f32_at(&p, 4 * i);
-        }
         Self {
-            params,
-            x: i32::from_le_bytes([p[16], p[17], p[18], p[19]]),
-            y: i32::from_le_bytes([p[20], p[21], p[22], p[23]]),
+            params: f32s_at(&p, 0),
+            x: i32_at(&p, 16),
+            y: i32_at(&p, 20),
             z: f32_at(&p, 24),
-            command: u16::from_le_bytes([p[28], p[29]]),
+            command: u16_at(&p, 28),
             target_system: p[30],
             target_component: p[31],
             frame: p[32],
@@ -302,13 +292,11 @@ impl CommandInt {
     #[must_use]
     pub fn encode(&self) -> [u8; Self::LEN] {
         let mut p = [0u8; Self::LEN];
-        for (i, v) in self.params.iter().enumerate() {
-            p[4 * i..4 * i + 4].copy_from_slice(&v.to_le_bytes());
-        }
-        p[16..20].copy_from_slice(&self.x.to_le_bytes());
-        p[20..24].copy_from_slice(&self.y.to_le_bytes());
-        p[24..28].copy_from_slice(&self.z.to_le_bytes());
-        p[28..30].copy_from_slice(&self.command.to_le_bytes());
+        put_f32s(&mut p, 0, &self.params);
+        put(&mut p, 16, &self.x.to_le_bytes());
+        put(&mut p, 20, &self.y.to_le_bytes());
+        put(&mut p, 24, &self.z.to_le_bytes());
+        put(&mut p, 28, &self.command.to_le_bytes());
         p[30] = self.target_system;
         p[31] = self.target_component;
         p[32] = self.frame;
@@ -373,14 +361,10 @@ impl MissionItemMsg {
     #[must_use]
     pub fn decode(int: bool, payload: &[u8]) -> Self {
         let p = padded::<{ Self::LEN }>(payload);
-        let mut params = [0.0; 4];
-        for (i, v) in params.iter_mut().enumerate() {
-            *v = f32_at(&p, 4 * i);
-        }
         let xy = if int {
             ItemXy::Int {
-                x: i32::from_le_bytes([p[16], p[17], p[18], p[19]]),
-                y: i32::from_le_bytes([p[20], p[21], p[22], p[23]]),
+                x: i32_at(&p, 16),
+                y: i32_at(&p, 20),
             }
         } else {
             ItemXy::Float {
@@ -389,11 +373,11 @@ impl MissionItemMsg {
             }
         };
         Self {
-            params,
+            params: f32s_at(&p, 0),
             xy,
             z: f32_at(&p, 24),
-            seq: u16::from_le_bytes([p[28], p[29]]),
-            command: u16::from_le_bytes([p[30], p[31]]),
+            seq: u16_at(&p, 28),
+            command: u16_at(&p, 30),
             target_system: p[32],
             target_component: p[33],
             frame: p[34],
@@ -416,18 +400,16 @@ impl MissionItemMsg {
     #[must_use]
     pub fn encode(&self) -> [u8; Self::LEN] {
         let mut p = [0u8; Self::LEN];
-        for (i, v) in self.params.iter().enumerate() {
-            p[4 * i..4 * i + 4].copy_from_slice(&v.to_le_bytes());
-        }
+        put_f32s(&mut p, 0, &self.params);
         let (x, y) = match self.xy {
             ItemXy::Float { x, y } => (x.to_le_bytes(), y.to_le_bytes()),
             ItemXy::Int { x, y } => (x.to_le_bytes(), y.to_le_bytes()),
         };
-        p[16..20].copy_from_slice(&x);
-        p[20..24].copy_from_slice(&y);
-        p[24..28].copy_from_slice(&self.z.to_le_bytes());
-        p[28..30].copy_from_slice(&self.seq.to_le_bytes());
-        p[30..32].copy_from_slice(&self.command.to_le_bytes());
+        put(&mut p, 16, &x);
+        put(&mut p, 20, &y);
+        put(&mut p, 24, &self.z.to_le_bytes());
+        put(&mut p, 28, &self.seq.to_le_bytes());
+        put(&mut p, 30, &self.command.to_le_bytes());
         p[32] = self.target_system;
         p[33] = self.target_component;
         p[34] = self.frame;
@@ -464,10 +446,10 @@ impl CommandAck {
     pub fn decode(payload: &[u8]) -> Self {
         let p = padded::<{ Self::LEN }>(payload);
         Self {
-            command: u16::from_le_bytes([p[0], p[1]]),
+            command: u16_at(&p, 0),
             result: p[2],
             progress: p[3],
-            result_param2: i32::from_le_bytes([p[4], p[5], p[6], p[7]]),
+            result_param2: i32_at(&p, 4),
             target_system: p[8],
             target_component: p[9],
         }
@@ -477,16 +459,20 @@ impl CommandAck {
     #[must_use]
     pub fn encode(&self) -> [u8; Self::LEN] {
         let mut p = [0u8; Self::LEN];
-        p[0..2].copy_from_slice(&self.command.to_le_bytes());
+        put(&mut p, 0, &self.command.to_le_bytes());
         p[2] = self.result;
         p[3] = self.progress;
-        p[4..8].copy_from_slice(&self.result_param2.to_le_bytes());
+        put(&mut p, 4, &self.result_param2.to_le_bytes());
         p[8] = self.target_system;
         p[9] = self.target_component;
         p
     }
 }
 
+// A payload is little-endian fields at fixed byte offsets.
+
+/// The payload zero-padded to `N` bytes (MAVLink 2 cuts trailing zeros off
+/// the wire, and a missing extension reads as zero).
 fn padded<const N: usize>(payload: &[u8]) -> [u8; N] {
     let mut p = [0u8; N];
     let n = payload.len().min(N);
@@ -494,8 +480,33 @@ fn padded<const N: usize>(payload: &[u8]) -> [u8; N] {
     p
 }
 
+fn u16_at(p: &[u8], i: usize) -> u16 {
+    u16::from_le_bytes([p[i], p[i + 1]])
+}
+
+fn i32_at(p: &[u8], i: usize) -> i32 {
+    i32::from_le_bytes([p[i], p[i + 1], p[i + 2], p[i + 3]])
+}
+
 fn f32_at(p: &[u8], i: usize) -> f32 {
     f32::from_le_bytes([p[i], p[i + 1], p[i + 2], p[i + 3]])
+}
+
+/// `N` floats one after another from byte `i` (param1..paramN).
+fn f32s_at<const N: usize>(p: &[u8], i: usize) -> [f32; N] {
+    std::array::from_fn(|k| f32_at(p, i + 4 * k))
+}
+
+/// `bytes` written at byte `i`.
+fn put(p: &mut [u8], i: usize, bytes: &[u8]) {
+    p[i..i + bytes.len()].copy_from_slice(bytes);
+}
+
+/// Floats one after another from byte `i`.
+fn put_f32s(p: &mut [u8], i: usize, values: &[f32]) {
+    for (k, v) in values.iter().enumerate() {
+        put(p, i + 4 * k, &v.to_le_bytes());
+    }
 }
 
 /// Sender identity and sequence counter for the frames a link writes.

@@ -980,15 +980,50 @@ fn rooms_never_import_what_they_must_not() {
     fail_on(findings, "forbidden import(s)");
 }
 
-/// `a::b` as tokens at `i`.
+/// `a::b` as tokens at `i` (`a::` : `a` followed by `::`).
 fn path_at(t: &[Token], i: usize, path: &str) -> bool {
-    let segs: Vec<&str> = path.split("::").collect();
+    let open = path.ends_with("::");
+    let segs: Vec<&str> = path.trim_end_matches("::").split("::").collect();
     segs.iter().enumerate().all(|(k, s)| {
         let at = i + 2 * k;
-        t.get(at)
-            .is_some_and(|tok| s.is_empty() && tok.is_sep() || tok.is_ident(s))
-            && (k + 1 == segs.len() || t.get(at + 1).is_some_and(Token::is_sep))
+        let last = k + 1 == segs.len();
+        t.get(at).is_some_and(|tok| tok.is_ident(s)) && (last && !open || t.get(at + 1).is_some_and(Token::is_sep))
     })
+}
+
+/// Where tokens name a runtime, the protocol, a clock or the global RNG:
+/// (line, the name, what it is).
+fn impure_names(t: &[Token]) -> Vec<(usize, &'static str, &'static str)> {
+    let mut found = Vec::new();
+    for i in 0..t.len() {
+        for &(pat, what) in IMPURE {
+            if path_at(t, i, pat) && !(i > 0 && t[i - 1].is_sep()) {
+                found.push((t[i].line, pat, what));
+            }
+        }
+    }
+    found
+}
+
+/// Where tokens name a room the flight stack must not see (as a path
+/// segment or in a `use` group) or a `SIM_*` parameter: (line, what).
+fn world_names(t: &[Token]) -> Vec<(usize, String)> {
+    let mut found = Vec::new();
+    for i in 0..t.len() {
+        let near_sep = (i > 0 && t[i - 1].is_sep()) || t.get(i + 1).is_some_and(Token::is_sep);
+        let in_group = i > 0
+            && (t[i - 1].is_punct('{') || t[i - 1].is_punct(','))
+            && t.get(i + 1).is_some_and(|n| n.is_punct(',') || n.is_punct('}'));
+        match &t[i].tok {
+            Tok::Ident(s) if NOT_FOR_THE_FLIGHT_STACK.contains(&s.as_str()) && (near_sep || in_group) => {
+                found.push((t[i].line, format!("`{s}`")))
+            }
+            Tok::Ident(s) if s.starts_with("SIM_") => found.push((t[i].line, format!("the world's parameter {s}"))),
+            Tok::Str(s) if s.starts_with("SIM_") => found.push((t[i].line, format!("the world's parameter \"{s}\""))),
+            _ => {}
+        }
+    }
+    found
 }
 
 #[test]
@@ -1001,16 +1036,11 @@ fn pure_floors_use_no_runtime_protocol_clock_or_global_rng() {
         if room.floor > PURE_UP_TO_FLOOR {
             continue;
         }
-        let t = &f.tokens;
-        for i in 0..t.len() {
-            for (pat, what) in IMPURE {
-                if path_at(t, i, pat) && !(i > 0 && t[i - 1].is_sep()) {
-                    findings.push(format!(
-                        "{}:{}: `{pat}` ({what}) in `{}`, floor {}",
-                        f.name, t[i].line, f.room, room.floor
-                    ));
-                }
-            }
+        for (line, pat, what) in impure_names(&f.tokens) {
+            findings.push(format!(
+                "{}:{line}: `{pat}` ({what}) in `{}`, floor {}",
+                f.name, f.room, room.floor
+            ));
         }
     }
     fail_on(
@@ -1024,24 +1054,8 @@ fn the_flight_stack_names_no_world_and_no_sim_parameter() {
     let c = Crate::read();
     let mut findings = Vec::new();
     for f in c.files.iter().filter(|f| FLIGHT_STACK.contains(&f.room.as_str())) {
-        let t = &f.tokens;
-        for i in 0..t.len() {
-            let near_sep = (i > 0 && t[i - 1].is_sep()) || t.get(i + 1).is_some_and(Token::is_sep);
-            let in_group = i > 0
-                && (t[i - 1].is_punct('{') || t[i - 1].is_punct(','))
-                && t.get(i + 1).is_some_and(|n| n.is_punct(',') || n.is_punct('}'));
-            match &t[i].tok {
-                Tok::Ident(s) if NOT_FOR_THE_FLIGHT_STACK.contains(&s.as_str()) && (near_sep || in_group) => {
-                    findings.push(format!("{}:{}: names `{s}`", f.name, t[i].line))
-                }
-                Tok::Ident(s) if s.starts_with("SIM_") => {
-                    findings.push(format!("{}:{}: names the world's parameter {s}", f.name, t[i].line))
-                }
-                Tok::Str(s) if s.starts_with("SIM_") => {
-                    findings.push(format!("{}:{}: names the world's parameter \"{s}\"", f.name, t[i].line))
-                }
-                _ => {}
-            }
+        for (line, what) in world_names(&f.tokens) {
+            findings.push(format!("{}:{line}: names {what}", f.name));
         }
     }
     fail_on(
@@ -1105,4 +1119,16 @@ fn circles_are_found_and_walked() {
         "{}",
         found[0]
     );
+}
+
+#[test]
+fn impure_and_world_names_are_found_in_code_only() {
+    let t = lex(
+        "// tokio, std::time\nuse std::time::Instant;\nlet n = Instant::now();\nmavlink::x(); a::mavlink::y();\nlet s = \"thread_rng\";",
+    );
+    let found: Vec<_> = impure_names(&t).into_iter().map(|(l, p, _)| (l, p)).collect();
+    assert_eq!(found, [(2, "std::time"), (3, "Instant::now"), (4, "mavlink::")]);
+    let t = lex("use crate::{sim, signals};\nlet sim = 1; lockstep::go(); p(Param::SIM_X, \"SIM_Y\");");
+    let found: Vec<_> = world_names(&t).into_iter().map(|(l, _)| l).collect();
+    assert_eq!(found, [1, 2, 2, 2]);
 }

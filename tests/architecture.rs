@@ -171,7 +171,7 @@ fn lex(src: &str) -> Vec<Token> {
             // a char literal ('x', '\n', '\u{..}') or a lifetime ('a)
             let j = if ch == 'b' { i + 1 } else { i };
             if c.get(j + 1) == Some(&'\\') {
-                let mut k = j + 2;
+                let mut k = j + 3; // past the escaped character
                 while k < c.len() && c[k] != '\'' {
                     k += 1;
                 }
@@ -1069,13 +1069,13 @@ fn the_flight_stack_names_no_world_and_no_sim_parameter() {
 #[test]
 fn the_lexer_drops_comments_strings_and_test_items() {
     let t = drop_test_items(lex(
-        "use a::b; // crate::x\n/* crate::y /* nested */ */ let s = \"crate::z\"; let r = r#\"q\"#; let c = '\"'; fn f<'a>() {}\n#[cfg(test)]\nmod tests { use crate::w; }\nfn g() {}",
+        "use a::b; // crate::x\n/* crate::y /* nested */ */ let s = \"crate::z\"; let r = r#\"q\"#; let c = '\"'; let q = '\\''; fn f<'a>() {}\n#[cfg(test)]\nmod tests { use crate::w; }\nfn g() {}",
     ));
     let idents: Vec<_> = t.iter().filter_map(Token::ident).collect();
     assert_eq!(
         idents,
         [
-            "use", "a", "b", "let", "s", "let", "r", "let", "c", "fn", "f", "fn", "g"
+            "use", "a", "b", "let", "s", "let", "r", "let", "c", "let", "q", "fn", "f", "fn", "g"
         ]
     );
     assert!(t.iter().any(|k| k.tok == Tok::Str("crate::z".into())));

@@ -9,34 +9,12 @@ cd "$(dirname "$0")/.."
 echo "== cargo fmt --check"
 cargo fmt --all -- --check
 
-echo "== the deterministic core imports no runtime, protocol or clock"
-# forbid PATTERN WHY PATH...: fail when a code line (comments may name what a
-# module must not use) under PATH matches PATTERN, or when a PATH is missing.
-forbid() {
-    local pattern=$1 why=$2
-    shift 2
-    for p in "$@"; do
-        [ -e "$p" ] || { echo "purity check: $p is listed but missing (moved? update tools/test-all.sh)" >&2; exit 1; }
-    done
-    local found
-    found=$(grep -rnE "$pattern" "$@" | grep -vE '^[^:]+:[0-9]+:\s*//' || true)
-    if [ -n "$found" ]; then
-        echo "$found"
-        echo "$why (above)" >&2
-        exit 1
-    fi
-}
-forbid "tokio|mavlink::|std::time|SystemTime|Instant::now|thread_rng" \
-    "a pure module reaches for a runtime, the protocol or a clock" \
-    src/math.rs src/signals.rs src/tomlfile.rs src/statefile.rs src/geo.rs src/params src/airframe src/sim src/control \
-    src/estimation src/autopilot src/lockstep.rs src/scenario src/flightlog.rs src/mission \
-    src/ulog.rs src/ulog src/record.rs
-
-echo "== the flight stack sees only sensor readings: no plant, no world faults, no SIM_* truth"
-forbid "(crate|super)::(\\{[^}]*\\b)?(sim|lockstep|scenario|link|daemon)\\b|\\bsim::|Param::SIM_|\"SIM_" \
-    "the flight stack reaches into the simulated world: give it a sensor reading instead" \
-    src/autopilot src/control src/estimation
-forbid "crate::control\\b" "airframe imports control: the [control] table is checked by control" src/airframe
+echo "== the house rules (tests/architecture.rs, rooms and floors in docs/architecture.md):"
+echo "   no circle of files or of rooms importing each other; imports between rooms only as the"
+echo "   table allows; floors 1-7 use no tokio, mavlink::, std::time, SystemTime, Instant::now or"
+echo "   thread_rng; the flight stack names no sim, lockstep, scenario, link, daemon, logs or SIM_*;"
+echo "   airframe never imports control; link never imports sim"
+cargo test --release --quiet --test architecture
 
 echo "== cargo clippy --all-targets -- -D warnings"
 cargo clippy --all-targets --quiet -- -D warnings

@@ -803,3 +803,6 @@ fn item_reached(seq: u16) -> Out {
         Box::new(MavMessage::MISSION_ITEM_REACHED(MISSION_ITEM_REACHED_DATA { seq })),
     )
 }
+
+#[cfg(test)]
+mod tests;

@@ -1054,6 +1054,4 @@ fn ftp_answer(m: &FILE_TRANSFER_PROTOCOL_DATA, requester: (u8, u8)) -> Option<Ma
 }
 
 #[cfg(test)]
-mod mission_tests;
-#[cfg(test)]
 mod tests;

@@ -1,20 +1,23 @@
-//! Test helpers: a link as the API link is set up, and a snapshot of a
-//! vehicle on the ground at PX4's SITL home.
+//! The fixtures every test of the link shares: a link as the API link is set
+//! up, a snapshot of a vehicle on the ground at PX4's SITL home, and a small
+//! parameter table.
 
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
 use nalgebra::{UnitQuaternion, Vector3};
 
+use super::param::ParamAccess;
 use super::streams::{self, Identity};
+use super::wire::CommandLong;
 use super::{Link, LinkConfig};
 
 use crate::autopilot::{FlightMode, LandedState, MissionState, MissionStatus, Telemetry, VehicleType};
 use crate::geo::GeoPoint;
 use crate::lockstep::Snapshot;
 use crate::mission::Plans;
+use crate::params::ParamValue;
 use crate::signals::{GpsFix, WrenchEstimate};
-use crate::sim::Truth;
 
 /// A loopback address.
 pub(crate) fn addr(port: u16) -> SocketAddr {
@@ -38,11 +41,22 @@ pub(crate) fn link(now: Instant) -> Link {
     )
 }
 
+/// COMMAND_LONG arm (MAV_CMD_COMPONENT_ARM_DISARM, 400) for vehicle 1/1.
+pub(crate) fn arm() -> CommandLong {
+    CommandLong {
+        params: [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        command: 400,
+        target_system: 1,
+        target_component: 1,
+        confirmation: 0,
+    }
+}
+
 /// A disarmed quad in Hold on the ground at home, 12.5 s after boot, with an
 /// injected wrench and its estimate.
 pub(crate) fn snapshot() -> Snapshot {
     let home = GeoPoint::PX4_SITL_HOME;
-    Snapshot {
+    let mut snapshot = Snapshot {
         telemetry: Telemetry {
             time_s: 12.5,
             vehicle_type: VehicleType::Quadrotor,
@@ -84,11 +98,53 @@ pub(crate) fn snapshot() -> Snapshot {
             failed_rotors: 0,
             degraded_rotors: 0,
         },
-        truth: Truth {
-            force_ned: Vector3::new(0.5, 0.5, 0.0),
-            torque_frd: Vector3::new(0.0, 0.0, 0.2),
-            true_mass_kg: 1.8,
-        },
+        truth: Default::default(),
         plans: Plans::default(),
+    };
+    // the injected wrench the estimate above has found (the world's truth
+    // reaches a link only inside a snapshot)
+    snapshot.truth.force_ned = Vector3::new(0.5, 0.5, 0.0);
+    snapshot.truth.torque_frd = Vector3::new(0.0, 0.0, 0.2);
+    snapshot.truth.true_mass_kg = 1.8;
+    snapshot
+}
+
+/// A small parameter table: name, value, min, max per entry.
+#[derive(Debug, Clone)]
+pub(crate) struct FakeParams(pub(crate) Vec<(&'static str, ParamValue, f64, f64)>);
+
+impl FakeParams {
+    pub(crate) fn standard() -> Self {
+        Self(vec![
+            ("COM_OF_LOSS_T", ParamValue::Real32(1.0), 0.0, 60.0),
+            ("CTRL_TYPE", ParamValue::Int32(0), 0.0, 2.0),
+            ("MIS_TAKEOFF_ALT", ParamValue::Real32(2.5), 0.0, 100.0),
+            ("SYS_FAILURE_EN", ParamValue::Int32(0), 0.0, 1.0),
+            ("SIXTEEN_CHARS_XX", ParamValue::Real32(0.0), -1.0, 1.0),
+        ])
+    }
+}
+
+impl ParamAccess for FakeParams {
+    fn count(&self) -> usize {
+        self.0.len()
+    }
+    fn by_index(&self, index: usize) -> Option<(&str, ParamValue)> {
+        self.0.get(index).map(|(n, v, _, _)| (*n, *v))
+    }
+    fn by_name(&self, name: &str) -> Option<(usize, ParamValue)> {
+        self.0.iter().position(|p| p.0 == name).map(|i| (i, self.0[i].1))
+    }
+    fn set(&mut self, name: &str, value: ParamValue) -> Result<ParamValue, String> {
+        let p = self.0.iter_mut().find(|p| p.0 == name).ok_or("unknown")?;
+        let x = match value {
+            ParamValue::Int32(i) => f64::from(i),
+            ParamValue::Real32(f) => f64::from(f),
+        };
+        if !x.is_finite() || x < p.2 || x > p.3 {
+            return Err(format!("{name} = {x} outside [{}, {}]", p.2, p.3));
+        }
+        p.1 = value;
+        Ok(value)
     }
 }

@@ -9,7 +9,7 @@ use mavlink::dialects::common::{
 use mavlink::{MavHeader, MessageData};
 
 use super::param::ParamAccess as _;
-use super::param::fake::FakeParams;
+use super::testing::FakeParams;
 use super::testing::{addr, link, snapshot};
 use super::wire::{self, CommandAck, CommandLong};
 use super::*;
@@ -36,6 +36,14 @@ fn cmd(command: u16, p: [f32; 7], target_component: u8) -> Vec<u8> {
         confirmation: 0,
     };
     wire::encode_v2(gcs(), 76, &c.encode())
+}
+
+/// PARAM_REQUEST_LIST to vehicle 1, all components.
+fn param_request_list() -> Vec<u8> {
+    v2(&MavMessage::PARAM_REQUEST_LIST(PARAM_REQUEST_LIST_DATA {
+        target_system: 1,
+        target_component: 0,
+    }))
 }
 
 /// Decode every frame of the outbox.
@@ -222,10 +230,7 @@ fn param_list_goes_to_the_requester_in_order() {
     let t0 = Instant::now();
     let mut l = link(t0);
     let p = FakeParams::standard();
-    let req = v2(&MavMessage::PARAM_REQUEST_LIST(PARAM_REQUEST_LIST_DATA {
-        target_system: 1,
-        target_component: 0,
-    }));
+    let req = param_request_list();
     // unproven: three times the request's bytes, one PARAM_VALUE
     l.on_datagram(t0, addr(50000), &req, &snapshot(), &p);
     assert_eq!(decoded(&l.drain()).len(), 1);
@@ -248,10 +253,7 @@ fn a_list_in_progress_sends_a_value_set_meanwhile() {
     let t0 = Instant::now();
     let mut l = link(t0);
     let p = FakeParams::standard();
-    let req = v2(&MavMessage::PARAM_REQUEST_LIST(PARAM_REQUEST_LIST_DATA {
-        target_system: 1,
-        target_component: 0,
-    }));
+    let req = param_request_list();
     l.on_datagram(t0, addr(50000), &req, &snapshot(), &p);
     l.drain();
     let MavMessage::PARAM_VALUE(mut last) = super::param::list(&p).pop().unwrap() else {

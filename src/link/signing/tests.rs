@@ -9,9 +9,9 @@ use mavlink::dialects::common::{MavMessage, SETUP_SIGNING_DATA};
 
 use super::*;
 use crate::link::Effect;
-use crate::link::param::fake::FakeParams;
-use crate::link::testing::{addr, link, snapshot};
-use crate::link::wire::{self, CommandLong};
+
+use crate::link::testing::{FakeParams, addr, arm, link, snapshot};
+use crate::link::wire;
 
 const FIXTURE: &str = include_str!("../../../tests/fixtures/mavlink/signed-frames.txt");
 
@@ -107,19 +107,12 @@ fn a_replayed_frame_is_refused_and_a_later_one_on_the_stream_accepted() {
     assert_eq!(s.check(&frame(&g.bytes), at), Err(Refusal::Replay));
     // the same stream, a later timestamp (re-signed): accepted once
     let unsigned = |seq| {
-        let c = CommandLong {
-            params: [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-            command: 400,
-            target_system: 1,
-            target_component: 1,
-            confirmation: 0,
-        };
         let h = MavHeader {
             system_id: 255,
             component_id: 190,
             sequence: seq,
         };
-        wire::encode_v2(h, 76, &c.encode())
+        wire::encode_v2(h, 76, &arm().encode())
     };
     let mut later = unsigned(1);
     sign_frame(&g.key, &mut later, g.link_id, g.timestamp + 1);
@@ -273,16 +266,7 @@ fn the_link_gate_setup_signing_refusals_and_no_learned_peers() {
     assert!(lock(l.signing()).is_keyed());
     let before = peers(&mut l, at);
     // unsigned arm from a new address: refused, no effect, no answer, not a peer
-    let arm = {
-        let c = CommandLong {
-            params: [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-            command: 400,
-            target_system: 1,
-            target_component: 1,
-            confirmation: 0,
-        };
-        gcs.raw(76, &c.encode())
-    };
+    let arm = gcs.raw(76, &arm().encode());
     assert!(l.on_datagram(at, addr(2), &arm, &t, &p).is_empty());
     assert!(l.drain().iter().all(|o| o.to != crate::link::To::Peer(addr(2))));
     assert_eq!(peers(&mut l, at), before);

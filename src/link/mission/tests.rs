@@ -11,12 +11,11 @@ use mavlink::dialects::common::{
 };
 use proptest::prelude::*;
 
-use super::mission::{ItemMode, PlanOrigin, RETRY, TIMEOUT};
-use super::param::fake::FakeParams;
-use super::testing::{addr, link, snapshot};
-use super::wire::{self, Encoder, Inbound, ItemXy, MissionItemMsg};
-use super::{Effect, Link, Outgoing, To};
+use super::{ItemMode, PlanOrigin, RETRY, TIMEOUT};
 use crate::autopilot::{CommandOutcome, FlightMode, MissionState};
+use crate::link::testing::{FakeParams, addr, link, snapshot};
+use crate::link::wire::{self, Encoder, Inbound, ItemXy, MissionItemMsg};
+use crate::link::{Effect, Link, Outgoing, To};
 use crate::lockstep::Snapshot;
 use crate::mission::{MissionType, PlanChange, Plans};
 
@@ -920,8 +919,8 @@ fn mission_current_at_1_hz_and_at_once_on_change() {
     );
     // SET_MESSAGE_INTERVAL and REQUEST_MESSAGE know it as message 42
     assert_eq!(
-        super::streams::Stream::from_message_id(42),
-        Some(super::streams::Stream::MissionCurrent)
+        crate::link::streams::Stream::from_message_id(42),
+        Some(crate::link::streams::Stream::MissionCurrent)
     );
 }
 

@@ -1,0 +1,128 @@
+//! Unit tests of `link/streams.rs`: the telemetry streams: which messages, at
+//! what rates.
+
+use super::*;
+use crate::link::testing::snapshot;
+
+#[test]
+fn heartbeat_type_follows_the_airframe() {
+    let mut s = snapshot();
+    for (rotors, mav_type) in [(4, 2), (6, 13), (8, 14), (3, 15), (12, 29), (5, 2)] {
+        s.telemetry.vehicle_type = VehicleType::from_rotor_count(rotors);
+        assert_eq!(heartbeat(&s.telemetry).mavtype as u8, mav_type, "{rotors} rotors");
+    }
+}
+
+#[test]
+fn gps_fix_and_health_follow_the_receiver() {
+    let mut s = snapshot();
+    let gps_raw = |s: &Snapshot| match build(Stream::GpsRawInt, s, 0).pop() {
+        Some(MavMessage::GPS_RAW_INT(g)) => (g.fix_type as u8, g.satellites_visible),
+        _ => panic!(),
+    };
+    let gps_healthy = |s: &Snapshot| match build(Stream::SysStatus, s, 0).pop() {
+        Some(MavMessage::SYS_STATUS(m)) => m.onboard_control_sensors_health.bits() & GPS != 0,
+        _ => panic!(),
+    };
+    assert_eq!(gps_raw(&s), (3, 12));
+    assert!(gps_healthy(&s));
+    s.telemetry.gps_fix = GpsFix::None;
+    s.telemetry.gps_satellites = 0;
+    assert_eq!(gps_raw(&s), (1, 0), "GPS_FIX_TYPE_NO_FIX");
+    assert!(!gps_healthy(&s));
+}
+
+#[test]
+fn mission_current_as_px4_fills_it() {
+    let mut s = snapshot();
+    let m = mission_current(&s.telemetry);
+    assert_eq!((m.seq, m.total, m.mission_mode), (0, u16::MAX, 2));
+    assert_eq!(m.mission_state, MavMissionState::MISSION_STATE_NO_MISSION);
+    s.telemetry.mission.total = 4;
+    s.telemetry.mission.seq = 2;
+    s.telemetry.mission.state = MissionState::Paused;
+    s.telemetry.mission.mission_id = 0xDEAD_BEEF;
+    for (mode, active) in [(FlightMode::Mission, 1), (FlightMode::Land, 1), (FlightMode::Hold, 2)] {
+        s.telemetry.mode = mode;
+        let m = mission_current(&s.telemetry);
+        assert_eq!(
+            (m.seq, m.total, m.mission_mode, m.mission_id),
+            (2, 4, active, 0xDEAD_BEEF)
+        );
+        assert_eq!(m.mission_state, MavMissionState::MISSION_STATE_PAUSED);
+    }
+    assert_eq!(Stream::from_message_id(42), Some(Stream::MissionCurrent));
+}
+
+#[test]
+fn default_rates_and_deadlines() {
+    let t0 = Instant::now();
+    let mut s = Scheduler::new(t0, &gcs_rates());
+    let mut due = Vec::new();
+    s.due(t0, &mut due);
+    assert_eq!(due.len(), Stream::ALL.len());
+    due.clear();
+    // 20 ms later only the 50 Hz streams are due
+    s.due(t0 + Duration::from_millis(20), &mut due);
+    assert_eq!(
+        due,
+        vec![
+            Stream::Attitude,
+            Stream::AttitudeQuaternion,
+            Stream::LocalPositionNed,
+            Stream::GlobalPositionInt
+        ]
+    );
+    assert_eq!(s.next_deadline(), Some(t0 + Duration::from_millis(40)));
+}
+
+#[test]
+fn intervals_from_set_message_interval() {
+    let t0 = Instant::now();
+    let mut s = Scheduler::new(t0, &api_rates());
+    s.set(t0, Stream::DebugVect, Interval::from_param_us(20_000.0));
+    assert_eq!(s.interval(Stream::DebugVect), Some(Duration::from_millis(20)));
+    s.set(t0, Stream::DebugVect, Interval::from_param_us(-1.0));
+    assert_eq!(s.interval(Stream::DebugVect), None);
+    s.set(t0, Stream::DebugVect, Interval::from_param_us(0.0));
+    assert_eq!(s.interval(Stream::DebugVect), Some(Duration::from_millis(100)));
+    // any positive f32 is taken, capped at what MESSAGE_INTERVAL can report
+    s.set(t0, Stream::DebugVect, Interval::from_param_us(f32::MAX));
+    assert_eq!(s.interval(Stream::DebugVect), Some(MAX_INTERVAL));
+    let mut due = Vec::new();
+    s.due(t0, &mut due);
+    s.due(t0 + Duration::from_secs(2000), &mut due);
+    assert_eq!(due.iter().filter(|d| **d == Stream::DebugVect).count(), 1);
+    s.set(t0, Stream::DebugVect, Interval::from_param_us(1.0));
+    assert_eq!(s.interval(Stream::DebugVect), Some(MIN_INTERVAL));
+    assert_eq!(period(1e-300), Some(MAX_INTERVAL));
+    assert_eq!(Stream::from_message_id(251), Some(Stream::NamedValueFloat));
+    assert_eq!(Stream::from_message_id(9999), None);
+}
+
+#[test]
+fn repeated_requests_cannot_send_a_stream_faster_than_the_floor() {
+    let t0 = Instant::now();
+    let mut s = Scheduler::new(t0, &vec![(Stream::Attitude, 50.0)]);
+    let mut due = Vec::new();
+    // 10,000 requests for 1 us over 1 s, each followed by a poll
+    for k in 0..10_000u64 {
+        let now = t0 + Duration::from_micros(100 * k);
+        s.set(now, Stream::Attitude, Interval::from_param_us(1.0));
+        s.due(now, &mut due);
+    }
+    let n = due.len() as u64;
+    let most = 1_000_000 / MIN_INTERVAL.as_micros() as u64 + 1;
+    assert!(n <= most && n >= most - 2, "{n} sends in 1 s, floor allows {most}");
+}
+
+#[test]
+fn a_late_poll_does_not_burst() {
+    let t0 = Instant::now();
+    let mut s = Scheduler::new(t0, &vec![(Stream::Heartbeat, 1.0)]);
+    let mut due = Vec::new();
+    s.due(t0, &mut due);
+    s.due(t0 + Duration::from_secs(5), &mut due);
+    s.due(t0 + Duration::from_millis(5100), &mut due);
+    assert_eq!(due.len(), 2);
+}

@@ -13,21 +13,20 @@
 //! | [`math`] | SO(3) helpers (hat, vee, ZYX Euler angles) and the RPY model matrices `Q`, `M`, `C` | nalgebra |
 //! | [`signals`] | what crosses between world and flight stack and between blocks: sensor readings, actuator commands, measurement, control wrench, nominal model, wrench estimate; gravity and the step | nalgebra |
 //! | [`tomlfile`] | TOML files to typed values, errors naming file, line/field and problem | serde, toml |
+//! | [`exact_json`] | the one exact-float JSON codec (every number reads back bit for bit; NaN and the infinities as strings) of the flight record and `missions.json` | serde, serde_json |
 //! | [`statefile`] | atomic replacement of the state directory's files (temp file, fsync, rename) | std |
 //! | [`geo`] | flat-earth NED <-> latitude/longitude/AMSL around home | nalgebra |
 //! | [`params`] | the parameter table (PX4 style, a typed [`params::Param`] per entry), store, validation, atomic persistence | `airframe` (types) |
 //! | [`airframe`] | vehicle description from `params/airframes/*.toml`, allocation, rotor-failure analysis, the `airframe` report | `math`, `signals`, `tomlfile` |
 //! | [`sim`] | the simulated world: plants (6-DoF rigid body, rotors, ground and ceiling effect, contact), sensors, battery, disturbances, faults; N vehicles on one clock; the `SIM_*` parameters | `math`, `signals`, `airframe`, `params` |
 //! | [`control`] | the three controllers (hierarchical, geometric, passivity-based), their gains (checking an airframe's `[control]` table), the reference shaper | `math`, `signals`, `airframe` |
-//! | [`estimation`] | momentum-based external-wrench estimator of order r, real mass | `math`, `signals` |
+//! | [`estimation`] | momentum-based external-wrench estimator of order r, real mass; the offline sweep of `rotorpilot estimate` | `math`, `signals` |
 //! | [`autopilot`] | the flight stack: commander, navigators, failsafes, land detector, control loop, telemetry; sees only sensor readings | `signals`, `control`, `estimation`, `params`, `geo`, `airframe` — never `sim` |
 //! | [`mission`] | missions, geofences and rally points as data: items as stored, PX4's checks, result codes and CRC32 id; `.plan`, WPL 110 and `missions.json` files | `statefile`, serde_json |
 //! | [`lockstep`] | the one loop: sense, decide, act, integrate for every vehicle; parameter routing and transaction; telemetry with the injected truth | `sim`, `autopilot`, `signals`, `params`, `airframe`, `geo` |
 //! | [`scenario`] | scenario files and the flat-out runner behind `rotorpilot simulate` | `lockstep`, `sim`, `autopilot`, `control`, `estimation` |
 //! | [`simulate`] | `rotorpilot simulate`: one scenario or a campaign on every core, one shard of it, one line per scenario | `scenario`, std threads and clock |
-//! | [`record`] | flight records (JSON Lines: header, every input with its step, end) and exact replay behind `rotorpilot replay` | `lockstep`, `autopilot`, `mission`, `params`, `scenario` (the CSV), serde_json |
-//! | [`flightlog`] | flight-log CSV reading and the offline estimator sweep of `rotorpilot estimate` | `estimation` |
-//! | [`ulog`] | PX4's ULog format written to any `io::Write`; `ulog::flight` fills PX4-named topics from the lockstep core (the daemon's `flight.ulg`) | `lockstep`, `autopilot`, `params` |
+//! | [`logs`] | the log and record formats: flight records (JSON Lines: header, every input with its step, end) and exact replay behind `rotorpilot replay`; the flight CSV (written and read) and its `.meta.json` sidecar; PX4's ULog (`logs::ulog::flight`: the daemon's `flight.ulg`) | `lockstep`, `autopilot`, `estimation`, `mission`, `params`, `exact_json`, serde_json |
 //! | [`link`] | MAVLink 2 over UDP as PX4 SITL, sans I/O: translates messages to autopilot commands and telemetry to messages (never physics, never a decision) | `autopilot`, `lockstep::Snapshot` (with the world's `sim::Truth` in it), `params`, `geo`, mavlink |
 //! | [`daemon`] | the runtime: the simulation thread paced against wall time, link tasks on tokio, parameter and plan saving, shutdown | everything |
 //! | [`cli`] | the `rotorpilot` command line (thin: parses, calls the modules, prints) | everything |
@@ -52,18 +51,17 @@ pub mod cli;
 pub mod control;
 pub mod daemon;
 pub mod estimation;
-pub mod flightlog;
+pub mod exact_json;
 pub mod geo;
 pub mod link;
 pub mod lockstep;
+pub mod logs;
 pub mod math;
 pub mod mission;
 pub mod params;
-pub mod record;
 pub mod scenario;
 pub mod signals;
 pub mod sim;
 pub mod simulate;
 pub mod statefile;
 pub mod tomlfile;
-pub mod ulog;

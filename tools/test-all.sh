@@ -29,8 +29,7 @@ forbid() {
 forbid "tokio|mavlink::|std::time|SystemTime|Instant::now|thread_rng" \
     "a pure module reaches for a runtime, the protocol or a clock" \
     src/math.rs src/signals.rs src/tomlfile.rs src/statefile.rs src/geo.rs src/params src/airframe src/sim src/control \
-    src/estimation src/autopilot src/lockstep.rs src/scenario src/flightlog.rs src/mission \
-    src/ulog.rs src/ulog src/record.rs
+    src/estimation src/autopilot src/lockstep src/scenario src/mission src/logs src/exact_json.rs
 
 echo "== the flight stack sees only sensor readings: no plant, no world faults, no SIM_* truth"
 forbid "(crate|super)::(\\{[^}]*\\b)?(sim|lockstep|scenario|link|daemon)\\b|\\bsim::|Param::SIM_|\"SIM_" \

@@ -1,4 +1,4 @@
-//! The run's `flight.ulg`: [`crate::ulog::flight::FlightUlog`] on a
+//! The run's `flight.ulg`: [`crate::logs::ulog::flight::FlightUlog`] on a
 //! buffered file, fed by the simulation thread after every step and with
 //! every status text. The buffer reaches the file when full and when the
 //! simulation thread ends (drop). A write error stops the log with one
@@ -14,8 +14,8 @@ use tracing::warn;
 use super::saver::lock;
 use crate::autopilot::{Autopilot, StatusText};
 use crate::lockstep::Lockstep;
+use crate::logs::ulog::flight::FlightUlog;
 use crate::params::ParamStore;
-use crate::ulog::flight::FlightUlog;
 
 /// The file name in the run directory.
 pub(super) const FILE_NAME: &str = "flight.ulg";
@@ -35,7 +35,7 @@ pub(super) struct UlogFile {
 
 /// Steps between two looks at the parameters' generation (0.1 s): the
 /// replay's, so that `rotorpilot replay --ulog` logs the changes alike.
-use crate::record::PARAM_CHECK_EVERY;
+use crate::logs::replay::PARAM_CHECK_EVERY;
 
 impl UlogFile {
     /// Start `dir/flight.ulg` (header, formats, info, parameters); `None`

@@ -1,7 +1,7 @@
 //! A flight's ULog: PX4-named topics filled from the lockstep core, decimated
 //! from the simulation step to PX4's default logger rates. The daemon calls
 //! [`FlightUlog::on_step`] after every step; so does `rotorpilot replay
-//! --ulog` ([`crate::record::replay_logs`]).
+//! --ulog` ([`crate::logs::replay::replay_logs`]).
 //!
 //! `timestamp` is the simulated time [us] since boot (PX4 SITL's lockstep
 //! clock); `timestamp_sample` the instant the data describes (equal here).

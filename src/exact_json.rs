@@ -295,27 +295,24 @@ impl ser::SerializeSeq for SeqSer {
     }
 }
 
-impl ser::SerializeTuple for SeqSer {
-    type Ok = Value;
-    type Error = serde_json::Error;
-    fn serialize_element<T: Serialize + ?Sized>(&mut self, v: &T) -> Result<(), serde_json::Error> {
-        ser::SerializeSeq::serialize_element(self, v)
-    }
-    fn end(self) -> SerResult {
-        ser::SerializeSeq::end(self)
-    }
+/// A tuple and a tuple struct serialize as a sequence: `impl ser::$trait
+/// for SeqSer` whose `$method` is [`ser::SerializeSeq::serialize_element`].
+macro_rules! like_a_seq {
+    ($($trait:ident::$method:ident),*) => {
+        $(impl ser::$trait for SeqSer {
+            type Ok = Value;
+            type Error = serde_json::Error;
+            fn $method<T: Serialize + ?Sized>(&mut self, v: &T) -> Result<(), serde_json::Error> {
+                ser::SerializeSeq::serialize_element(self, v)
+            }
+            fn end(self) -> SerResult {
+                ser::SerializeSeq::end(self)
+            }
+        })*
+    };
 }
 
-impl ser::SerializeTupleStruct for SeqSer {
-    type Ok = Value;
-    type Error = serde_json::Error;
-    fn serialize_field<T: Serialize + ?Sized>(&mut self, v: &T) -> Result<(), serde_json::Error> {
-        ser::SerializeSeq::serialize_element(self, v)
-    }
-    fn end(self) -> SerResult {
-        ser::SerializeSeq::end(self)
-    }
-}
+like_a_seq!(SerializeTuple::serialize_element, SerializeTupleStruct::serialize_field);
 
 impl ser::SerializeTupleVariant for VariantSeqSer {
     type Ok = Value;

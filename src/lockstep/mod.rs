@@ -604,3 +604,14 @@ impl Lockstep<Autopilot> {
         texts
     }
 }
+
+/// A quad resting at PX4 SITL's home with the default parameters and
+/// sensors, and its parameter store (for tests that need a core to step).
+#[cfg(test)]
+pub(crate) fn test_quad() -> (Lockstep<Autopilot>, ParamStore) {
+    let airframe = Airframe::load("quad").expect("the built-in quad");
+    let params = ParamStore::new(&airframe);
+    let core = Lockstep::one_vehicle(&airframe, GeoPoint::PX4_SITL_HOME, &params, SensorConfig::default())
+        .expect("the default parameters");
+    (core, params)
+}

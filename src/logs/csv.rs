@@ -4,9 +4,8 @@
 //! back by [`FlightLog`] (`rotorpilot estimate`); and the estimates CSV
 //! [`write_estimates`] writes.
 //!
-//! Written, one row per step `k`:
-//! columns (state `x_k` at `t_k`, command `u_k`
-//! held over `[t_k, t_{k+1})`), SI units, NED/FRD. First the measurements the
+//! Written, one row per step `k` (state `x_k` at `t_k`, command `u_k` held
+//! over `[t_k, t_{k+1})`), SI units, NED/FRD. First the measurements the
 //! estimator and controller saw (the report's inputs): `time_s`,
 //! `pos_n pos_e pos_d`, `vel_n vel_e vel_d`, `roll pitch yaw` [rad],
 //! `roll_rate pitch_rate yaw_rate` (Euler-angle rates `eta_dot = Q^-1 omega`),
@@ -20,23 +19,24 @@
 //! `est_mass_kg`. Numbers are printed in the shortest form that reads back to
 //! the same `f64`, so an offline run on the log reproduces the online one.
 //!
-//! Read (`rotorpilot estimate`):
-//! Required columns, the report's inputs: `time_s`, `vel_n vel_e vel_d`
-//! [m/s] NED, `roll pitch yaw` [rad], `roll_rate pitch_rate yaw_rate`
-//! (Euler-angle rates) [rad/s], `thrust_n` [N] and `tau_x tau_y tau_z` [N m]
-//! FRD (the command held from that row to the next). Optional: `p_frd q_frd
-//! r_frd` (body rates; otherwise `Q(eta) eta_dot`), and the truth
-//! `fext_n fext_e fext_d`, `text_x text_y text_z`, `true_mass_kg` for error
-//! metrics. Other columns are ignored. Time must increase; the step may
-//! vary (each sample is integrated over its own interval, see
-//! [`crate::estimation::sweep::sample_steps`]).
+//! Read (`rotorpilot estimate`), the required columns, the report's inputs:
+//! `time_s`, `vel_n vel_e vel_d` [m/s] NED, `roll pitch yaw` [rad],
+//! `roll_rate pitch_rate yaw_rate` (Euler-angle rates) [rad/s], `thrust_n`
+//! [N] and `tau_x tau_y tau_z` [N m] FRD (the command held from that row to
+//! the next). Optional: `p_frd q_frd r_frd` (body rates; otherwise `Q(eta)
+//! eta_dot`), and the truth `fext_n fext_e fext_d`, `text_x text_y text_z`,
+//! `true_mass_kg` for error metrics. Other columns are ignored. Time must
+//! increase; the step may vary (each sample is integrated over its own
+//! interval, see [`crate::estimation::sweep::sample_steps`]).
 //!
 //! What produced a log (airframe, nominal model, step, estimator settings)
-//! is in its sidecar `<log>.meta.json` ([`super::meta::LogMeta`]), next to it: the CSV
-//! itself carries no header comment, so the shipped logs stay byte for byte.
+//! is in its sidecar `<log>.meta.json` ([`super::meta::LogMeta`]), next to
+//! it: the CSV itself carries no header comment, so the shipped logs stay
+//! byte for byte.
 //!
 //! The estimates CSV ([`write_estimates`]) holds millions of numbers: they
 //! are formatted with [`push_f64`] (shortest round-trip digits, several times
+//! faster than `Display`).
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -44,9 +44,8 @@ use std::path::Path;
 
 use nalgebra::Vector3;
 
-use crate::estimation::EstimatorInput;
-use crate::estimation::input_from;
 use crate::estimation::sweep::{LogRow, LogTruth, same_step};
+use crate::estimation::{EstimatorInput, input_from};
 use crate::lockstep::{Lockstep, Pilot, StepRecord};
 use crate::math::rate_map;
 use crate::signals::WrenchEstimate;
@@ -226,7 +225,7 @@ pub struct FlightLog {
     /// Rows in time order.
     pub rows: Vec<LogRow>,
     /// The log's nominal step [s]: its first interval `t_1 - t_0` (every
-    /// interval of a regular log, see [`FlightLog::sample_steps`]).
+    /// interval of a regular log, see [`crate::estimation::sweep::sample_steps`]).
     pub step_s: f64,
 }
 

@@ -15,9 +15,9 @@ use rotorpilot::airframe::Airframe;
 use rotorpilot::autopilot::AutopilotCommand;
 use rotorpilot::geo::GeoPoint;
 use rotorpilot::lockstep::Lockstep;
+use rotorpilot::logs::ulog::flight::FlightUlog;
 use rotorpilot::params::ParamStore;
 use rotorpilot::sim::SensorConfig;
-use rotorpilot::ulog::flight::FlightUlog;
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();

@@ -352,7 +352,7 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             let nominal = estimate_nominal(&log, airframe.as_deref(), mass, inertia.as_deref())?;
             let polys = poly
                 .iter()
-                .map(|p| crate::flightlog::parse_poly(p))
+                .map(|p| crate::estimation::sweep::parse_poly(p))
                 .collect::<Result<Vec<_>, _>>()
                 .map_err(|e| anyhow::anyhow!("--poly: {e}"))?;
             let disc = if euler {
@@ -430,15 +430,20 @@ async fn shutdown_signal() {
 /// `cells`: each run on a thread of its own (they are independent), so a
 /// sweep uses every core; `bar` counts finished runs.
 fn run_cells(
-    log: &crate::flightlog::FlightLog,
+    log: &crate::logs::csv::FlightLog,
     cells: &[crate::estimation::EstimatorConfig],
     nominal: &crate::signals::NominalModel,
     bar: &indicatif::ProgressBar,
-) -> anyhow::Result<Vec<(crate::flightlog::SweepResult, Vec<crate::signals::WrenchEstimate>)>> {
+) -> anyhow::Result<
+    Vec<(
+        crate::estimation::sweep::SweepResult,
+        Vec<crate::signals::WrenchEstimate>,
+    )>,
+> {
     let run = |c: &crate::estimation::EstimatorConfig| {
-        let est = crate::flightlog::estimate_log(log, c.clone(), *nominal)?;
+        let est = crate::estimation::sweep::estimate_log(&log.rows, c.clone(), *nominal)?;
         bar.inc(1);
-        Ok((crate::flightlog::sweep_result(log, c, nominal, &est), est))
+        Ok((crate::estimation::sweep::sweep_result(&log.rows, c, nominal, &est), est))
     };
     std::thread::scope(|scope| {
         let handles: Vec<_> = cells.iter().map(|c| scope.spawn(move || run(c))).collect();
@@ -453,7 +458,7 @@ fn run_cells(
 const ESTIMATE_FALLBACK_AIRFRAME: &str = "fsr-quad";
 
 /// The nominal model `estimate` runs with: `--airframe`'s, else the log's
-/// sidecar's ([`crate::flightlog::LogMeta`]), else [`ESTIMATE_FALLBACK_AIRFRAME`]'s
+/// sidecar's ([`crate::logs::meta::LogMeta`]), else [`ESTIMATE_FALLBACK_AIRFRAME`]'s
 /// with a warning on stderr (unless `--mass` and `--inertia` give it all);
 /// then `--mass` and `--inertia` override.
 ///
@@ -474,7 +479,7 @@ fn estimate_nominal(
     }
     let mut nominal = match airframe {
         Some(a) => Airframe::load(a)?.nominal(),
-        None => match crate::flightlog::LogMeta::read_beside(log).map_err(anyhow::Error::msg)? {
+        None => match crate::logs::meta::LogMeta::read_beside(log).map_err(anyhow::Error::msg)? {
             Some(meta) => meta.nominal(),
             None => {
                 let n = Airframe::load(ESTIMATE_FALLBACK_AIRFRAME)?.nominal();
@@ -486,7 +491,7 @@ fn estimate_nominal(
                          a wrong mass shows as a false vertical force. Give --airframe NAME, or --mass KG and \
                          --inertia IXX,IYY,IZZ",
                         log.display(),
-                        crate::flightlog::meta_path(log).display(),
+                        crate::logs::meta::meta_path(log).display(),
                         n.mass_kg,
                         i[(0, 0)],
                         i[(1, 1)],
@@ -539,13 +544,13 @@ fn estimate(
 ) -> anyhow::Result<()> {
     use anyhow::Context as _;
     use std::io::Write as _;
-    let log = crate::flightlog::FlightLog::from_file(path)?;
+    let log = crate::logs::csv::FlightLog::from_file(path)?;
     let cells: Vec<_> = polys
         .iter()
         .flat_map(|p| {
             orders
                 .iter()
-                .map(move |r| crate::flightlog::sweep_config(*r, p.clone(), cutoff, log.step_s, disc))
+                .map(move |r| crate::estimation::sweep::sweep_config(*r, p.clone(), cutoff, log.step_s, disc))
         })
         .collect();
     let (_, max_step) = log.step_range();
@@ -588,7 +593,7 @@ fn estimate(
     let mut w = std::io::BufWriter::new(
         std::fs::File::create(&out_path).with_context(|| format!("cannot create {}", out_path.display()))?,
     );
-    crate::flightlog::write_estimates(&mut w, &log, &series).context("writing the estimates")?;
+    crate::logs::csv::write_estimates(&mut w, &log, &series).context("writing the estimates")?;
     w.flush().context("writing the estimates")?;
 
     if json {

@@ -228,7 +228,7 @@ fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
         let start = Instant::now();
         let flight = f.flight(v).map_err(|e| crate::cli::error_chain(&e))?;
         let path = csv_path(e);
-        let mut writer = path.as_deref().map(crate::scenario::create_csv_file).transpose()?;
+        let mut writer = path.as_deref().map(crate::logs::csv::create_csv_file).transpose()?;
         if let Some(p) = &path {
             flight_meta(&flight)
                 .map_err(|e| crate::cli::error_chain(&e))?
@@ -361,11 +361,11 @@ fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
     })
 }
 
-/// The sidecar of a flight's CSV (`<csv>.meta.json`, [`crate::flightlog::LogMeta`]).
+/// The sidecar of a flight's CSV (`<csv>.meta.json`, [`crate::logs::meta::LogMeta`]).
 ///
 /// # Errors
 /// A mission whose vehicle cannot be built.
-fn flight_meta(flight: &crate::scenario::campaign::Flight) -> anyhow::Result<crate::flightlog::LogMeta> {
+fn flight_meta(flight: &crate::scenario::campaign::Flight) -> anyhow::Result<crate::logs::meta::LogMeta> {
     use crate::scenario::campaign::Flight;
     match flight {
         Flight::Scenario(s) => Ok(crate::scenario::scenario_meta(s, "simulate")),

@@ -371,9 +371,9 @@ async fn each_vehicle_of_a_fleet_replays_alone_bit_for_bit_proximity_included() 
                 && l.contains("\"kind\":\"near\"")),
             "vehicle {i}'s record holds the proximity event"
         );
-        let r = rotorpilot::record::read_record(&text, "flight.record").unwrap();
+        let r = rotorpilot::logs::record::read_record(&text, "flight.record").unwrap();
         let mut csv = Vec::new();
-        rotorpilot::record::replay(&r, "flight.record", Some(&mut csv)).unwrap();
+        rotorpilot::logs::replay::replay(&r, "flight.record", Some(&mut csv)).unwrap();
         let live = std::fs::read(run.join("flight.csv")).unwrap();
         assert!(live.len() > 1000);
         assert!(
@@ -383,7 +383,7 @@ async fn each_vehicle_of_a_fleet_replays_alone_bit_for_bit_proximity_included() 
         // the status texts (logged messages, with their timestamps) of the
         // replay's ULog are the live ones, the proximity text included
         let mut ulg = Vec::new();
-        rotorpilot::record::replay_logs(&r, "flight.record", None, Some(&mut ulg)).unwrap();
+        rotorpilot::logs::replay::replay_logs(&r, "flight.record", None, Some(&mut ulg)).unwrap();
         let texts = |b: &[u8]| -> Vec<Vec<u8>> {
             ulog_records(b)
                 .into_iter()

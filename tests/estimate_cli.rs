@@ -8,8 +8,10 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use rand::{RngExt, SeedableRng};
+use rotorpilot::estimation::sweep::{self, estimate_log, sweep_config, sweep_result};
 use rotorpilot::estimation::{Discretization, MomentumEstimator, Polynomial};
-use rotorpilot::flightlog::{FlightLog, LogMeta, estimate_log, meta_path, sweep_config, sweep_result};
+use rotorpilot::logs::csv::FlightLog;
+use rotorpilot::logs::meta::{LogMeta, meta_path};
 use rotorpilot::scenario::{Scenario, run, scenario_meta};
 
 fn root() -> PathBuf {
@@ -262,13 +264,15 @@ fn a_log_with_a_varying_step_is_estimated_as_well_as_a_regular_one() {
     );
     let nominal = LogMeta::read_beside(&regular).unwrap().unwrap().nominal();
     let mut constant = MomentumEstimator::new(config.clone(), nominal).unwrap();
-    let est: Vec<_> = log.estimator_inputs().map(|x| constant.update(&x)).collect();
-    let slow = sweep_result(&log, &config, &nominal, &est);
+    let est: Vec<_> = sweep::estimator_inputs(&log.rows)
+        .map(|x| constant.update(&x))
+        .collect();
+    let slow = sweep_result(&log.rows, &config, &nominal, &est);
     let own = sweep_result(
-        &log,
+        &log.rows,
         &config,
         &nominal,
-        &estimate_log(&log, config.clone(), nominal).unwrap(),
+        &estimate_log(&log.rows, config.clone(), nominal).unwrap(),
     );
     let (slow_rms, own_rms) = (slow.rms_force_error_n.unwrap(), own.rms_force_error_n.unwrap());
     assert!((own_rms - rms0).abs() < 0.05 * rms0, "{own_rms} {rms0}");
@@ -281,9 +285,14 @@ fn a_log_with_a_varying_step_is_estimated_as_well_as_a_regular_one() {
             log.step_s,
             Discretization::Trapezoidal,
         );
-        sweep_result(&log, &c, &nominal, &estimate_log(&log, c.clone(), nominal).unwrap())
-            .settle_s
-            .unwrap()
+        sweep_result(
+            &log.rows,
+            &c,
+            &nominal,
+            &estimate_log(&log.rows, c.clone(), nominal).unwrap(),
+        )
+        .settle_s
+        .unwrap()
     };
     let (slow_settle, own_settle) = (slow.settle_s.unwrap(), own.settle_s.unwrap());
     assert!(
@@ -311,9 +320,9 @@ fn a_regular_log_is_estimated_bit_for_bit_as_with_a_constant_step() {
     for order in [1, 3, 20] {
         for disc in [Discretization::Trapezoidal, Discretization::ForwardEuler] {
             let config = sweep_config(order, Polynomial::Binomial, 10.0, log.step_s, disc);
-            let mine = estimate_log(&log, config.clone(), nominal).unwrap();
+            let mine = estimate_log(&log.rows, config.clone(), nominal).unwrap();
             let mut est = MomentumEstimator::new(config, nominal).unwrap();
-            for (x, e) in log.estimator_inputs().zip(&mine) {
+            for (x, e) in sweep::estimator_inputs(&log.rows).zip(&mine) {
                 let c = est.update(&x);
                 assert_eq!(
                     format!("{:?}", c.force_ned.map(f64::to_bits)),

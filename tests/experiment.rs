@@ -6,8 +6,9 @@ use nalgebra::Vector3;
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use rotorpilot::control::ControllerKind;
+use rotorpilot::estimation::sweep::{estimate_log, sweep_config, sweep_result};
 use rotorpilot::estimation::{Discretization, Polynomial};
-use rotorpilot::flightlog::{FlightLog, LogError, estimate_log, sweep_config, sweep_result};
+use rotorpilot::logs::csv::{FlightLog, LogError};
 use rotorpilot::math::rate_map;
 use rotorpilot::scenario::{Scenario, run};
 
@@ -42,8 +43,8 @@ fn every_order_converges_to_the_reports_disturbance() {
     ] {
         for (order, t2) in table {
             let config = sweep_config(order, poly.clone(), 10.0, log.step_s, Discretization::Trapezoidal);
-            let est = estimate_log(&log, config.clone(), nominal).unwrap();
-            let r = sweep_result(&log, &config, &nominal, &est);
+            let est = estimate_log(&log.rows, config.clone(), nominal).unwrap();
+            let r = sweep_result(&log.rows, &config, &nominal, &est);
             let f = r.final_force_ned;
             let label = format!("{poly:?} r={order}");
             assert!(
@@ -105,7 +106,7 @@ fn noise_rms_falls_with_the_order_as_the_doc_says() {
     let nominal = s.airframe.nominal();
     let steady_rms = |poly: Polynomial, order: usize| {
         let config = sweep_config(order, poly, 10.0, log.step_s, Discretization::Trapezoidal);
-        let est = estimate_log(&log, config, nominal).unwrap();
+        let est = estimate_log(&log.rows, config, nominal).unwrap();
         let tail: Vec<f64> = est[5000..].iter().map(|e| e.force_ned.x - 0.5).collect();
         (tail.iter().map(|v| v * v).sum::<f64>() / tail.len() as f64).sqrt()
     };
@@ -143,7 +144,7 @@ fn offline_and_online_estimates_agree() {
     let (_, text) = fly(&s);
     let log = FlightLog::parse(&text, "exercise4.csv").unwrap();
     let config = s.estimator.clone();
-    let offline = estimate_log(&log, config, s.airframe.nominal()).unwrap();
+    let offline = estimate_log(&log.rows, config, s.airframe.nominal()).unwrap();
     let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
     let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
     let cols = [

@@ -8,7 +8,8 @@
 use rotorpilot::airframe::Airframe;
 use rotorpilot::autopilot::{Autopilot, AutopilotCommand, CommandOutcome, FlightMode, Severity, StatusText};
 use rotorpilot::geo::GeoPoint;
-use rotorpilot::lockstep::{FailureInjection, Lockstep};
+use rotorpilot::lockstep::Lockstep;
+use rotorpilot::lockstep::failure::FailureInjection;
 use rotorpilot::params::{ParamStore, ParamValue};
 use rotorpilot::scenario::{MissionFlight, Scenario, ScenarioError, run, run_mission};
 use rotorpilot::signals::GpsFix;

@@ -16,7 +16,8 @@ use mavlink::dialects::common::*;
 use rotorpilot::airframe::Airframe;
 use rotorpilot::autopilot::{AutopilotCommand, CommandOutcome};
 use rotorpilot::geo::GeoPoint;
-use rotorpilot::lockstep::{Lockstep, unliftable};
+use rotorpilot::lockstep::Lockstep;
+use rotorpilot::lockstep::preflight::unliftable;
 use rotorpilot::params::{ParamStore, ParamValue};
 use rotorpilot::sim::{RotorHealth, SensorConfig};
 

@@ -15,7 +15,8 @@ use std::time::Duration;
 
 use daemon_common::{Client, Vehicle, config, state_dir, wait_armable};
 use mavlink::dialects::common::*;
-use rotorpilot::record::{read_record, replay};
+use rotorpilot::logs::record::read_record;
+use rotorpilot::logs::replay::replay;
 
 const ACCEPTED: u8 = 0;
 
@@ -36,7 +37,7 @@ fn run_dir(base: &Path) -> PathBuf {
     runs[0].clone()
 }
 
-fn replay_csv(record: &Path) -> (Vec<u8>, rotorpilot::record::ReplaySummary) {
+fn replay_csv(record: &Path) -> (Vec<u8>, rotorpilot::logs::replay::ReplaySummary) {
     let text = std::fs::read_to_string(record).unwrap();
     let r = read_record(&text, "flight.record").unwrap();
     let mut csv = Vec::new();
@@ -144,7 +145,7 @@ async fn a_flight_with_a_reboot_replays_byte_for_byte() {
     assert!(a == live, "the replay differs from the live flight.csv");
     assert!(s.armed, "it hovers at the end: {s:?}");
     // flight.csv has its sidecar saying what flew it, and `replay --csv` writes the same
-    let live_meta = rotorpilot::flightlog::LogMeta::read_beside(&run.join("flight.csv"))
+    let live_meta = rotorpilot::logs::meta::LogMeta::read_beside(&run.join("flight.csv"))
         .unwrap()
         .expect("--log-csv writes flight.csv.meta.json");
     assert_eq!((live_meta.airframe.as_str(), live_meta.step_s), ("quad", 0.001));
@@ -159,7 +160,7 @@ async fn a_flight_with_a_reboot_replays_byte_for_byte() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let replay_meta = rotorpilot::flightlog::LogMeta::read_beside(&out_csv).unwrap().unwrap();
+    let replay_meta = rotorpilot::logs::meta::LogMeta::read_beside(&out_csv).unwrap().unwrap();
     assert_eq!(
         (replay_meta.nominal(), &replay_meta.estimator, &replay_meta.airframe),
         (live_meta.nominal(), &live_meta.estimator, &live_meta.airframe)
@@ -169,7 +170,7 @@ async fn a_flight_with_a_reboot_replays_byte_for_byte() {
     // raised, the reboot's among them)
     let r = read_record(&text, "flight.record").unwrap();
     let mut ulg = Vec::new();
-    rotorpilot::record::replay_logs(&r, "flight.record", None, Some(&mut ulg)).unwrap();
+    rotorpilot::logs::replay::replay_logs(&r, "flight.record", None, Some(&mut ulg)).unwrap();
     let live_ulg = ulog_records(&std::fs::read(run.join("flight.ulg")).unwrap());
     let replay_ulg = ulog_records(&ulg);
     let count = |recs: &[(u8, Vec<u8>)], kind: u8| recs.iter().filter(|(t, _)| *t == kind).count();
@@ -272,7 +273,7 @@ fn bad_records_get_clear_errors() {
     let dir = state_dir("bad-records");
     std::fs::create_dir_all(&dir).unwrap();
     let a = rotorpilot::airframe::Airframe::load("quad").unwrap();
-    let header = rotorpilot::record::Header::new(
+    let header = rotorpilot::logs::record::Header::new(
         rotorpilot::airframe::Airframe::load_text("quad").unwrap(),
         rotorpilot::geo::GeoPoint::PX4_SITL_HOME,
         &rotorpilot::params::ParamStore::new(&a),
@@ -281,10 +282,10 @@ fn bad_records_get_clear_errors() {
         rotorpilot::autopilot::ClientClock::Simulated,
         rotorpilot::signals::DEFAULT_STEP_S,
     );
-    let h = rotorpilot::record::header_line(&header).unwrap();
-    let arm = rotorpilot::record::input_line(
+    let h = rotorpilot::logs::record::header_line(&header).unwrap();
+    let arm = rotorpilot::logs::record::input_line(
         10,
-        &rotorpilot::record::Input::Command(rotorpilot::autopilot::AutopilotCommand::Arm { force: false }),
+        &rotorpilot::lockstep::input::Input::Command(rotorpilot::autopilot::AutopilotCommand::Arm { force: false }),
         "x",
     )
     .unwrap();

@@ -1,5 +1,5 @@
 //! `rotorpilot replay RECORD [--csv OUT] [--ulog OUT] [--json] [--any-version]`: re-fly a daemon's flight
-//! record headless and flat out ([`crate::record`]); the CSV is byte for byte
+//! record headless and flat out ([`crate::logs::record`]); the CSV is byte for byte
 //! the live flight's `flight.csv`, with the same sidecar `<csv>.meta.json`
 //! (but for its `producer` and `source`).
 
@@ -7,7 +7,8 @@ use std::path::Path;
 
 use anyhow::Context as _;
 
-use crate::record::{read_record, replay_logs};
+use crate::logs::record::read_record;
+use crate::logs::replay::replay_logs;
 
 /// Read, replay, report. A record written by another rotorpilot version is
 /// refused (a different build cannot promise the same flight bit for bit)
@@ -31,7 +32,7 @@ pub(super) fn run(
     let text =
         String::from_utf8(bytes).map_err(|e| anyhow::anyhow!("{label}: not a flight record (not UTF-8: {e})"))?;
     let record = read_record(&text, &label).map_err(anyhow::Error::msg)?;
-    let (written_by, this) = (&record.header.rotorpilot, crate::record::ROTORPILOT_VERSION);
+    let (written_by, this) = (&record.header.rotorpilot, crate::logs::record::ROTORPILOT_VERSION);
     if written_by != this {
         anyhow::ensure!(
             any_version,
@@ -49,7 +50,7 @@ pub(super) fn run(
         );
     }
     let mut writer = csv
-        .map(crate::scenario::create_csv_file)
+        .map(crate::logs::csv::create_csv_file)
         .transpose()
         .map_err(anyhow::Error::msg)?;
     if let Some(csv) = csv {
@@ -58,12 +59,12 @@ pub(super) fn run(
             .header
             .build()
             .map_err(|e| anyhow::anyhow!("{label}:1: header: {e}"))?;
-        crate::scenario::autopilot_meta(core.pilot(0), "replay", &label)
+        crate::logs::meta::autopilot_meta(core.pilot(0), "replay", &label)
             .write_beside(csv)
             .map_err(anyhow::Error::msg)?;
     }
     let mut ulog_writer = ulog
-        .map(crate::scenario::create_csv_file)
+        .map(crate::logs::csv::create_csv_file)
         .transpose()
         .map_err(anyhow::Error::msg)?;
     let start = std::time::Instant::now();

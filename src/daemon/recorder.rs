@@ -1,7 +1,7 @@
-//! The run's flight record (`flight.record`, [`crate::record`]'s format)
+//! The run's flight record (`flight.record`, [`crate::logs::record`]'s format)
 //! and, with `--log-csv`, its flight CSV (`flight.csv`, the rows of
 //! `rotorpilot simulate --csv`, one per step, with its sidecar
-//! `flight.csv.meta.json`: what flew it, see [`crate::flightlog::LogMeta`]),
+//! `flight.csv.meta.json`: what flew it, see [`crate::logs::meta::LogMeta`]),
 //! written by the simulation thread. Every input reaches the core through [`Sim::apply`], which
 //! records it; each record line is flushed as it is written, so a killed
 //! daemon leaves a record that replays up to its last input; a write that
@@ -21,10 +21,11 @@ use super::sim_thread::Sim;
 use crate::airframe::Airframe;
 use crate::autopilot::{Autopilot, AutopilotCommand, AutopilotError, ClientTimer, CommandOutcome};
 use crate::lockstep::Lockstep;
+use crate::lockstep::input::{Applied, Input};
+use crate::logs::csv::{CsvLog, create_csv_file};
+use crate::logs::record::{Header, end_line, header_line, input_line};
 use crate::mission::{MissionResult, PlanChange};
 use crate::params::{ParamStore, ParamValue};
-use crate::record::{Applied, Header, Input, end_line, header_line, input_line};
-use crate::scenario::{CsvLog, create_csv_file};
 use crate::sim::SensorConfig;
 
 /// The record file's name in the run directory.
@@ -100,7 +101,7 @@ impl Recorder {
         let csv = if csv {
             let path = dir.join(CSV_FILE);
             let f = create_csv_file(&path).map_err(|e| anyhow::anyhow!("--log-csv: {e}"))?;
-            crate::scenario::autopilot_meta(core.pilot(vehicle), "daemon --log-csv", &dir.display().to_string())
+            crate::logs::meta::autopilot_meta(core.pilot(vehicle), "daemon --log-csv", &dir.display().to_string())
                 .write_beside(&path)
                 .map_err(|e| anyhow::anyhow!("--log-csv: {e}"))?;
             Some(CsvLog::new(f, rotors).with_context(|| format!("writing {}", path.display()))?)
@@ -155,7 +156,7 @@ impl Truncate for File {
 /// A file written whole line by whole line: `whole` is the byte offset
 /// after its last complete line. A write that fails mid-line cuts the file
 /// back to `whole`, so it never ends in a partial line (which
-/// [`crate::record::read_record`] would refuse as cut short).
+/// [`crate::logs::record::read_record`] would refuse as cut short).
 struct LineFile<F> {
     file: F,
     whole: u64,
@@ -214,7 +215,7 @@ impl Sim {
         let io = &mut self.vehicles[v];
         let applied = {
             let mut p = lock(&io.params);
-            crate::record::apply(&mut self.core, v, &mut p, &input)
+            crate::lockstep::input::apply(&mut self.core, v, &mut p, &input)
         };
         if let Some(r) = &mut io.recorder {
             r.input(step, &input, &applied);
@@ -363,7 +364,7 @@ mod tests {
         assert!(f.append(&beat).is_err());
         let text = String::from_utf8(f.file.data).unwrap();
         assert_eq!(text, format!("{h}\n{beat}\n"));
-        let r = crate::record::read_record(&text, "full.record").unwrap();
+        let r = crate::logs::record::read_record(&text, "full.record").unwrap();
         assert_eq!((r.inputs.len(), r.end), (1, None));
     }
 }

@@ -1,4 +1,4 @@
-//! The run's `flight.ulg`: [`crate::ulog::flight::FlightUlog`] on a
+//! The run's `flight.ulg`: [`crate::logs::ulog::flight::FlightUlog`] on a
 //! buffered file, fed by the simulation thread after every step and with
 //! every status text. The buffer reaches the file when full and when the
 //! simulation thread ends (drop). A write error stops the log with one
@@ -14,8 +14,8 @@ use tracing::warn;
 use super::saver::lock;
 use crate::autopilot::{Autopilot, StatusText};
 use crate::lockstep::Lockstep;
+use crate::logs::ulog::flight::FlightUlog;
 use crate::params::ParamStore;
-use crate::ulog::flight::FlightUlog;
 
 /// The file name in the run directory.
 pub(super) const FILE_NAME: &str = "flight.ulg";
@@ -35,7 +35,7 @@ pub(super) struct UlogFile {
 
 /// Steps between two looks at the parameters' generation (0.1 s): the
 /// replay's, so that `rotorpilot replay --ulog` logs the changes alike.
-use crate::record::PARAM_CHECK_EVERY;
+use crate::logs::replay::PARAM_CHECK_EVERY;
 
 impl UlogFile {
     /// Start `dir/flight.ulg` (header, formats, info, parameters); `None`
@@ -148,31 +148,19 @@ mod tests {
 
     /// The ULog's logged strings (`L` messages) as (timestamp [us], text).
     fn logged_strings(b: &[u8]) -> Vec<(u64, String)> {
-        let mut out = Vec::new();
-        let mut i = 16;
-        while i + 3 <= b.len() {
-            let size = usize::from(u16::from_le_bytes([b[i], b[i + 1]]));
-            let body = &b[i + 3..i + 3 + size];
-            if b[i + 2] == b'L' {
+        crate::logs::ulog::messages(b)
+            .into_iter()
+            .filter(|(kind, _)| *kind == b'L')
+            .map(|(_, body)| {
                 let t = u64::from_le_bytes(body[1..9].try_into().unwrap());
-                out.push((t, String::from_utf8_lossy(&body[9..]).into_owned()));
-            }
-            i += 3 + size;
-        }
-        out
+                (t, String::from_utf8_lossy(&body[9..]).into_owned())
+            })
+            .collect()
     }
 
     #[test]
     fn a_status_text_is_logged_at_the_step_it_was_raised_not_when_drained() {
-        let airframe = crate::airframe::Airframe::load("quad").unwrap();
-        let store = ParamStore::new(&airframe);
-        let mut core = Lockstep::one_vehicle(
-            &airframe,
-            crate::geo::GeoPoint::PX4_SITL_HOME,
-            &store,
-            crate::sim::SensorConfig::default(),
-        )
-        .unwrap();
+        let (mut core, store) = crate::lockstep::test_quad();
         let dir = std::env::temp_dir().join(format!("rotorpilot-ulog-stamp-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let params = Arc::new(Mutex::new(store));

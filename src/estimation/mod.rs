@@ -24,6 +24,7 @@ pub mod chain;
 pub mod gains;
 pub mod metrics;
 pub mod momentum;
+pub mod sweep;
 
 pub use chain::{ChainFilter, Discretization, step_response};
 pub use gains::{MAX_ORDER, Polynomial};

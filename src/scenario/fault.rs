@@ -21,7 +21,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::airframe::Airframe;
 use crate::autopilot::CommandOutcome;
-use crate::lockstep::{FailureInjection, Lockstep, Pilot, failure};
+use crate::lockstep::failure::{self, FailureInjection};
+use crate::lockstep::{Lockstep, Pilot};
 use crate::sim::FaultSettings;
 
 /// A failing part (FAILURE_UNIT), by name.

@@ -47,12 +47,13 @@ use std::path::Path;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-use super::CsvLog;
 use super::fault::{self, AppliedFault, FileFault, ScheduledFault};
 use crate::airframe::Airframe;
 use crate::autopilot::{Autopilot, AutopilotCommand, CommandOutcome, LandedState, MissionState};
 use crate::geo::GeoPoint;
 use crate::lockstep::Lockstep;
+use crate::logs::csv::CsvLog;
+use crate::logs::meta::LogMeta;
 use crate::mission::file::{PlanFile, load_mission_file};
 use crate::mission::{MissionItem, MissionType, PlanChange, cmd, frame, quantise_deg};
 use crate::params::{ParamStore, ParamValue};
@@ -671,4 +672,13 @@ impl MissionSummary {
         }
         s
     }
+}
+
+/// The sidecar ([`LogMeta`]) of a mission's flight CSV written by `producer`.
+///
+/// # Errors
+/// A mission whose vehicle cannot be built (as flying it would say).
+pub fn mission_meta(f: &MissionFlight, producer: &str) -> anyhow::Result<LogMeta> {
+    let core = mission_lockstep(f)?;
+    Ok(crate::logs::meta::autopilot_meta(core.pilot(0), producer, &f.source))
 }

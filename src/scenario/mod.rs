@@ -11,17 +11,15 @@
 //! field and the problem.
 
 pub mod campaign;
-mod csv_log;
 pub mod fault;
 pub mod fleet;
 mod mission;
 mod run;
 mod trajectory;
 
-pub use csv_log::{CSV_BUFFER_BYTES, CsvLog, autopilot_meta, create_csv_file, mission_meta, scenario_meta};
 pub use fault::{AppliedFault, FaultType, FaultUnit, ScheduledFault};
-pub use mission::{ItemResult, MissionFlight, MissionSummary, is_mission, mission_lockstep, run_mission};
-pub use run::{ScenarioPilot, Summary, csv_header, csv_row, lockstep, run};
+pub use mission::{ItemResult, MissionFlight, MissionSummary, is_mission, mission_lockstep, mission_meta, run_mission};
+pub use run::{ScenarioPilot, Summary, lockstep, run, scenario_meta};
 pub use trajectory::Trajectory;
 
 use nalgebra::Vector3;

@@ -1,20 +1,6 @@
 //! Fly a [`Scenario`] flat out in lockstep and summarise it; optionally write
-//! the full time series as CSV (the log format `rotorpilot estimate` reads).
-//!
-//! CSV columns, one row per step `k` (state `x_k` at `t_k`, command `u_k`
-//! held over `[t_k, t_{k+1})`), SI units, NED/FRD. First the measurements the
-//! estimator and controller saw (the report's inputs): `time_s`,
-//! `pos_n pos_e pos_d`, `vel_n vel_e vel_d`, `roll pitch yaw` [rad],
-//! `roll_rate pitch_rate yaw_rate` (Euler-angle rates `eta_dot = Q^-1 omega`),
-//! `p_frd q_frd r_frd` (body rates); then the truth `true_pos_n/e/d`,
-//! `true_vel_n/e/d`; the reference `ref_n ref_e ref_d ref_yaw`; `thrust_n
-//! tau_x tau_y tau_z` (the wrench applied over the step: what the estimator is
-//! told), `cmd_thrust_n cmd_tau_x cmd_tau_y cmd_tau_z` (controller output
-//! before allocation), `saturated`, `w1..wn` (rotor speed commands, rad/s),
-//! `fext_n fext_e fext_d`, `text_x text_y text_z` (true external wrench),
-//! `true_mass_kg`, `est_fn est_fe est_fd`, `est_tx est_ty est_tz` (body FRD),
-//! `est_mass_kg`. Numbers are printed in the shortest form that reads back to
-//! the same `f64`, so an offline run on the log reproduces the online one.
+//! the full time series as the flight CSV ([`crate::logs::csv`]: the log
+//! format `rotorpilot estimate` reads).
 
 use std::io::Write;
 
@@ -22,11 +8,12 @@ use nalgebra::Vector3;
 use serde::Serialize;
 
 use super::fault::{self, AppliedFault};
-use super::{CsvLog, ReferencePlan, Scenario};
+use super::{ReferencePlan, Scenario};
 use crate::autopilot::{ControlLoop, ControlOutput, Demand};
 use crate::control::{Reference, Setpoint, Shaper, ShaperLimits, TranslationSetpoint, feedforward_attitude};
-use crate::estimation::input_from;
-use crate::lockstep::{Lockstep, Pilot, StepRecord};
+use crate::lockstep::{Lockstep, Pilot};
+use crate::logs::csv::CsvLog;
+use crate::logs::meta::LogMeta;
 use crate::math::{euler_zyx, from_euler_zyx};
 use crate::signals::{ControlWrench, GRAVITY, SensorReadings};
 use crate::sim::{DisturbanceSource, RigidBodyState, SensorConfig, SimFault, World};
@@ -136,55 +123,17 @@ impl Pilot for ScenarioPilot<'_> {
     }
 }
 
-/// The flight CSV's header line (`rotorpilot simulate --csv`) for `n` rotors.
+/// The sidecar ([`LogMeta`]) of a scenario's flight CSV written by `producer` (`simulate`).
 #[must_use]
-pub fn csv_header(n: usize) -> String {
-    let mut h = String::from(
-        "time_s,pos_n,pos_e,pos_d,vel_n,vel_e,vel_d,roll,pitch,yaw,roll_rate,pitch_rate,yaw_rate,p_frd,q_frd,r_frd,\
-         true_pos_n,true_pos_e,true_pos_d,true_vel_n,true_vel_e,true_vel_d,ref_n,ref_e,ref_d,ref_yaw,\
-         thrust_n,tau_x,tau_y,tau_z,cmd_thrust_n,cmd_tau_x,cmd_tau_y,cmd_tau_z,saturated",
-    );
-    for i in 1..=n {
-        h.push_str(&format!(",w{i}"));
-    }
-    h.push_str(
-        ",fext_n,fext_e,fext_d,text_x,text_y,text_z,true_mass_kg,est_fn,est_fe,est_fd,est_tx,est_ty,est_tz,est_mass_kg",
-    );
-    h
-}
-
-/// One step's line of the flight CSV (`rotorpilot simulate --csv`), for `n` rotors.
-#[must_use]
-pub fn csv_row(rec: &StepRecord<'_>, n: usize) -> String {
-    let (m, r, w) = (rec.measurement, rec.control, rec.world);
-    // the report's inputs exactly as the estimator derives them (eta, eta_dot = Q^-1 omega)
-    let input = input_from(m, &r.applied);
-    let (eta, eta_dot) = (input.eta, input.eta_dot);
-    let mut v: Vec<f64> = Vec::with_capacity(64);
-    v.push(m.time_s);
-    v.extend(m.position_ned.iter());
-    v.extend(m.velocity_ned.iter());
-    v.extend(eta.iter());
-    v.extend(eta_dot.iter());
-    v.extend(m.rate_frd.iter());
-    v.extend(w.truth.position_ned.iter());
-    v.extend(w.truth.velocity_ned.iter());
-    v.extend(r.reference.position_ned.iter());
-    v.push(r.reference.yaw_rad);
-    v.push(r.applied.thrust_n);
-    v.extend(r.applied.torque_frd.iter());
-    v.push(r.command.thrust_n);
-    v.extend(r.command.torque_frd.iter());
-    v.push(f64::from(u8::from(r.saturated)));
-    v.extend(r.rotor_speed_cmd().iter().take(n));
-    v.extend(w.external.force_ned.iter());
-    v.extend(w.external.torque_frd.iter());
-    v.push(w.true_mass_kg);
-    v.extend(r.estimate.force_ned.iter());
-    v.extend(r.estimate.torque_frd.iter());
-    v.push(r.estimate.mass_kg);
-    // `{}` prints the shortest text that parses back to the same f64: the log is exact.
-    v.iter().map(|x| format!("{x}")).collect::<Vec<_>>().join(",")
+pub fn scenario_meta(s: &Scenario, producer: &str) -> LogMeta {
+    LogMeta::new(
+        producer,
+        &s.source,
+        &s.airframe.name,
+        &s.airframe.nominal(),
+        &s.estimator,
+        s.step_s,
+    )
 }
 
 /// The scenario ready to fly: its world (the vehicle placed at the initial

@@ -6,8 +6,8 @@
 //!   "format": "rotorpilot-plans",
 //!   "version": 1,
 //!   "mission": [
-//!     {"frame": 3, "command": 22, "autocontinue": true, "params": [0.0, 0.0, 0.0, null], "x": 47.397742, "y": 8.545594, "z": 10.0},
-//!     {"frame": 2, "command": 20, "autocontinue": true, "params": [null, null, null, null], "x": 0.0, "y": 0.0, "z": 0.0}
+//!     {"frame": 3, "command": 22, "autocontinue": true, "params": [0.0, 0.0, 0.0, "nan"], "x": 47.397742, "y": 8.545594, "z": 10.0},
+//!     {"frame": 2, "command": 20, "autocontinue": true, "params": ["nan", "nan", "nan", "nan"], "x": 0.0, "y": 0.0, "z": 0.0}
 //!   ],
 //!   "fence": [],
 //!   "rally": []
@@ -16,11 +16,10 @@
 //!
 //! One item per line, its fields [`MissionItem`]'s. Every number reads back
 //! bit for bit, so a restored plan keeps its id (the CRC32 covers the bits):
-//! f32 values are written in their shortest form when that reads back to
-//! the same f32 through a double (nearly always), else as the double they
-//! are; f64 values in their shortest form. NaN is `null`; a NaN with other
-//! bits than the usual quiet NaN (`0x7fc00000` as f32) is written as the
-//! string `"nan:0x…"` of its bits, infinities as `"inf"` and `"-inf"`.
+//! the numbers are written as [`crate::exact_json`] writes them (the flight
+//! record's spelling: NaN as `"nan"`, or `"nan:0x…"` for a NaN of other bits,
+//! infinities as `"inf"` and `"-inf"`). Files written before that spelled
+//! the usual quiet NaN `null`; that still reads.
 //!
 //! Reading refuses anything it does not know (a missing or unknown field, a
 //! newer version, a plan the vehicle would refuse) with an error naming the
@@ -30,6 +29,7 @@
 use std::path::Path;
 
 use super::{Json, MissionFileError, Origin, Shape, check_plan, join, show, utf8};
+use crate::exact_json::{self, FloatError};
 use crate::mission::{MissionItem, MissionType, Plan, Plans};
 use crate::statefile;
 
@@ -38,53 +38,17 @@ pub const STATE_FORMAT: &str = "rotorpilot-plans";
 /// The `version` field this module writes and reads.
 pub const STATE_VERSION: i64 = 1;
 
-/// The JSON of an f32 that reads back to the same bits.
-fn f32_json(v: f32) -> String {
-    if v.is_nan() {
-        if v.to_bits() == f32::NAN.to_bits() {
-            "null".into()
-        } else {
-            format!("\"nan:0x{:08x}\"", v.to_bits())
-        }
-    } else if v.is_infinite() {
-        if v > 0.0 { "\"inf\"".into() } else { "\"-inf\"".into() }
-    } else {
-        let short = format!("{v:?}");
-        // through a double, as every JSON reader (serde_json too) parses it
-        if short.parse::<f64>().is_ok_and(|d| (d as f32).to_bits() == v.to_bits()) {
-            short
-        } else {
-            format!("{:?}", f64::from(v))
-        }
-    }
-}
-
-/// The JSON of an f64 that reads back to the same bits.
-fn f64_json(v: f64) -> String {
-    if v.is_nan() {
-        if v.to_bits() == f64::NAN.to_bits() {
-            "null".into()
-        } else {
-            format!("\"nan:0x{:016x}\"", v.to_bits())
-        }
-    } else if v.is_infinite() {
-        if v > 0.0 { "\"inf\"".into() } else { "\"-inf\"".into() }
-    } else {
-        format!("{v:?}")
-    }
-}
-
 /// One item on one line.
 fn item_json(it: &MissionItem) -> String {
-    let [p1, p2, p3, p4] = it.params.map(f32_json);
+    let [p1, p2, p3, p4] = it.params.map(exact_json::f32_value);
     format!(
         "{{\"frame\": {}, \"command\": {}, \"autocontinue\": {}, \"params\": [{p1}, {p2}, {p3}, {p4}], \"x\": {}, \"y\": {}, \"z\": {}}}",
         it.frame,
         it.command,
         it.autocontinue,
-        f64_json(it.x),
-        f64_json(it.y),
-        f32_json(it.z)
+        exact_json::f64_value(it.x),
+        exact_json::f64_value(it.y),
+        exact_json::f32_value(it.z)
     )
 }
 
@@ -109,78 +73,27 @@ pub fn plans_to_text(plans: &Plans) -> String {
 }
 
 impl Json<'_> {
-    /// An f32 as [`f32_json`] writes it (a plain number is rounded to f32).
+    /// An f32 as [`exact_json::f32_from`] reads it (a plain number is rounded to f32).
     fn stored_f32(&self, v: &serde_json::Value, path: &str) -> Result<f32, MissionFileError> {
-        match v {
-            serde_json::Value::Null => Ok(f32::NAN),
-            serde_json::Value::Number(n) => {
-                let d = n.as_f64().unwrap_or(f64::NAN);
-                let f = d as f32;
-                if f.is_finite() {
-                    Ok(f)
-                } else {
-                    Err(self.invalid(path, format!("{} does not fit a 32-bit float", super::num(d))))
-                }
-            }
-            serde_json::Value::String(s) => {
-                let f = special(s).and_then(|bits| match bits {
-                    Special::Inf(neg) => Some(if neg { f32::NEG_INFINITY } else { f32::INFINITY }),
-                    Special::Nan(None) => Some(f32::NAN),
-                    Special::Nan(Some(b)) => u32::try_from(b).ok().map(f32::from_bits).filter(|f| f.is_nan()),
-                });
-                f.ok_or_else(|| self.invalid(path, format!("{} is not a 32-bit NaN or infinity", show(v))))
-            }
-            _ => Err(self.invalid(
-                path,
-                format!(
-                    "expected a number, null (NaN), \"inf\", \"-inf\" or \"nan:0x…\", found {}",
-                    show(v)
-                ),
-            )),
-        }
+        exact_json::f32_from(v).map_err(|e| self.float_error(e, v, path, "a 32-bit NaN or infinity"))
     }
 
-    /// An f64 as [`f64_json`] writes it.
+    /// An f64 as [`exact_json::f64_from`] reads it.
     fn stored_f64(&self, v: &serde_json::Value, path: &str) -> Result<f64, MissionFileError> {
-        match v {
-            serde_json::Value::Null => Ok(f64::NAN),
-            serde_json::Value::Number(n) => Ok(n.as_f64().unwrap_or(f64::NAN)),
-            serde_json::Value::String(s) => {
-                let f = special(s).and_then(|bits| match bits {
-                    Special::Inf(neg) => Some(if neg { f64::NEG_INFINITY } else { f64::INFINITY }),
-                    Special::Nan(None) => Some(f64::NAN),
-                    Special::Nan(Some(b)) => Some(f64::from_bits(b)).filter(|f| f.is_nan()),
-                });
-                f.ok_or_else(|| self.invalid(path, format!("{} is not a NaN or infinity", show(v))))
-            }
-            _ => Err(self.invalid(
-                path,
-                format!(
-                    "expected a number, null (NaN), \"inf\", \"-inf\" or \"nan:0x…\", found {}",
-                    show(v)
-                ),
-            )),
-        }
+        exact_json::f64_from(v).map_err(|e| self.float_error(e, v, path, "a NaN or infinity"))
     }
-}
 
-/// A string standing for a number JSON cannot spell.
-enum Special {
-    /// `"inf"` (false) or `"-inf"` (true).
-    Inf(bool),
-    /// `"nan"`, or `"nan:0x…"` with the bits.
-    Nan(Option<u64>),
-}
-
-fn special(s: &str) -> Option<Special> {
-    match s {
-        "inf" | "+inf" => Some(Special::Inf(false)),
-        "-inf" => Some(Special::Inf(true)),
-        "nan" => Some(Special::Nan(None)),
-        _ => {
-            let hex = s.strip_prefix("nan:0x")?;
-            u64::from_str_radix(hex, 16).ok().map(|b| Special::Nan(Some(b)))
-        }
+    /// Why `v` at `path` is no float; `special` names the strings it may be.
+    fn float_error(&self, e: FloatError, v: &serde_json::Value, path: &str, special: &str) -> MissionFileError {
+        let why = match e {
+            FloatError::TooLarge(d) => format!("{} does not fit a 32-bit float", super::num(d)),
+            FloatError::NotSpecial => format!("{} is not {special}", show(v)),
+            FloatError::NotAFloat => format!(
+                "expected a number, \"nan\", \"nan:0x…\", \"inf\", \"-inf\" or null (NaN), found {}",
+                show(v)
+            ),
+        };
+        self.invalid(path, why)
     }
 }
 
@@ -423,7 +336,7 @@ mod tests {
     fn the_file_reads_back_bit_for_bit_with_the_same_ids() {
         let p = sample();
         let text = plans_to_text(&p);
-        assert!(text.starts_with("{\n  \"format\": \"rotorpilot-plans\",\n  \"version\": 1,\n  \"mission\": [\n    {\"frame\": 3, \"command\": 22, \"autocontinue\": true, \"params\": [null, null, null, null], \"x\": 47.397742, \"y\": 8.545594, \"z\": 10.0},\n"), "{text}");
+        assert!(text.starts_with("{\n  \"format\": \"rotorpilot-plans\",\n  \"version\": 1,\n  \"mission\": [\n    {\"frame\": 3, \"command\": 22, \"autocontinue\": true, \"params\": [\"nan\", \"nan\", \"nan\", \"nan\"], \"x\": 47.397742, \"y\": 8.545594, \"z\": 10.0},\n"), "{text}");
         assert!(
             text.contains("\"rally\": [\n    {\"frame\": 3, \"command\": 5100"),
             "{text}"
@@ -491,7 +404,7 @@ mod tests {
         let p = plans(items, vec![], vec![]);
         same_bits(&round_trip(&p), &p);
         let text = plans_to_text(&p);
-        assert!(text.contains("\"nan:0x7fc00001\"") && text.contains("\"-inf\"") && text.contains("null"));
+        assert!(text.contains("\"nan:0x7fc00001\"") && text.contains("\"-inf\"") && text.contains("\"nan\""));
     }
 
     #[test]
@@ -583,105 +496,112 @@ mod tests {
         let good = plans_to_text(&sample());
         let line = |n: usize| good.lines().nth(n).unwrap().to_string();
         let takeoff = line(4);
-        for (text, want) in [
+        let whole = [
             (String::new(), "m.json:1:0: EOF while parsing a value"),
             (good[..good.len() / 2].to_string(), "m.json:"),
             ("[]".into(), "m.json: (top level): expected an object, found an array"),
             ("{}".into(), "m.json: format: expected \"rotorpilot-plans\""),
-            (good.replace("rotorpilot-plans", "qgc-plan"), "m.json: format:"),
-            (
-                good.replace("\"version\": 1", "\"version\": 2"),
-                "m.json: version: version 2 is not read by this rotorpilot",
-            ),
-            (
-                good.replace("\"version\": 1", "\"version\": \"1\""),
-                "m.json: version: expected a whole number",
-            ),
-            (
-                good.replace("  \"rally\": [", "  \"extra\": 1,\n  \"rally\": ["),
-                "m.json: extra: unknown field",
-            ),
             (
                 good.replace(&format!("{takeoff}\n"), "")
                     .replace("  \"fence\": [", "  \"fencing\": ["),
                 "m.json: fencing: unknown field",
             ),
+        ];
+        // the good file with one text replaced by another
+        let edited = [
+            ("rotorpilot-plans", "qgc-plan", "m.json: format:"),
             (
-                good.replace(
-                    "\"autocontinue\": true, \"params\": [null",
-                    "\"autocontinue\": 1, \"params\": [null",
-                ),
+                "\"version\": 1",
+                "\"version\": 2",
+                "m.json: version: version 2 is not read by this rotorpilot",
+            ),
+            (
+                "\"version\": 1",
+                "\"version\": \"1\"",
+                "m.json: version: expected a whole number",
+            ),
+            (
+                "  \"rally\": [",
+                "  \"extra\": 1,\n  \"rally\": [",
+                "m.json: extra: unknown field",
+            ),
+            (
+                "\"autocontinue\": true, \"params\": [\"nan\"",
+                "\"autocontinue\": 1, \"params\": [\"nan\"",
                 "m.json: mission[0].autocontinue: expected true or false, found 1",
             ),
             (
-                good.replace("\"params\": [null, null, null, null]", "\"params\": [null, null, null]"),
+                "\"params\": [\"nan\", \"nan\", \"nan\", \"nan\"]",
+                "\"params\": [\"nan\", \"nan\", \"nan\"]",
                 "m.json: mission[0].params: expected 4 params",
             ),
             (
-                good.replace(
-                    "\"params\": [null, null, null, null]",
-                    "\"params\": [null, \"x\", null, null]",
-                ),
+                "\"params\": [\"nan\", \"nan\", \"nan\", \"nan\"]",
+                "\"params\": [\"nan\", \"x\", \"nan\", \"nan\"]",
                 "m.json: mission[0].params[1]: \"x\" is not a 32-bit NaN or infinity",
             ),
             (
-                good.replace(
-                    "\"params\": [null, null, null, null]",
-                    "\"params\": [null, 1e39, null, null]",
-                ),
+                "\"params\": [\"nan\", \"nan\", \"nan\", \"nan\"]",
+                "\"params\": [\"nan\", 1e39, \"nan\", \"nan\"]",
                 "m.json: mission[0].params[1]: 1e39 does not fit a 32-bit float",
             ),
             (
-                good.replace(
-                    "\"params\": [null, null, null, null]",
-                    "\"params\": [null, \"nan:0x3f800000\", null, null]",
-                ),
+                "\"params\": [\"nan\", \"nan\", \"nan\", \"nan\"]",
+                "\"params\": [\"nan\", \"nan:0x3f800000\", \"nan\", \"nan\"]",
                 "mission[0].params[1]: \"nan:0x3f800000\" is not a 32-bit NaN",
             ),
             (
-                good.replace(
-                    "\"params\": [null, null, null, null]",
-                    "\"params\": [null, [], null, null]",
-                ),
-                "mission[0].params[1]: expected a number, null (NaN)",
+                "\"params\": [\"nan\", \"nan\", \"nan\", \"nan\"]",
+                "\"params\": [\"nan\", [], \"nan\", \"nan\"]",
+                "mission[0].params[1]: expected a number, \"nan\"",
             ),
             (
-                good.replace("\"x\": 47.397742", "\"x\": \"far\""),
+                "\"x\": 47.397742",
+                "\"x\": \"far\"",
                 "m.json: mission[0].x: \"far\" is not a NaN or infinity",
             ),
             (
-                good.replace("\"x\": 47.397742", "\"lat\": 47.397742"),
+                "\"x\": 47.397742",
+                "\"lat\": 47.397742",
                 "m.json: mission[0].lat: unknown field",
             ),
             (
-                good.replace("\"frame\": 3, \"command\": 22", "\"command\": 22"),
+                "\"frame\": 3, \"command\": 22",
+                "\"command\": 22",
                 "m.json: mission[0].frame: missing",
             ),
             (
-                good.replace("\"frame\": 3, \"command\": 22", "\"frame\": 3, \"command\": -22"),
+                "\"frame\": 3, \"command\": 22",
+                "\"frame\": 3, \"command\": -22",
                 "m.json: mission[0].command: expected a whole number that fits u16, found -22",
             ),
             (
-                good.replace("\"x\": 47.397742", "\"x\": 97.397742"),
+                "\"x\": 47.397742",
+                "\"x\": 97.397742",
                 "m.json: mission[0].x: latitude 97.397742 is not within ±90° (MAV_MISSION_INVALID_PARAM5_X)",
             ),
             (
-                good.replace("\"z\": 10.0", "\"z\": null"),
+                "\"z\": 10.0",
+                "\"z\": null",
                 "m.json: mission[0].z: altitude NaN is not a number",
             ),
             (
-                good.replace("\"command\": 5001", "\"command\": 5009"),
+                "\"command\": 5001",
+                "\"command\": 5009",
                 "m.json: fence[0].command: command 5009 is not a fence item",
             ),
             (
-                good.replace("\"params\": [3.0, 0.0, 0.0, 0.0]", "\"params\": [2.0, 0.0, 0.0, 0.0]"),
+                "\"params\": [3.0, 0.0, 0.0, 0.0]",
+                "\"params\": [2.0, 0.0, 0.0, 0.0]",
                 "m.json: fence[0].params[0]: param1 = 2 is refused",
             ),
-            (
-                good.replace("\"command\": 22", "\"command\": 22, \"frame\": 2"),
-                "m.json:",
-            ),
-        ] {
+            ("\"command\": 22", "\"command\": 22, \"frame\": 2", "m.json:"),
+        ]
+        .map(|(from, to, want)| {
+            assert!(good.contains(from), "{from}");
+            (good.replace(from, to), want)
+        });
+        for (text, want) in whole.into_iter().chain(edited) {
             let e = plans_from_text(&text, "m.json").unwrap_err().to_string();
             assert!(e.contains(want), "want `{want}` in\n{e}");
         }
@@ -712,10 +632,12 @@ mod tests {
     #[test]
     fn a_hand_written_number_is_rounded_as_a_wire_would() {
         let text = "{\"format\": \"rotorpilot-plans\", \"version\": 1, \"fence\": [], \"rally\": [], \"mission\": [\
-                    {\"frame\": 3, \"command\": 16, \"autocontinue\": true, \"params\": [0, 0.1, 0, \"nan\"], \"x\": 47.4, \"y\": 8.5, \"z\": 12}]}";
+                    {\"frame\": 3, \"command\": 16, \"autocontinue\": true, \"params\": [0, 0.1, null, \"nan\"], \"x\": 47.4, \"y\": 8.5, \"z\": 12}]}";
         let p = plans_from_text(text, "hand.json").unwrap();
         let it = p.get(MissionType::Mission).items()[0];
         assert_eq!((it.params[1], it.z, it.x), (0.1_f32, 12.0, 47.4));
         assert!(it.params[3].is_nan());
+        // `null`: the quiet NaN, as files written before the exact-float codec spelled it
+        assert_eq!(it.params[2].to_bits(), f32::NAN.to_bits());
     }
 }

@@ -10,25 +10,20 @@
 //! The core is the only place that sees both halves: it routes each
 //! vehicle's `SIM_*` parameters to the world and the rest to its autopilot,
 //! restarts a vehicle (world and autopilot) on a reboot, turns an accepted
-//! failure injection (MAV_CMD_INJECT_FAILURE's numbers, [`FailureInjection`])
+//! failure injection (MAV_CMD_INJECT_FAILURE's numbers, [`failure::FailureInjection`])
 //! into the world's [`Fault`]s and announces it, and pairs the autopilot's
 //! telemetry with the world's injected truth for the clients that compare
 //! them. Vehicles are addressed by index; an index beyond the world panics,
 //! as a slice index does.
 //!
-//! Failure injection, PX4's numbers (FAILURE_UNIT, FAILURE_TYPE; instance
-//! from 1, 0 = all):
-//!
-//! | unit | OFF (1) | WRONG (4) | OK (0) |
-//! |---|---|---|---|
-//! | GPS (4) | no fix; the navigation solution dead-reckons and drifts | position `SIM_GPS_WRONG_M` north | fix and right position back |
-//! | BATTERY (100) | one cell fails: one cell's voltage less | — | whole pack |
-//! | MOTOR (101) | the rotor stops | `SIM_MOT_WRONG_FR` of its thrust | healthy |
-//! | MAVLINK_SIGNAL (105) | the vehicle stops sending on its links | — | sends again |
-//!
-//! Any other pair is UNSUPPORTED; an instance that does not exist (a motor
-//! beyond the rotor count, any motor of an ideal-actuation airframe, a second
-//! GPS, battery or radio) is DENIED. Nothing changes then.
+//! The pieces beside the loop: [`input`] (the one path by which every
+//! client and recorded input reaches the core), [`failure`] (failure
+//! injection: the supported units and types) and [`preflight`] (the lift
+//! check before arming).
+
+pub mod failure;
+pub mod input;
+pub mod preflight;
 
 use std::collections::VecDeque;
 
@@ -44,125 +39,9 @@ use crate::mission::{MissionResult, PlanChange, Plans};
 use crate::params::{ParamStore, ParamValue};
 use crate::signals::{DEFAULT_STEP_S, Measurement, SensorReadings};
 use crate::sim::{
-    ActiveFaults, Environment, Fault, FaultSettings, Proximity, ProximityEvent, ProximityKind, RotorHealth,
-    SensorConfig, SimFault, StepReport, Truth, VehicleSlot, World, WorldSettings,
+    Environment, Proximity, ProximityEvent, ProximityKind, SensorConfig, SimFault, StepReport, Truth, VehicleSlot,
+    World, WorldSettings,
 };
-
-/// MAVLink FAILURE_UNIT and FAILURE_TYPE numbers (PX4's `vehicle_command`).
-pub mod failure {
-    /// FAILURE_UNIT_SENSOR_GPS.
-    pub const UNIT_GPS: u8 = 4;
-    /// FAILURE_UNIT_SYSTEM_BATTERY.
-    pub const UNIT_BATTERY: u8 = 100;
-    /// FAILURE_UNIT_SYSTEM_MOTOR.
-    pub const UNIT_MOTOR: u8 = 101;
-    /// FAILURE_UNIT_SYSTEM_MAVLINK_SIGNAL.
-    pub const UNIT_MAVLINK_SIGNAL: u8 = 105;
-    /// FAILURE_TYPE_OK: undo.
-    pub const TYPE_OK: u8 = 0;
-    /// FAILURE_TYPE_OFF.
-    pub const TYPE_OFF: u8 = 1;
-    /// FAILURE_TYPE_WRONG.
-    pub const TYPE_WRONG: u8 = 4;
-}
-
-/// A failure to inject, as MAV_CMD_INJECT_FAILURE gives it (plain data).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct FailureInjection {
-    /// FAILURE_UNIT.
-    pub unit: u8,
-    /// FAILURE_TYPE.
-    pub kind: u8,
-    /// Instance, from 1; 0 = all.
-    pub instance: u8,
-}
-
-/// What an injection does to the world: the faults, in order, and the
-/// announcement; or the refusal (UNSUPPORTED, DENIED) when it cannot be done.
-///
-/// # Errors
-/// The outcome to answer instead; nothing is to change then.
-pub fn failure_faults(
-    inj: FailureInjection,
-    active: &ActiveFaults,
-    settings: FaultSettings,
-) -> Result<(Vec<Fault>, StatusText), CommandOutcome> {
-    use failure::{TYPE_OFF, TYPE_OK, TYPE_WRONG, UNIT_BATTERY, UNIT_GPS, UNIT_MAVLINK_SIGNAL, UNIT_MOTOR};
-    let say = |severity, text: String| StatusText { severity, text };
-    let warn = |what: &str| say(Severity::Warning, format!("CMD_INJECT_FAILURE, {what}"));
-    let ok = |what: &str| say(Severity::Info, format!("CMD_INJECT_FAILURE, {what} ok"));
-    // the single GPS, battery and radio: instance 0 (all) or 1
-    let single = |what: &'static str| {
-        if inj.instance <= 1 {
-            Ok(())
-        } else {
-            Err(CommandOutcome::Denied(what))
-        }
-    };
-    match (inj.unit, inj.kind) {
-        (UNIT_MOTOR, TYPE_OK | TYPE_OFF | TYPE_WRONG) => {
-            let n = active.rotors.len();
-            let rotors: Vec<usize> = match usize::from(inj.instance) {
-                _ if n == 0 => return Err(CommandOutcome::Denied("no motor can fail: ideal actuation")),
-                0 => (0..n).collect(),
-                k if k <= n => vec![k - 1],
-                _ => return Err(CommandOutcome::Denied("no such motor")),
-            };
-            let f = settings.motor_thrust_fraction;
-            let (health, what) = match inj.kind {
-                TYPE_OK => (RotorHealth::Healthy, "ok".to_string()),
-                TYPE_OFF => (RotorHealth::Off, "off".to_string()),
-                _ => (
-                    RotorHealth::Degraded { thrust_fraction: f },
-                    format!("wrong ({:.0}% thrust)", f * 100.0),
-                ),
-            };
-            let which = match rotors.as_slice() {
-                [r] => format!("motor {}", r + 1),
-                _ => "motors".to_string(),
-            };
-            let severity = if inj.kind == TYPE_OK {
-                Severity::Info
-            } else {
-                Severity::Warning
-            };
-            let faults = rotors.iter().map(|&rotor| Fault::Rotor { rotor, health }).collect();
-            Ok((faults, say(severity, format!("CMD_INJECT_FAILURE, {which} {what}"))))
-        }
-        (UNIT_GPS, TYPE_OK | TYPE_OFF | TYPE_WRONG) => {
-            single("no such GPS")?;
-            Ok(match inj.kind {
-                TYPE_OK => (vec![Fault::Gps { available: true }, Fault::GpsOffset(None)], ok("GPS")),
-                TYPE_OFF => (vec![Fault::Gps { available: false }], warn("GPS off")),
-                _ => (
-                    vec![Fault::GpsOffset(Some(Vector3::new(
-                        settings.gps_offset_north_m,
-                        0.0,
-                        0.0,
-                    )))],
-                    warn("GPS wrong"),
-                ),
-            })
-        }
-        (UNIT_BATTERY, TYPE_OK | TYPE_OFF) => {
-            single("no such battery")?;
-            let failed = inj.kind == TYPE_OFF;
-            let text = if failed {
-                warn("battery cell off")
-            } else {
-                ok("battery")
-            };
-            Ok((vec![Fault::BatteryCell { failed }], text))
-        }
-        (UNIT_MAVLINK_SIGNAL, TYPE_OK | TYPE_OFF) => {
-            single("no such link")?;
-            let lost = inj.kind == TYPE_OFF;
-            let text = if lost { warn("MAVLink off") } else { ok("MAVLink") };
-            Ok((vec![Fault::LinkLost(lost)], text))
-        }
-        _ => Err(CommandOutcome::Unsupported),
-    }
-}
 
 /// Flight software in the loop: from the sensor readings at `t_k` to what
 /// the actuators get over `[t_k, t_{k+1})`. `Send`: a fleet's vehicles may
@@ -421,53 +300,6 @@ impl<P: Pilot> Lockstep<P> {
         }
     }
 
-    /// Inject a failure into vehicle `i`'s world at the current instant
-    /// (module doc: the supported units and types), without asking its
-    /// pilot: ACCEPTED (announced, see [`Self::drain_world_texts`]),
-    /// UNSUPPORTED or DENIED (nothing changed). [`Lockstep::command`] calls
-    /// this once the autopilot allows the injection (`SYS_FAILURE_EN`).
-    pub fn inject_failure(&mut self, i: usize, inj: FailureInjection) -> CommandOutcome {
-        let (faults, text) = match failure_faults(inj, self.world.faults(i), self.world.fault_settings(i)) {
-            Ok(x) => x,
-            Err(outcome) => return outcome,
-        };
-        // validated above: the world refuses none of these; if it did, undo
-        let before = self.world.faults(i).clone();
-        for f in faults {
-            if self.world.inject(i, f).is_err() {
-                self.restore_faults(i, &before);
-                return CommandOutcome::Failed("the world refused the fault");
-            }
-        }
-        let t = self.time_s();
-        self.world_texts[i].push((t, text));
-        CommandOutcome::Accepted
-    }
-
-    /// Put vehicle `i`'s faults back as `faults` says.
-    fn restore_faults(&mut self, i: usize, faults: &ActiveFaults) {
-        let mut back: Vec<Fault> = faults
-            .rotors
-            .iter()
-            .enumerate()
-            .map(|(rotor, &health)| Fault::Rotor { rotor, health })
-            .collect();
-        back.extend([
-            Fault::Gps {
-                available: faults.gps_available,
-            },
-            Fault::SensorNoise(faults.noise),
-            Fault::GpsOffset(faults.gps_offset_ned),
-            Fault::BatteryCell {
-                failed: faults.battery_cell_failed,
-            },
-            Fault::LinkLost(faults.link_lost),
-        ]);
-        for f in back {
-            let _ = self.world.inject(i, f);
-        }
-    }
-
     /// Vehicle `i`'s world announcements (accepted failure injections) since
     /// the last call, oldest first.
     pub fn drain_world_texts(&mut self, i: usize) -> Vec<StatusText> {
@@ -570,34 +402,6 @@ impl<P: Pilot> Lockstep<P> {
     }
 }
 
-/// The simulator's preflight check before arming (unforced): whether the
-/// rotors can lift the vehicle's true mass, and if not the STATUSTEXT that
-/// says so, as PX4 prints a failed preflight check:
-///
-/// ```text
-/// lift [kg] = sum_i f_i c_T omega_max^2 / g    (f_i: 1 healthy, its thrust fraction degraded, 0 dead)
-/// refused when m_true >= lift                  ("Preflight Fail: SIM_MASS 10.0 kg > lift 3.5 kg")
-/// ```
-///
-/// `rotors` is the world's health of each rotor (from 0; missing: healthy).
-/// An airframe with ideal actuation has no rotor limit: never refused.
-#[must_use]
-pub fn unliftable(airframe: &Airframe, true_mass_kg: f64, rotors: &[RotorHealth]) -> Option<String> {
-    if airframe.actuation == crate::airframe::Actuation::Ideal {
-        return None;
-    }
-    let per_rotor_n = airframe.max_thrust_n() / airframe.rotor_count() as f64;
-    let lift_n: f64 = (0..airframe.rotor_count())
-        .map(|k| match rotors.get(k).copied().unwrap_or(RotorHealth::Healthy) {
-            RotorHealth::Healthy => per_rotor_n,
-            RotorHealth::Degraded { thrust_fraction } => per_rotor_n * thrust_fraction,
-            RotorHealth::Off => 0.0,
-        })
-        .sum();
-    let lift_kg = lift_n / crate::signals::GRAVITY;
-    (true_mass_kg >= lift_kg).then(|| format!("Preflight Fail: SIM_MASS {true_mass_kg:.1} kg > lift {lift_kg:.1} kg"))
-}
-
 /// One vehicle of a fleet ([`Lockstep::fleet`]).
 #[derive(Clone, Copy, Debug)]
 pub struct FleetVehicle<'a> {
@@ -661,30 +465,14 @@ impl Lockstep<Autopilot> {
     /// (`SYS_FAILURE_EN`) is the world's to do ([`Self::inject_failure`]).
     /// A reboot the autopilot allows is the runtime's to carry out ([`Self::reboot`]).
     pub fn command(&mut self, i: usize, command: AutopilotCommand) -> CommandOutcome {
-        if let AutopilotCommand::Arm { force: false } = command
-            && !self.pilots[i].armed()
-            && let Some(text) = unliftable(
-                self.pilots[i].airframe(),
-                self.world.plant(i).true_mass_kg(),
-                &self.world.faults(i).rotors,
-            )
-        {
-            // PX4 SITL's own sanity check, on the world's truth (the flight stack never sees it)
-            let t = self.time_s();
-            self.world_texts[i].push((
-                t,
-                StatusText {
-                    severity: Severity::Critical,
-                    text,
-                },
-            ));
-            return CommandOutcome::Denied("vehicle cannot hover: true mass beyond the rotors' lift");
+        if let Some(refused) = self.preflight(i, command) {
+            return refused;
         }
         let readings = self.world.sense(i);
         let outcome = self.pilots[i].command(command, readings);
         match (command, outcome) {
             (AutopilotCommand::InjectFailure { unit, kind, instance }, CommandOutcome::Accepted) => {
-                self.inject_failure(i, FailureInjection { unit, kind, instance })
+                self.inject_failure(i, failure::FailureInjection { unit, kind, instance })
             }
             _ => outcome,
         }
@@ -815,4 +603,15 @@ impl Lockstep<Autopilot> {
         texts.append(&mut self.world_texts[i]);
         texts
     }
+}
+
+/// A quad resting at PX4 SITL's home with the default parameters and
+/// sensors, and its parameter store (for tests that need a core to step).
+#[cfg(test)]
+pub(crate) fn test_quad() -> (Lockstep<Autopilot>, ParamStore) {
+    let airframe = Airframe::load("quad").expect("the built-in quad");
+    let params = ParamStore::new(&airframe);
+    let core = Lockstep::one_vehicle(&airframe, GeoPoint::PX4_SITL_HOME, &params, SensorConfig::default())
+        .expect("the default parameters");
+    (core, params)
 }

@@ -1,7 +1,7 @@
 //! A flight's ULog: PX4-named topics filled from the lockstep core, decimated
 //! from the simulation step to PX4's default logger rates. The daemon calls
 //! [`FlightUlog::on_step`] after every step; so does `rotorpilot replay
-//! --ulog` ([`crate::record::replay_logs`]).
+//! --ulog` ([`crate::logs::replay::replay_logs`]).
 //!
 //! `timestamp` is the simulated time [us] since boot (PX4 SITL's lockstep
 //! clock); `timestamp_sample` the instant the data describes (equal here).
@@ -32,7 +32,7 @@ use std::io::{self, Write};
 
 use nalgebra::{UnitQuaternion, Vector3};
 
-use super::{Field, FieldType as T, Format, LogLevel, Sample, UlogWriter, Value};
+use super::{Format, LogLevel, Sample, UlogWriter, Value};
 use crate::autopilot::{Autopilot, FlightMode, LandedState, Severity, StatusText};
 use crate::control::Reference;
 use crate::lockstep::Lockstep;
@@ -48,193 +48,88 @@ struct Topic {
     interval_ms: u32,
 }
 
-const fn s(ty: T, name: &'static str) -> Field {
-    Field::scalar(ty, name)
-}
-const fn a(ty: T, len: usize, name: &'static str) -> Field {
-    Field::array(ty, len, name)
+/// Topic `name` logged every `interval_ms` [ms] with `fields` ([`Format::fields`]).
+const fn topic(name: &'static str, interval_ms: u32, fields: &'static str) -> Topic {
+    Topic {
+        format: Format { name, fields },
+        interval_ms,
+    }
 }
 
-const ATTITUDE: Topic = Topic {
-    format: Format {
-        name: "vehicle_attitude",
-        fields: &[s(T::U64, "timestamp"), s(T::U64, "timestamp_sample"), a(T::F32, 4, "q")],
-    },
-    interval_ms: 50,
-};
-const ANGULAR_VELOCITY: Topic = Topic {
-    format: Format {
-        name: "vehicle_angular_velocity",
-        fields: &[
-            s(T::U64, "timestamp"),
-            s(T::U64, "timestamp_sample"),
-            a(T::F32, 3, "xyz"),
-        ],
-    },
-    interval_ms: 20,
-};
-const LOCAL_POSITION: Topic = Topic {
-    format: Format {
-        name: "vehicle_local_position",
-        fields: &[
-            s(T::U64, "timestamp"),
-            s(T::U64, "timestamp_sample"),
-            s(T::F64, "ref_lat"),
-            s(T::F64, "ref_lon"),
-            s(T::F32, "x"),
-            s(T::F32, "y"),
-            s(T::F32, "z"),
-            s(T::F32, "vx"),
-            s(T::F32, "vy"),
-            s(T::F32, "vz"),
-            s(T::F32, "z_deriv"),
-            s(T::F32, "ax"),
-            s(T::F32, "ay"),
-            s(T::F32, "az"),
-            s(T::F32, "heading"),
-            s(T::F32, "ref_alt"),
-            s(T::Bool, "xy_valid"),
-            s(T::Bool, "z_valid"),
-            s(T::Bool, "v_xy_valid"),
-            s(T::Bool, "v_z_valid"),
-            s(T::Bool, "xy_global"),
-            s(T::Bool, "z_global"),
-        ],
-    },
-    interval_ms: 100,
-};
-const GLOBAL_POSITION: Topic = Topic {
-    format: Format {
-        name: "vehicle_global_position",
-        fields: &[
-            s(T::U64, "timestamp"),
-            s(T::U64, "timestamp_sample"),
-            s(T::F64, "lat"),
-            s(T::F64, "lon"),
-            s(T::F32, "alt"),
-            s(T::Bool, "lat_lon_valid"),
-            s(T::Bool, "alt_valid"),
-        ],
-    },
-    interval_ms: 200,
-};
-const ATTITUDE_SETPOINT: Topic = Topic {
-    format: Format {
-        name: "vehicle_attitude_setpoint",
-        fields: &[
-            s(T::U64, "timestamp"),
-            s(T::F32, "yaw_sp_move_rate"),
-            a(T::F32, 4, "q_d"),
-            a(T::F32, 3, "thrust_body"),
-        ],
-    },
-    interval_ms: 50,
-};
-const TRAJECTORY_SETPOINT: Topic = Topic {
-    format: Format {
-        name: "trajectory_setpoint",
-        fields: &[
-            s(T::U64, "timestamp"),
-            a(T::F32, 3, "position"),
-            a(T::F32, 3, "velocity"),
-            a(T::F32, 3, "acceleration"),
-            a(T::F32, 3, "jerk"),
-            s(T::F32, "yaw"),
-            s(T::F32, "yawspeed"),
-        ],
-    },
-    interval_ms: 200,
-};
-const ACTUATOR_MOTORS: Topic = Topic {
-    format: Format {
-        name: "actuator_motors",
-        fields: &[
-            s(T::U64, "timestamp"),
-            s(T::U64, "timestamp_sample"),
-            s(T::U16, "reversible_flags"),
-            a(T::F32, MOTORS, "control"),
-        ],
-    },
-    interval_ms: 100,
-};
-const BATTERY_STATUS: Topic = Topic {
-    format: Format {
-        name: "battery_status",
-        fields: &[
-            s(T::U64, "timestamp"),
-            s(T::F32, "voltage_v"),
-            s(T::F32, "current_a"),
-            s(T::F32, "discharged_mah"),
-            s(T::F32, "remaining"),
-            s(T::Bool, "connected"),
-            s(T::U8, "warning"),
-        ],
-    },
-    interval_ms: 200,
-};
-const VEHICLE_STATUS: Topic = Topic {
-    format: Format {
-        name: "vehicle_status",
-        fields: &[
-            s(T::U64, "timestamp"),
-            s(T::U8, "arming_state"),
-            s(T::U8, "nav_state"),
-            s(T::U8, "vehicle_type"),
-            s(T::Bool, "pre_flight_checks_pass"),
-        ],
-    },
-    interval_ms: 0,
-};
-const LAND_DETECTED: Topic = Topic {
-    format: Format {
-        name: "vehicle_land_detected",
-        fields: &[s(T::U64, "timestamp"), s(T::Bool, "landed")],
-    },
-    interval_ms: 0,
-};
-const WRENCH_ESTIMATE: Topic = Topic {
-    format: Format {
-        name: "rotorpilot_wrench_estimate",
-        fields: &[
-            s(T::U64, "timestamp"),
-            a(T::F32, 3, "force_ned"),
-            a(T::F32, 3, "torque_frd"),
-            s(T::F32, "mass_kg"),
-            s(T::U8, "order"),
-        ],
-    },
-    interval_ms: 20,
-};
-const CONTROL_WRENCH: Topic = Topic {
-    format: Format {
-        name: "rotorpilot_control_wrench",
-        fields: &[
-            s(T::U64, "timestamp"),
-            s(T::F32, "thrust_n"),
-            a(T::F32, 3, "torque_frd"),
-            s(T::F32, "applied_thrust_n"),
-            a(T::F32, 3, "applied_torque_frd"),
-            s(T::Bool, "saturated"),
-        ],
-    },
-    interval_ms: 20,
-};
-const SIM_TRUTH: Topic = Topic {
-    format: Format {
-        name: "rotorpilot_sim_truth",
-        fields: &[
-            s(T::U64, "timestamp"),
-            a(T::F32, 3, "position_ned"),
-            a(T::F32, 3, "velocity_ned"),
-            a(T::F32, 4, "q"),
-            a(T::F32, 3, "rate_frd"),
-            a(T::F32, 3, "external_force_ned"),
-            a(T::F32, 3, "external_torque_frd"),
-            s(T::F32, "mass_kg"),
-        ],
-    },
-    interval_ms: 20,
-};
+// `actuator_motors.control` has [`MOTORS`] entries.
+const ATTITUDE: Topic = topic(
+    "vehicle_attitude",
+    50,
+    "uint64_t timestamp;uint64_t timestamp_sample;float[4] q;",
+);
+const ANGULAR_VELOCITY: Topic = topic(
+    "vehicle_angular_velocity",
+    20,
+    "uint64_t timestamp;uint64_t timestamp_sample;float[3] xyz;",
+);
+const LOCAL_POSITION: Topic = topic(
+    "vehicle_local_position",
+    100,
+    "uint64_t timestamp;uint64_t timestamp_sample;double ref_lat;double ref_lon;float x;\
+     float y;float z;float vx;float vy;float vz;float z_deriv;float ax;float ay;float az;\
+     float heading;float ref_alt;bool xy_valid;bool z_valid;bool v_xy_valid;\
+     bool v_z_valid;bool xy_global;bool z_global;",
+);
+const GLOBAL_POSITION: Topic = topic(
+    "vehicle_global_position",
+    200,
+    "uint64_t timestamp;uint64_t timestamp_sample;double lat;double lon;float alt;\
+     bool lat_lon_valid;bool alt_valid;",
+);
+const ATTITUDE_SETPOINT: Topic = topic(
+    "vehicle_attitude_setpoint",
+    50,
+    "uint64_t timestamp;float yaw_sp_move_rate;float[4] q_d;float[3] thrust_body;",
+);
+const TRAJECTORY_SETPOINT: Topic = topic(
+    "trajectory_setpoint",
+    200,
+    "uint64_t timestamp;float[3] position;float[3] velocity;float[3] acceleration;\
+     float[3] jerk;float yaw;float yawspeed;",
+);
+const ACTUATOR_MOTORS: Topic = topic(
+    "actuator_motors",
+    100,
+    "uint64_t timestamp;uint64_t timestamp_sample;uint16_t reversible_flags;\
+     float[12] control;",
+);
+const BATTERY_STATUS: Topic = topic(
+    "battery_status",
+    200,
+    "uint64_t timestamp;float voltage_v;float current_a;float discharged_mah;\
+     float remaining;bool connected;uint8_t warning;",
+);
+const VEHICLE_STATUS: Topic = topic(
+    "vehicle_status",
+    0,
+    "uint64_t timestamp;uint8_t arming_state;uint8_t nav_state;uint8_t vehicle_type;\
+     bool pre_flight_checks_pass;",
+);
+const LAND_DETECTED: Topic = topic("vehicle_land_detected", 0, "uint64_t timestamp;bool landed;");
+const WRENCH_ESTIMATE: Topic = topic(
+    "rotorpilot_wrench_estimate",
+    20,
+    "uint64_t timestamp;float[3] force_ned;float[3] torque_frd;float mass_kg;\
+     uint8_t order;",
+);
+const CONTROL_WRENCH: Topic = topic(
+    "rotorpilot_control_wrench",
+    20,
+    "uint64_t timestamp;float thrust_n;float[3] torque_frd;float applied_thrust_n;\
+     float[3] applied_torque_frd;bool saturated;",
+);
+const SIM_TRUTH: Topic = topic(
+    "rotorpilot_sim_truth",
+    20,
+    "uint64_t timestamp;float[3] position_ned;float[3] velocity_ned;float[4] q;\
+     float[3] rate_frd;float[3] external_force_ned;float[3] external_torque_frd;\
+     float mass_kg;",
+);
 
 /// Every topic, in subscription order (message id = index).
 const TOPICS: [&Topic; 13] = [
@@ -626,32 +521,18 @@ impl<W: Write> FlightUlog<W> {
 mod tests {
     use super::*;
 
-    /// Data messages per message id in a ULog file (walking the messages).
+    /// Data messages per message id in a ULog file.
     fn data_counts(b: &[u8]) -> Vec<usize> {
         let mut counts = vec![0; TOPICS.len()];
-        let mut i = 16;
-        while i + 3 <= b.len() {
-            let size = usize::from(u16::from_le_bytes([b[i], b[i + 1]]));
-            if b[i + 2] == b'D' {
-                counts[usize::from(u16::from_le_bytes([b[i + 3], b[i + 4]]))] += 1;
-            }
-            i += 3 + size;
+        for (_, body) in super::super::messages(b).into_iter().filter(|(kind, _)| *kind == b'D') {
+            counts[usize::from(u16::from_le_bytes([body[0], body[1]]))] += 1;
         }
-        assert_eq!(i, b.len(), "messages end at the file's end");
         counts
     }
 
     #[test]
     fn a_second_on_the_ground_is_decimated_to_the_topic_rates() {
-        let airframe = crate::airframe::Airframe::load("quad").unwrap();
-        let params = ParamStore::new(&airframe);
-        let mut core = Lockstep::one_vehicle(
-            &airframe,
-            crate::geo::GeoPoint::PX4_SITL_HOME,
-            &params,
-            crate::sim::SensorConfig::default(),
-        )
-        .unwrap();
+        let (mut core, params) = crate::lockstep::test_quad();
         let mut log = FlightUlog::new(Vec::new(), &params, &core, 0).unwrap();
         for _ in 0..1000 {
             core.step();
@@ -674,11 +555,16 @@ mod tests {
 
     #[test]
     fn nav_states_are_px4_numbers() {
-        assert_eq!(nav_state(FlightMode::Hold), 4);
-        assert_eq!(nav_state(FlightMode::Takeoff), 17);
-        assert_eq!(nav_state(FlightMode::Land), 18);
-        assert_eq!(nav_state(FlightMode::Offboard), 14);
-        assert_eq!(nav_state(FlightMode::Mission), 3);
+        let px4 = [
+            (FlightMode::Hold, 4),
+            (FlightMode::Takeoff, 17),
+            (FlightMode::Land, 18),
+            (FlightMode::Offboard, 14),
+            (FlightMode::Mission, 3),
+        ];
+        for (mode, n) in px4 {
+            assert_eq!(nav_state(mode), n, "{mode:?}");
+        }
     }
 
     #[test]
@@ -702,7 +588,14 @@ mod tests {
             assert_eq!(TOPICS[usize::from(i)].format.name, name);
         }
         for t in TOPICS {
-            assert_eq!(t.format.fields[0], s(T::U64, "timestamp"), "{}", t.format.name);
+            assert!(t.format.fields.starts_with("uint64_t timestamp;"), "{}", t.format.name);
+            assert!(t.format.size().is_some(), "{}", t.format.name);
         }
+        assert!(
+            ACTUATOR_MOTORS
+                .format
+                .fields
+                .contains(&format!("float[{MOTORS}] control;"))
+        );
     }
 }

@@ -49,6 +49,23 @@ pub enum FieldType {
 }
 
 impl FieldType {
+    /// Every type.
+    pub const ALL: [FieldType; 7] = [
+        FieldType::U8,
+        FieldType::U16,
+        FieldType::I32,
+        FieldType::U64,
+        FieldType::F32,
+        FieldType::F64,
+        FieldType::Bool,
+    ];
+
+    /// The type a format message names `name`, if any.
+    #[must_use]
+    pub fn from_c_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|t| t.c_name() == name)
+    }
+
     /// The name in a format message.
     #[must_use]
     pub fn c_name(self) -> &'static str {
@@ -75,59 +92,42 @@ impl FieldType {
     }
 }
 
-/// One field of a format: a scalar (`len` 1) or an array `type[len]`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Field {
-    /// Element type.
-    pub ty: FieldType,
-    /// Elements (1: a scalar).
-    pub len: usize,
-    /// Field name.
-    pub name: &'static str,
-}
-
-impl Field {
-    /// A scalar field.
-    #[must_use]
-    pub const fn scalar(ty: FieldType, name: &'static str) -> Self {
-        Self { ty, len: 1, name }
-    }
-
-    /// An array field `ty[len] name`.
-    #[must_use]
-    pub const fn array(ty: FieldType, len: usize, name: &'static str) -> Self {
-        Self { ty, len, name }
-    }
-}
-
-/// A message format: a topic's name and fields (the first `uint64_t timestamp`).
+/// A message format: a topic's name and its fields as the 'F' message
+/// spells them, each `type name;` or `type[n] name;` (an array), packed in
+/// that order, the first `uint64_t timestamp;`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Format {
     /// Topic name.
     pub name: &'static str,
-    /// Fields in order, packed.
-    pub fields: &'static [Field],
+    /// The fields, as the 'F' message spells them (`uint64_t timestamp;float[3] xyz;`).
+    pub fields: &'static str,
 }
 
 impl Format {
-    /// Bytes of one sample: the sum of the fields' sizes.
+    /// Bytes of one sample: the sum of the fields' sizes; `None` when a
+    /// field is not `type name;` or `type[n] name;` of a [`FieldType`].
     #[must_use]
-    pub fn size(&self) -> usize {
-        self.fields.iter().map(|f| f.ty.size() * f.len).sum()
+    pub fn size(&self) -> Option<usize> {
+        if !self.fields.ends_with(';') {
+            return None;
+        }
+        self.fields
+            .split_terminator(';')
+            .map(|field| {
+                let (ty, _name) = field.split_once(' ')?;
+                let (ty, len) = match ty.split_once('[') {
+                    Some((ty, n)) => (ty, n.strip_suffix(']')?.parse::<usize>().ok()?),
+                    None => (ty, 1),
+                };
+                Some(FieldType::from_c_name(ty)?.size() * len)
+            })
+            .sum()
     }
 
     /// The 'F' message text: `name:type field;type[n] field;...`.
     #[must_use]
     pub fn text(&self) -> String {
-        let mut s = format!("{}:", self.name);
-        for f in self.fields {
-            if f.len == 1 {
-                s.push_str(&format!("{} {};", f.ty.c_name(), f.name));
-            } else {
-                s.push_str(&format!("{}[{}] {};", f.ty.c_name(), f.len, f.name));
-            }
-        }
-        s
+        format!("{}:{}", self.name, self.fields)
     }
 }
 
@@ -333,8 +333,15 @@ impl<W: Write> UlogWriter<W> {
     /// data messages carry. Ids count from 0 in subscription order.
     ///
     /// # Errors
-    /// Writing fails, or 65536 subscriptions already.
+    /// Writing fails, a format whose fields do not parse, or 65536
+    /// subscriptions already.
     pub fn add_logged(&mut self, f: &Format, multi_id: u8) -> io::Result<u16> {
+        let size = f.size().ok_or_else(|| {
+            io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!("ULog format {}: fields not `type name;` or `type[n] name;`", f.name),
+            )
+        })?;
         let id = self.next_msg_id;
         let mut p = Vec::with_capacity(3 + f.name.len());
         p.push(multi_id);
@@ -344,7 +351,7 @@ impl<W: Write> UlogWriter<W> {
         self.next_msg_id = id
             .checked_add(1)
             .ok_or_else(|| io::Error::new(io::ErrorKind::InvalidInput, "too many ULog subscriptions"))?;
-        self.sizes.push(f.size());
+        self.sizes.push(size);
         Ok(id)
     }
 
@@ -403,18 +410,53 @@ fn typed(name: &str, value: Value) -> (String, Vec<u8>) {
     }
 }
 
+/// The messages of a ULog file after its 16-byte header, in file order:
+/// each message's type and payload (for tests that read a file back).
+///
+/// # Panics
+/// The messages do not end at the file's end.
+#[cfg(test)]
+pub(crate) fn messages(file: &[u8]) -> Vec<(u8, &[u8])> {
+    let mut out = Vec::new();
+    let mut i = 16;
+    while i + 3 <= file.len() {
+        let size = usize::from(u16::from_le_bytes([file[i], file[i + 1]]));
+        out.push((file[i + 2], &file[i + 3..i + 3 + size]));
+        i += 3 + size;
+    }
+    assert_eq!(i, file.len(), "messages end at the file's end");
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     const TOPIC: Format = Format {
         name: "t",
-        fields: &[
-            Field::scalar(FieldType::U64, "timestamp"),
-            Field::array(FieldType::F32, 2, "xy"),
-            Field::scalar(FieldType::Bool, "ok"),
-        ],
+        fields: "uint64_t timestamp;float[2] xy;bool ok;",
     };
+
+    #[test]
+    fn format_sizes_are_the_packed_fields() {
+        assert_eq!(TOPIC.size(), Some(8 + 2 * 4 + 1));
+        for bad in [
+            "uint64_t timestamp",
+            "int timestamp;",
+            "float[x] a;",
+            "float[2 a;",
+            "bool;",
+        ] {
+            let f = Format { name: "t", fields: bad };
+            assert_eq!(f.size(), None, "{bad}");
+        }
+        let mut w = UlogWriter::new(Vec::new(), 0).unwrap();
+        let bad = Format {
+            name: "t",
+            fields: "int t;",
+        };
+        assert!(w.add_logged(&bad, 0).is_err());
+    }
 
     #[test]
     fn header_and_flag_bits_are_the_spec_bytes() {

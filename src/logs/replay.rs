@@ -1,0 +1,155 @@
+//! Exact replay (`rotorpilot replay`): rebuild the core from a record's
+//! header, step it, applying each recorded input at its step through
+//! [`crate::lockstep::input::apply`] (as the daemon applied it live), and
+//! write the flight's CSV and ULog as the daemon writes them.
+
+use std::io::Write;
+
+use super::csv::CsvLog;
+use super::record::Record;
+use super::ulog::flight::FlightUlog;
+use crate::autopilot::Autopilot;
+use crate::lockstep::Lockstep;
+use crate::lockstep::input::apply;
+use crate::params::ParamStore;
+
+/// What a replay did.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct ReplaySummary {
+    /// Steps run.
+    pub steps: u64,
+    /// Simulated time at the end [s].
+    pub sim_time_s: f64,
+    /// Inputs applied.
+    pub inputs: usize,
+    /// Whether the record had its end line (else it ran to its last input).
+    pub complete: bool,
+    /// Armed at the end.
+    pub armed: bool,
+    /// Flight mode at the end.
+    pub mode: String,
+    /// Landed state at the end.
+    pub landed_state: String,
+    /// True position at the end, NED [m].
+    pub position_ned_m: [f64; 3],
+}
+
+/// Re-fly `record`: rebuild the core from the header, step it, applying
+/// each input at its step, up to the end line's step (or the last input's
+/// when the record has no end); `csv` receives the flight CSV ([`CsvLog`]:
+/// `rotorpilot simulate --csv`'s format, one row per step).
+///
+/// # Errors
+/// A header this rotorpilot cannot rebuild; an input whose outcome differs
+/// from the live one (the replay diverged); a failed CSV write.
+pub fn replay(record: &Record, file: &str, csv: Option<&mut dyn Write>) -> Result<ReplaySummary, String> {
+    replay_logs(record, file, csv, None)
+}
+
+/// The logs a replay writes as it steps.
+struct ReplayLogs<'a> {
+    csv: Option<CsvLog<&'a mut dyn Write>>,
+    ulog: Option<FlightUlog<&'a mut dyn Write>>,
+    /// Steps run (the parameters are looked at every [`PARAM_CHECK_EVERY`]).
+    steps: u64,
+    generation: u64,
+}
+
+/// Steps between two looks at the parameters for the ULog (0.1 s at 1 kHz),
+/// as the daemon's `flight.ulg` looks.
+pub const PARAM_CHECK_EVERY: u64 = 100;
+
+impl ReplayLogs<'_> {
+    /// After a step, as the daemon's simulation thread: the CSV row, the
+    /// parameters if they changed, the ULog's topics, the status texts
+    /// (each dated at the instant the core raised it, as the daemon dates them).
+    fn after_step(&mut self, core: &mut Lockstep<Autopilot>, params: &ParamStore) -> Result<(), String> {
+        self.steps += 1;
+        if let Some(l) = &mut self.csv {
+            l.step_row(core, 0).map_err(|e| format!("writing the CSV: {e}"))?;
+        }
+        let Some(u) = &mut self.ulog else {
+            if core.steps().is_multiple_of(1024) {
+                // as the daemon publishes: the queues do not steer the flight
+                let _ = core.drain_status_texts(0);
+                let _ = core.drain_mission_reached(0);
+            }
+            return Ok(());
+        };
+        let ue = |e: std::io::Error| format!("writing the ULog: {e}");
+        if self.steps.is_multiple_of(PARAM_CHECK_EVERY) && params.generation() != self.generation {
+            self.generation = params.generation();
+            u.parameters(params).map_err(ue)?;
+        }
+        u.on_step(core, 0).map_err(ue)?;
+        for (time_s, t) in core.drain_stamped_status_texts(0) {
+            u.status_text(time_s, &t).map_err(ue)?;
+        }
+        let _ = core.drain_mission_reached(0);
+        Ok(())
+    }
+}
+
+/// [`replay`], also writing the flight's PX4 ULog to `ulog`
+/// ([`FlightUlog`], the topics and rates of the daemon's `flight.ulg`).
+///
+/// # Errors
+/// As [`replay`]; a failed ULog write.
+pub fn replay_logs<'a>(
+    record: &Record,
+    file: &str,
+    csv: Option<&'a mut dyn Write>,
+    ulog: Option<&'a mut dyn Write>,
+) -> Result<ReplaySummary, String> {
+    let (mut core, mut params) = record.header.build().map_err(|e| format!("{file}:1: header: {e}"))?;
+    let n = core.pilot(0).airframe().rotor_count();
+    let mut logs = ReplayLogs {
+        csv: csv
+            .map(|w| CsvLog::new(w, n))
+            .transpose()
+            .map_err(|e| format!("writing the CSV: {e}"))?,
+        ulog: ulog
+            .map(|w| FlightUlog::new(w, &params, &core, 0))
+            .transpose()
+            .map_err(|e| format!("writing the ULog: {e}"))?,
+        steps: 0,
+        generation: params.generation(),
+    };
+    let end = record.end.unwrap_or_else(|| record.inputs.last().map_or(0, |e| e.step));
+    let step_to = |core: &mut Lockstep<Autopilot>, params: &ParamStore, target: u64, logs: &mut ReplayLogs<'_>| {
+        while core.steps() < target {
+            core.step();
+            logs.after_step(core, params)?;
+        }
+        Ok::<(), String>(())
+    };
+    for e in &record.inputs {
+        step_to(&mut core, &params, e.step, &mut logs)?;
+        let got = apply(&mut core, 0, &mut params, &e.input).text();
+        if got != e.outcome {
+            return Err(format!(
+                "{file}:{}: the replay diverged at step {}: live outcome {}, replayed {got}",
+                e.line, e.step, e.outcome
+            ));
+        }
+    }
+    step_to(&mut core, &params, end, &mut logs)?;
+    if let Some(l) = logs.csv {
+        l.finish().map_err(|e| format!("writing the CSV: {e}"))?;
+    }
+    if let Some(u) = logs.ulog {
+        u.finish().map_err(|e| format!("writing the ULog: {e}"))?;
+    }
+    let ap = core.pilot(0);
+    let p = core.last_step(0).world.truth.position_ned;
+    Ok(ReplaySummary {
+        steps: core.steps(),
+        sim_time_s: core.time_s(),
+        inputs: record.inputs.len(),
+        complete: record.end.is_some(),
+        armed: ap.armed(),
+        mode: format!("{:?}", ap.mode()),
+        landed_state: format!("{:?}", ap.landed_state()),
+        position_ned_m: [p.x, p.y, p.z],
+    })
+}

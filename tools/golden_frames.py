@@ -6,7 +6,7 @@ codec (tests/daemon_common: the frames the test client sends, the COMMAND_ACK
 it decodes, and rotorpilot's own ACK encoder) is checked against bytes it did
 not make: a layout bug mirrored in encoder and decoder cannot pass.
 
-    /work/main/.venv/pymavlink/bin/python tools/golden_frames.py
+    .venv/pymavlink/bin/python tools/golden_frames.py
 
 One frame a line: `name sysid compid seq fields... hex`, fields as the
 message's constructor takes them (floats exact in f32). Every frame is parsed

@@ -4,12 +4,12 @@
 //! and discarded by `--reset-plans`.
 #![allow(deprecated)]
 
-mod daemon_common;
+mod common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use daemon_common::{Vehicle, config};
+use common::daemon::{Vehicle, config};
 use rotorpilot::daemon;
 use rotorpilot::mission::file::{load_mission_file, load_plans, plans_to_text, save_plans};
 use rotorpilot::mission::{MissionItem, MissionType, Plans};

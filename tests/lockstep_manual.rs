@@ -5,7 +5,7 @@
 //! GPS fix: Descend near where it was lost without using the horizontal
 //! position, Hold when the fix returns, Position falling back to Altitude.
 //! One vehicle in the lockstep core, simulated time only:
-//! `cargo test --release --test manual`.
+//! `cargo test --release --test lockstep_manual`.
 
 use nalgebra::Vector3;
 use rotorpilot::airframe::Airframe;

@@ -17,7 +17,7 @@
 //!
 //! The plant needs rotational drag for a spin equilibrium to exist: the
 //! x500-class `quad` ships with `gamma` = [`GAMMA`] (see its doc).
-//! Run with `cargo test --release --test quad_rotor_loss -- --nocapture` to see the figures.
+//! Run with `cargo test --release --test lockstep_quad_rotor_loss -- --nocapture` to see the figures.
 
 use std::collections::VecDeque;
 

@@ -4,7 +4,7 @@
 //! says. Octo and the PPNNPN hexa, every single rotor, at hover, on a
 //! figure-eight and on a mission; a degraded rotor; no false detection on
 //! healthy flights. The figures are printed (`--nocapture`); the table of all
-//! of them: `cargo test --release --test rotor_loss -- --ignored --nocapture`.
+//! of them: `cargo test --release --test lockstep_rotor_loss -- --ignored --nocapture`.
 
 use nalgebra::Vector3;
 use rotorpilot::airframe::{Airframe, HoverVerdict, analyse_failures};
@@ -573,7 +573,7 @@ fn healthy_missions_and_eights_never_flag_a_rotor() {
 #[test]
 fn a_quad_losing_a_rotor_gives_up_yaw_and_lands() {
     // flagged, the rank-3 allocation chosen, an emergency landing commanded
-    // (the relaxed-hover descent itself: tests/quad_rotor_loss.rs)
+    // (the relaxed-hover descent itself: tests/lockstep_quad_rotor_loss.rs)
     let mut v = vehicle("quad", Action::Continue);
     take_off(&mut v);
     let p0 = v.telemetry(0).position_ned;

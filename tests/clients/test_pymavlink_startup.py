@@ -4,7 +4,7 @@
 the start-up banner; arming a vehicle whose rotors cannot lift its true mass
 is DENIED with a Preflight Fail STATUSTEXT. Every wait is bounded.
 
-Run with the pymavlink venv: `python -m pytest tests/clients/test_pymavlink_first_hour.py`.
+Run with the pymavlink venv: `python -m pytest tests/clients/test_pymavlink_startup.py`.
 """
 
 import sys

@@ -7,13 +7,14 @@
 //! clear errors, never a panic.
 #![allow(deprecated)]
 
-mod daemon_common;
+mod common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
-use daemon_common::{Client, Vehicle, config, state_dir, wait_armable};
+use common::daemon::{Client, Vehicle, config, wait_armable};
+use common::scratch_path;
 use mavlink::dialects::common::*;
 use rotorpilot::record::{read_record, replay};
 
@@ -48,7 +49,7 @@ fn replay_csv(record: &Path) -> (Vec<u8>, rotorpilot::record::ReplaySummary) {
 /// parameter (one refused), arm, take off, a reposition, hover; then stop
 /// cleanly. The run directory.
 async fn fly(speed: f64) -> PathBuf {
-    let logs = state_dir("replay-logs");
+    let logs = scratch_path("replay-logs");
     let mut c = Client::new().await;
     let mut cfg = config(Some(c.addr()), None, speed);
     cfg.log_dir = Some(logs.clone());
@@ -269,7 +270,7 @@ fn cli_replay(file: &Path) -> (bool, String) {
 
 #[test]
 fn bad_records_get_clear_errors() {
-    let dir = state_dir("bad-records");
+    let dir = scratch_path("bad-records");
     std::fs::create_dir_all(&dir).unwrap();
     let a = rotorpilot::airframe::Airframe::load("quad").unwrap();
     let header = rotorpilot::record::Header::new(
@@ -362,7 +363,7 @@ fn bad_records_get_clear_errors() {
 
 #[tokio::test]
 async fn an_unusable_log_dir_is_refused_at_start_with_its_path() {
-    let dir = state_dir("not-a-dir");
+    let dir = scratch_path("not-a-dir");
     std::fs::create_dir_all(&dir).unwrap();
     // a file where the log directory should be (root ignores permissions)
     let file = dir.join("plain-file");

@@ -766,7 +766,7 @@ fn invalid_commands() -> Vec<(AutopilotCommand, CommandOutcome)> {
 /// the instant here, so only what the input itself did can differ.
 fn whole_state(ap: &mut Sitl) -> String {
     ap.texts();
-    ap.core_mut().world_mut().sense(0);
+    ap.readings();
     let full = format!("{:?}", ap.core());
     let key = "now_s: ";
     assert_eq!(full.matches(key).count(), 1, "one autopilot clock");

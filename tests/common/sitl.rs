@@ -245,10 +245,11 @@ impl Sitl {
         self.core.gcs_heartbeat(0);
     }
 
-    /// Set a parameter, as PARAM_SET does (it must be accepted).
+    /// Set a parameter and apply it, as PARAM_SET does (it must be accepted).
     pub fn set_param(&mut self, name: &str, value: ParamValue) {
-        self.store.set(name, value).unwrap();
-        self.core.apply_params(0, &self.store).unwrap();
+        if let Err(e) = self.core.set_param(0, &mut self.store, name, value) {
+            panic!("{name} = {value:?} refused: {e}");
+        }
     }
 
     /// Apply a whole parameter store; kept as the vehicle's when accepted.

@@ -1,6 +1,8 @@
 //! Airframes, allocation and failure analysis against the origin report and
 //! `docs/model.md` sections 3 and 9.
 
+mod common;
+
 use nalgebra::{DMatrix, Vector3};
 use proptest::prelude::*;
 use rotorpilot::airframe::{Airframe, AirframeError, HoverVerdict, analyse_failures, hover_margins};
@@ -239,7 +241,7 @@ fn rotor_failure_verdicts_match_doc_section_3() {
 
 #[test]
 fn airframe_json_report_has_the_documented_keys() {
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+    let out = common::bin::rotorpilot()
         .args(["airframe", "octo", "--json"])
         .output()
         .unwrap();
@@ -264,10 +266,7 @@ fn airframe_json_report_has_the_documented_keys() {
     assert_eq!(v["underactuated"], true);
     assert_eq!(v["allocation"][1][2].as_f64().unwrap(), -2.5e-6);
     assert_eq!(v["rotor_failure"].as_array().unwrap().len(), 8);
-    let text = std::process::Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
-        .args(["airframe", "quad"])
-        .output()
-        .unwrap();
+    let text = common::bin::rotorpilot().args(["airframe", "quad"]).output().unwrap();
     let text = String::from_utf8(text.stdout).unwrap();
     assert!(text.contains("rank B = 4") && text.contains("underactuated: yes") && text.contains("rank deficient"));
 }
@@ -307,10 +306,7 @@ fn non_positive_rotor_constants_are_refused_at_their_line() {
         let want = format!("{path}:{line_column}: {field}: must be a finite number > 0, got {got}");
         let err = Airframe::load(&path).expect_err(file).to_string();
         assert_eq!(err, want, "{file}");
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
-            .args(["airframe", &path])
-            .output()
-            .unwrap();
+        let out = common::bin::rotorpilot().args(["airframe", &path]).output().unwrap();
         assert_eq!(out.status.code(), Some(1), "{file}");
         assert_eq!(
             String::from_utf8_lossy(&out.stderr),
@@ -349,7 +345,7 @@ fn malformed_airframes_get_named_errors() {
         assert!(err.contains(problem), "{file}: error does not say `{problem}`: {err}");
     }
     // the CLI prints it and exits non-zero, without a panic
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+    let out = common::bin::rotorpilot()
         .args(["airframe", &format!("{dir}/negative-mass.toml")])
         .output()
         .unwrap();
@@ -384,7 +380,7 @@ fn an_airframe_with_a_bad_gain_is_refused_where_it_would_fly() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("geometrik"), "{err}");
-    let state = std::env::temp_dir().join(format!("rotorpilot-bad-gain-{}", std::process::id()));
+    let state = common::scratch_path("bad-gain");
     let state = state.display().to_string();
     let daemon = [
         "--airframe",
@@ -397,10 +393,7 @@ fn an_airframe_with_a_bad_gain_is_refused_where_it_would_fly() {
         "127.0.0.1:0",
     ];
     for args in [&["airframe", path.as_str()][..], &daemon[..]] {
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
-            .args(args)
-            .output()
-            .unwrap();
+        let out = common::bin::rotorpilot().args(args).output().unwrap();
         assert!(!out.status.success(), "{args:?}");
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(

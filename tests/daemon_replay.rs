@@ -10,7 +10,6 @@
 mod common;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::time::Duration;
 
 use common::daemon::{Client, Vehicle, config, wait_armable};
@@ -155,7 +154,7 @@ async fn a_flight_with_a_reboot_replays_byte_for_byte() {
         live_meta.producer
     );
     let out_csv = run.join("replayed.csv");
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+    let o = common::bin::rotorpilot()
         .args(["replay", record.to_str().unwrap(), "--csv", out_csv.to_str().unwrap()])
         .output()
         .unwrap();
@@ -248,7 +247,7 @@ async fn a_record_without_its_end_replays_to_its_last_input() {
     assert!(live.starts_with(&csv) && live.len() > csv.len());
     // the CLI says so on stderr
     std::fs::write(run.join("cut.record"), &cut).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+    let out = common::bin::rotorpilot()
         .arg("replay")
         .arg(run.join("cut.record"))
         .output()
@@ -260,11 +259,7 @@ async fn a_record_without_its_end_replays_to_its_last_input() {
 
 /// `rotorpilot replay FILE`'s exit status and stderr.
 fn cli_replay(file: &Path) -> (bool, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
-        .arg("replay")
-        .arg(file)
-        .output()
-        .unwrap();
+    let out = common::bin::rotorpilot().arg("replay").arg(file).output().unwrap();
     (out.status.success(), String::from_utf8_lossy(&out.stderr).into_owned())
 }
 
@@ -345,7 +340,7 @@ fn bad_records_get_clear_errors() {
         )) && err.contains("--any-version"),
         "{err}"
     );
-    let out = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+    let out = common::bin::rotorpilot()
         .args(["replay", "--any-version"])
         .arg(&p)
         .output()

@@ -18,7 +18,7 @@ use mavlink::dialects::common::*;
 async fn binary_prints_where_it_listens_and_stops_on_sigterm() {
     let mut gcs = Client::with_ids(255, 0).await;
     let dir = scratch_path("bin");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+    let mut child = common::bin::rotorpilot()
         .args(["--instance", "3", "--speed", "2", "--state-dir"])
         .arg(&dir)
         .args([

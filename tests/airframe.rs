@@ -241,12 +241,9 @@ fn rotor_failure_verdicts_match_doc_section_3() {
 
 #[test]
 fn airframe_json_report_has_the_documented_keys() {
-    let out = common::bin::rotorpilot()
-        .args(["airframe", "octo", "--json"])
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let out = common::bin::run(&["airframe", "octo", "--json"]);
+    assert!(out.ok(), "{}", out.stderr);
+    let v: serde_json::Value = serde_json::from_str(&out.stdout).unwrap();
     for key in [
         "allocation",
         "rank",
@@ -266,8 +263,7 @@ fn airframe_json_report_has_the_documented_keys() {
     assert_eq!(v["underactuated"], true);
     assert_eq!(v["allocation"][1][2].as_f64().unwrap(), -2.5e-6);
     assert_eq!(v["rotor_failure"].as_array().unwrap().len(), 8);
-    let text = common::bin::rotorpilot().args(["airframe", "quad"]).output().unwrap();
-    let text = String::from_utf8(text.stdout).unwrap();
+    let text = common::bin::run(&["airframe", "quad"]).stdout;
     assert!(text.contains("rank B = 4") && text.contains("underactuated: yes") && text.contains("rank deficient"));
 }
 
@@ -306,13 +302,9 @@ fn non_positive_rotor_constants_are_refused_at_their_line() {
         let want = format!("{path}:{line_column}: {field}: must be a finite number > 0, got {got}");
         let err = Airframe::load(&path).expect_err(file).to_string();
         assert_eq!(err, want, "{file}");
-        let out = common::bin::rotorpilot().args(["airframe", &path]).output().unwrap();
-        assert_eq!(out.status.code(), Some(1), "{file}");
-        assert_eq!(
-            String::from_utf8_lossy(&out.stderr),
-            format!("rotorpilot: {want}\n"),
-            "{file}"
-        );
+        let out = common::bin::run(&["airframe", &path]);
+        assert_eq!(out.code, Some(1), "{file}");
+        assert_eq!(out.stderr, format!("rotorpilot: {want}\n"), "{file}");
     }
 }
 
@@ -345,12 +337,9 @@ fn malformed_airframes_get_named_errors() {
         assert!(err.contains(problem), "{file}: error does not say `{problem}`: {err}");
     }
     // the CLI prints it and exits non-zero, without a panic
-    let out = common::bin::rotorpilot()
-        .args(["airframe", &format!("{dir}/negative-mass.toml")])
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let out = common::bin::run(&["airframe", &format!("{dir}/negative-mass.toml")]);
+    assert!(!out.ok());
+    let err = out.stderr;
     assert!(
         err.contains("negative-mass.toml") && err.contains("body.mass_kg") && !err.contains("panicked"),
         "{err}"
@@ -393,9 +382,9 @@ fn an_airframe_with_a_bad_gain_is_refused_where_it_would_fly() {
         "127.0.0.1:0",
     ];
     for args in [&["airframe", path.as_str()][..], &daemon[..]] {
-        let out = common::bin::rotorpilot().args(args).output().unwrap();
-        assert!(!out.status.success(), "{args:?}");
-        let err = String::from_utf8_lossy(&out.stderr);
+        let out = common::bin::run(args);
+        assert!(!out.ok(), "{args:?}");
+        let err = out.stderr;
         assert!(
             err.contains("bad-gain.toml") && err.contains("kp_n_per_m[1]") && !err.contains("panicked"),
             "{args:?}: {err}"

@@ -93,19 +93,26 @@ pub fn write_atomic(
     Ok(())
 }
 
+/// A fresh, empty directory under the system temp dir for one unit test:
+/// `rotorpilot-unit-PID-N-TAG`, unique in the process whatever the tag.
+#[cfg(test)]
+pub(crate) fn scratch_dir(tag: &str) -> PathBuf {
+    use std::sync::atomic::{AtomicU32, Ordering};
+    static N: AtomicU32 = AtomicU32::new(0);
+    let n = N.fetch_add(1, Ordering::Relaxed);
+    let d = std::env::temp_dir().join(format!("rotorpilot-unit-{}-{n}-{tag}", std::process::id()));
+    let _ = fs::remove_dir_all(&d);
+    fs::create_dir_all(&d).unwrap();
+    d
+}
+
 #[cfg(test)]
 mod tests {
     use std::io::Write as _;
 
     use super::*;
 
-    /// A fresh directory under the system temp dir for one test.
-    fn scratch(test: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("rotorpilot-statefile-{}-{test}", std::process::id()));
-        let _ = fs::remove_dir_all(&d);
-        fs::create_dir_all(&d).unwrap();
-        d
-    }
+    use super::scratch_dir as scratch;
 
     #[test]
     fn the_writer_sees_the_temp_file_and_the_rename_leaves_only_the_target() {

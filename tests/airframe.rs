@@ -1,6 +1,8 @@
 //! Airframes, allocation and failure analysis against the origin report and
 //! `docs/model.md` sections 3 and 9.
 
+mod common;
+
 use nalgebra::{DMatrix, Vector3};
 use proptest::prelude::*;
 use rotorpilot::airframe::{Airframe, AirframeError, HoverVerdict, analyse_failures, hover_margins};
@@ -239,12 +241,9 @@ fn rotor_failure_verdicts_match_doc_section_3() {
 
 #[test]
 fn airframe_json_report_has_the_documented_keys() {
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
-        .args(["airframe", "octo", "--json"])
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let out = common::bin::run(&["airframe", "octo", "--json"]);
+    assert!(out.ok(), "{}", out.stderr);
+    let v: serde_json::Value = serde_json::from_str(&out.stdout).unwrap();
     for key in [
         "allocation",
         "rank",
@@ -264,11 +263,7 @@ fn airframe_json_report_has_the_documented_keys() {
     assert_eq!(v["underactuated"], true);
     assert_eq!(v["allocation"][1][2].as_f64().unwrap(), -2.5e-6);
     assert_eq!(v["rotor_failure"].as_array().unwrap().len(), 8);
-    let text = std::process::Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
-        .args(["airframe", "quad"])
-        .output()
-        .unwrap();
-    let text = String::from_utf8(text.stdout).unwrap();
+    let text = common::bin::run(&["airframe", "quad"]).stdout;
     assert!(text.contains("rank B = 4") && text.contains("underactuated: yes") && text.contains("rank deficient"));
 }
 
@@ -307,16 +302,9 @@ fn non_positive_rotor_constants_are_refused_at_their_line() {
         let want = format!("{path}:{line_column}: {field}: must be a finite number > 0, got {got}");
         let err = Airframe::load(&path).expect_err(file).to_string();
         assert_eq!(err, want, "{file}");
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
-            .args(["airframe", &path])
-            .output()
-            .unwrap();
-        assert_eq!(out.status.code(), Some(1), "{file}");
-        assert_eq!(
-            String::from_utf8_lossy(&out.stderr),
-            format!("rotorpilot: {want}\n"),
-            "{file}"
-        );
+        let out = common::bin::run(&["airframe", &path]);
+        assert_eq!(out.code, Some(1), "{file}");
+        assert_eq!(out.stderr, format!("rotorpilot: {want}\n"), "{file}");
     }
 }
 
@@ -349,12 +337,9 @@ fn malformed_airframes_get_named_errors() {
         assert!(err.contains(problem), "{file}: error does not say `{problem}`: {err}");
     }
     // the CLI prints it and exits non-zero, without a panic
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
-        .args(["airframe", &format!("{dir}/negative-mass.toml")])
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let out = common::bin::run(&["airframe", &format!("{dir}/negative-mass.toml")]);
+    assert!(!out.ok());
+    let err = out.stderr;
     assert!(
         err.contains("negative-mass.toml") && err.contains("body.mass_kg") && !err.contains("panicked"),
         "{err}"
@@ -384,7 +369,7 @@ fn an_airframe_with_a_bad_gain_is_refused_where_it_would_fly() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("geometrik"), "{err}");
-    let state = std::env::temp_dir().join(format!("rotorpilot-bad-gain-{}", std::process::id()));
+    let state = common::scratch_path("bad-gain");
     let state = state.display().to_string();
     let daemon = [
         "--airframe",
@@ -397,12 +382,9 @@ fn an_airframe_with_a_bad_gain_is_refused_where_it_would_fly() {
         "127.0.0.1:0",
     ];
     for args in [&["airframe", path.as_str()][..], &daemon[..]] {
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
-            .args(args)
-            .output()
-            .unwrap();
-        assert!(!out.status.success(), "{args:?}");
-        let err = String::from_utf8_lossy(&out.stderr);
+        let out = common::bin::run(args);
+        assert!(!out.ok(), "{args:?}");
+        let err = out.stderr;
         assert!(
             err.contains("bad-gain.toml") && err.contains("kp_n_per_m[1]") && !err.contains("panicked"),
             "{args:?}: {err}"

@@ -3,13 +3,14 @@
 //! moves only the vehicle it was sent to, proximity and collisions reach both
 //! vehicles' links, and a client flooding one vehicle does not stall another.
 
-mod daemon_common;
+mod common;
 
 use std::net::SocketAddr;
 use std::path::Path;
 use std::time::Duration;
 
-use daemon_common::*;
+use common::daemon::*;
+use common::scratch_path;
 use mavlink::dialects::common::MavMessage;
 use nalgebra::Vector3;
 use rotorpilot::daemon::{self, FleetConfig, LinkSpec};
@@ -338,7 +339,7 @@ async fn a_client_flooding_one_vehicle_does_not_stall_another() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn each_vehicle_of_a_fleet_replays_alone_bit_for_bit_proximity_included() {
-    let logs = state_dir("fleet-logs");
+    let logs = scratch_path("fleet-logs");
     let gcs = Client::with_ids(255, 190).await;
     // 1.5 m apart: a proximity event at the first step, for both
     let fleet = Fleet::start_logged(2, 1.5, 10.0, gcs.addr(), Some(&logs)).await;

@@ -4,12 +4,12 @@
 //! of which the later finisher is refused. Every test starts its own vehicle.
 #![allow(deprecated)]
 
-mod daemon_common;
+mod common;
 
 use std::net::SocketAddr;
 use std::time::Duration;
 
-use daemon_common::{Client, Vehicle, config};
+use common::daemon::{Client, Vehicle, config};
 use mavlink::dialects::common::*;
 use rotorpilot::link::wire::MissionItemMsg;
 

@@ -4,11 +4,11 @@
 //! persistence across restarts and `--reset-params`.
 #![allow(deprecated)]
 
-mod daemon_common;
+mod common;
 
 use std::time::Duration;
 
-use daemon_common::{Client, NAN, Vehicle, config};
+use common::daemon::{Client, NAN, Vehicle, config};
 use mavlink::dialects::common::*;
 
 const S3: Duration = Duration::from_secs(3);

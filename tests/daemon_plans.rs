@@ -4,12 +4,11 @@
 //! and discarded by `--reset-plans`.
 #![allow(deprecated)]
 
-mod daemon_common;
+mod common;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-use daemon_common::{Vehicle, config};
+use common::daemon::{Vehicle, config};
 use rotorpilot::daemon;
 use rotorpilot::mission::file::{load_mission_file, load_plans, plans_to_text, save_plans};
 use rotorpilot::mission::{MissionItem, MissionType, Plans};
@@ -121,7 +120,7 @@ async fn a_corrupt_plans_file_stops_the_start_naming_the_file_and_the_field() {
     assert_eq!(std::fs::read_to_string(&path).unwrap(), bad, "left as it was");
 
     // the binary says the same and exits at once
-    let out = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+    let out = common::bin::rotorpilot()
         .arg("--state-dir")
         .arg(&dir)
         .args(["--gcs-bind", "127.0.0.1:0", "--api-bind", "127.0.0.1:0"])

@@ -3,12 +3,12 @@
 //! ping, FTP. Every test starts its own vehicle on free ports.
 #![allow(deprecated)]
 
-mod daemon_common;
+mod common;
 
 use std::collections::HashMap;
 use std::time::Duration;
 
-use daemon_common::{Client, NAN, Vehicle, config, heartbeat, wait_armable};
+use common::daemon::{Client, NAN, Vehicle, config, heartbeat, wait_armable};
 use mavlink::MavlinkVersion;
 use mavlink::dialects::common::*;
 use rotorpilot::link::wire::CommandInt;
@@ -145,7 +145,7 @@ async fn speaks_first_with_px4_identity_and_default_streams() {
 /// fields, and the daemon's ACK encoder writes the same bytes.
 #[test]
 fn command_codec_matches_pymavlink_golden_frames() {
-    use daemon_common::{command_int_frame, command_long_frame, golden_frames, received};
+    use common::daemon::{command_int_frame, command_long_frame, golden_frames, received};
     use rotorpilot::link::wire::{CommandAck, CommandLong, Encoder};
     let hex = |b: &[u8]| b.iter().map(|x| format!("{x:02x}")).collect::<String>();
     let bits = |p: &[f32]| p.iter().map(|x| x.to_bits()).collect::<Vec<_>>();

@@ -4,20 +4,21 @@
 //! auto-disarm).
 #![allow(deprecated)]
 
-mod daemon_common;
+mod common;
 
 use std::io::{BufRead as _, BufReader};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use daemon_common::{Client, NAN, Vehicle, config, heartbeat, state_dir, wait_armable};
+use common::daemon::{Client, NAN, Vehicle, config, heartbeat, wait_armable};
+use common::scratch_path;
 use mavlink::dialects::common::*;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn binary_prints_where_it_listens_and_stops_on_sigterm() {
     let mut gcs = Client::with_ids(255, 0).await;
-    let dir = state_dir("bin");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+    let dir = scratch_path("bin");
+    let mut child = common::bin::rotorpilot()
         .args(["--instance", "3", "--speed", "2", "--state-dir"])
         .arg(&dir)
         .args([
@@ -94,92 +95,6 @@ async fn binary_prints_where_it_listens_and_stops_on_sigterm() {
     let plans = std::fs::read_to_string(&plans_file).expect("plans saved");
     assert_eq!(plans, saved_plans, "the shutdown save writes the plans in force");
     let _ = std::fs::remove_dir_all(&dir);
-}
-
-#[test]
-fn bad_options_are_refused_with_a_message() {
-    for args in [
-        vec!["--airframe", "no-such-frame"],
-        vec!["--home", "47.3,8.5"],
-        vec!["--speed", "0"],
-        vec!["--link", "tcp:127.0.0.1:5760"],
-    ] {
-        let dir = state_dir("bad");
-        let out = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
-            .args(&args)
-            .arg("--state-dir")
-            .arg(&dir)
-            .args(["--gcs-bind", "127.0.0.1:0", "--api-bind", "127.0.0.1:0"])
-            .output()
-            .unwrap();
-        assert!(!out.status.success(), "{args:?}");
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(err.contains("rotorpilot:"), "{args:?}: {err}");
-        let _ = std::fs::remove_dir_all(&dir);
-    }
-    // the whole message, once: no empty context before the cause
-    let dir = state_dir("bad");
-    let out = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
-        .args(["--airframe", "no-such-frame", "--state-dir"])
-        .arg(&dir)
-        .output()
-        .unwrap();
-    assert_eq!(
-        String::from_utf8_lossy(&out.stderr),
-        "rotorpilot: unknown airframe `no-such-frame`: not a file and not a built-in airframe \
-         (quad, hexa, octo, fsr-quad, hexa-ppnnpn)\n"
-    );
-    let _ = std::fs::remove_dir_all(&dir);
-}
-
-/// Out-of-range numbers are refused with the whole message (the value as
-/// given, the range), the exit status 1 from rotorpilot's own check and 2
-/// from the argument parser's, and nothing else on stderr.
-#[test]
-fn out_of_range_speed_and_instance_are_refused_with_the_whole_message() {
-    for (args, status, message) in [
-        (
-            ["--speed", "1000.5"],
-            1,
-            "rotorpilot: --speed must be in (0, 1000], got 1000.5\n",
-        ),
-        (
-            ["--speed", "NaN"],
-            1,
-            "rotorpilot: --speed must be in (0, 1000], got NaN\n",
-        ),
-        (
-            ["--instance", "250"],
-            2,
-            "error: invalid value '250' for '--instance <INSTANCE>': 250 is not in 0..=249\n\n\
-             For more information, try '--help'.\n",
-        ),
-    ] {
-        let dir = state_dir("range");
-        let mut child = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
-            .args(args)
-            .arg("--state-dir")
-            .arg(&dir)
-            .args(["--gcs-bind", "127.0.0.1:0", "--api-bind", "127.0.0.1:0"])
-            .args(["--gcs-remote", "none", "--api-remote", "none"])
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        // a value let through would start the daemon: stop it, and fail below
-        let t0 = Instant::now();
-        while child.try_wait().unwrap().is_none() && t0.elapsed() < Duration::from_secs(5) {
-            std::thread::sleep(Duration::from_millis(10));
-        }
-        let _ = child.kill();
-        let out = child.wait_with_output().unwrap();
-        let made_state = dir.exists();
-        let _ = std::fs::remove_dir_all(&dir);
-        assert_eq!(out.status.code(), Some(status), "{args:?}");
-        assert_eq!(String::from_utf8_lossy(&out.stderr), message, "{args:?}");
-        assert!(out.stdout.is_empty(), "{args:?}");
-        assert!(!made_state, "{args:?}: refused before making the state directory");
-    }
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -3,12 +3,12 @@
 //! and the vehicle); a vehicle with a key answers only signed frames, and
 //! signs what it sends, while its neighbour without a key answers anyone.
 
-mod daemon_common;
+mod common;
 
 use std::net::SocketAddr;
 use std::time::Duration;
 
-use daemon_common::{Client, config};
+use common::daemon::{Client, config};
 use mavlink::dialects::common::{MavMessage, PARAM_REQUEST_READ_DATA};
 use mavlink::{MAVLinkV2MessageRaw, MavHeader};
 use rotorpilot::daemon::{self, FleetConfig, LinkSpec};

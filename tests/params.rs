@@ -2,21 +2,16 @@
 //! MAVLink layer uses them: PX4 names and defaults, bytewise INT32, refusals
 //! that change nothing, and the persisted file.
 
+mod common;
+
+use common::scratch_dir;
 use std::fs;
-use std::path::PathBuf;
 
 use rotorpilot::airframe::Airframe;
 use rotorpilot::params::{PARAMS, ParamError, ParamStore, ParamType, ParamValue};
 
 fn quad() -> Airframe {
     Airframe::load("quad").unwrap()
-}
-
-fn scratch(test: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("rotorpilot-params-it-{}-{test}", std::process::id()));
-    let _ = fs::remove_dir_all(&d);
-    fs::create_dir_all(&d).unwrap();
-    d
 }
 
 #[test]
@@ -117,7 +112,7 @@ fn refused_values_leave_the_store_unchanged() {
 
 #[test]
 fn save_load_round_trip_keeps_every_value_and_airframe_defaults() {
-    let dir = scratch("round-trip");
+    let dir = scratch_dir("round-trip");
     let path = dir.join("params.toml");
     let mut s = ParamStore::new(&quad());
     s.set("RTL_RETURN_ALT", ParamValue::Real32(25.5)).unwrap();

@@ -2,7 +2,7 @@
 """Write tests/fixtures/mavlink/command-frames.txt: MAVLink 2 frames of
 COMMAND_LONG, COMMAND_INT and COMMAND_ACK as pymavlink (an encoder that
 shares no code with rotorpilot) packs them, so that the Rust daemon tests'
-codec (tests/daemon_common: the frames the test client sends, the COMMAND_ACK
+codec (tests/common/daemon.rs: the frames the test client sends, the COMMAND_ACK
 it decodes, and rotorpilot's own ACK encoder) is checked against bytes it did
 not make: a layout bug mirrored in encoder and decoder cannot pass.
 

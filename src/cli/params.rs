@@ -1,7 +1,7 @@
 //! `rotorpilot params`: the parameter reference, generated from the one
 //! parameter table ([`crate::params::PARAMS`]) as text (PX4's parameter
 //! reference layout), JSON or Markdown (`docs/parameters.md`, checked by
-//! `tests/params_doc.rs` to be this command's output).
+//! `tests/cli_params.rs` to be this command's output).
 
 use std::fmt::Write as _;
 

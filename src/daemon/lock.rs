@@ -74,15 +74,7 @@ impl StateLock {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::path::PathBuf;
-
-    /// A fresh directory under the system temp dir for one test.
-    fn scratch(test: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("rotorpilot-lock-{}-{test}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        d
-    }
+    use crate::statefile::scratch_dir as scratch;
 
     #[test]
     fn a_second_lock_on_one_dir_is_refused_with_the_holders_pid() {

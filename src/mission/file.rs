@@ -588,13 +588,7 @@ mod tests {
             .join(name)
     }
 
-    /// A fresh scratch directory for one test.
-    pub(super) fn scratch(test: &str) -> std::path::PathBuf {
-        let d = std::env::temp_dir().join(format!("rotorpilot-missionfile-{}-{test}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        d
-    }
+    use crate::statefile::scratch_dir as scratch;
 
     #[test]
     fn files_load_by_extension_or_by_their_first_bytes() {

@@ -319,18 +319,10 @@ mod tests {
         fs::remove_dir_all(&dir).unwrap();
     }
     use super::*;
-    use crate::statefile::{temp_path, write_atomic};
+    use crate::statefile::{scratch_dir as scratch, temp_path, write_atomic};
 
     fn quad() -> Airframe {
         Airframe::load("quad").unwrap()
-    }
-
-    /// A fresh directory under the system temp dir for one test.
-    fn scratch(test: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("rotorpilot-params-{}-{test}", std::process::id()));
-        let _ = fs::remove_dir_all(&d);
-        fs::create_dir_all(&d).unwrap();
-        d
     }
 
     fn changed_store() -> ParamStore {

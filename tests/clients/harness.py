@@ -1,8 +1,9 @@
 """Start and stop a rotorpilot vehicle (the real binary) for the client tests.
 
 Standard library only, so every client venv can import it. Every wait is
-bounded. The binary, free ports and the message wait are the pip package's
-(python/rotorpilot, imported from the checkout): `binary()` is
+bounded. The binary, free ports and the message helpers (`wait_message`,
+`drain`, `command`) are the pip package's (python/rotorpilot, imported from
+the checkout: the client venvs do not install it): `binary()` is
 $ROTORPILOT_BIN, else an installed one, else $CARGO_TARGET_DIR (or
 target)/release/rotorpilot; `free_udp_port()`/`free_tcp_port()` reserve a
 port outside the ephemeral range for this process's life.
@@ -26,7 +27,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[2]
 if str(REPO / "python") not in sys.path:
     sys.path.insert(0, str(REPO / "python"))
-from rotorpilot.messages import wait_message  # noqa: E402,F401
+from rotorpilot.messages import command, drain, wait_message  # noqa: E402,F401
 from rotorpilot.vehicle import binary as _binary  # noqa: E402
 from rotorpilot.vehicle import free_tcp_port, free_udp_port, reserve_port  # noqa: E402,F401
 
@@ -219,31 +220,3 @@ class Fleet(Vehicle):
             self.stop()
             raise RuntimeError("rotorpilot fleet did not start:\n" + "\n".join(self.banner[-5:]) + self.logs())
         return self
-
-
-def drain(m):
-    """Read away the backlog. The GCS link streams ~270 messages/s; a script
-    that sleeps lets the socket buffer fill, and the kernel then drops new
-    datagrams (an ACK among them) until it reads again, as with PX4 SITL."""
-    while m.recv_match(blocking=False) is not None:
-        pass
-
-
-def wait(m, types, cond=lambda msg: True, timeout=5.0):
-    """The first message of `types` that meets `cond` within `timeout` s, or None."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        msg = m.recv_match(type=types, blocking=True, timeout=min(0.5, max(0.01, deadline - time.monotonic())))
-        if msg is not None and cond(msg):
-            return msg
-    return None
-
-
-def command(m, cmd, *params, timeout=3.0):
-    """COMMAND_LONG `cmd` (missing params 0) to the connection's target; its ACK's result."""
-    p = list(params) + [0.0] * (7 - len(params))
-    drain(m)
-    m.mav.command_long_send(m.target_system, m.target_component, cmd, 0, *p)
-    ack = wait(m, "COMMAND_ACK", lambda a: a.command == cmd, timeout)
-    assert ack is not None, f"no COMMAND_ACK for {cmd}"
-    return ack.result

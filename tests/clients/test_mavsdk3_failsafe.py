@@ -18,7 +18,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE / "mavsdk_examples"))
-from harness import Vehicle  # noqa: E402
+from harness import Vehicle, drain, wait_message  # noqa: E402
 from test_mavsdk3 import free_tcp_port  # noqa: E402
 
 import common  # noqa: E402
@@ -93,26 +93,13 @@ def px4_mode(hb):
     return mavutil.interpret_px4_mode(hb.base_mode, hb.custom_mode)
 
 
-def drain(m, seen):
-    """Read what queued up while MAVSDK flew (keeping the status texts)."""
-    while (msg := m.recv_match(blocking=False)) is not None:
-        if msg.get_type() == "STATUSTEXT":
-            seen.append((msg.severity, msg.text))
-
-
 def wait_msg(m, kind, cond, wall_limit, seen=None):
     """The first `kind` message satisfying `cond` within `wall_limit` s; every
     STATUSTEXT read on the way is appended to `seen`."""
-    end = time.monotonic() + wall_limit
-    while time.monotonic() < end:
-        msg = m.recv_match(type=[kind, "STATUSTEXT"], blocking=True, timeout=0.2)
-        if msg is None:
-            continue
-        if msg.get_type() == "STATUSTEXT" and seen is not None:
-            seen.append((msg.severity, msg.text))
-        if msg.get_type() == kind and cond(msg):
-            return msg
-    raise AssertionError(f"no {kind} as wanted within {wall_limit} s")
+    msg = wait_message(m, kind, cond, wall_limit, seen)
+    if msg is None:
+        raise AssertionError(f"no {kind} as wanted within {wall_limit} s")
+    return msg
 
 
 def test_geofence_breach_holds_and_a_goto_outside_is_refused():

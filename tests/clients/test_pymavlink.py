@@ -15,7 +15,8 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from harness import Vehicle  # noqa: E402
+from harness import Vehicle, command, drain  # noqa: E402
+from harness import wait_message as wait  # noqa: E402
 
 from pymavlink import mavutil  # noqa: E402
 
@@ -47,32 +48,6 @@ def connect(v):
     hb = m.wait_heartbeat(timeout=5)
     assert hb is not None, "no heartbeat: the vehicle must speak first"
     return m
-
-
-def drain(m):
-    """Read away the backlog. The GCS link streams ~270 messages/s; a script
-    that sleeps lets the socket buffer fill, and the kernel then drops new
-    datagrams (an ACK among them) until it reads again, as with PX4 SITL."""
-    while m.recv_match(blocking=False) is not None:
-        pass
-
-
-def wait(m, types, cond=lambda msg: True, timeout=5.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        msg = m.recv_match(type=types, blocking=True, timeout=min(0.5, max(0.01, deadline - time.monotonic())))
-        if msg is not None and cond(msg):
-            return msg
-    return None
-
-
-def command(m, cmd, *params, timeout=3.0):
-    p = list(params) + [0.0] * (7 - len(params))
-    drain(m)
-    m.mav.command_long_send(m.target_system, m.target_component, cmd, 0, *p)
-    ack = wait(m, "COMMAND_ACK", lambda a: a.command == cmd, timeout)
-    assert ack is not None, f"no COMMAND_ACK for {cmd}"
-    return ack.result
 
 
 def param_get(m, name, timeout=3.0):

@@ -15,8 +15,9 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from harness import Vehicle  # noqa: E402
-from test_pymavlink import command, connect, drain, param_set, wait  # noqa: E402
+from harness import Vehicle, command, drain  # noqa: E402
+from harness import wait_message as wait  # noqa: E402
+from test_pymavlink import connect, param_set  # noqa: E402
 
 from pymavlink import mavutil  # noqa: E402
 

@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from harness import Vehicle  # noqa: E402
+from harness import Vehicle, drain  # noqa: E402
 
 from pymavlink import mavutil  # noqa: E402
 
@@ -40,11 +40,6 @@ def connect(v):
     m = mavutil.mavlink_connection(f"udpin:127.0.0.1:{v.gcs_port}", source_system=255)
     assert m.wait_heartbeat(timeout=5) is not None, "no heartbeat"
     return m
-
-
-def drain(m):
-    while m.recv_match(blocking=False) is not None:
-        pass
 
 
 class Joystick:

@@ -20,6 +20,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import mission_link as ml  # noqa: E402  (first: it selects MAVLink 2 in pymavlink)
 from harness import Vehicle  # noqa: E402
+from harness import wait_message as wait  # noqa: E402
 from mission_link import Client, Item, LossyRelay, mavlink  # noqa: E402
 
 from pymavlink import mavutil, mavwp  # noqa: E402
@@ -35,15 +36,6 @@ def gcs(v, sysid=255):
     m = mavutil.mavlink_connection(f"udpin:127.0.0.1:{v.gcs_port}", source_system=sysid)
     assert m.wait_heartbeat(timeout=5) is not None, "no heartbeat"
     return m
-
-
-def wait(m, types, cond=lambda msg: True, timeout=5.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        msg = m.recv_match(type=types, blocking=True, timeout=min(0.5, max(0.01, deadline - time.monotonic())))
-        if msg is not None and cond(msg):
-            return msg
-    return None
 
 
 def square(n=4, north=0.0, alt=10.0):

@@ -20,7 +20,8 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from harness import Vehicle, drain, wait, command  # noqa: E402
+from harness import Vehicle, command, drain  # noqa: E402
+from harness import wait_message as wait  # noqa: E402
 
 from pymavlink import mavutil  # noqa: E402
 

@@ -241,9 +241,9 @@ pub fn load_plans(path: &Path) -> Result<Plans, MissionFileError> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::tests::scratch;
     use super::*;
     use crate::mission::{MAX_ITEMS, MissionResult, cmd};
+    use crate::statefile::scratch_dir as scratch;
 
     fn wp(x: f64, y: f64, z: f32) -> MissionItem {
         MissionItem {

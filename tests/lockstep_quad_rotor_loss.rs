@@ -17,25 +17,22 @@
 //!
 //! The plant needs rotational drag for a spin equilibrium to exist: the
 //! x500-class `quad` ships with `gamma` = [`GAMMA`] (see its doc).
-//! Run with `cargo test --release --test quad_rotor_loss -- --nocapture` to see the figures.
+//! Run with `cargo test --release --test lockstep_quad_rotor_loss -- --nocapture` to see the figures.
 
 use std::collections::VecDeque;
 
+mod common;
+
+use common::sitl::{HOME, Sitl};
 use nalgebra::Vector3;
 use rotorpilot::airframe::Airframe;
 use rotorpilot::autopilot::{
     Autopilot, AutopilotCommand, CommandOutcome, ControlOutput, FlightMode, RotorStatus, Severity, StatusText,
 };
 use rotorpilot::control::{RelaxedHover, RelaxedHoverPhase};
-use rotorpilot::geo::GeoPoint;
-use rotorpilot::lockstep::{Lockstep, Pilot};
-use rotorpilot::params::ParamStore;
+use rotorpilot::lockstep::Pilot;
 use rotorpilot::signals::{ActuatorCommand, DEFAULT_STEP_S, GRAVITY, SensorReadings};
-use rotorpilot::sim::{
-    Environment, Fault, RotorHealth, SensorConfig, SensorNoise, SimFault, StepEvent, World, WorldSettings,
-};
-
-const HOME: GeoPoint = GeoPoint::PX4_SITL_HOME;
+use rotorpilot::sim::{Fault, RotorHealth, SensorNoise, SimFault, StepEvent};
 
 /// Rotational drag of the x500-class quad [N m s]: PX4's gz x500 model gives
 /// each rotor the drag force `-c_d |omega_i| v_perp` (`rotorDragCoefficient`
@@ -132,26 +129,20 @@ impl Pilot for LossPilot {
     }
 }
 
-fn command(ls: &mut Lockstep<LossPilot>, cmd: AutopilotCommand) -> CommandOutcome {
-    let readings = *ls.world_mut().sense(0);
-    ls.pilot_mut(0).autopilot.command(cmd, &readings)
+fn command(ls: &mut Sitl<LossPilot>, cmd: AutopilotCommand) -> CommandOutcome {
+    let readings = ls.readings();
+    ls.pilot_mut().autopilot.command(cmd, &readings)
 }
 
 /// The vehicle hovering at `height_m` after the autopilot's takeover and a settle.
-fn hovering_at(af: &Airframe, height_m: f64) -> Lockstep<LossPilot> {
-    let store = ParamStore::new(af);
-    let mut world = World::new(DEFAULT_STEP_S, Environment::default());
-    world.add_vehicle(af, SensorConfig::default());
-    world.configure(0, &WorldSettings::from_store(&store));
-    let autopilot = Autopilot::new(&without_drag(af), HOME, &store, DEFAULT_STEP_S).unwrap();
-    let pilot = LossPilot {
-        autopilot,
+fn hovering_at(af: &Airframe, height_m: f64) -> Sitl<LossPilot> {
+    let mut ls = Sitl::of(af.clone()).build_with(|af, store| LossPilot {
+        autopilot: Autopilot::new(&without_drag(af), HOME, store, DEFAULT_STEP_S).unwrap(),
         airframe: af.clone(),
         takeover: None,
         hover: None,
         output: ControlOutput::default(),
-    };
-    let mut ls = Lockstep::new(world, vec![pilot]);
+    });
     ls.step();
     assert_eq!(
         command(&mut ls, AutopilotCommand::Arm { force: false }),
@@ -170,14 +161,14 @@ fn hovering_at(af: &Airframe, height_m: f64) -> Lockstep<LossPilot> {
     // declaring itself complete: then whatever holds it at the height)
     for _ in 0..120_000 {
         ls.step();
-        if ls.pilot(0).autopilot.mode() == FlightMode::Hold {
+        if ls.pilot().autopilot.mode() == FlightMode::Hold {
             break;
         }
     }
     for _ in 0..3000 {
         ls.step();
     }
-    let p = ls.world().plant(0).state().position_ned;
+    let p = ls.core().world().plant(0).state().position_ned;
     assert!((-p.z - height_m).abs() < 0.3, "hovering at {height_m} m: {p}");
     ls
 }
@@ -214,29 +205,24 @@ fn fly(af: &Airframe, height_m: f64, dead: usize, delay_s: Option<f64>) -> Outco
 fn fly_with(af: &Airframe, height_m: f64, dead: usize, delay_s: Option<f64>, noise: Option<SensorNoise>) -> Outcome {
     let mut ls = hovering_at(af, height_m);
     let t_fail = ls.time_s();
-    let p_fail = ls.world().plant(0).state().position_ned;
+    let p_fail = ls.core().world().plant(0).state().position_ned;
     let target = Vector3::new(p_fail.x, p_fail.y, 0.0);
-    ls.world_mut()
-        .inject(
-            0,
-            Fault::Rotor {
-                rotor: dead,
-                health: RotorHealth::Off,
-            },
-        )
-        .unwrap();
+    ls.inject(Fault::Rotor {
+        rotor: dead,
+        health: RotorHealth::Off,
+    });
     if noise.is_some() {
-        ls.world_mut().inject(0, Fault::SensorNoise(noise)).unwrap();
+        ls.inject(Fault::SensorNoise(noise));
     }
     if let Some(d) = delay_s {
-        ls.pilot_mut(0).takeover = Some((t_fail + d, dead, target));
+        ls.pilot_mut().takeover = Some((t_fail + d, dead, target));
     }
     let (mut max_tilt, mut max_exc, mut min_h) = (0.0_f64, 0.0_f64, f64::INFINITY);
     let trace = std::env::var_os("QUAD_TRACE").is_some();
     let mut spins: VecDeque<f64> = VecDeque::with_capacity(2001);
     for _ in 0..300_000 {
         ls.step();
-        let report = *ls.world().last_report(0);
+        let report = *ls.core().world().last_report(0);
         let s = report.truth;
         let tilt = (s.attitude * Vector3::z()).z.clamp(-1.0, 1.0).acos().to_degrees();
         max_tilt = max_tilt.max(tilt);
@@ -245,8 +231,8 @@ fn fly_with(af: &Airframe, height_m: f64, dead: usize, delay_s: Option<f64>, noi
         if report.truth.position_ned.z.is_finite() && ls.time_s() - t_fail < 3.0 {
             min_h = min_h.min(-s.position_ned.z);
         }
-        if trace && ls.world().plant(0).time_s().rem_euclid(0.05) < 0.5e-3 {
-            let speeds = ls.world().plant(0).rotor_speeds();
+        if trace && ls.core().world().plant(0).time_s().rem_euclid(0.05) < 0.5e-3 {
+            let speeds = ls.core().world().plant(0).rotor_speeds();
             eprintln!(
                 "t {:6.3} h {:6.2} v {:6.2} x {:6.2} y {:6.2} tilt {:5.1} w [{:6.2} {:6.2} {:6.2}] rotors [{:4.0} {:4.0} {:4.0} {:4.0}]",
                 ls.time_s() - t_fail,
@@ -269,11 +255,11 @@ fn fly_with(af: &Airframe, height_m: f64, dead: usize, delay_s: Option<f64>, noi
             spins.pop_front();
         }
         if let StepEvent::Touchdown { speed_m_s } = report.event {
-            let after = ls.world().plant(0).state().position_ned;
+            let after = ls.core().world().plant(0).state().position_ned;
             for _ in 0..500 {
                 ls.step();
             }
-            let rotors_cut = matches!(ls.pilot(0).output().actuator, ActuatorCommand::Stop);
+            let rotors_cut = matches!(ls.pilot().output().actuator, ActuatorCommand::Stop);
             return Outcome {
                 distance_m: Vector3::new(after.x - p_fail.x, after.y - p_fail.y, 0.0).norm(),
                 touchdown_speed_m_s: speed_m_s,
@@ -476,46 +462,33 @@ struct EndToEnd {
 
 /// The real `Lockstep<Autopilot>` on `af`, hovering at `height_m`, loses rotor `dead`.
 fn autopilot_loss(af: &Airframe, height_m: f64, dead: usize) -> EndToEnd {
-    let store = ParamStore::new(af);
-    let mut ls = Lockstep::one_vehicle(af, HOME, &store, SensorConfig::default()).unwrap();
+    let mut ls = Sitl::of(af.clone()).build();
     ls.step();
-    assert_eq!(
-        ls.command(0, AutopilotCommand::Arm { force: false }),
-        CommandOutcome::Accepted
-    );
-    let takeoff = AutopilotCommand::Takeoff {
-        altitude_amsl_m: Some(HOME.alt_amsl_m + height_m),
-    };
-    assert_eq!(ls.command(0, takeoff), CommandOutcome::Accepted);
+    ls.arm_and_take_off(Some(height_m));
     for _ in 0..120_000 {
         ls.step();
-        if ls.pilot(0).mode() == FlightMode::Hold {
+        if ls.pilot().mode() == FlightMode::Hold {
             break;
         }
     }
     for _ in 0..3000 {
         ls.step();
     }
-    let p_fail = ls.world().plant(0).state().position_ned;
+    let p_fail = ls.core().world().plant(0).state().position_ned;
     assert!((-p_fail.z - height_m).abs() < 0.3, "hovering at {height_m} m: {p_fail}");
-    ls.drain_status_texts(0);
+    ls.texts();
     let t_fail = ls.time_s();
-    ls.world_mut()
-        .inject(
-            0,
-            Fault::Rotor {
-                rotor: dead,
-                health: RotorHealth::Off,
-            },
-        )
-        .unwrap();
+    ls.inject(Fault::Rotor {
+        rotor: dead,
+        health: RotorHealth::Off,
+    });
     let mut texts = Vec::new();
     let (mut detect_s, mut max_tilt, mut land_mode) = (None, 0.0_f64, true);
     let mut spins: VecDeque<f64> = VecDeque::with_capacity(2001);
     for _ in 0..300_000 {
         ls.step();
-        texts.extend(ls.drain_status_texts(0));
-        let report = *ls.world().last_report(0);
+        texts.extend(ls.texts());
+        let report = *ls.core().world().last_report(0);
         let s = report.truth;
         let tilt = (s.attitude * Vector3::z()).z.clamp(-1.0, 1.0).acos().to_degrees();
         max_tilt = max_tilt.max(tilt);
@@ -523,24 +496,24 @@ fn autopilot_loss(af: &Airframe, height_m: f64, dead: usize) -> EndToEnd {
         if spins.len() > 2000 {
             spins.pop_front();
         }
-        if detect_s.is_none() && ls.pilot(0).rotor_status()[dead] == RotorStatus::Failed {
+        if detect_s.is_none() && ls.pilot().rotor_status()[dead] == RotorStatus::Failed {
             detect_s = Some(ls.time_s() - t_fail);
         }
         if detect_s.is_some() {
-            land_mode &= ls.pilot(0).mode() == FlightMode::Land;
+            land_mode &= ls.pilot().mode() == FlightMode::Land;
         }
         if let StepEvent::Touchdown { speed_m_s } = report.event {
             let t_down = ls.time_s();
-            let after = ls.world().plant(0).state().position_ned;
+            let after = ls.core().world().plant(0).state().position_ned;
             let mut rotors_stopped = true;
             let mut disarm_after_s = None;
             for k in 0..10_000 {
                 ls.step();
-                texts.extend(ls.drain_status_texts(0));
-                if k >= 100 && ls.pilot(0).armed() {
-                    rotors_stopped &= matches!(ls.pilot(0).output().actuator, ActuatorCommand::Stop);
+                texts.extend(ls.texts());
+                if k >= 100 && ls.pilot().armed() {
+                    rotors_stopped &= matches!(ls.pilot().output().actuator, ActuatorCommand::Stop);
                 }
-                if !ls.pilot(0).armed() {
+                if !ls.pilot().armed() {
                     disarm_after_s = Some(ls.time_s() - t_down);
                     break;
                 }
@@ -666,35 +639,22 @@ fn autopilot_on_the_shipped_quad_comes_down_upright_and_braked() {
 #[test]
 fn autopilot_without_rotational_drag_says_it_keeps_the_best_effort() {
     let af = without_drag(&quad());
-    let store = ParamStore::new(&af);
-    let mut ls = Lockstep::one_vehicle(&af, HOME, &store, SensorConfig::default()).unwrap();
+    let mut ls = Sitl::of(af).build();
     ls.step();
-    assert_eq!(
-        ls.command(0, AutopilotCommand::Arm { force: false }),
-        CommandOutcome::Accepted
-    );
-    let takeoff = AutopilotCommand::Takeoff {
-        altitude_amsl_m: Some(HOME.alt_amsl_m + HEIGHT_M),
-    };
-    assert_eq!(ls.command(0, takeoff), CommandOutcome::Accepted);
+    ls.arm_and_take_off(Some(HEIGHT_M));
     for _ in 0..20_000 {
         ls.step();
     }
-    ls.world_mut()
-        .inject(
-            0,
-            Fault::Rotor {
-                rotor: 1,
-                health: RotorHealth::Off,
-            },
-        )
-        .unwrap();
+    ls.inject(Fault::Rotor {
+        rotor: 1,
+        health: RotorHealth::Off,
+    });
     let mut texts = Vec::new();
     for _ in 0..200 {
         ls.step();
-        texts.extend(ls.drain_status_texts(0));
+        texts.extend(ls.texts());
     }
-    assert_eq!(ls.pilot(0).mode(), FlightMode::Land);
+    assert_eq!(ls.pilot().mode(), FlightMode::Land);
     assert!(
         texts
             .iter()

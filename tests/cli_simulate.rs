@@ -1,22 +1,17 @@
 //! `rotorpilot simulate`: the shipped scenarios fly, the summary and CSV have
 //! the documented shape, and broken scenario files are refused by name.
 
-use std::process::Command;
+mod common;
 
-fn rotorpilot(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
-        .args(args)
-        .output()
-        .unwrap()
-}
+use common::bin::{Ran, run as rotorpilot};
 
 fn scenario(name: &str) -> String {
     format!("{}/tools/scenarios/{name}", env!("CARGO_MANIFEST_DIR"))
 }
 
-fn json_of(out: &std::process::Output) -> serde_json::Value {
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    serde_json::from_slice(&out.stdout).unwrap()
+fn json_of(out: &Ran) -> serde_json::Value {
+    assert!(out.ok(), "{}", out.stderr);
+    serde_json::from_str(&out.stdout).unwrap()
 }
 
 /// The report's exercise 4 flown end to end from the CLI: the geometric steady
@@ -144,8 +139,7 @@ fn shipped_scenarios_give_the_readme_figures() {
 /// the CSV's true position against the reference at every step.
 #[test]
 fn fsr_exercise5_tracks_the_circle_below_a_third_of_a_micrometre() {
-    let dir = std::env::temp_dir().join(format!("rotorpilot-ex5-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::scratch_dir("ex5");
     let csv = dir.join("flight.csv");
     let v = json_of(&rotorpilot(&[
         "simulate",
@@ -184,8 +178,7 @@ fn fsr_exercise5_tracks_the_circle_below_a_third_of_a_micrometre() {
 /// The CSV has a header naming the report's inputs and one exact row per step.
 #[test]
 fn csv_log_has_the_documented_columns() {
-    let dir = std::env::temp_dir().join(format!("rotorpilot-csv-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::scratch_dir("csv");
     let csv = dir.join("flight.csv");
     let out = rotorpilot(&[
         "simulate",
@@ -193,7 +186,7 @@ fn csv_log_has_the_documented_columns() {
         "--csv",
         csv.to_str().unwrap(),
     ]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(out.ok(), "{}", out.stderr);
     let text = std::fs::read_to_string(&csv).unwrap();
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
@@ -245,8 +238,8 @@ fn broken_scenarios_are_refused_by_name() {
         ("typo-key.toml", "postion_ned", "unknown field"),
     ] {
         let out = rotorpilot(&["simulate", &format!("{dir}/{file}")]);
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success(), "{file} was accepted");
+        let err = &out.stderr;
+        assert!(!out.ok(), "{file} was accepted");
         assert!(!err.contains("panicked"), "{file}: {err}");
         for needle in [file, field, problem] {
             assert!(err.contains(needle), "{file}: `{needle}` not in: {err}");

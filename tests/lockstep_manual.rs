@@ -5,23 +5,23 @@
 //! GPS fix: Descend near where it was lost without using the horizontal
 //! position, Hold when the fix returns, Position falling back to Altitude.
 //! One vehicle in the lockstep core, simulated time only:
-//! `cargo test --release --test manual`.
+//! `cargo test --release --test lockstep_manual`.
 
+mod common;
+
+use common::sitl::{HOME, Sitl};
 use nalgebra::Vector3;
-use rotorpilot::airframe::Airframe;
 use rotorpilot::autopilot::{
     Autopilot, AutopilotCommand, CommandOutcome, ControlOutput, FlightMode, ManualControl, Severity, StatusText,
     Telemetry,
 };
-use rotorpilot::geo::GeoPoint;
-use rotorpilot::lockstep::{Lockstep, Pilot};
+use rotorpilot::lockstep::Pilot;
 use rotorpilot::math::euler_zyx;
 use rotorpilot::mission::{MissionItem, MissionType, PlanChange, cmd, frame};
-use rotorpilot::params::{ParamStore, ParamValue};
+use rotorpilot::params::ParamValue;
 use rotorpilot::signals::{DEFAULT_STEP_S, GpsFix, SensorReadings};
-use rotorpilot::sim::{Environment, Fault, SensorConfig, SimFault, World, WorldSettings};
+use rotorpilot::sim::SimFault;
 
-const HOME: GeoPoint = GeoPoint::PX4_SITL_HOME;
 /// Sticks are sent at this period [s] (QGroundControl's joystick: 20-50 Hz).
 const STICK_PERIOD_S: f64 = 0.05;
 
@@ -54,7 +54,7 @@ impl Pilot for Misled {
 /// One vehicle, its world and the latest sticks (sent every [`STICK_PERIOD_S`]
 /// while `sending`).
 struct Vehicle {
-    core: Lockstep<Misled>,
+    core: Sitl<Misled>,
     sticks: ManualControl,
     sending: bool,
     last_sent_s: f64,
@@ -63,24 +63,11 @@ struct Vehicle {
 
 impl Vehicle {
     fn new(params: &[(&str, ParamValue)]) -> Self {
-        let af = Airframe::load("quad").unwrap();
-        let mut store = ParamStore::new(&af);
-        for (name, value) in params {
-            store.set(name, *value).unwrap();
-        }
-        // as `Lockstep::one_vehicle`, flown by the misled pilot
-        let mut world = World::new(DEFAULT_STEP_S, Environment::default());
-        world.add_vehicle(&af, SensorConfig::default());
-        world.configure(0, &WorldSettings::from_store(&store));
-        let ap = Autopilot::new(&af, HOME, &store, DEFAULT_STEP_S).unwrap();
-        let core = Lockstep::new(
-            world,
-            vec![Misled {
-                ap,
-                offset: Vector3::zeros(),
-                drift: Vector3::zeros(),
-            }],
-        );
+        let core = Sitl::quad().params(params).build_with(|af, store| Misled {
+            ap: Autopilot::new(af, HOME, store, DEFAULT_STEP_S).unwrap(),
+            offset: Vector3::zeros(),
+            drift: Vector3::zeros(),
+        });
         let mut v = Self {
             core,
             sticks: ManualControl::CENTRED,
@@ -93,12 +80,12 @@ impl Vehicle {
     }
 
     fn readings(&mut self) -> SensorReadings {
-        *self.core.world_mut().sense(0)
+        self.core.readings()
     }
 
     fn command(&mut self, cmd: AutopilotCommand) -> CommandOutcome {
         let r = self.readings();
-        self.core.pilot_mut(0).ap.command(cmd, &r)
+        self.core.pilot_mut().ap.command(cmd, &r)
     }
 
     fn send_sticks(&mut self, sticks: ManualControl) -> CommandOutcome {
@@ -114,19 +101,19 @@ impl Vehicle {
             assert_eq!(self.send_sticks(s), CommandOutcome::Accepted);
         }
         self.core.step();
-        let texts = self.core.pilot_mut(0).ap.drain_status_texts();
+        let texts = self.core.pilot_mut().ap.drain_status_texts();
         self.texts.extend(texts);
     }
 
     fn run(&mut self, seconds: f64) {
-        for _ in 0..(seconds / self.core.dt_s()).round() as usize {
+        for _ in 0..self.core.steps(seconds) {
             self.step();
         }
     }
 
     /// Run until `done` holds or `max_s` passes; whether it held.
     fn run_until(&mut self, max_s: f64, mut done: impl FnMut(&Telemetry) -> bool) -> bool {
-        for _ in 0..(max_s / self.core.dt_s()).round() as usize {
+        for _ in 0..self.core.steps(max_s) {
             self.step();
             if done(&self.telemetry()) {
                 return true;
@@ -137,21 +124,21 @@ impl Vehicle {
 
     fn telemetry(&mut self) -> Telemetry {
         let r = self.readings();
-        self.core.pilot(0).ap.telemetry(&r)
+        self.core.pilot().ap.telemetry(&r)
     }
 
     /// The world's (true) measurement, never the misled one.
     /// The plant's true state (not the navigation solution, which drifts while the fix is lost).
     fn truth(&self) -> rotorpilot::sim::RigidBodyState {
-        *self.core.world().plant(0).state()
+        *self.core.core().world().plant(0).state()
     }
 
     fn mode(&self) -> FlightMode {
-        self.core.pilot(0).ap.mode()
+        self.core.pilot().ap.mode()
     }
 
     fn armed(&self) -> bool {
-        self.core.pilot(0).ap.armed()
+        self.core.pilot().ap.armed()
     }
 
     fn said(&self, severity: Severity, text: &str) -> bool {
@@ -159,7 +146,7 @@ impl Vehicle {
     }
 
     fn gps(&mut self, available: bool) {
-        self.core.world_mut().inject(0, Fault::Gps { available }).unwrap();
+        self.core.gps(available);
     }
 
     /// Take off in `mode` with full-ish throttle to about `height` m, then centre.
@@ -457,7 +444,7 @@ fn losing_the_sticks_in_a_manual_mode_returns_and_not_in_hold_or_mission() {
         at(cmd::NAV_WAYPOINT, target.lat_deg, target.lon_deg),
     ];
     v.core
-        .pilot_mut(0)
+        .pilot_mut()
         .ap
         .change_plans(PlanChange::Store {
             kind: MissionType::Mission,
@@ -484,7 +471,7 @@ fn gps_loss_descends_where_it_was_lost_without_the_horizontal_position() {
     let lost_at = v.truth().position_ned;
     // while the fix is lost, the navigation solution says 40 m off and drifting 1 m/s
     {
-        let p = v.core.pilot_mut(0);
+        let p = v.core.pilot_mut();
         p.offset = Vector3::new(40.0, -25.0, 0.0);
         p.drift = Vector3::new(1.0, 0.5, 0.0);
     }
@@ -575,14 +562,14 @@ fn position_falls_back_to_altitude_without_gps_and_back() {
 fn above_real_time_the_runtime_times_the_stick_loss_on_the_wall_clock() {
     use rotorpilot::autopilot::{ClientClock, ClientTimer};
     let mut v = Vehicle::new(&[]);
-    v.core.pilot_mut(0).ap.set_client_clock(ClientClock::Wall);
+    v.core.pilot_mut().ap.set_client_clock(ClientClock::Wall);
     v.climb_in(FlightMode::Altitude, 0.6, 3.0);
     v.sending = false;
     let last = v.last_sent_s;
     // simulated time alone never declares it lost
     v.run(2.0);
     assert_eq!(v.mode(), FlightMode::Altitude);
-    let timers = v.core.pilot(0).ap.client_timers();
+    let timers = v.core.pilot().ap.client_timers();
     let t = timers
         .iter()
         .find(|p| p.timer == ClientTimer::ManualControlLoss)
@@ -590,7 +577,7 @@ fn above_real_time_the_runtime_times_the_stick_loss_on_the_wall_clock() {
     assert_eq!((t.started_s, t.duration_s), (last, 0.5));
     // a stale expiry (a timer since restarted) is ignored; the running one acts
     let r = v.readings();
-    let ap = &mut v.core.pilot_mut(0).ap;
+    let ap = &mut v.core.pilot_mut().ap;
     assert!(!ap.client_timeout(ClientTimer::ManualControlLoss, last - 0.05, &r));
     assert!(ap.client_timeout(ClientTimer::ManualControlLoss, last, &r));
     assert_eq!(ap.mode(), FlightMode::ReturnToLaunch);

@@ -4,7 +4,7 @@
 the start-up banner; arming a vehicle whose rotors cannot lift its true mass
 is DENIED with a Preflight Fail STATUSTEXT. Every wait is bounded.
 
-Run with the pymavlink venv: `python -m pytest tests/clients/test_pymavlink_first_hour.py`.
+Run with the pymavlink venv: `python -m pytest tests/clients/test_pymavlink_startup.py`.
 """
 
 import sys
@@ -12,7 +12,8 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from harness import Vehicle, drain, wait, command  # noqa: E402
+from harness import Vehicle, command, drain  # noqa: E402
+from harness import wait_message as wait  # noqa: E402
 
 from pymavlink import mavutil  # noqa: E402
 

@@ -7,13 +7,13 @@
 //! clear errors, never a panic.
 #![allow(deprecated)]
 
-mod daemon_common;
+mod common;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::time::Duration;
 
-use daemon_common::{Client, Vehicle, config, state_dir, wait_armable};
+use common::daemon::{Client, Vehicle, config, wait_armable};
+use common::scratch_path;
 use mavlink::dialects::common::*;
 use rotorpilot::logs::record::read_record;
 use rotorpilot::logs::replay::replay;
@@ -49,7 +49,7 @@ fn replay_csv(record: &Path) -> (Vec<u8>, rotorpilot::logs::replay::ReplaySummar
 /// parameter (one refused), arm, take off, a reposition, hover; then stop
 /// cleanly. The run directory.
 async fn fly(speed: f64) -> PathBuf {
-    let logs = state_dir("replay-logs");
+    let logs = scratch_path("replay-logs");
     let mut c = Client::new().await;
     let mut cfg = config(Some(c.addr()), None, speed);
     cfg.log_dir = Some(logs.clone());
@@ -155,7 +155,7 @@ async fn a_flight_with_a_reboot_replays_byte_for_byte() {
         live_meta.producer
     );
     let out_csv = run.join("replayed.csv");
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+    let o = common::bin::rotorpilot()
         .args(["replay", record.to_str().unwrap(), "--csv", out_csv.to_str().unwrap()])
         .output()
         .unwrap();
@@ -248,7 +248,7 @@ async fn a_record_without_its_end_replays_to_its_last_input() {
     assert!(live.starts_with(&csv) && live.len() > csv.len());
     // the CLI says so on stderr
     std::fs::write(run.join("cut.record"), &cut).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+    let out = common::bin::rotorpilot()
         .arg("replay")
         .arg(run.join("cut.record"))
         .output()
@@ -260,17 +260,13 @@ async fn a_record_without_its_end_replays_to_its_last_input() {
 
 /// `rotorpilot replay FILE`'s exit status and stderr.
 fn cli_replay(file: &Path) -> (bool, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
-        .arg("replay")
-        .arg(file)
-        .output()
-        .unwrap();
+    let out = common::bin::rotorpilot().arg("replay").arg(file).output().unwrap();
     (out.status.success(), String::from_utf8_lossy(&out.stderr).into_owned())
 }
 
 #[test]
 fn bad_records_get_clear_errors() {
-    let dir = state_dir("bad-records");
+    let dir = scratch_path("bad-records");
     std::fs::create_dir_all(&dir).unwrap();
     let a = rotorpilot::airframe::Airframe::load("quad").unwrap();
     let header = rotorpilot::logs::record::Header::new(
@@ -345,7 +341,7 @@ fn bad_records_get_clear_errors() {
         )) && err.contains("--any-version"),
         "{err}"
     );
-    let out = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+    let out = common::bin::rotorpilot()
         .args(["replay", "--any-version"])
         .arg(&p)
         .output()
@@ -363,7 +359,7 @@ fn bad_records_get_clear_errors() {
 
 #[tokio::test]
 async fn an_unusable_log_dir_is_refused_at_start_with_its_path() {
-    let dir = state_dir("not-a-dir");
+    let dir = scratch_path("not-a-dir");
     std::fs::create_dir_all(&dir).unwrap();
     // a file where the log directory should be (root ignores permissions)
     let file = dir.join("plain-file");

@@ -5,15 +5,15 @@
 //! are UNSUPPORTED, instances that do not exist DENIED, and both change
 //! nothing; SYS_FAILURE_EN = 0 denies everything.
 
-use rotorpilot::airframe::Airframe;
-use rotorpilot::autopilot::{Autopilot, AutopilotCommand, CommandOutcome, FlightMode, Severity, StatusText};
-use rotorpilot::geo::GeoPoint;
-use rotorpilot::lockstep::Lockstep;
+mod common;
+
+use common::sitl::{Sitl, int};
+use rotorpilot::autopilot::{AutopilotCommand, CommandOutcome, FlightMode, Severity, StatusText};
 use rotorpilot::lockstep::failure::FailureInjection;
-use rotorpilot::params::{ParamStore, ParamValue};
+use rotorpilot::params::ParamValue;
 use rotorpilot::scenario::{MissionFlight, Scenario, ScenarioError, run, run_mission};
 use rotorpilot::signals::GpsFix;
-use rotorpilot::sim::{ActiveFaults, DEAD_RECKONING_BIAS_M_S2, RotorHealth, SensorConfig};
+use rotorpilot::sim::{ActiveFaults, DEAD_RECKONING_BIAS_M_S2, RotorHealth};
 use rotorpilot::tomlfile::FileError;
 
 const GPS: u8 = 4;
@@ -24,50 +24,30 @@ const OK: u8 = 0;
 const OFF: u8 = 1;
 const WRONG: u8 = 4;
 
-type Core = Lockstep<Autopilot>;
-
-fn vehicle(airframe: &str, params: &[(&str, ParamValue)]) -> (Core, ParamStore) {
-    let af = Airframe::load(airframe).unwrap();
-    let mut store = ParamStore::new(&af);
-    store.set("SYS_FAILURE_EN", ParamValue::Int32(1)).unwrap();
-    for (name, value) in params {
-        store.set(name, *value).unwrap();
-    }
-    let mut core = Lockstep::one_vehicle(&af, GeoPoint::PX4_SITL_HOME, &store, SensorConfig::default()).unwrap();
-    core.step();
-    (core, store)
+/// `airframe` with failure injection allowed (SYS_FAILURE_EN = 1) and
+/// `params`, one step after the start.
+fn vehicle(airframe: &str, params: &[(&str, ParamValue)]) -> Sitl {
+    let mut v = Sitl::airframe(airframe)
+        .params(&[("SYS_FAILURE_EN", int(1))])
+        .params(params)
+        .build();
+    v.step();
+    v
 }
 
-fn inject(core: &mut Core, unit: u8, kind: u8, instance: u8) -> CommandOutcome {
-    core.command(0, AutopilotCommand::InjectFailure { unit, kind, instance })
+fn inject(v: &mut Sitl, unit: u8, kind: u8, instance: u8) -> CommandOutcome {
+    v.command(AutopilotCommand::InjectFailure { unit, kind, instance })
 }
 
-fn run_s(core: &mut Core, seconds: f64) {
-    for _ in 0..(seconds / core.dt_s()).round() as usize {
-        core.step();
-    }
-}
-
-fn texts(core: &mut Core) -> Vec<StatusText> {
-    core.drain_status_texts(0)
-}
-
-fn faults(core: &Core) -> ActiveFaults {
-    core.world().faults(0).clone()
+fn faults(v: &Sitl) -> ActiveFaults {
+    v.core().world().faults(0).clone()
 }
 
 /// Arm and take off to MIS_TAKEOFF_ALT, then hover a moment.
-fn airborne(core: &mut Core) {
-    assert_eq!(
-        core.command(0, AutopilotCommand::Arm { force: false }),
-        CommandOutcome::Accepted
-    );
-    assert_eq!(
-        core.command(0, AutopilotCommand::Takeoff { altitude_amsl_m: None }),
-        CommandOutcome::Accepted
-    );
-    run_s(core, 8.0);
-    assert_eq!(core.pilot(0).mode(), FlightMode::Hold);
+fn airborne(v: &mut Sitl) {
+    v.arm_and_take_off(None);
+    v.run(8.0);
+    assert_eq!(v.mode(), FlightMode::Hold);
 }
 
 /// GIVEN SYS_FAILURE_EN = 0 (PX4's default)
@@ -75,20 +55,18 @@ fn airborne(core: &mut Core) {
 /// THEN it is DENIED with a STATUSTEXT saying why, and the world is unchanged.
 #[test]
 fn failure_injection_is_denied_while_sys_failure_en_is_0() {
-    let (mut core, mut store) = vehicle("quad", &[]);
-    core.set_param(0, &mut store, "SYS_FAILURE_EN", ParamValue::Int32(0))
-        .unwrap();
-    let before = faults(&core);
-    assert!(matches!(inject(&mut core, GPS, OFF, 0), CommandOutcome::Denied(_)));
-    assert_eq!(faults(&core), before);
-    let t = texts(&mut core);
+    let mut v = vehicle("quad", &[]);
+    v.set_param("SYS_FAILURE_EN", ParamValue::Int32(0));
+    let before = faults(&v);
+    assert!(matches!(inject(&mut v, GPS, OFF, 0), CommandOutcome::Denied(_)));
+    assert_eq!(faults(&v), before);
+    let t = v.texts();
     assert!(t.iter().any(|s| s.text.contains("SYS_FAILURE_EN")), "{t:?}");
     assert!(!t.iter().any(|s| s.text.starts_with("CMD_INJECT_FAILURE")), "{t:?}");
     // allowed again: accepted
-    core.set_param(0, &mut store, "SYS_FAILURE_EN", ParamValue::Int32(1))
-        .unwrap();
-    assert_eq!(inject(&mut core, GPS, OFF, 0), CommandOutcome::Accepted);
-    assert!(!faults(&core).gps_available);
+    v.set_param("SYS_FAILURE_EN", ParamValue::Int32(1));
+    assert_eq!(inject(&mut v, GPS, OFF, 0), CommandOutcome::Accepted);
+    assert!(!faults(&v).gps_available);
 }
 
 /// GIVEN a hovering quad
@@ -97,39 +75,38 @@ fn failure_injection_is_denied_while_sys_failure_en_is_0() {
 /// is half the speed), then the commanded speed again; each announced.
 #[test]
 fn motor_off_wrong_and_ok_reach_the_rotor() {
-    let (mut core, mut store) = vehicle("quad", &[]);
-    airborne(&mut core);
-    texts(&mut core);
-    assert_eq!(inject(&mut core, MOTOR, OFF, 2), CommandOutcome::Accepted);
-    assert_eq!(faults(&core).rotors[1], RotorHealth::Off);
+    let mut v = vehicle("quad", &[]);
+    airborne(&mut v);
+    v.texts();
+    assert_eq!(inject(&mut v, MOTOR, OFF, 2), CommandOutcome::Accepted);
+    assert_eq!(faults(&v).rotors[1], RotorHealth::Off);
     assert_eq!(
-        texts(&mut core),
+        v.texts(),
         vec![StatusText {
             severity: Severity::Warning,
             text: "CMD_INJECT_FAILURE, motor 2 off".into()
         }]
     );
-    run_s(&mut core, 0.3);
-    let esc = core.world_mut().sense(0).rotor_speeds_rad_s;
+    v.run(0.3);
+    let esc = v.readings().rotor_speeds_rad_s;
     assert!(esc[1] < 1.0, "dead rotor spins at {}", esc[1]);
     assert!(esc[0] > 100.0 && esc[2] > 100.0 && esc[3] > 100.0, "{esc:?}");
 
-    core.set_param(0, &mut store, "SIM_MOT_WRONG_FR", ParamValue::Real32(0.25))
-        .unwrap();
-    assert_eq!(inject(&mut core, MOTOR, WRONG, 2), CommandOutcome::Accepted);
-    assert_eq!(faults(&core).rotors[1], RotorHealth::Degraded { thrust_fraction: 0.25 });
+    v.set_param("SIM_MOT_WRONG_FR", ParamValue::Real32(0.25));
+    assert_eq!(inject(&mut v, MOTOR, WRONG, 2), CommandOutcome::Accepted);
+    assert_eq!(faults(&v).rotors[1], RotorHealth::Degraded { thrust_fraction: 0.25 });
     // the flight stack has said its own piece meanwhile (the rotor monitor's verdict)
-    let said = texts(&mut core);
+    let said = v.texts();
     assert!(
         said.iter()
             .any(|s| s.text == "CMD_INJECT_FAILURE, motor 2 wrong (25% thrust)"),
         "{said:?}"
     );
 
-    assert_eq!(inject(&mut core, MOTOR, OK, 2), CommandOutcome::Accepted);
-    assert!(!faults(&core).any());
+    assert_eq!(inject(&mut v, MOTOR, OK, 2), CommandOutcome::Accepted);
+    assert!(!faults(&v).any());
     assert_eq!(
-        texts(&mut core),
+        v.texts(),
         vec![StatusText {
             severity: Severity::Info,
             text: "CMD_INJECT_FAILURE, motor 2 ok".into()
@@ -142,14 +119,14 @@ fn motor_off_wrong_and_ok_reach_the_rotor() {
 /// THEN every rotor is off, then every rotor is healthy.
 #[test]
 fn instance_0_is_every_motor() {
-    let (mut core, _) = vehicle("octo", &[]);
-    assert_eq!(inject(&mut core, MOTOR, OFF, 0), CommandOutcome::Accepted);
-    let f = faults(&core);
+    let mut v = vehicle("octo", &[]);
+    assert_eq!(inject(&mut v, MOTOR, OFF, 0), CommandOutcome::Accepted);
+    let f = faults(&v);
     assert_eq!(f.rotors.len(), 8);
     assert!(f.rotors.iter().all(|r| *r == RotorHealth::Off));
-    assert_eq!(texts(&mut core)[0].text, "CMD_INJECT_FAILURE, motors off");
-    assert_eq!(inject(&mut core, MOTOR, OK, 0), CommandOutcome::Accepted);
-    assert!(!faults(&core).any());
+    assert_eq!(v.texts()[0].text, "CMD_INJECT_FAILURE, motors off");
+    assert_eq!(inject(&mut v, MOTOR, OK, 0), CommandOutcome::Accepted);
+    assert!(!faults(&v).any());
 }
 
 /// GIVEN a quad at rest (its true state still)
@@ -160,14 +137,14 @@ fn instance_0_is_every_motor() {
 /// the truth at once. GPS WRONG puts it SIM_GPS_WRONG_M north.
 #[test]
 fn gps_off_drifts_wrong_offsets_and_ok_restores() {
-    let (mut core, mut store) = vehicle("quad", &[]);
-    assert_eq!(inject(&mut core, GPS, OFF, 1), CommandOutcome::Accepted);
-    assert_eq!(texts(&mut core)[0].text, "CMD_INJECT_FAILURE, GPS off");
-    run_s(&mut core, 10.0);
-    let truth = *core.world().plant(0).state();
-    let r = *core.world_mut().sense(0);
+    let mut v = vehicle("quad", &[]);
+    assert_eq!(inject(&mut v, GPS, OFF, 1), CommandOutcome::Accepted);
+    assert_eq!(v.texts()[0].text, "CMD_INJECT_FAILURE, GPS off");
+    v.run(10.0);
+    let truth = *v.core().world().plant(0).state();
+    let r = v.readings();
     assert_eq!((r.gps.fix, r.gps.satellites), (GpsFix::None, 0));
-    let t = core.telemetry(0);
+    let t = v.telemetry();
     assert_eq!((t.gps_fix, t.gps_satellites), (GpsFix::None, 0));
     let dp = r.measurement.position_ned - truth.position_ned;
     let dv = r.measurement.velocity_ned - truth.velocity_ned;
@@ -177,23 +154,25 @@ fn gps_off_drifts_wrong_offsets_and_ok_restores() {
     assert_eq!((dp.z, dv.z), (0.0, 0.0), "the drift is horizontal");
     assert!((dp.normalize() - dv.normalize()).norm() < 1e-9, "one direction");
 
-    assert_eq!(inject(&mut core, GPS, OK, 0), CommandOutcome::Accepted);
-    assert_eq!(texts(&mut core)[0].text, "CMD_INJECT_FAILURE, GPS ok");
-    let r = *core.world_mut().sense(0);
+    assert_eq!(inject(&mut v, GPS, OK, 0), CommandOutcome::Accepted);
+    assert_eq!(v.texts()[0].text, "CMD_INJECT_FAILURE, GPS ok");
+    let r = v.readings();
     assert_eq!(r.gps.fix, GpsFix::Fix3d);
-    assert_eq!(r.measurement.position_ned, core.world().plant(0).state().position_ned);
+    assert_eq!(
+        r.measurement.position_ned,
+        v.core().world().plant(0).state().position_ned
+    );
 
-    core.set_param(0, &mut store, "SIM_GPS_WRONG_M", ParamValue::Real32(25.0))
-        .unwrap();
-    assert_eq!(inject(&mut core, GPS, WRONG, 0), CommandOutcome::Accepted);
-    run_s(&mut core, 1.0);
-    let truth = core.world().plant(0).state().position_ned;
-    let m = core.world_mut().sense(0).measurement.position_ned;
+    v.set_param("SIM_GPS_WRONG_M", ParamValue::Real32(25.0));
+    assert_eq!(inject(&mut v, GPS, WRONG, 0), CommandOutcome::Accepted);
+    v.run(1.0);
+    let truth = v.core().world().plant(0).state().position_ned;
+    let m = v.readings().measurement.position_ned;
     assert_eq!(m - truth, nalgebra::Vector3::new(25.0, 0.0, 0.0));
-    assert_eq!(inject(&mut core, GPS, OK, 0), CommandOutcome::Accepted);
-    let m = core.world_mut().sense(0).measurement.position_ned;
-    assert_eq!(m, core.world().plant(0).state().position_ned);
-    assert!(!faults(&core).any());
+    assert_eq!(inject(&mut v, GPS, OK, 0), CommandOutcome::Accepted);
+    let m = v.readings().measurement.position_ned;
+    assert_eq!(m, v.core().world().plant(0).state().position_ned);
+    assert!(!faults(&v).any());
 }
 
 /// GIVEN a full 4S pack
@@ -202,28 +181,28 @@ fn gps_off_drifts_wrong_offsets_and_ok_restores() {
 /// cells) sees an almost empty pack; BATTERY OK gives the voltage back.
 #[test]
 fn battery_off_loses_a_cell_and_ok_gives_it_back() {
-    let (mut core, _) = vehicle("quad", &[]);
-    let before = core.telemetry(0);
+    let mut v = vehicle("quad", &[]);
+    let before = v.telemetry();
     assert!(before.battery_remaining > 0.9, "{}", before.battery_remaining);
-    assert_eq!(inject(&mut core, BATTERY, OFF, 0), CommandOutcome::Accepted);
-    assert_eq!(texts(&mut core)[0].text, "CMD_INJECT_FAILURE, battery cell off");
-    let failed = core.telemetry(0);
+    assert_eq!(inject(&mut v, BATTERY, OFF, 0), CommandOutcome::Accepted);
+    assert_eq!(v.texts()[0].text, "CMD_INJECT_FAILURE, battery cell off");
+    let failed = v.telemetry();
     let ratio = failed.battery_voltage_v / before.battery_voltage_v;
     assert!((ratio - 0.75).abs() < 0.01, "{ratio}");
     assert!(failed.battery_remaining < 0.05, "{}", failed.battery_remaining);
-    assert_eq!(inject(&mut core, BATTERY, OK, 0), CommandOutcome::Accepted);
-    assert_eq!(core.telemetry(0).battery_voltage_v, before.battery_voltage_v);
+    assert_eq!(inject(&mut v, BATTERY, OK, 0), CommandOutcome::Accepted);
+    assert_eq!(v.telemetry().battery_voltage_v, before.battery_voltage_v);
 }
 
 /// MAVLINK_SIGNAL OFF and OK set and clear the world's radio (the daemon mutes its links on it).
 #[test]
 fn mavlink_signal_off_and_ok_switch_the_radio() {
-    let (mut core, _) = vehicle("quad", &[]);
-    assert_eq!(inject(&mut core, MAVLINK_SIGNAL, OFF, 0), CommandOutcome::Accepted);
-    assert!(faults(&core).link_lost);
-    assert_eq!(texts(&mut core)[0].text, "CMD_INJECT_FAILURE, MAVLink off");
-    assert_eq!(inject(&mut core, MAVLINK_SIGNAL, OK, 0), CommandOutcome::Accepted);
-    assert!(!faults(&core).any());
+    let mut v = vehicle("quad", &[]);
+    assert_eq!(inject(&mut v, MAVLINK_SIGNAL, OFF, 0), CommandOutcome::Accepted);
+    assert!(faults(&v).link_lost);
+    assert_eq!(v.texts()[0].text, "CMD_INJECT_FAILURE, MAVLink off");
+    assert_eq!(inject(&mut v, MAVLINK_SIGNAL, OK, 0), CommandOutcome::Accepted);
+    assert!(!faults(&v).any());
 }
 
 /// GIVEN a hovering quad with a battery cell failed and GPS off
@@ -234,13 +213,13 @@ fn mavlink_signal_off_and_ok_switch_the_radio() {
 /// the autopilot's state changes, nor is anything announced.
 #[test]
 fn unsupported_and_missing_parts_change_nothing() {
-    let (mut core, _) = vehicle("quad", &[]);
-    airborne(&mut core);
-    assert_eq!(inject(&mut core, BATTERY, OFF, 0), CommandOutcome::Accepted);
-    texts(&mut core);
-    let before = faults(&core);
-    let state = |c: &Core| (c.pilot(0).armed(), c.pilot(0).mode());
-    let s0 = state(&core);
+    let mut v = vehicle("quad", &[]);
+    airborne(&mut v);
+    assert_eq!(inject(&mut v, BATTERY, OFF, 0), CommandOutcome::Accepted);
+    v.texts();
+    let before = faults(&v);
+    let state = |c: &Sitl| (c.pilot().armed(), c.pilot().mode());
+    let s0 = state(&v);
     for (unit, kind) in [
         (0, OFF),
         (GPS, 2),
@@ -250,31 +229,31 @@ fn unsupported_and_missing_parts_change_nothing() {
         (255, OFF),
     ] {
         assert_eq!(
-            inject(&mut core, unit, kind, 0),
+            inject(&mut v, unit, kind, 0),
             CommandOutcome::Unsupported,
             "{unit}/{kind}"
         );
     }
     for (unit, kind, instance) in [(MOTOR, OFF, 9), (MOTOR, OK, 5), (GPS, OFF, 2), (BATTERY, OK, 3)] {
         assert!(
-            matches!(inject(&mut core, unit, kind, instance), CommandOutcome::Denied(_)),
+            matches!(inject(&mut v, unit, kind, instance), CommandOutcome::Denied(_)),
             "{unit}/{kind}/{instance}"
         );
     }
-    assert_eq!(faults(&core), before);
-    assert_eq!(state(&core), s0);
-    assert!(texts(&mut core).is_empty());
+    assert_eq!(faults(&v), before);
+    assert_eq!(state(&v), s0);
+    assert!(v.texts().is_empty());
 }
 
 /// An airframe whose thrust and torque act directly has no motor to fail: DENIED.
 #[test]
 fn ideal_actuation_has_no_motor_to_fail() {
-    let (mut core, _) = vehicle("fsr-quad", &[]);
-    let before = faults(&core);
-    assert!(matches!(inject(&mut core, MOTOR, OFF, 1), CommandOutcome::Denied(_)));
-    assert_eq!(faults(&core), before);
+    let mut v = vehicle("fsr-quad", &[]);
+    let before = faults(&v);
+    assert!(matches!(inject(&mut v, MOTOR, OFF, 1), CommandOutcome::Denied(_)));
+    assert_eq!(faults(&v), before);
     // its GPS fails as any other
-    assert_eq!(inject(&mut core, GPS, OFF, 0), CommandOutcome::Accepted);
+    assert_eq!(inject(&mut v, GPS, OFF, 0), CommandOutcome::Accepted);
 }
 
 /// GIVEN two identical hovering vehicles
@@ -282,36 +261,41 @@ fn ideal_actuation_has_no_motor_to_fail() {
 /// THEN both fly on bit for bit: OK restores exactly what was.
 #[test]
 fn off_then_ok_at_one_instant_leaves_the_flight_as_it_was() {
-    let (mut a, _) = vehicle("quad", &[]);
-    let (mut b, _) = vehicle("quad", &[]);
+    let mut a = vehicle("quad", &[]);
+    let mut b = vehicle("quad", &[]);
     airborne(&mut a);
     airborne(&mut b);
     for (unit, instance) in [(MOTOR, 0), (GPS, 0), (BATTERY, 0), (MAVLINK_SIGNAL, 0)] {
         assert_eq!(inject(&mut b, unit, OFF, instance), CommandOutcome::Accepted);
         assert_eq!(inject(&mut b, unit, OK, instance), CommandOutcome::Accepted);
     }
-    run_s(&mut a, 3.0);
-    run_s(&mut b, 3.0);
-    assert_eq!(a.world().plant(0).state(), b.world().plant(0).state());
-    assert_eq!(a.telemetry(0), b.telemetry(0));
+    a.run(3.0);
+    b.run(3.0);
+    assert_eq!(a.core().world().plant(0).state(), b.core().world().plant(0).state());
+    assert_eq!(a.telemetry(), b.telemetry());
 }
 
 /// The lockstep's own injection (what a scenario without an autopilot uses)
 /// does not ask SYS_FAILURE_EN but maps the same way.
 #[test]
 fn inject_failure_maps_without_the_autopilot_gate() {
-    let (mut core, mut store) = vehicle("quad", &[]);
-    core.set_param(0, &mut store, "SYS_FAILURE_EN", ParamValue::Int32(0))
-        .unwrap();
+    let mut v = vehicle("quad", &[]);
+    v.set_param("SYS_FAILURE_EN", ParamValue::Int32(0));
     let inj = |unit, kind, instance| FailureInjection { unit, kind, instance };
-    assert_eq!(core.inject_failure(0, inj(MOTOR, OFF, 4)), CommandOutcome::Accepted);
-    assert_eq!(faults(&core).rotors[3], RotorHealth::Off);
-    assert_eq!(core.inject_failure(0, inj(GPS, 3, 0)), CommandOutcome::Unsupported);
+    assert_eq!(
+        v.core_mut().inject_failure(0, inj(MOTOR, OFF, 4)),
+        CommandOutcome::Accepted
+    );
+    assert_eq!(faults(&v).rotors[3], RotorHealth::Off);
+    assert_eq!(
+        v.core_mut().inject_failure(0, inj(GPS, 3, 0)),
+        CommandOutcome::Unsupported
+    );
     assert!(matches!(
-        core.inject_failure(0, inj(MOTOR, OFF, 5)),
+        v.core_mut().inject_failure(0, inj(MOTOR, OFF, 5)),
         CommandOutcome::Denied(_)
     ));
-    assert_eq!(core.drain_world_texts(0).len(), 1);
+    assert_eq!(v.core_mut().drain_world_texts(0).len(), 1);
 }
 
 // --- scenarios -------------------------------------------------------------------------------
@@ -445,12 +429,12 @@ fn mission_faults_go_through_the_command() {
 /// rank of an effectiveness matrix with no column).
 #[test]
 fn every_motor_off_at_once_drops_the_vehicle_without_a_panic() {
-    let (mut core, _) = vehicle("quad", &[]);
-    airborne(&mut core);
-    let z0 = core.telemetry(0).position_ned.z;
-    assert_eq!(inject(&mut core, 101, 1, 0), CommandOutcome::Accepted);
-    run_s(&mut core, 3.0);
-    let t = core.telemetry(0);
+    let mut v = vehicle("quad", &[]);
+    airborne(&mut v);
+    let z0 = v.telemetry().position_ned.z;
+    assert_eq!(inject(&mut v, 101, 1, 0), CommandOutcome::Accepted);
+    v.run(3.0);
+    let t = v.telemetry();
     assert!(t.position_ned.z > z0 + 1.0, "it fell: z {z0} -> {}", t.position_ned.z);
     assert!(t.position_ned.iter().all(|x| x.is_finite()));
 }

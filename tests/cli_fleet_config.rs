@@ -4,8 +4,9 @@
 //! vehicles without starting them; `DaemonArgs::fleet_config` keeps the lone
 //! vehicle exactly as `config()` builds it.
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use clap::Parser as _;
 use rotorpilot::cli::Cli;
@@ -18,15 +19,8 @@ fn fixture(name: &str) -> PathBuf {
 
 /// Exit status, stdout and stderr of `rotorpilot ARGS`.
 fn run(args: &[&str]) -> (Option<i32>, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
-        .args(args)
-        .output()
-        .expect("run rotorpilot");
-    (
-        out.status.code(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    let out = common::bin::run(args);
+    (out.code, out.stdout, out.stderr)
 }
 
 /// `rotorpilot --fleet FIXTURE --check`: refused with exactly `message`

@@ -2,6 +2,8 @@
 //! log it, run the estimator of every order and polynomial over the log, and
 //! compare with `docs/model.md` sections 9 and 10.
 
+mod common;
+
 use nalgebra::Vector3;
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
@@ -181,12 +183,11 @@ fn offline_and_online_estimates_agree() {
 /// `rotorpilot estimate` over the flight prints one JSON object per order and polynomial.
 #[test]
 fn estimate_command_prints_the_documented_json() {
-    let dir = std::env::temp_dir().join(format!("rotorpilot-est-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::scratch_dir("est");
     let log = dir.join("ex4.csv");
     let (_, text) = fly(&exercise4());
     std::fs::write(&log, text).unwrap();
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+    let out = common::bin::rotorpilot()
         .args([
             "estimate",
             log.to_str().unwrap(),
@@ -262,11 +263,10 @@ fn broken_logs_are_refused_by_line_and_column() {
     );
 
     // and the CLI says so without a panic
-    let dir = std::env::temp_dir().join(format!("rotorpilot-badlog-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::scratch_dir("badlog");
     let path = dir.join("c.csv");
     std::fs::write(&path, with_nan.join("\n")).unwrap();
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
+    let out = common::bin::rotorpilot()
         .args(["estimate", path.to_str().unwrap()])
         .output()
         .unwrap();

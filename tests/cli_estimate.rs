@@ -4,8 +4,11 @@
 //! says, a log whose step varies is accepted and estimated as well as a
 //! regular one, and only time that does not increase is refused.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
+
+use common::bin::run as rotorpilot;
+use common::{root, scratch_dir as scratch};
+use std::path::Path;
 
 use rand::{RngExt, SeedableRng};
 use rotorpilot::estimation::sweep::{self, estimate_log, sweep_config, sweep_result};
@@ -14,42 +17,12 @@ use rotorpilot::logs::csv::FlightLog;
 use rotorpilot::logs::meta::{LogMeta, meta_path};
 use rotorpilot::scenario::{Scenario, run, scenario_meta};
 
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// A fresh scratch directory for one test.
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("rotorpilot-estcli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-struct Out {
-    ok: bool,
-    stdout: String,
-    stderr: String,
-}
-
-fn rotorpilot(args: &[&str]) -> Out {
-    let o = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
-        .args(args)
-        .output()
-        .unwrap();
-    Out {
-        ok: o.status.success(),
-        stdout: String::from_utf8_lossy(&o.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&o.stderr).into_owned(),
-    }
-}
-
 /// `estimate LOG --order 3 --json` plus `extra`: (final force NED [N], mass [kg], rms force error [N], stderr).
 fn estimate(log: &Path, extra: &[&str]) -> ([f64; 3], f64, f64, String) {
     let mut args = vec!["estimate", log.to_str().unwrap(), "--order", "3", "--json"];
     args.extend_from_slice(extra);
     let o = rotorpilot(&args);
-    assert!(o.ok, "{}", o.stderr);
+    assert!(o.ok(), "{}", o.stderr);
     let v: serde_json::Value = serde_json::from_str(&o.stdout).unwrap();
     let r = &v[0];
     let f: Vec<f64> = r["final_force_ned"]
@@ -81,7 +54,7 @@ fn a_quad_log_is_estimated_with_the_quads_model_from_its_sidecar() {
     let log = d.join("quad.csv");
     let scenario = root().join("tools/scenarios/quad-step-10m.toml");
     let o = rotorpilot(&["simulate", scenario.to_str().unwrap(), "--csv", log.to_str().unwrap()]);
-    assert!(o.ok, "{}", o.stderr);
+    assert!(o.ok(), "{}", o.stderr);
     // the text summary prints 4 decimals as its other lines, not 16 digits
     let line = o.stdout.lines().find(|l| l.starts_with("final position")).unwrap();
     assert_eq!(
@@ -143,7 +116,7 @@ fn inertia_takes_comma_separated_values() {
         "--inertia",
         "0.03,0.03,0.05",
     ]);
-    assert!(o.ok, "{}", o.stderr);
+    assert!(o.ok(), "{}", o.stderr);
     assert!(o.stdout.contains("inertia 0.03,0.03,0.05 kg m^2"), "{}", o.stdout);
     let o = rotorpilot(&[
         "estimate",
@@ -153,7 +126,7 @@ fn inertia_takes_comma_separated_values() {
         "--inertia",
         "0.03 0.03 0.05",
     ]);
-    assert!(o.ok, "{}", o.stderr);
+    assert!(o.ok(), "{}", o.stderr);
     for bad in [
         "0.03,0.03",
         "0.03,0.03,0.05,1",
@@ -162,7 +135,7 @@ fn inertia_takes_comma_separated_values() {
         "0.03,inf,0.05",
     ] {
         let o = rotorpilot(&["estimate", log.to_str().unwrap(), "--order", "1", "--inertia", bad]);
-        assert!(!o.ok, "{bad} accepted");
+        assert!(!o.ok(), "{bad} accepted");
         assert!(
             o.stderr.contains("--inertia") && o.stderr.contains("IXX,IYY,IZZ") && !o.stderr.contains("panicked"),
             "{bad}: {}",
@@ -353,7 +326,7 @@ fn time_that_does_not_increase_is_refused_by_row() {
     ] {
         std::fs::write(&path, retime(&text, f)).unwrap();
         let o = rotorpilot(&["estimate", path.to_str().unwrap()]);
-        assert!(!o.ok, "{what} accepted");
+        assert!(!o.ok(), "{what} accepted");
         // row 7 of the data is line 9 (the header is line 1)
         assert!(
             o.stderr.contains("back.csv:9")

@@ -4,178 +4,72 @@
 //! triggered in flight, its action checked (mode, where it goes, landing and
 //! disarming), the time from the breach or threshold to the action measured
 //! and printed, and the announcement checked. One vehicle in the lockstep
-//! core; `cargo test --release --test failsafes -- --nocapture` prints the figures.
+//! core; `cargo test --release --test lockstep_failsafes -- --nocapture` prints the figures.
 
+mod common;
+
+use common::sitl::{HOME, Sitl, int, point, real};
 use nalgebra::Vector3;
-use rotorpilot::airframe::Airframe;
 use rotorpilot::autopilot::{
-    Autopilot, AutopilotCommand, BatteryWarning, ClientClock, ClientTimer, CommandOutcome, FlightMode,
-    OffboardSetpoint, Severity, StatusText, Targets, Telemetry,
+    AutopilotCommand, BatteryWarning, ClientClock, ClientTimer, CommandOutcome, FlightMode, OffboardSetpoint, Severity,
+    Targets, Telemetry,
 };
 use rotorpilot::geo::GeoPoint;
-use rotorpilot::lockstep::Lockstep;
 use rotorpilot::mission::{MissionItem, MissionType, PlanChange};
-use rotorpilot::params::{ParamStore, ParamValue};
-use rotorpilot::sim::{Fault, SensorConfig};
+use rotorpilot::params::ParamValue;
 
-const HOME: GeoPoint = GeoPoint::PX4_SITL_HOME;
-
-struct Ap {
-    core: Lockstep<Autopilot>,
-    said: Vec<StatusText>,
+/// The quad with `params`, on the ground at home.
+fn vehicle(params: &[(&str, ParamValue)]) -> Sitl {
+    Sitl::quad().params(params).build()
 }
 
-impl Ap {
-    fn new(params: &[(&str, ParamValue)]) -> Self {
-        let af = Airframe::load("quad").unwrap();
-        let mut store = ParamStore::new(&af);
-        for (name, value) in params {
-            store.set(name, *value).unwrap();
-        }
-        let core = Lockstep::one_vehicle(&af, HOME, &store, SensorConfig::default()).unwrap();
-        Self { core, said: Vec::new() }
-    }
+/// Arm and take off to `up` m above home; hold there.
+fn take_off_to(ap: &mut Sitl, up: f64) {
+    ap.run(0.2);
+    ap.take_off_to(Some(up));
+    ap.run(1.0);
+}
 
-    fn step(&mut self) {
-        self.core.step();
-        self.said.extend(self.core.drain_status_texts(0));
-    }
+fn reposition(ap: &mut Sitl, north: f64, east: f64, up: f64) -> CommandOutcome {
+    let g = point(north, east, up);
+    ap.command(AutopilotCommand::Reposition {
+        lat_deg: Some(g.lat_deg),
+        lon_deg: Some(g.lon_deg),
+        alt_amsl_m: Some(g.alt_amsl_m),
+        yaw_rad: None,
+        speed_m_s: None,
+    })
+}
 
-    fn run(&mut self, seconds: f64) {
-        for _ in 0..steps(seconds) {
-            self.step();
-        }
-    }
+fn offboard_velocity(ap: &mut Sitl, v_ned: Vector3<f64>) {
+    let out = ap.command(AutopilotCommand::Offboard(OffboardSetpoint::Local(Targets {
+        position: None,
+        velocity: Some(v_ned),
+        acceleration: None,
+        yaw_rad: Some(0.0),
+        yaw_rate_rad_s: None,
+    })));
+    assert_eq!(out, CommandOutcome::Accepted);
+}
 
-    /// Run until `done` holds (checked every step) or `max_s` passes; the time it held.
-    fn run_until(&mut self, max_s: f64, mut done: impl FnMut(&Telemetry) -> bool) -> Option<f64> {
-        for _ in 0..steps(max_s) {
-            self.step();
-            let t = self.telemetry();
-            if done(&t) {
-                return Some(t.time_s);
-            }
-        }
-        None
-    }
-
-    fn command(&mut self, cmd: AutopilotCommand) -> CommandOutcome {
-        let out = self.core.command(0, cmd);
-        self.said.extend(self.core.drain_status_texts(0));
-        out
-    }
-
-    fn telemetry(&mut self) -> Telemetry {
-        self.core.telemetry(0)
-    }
-
-    fn mode(&self) -> FlightMode {
-        self.core.pilot(0).mode()
-    }
-
-    fn armed(&self) -> bool {
-        self.core.pilot(0).armed()
-    }
-
-    fn time_s(&self) -> f64 {
-        self.core.time_s()
-    }
-
-    fn heartbeat(&mut self) {
-        self.core.gcs_heartbeat(0);
-        self.said.extend(self.core.drain_status_texts(0));
-    }
-
-    /// How many announcements contain `text`.
-    fn count(&self, text: &str) -> usize {
-        self.said.iter().filter(|s| s.text.contains(text)).count()
-    }
-
-    fn severity_of(&self, text: &str) -> Option<Severity> {
-        self.said.iter().find(|s| s.text.contains(text)).map(|s| s.severity)
-    }
-
-    /// Arm and take off to `up` m above home; hold there.
-    fn take_off_to(&mut self, up: f64) {
-        self.run(0.2);
-        assert_eq!(
-            self.command(AutopilotCommand::Arm { force: false }),
-            CommandOutcome::Accepted
-        );
-        assert_eq!(
-            self.command(AutopilotCommand::Takeoff {
-                altitude_amsl_m: Some(HOME.alt_amsl_m + up)
-            }),
-            CommandOutcome::Accepted
-        );
-        self.run_until(40.0, |t| t.mode == FlightMode::Hold)
-            .expect("takeoff completes");
-        self.run(1.0);
-    }
-
-    fn reposition(&mut self, north: f64, east: f64, up: f64) -> CommandOutcome {
-        let g = point(north, east, up);
-        self.command(AutopilotCommand::Reposition {
-            lat_deg: Some(g.lat_deg),
-            lon_deg: Some(g.lon_deg),
-            alt_amsl_m: Some(g.alt_amsl_m),
-            yaw_rad: None,
-            speed_m_s: None,
-        })
-    }
-
-    fn offboard_velocity(&mut self, v_ned: Vector3<f64>) {
-        let out = self.command(AutopilotCommand::Offboard(OffboardSetpoint::Local(Targets {
-            position: None,
-            velocity: Some(v_ned),
-            acceleration: None,
-            yaw_rad: Some(0.0),
-            yaw_rate_rad_s: None,
-        })));
-        assert_eq!(out, CommandOutcome::Accepted);
-    }
-
-    /// Stream the offboard velocity `v_ned` at 20 Hz (entering Offboard)
-    /// until the mode leaves Offboard or `max_s` passes.
-    fn fly_offboard_velocity(&mut self, v_ned: Vector3<f64>, max_s: f64) {
-        self.offboard_velocity(v_ned);
-        assert_eq!(
-            self.command(AutopilotCommand::SetMode(FlightMode::Offboard)),
-            CommandOutcome::Accepted
-        );
-        let t0 = self.time_s();
-        while self.mode() == FlightMode::Offboard && self.time_s() - t0 < max_s {
-            self.run(0.05);
-            self.offboard_velocity(v_ned);
-        }
-    }
-
-    /// The GNSS receiver loses (`false`) or regains its fix (a world fault).
-    fn gps(&mut self, available: bool) {
-        self.core.world_mut().inject(0, Fault::Gps { available }).unwrap();
-    }
-
-    fn land_and_disarm(&mut self, max_s: f64) -> Telemetry {
-        self.run_until(max_s, |t| !t.armed).expect("lands and disarms");
-        self.telemetry()
+/// Stream the offboard velocity `v_ned` at 20 Hz (entering Offboard)
+/// until the mode leaves Offboard or `max_s` passes.
+fn fly_offboard_velocity(ap: &mut Sitl, v_ned: Vector3<f64>, max_s: f64) {
+    offboard_velocity(ap, v_ned);
+    assert_eq!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::Offboard)),
+        CommandOutcome::Accepted
+    );
+    let t0 = ap.time_s();
+    while ap.mode() == FlightMode::Offboard && ap.time_s() - t0 < max_s {
+        ap.run(0.05);
+        offboard_velocity(ap, v_ned);
     }
 }
 
-fn steps(seconds: f64) -> usize {
-    (seconds / 1e-3).round() as usize
-}
-
-fn real(x: f32) -> ParamValue {
-    ParamValue::Real32(x)
-}
-
-fn int(i: i32) -> ParamValue {
-    ParamValue::Int32(i)
-}
-
-/// The point `north`, `east` [m] from home, `up` [m] above it.
-fn point(north: f64, east: f64, up: f64) -> GeoPoint {
-    HOME.offset(&Vector3::new(north, east, -up))
+fn land_and_disarm(ap: &mut Sitl, max_s: f64) -> Telemetry {
+    ap.run_until(max_s, |t| !t.armed).expect("lands and disarms");
+    ap.telemetry()
 }
 
 fn fence_item(command: u16, p1: f32, north: f64, east: f64) -> MissionItem {
@@ -202,10 +96,10 @@ fn polygon(command: u16, corners: &[(f64, f64)]) -> Vec<MissionItem> {
 
 #[test]
 fn data_link_loss_returns_lands_and_is_regained() {
-    let mut ap = Ap::new(&[("NAV_DLL_ACT", int(2)), ("RTL_RETURN_ALT", real(15.0))]);
+    let mut ap = vehicle(&[("NAV_DLL_ACT", int(2)), ("RTL_RETURN_ALT", real(15.0))]);
     ap.heartbeat();
-    ap.take_off_to(5.0);
-    ap.reposition(20.0, 0.0, 5.0);
+    take_off_to(&mut ap, 5.0);
+    reposition(&mut ap, 20.0, 0.0, 5.0);
     // a GCS at 1 Hz for 10 s, then silence
     for _ in 0..10 {
         ap.run(1.0);
@@ -230,7 +124,7 @@ fn data_link_loss_returns_lands_and_is_regained() {
     ap.heartbeat();
     assert_eq!(ap.count("Data link regained"), 1);
     assert_eq!(ap.mode(), FlightMode::ReturnToLaunch);
-    let t = ap.land_and_disarm(120.0);
+    let t = land_and_disarm(&mut ap, 120.0);
     let off = t.position_ned.xy().norm();
     println!("data link: landed {off:.2} m from home at {:.1} s", t.time_s);
     assert!(off < 1.0, "landed {off} m from home");
@@ -239,15 +133,15 @@ fn data_link_loss_returns_lands_and_is_regained() {
 #[test]
 fn data_link_loss_never_without_a_gcs_and_no_action_when_disabled() {
     // NAV_DLL_ACT = Return, but no GCS ever: nothing happens
-    let mut ap = Ap::new(&[("NAV_DLL_ACT", int(2))]);
-    ap.take_off_to(3.0);
+    let mut ap = vehicle(&[("NAV_DLL_ACT", int(2))]);
+    take_off_to(&mut ap, 3.0);
     ap.run(25.0);
     assert_eq!(ap.mode(), FlightMode::Hold);
     assert_eq!(ap.count("ground station"), 0);
     // a GCS that goes silent with PX4's default NAV_DLL_ACT = 0: announced, no mode change
-    let mut ap = Ap::new(&[]);
+    let mut ap = vehicle(&[]);
     ap.heartbeat();
-    ap.take_off_to(3.0);
+    take_off_to(&mut ap, 3.0);
     ap.run(15.0);
     assert_eq!(ap.count("Connection to ground station lost"), 1);
     assert_eq!(ap.count("Failsafe"), 0);
@@ -257,16 +151,16 @@ fn data_link_loss_never_without_a_gcs_and_no_action_when_disabled() {
 
 #[test]
 fn data_link_loss_on_the_wall_clock_acts_on_the_runtime_timeout() {
-    let mut ap = Ap::new(&[("NAV_DLL_ACT", int(3))]);
-    ap.core.pilot_mut(0).set_client_clock(ClientClock::Wall);
+    let mut ap = vehicle(&[("NAV_DLL_ACT", int(3))]);
+    ap.pilot_mut().set_client_clock(ClientClock::Wall);
     ap.heartbeat();
     let heard = ap.time_s();
-    ap.take_off_to(3.0);
+    take_off_to(&mut ap, 3.0);
     ap.run(10.0);
     // long past COM_DL_LOSS_T in simulated time: on the wall clock only the runtime decides
     assert!(ap.time_s() - heard > 10.0);
     assert_eq!(ap.mode(), FlightMode::Hold);
-    let pending = ap.core.pilot(0).client_timers();
+    let pending = ap.pilot().client_timers();
     let timer = pending
         .iter()
         .find(|p| p.timer == ClientTimer::DataLinkLoss)
@@ -274,12 +168,11 @@ fn data_link_loss_on_the_wall_clock_acts_on_the_runtime_timeout() {
     assert_eq!(timer.started_s, heard);
     assert_eq!(timer.duration_s, 10.0);
     // a stale timer (an older heartbeat) is ignored; the live one acts
-    assert!(!ap.core.client_timeout(0, ClientTimer::DataLinkLoss, heard - 1.0));
-    assert!(ap.core.client_timeout(0, ClientTimer::DataLinkLoss, heard));
+    assert!(!ap.core_mut().client_timeout(0, ClientTimer::DataLinkLoss, heard - 1.0));
+    assert!(ap.core_mut().client_timeout(0, ClientTimer::DataLinkLoss, heard));
     assert_eq!(ap.mode(), FlightMode::Land);
     assert!(
-        ap.core
-            .pilot(0)
+        ap.pilot()
             .client_timers()
             .iter()
             .all(|p| p.timer != ClientTimer::DataLinkLoss)
@@ -298,11 +191,11 @@ fn battery_drains_in_flight_through_each_threshold_return_then_land() {
     let mut params = small_pack();
     params.push(("COM_LOW_BAT_ACT", int(3)));
     params.push(("RTL_RETURN_ALT", real(8.0)));
-    let mut ap = Ap::new(&params);
-    ap.take_off_to(5.0);
+    let mut ap = vehicle(&params);
+    take_off_to(&mut ap, 5.0);
     assert_eq!(ap.telemetry().battery_warning, BatteryWarning::None);
     // fly away so that the return has somewhere to go
-    assert_eq!(ap.reposition(10.0, 0.0, 5.0), CommandOutcome::Accepted);
+    assert_eq!(reposition(&mut ap, 10.0, 0.0, 5.0), CommandOutcome::Accepted);
     let mut crossed: Vec<(BatteryWarning, f64, f64, FlightMode)> = Vec::new();
     let thresholds = [
         (0.15, BatteryWarning::Low),
@@ -311,7 +204,7 @@ fn battery_drains_in_flight_through_each_threshold_return_then_land() {
     ];
     let mut level = BatteryWarning::None;
     let mut below_at = [None; 3];
-    for _ in 0..steps(60.0) {
+    for _ in 0..ap.steps(60.0) {
         ap.step();
         let t = ap.telemetry();
         for (k, (thr, _)) in thresholds.iter().enumerate() {
@@ -362,7 +255,7 @@ fn battery_drains_in_flight_through_each_threshold_return_then_land() {
     );
     assert_eq!(ap.count("Failsafe: battery critical, triggering Return"), 1);
     assert_eq!(ap.count("Failsafe: battery emergency, triggering Land"), 1);
-    let t = ap.land_and_disarm(60.0);
+    let t = land_and_disarm(&mut ap, 60.0);
     println!(
         "battery: landed and disarmed at {:.1} s, charge {:.3}, warning {:?}",
         t.time_s, t.battery_remaining, t.battery_warning
@@ -374,16 +267,16 @@ fn battery_drains_in_flight_through_each_threshold_return_then_land() {
 fn battery_critical_lands_with_com_low_bat_act_2_and_only_warns_by_default() {
     let mut params = small_pack();
     params.push(("COM_LOW_BAT_ACT", int(2)));
-    let mut ap = Ap::new(&params);
-    ap.take_off_to(4.0);
+    let mut ap = vehicle(&params);
+    take_off_to(&mut ap, 4.0);
     let at = ap
         .run_until(40.0, |t| t.battery_warning == BatteryWarning::Critical)
         .expect("critical");
     assert_eq!(ap.mode(), FlightMode::Land, "land at critical ({at:.2} s)");
-    ap.land_and_disarm(60.0);
+    land_and_disarm(&mut ap, 60.0);
     // PX4's default COM_LOW_BAT_ACT = 0: warnings only, the vehicle keeps holding
-    let mut ap = Ap::new(&small_pack());
-    ap.take_off_to(4.0);
+    let mut ap = vehicle(&small_pack());
+    take_off_to(&mut ap, 4.0);
     ap.run_until(40.0, |t| t.battery_warning == BatteryWarning::Emergency)
         .expect("emergency");
     assert_eq!(ap.mode(), FlightMode::Hold);
@@ -403,8 +296,8 @@ fn fence() -> Vec<MissionItem> {
     items
 }
 
-fn store_fence(ap: &mut Ap, items: Vec<MissionItem>) {
-    ap.core
+fn store_fence(ap: &mut Sitl, items: Vec<MissionItem>) {
+    ap.core_mut()
         .change_plans(
             0,
             PlanChange::Store {
@@ -418,16 +311,16 @@ fn store_fence(ap: &mut Ap, items: Vec<MissionItem>) {
 
 #[test]
 fn geofence_zones_hold_once_per_breach_and_rearm_inside() {
-    let mut ap = Ap::new(&[]);
+    let mut ap = vehicle(&[]);
     store_fence(&mut ap, fence());
-    ap.take_off_to(5.0);
+    take_off_to(&mut ap, 5.0);
     // a target outside every inclusion zone is refused
-    assert!(matches!(ap.reposition(30.0, 0.0, 5.0), CommandOutcome::Denied(_)));
+    assert!(matches!(reposition(&mut ap, 30.0, 0.0, 5.0), CommandOutcome::Denied(_)));
     assert_eq!(ap.count("Reposition is outside geofence"), 1);
     // inside the far inclusion circle: accepted, but the way there leaves the fence
-    assert_eq!(ap.reposition(0.0, 60.0, 5.0), CommandOutcome::Accepted);
+    assert_eq!(reposition(&mut ap, 0.0, 60.0, 5.0), CommandOutcome::Accepted);
     let (mut crossed, mut acted) = (None, None);
-    for _ in 0..steps(30.0) {
+    for _ in 0..ap.steps(30.0) {
         ap.step();
         let t = ap.telemetry();
         if crossed.is_none() && t.position_ned.y > 20.0 {
@@ -457,12 +350,12 @@ fn geofence_zones_hold_once_per_breach_and_rearm_inside() {
     );
     assert_eq!(ap.count("Failsafe: geofence breach"), 1, "one action per breach");
     // back inside re-arms it; into the exclusion square by offboard velocity: the second breach
-    assert_eq!(ap.reposition(0.0, 0.0, 5.0), CommandOutcome::Accepted);
+    assert_eq!(reposition(&mut ap, 0.0, 0.0, 5.0), CommandOutcome::Accepted);
     ap.run_until(30.0, |t| {
         t.position_ned.xy().norm() < 0.3 && t.velocity_ned.norm() < 0.1
     })
     .expect("back home");
-    ap.fly_offboard_velocity(Vector3::new(2.0, 0.0, 0.0), 15.0);
+    fly_offboard_velocity(&mut ap, Vector3::new(2.0, 0.0, 0.0), 15.0);
     let t = ap.telemetry();
     assert_eq!(t.mode, FlightMode::Hold);
     assert_eq!(ap.count("Geofence breached: inside exclusion zone"), 1);
@@ -477,19 +370,22 @@ fn geofence_zones_hold_once_per_breach_and_rearm_inside() {
         t.position_ned.x
     );
     // the exclusion circle is refused as a target
-    assert!(matches!(ap.reposition(-12.0, 0.0, 5.0), CommandOutcome::Denied(_)));
+    assert!(matches!(
+        reposition(&mut ap, -12.0, 0.0, 5.0),
+        CommandOutcome::Denied(_)
+    ));
 }
 
 #[test]
 fn geofence_max_distance_returns_and_lands() {
-    let mut ap = Ap::new(&[
+    let mut ap = vehicle(&[
         ("GF_ACTION", int(3)),
         ("GF_MAX_HOR_DIST", real(15.0)),
         ("RTL_RETURN_ALT", real(8.0)),
     ]);
-    ap.take_off_to(5.0);
+    take_off_to(&mut ap, 5.0);
     let t0 = ap.time_s();
-    ap.fly_offboard_velocity(Vector3::new(0.0, 3.0, 0.0), 20.0);
+    fly_offboard_velocity(&mut ap, Vector3::new(0.0, 3.0, 0.0), 20.0);
     let t = ap.telemetry();
     assert_eq!(t.mode, FlightMode::ReturnToLaunch);
     let d = t.position_ned.xy().norm();
@@ -500,7 +396,7 @@ fn geofence_max_distance_returns_and_lands() {
     assert!((15.0..15.2).contains(&d), "breach acted at {d} m");
     assert_eq!(ap.count("Geofence breached: max distance exceeded"), 1);
     assert_eq!(ap.count("Failsafe: geofence breach, triggering Return"), 1);
-    let t = ap.land_and_disarm(90.0);
+    let t = land_and_disarm(&mut ap, 90.0);
     assert!(t.position_ned.xy().norm() < 1.0, "landed at home: {:?}", t.position_ned);
 }
 
@@ -508,7 +404,7 @@ fn geofence_max_distance_returns_and_lands() {
 
 #[test]
 fn max_altitude_refuses_targets_clamps_offboard_and_holds_on_breach() {
-    let mut ap = Ap::new(&[("GF_MAX_VER_DIST", real(10.0))]);
+    let mut ap = vehicle(&[("GF_MAX_VER_DIST", real(10.0))]);
     ap.run(0.2);
     let z0 = ap.telemetry().position_ned.z;
     assert_eq!(
@@ -526,9 +422,9 @@ fn max_altitude_refuses_targets_clamps_offboard_and_holds_on_breach() {
     );
     ap.run(1.0);
     assert!(ap.telemetry().position_ned.z > z0 - 0.05, "did not climb");
-    ap.take_off_to(8.0);
+    take_off_to(&mut ap, 8.0);
     // a reposition above it: DENIED
-    assert!(matches!(ap.reposition(0.0, 0.0, 12.0), CommandOutcome::Denied(_)));
+    assert!(matches!(reposition(&mut ap, 0.0, 0.0, 12.0), CommandOutcome::Denied(_)));
     assert_eq!(ap.count("Reposition is outside geofence"), 1);
     // an offboard position above it: clamped to it, announced once
     let sp = |z: f64| {
@@ -561,7 +457,7 @@ fn max_altitude_refuses_targets_clamps_offboard_and_holds_on_breach() {
     assert!(highest < 10.1 && highest > 9.8, "flew to the limit: {highest}");
     // a climb by velocity crosses it: Hold at once
     if ap.mode() == FlightMode::Offboard {
-        ap.fly_offboard_velocity(Vector3::new(0.0, 0.0, -1.0), 10.0);
+        fly_offboard_velocity(&mut ap, Vector3::new(0.0, 0.0, -1.0), 10.0);
     }
     assert_eq!(ap.mode(), FlightMode::Hold);
     assert_eq!(ap.count("Geofence breached: max altitude exceeded"), 1);
@@ -578,8 +474,8 @@ fn gps_lost_then_battery_critical_still_descends_blind() {
     // COM_LOW_BAT_ACT 1: Return at critical, which needs a position
     let mut params = small_pack();
     params.push(("COM_LOW_BAT_ACT", int(1)));
-    let mut ap = Ap::new(&params);
-    ap.take_off_to(10.0);
+    let mut ap = vehicle(&params);
+    take_off_to(&mut ap, 10.0);
     ap.run_until(60.0, |t| t.battery_warning >= BatteryWarning::Low)
         .expect("low");
     ap.gps(false);
@@ -605,8 +501,8 @@ fn gps_lost_then_battery_critical_still_descends_blind() {
 
 #[test]
 fn no_geofence_breach_while_the_fix_is_lost() {
-    let mut ap = Ap::new(&[("GF_ACTION", int(3))]);
-    ap.take_off_to(20.0);
+    let mut ap = vehicle(&[("GF_ACTION", int(3))]);
+    take_off_to(&mut ap, 20.0);
     ap.gps(false);
     ap.run(0.1);
     assert_eq!(ap.mode(), FlightMode::Descend);
@@ -623,8 +519,8 @@ fn no_geofence_breach_while_the_fix_is_lost() {
 
 #[test]
 fn a_geofence_hold_does_not_interrupt_a_landing() {
-    let mut ap = Ap::new(&[("GF_ACTION", int(2))]);
-    ap.take_off_to(10.0);
+    let mut ap = vehicle(&[("GF_ACTION", int(2))]);
+    take_off_to(&mut ap, 10.0);
     assert_eq!(ap.command(AutopilotCommand::Land), CommandOutcome::Accepted);
     ap.run(1.0);
     assert_eq!(ap.mode(), FlightMode::Land);
@@ -633,13 +529,13 @@ fn a_geofence_hold_does_not_interrupt_a_landing() {
     assert_eq!(ap.count("Geofence breached"), 1, "announced");
     assert_eq!(ap.count("triggering Hold"), 0);
     assert_eq!(ap.mode(), FlightMode::Land, "keeps landing");
-    ap.land_and_disarm(40.0);
+    land_and_disarm(&mut ap, 40.0);
 }
 
 #[test]
 fn fix_back_during_a_land_started_descend_keeps_landing() {
-    let mut ap = Ap::new(&[]);
-    ap.take_off_to(20.0);
+    let mut ap = vehicle(&[]);
+    take_off_to(&mut ap, 20.0);
     assert_eq!(ap.command(AutopilotCommand::Land), CommandOutcome::Accepted);
     ap.run(1.0);
     ap.gps(false);
@@ -649,13 +545,13 @@ fn fix_back_during_a_land_started_descend_keeps_landing() {
     ap.run(0.1);
     assert_eq!(ap.mode(), FlightMode::Land, "the landing goes on with the position");
     assert_eq!(ap.count("GPS fix regained: landing"), 1);
-    ap.land_and_disarm(60.0);
+    land_and_disarm(&mut ap, 60.0);
 }
 
 #[test]
 fn a_mode_that_needs_a_position_entered_without_fix_is_corrected_and_mission_start_refused() {
-    let mut ap = Ap::new(&[]);
-    ap.take_off_to(20.0);
+    let mut ap = vehicle(&[]);
+    take_off_to(&mut ap, 20.0);
     ap.gps(false);
     ap.run(0.1);
     assert_eq!(ap.mode(), FlightMode::Descend);
@@ -664,7 +560,7 @@ fn a_mode_that_needs_a_position_entered_without_fix_is_corrected_and_mission_sta
         ap.command(AutopilotCommand::SetMode(FlightMode::ReturnToLaunch)),
         CommandOutcome::TemporarilyRejected(_)
     ));
-    ap.offboard_velocity(Vector3::zeros());
+    offboard_velocity(&mut ap, Vector3::zeros());
     assert!(matches!(
         ap.command(AutopilotCommand::SetMode(FlightMode::Offboard)),
         CommandOutcome::TemporarilyRejected(_)
@@ -676,7 +572,7 @@ fn a_mode_that_needs_a_position_entered_without_fix_is_corrected_and_mission_sta
 #[test]
 fn arming_is_refused_with_the_data_link_lost_and_nav_dll_act_set() {
     // the link is tracked disarmed: lost 10 s after the last GCS HEARTBEAT
-    let mut ap = Ap::new(&[("NAV_DLL_ACT", int(2))]);
+    let mut ap = vehicle(&[("NAV_DLL_ACT", int(2))]);
     ap.heartbeat();
     ap.run(11.0);
     assert_eq!(ap.count("Connection to ground station lost"), 1);
@@ -688,7 +584,7 @@ fn arming_is_refused_with_the_data_link_lost_and_nav_dll_act_set() {
         ap.count("Arming denied: no ground station connection"),
         1,
         "{:?}",
-        ap.said
+        ap.said()
     );
     // the link back: arming works and the loss does not fire at once
     ap.heartbeat();
@@ -701,7 +597,7 @@ fn arming_is_refused_with_the_data_link_lost_and_nav_dll_act_set() {
     assert!(ap.armed());
     assert_eq!(ap.count("Failsafe"), 0);
     // NAV_DLL_ACT 0 (PX4's default): the lost link does not stop arming
-    let mut ap = Ap::new(&[]);
+    let mut ap = vehicle(&[]);
     ap.heartbeat();
     ap.run(11.0);
     assert_eq!(ap.count("Connection to ground station lost"), 1);
@@ -716,11 +612,11 @@ fn arming_is_refused_at_critical_battery() {
     // land at critical (COM_LOW_BAT_ACT 2), then try again on the ground
     let mut params = small_pack();
     params.push(("COM_LOW_BAT_ACT", int(2)));
-    let mut ap = Ap::new(&params);
-    ap.take_off_to(4.0);
+    let mut ap = vehicle(&params);
+    take_off_to(&mut ap, 4.0);
     ap.run_until(60.0, |t| t.battery_warning == BatteryWarning::Critical)
         .expect("critical");
-    ap.land_and_disarm(60.0);
+    land_and_disarm(&mut ap, 60.0);
     ap.run(0.5);
     assert!(matches!(
         ap.command(AutopilotCommand::Arm { force: false }),
@@ -731,7 +627,7 @@ fn arming_is_refused_at_critical_battery() {
 
 #[test]
 fn a_mission_outside_the_geofence_is_refused_at_start() {
-    let mut ap = Ap::new(&[("GF_MAX_VER_DIST", real(20.0))]);
+    let mut ap = vehicle(&[("GF_MAX_VER_DIST", real(20.0))]);
     ap.run(0.2);
     let g = point(10.0, 0.0, 30.0);
     let wp = |command: u16, g: GeoPoint, up: f32| MissionItem {
@@ -743,8 +639,8 @@ fn a_mission_outside_the_geofence_is_refused_at_start() {
         y: rotorpilot::mission::quantise_deg(g.lon_deg),
         z: up,
     };
-    let store = |ap: &mut Ap, items: Vec<MissionItem>| {
-        ap.core
+    let store = |ap: &mut Sitl, items: Vec<MissionItem>| {
+        ap.core_mut()
             .change_plans(
                 0,
                 PlanChange::Store {

@@ -5,9 +5,11 @@
 //! flights show the values; bad shards, bad `[campaign]` tables and bad
 //! variants get clear errors while the rest still runs.
 
+mod common;
+
+use common::bin::run;
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use serde_json::Value;
 
@@ -19,13 +21,8 @@ struct Run {
 }
 
 fn simulate(args: &[&str]) -> Run {
-    let out = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
-        .arg("simulate")
-        .args(args)
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8(out.stdout).unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    let out = run(&[&["simulate"][..], args].concat());
+    let (stdout, stderr) = (out.stdout, out.stderr);
     assert!(!stderr.contains("panicked"), "{stderr}");
     let lines = if args.contains(&"--json") {
         stdout
@@ -36,7 +33,7 @@ fn simulate(args: &[&str]) -> Run {
         Vec::new()
     };
     Run {
-        status: out.status.code(),
+        status: out.code,
         lines,
         stderr,
     }
@@ -57,10 +54,7 @@ fn results(lines: &[Value]) -> Vec<Value> {
 }
 
 fn dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("rp-campaign-{name}-{}", std::process::id()));
-    std::fs::remove_dir_all(&d).ok();
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    common::scratch_dir(&format!("campaign-{name}"))
 }
 
 fn write(dir: &Path, name: &str, text: &str) -> String {
@@ -132,11 +126,7 @@ fn a_directory_campaign_gives_one_line_per_file_in_input_order_whatever_the_jobs
         two.stderr
     );
     // text: one line per scenario, in order
-    let out = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
-        .args(["simulate", &extra, ds])
-        .output()
-        .unwrap();
-    let text = String::from_utf8(out.stdout).unwrap();
+    let text = run(&["simulate", &extra, ds]).stdout;
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(lines.len(), 4, "{text}");
     assert!(

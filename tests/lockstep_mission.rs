@@ -5,23 +5,15 @@
 
 use std::time::Instant;
 
+mod common;
+
+use common::sitl::{HOME, Sitl};
 use nalgebra::Vector3;
-use rotorpilot::airframe::Airframe;
-use rotorpilot::autopilot::{
-    Autopilot, AutopilotCommand, CommandOutcome, FlightMode, LandedState, MissionState, Telemetry,
-};
-use rotorpilot::geo::GeoPoint;
-use rotorpilot::lockstep::Lockstep;
+use rotorpilot::autopilot::{AutopilotCommand, CommandOutcome, FlightMode, LandedState, MissionState, Telemetry};
 use rotorpilot::mission::{MissionItem, MissionResult, MissionType, PlanChange, cmd, frame};
-use rotorpilot::params::ParamStore;
-use rotorpilot::sim::SensorConfig;
 
-const HOME: GeoPoint = GeoPoint::PX4_SITL_HOME;
-
-fn vehicle() -> Lockstep<Autopilot> {
-    let af = Airframe::load("quad").unwrap();
-    let store = ParamStore::new(&af);
-    Lockstep::one_vehicle(&af, HOME, &store, SensorConfig::default()).unwrap()
+fn vehicle() -> Sitl {
+    Sitl::quad().build()
 }
 
 /// A point `north`, `east` [m] from home at `alt` [m] above home, as MAVSDK 4 sends it (frame 3, degE7).
@@ -55,8 +47,8 @@ fn item(command: u16, params: [f32; 4]) -> MissionItem {
     }
 }
 
-fn upload(v: &mut Lockstep<Autopilot>, items: Vec<MissionItem>) -> Result<u32, MissionResult> {
-    v.change_plans(
+fn upload(v: &mut Sitl, items: Vec<MissionItem>) -> Result<u32, MissionResult> {
+    v.core_mut().change_plans(
         0,
         PlanChange::Store {
             kind: MissionType::Mission,
@@ -67,27 +59,23 @@ fn upload(v: &mut Lockstep<Autopilot>, items: Vec<MissionItem>) -> Result<u32, M
 }
 
 /// Step until `done` or `max_s` simulated seconds; the items reached on the way (seq, time, distance).
-fn fly(
-    v: &mut Lockstep<Autopilot>,
-    max_s: f64,
-    mut done: impl FnMut(&Telemetry) -> bool,
-) -> (bool, Vec<(u16, f64, Vector3<f64>)>) {
+fn fly(v: &mut Sitl, max_s: f64, mut done: impl FnMut(&Telemetry) -> bool) -> (bool, Vec<(u16, f64, Vector3<f64>)>) {
     let mut reached = Vec::new();
     let n = (max_s / v.dt_s()) as usize;
     for _ in 0..n {
         v.step();
-        for seq in v.drain_mission_reached(0) {
-            let t = v.telemetry(0);
+        for seq in v.core_mut().drain_mission_reached(0) {
+            let t = v.telemetry();
             reached.push((seq, t.time_s, t.position_ned));
         }
-        if done(&v.telemetry(0)) {
+        if done(&v.telemetry()) {
             return (true, reached);
         }
     }
     (false, reached)
 }
 
-fn ready(v: &mut Lockstep<Autopilot>) {
+fn ready(v: &mut Sitl) {
     let (ok, _) = fly(v, 3.0, |t| t.prearm_ok);
     assert!(ok, "never armable");
 }
@@ -106,12 +94,12 @@ fn a_five_waypoint_mission_flies_in_order_and_completes_in_well_under_a_second()
     ready(&mut v);
     let wall = Instant::now();
     assert_eq!(
-        v.command(0, AutopilotCommand::StartMission { first: Some(0) }),
+        v.command(AutopilotCommand::StartMission { first: Some(0) }),
         CommandOutcome::Accepted
     );
     let (ok, reached) = fly(&mut v, 200.0, |t| t.mission.state == MissionState::Complete);
     let wall = wall.elapsed();
-    let t = v.telemetry(0);
+    let t = v.telemetry();
     for r in &reached {
         println!("reached {} at {:.2} s, at {:.2?}", r.0, r.1, r.2);
     }
@@ -140,23 +128,23 @@ fn hold_pauses_the_mission_and_mission_mode_resumes_at_the_same_item() {
     let mut v = vehicle();
     upload(&mut v, square()).unwrap();
     ready(&mut v);
-    v.command(0, AutopilotCommand::StartMission { first: None });
+    v.command(AutopilotCommand::StartMission { first: None });
     let (_, r) = fly(&mut v, 100.0, |t| t.mission.seq == 2);
     assert_eq!(reached_seqs(&r), vec![0, 1]);
     assert_eq!(
-        v.command(0, AutopilotCommand::SetMode(FlightMode::Hold)),
+        v.command(AutopilotCommand::SetMode(FlightMode::Hold)),
         CommandOutcome::Accepted
     );
     let (_, r) = fly(&mut v, 5.0, |_| false);
     assert!(r.is_empty(), "paused, yet reached {r:?}");
-    let t = v.telemetry(0);
+    let t = v.telemetry();
     assert_eq!((t.mission.seq, t.mission.state), (2, MissionState::Paused));
     assert!(t.velocity_ned.norm() < 0.3, "not holding: {:?}", t.velocity_ned);
     assert_eq!(
-        v.command(0, AutopilotCommand::SetMode(FlightMode::Mission)),
+        v.command(AutopilotCommand::SetMode(FlightMode::Mission)),
         CommandOutcome::Accepted
     );
-    assert_eq!(v.telemetry(0).mission.state, MissionState::Active);
+    assert_eq!(v.telemetry().mission.state, MissionState::Active);
     let (ok, r) = fly(&mut v, 100.0, |t| t.mission.state == MissionState::Complete);
     assert!(ok);
     assert_eq!(reached_seqs(&r), vec![2, 3]);
@@ -167,17 +155,17 @@ fn set_current_in_flight_flies_to_that_item_next() {
     let mut v = vehicle();
     upload(&mut v, square()).unwrap();
     ready(&mut v);
-    v.command(0, AutopilotCommand::StartMission { first: None });
+    v.command(AutopilotCommand::StartMission { first: None });
     fly(&mut v, 100.0, |t| t.mission.seq == 1);
     assert_eq!(
-        v.command(0, AutopilotCommand::SetMissionCurrent { seq: 3 }),
+        v.command(AutopilotCommand::SetMissionCurrent { seq: 3 }),
         CommandOutcome::Accepted
     );
-    assert_eq!(v.telemetry(0).mission.seq, 3);
+    assert_eq!(v.telemetry().mission.seq, 3);
     let (ok, r) = fly(&mut v, 100.0, |t| t.mission.state == MissionState::Complete);
     assert!(ok);
     assert_eq!(reached_seqs(&r), vec![3]);
-    let beyond = v.command(0, AutopilotCommand::SetMissionCurrent { seq: 4 });
+    let beyond = v.command(AutopilotCommand::SetMissionCurrent { seq: 4 });
     assert!(matches!(beyond, CommandOutcome::Denied(_)), "{beyond:?}");
 }
 
@@ -194,7 +182,7 @@ fn do_jump_repeats_the_loop_the_given_number_of_times() {
     items[3].z = 0.0;
     upload(&mut v, items).unwrap();
     ready(&mut v);
-    v.command(0, AutopilotCommand::StartMission { first: Some(0) });
+    v.command(AutopilotCommand::StartMission { first: Some(0) });
     let (ok, r) = fly(&mut v, 200.0, |t| t.mission.state == MissionState::Complete);
     assert!(ok);
     assert_eq!(reached_seqs(&r), vec![0, 1, 2, 1, 2, 1, 2, 4]);
@@ -223,12 +211,12 @@ fn do_change_speed_sets_the_cruise_speed_of_the_legs_after_it() {
     ];
     upload(&mut v, items).unwrap();
     ready(&mut v);
-    v.command(0, AutopilotCommand::StartMission { first: Some(0) });
+    v.command(AutopilotCommand::StartMission { first: Some(0) });
     let mut top = [0.0_f64; 5];
     let n = (200.0 / v.dt_s()) as usize;
     for _ in 0..n {
         v.step();
-        let t = v.telemetry(0);
+        let t = v.telemetry();
         let seq = usize::from(t.mission.seq);
         top[seq] = top[seq].max(t.velocity_ned.xy().norm());
         if t.mission.state == MissionState::Complete {
@@ -249,13 +237,13 @@ fn an_rtl_item_ends_the_mission_and_returns_home_to_land_and_disarm() {
     items.push(rtl);
     upload(&mut v, items).unwrap();
     ready(&mut v);
-    v.command(0, AutopilotCommand::StartMission { first: Some(0) });
+    v.command(AutopilotCommand::StartMission { first: Some(0) });
     let (ok, _) = fly(&mut v, 100.0, |t| t.mission.state == MissionState::Complete);
     assert!(ok);
-    assert_eq!(v.telemetry(0).mode, FlightMode::ReturnToLaunch);
+    assert_eq!(v.telemetry().mode, FlightMode::ReturnToLaunch);
     let (ok, _) = fly(&mut v, 200.0, |t| !t.armed);
     assert!(ok, "never landed and disarmed");
-    let t = v.telemetry(0);
+    let t = v.telemetry();
     assert!(t.position_ned.xy().norm() < 1.0, "landed at {:?}", t.position_ned);
     assert_eq!(t.mission.state, MissionState::Complete);
 }
@@ -273,7 +261,7 @@ fn takeoff_then_land_items_land_at_the_point_and_disarm() {
     (land.x, land.y) = (g.lat_deg, g.lon_deg);
     upload(&mut v, vec![takeoff, land]).unwrap();
     ready(&mut v);
-    v.command(0, AutopilotCommand::StartMission { first: Some(0) });
+    v.command(AutopilotCommand::StartMission { first: Some(0) });
     let mut top = 0.0_f64;
     let (ok, r) = fly(&mut v, 120.0, |t| {
         top = top.max(-t.position_ned.z);
@@ -282,7 +270,7 @@ fn takeoff_then_land_items_land_at_the_point_and_disarm() {
     assert!(ok, "never disarmed");
     assert_eq!(reached_seqs(&r), vec![0, 1]);
     assert!((top - 6.0).abs() < 0.5, "took off to {top:.2} m");
-    let t = v.telemetry(0);
+    let t = v.telemetry();
     assert!(
         (t.position_ned.xy() - Vector3::new(15.0, -5.0, 0.0).xy()).norm() < 0.5,
         "landed at {:?}",
@@ -305,7 +293,7 @@ fn loiter_time_and_delay_wait_in_simulated_time() {
     )
     .unwrap();
     ready(&mut v);
-    v.command(0, AutopilotCommand::StartMission { first: Some(0) });
+    v.command(AutopilotCommand::StartMission { first: Some(0) });
     let (ok, r) = fly(&mut v, 120.0, |t| t.mission.state == MissionState::Complete);
     assert!(ok);
     assert_eq!(reached_seqs(&r), vec![0, 1, 2, 3]);
@@ -320,16 +308,16 @@ fn refusals_leave_the_stored_mission_and_the_vehicle_unchanged() {
     ready(&mut v);
     // no mission
     assert!(matches!(
-        v.command(0, AutopilotCommand::StartMission { first: Some(0) }),
+        v.command(AutopilotCommand::StartMission { first: Some(0) }),
         CommandOutcome::Denied(_)
     ));
     assert!(matches!(
-        v.command(0, AutopilotCommand::SetMode(FlightMode::Mission)),
+        v.command(AutopilotCommand::SetMode(FlightMode::Mission)),
         CommandOutcome::TemporarilyRejected(_)
     ));
-    assert_eq!(v.telemetry(0).mission.state, MissionState::NoMission);
+    assert_eq!(v.telemetry().mission.state, MissionState::NoMission);
     let id = upload(&mut v, square()).unwrap();
-    let before = v.pilot(0).plans().clone();
+    let before = v.pilot().plans().clone();
     let mut bad = square();
     bad[2].x = 91.0;
     assert_eq!(upload(&mut v, bad), Err(MissionResult::InvalidParam5X));
@@ -344,7 +332,7 @@ fn refusals_leave_the_stored_mission_and_the_vehicle_unchanged() {
     assert_eq!(upload(&mut v, bad), Err(MissionResult::Unsupported));
     let too_many = vec![wp(0.0, 0.0, 5.0, 0.0, 0.0); rotorpilot::mission::MAX_ITEMS + 1];
     assert_eq!(upload(&mut v, too_many), Err(MissionResult::NoSpace));
-    let stale = v.change_plans(
+    let stale = v.core_mut().change_plans(
         0,
         PlanChange::Store {
             kind: MissionType::Mission,
@@ -353,13 +341,13 @@ fn refusals_leave_the_stored_mission_and_the_vehicle_unchanged() {
         },
     );
     assert_eq!(stale, Err(MissionResult::Denied));
-    assert_eq!(v.pilot(0).plans(), &before);
+    assert_eq!(v.pilot().plans(), &before);
     assert!(matches!(
-        v.command(0, AutopilotCommand::StartMission { first: Some(4) }),
+        v.command(AutopilotCommand::StartMission { first: Some(4) }),
         CommandOutcome::Denied(_)
     ));
-    assert!(!v.pilot(0).armed());
-    assert_eq!(v.telemetry(0).mission.state, MissionState::NotStarted);
+    assert!(!v.pilot().armed());
+    assert_eq!(v.telemetry().mission.state, MissionState::NotStarted);
 }
 
 #[test]
@@ -367,10 +355,10 @@ fn a_mission_cleared_in_flight_gives_way_to_hold() {
     let mut v = vehicle();
     upload(&mut v, square()).unwrap();
     ready(&mut v);
-    v.command(0, AutopilotCommand::StartMission { first: Some(0) });
+    v.command(AutopilotCommand::StartMission { first: Some(0) });
     fly(&mut v, 100.0, |t| t.mission.seq == 2);
-    assert_eq!(v.change_plans(0, PlanChange::Clear(None)), Ok(0));
-    let t = v.telemetry(0);
+    assert_eq!(v.core_mut().change_plans(0, PlanChange::Clear(None)), Ok(0));
+    let t = v.telemetry();
     assert_eq!(
         (t.mode, t.mission.state, t.mission.total),
         (FlightMode::Hold, MissionState::NoMission, 0)
@@ -383,9 +371,9 @@ fn the_same_mission_flies_bit_identically_twice() {
         let mut v = vehicle();
         upload(&mut v, square()).unwrap();
         ready(&mut v);
-        v.command(0, AutopilotCommand::StartMission { first: Some(0) });
+        v.command(AutopilotCommand::StartMission { first: Some(0) });
         fly(&mut v, 100.0, |t| t.mission.state == MissionState::Complete);
-        let t = v.telemetry(0);
+        let t = v.telemetry();
         (t.time_s.to_bits(), t.position_ned.map(f64::to_bits))
     };
     assert_eq!(run(), run());
@@ -400,23 +388,24 @@ fn rtl_lands_at_a_rally_point_closer_than_home() {
     let mut far = wp(-200.0, 0.0, 0.0, 0.0, 0.0);
     far.command = cmd::RALLY_POINT;
     far.params = [0.0; 4];
-    v.change_plans(
-        0,
-        PlanChange::Store {
-            kind: MissionType::Rally,
-            items: vec![far, rally],
-            base_id: None,
-        },
-    )
-    .unwrap();
+    v.core_mut()
+        .change_plans(
+            0,
+            PlanChange::Store {
+                kind: MissionType::Rally,
+                items: vec![far, rally],
+                base_id: None,
+            },
+        )
+        .unwrap();
     let mut rtl = item(cmd::NAV_RETURN_TO_LAUNCH, [f32::NAN; 4]);
     rtl.z = 0.0;
     upload(&mut v, vec![wp(45.0, 0.0, 10.0, 0.0, 0.0), rtl]).unwrap();
     ready(&mut v);
-    v.command(0, AutopilotCommand::StartMission { first: Some(0) });
+    v.command(AutopilotCommand::StartMission { first: Some(0) });
     let (ok, _) = fly(&mut v, 300.0, |t| !t.armed && t.mission.state == MissionState::Complete);
     assert!(ok, "never landed");
-    let p = v.telemetry(0).position_ned;
+    let p = v.telemetry().position_ned;
     assert!(
         (p.xy() - Vector3::new(40.0, 5.0, 0.0).xy()).norm() < 1.0,
         "landed at {p:?}, not the rally point"
@@ -432,20 +421,20 @@ fn rtl_lands_at_a_rally_point_closer_than_home() {
 fn a_plan_with_a_point_above_rp_alt_max_amsl_is_refused_whole() {
     let mut v = vehicle();
     v.step();
-    let home_alt = v.telemetry(0).home.alt_amsl_m;
-    let before = v.snapshot(0).plans;
+    let home_alt = v.telemetry().home.alt_amsl_m;
+    let before = v.core_mut().snapshot(0).plans;
     let high = 9_001.0; // m AMSL
     let mut square_high = square();
     square_high[2].z = (high - home_alt) as f32; // a relative frame
     assert_eq!(upload(&mut v, square_high), Err(MissionResult::InvalidParam7));
-    let texts = v.drain_status_texts(0);
+    let texts = v.texts();
     assert!(
         texts
             .iter()
             .any(|t| t.text.starts_with("Plan rejected: item 2 at 9001 m")),
         "{texts:?}"
     );
-    assert_eq!(v.snapshot(0).plans, before, "nothing stored");
+    assert_eq!(v.core_mut().snapshot(0).plans, before, "nothing stored");
     let mut square_ok = square();
     square_ok[2].z = (8_990.0 - home_alt) as f32;
     assert!(upload(&mut v, square_ok).is_ok());

@@ -4,15 +4,15 @@
 //! the real GCS off the link, and 200,000 mixed datagrams at about 10,000/s
 //! change nothing while the heartbeat keeps going.
 //!
-//! Figures: `cargo test --release --test daemon_hardening -- --nocapture`.
+//! Figures: `cargo test --release --test daemon_flood -- --nocapture`.
 #![allow(deprecated)]
 
-mod daemon_common;
+mod common;
 
 use std::net::SocketAddr;
 use std::time::Duration;
 
-use daemon_common::{Client, Vehicle, command_long_frame, config};
+use common::daemon::{Client, Vehicle, command_long_frame, config};
 use mavlink::dialects::common::*;
 use mavlink::{MAVLinkV1MessageRaw, MAVLinkV2MessageRaw, MavHeader};
 use rotorpilot::link::budget::{UNPROVEN_FACTOR, UNPROVEN_POOL_RATE};
@@ -485,7 +485,7 @@ fn fr_v1_ok(m: &MavMessage) -> bool {
 /// parameter, and the stored plans' counts.
 async fn vehicle_state(c: &mut Client, link: SocketAddr) -> (bool, u32, Vec<(String, u32)>, Vec<u16>) {
     c.heartbeat(link).await;
-    let h = daemon_common::heartbeat(c, Duration::from_secs(3)).await;
+    let h = common::daemon::heartbeat(c, Duration::from_secs(3)).await;
     c.drain().await;
     c.send(
         link,

@@ -2,19 +2,13 @@
 //! prints from the parameter table, and `rotorpilot params --json` lists
 //! every parameter a client reads over MAVLink (`PARAMS`, in index order).
 
-use std::process::Command;
+mod common;
 
+/// What `rotorpilot ARGS` prints (it must succeed).
 fn rotorpilot(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
-        .args(args)
-        .output()
-        .expect("run rotorpilot");
-    assert!(
-        out.status.success(),
-        "rotorpilot {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).expect("UTF-8")
+    let out = common::bin::run(args);
+    assert!(out.ok(), "rotorpilot {args:?}: {}", out.stderr);
+    out.stdout
 }
 
 #[test]

@@ -1,15 +1,14 @@
-//! Shared pieces of the daemon tests: start a vehicle in-process on free
+//! The daemon tests' vehicle and client: start a vehicle in-process on free
 //! loopback ports, and a small MAVLink client on its own UDP socket. Client
 //! messages are encoded with the `mavlink` crate (MAVLink 2, or 1 where a test
 //! says so); received datagrams are split with rotorpilot's checked framer.
 //! COMMAND_LONG and COMMAND_INT are written, and COMMAND_ACK read, with
 //! rotorpilot's own codec: `tests/daemon_protocol.rs` checks those helpers
 //! against frames pymavlink packed (`tests/fixtures/mavlink/command-frames.txt`).
-#![allow(dead_code, deprecated)]
+#![allow(deprecated)]
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::Duration;
 
 use mavlink::dialects::common::{MavMessage, MavParamType, PARAM_SET_DATA};
@@ -20,18 +19,6 @@ use tokio::net::UdpSocket;
 use tokio::sync::oneshot;
 use tokio::task::JoinHandle;
 use tokio::time::{Instant, timeout};
-
-/// A fresh, empty state directory.
-pub fn state_dir(tag: &str) -> PathBuf {
-    static N: AtomicU32 = AtomicU32::new(0);
-    let d = std::env::temp_dir().join(format!(
-        "rotorpilot-test-{tag}-{}-{}",
-        std::process::id(),
-        N.fetch_add(1, Ordering::Relaxed)
-    ));
-    let _ = std::fs::remove_dir_all(&d);
-    d
-}
 
 /// A config on loopback: both links bound to port 0, remotes as given.
 pub fn config(gcs_remote: Option<SocketAddr>, api_remote: Option<SocketAddr>, speed: f64) -> Config {
@@ -49,7 +36,7 @@ pub fn config(gcs_remote: Option<SocketAddr>, api_remote: Option<SocketAddr>, sp
         },
     ];
     c.speed = speed;
-    c.state_dir = state_dir("v");
+    c.state_dir = super::scratch_path("v");
     c
 }
 

@@ -3,13 +3,11 @@
 //! with a reason and exit status 1, and bad files are refused with the file,
 //! the field and the problem.
 
-use std::process::Command;
+mod common;
+
+use common::bin::run;
 
 use rotorpilot::scenario::{MissionFlight, run_mission};
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
-}
 
 #[test]
 fn the_shipped_square_passes_with_every_item_reached_in_order() {
@@ -29,20 +27,16 @@ fn the_shipped_square_passes_with_every_item_reached_in_order() {
 
 #[test]
 fn a_mission_that_cannot_complete_fails_with_a_reason_and_exit_status_1() {
-    let dir = std::env::temp_dir().join(format!("rp-sim-mission-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::scratch_dir("sim-mission");
     let f = dir.join("short.toml");
     std::fs::write(
         &f,
         "duration_s = 5\n[mission]\n[[mission.item]]\ncommand = 16\nparams = [0.0, 1.0, 0.0, nan]\nx = 47.3986\ny = 8.5456\nz = 20.0\n",
     )
     .unwrap();
-    let out = bin()
-        .args(["simulate", f.to_str().unwrap(), "--json"])
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(1));
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let out = run(&["simulate", f.to_str().unwrap(), "--json"]);
+    assert_eq!(out.code, Some(1));
+    let v: serde_json::Value = serde_json::from_str(&out.stdout).unwrap();
     assert_eq!(v["verdict"], "fail");
     let reasons = v["reasons"].to_string();
     assert!(
@@ -53,8 +47,7 @@ fn a_mission_that_cannot_complete_fails_with_a_reason_and_exit_status_1() {
 
 #[test]
 fn bad_mission_files_are_refused_naming_the_file_and_the_field() {
-    let dir = std::env::temp_dir().join(format!("rp-sim-mission-bad-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::scratch_dir("sim-mission-bad");
     for (name, text, expect) in [
         (
             "lat.toml",
@@ -79,9 +72,9 @@ fn bad_mission_files_are_refused_naming_the_file_and_the_field() {
     ] {
         let f = dir.join(name);
         std::fs::write(&f, text).unwrap();
-        let out = bin().args(["simulate", f.to_str().unwrap()]).output().unwrap();
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success(), "{name} accepted");
+        let out = run(&["simulate", f.to_str().unwrap()]);
+        let err = &out.stderr;
+        assert!(!out.ok(), "{name} accepted");
         assert!(err.contains(name) && err.contains(expect), "{name}: {err}");
         assert!(!err.contains("panicked"), "{err}");
     }

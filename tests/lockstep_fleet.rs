@@ -4,32 +4,16 @@
 //! say, the same on every run and on any number of threads, and bad fleet
 //! files are answered with the file, the field's line and the problem.
 
+mod common;
+
+use common::bin::run as rotorpilot;
+use common::{root, scratch_dir as scratch};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use rotorpilot::scenario::campaign::Outcome;
 use rotorpilot::scenario::fleet::{self, Fleet, FleetEvent, FleetFlights, FleetSummary};
 use rotorpilot::scenario::{MissionFlight, ReferencePlan, Scenario, run, run_mission};
 use rotorpilot::sim::ProximityKind;
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn rotorpilot(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_rotorpilot"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-/// A scratch directory of its own for each test.
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("rp-fleet-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 /// A fleet file in `dir` whose vehicle paths are relative to the repository's tools/fleets.
 fn fleet_file(dir: &Path, name: &str, text: &str) -> PathBuf {
@@ -210,8 +194,8 @@ fn each_vehicle_flies_exactly_as_alone_on_any_threads() {
             "--csv",
             out.to_str().unwrap(),
         ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        assert!(o.ok(), "{}", o.stderr);
+        let v: serde_json::Value = serde_json::from_str(&o.stdout).unwrap();
         (out, v)
     };
     let (one, v1) = csv("1");
@@ -254,8 +238,8 @@ fn each_vehicle_flies_exactly_as_alone_on_any_threads() {
     );
     let out = dir.join("csv-missions");
     let o = rotorpilot(&["simulate", mfleet.to_str().unwrap(), "--csv", out.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.ok(), "{}", o.stderr);
+    let text = o.stdout;
     assert_eq!(text.matches("PASS").count(), 2, "{text}");
     let mut alone = Vec::new();
     run_mission(&MissionFlight::from_file(&mission).unwrap(), Some(&mut alone)).unwrap();
@@ -338,14 +322,14 @@ fn bad_fleets_are_answered_clearly() {
     );
     // through the CLI: exit 2 and the message
     let o = rotorpilot(&["simulate", p.to_str().unwrap()]);
-    assert_eq!(o.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("broken.toml:3:1"));
+    assert_eq!(o.code, Some(2));
+    assert!(o.stderr.contains("broken.toml:3:1"));
     let o = rotorpilot(&["simulate", root().join("tools/fleets").to_str().unwrap()]);
-    assert_eq!(o.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("a fleet flies on its own"));
+    assert_eq!(o.code, Some(2));
+    assert!(o.stderr.contains("a fleet flies on its own"));
     let quad = root().join("tools/scenarios/quad-step-10m.toml");
     let o = rotorpilot(&["simulate", quad.to_str().unwrap(), "--threads", "2"]);
-    assert_eq!(o.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("--threads"));
+    assert_eq!(o.code, Some(2));
+    assert!(o.stderr.contains("--threads"));
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -1,122 +1,28 @@
 //! Lockstep tests of the autopilot as a MAVLink client sees it: arming,
 //! takeoff, landing, auto-disarm, RTL, reposition, offboard (position,
 //! velocity, attitude, rates, loss), the injected wrench and its estimate,
-//! live parameter changes, refusals and determinism. One vehicle in the
+//! live parameter changes, refusals, determinism, and the preflight lift
+//! check (arming refused when the rotors cannot lift the true mass). One vehicle in the
 //! lockstep core (world and flight stack), simulated time only; long flights
-//! are quick with `cargo test --release --test autopilot`.
+//! are quick with `cargo test --release --test lockstep_autopilot`.
 
+mod common;
+
+use common::sitl::{HOME, Sitl, int, real};
 use nalgebra::{UnitQuaternion, Vector3};
 use rotorpilot::airframe::Airframe;
 use rotorpilot::autopilot::{
-    AttitudeTarget, Autopilot, AutopilotCommand, AutopilotError, CommandOutcome, FlightMode, LandedState,
-    OffboardSetpoint, Severity, StatusText, Targets, Telemetry,
+    AttitudeTarget, AutopilotCommand, CommandOutcome, FlightMode, LandedState, OffboardSetpoint, Severity, StatusText,
+    Targets, Telemetry,
 };
 use rotorpilot::control::ControllerKind;
 use rotorpilot::geo::GeoPoint;
-use rotorpilot::lockstep::Lockstep;
+use rotorpilot::lockstep::unliftable;
 use rotorpilot::math::euler_zyx;
-use rotorpilot::params::{ParamStore, ParamValue};
-use rotorpilot::sim::{SensorConfig, SensorNoise, SimFault, Truth};
+use rotorpilot::sim::{RotorHealth, SensorConfig, SensorNoise};
 
-const HOME: GeoPoint = GeoPoint::PX4_SITL_HOME;
-
-/// One vehicle in the lockstep core, as the daemon flies it.
-struct Ap(Lockstep<Autopilot>);
-
-impl Ap {
-    fn step(&mut self) {
-        self.0.step();
-    }
-    fn command(&mut self, cmd: AutopilotCommand) -> CommandOutcome {
-        self.0.command(0, cmd)
-    }
-    fn telemetry(&mut self) -> Telemetry {
-        self.0.telemetry(0)
-    }
-    fn truth(&self) -> Truth {
-        self.0.world().truth(0)
-    }
-    fn apply_params(&mut self, store: &ParamStore) -> Result<(), AutopilotError> {
-        self.0.apply_params(0, store)
-    }
-    fn drain_status_texts(&mut self) -> Vec<StatusText> {
-        self.0.drain_status_texts(0)
-    }
-    fn armed(&self) -> bool {
-        self.0.pilot(0).armed()
-    }
-    fn mode(&self) -> FlightMode {
-        self.0.pilot(0).mode()
-    }
-    fn controller_kind(&self) -> ControllerKind {
-        self.0.pilot(0).controller_kind()
-    }
-    fn dt_s(&self) -> f64 {
-        self.0.dt_s()
-    }
-    fn time_s(&self) -> f64 {
-        self.0.time_s()
-    }
-    fn last_fault(&self) -> Option<SimFault> {
-        self.0.last_fault(0)
-    }
-}
-
-fn setup_with(airframe: &str, params: &[(&str, ParamValue)], sensors: SensorConfig) -> (Ap, ParamStore) {
-    let af = Airframe::load(airframe).unwrap();
-    let mut store = ParamStore::new(&af);
-    for (name, value) in params {
-        store.set(name, *value).unwrap();
-    }
-    let ap = Lockstep::one_vehicle(&af, HOME, &store, sensors).unwrap();
-    (Ap(ap), store)
-}
-
-fn setup(airframe: &str, params: &[(&str, ParamValue)]) -> (Ap, ParamStore) {
-    setup_with(airframe, params, SensorConfig::default())
-}
-
-fn set(ap: &mut Ap, store: &mut ParamStore, name: &str, value: ParamValue) {
-    store.set(name, value).unwrap();
-    ap.apply_params(store).unwrap();
-}
-
-fn real(x: f32) -> ParamValue {
-    ParamValue::Real32(x)
-}
-
-fn int(i: i32) -> ParamValue {
-    ParamValue::Int32(i)
-}
-
-fn steps(ap: &Ap, seconds: f64) -> usize {
-    (seconds / ap.dt_s()).round() as usize
-}
-
-/// Run `seconds` of simulated time.
-fn run(ap: &mut Ap, seconds: f64) {
-    for _ in 0..steps(ap, seconds) {
-        ap.step();
-    }
-}
-
-/// Run until `done` holds (checked every step) or `max_s` passes; the time it held.
-fn run_until(ap: &mut Ap, max_s: f64, mut done: impl FnMut(&Telemetry) -> bool) -> Option<f64> {
-    for _ in 0..steps(ap, max_s) {
-        ap.step();
-        let t = ap.telemetry();
-        if done(&t) {
-            return Some(t.time_s);
-        }
-    }
-    None
-}
-
-fn texts(ap: &mut Ap) -> Vec<String> {
-    ap.drain_status_texts()
-        .into_iter()
-        .map(|s: StatusText| s.text)
-        .collect()
+fn texts(ap: &mut Sitl) -> Vec<String> {
+    ap.texts().into_iter().map(|s: StatusText| s.text).collect()
 }
 
 fn has(texts: &[String], part: &str) -> bool {
@@ -129,33 +35,25 @@ fn height(t: &Telemetry) -> f64 {
 }
 
 /// Arm after one step and take off to MIS_TAKEOFF_ALT; returns once in Hold.
-fn take_off(ap: &mut Ap) {
+fn take_off(ap: &mut Sitl) {
     ap.step();
-    assert_eq!(
-        ap.command(AutopilotCommand::Arm { force: false }),
-        CommandOutcome::Accepted
-    );
-    assert_eq!(
-        ap.command(AutopilotCommand::Takeoff { altitude_amsl_m: None }),
-        CommandOutcome::Accepted
-    );
-    run_until(ap, 30.0, |t| t.mode == FlightMode::Hold).expect("takeoff completes");
+    ap.take_off_to(None);
 }
 
 /// Take off and let the hover settle.
-fn hover(ap: &mut Ap) -> Vector3<f64> {
+fn hover(ap: &mut Sitl) -> Vector3<f64> {
     take_off(ap);
-    run(ap, 5.0);
+    ap.run(5.0);
     ap.telemetry().position_ned
 }
 
-fn hover_at(ap: &mut Ap) -> Vector3<f64> {
+fn hover_at(ap: &mut Sitl) -> Vector3<f64> {
     ap.telemetry().position_ned
 }
 
 #[test]
 fn arm_is_refused_until_the_estimator_runs_then_accepted() {
-    let (mut ap, _) = setup("quad", &[]);
+    let mut ap = Sitl::quad().build();
     let t = ap.telemetry();
     assert!(!t.armed && !t.prearm_ok);
     assert_eq!(t.mode, FlightMode::Hold, "PX4 reports AUTO.LOITER when idle");
@@ -164,7 +62,7 @@ fn arm_is_refused_until_the_estimator_runs_then_accepted() {
         ap.command(AutopilotCommand::Arm { force: false }),
         CommandOutcome::TemporarilyRejected("estimator not initialised")
     );
-    let s = ap.drain_status_texts();
+    let s = ap.texts();
     assert_eq!(s.len(), 1);
     assert_eq!(s[0].severity, Severity::Critical);
     assert!(s[0].text.starts_with("Arming denied"), "{}", s[0].text);
@@ -182,14 +80,14 @@ fn arm_is_refused_until_the_estimator_runs_then_accepted() {
         ap.command(AutopilotCommand::Arm { force: false }),
         CommandOutcome::Accepted
     );
-    run(&mut ap, 2.0);
+    ap.run(2.0);
     let t = ap.telemetry();
     assert!(t.armed && t.landed == LandedState::OnGround);
     assert_eq!(t.position_ned, Vector3::new(0.0, 0.0, -0.24));
     assert!(t.throttle > 0.0 && t.throttle < 0.05, "idle {}", t.throttle);
     assert!(t.battery_current_a > 0.3);
     // a forced arm skips the checks
-    let (mut fresh, _) = setup("quad", &[]);
+    let mut fresh = Sitl::quad().build();
     assert_eq!(
         fresh.command(AutopilotCommand::Arm { force: true }),
         CommandOutcome::Accepted
@@ -198,7 +96,7 @@ fn arm_is_refused_until_the_estimator_runs_then_accepted() {
 
 #[test]
 fn takeoff_reaches_mis_takeoff_alt_then_holds_in_air() {
-    let (mut ap, mut store) = setup("quad", &[]);
+    let mut ap = Sitl::quad().build();
     ap.step();
     // disarmed: refused as PX4
     assert_eq!(
@@ -209,7 +107,7 @@ fn takeoff_reaches_mis_takeoff_alt_then_holds_in_air() {
         ap.command(AutopilotCommand::SetMode(FlightMode::Takeoff)),
         CommandOutcome::TemporarilyRejected("vehicle not armed")
     );
-    set(&mut ap, &mut store, "MIS_TAKEOFF_ALT", real(3.0));
+    ap.set_param("MIS_TAKEOFF_ALT", real(3.0));
     ap.command(AutopilotCommand::Arm { force: false });
     texts(&mut ap);
     // a relative altitude sent as AMSL (pymavlink habit) is raised to the minimum
@@ -222,7 +120,7 @@ fn takeoff_reaches_mis_takeoff_alt_then_holds_in_air() {
     assert!(has(&texts(&mut ap), "Using minimum takeoff altitude: 3.00 m"));
     assert_eq!(ap.telemetry().landed, LandedState::Takeoff);
     let mut seen_takeoff_state = false;
-    let done = run_until(&mut ap, 30.0, |t| {
+    let done = ap.run_until(30.0, |t| {
         seen_takeoff_state |= t.landed == LandedState::Takeoff && height(t) > 1.0;
         t.mode == FlightMode::Hold
     });
@@ -230,7 +128,7 @@ fn takeoff_reaches_mis_takeoff_alt_then_holds_in_air() {
     let t = ap.telemetry();
     assert_eq!(t.landed, LandedState::InAir);
     assert!((height(&t) - 3.0).abs() < 0.25, "{}", height(&t));
-    run(&mut ap, 3.0);
+    ap.run(3.0);
     let t = ap.telemetry();
     assert!((height(&t) - 3.0).abs() < 0.02, "{}", height(&t));
     assert!(t.position_ned.xy().norm() < 0.01);
@@ -245,14 +143,14 @@ fn takeoff_reaches_mis_takeoff_alt_then_holds_in_air() {
         }),
         CommandOutcome::Accepted
     );
-    run_until(&mut ap, 30.0, |t| t.mode == FlightMode::Hold).unwrap();
-    run(&mut ap, 2.0);
+    ap.run_until(30.0, |t| t.mode == FlightMode::Hold).unwrap();
+    ap.run(2.0);
     assert!((height(&ap.telemetry()) - 6.0).abs() < 0.05);
 }
 
 #[test]
 fn land_touches_down_reports_on_ground_and_disarms_after_com_disarm_land() {
-    let (mut ap, _) = setup("quad", &[]);
+    let mut ap = Sitl::quad().build();
     take_off(&mut ap);
     // disarming in the air is refused unless forced
     assert_eq!(
@@ -262,18 +160,19 @@ fn land_touches_down_reports_on_ground_and_disarms_after_com_disarm_land() {
     assert_eq!(ap.command(AutopilotCommand::Land), CommandOutcome::Accepted);
     let mut landing_seen = false;
     let mut max_descent: f64 = 0.0;
-    let touchdown = run_until(&mut ap, 30.0, |t| {
-        landing_seen |= t.landed == LandedState::Landing;
-        max_descent = max_descent.max(t.velocity_ned.z);
-        t.landed == LandedState::OnGround
-    })
-    .expect("lands");
+    let touchdown = ap
+        .run_until(30.0, |t| {
+            landing_seen |= t.landed == LandedState::Landing;
+            max_descent = max_descent.max(t.velocity_ned.z);
+            t.landed == LandedState::OnGround
+        })
+        .expect("lands");
     assert!(landing_seen);
     assert!((max_descent - 0.7).abs() < 0.1, "MPC_LAND_SPEED, got {max_descent}");
     let t = ap.telemetry();
     assert!(t.armed && t.mode == FlightMode::Land);
     assert!(t.position_ned.xy().norm() < 0.05);
-    let disarmed = run_until(&mut ap, 10.0, |t| !t.armed).expect("auto-disarm");
+    let disarmed = ap.run_until(10.0, |t| !t.armed).expect("auto-disarm");
     assert!(
         (disarmed - touchdown - 2.0).abs() < 0.01,
         "COM_DISARM_LAND after the landing detection: {}",
@@ -287,27 +186,26 @@ fn land_touches_down_reports_on_ground_and_disarms_after_com_disarm_land() {
 
 #[test]
 fn arming_without_takeoff_disarms_after_com_disarm_prflt() {
-    let (mut ap, mut store) = setup("quad", &[]);
-    set(&mut ap, &mut store, "COM_DISARM_PRFLT", real(3.0));
+    let mut ap = Sitl::quad().build();
+    ap.set_param("COM_DISARM_PRFLT", real(3.0));
     ap.step();
     ap.command(AutopilotCommand::Arm { force: false });
     let armed_at = ap.time_s();
-    let off = run_until(&mut ap, 10.0, |t| !t.armed).expect("preflight disarm");
+    let off = ap.run_until(10.0, |t| !t.armed).expect("preflight disarm");
     assert!((off - armed_at - 3.0).abs() < 0.01, "{}", off - armed_at);
     assert!(has(&texts(&mut ap), "preflight"));
     // <= 0 disables it
-    set(&mut ap, &mut store, "COM_DISARM_PRFLT", real(-1.0));
+    ap.set_param("COM_DISARM_PRFLT", real(-1.0));
     ap.command(AutopilotCommand::Arm { force: false });
-    run(&mut ap, 12.0);
+    ap.run(12.0);
     assert!(ap.armed());
 }
 
 #[test]
 fn rtl_from_20_m_away_returns_lands_near_home_and_disarms() {
-    let (mut ap, mut store) = setup(
-        "quad",
-        &[("RTL_RETURN_ALT", real(12.0)), ("RTL_DESCEND_ALT", real(6.0))],
-    );
+    let mut ap = Sitl::quad()
+        .params(&[("RTL_RETURN_ALT", real(12.0)), ("RTL_DESCEND_ALT", real(6.0))])
+        .build();
     take_off(&mut ap);
     let away = HOME.offset(&Vector3::new(16.0, 12.0, -5.0));
     ap.command(AutopilotCommand::Reposition {
@@ -317,23 +215,24 @@ fn rtl_from_20_m_away_returns_lands_near_home_and_disarms() {
         yaw_rad: None,
         speed_m_s: None,
     });
-    run_until(&mut ap, 30.0, |t| {
+    ap.run_until(30.0, |t| {
         (t.position_ned - Vector3::new(16.0, 12.0, -5.0)).norm() < 0.05
     })
     .unwrap();
-    set(&mut ap, &mut store, "MPC_XY_CRUISE", real(4.0));
+    ap.set_param("MPC_XY_CRUISE", real(4.0));
     assert_eq!(
         ap.command(AutopilotCommand::SetMode(FlightMode::ReturnToLaunch)),
         CommandOutcome::Accepted
     );
     let mut max_height: f64 = 0.0;
     let mut max_speed: f64 = 0.0;
-    let landed = run_until(&mut ap, 120.0, |t| {
-        max_height = max_height.max(height(t));
-        max_speed = max_speed.max(t.velocity_ned.xy().norm());
-        !t.armed
-    })
-    .expect("returns, lands and disarms");
+    let landed = ap
+        .run_until(120.0, |t| {
+            max_height = max_height.max(height(t));
+            max_speed = max_speed.max(t.velocity_ned.xy().norm());
+            !t.armed
+        })
+        .expect("returns, lands and disarms");
     assert!(
         (max_height - 12.0).abs() < 0.2,
         "climbed to RTL_RETURN_ALT: {max_height}"
@@ -352,7 +251,7 @@ fn rtl_from_20_m_away_returns_lands_near_home_and_disarms() {
 
 #[test]
 fn reposition_flies_to_lat_lon_alt_with_yaw_and_holds() {
-    let (mut ap, _) = setup("quad", &[]);
+    let mut ap = Sitl::quad().build();
     take_off(&mut ap);
     let goal = Vector3::new(-15.0, 10.0, -8.0);
     let p = HOME.offset(&goal);
@@ -368,13 +267,13 @@ fn reposition_flies_to_lat_lon_alt_with_yaw_and_holds() {
     );
     assert_eq!(ap.mode(), FlightMode::Hold);
     let mut max_speed: f64 = 0.0;
-    run_until(&mut ap, 40.0, |t| {
+    ap.run_until(40.0, |t| {
         max_speed = max_speed.max(t.velocity_ned.xy().norm());
         (t.position_ned - goal).norm() < 0.02
     })
     .expect("arrives");
     assert!(max_speed < 3.1, "{max_speed}");
-    run(&mut ap, 2.0);
+    ap.run(2.0);
     let t = ap.telemetry();
     assert!((t.global.lat_deg - p.lat_deg).abs() < 1e-7 && (t.global.lon_deg - p.lon_deg).abs() < 1e-7);
     assert!((t.global.alt_amsl_m - p.alt_amsl_m).abs() < 0.02);
@@ -387,7 +286,7 @@ fn reposition_flies_to_lat_lon_alt_with_yaw_and_holds() {
         yaw_rad: None,
         speed_m_s: None,
     });
-    run(&mut ap, 10.0);
+    ap.run(10.0);
     let t = ap.telemetry();
     assert!(
         (t.position_ned - Vector3::new(-15.0, 10.0, -4.0)).norm() < 0.02,
@@ -407,7 +306,7 @@ fn reposition_flies_to_lat_lon_alt_with_yaw_and_holds() {
         speed_m_s: None,
     });
     let mut max_speed: f64 = 0.0;
-    run_until(&mut ap, 30.0, |t| {
+    ap.run_until(30.0, |t| {
         max_speed = max_speed.max(t.velocity_ned.xy().norm());
         false
     });
@@ -435,10 +334,10 @@ fn velocity_sp(v: Vector3<f64>) -> AutopilotCommand {
 }
 
 /// Run `seconds`, sending `cmd` every 50 ms (MAVSDK's 20 Hz stream); the time of the last one.
-fn stream(ap: &mut Ap, seconds: f64, cmd: AutopilotCommand) -> f64 {
-    let every = steps(ap, 0.05);
+fn stream(ap: &mut Sitl, seconds: f64, cmd: AutopilotCommand) -> f64 {
+    let every = ap.steps(0.05);
     let mut last = ap.time_s();
-    for k in 0..steps(ap, seconds) {
+    for k in 0..ap.steps(seconds) {
         if k % every == 0 {
             assert_eq!(ap.command(cmd), CommandOutcome::Accepted);
             last = ap.time_s();
@@ -450,7 +349,7 @@ fn stream(ap: &mut Ap, seconds: f64, cmd: AutopilotCommand) -> f64 {
 
 #[test]
 fn offboard_needs_setpoints_follows_position_and_velocity_and_falls_back_to_hold() {
-    let (mut ap, _) = setup("quad", &[]);
+    let mut ap = Sitl::quad().build();
     take_off(&mut ap);
     texts(&mut ap);
     assert_eq!(
@@ -484,32 +383,36 @@ fn offboard_needs_setpoints_follows_position_and_velocity_and_falls_back_to_hold
 
     // the stream stops: Hold after COM_OF_LOSS_T, with a STATUSTEXT
     texts(&mut ap);
-    let lost = run_until(&mut ap, 5.0, |t| t.mode != FlightMode::Offboard).expect("falls back");
+    let lost = ap
+        .run_until(5.0, |t| t.mode != FlightMode::Offboard)
+        .expect("falls back");
     assert!((lost - last - 1.0).abs() < 0.01, "{}", lost - last);
     assert_eq!(ap.mode(), FlightMode::Hold);
-    let s = ap.drain_status_texts();
+    let s = ap.texts();
     assert!(
         s.iter()
             .any(|s| s.severity == Severity::Warning && s.text.contains("Offboard signal lost")),
         "{s:?}"
     );
     // Hold brakes and stays
-    run(&mut ap, 5.0);
+    ap.run(5.0);
     let p = hover_at(&mut ap);
-    run(&mut ap, 2.0);
+    ap.run(2.0);
     assert!((hover_at(&mut ap) - p).norm() < 0.005);
     assert_eq!(ap.telemetry().landed, LandedState::InAir);
 }
 
 #[test]
 fn offboard_loss_action_can_be_land() {
-    let (mut ap, mut store) = setup("quad", &[]);
+    let mut ap = Sitl::quad().build();
     take_off(&mut ap);
-    set(&mut ap, &mut store, "COM_OBL_RC_ACT", int(4));
+    ap.set_param("COM_OBL_RC_ACT", int(4));
     ap.command(position_sp(Vector3::new(0.0, 0.0, -3.0), 0.0));
     ap.command(AutopilotCommand::SetMode(FlightMode::Offboard));
-    run_until(&mut ap, 3.0, |t| t.mode == FlightMode::Land).expect("lands on loss");
-    run_until(&mut ap, 20.0, |t| t.landed == LandedState::OnGround).expect("touches down");
+    ap.run_until(3.0, |t| t.mode == FlightMode::Land)
+        .expect("lands on loss");
+    ap.run_until(20.0, |t| t.landed == LandedState::OnGround)
+        .expect("touches down");
 }
 
 fn attitude_sp(q: UnitQuaternion<f64>, thrust: f64) -> AutopilotCommand {
@@ -522,7 +425,7 @@ fn attitude_sp(q: UnitQuaternion<f64>, thrust: f64) -> AutopilotCommand {
 
 #[test]
 fn offboard_attitude_keeps_the_commanded_tilt_and_rates_turn() {
-    let (mut ap, _) = setup("quad", &[]);
+    let mut ap = Sitl::quad().build();
     take_off(&mut ap);
     let hover = ap.telemetry().throttle;
     let q = UnitQuaternion::from_euler_angles(8f64.to_radians(), -5f64.to_radians(), 0.3);
@@ -559,7 +462,7 @@ fn offboard_attitude_keeps_the_commanded_tilt_and_rates_turn() {
 #[test]
 fn injected_wrench_and_mass_are_estimated_fsr_quad_report_values() {
     // The report's case: f_e = (0.5, 0.5, 0) N, tau_e,z = 0.2 N m, true mass 1.25 kg, nominal 1.5 kg.
-    let (mut ap, mut store) = setup("fsr-quad", &[]);
+    let mut ap = Sitl::airframe("fsr-quad").build();
     take_off(&mut ap);
     for (name, v) in [
         ("SIM_FEXT_X", 0.5),
@@ -568,9 +471,9 @@ fn injected_wrench_and_mass_are_estimated_fsr_quad_report_values() {
         ("SIM_MASS", 1.25),
         ("MDL_MASS", 1.5),
     ] {
-        set(&mut ap, &mut store, name, real(v));
+        ap.set_param(name, real(v));
     }
-    run(&mut ap, 10.0);
+    ap.run(10.0);
     let t = ap.telemetry();
     let truth = ap.truth();
     assert_eq!(truth.force_ned, Vector3::new(0.5, 0.5, 0.0));
@@ -590,7 +493,7 @@ fn injected_wrench_and_mass_are_estimated_fsr_quad_report_values() {
 
 #[test]
 fn injected_wrench_and_lighter_vehicle_are_estimated_quad() {
-    let (mut ap, mut store) = setup("quad", &[]);
+    let mut ap = Sitl::quad().build();
     take_off(&mut ap);
     for (name, v) in [
         ("SIM_FEXT_X", 0.5),
@@ -598,9 +501,9 @@ fn injected_wrench_and_lighter_vehicle_are_estimated_quad() {
         ("SIM_TEXT_Z", 0.05),
         ("SIM_MASS", 1.6),
     ] {
-        set(&mut ap, &mut store, name, real(v));
+        ap.set_param(name, real(v));
     }
-    run(&mut ap, 10.0);
+    ap.run(10.0);
     let e = ap.telemetry().estimate;
     assert!(
         (e.force_ned.x - 0.5).abs() < 0.015 && (e.force_ned.y - 0.5).abs() < 0.015,
@@ -613,17 +516,17 @@ fn injected_wrench_and_lighter_vehicle_are_estimated_quad() {
 
 #[test]
 fn ctrl_type_switched_in_flight_keeps_the_hover() {
-    let (mut ap, mut store) = setup("quad", &[]);
+    let mut ap = Sitl::quad().build();
     let p0 = hover(&mut ap);
     for (value, kind) in [
         (0, ControllerKind::Hierarchical),
         (2, ControllerKind::Passivity),
         (1, ControllerKind::Geometric),
     ] {
-        set(&mut ap, &mut store, "CTRL_TYPE", int(value));
-        assert_eq!(ap.controller_kind(), kind);
+        ap.set_param("CTRL_TYPE", int(value));
+        assert_eq!(ap.pilot().controller_kind(), kind);
         let mut worst: f64 = 0.0;
-        for _ in 0..steps(&ap, 4.0) {
+        for _ in 0..ap.steps(4.0) {
             ap.step();
             worst = worst.max((ap.telemetry().position_ned - p0).norm());
         }
@@ -634,37 +537,37 @@ fn ctrl_type_switched_in_flight_keeps_the_hover() {
 
 #[test]
 fn est_comp_removes_the_steady_error_under_a_disturbance() {
-    let (mut ap, mut store) = setup("quad", &[]);
+    let mut ap = Sitl::quad().build();
     let p0 = hover(&mut ap);
-    set(&mut ap, &mut store, "SIM_FEXT_X", real(2.0));
-    set(&mut ap, &mut store, "SIM_FEXT_Y", real(-1.0));
-    run(&mut ap, 8.0);
+    ap.set_param("SIM_FEXT_X", real(2.0));
+    ap.set_param("SIM_FEXT_Y", real(-1.0));
+    ap.run(8.0);
     let off = (hover_at(&mut ap) - p0).norm();
     assert!(off > 0.1, "no feedback: pushed {off} m");
-    set(&mut ap, &mut store, "EST_COMP", int(1));
-    run(&mut ap, 8.0);
+    ap.set_param("EST_COMP", int(1));
+    ap.run(8.0);
     let on = (hover_at(&mut ap) - p0).norm();
     assert!(on < 0.01, "feedback: {on} m");
     // rebuilding the estimator in flight keeps the compensation (cross-fade)
-    set(&mut ap, &mut store, "EST_ORDER", int(5));
-    set(&mut ap, &mut store, "EST_POLY", int(1));
+    ap.set_param("EST_ORDER", int(5));
+    ap.set_param("EST_POLY", int(1));
     let mut worst: f64 = 0.0;
-    for _ in 0..steps(&ap, 8.0) {
+    for _ in 0..ap.steps(8.0) {
         ap.step();
         worst = worst.max((ap.telemetry().position_ned - p0).norm());
     }
     assert!(worst < 0.05, "estimator rebuilt: moved {worst} m");
     assert!((hover_at(&mut ap) - p0).norm() < 0.01);
     // the gain scales apply live too
-    set(&mut ap, &mut store, "CTRL_POS_SCALE", real(1.5));
-    set(&mut ap, &mut store, "CTRL_ATT_SCALE", real(0.8));
-    run(&mut ap, 3.0);
+    ap.set_param("CTRL_POS_SCALE", real(1.5));
+    ap.set_param("CTRL_ATT_SCALE", real(0.8));
+    ap.run(3.0);
     assert!((hover_at(&mut ap) - p0).norm() < 0.01);
 }
 
 #[test]
 fn forced_disarm_in_the_air_falls_and_lands() {
-    let (mut ap, _) = setup("quad", &[]);
+    let mut ap = Sitl::quad().build();
     take_off(&mut ap);
     assert_eq!(
         ap.command(AutopilotCommand::Disarm { force: true }),
@@ -672,13 +575,14 @@ fn forced_disarm_in_the_air_falls_and_lands() {
     );
     let t = ap.telemetry();
     assert!(!t.armed && t.landed == LandedState::InAir);
-    run_until(&mut ap, 5.0, |t| t.landed == LandedState::OnGround).expect("falls to the ground");
+    ap.run_until(5.0, |t| t.landed == LandedState::OnGround)
+        .expect("falls to the ground");
     assert_eq!(ap.telemetry().position_ned.z, -0.24);
 }
 
 #[test]
 fn invalid_or_untimely_commands_are_refused_without_panicking() {
-    let (mut ap, _) = setup("quad", &[]);
+    let mut ap = Sitl::quad().build();
     ap.step();
     let nan = f64::NAN;
     let inf = f64::INFINITY;
@@ -860,10 +764,10 @@ fn invalid_commands() -> Vec<(AutopilotCommand, CommandOutcome)> {
 /// first. Any input reads the sensors once at its instant (as the next step
 /// would) and sets the autopilot's clock `now_s` to it: both are brought to
 /// the instant here, so only what the input itself did can differ.
-fn whole_state(ap: &mut Ap) -> String {
-    ap.drain_status_texts();
-    ap.0.world_mut().sense(0);
-    let full = format!("{:?}", ap.0);
+fn whole_state(ap: &mut Sitl) -> String {
+    ap.texts();
+    ap.readings();
+    let full = format!("{:?}", ap.core());
     let key = "now_s: ";
     assert_eq!(full.matches(key).count(), 1, "one autopilot clock");
     let at = full.find(key).unwrap() + key.len();
@@ -880,7 +784,7 @@ fn difference(a: &str, b: &str) -> String {
 }
 
 /// Each command is refused as `want` says and leaves the whole state as it was.
-fn assert_refusals_change_nothing(ap: &mut Ap, phase: &str, refused: Vec<(AutopilotCommand, CommandOutcome)>) {
+fn assert_refusals_change_nothing(ap: &mut Sitl, phase: &str, refused: Vec<(AutopilotCommand, CommandOutcome)>) {
     for (cmd, want) in refused {
         let before = whole_state(ap);
         assert_eq!(ap.command(cmd), want, "{phase}: {cmd:?}");
@@ -900,7 +804,7 @@ fn assert_refusals_change_nothing(ap: &mut Ap, phase: &str, refused: Vec<(Autopi
 #[test]
 fn refusals_leave_the_whole_state_unchanged_on_the_ground_and_in_flight() {
     use rotorpilot::autopilot::PowerAction;
-    let (mut ap, _) = setup("quad", &[]);
+    let mut ap = Sitl::quad().build();
     ap.step();
     let mut on_ground = invalid_commands();
     on_ground.extend([
@@ -964,12 +868,10 @@ fn refusals_leave_the_whole_state_unchanged_on_the_ground_and_in_flight() {
         }),
         CommandOutcome::Accepted
     );
-    run(&mut ap, 1.0);
+    ap.run(1.0);
     assert_refusals_change_nothing(&mut ap, "in Hold", in_flight(false));
-    run_until(&mut ap, 20.0, |t| {
-        (t.position_ned - Vector3::new(8.0, 0.0, -4.0)).norm() < 0.05
-    })
-    .expect("the reposition target kept");
+    ap.run_until(20.0, |t| (t.position_ned - Vector3::new(8.0, 0.0, -4.0)).norm() < 0.05)
+        .expect("the reposition target kept");
     // in Offboard, the stream 0.5 s old (its timer running)
     let goal = Vector3::new(8.0, 3.0, -5.0);
     ap.command(position_sp(goal, 0.5));
@@ -978,23 +880,23 @@ fn refusals_leave_the_whole_state_unchanged_on_the_ground_and_in_flight() {
         CommandOutcome::Accepted
     );
     stream(&mut ap, 3.0, position_sp(goal, 0.5));
-    run(&mut ap, 0.5);
+    ap.run(0.5);
     assert_refusals_change_nothing(&mut ap, "in Offboard", in_flight(true));
     assert_eq!(ap.mode(), FlightMode::Offboard);
     // the refused setpoints did not feed the stream: it goes stale on time
     // (COM_OF_LOSS_T 1 s after the last accepted one) and the vehicle holds
-    run(&mut ap, 0.6);
+    ap.run(0.6);
     assert_eq!(ap.mode(), FlightMode::Hold);
 }
 
 #[test]
 fn telemetry_is_complete_and_consistent() {
-    let (mut ap, _) = setup("quad", &[]);
+    let mut ap = Sitl::quad().build();
     let t0 = ap.telemetry();
     assert!((t0.battery_voltage_v - 16.8).abs() < 0.05);
     assert_eq!(t0.battery_remaining, 1.0);
     take_off(&mut ap);
-    run(&mut ap, 1.0);
+    ap.run(1.0);
     let t = ap.telemetry();
     assert_eq!(t.global, HOME.offset(&t.position_ned));
     assert!(t.acceleration_ned.norm() < 0.05);
@@ -1010,11 +912,11 @@ fn telemetry_is_complete_and_consistent() {
 #[test]
 fn same_commands_give_identical_telemetry() {
     let fly = || {
-        let (mut ap, mut store) = setup("quad", &[]);
+        let mut ap = Sitl::quad().build();
         let mut log = Vec::new();
         take_off(&mut ap);
-        set(&mut ap, &mut store, "SIM_FEXT_X", real(1.0));
-        set(&mut ap, &mut store, "EST_COMP", int(1));
+        ap.set_param("SIM_FEXT_X", real(1.0));
+        ap.set_param("EST_COMP", int(1));
         ap.command(position_sp(Vector3::new(1.0, 1.0, -3.0), 0.2));
         ap.command(AutopilotCommand::SetMode(FlightMode::Offboard));
         for _ in 0..40 {
@@ -1023,10 +925,10 @@ fn same_commands_give_identical_telemetry() {
         }
         ap.command(AutopilotCommand::Land);
         for _ in 0..30 {
-            run(&mut ap, 0.1);
+            ap.run(0.1);
             log.push(ap.telemetry());
         }
-        (log, ap.drain_status_texts())
+        (log, ap.texts())
     };
     let (a, sa) = fly();
     let (b, sb) = fly();
@@ -1036,7 +938,7 @@ fn same_commands_give_identical_telemetry() {
 
 #[test]
 fn reposition_on_the_ground_takes_off_first() {
-    let (mut ap, _) = setup("quad", &[]);
+    let mut ap = Sitl::quad().build();
     ap.step();
     ap.command(AutopilotCommand::Arm { force: false });
     let goal = Vector3::new(5.0, 0.0, -4.0);
@@ -1052,14 +954,15 @@ fn reposition_on_the_ground_takes_off_first() {
         CommandOutcome::Accepted
     );
     assert_eq!(ap.mode(), FlightMode::Takeoff);
-    run_until(&mut ap, 40.0, |t| (t.position_ned - goal).norm() < 0.02).expect("takes off and goes");
+    ap.run_until(40.0, |t| (t.position_ned - goal).norm() < 0.02)
+        .expect("takes off and goes");
     assert_eq!(ap.mode(), FlightMode::Hold);
 }
 
 #[test]
 fn mavsdk_offboard_example_flow_takes_off_in_offboard_lands_at_z0_and_disarms() {
     // offboard_position_ned.py: arm, setpoint (0, 0, 0), start, climb to 5 m, move, back down to z = 0, stop
-    let (mut ap, _) = setup("quad", &[]);
+    let mut ap = Sitl::quad().build();
     ap.step();
     assert_eq!(
         ap.command(AutopilotCommand::Arm { force: false }),
@@ -1112,21 +1015,23 @@ fn mavsdk_offboard_example_flow_takes_off_in_offboard_lands_at_z0_and_disarms() 
 #[test]
 fn every_builtin_airframe_takes_off_holds_and_lands() {
     for name in ["quad", "hexa", "octo", "fsr-quad"] {
-        let (mut ap, _) = setup(name, &[]);
+        let mut ap = Sitl::airframe(name).build();
         let p0 = hover(&mut ap);
         assert!((height(&ap.telemetry()) - 2.5).abs() < 0.03, "{name}");
-        run(&mut ap, 2.0);
+        ap.run(2.0);
         assert!((hover_at(&mut ap) - p0).norm() < 0.01, "{name}");
         ap.command(AutopilotCommand::Land);
-        run_until(&mut ap, 30.0, |t| !t.armed).unwrap_or_else(|| panic!("{name} lands and disarms"));
+        ap.run_until(30.0, |t| !t.armed)
+            .unwrap_or_else(|| panic!("{name} lands and disarms"));
         assert_eq!(ap.telemetry().landed, LandedState::OnGround, "{name}");
     }
 }
 
 #[test]
 fn every_parameter_at_its_bounds_is_applied_in_flight_without_faults() {
-    let (mut ap, mut store) = setup("quad", &[]);
+    let mut ap = Sitl::quad().build();
     hover(&mut ap);
+    let mut store = ap.params().clone();
     let defaults = store.clone();
     for i in 0..store.len() {
         let (spec, _) = store.by_index(i).unwrap();
@@ -1138,7 +1043,7 @@ fn every_parameter_at_its_bounds_is_applied_in_flight_without_faults() {
             store.set(spec.name, v).unwrap();
             ap.apply_params(&store)
                 .unwrap_or_else(|e| panic!("{} = {bound}: {e}", spec.name));
-            run(&mut ap, 0.2);
+            ap.run(0.2);
             let t = ap.telemetry();
             assert!(
                 t.position_ned
@@ -1154,7 +1059,7 @@ fn every_parameter_at_its_bounds_is_applied_in_flight_without_faults() {
         ap.apply_params(&store).unwrap();
         if !ap.armed() || ap.telemetry().landed == LandedState::OnGround {
             // an extreme (a huge force, a tiny mass) may have ended the flight: start again
-            let (fresh, _) = setup("quad", &[]);
+            let fresh = Sitl::quad().build();
             ap = fresh;
             hover(&mut ap);
         }
@@ -1176,34 +1081,39 @@ fn landing_detection_works_on_noisy_measurements() {
         attitude_rad: 0.002,
         rate_rad_s: 0.005,
     };
-    let (mut ap, _) = setup_with("quad", &[("CTRL_TYPE", int(0))], SensorConfig { noise, seed: 11 });
+    let mut ap = Sitl::quad()
+        .params(&[("CTRL_TYPE", int(0))])
+        .sensors(SensorConfig { noise, seed: 11 })
+        .build();
     // resting, noisy: still on the ground, and armable
-    let on_ground = run_until(&mut ap, 5.0, |t| t.landed != LandedState::OnGround);
+    let on_ground = ap.run_until(5.0, |t| t.landed != LandedState::OnGround);
     assert_eq!(on_ground, None, "noise alone never lifts it off");
     assert!(ap.telemetry().prearm_ok);
     take_off(&mut ap);
     let mut lowest: f64 = f64::INFINITY;
-    let spurious = run_until(&mut ap, 5.0, |t| {
+    let spurious = ap.run_until(5.0, |t| {
         lowest = lowest.min(height(t));
         t.landed != LandedState::InAir
     });
     assert_eq!(spurious, None, "hovering is never taken for a landing");
     assert!(lowest > 2.0, "{lowest}");
     assert_eq!(ap.command(AutopilotCommand::Land), CommandOutcome::Accepted);
-    let touchdown = run_until(&mut ap, 30.0, |t| t.landed == LandedState::OnGround).expect("lands");
+    let touchdown = ap
+        .run_until(30.0, |t| t.landed == LandedState::OnGround)
+        .expect("lands");
     let t = ap.telemetry();
     assert!(
-        ap.0.world().plant(0).contact() == rotorpilot::sim::Contact::OnGround,
+        ap.core().world().plant(0).contact() == rotorpilot::sim::Contact::OnGround,
         "landed means on the ground"
     );
     assert!(t.position_ned.xy().norm() < 0.1);
-    let disarmed = run_until(&mut ap, 10.0, |t| !t.armed).expect("auto-disarm");
+    let disarmed = ap.run_until(10.0, |t| !t.armed).expect("auto-disarm");
     assert!((disarmed - touchdown - 2.0).abs() < 0.01, "{}", disarmed - touchdown);
     let s = texts(&mut ap);
     let count = |part: &str| s.iter().filter(|x| x.contains(part)).count();
     assert_eq!((count("Takeoff detected"), count("Landing detected")), (1, 1), "{s:?}");
     // it stays landed on noisy measurements, disarmed
-    assert_eq!(run_until(&mut ap, 5.0, |t| t.landed != LandedState::OnGround), None);
+    assert_eq!(ap.run_until(5.0, |t| t.landed != LandedState::OnGround), None);
 }
 
 /// The land detector needs no contact flag: it lands as soon after touchdown
@@ -1211,7 +1121,7 @@ fn landing_detection_works_on_noisy_measurements() {
 #[test]
 fn touchdown_to_landed_takes_about_the_detection_time() {
     for name in ["quad", "hexa", "octo", "fsr-quad"] {
-        let (mut ap, _) = setup(name, &[]);
+        let mut ap = Sitl::airframe(name).build();
         take_off(&mut ap);
         ap.command(AutopilotCommand::Land);
         let mut touched = None;
@@ -1219,7 +1129,7 @@ fn touchdown_to_landed_takes_about_the_detection_time() {
         for _ in 0..30_000 {
             ap.step();
             let now = ap.time_s();
-            if touched.is_none() && ap.0.world().plant(0).contact() == rotorpilot::sim::Contact::OnGround {
+            if touched.is_none() && ap.core().world().plant(0).contact() == rotorpilot::sim::Contact::OnGround {
                 touched = Some(now);
             }
             if ap.telemetry().landed == LandedState::OnGround {
@@ -1240,7 +1150,7 @@ fn touchdown_to_landed_takes_about_the_detection_time() {
 #[test]
 fn the_autopilot_decides_what_the_link_only_translates() {
     use rotorpilot::autopilot::{PowerAction, RelativeFrame};
-    let (mut ap, mut store) = setup("quad", &[]);
+    let mut ap = Sitl::quad().build();
     ap.step();
     let reboot = AutopilotCommand::Power(PowerAction::Reboot);
     let inject = AutopilotCommand::InjectFailure {
@@ -1253,7 +1163,7 @@ fn the_autopilot_decides_what_the_link_only_translates() {
         ap.command(inject),
         CommandOutcome::Denied("failure injection disabled (SYS_FAILURE_EN)")
     );
-    set(&mut ap, &mut store, "SYS_FAILURE_EN", int(1));
+    ap.set_param("SYS_FAILURE_EN", int(1));
     assert_eq!(ap.command(inject), CommandOutcome::Unsupported);
     assert_eq!(
         ap.command(AutopilotCommand::StartMission { first: Some(0) }),
@@ -1279,7 +1189,7 @@ fn the_autopilot_decides_what_the_link_only_translates() {
         yaw_rad: Some(std::f64::consts::FRAC_PI_2),
         speed_m_s: None,
     });
-    run(&mut ap, 6.0);
+    ap.run(6.0);
     let forward = AutopilotCommand::Offboard(OffboardSetpoint::Relative(
         RelativeFrame::Body,
         Targets {
@@ -1310,7 +1220,7 @@ fn telemetry_names_the_multirotor() {
         ("octo", VehicleType::Octorotor),
         ("fsr-quad", VehicleType::Quadrotor),
     ] {
-        assert_eq!(setup(name, &[]).0.telemetry().vehicle_type, kind, "{name}");
+        assert_eq!(Sitl::airframe(name).build().telemetry().vehicle_type, kind, "{name}");
     }
 }
 
@@ -1320,9 +1230,9 @@ fn telemetry_names_the_multirotor() {
 /// flying, not "landed" in the air: it holds its height and refuses a disarm.
 #[test]
 fn slow_climbs_are_takeoffs() {
-    let (mut ap, _) = setup("quad", &[("MPC_TKO_SPEED", real(0.5))]);
+    let mut ap = Sitl::quad().params(&[("MPC_TKO_SPEED", real(0.5))]).build();
     take_off(&mut ap);
-    run(&mut ap, 3.0);
+    ap.run(3.0);
     let t = ap.telemetry();
     assert_eq!(t.landed, LandedState::InAir);
     assert!((height(&t) - 2.5).abs() < 0.05, "{}", height(&t));
@@ -1331,7 +1241,7 @@ fn slow_climbs_are_takeoffs() {
         CommandOutcome::TemporarilyRejected("vehicle in the air")
     );
 
-    let (mut ap, _) = setup("quad", &[]);
+    let mut ap = Sitl::quad().build();
     ap.step();
     ap.command(AutopilotCommand::Arm { force: false });
     let climb = AutopilotCommand::Offboard(OffboardSetpoint::Local(Targets {
@@ -1361,24 +1271,27 @@ fn slow_climbs_are_takeoffs() {
 #[test]
 fn client_timers_on_the_wall_clock_fire_only_on_the_runtimes_event() {
     use rotorpilot::autopilot::{ClientClock, ClientTimer};
-    let (mut ap, _) = setup("quad", &[]);
-    ap.0.pilot_mut(0).set_client_clock(ClientClock::Wall);
+    let mut ap = Sitl::quad().build();
+    ap.pilot_mut().set_client_clock(ClientClock::Wall);
     ap.step();
     ap.command(AutopilotCommand::Arm { force: false });
     let armed_at = ap.time_s();
     // 30 s of simulated time: COM_DISARM_PRFLT (10 s) is a wall-clock timer now
-    run(&mut ap, 30.0);
+    ap.run(30.0);
     assert!(ap.armed(), "disarmed on simulated time");
-    let pending = ap.0.pilot(0).client_timers();
+    let pending = ap.pilot().client_timers();
     assert_eq!(pending.len(), 1);
     assert_eq!(
         (pending[0].timer, pending[0].started_s, pending[0].duration_s),
         (ClientTimer::PreflightDisarm, armed_at, 10.0)
     );
     // a stale event (another arming's timer) changes nothing
-    assert!(!ap.0.client_timeout(0, ClientTimer::PreflightDisarm, armed_at + 1.0));
+    assert!(
+        !ap.core_mut()
+            .client_timeout(0, ClientTimer::PreflightDisarm, armed_at + 1.0)
+    );
     assert!(ap.armed());
-    assert!(ap.0.client_timeout(0, ClientTimer::PreflightDisarm, armed_at));
+    assert!(ap.core_mut().client_timeout(0, ClientTimer::PreflightDisarm, armed_at));
     assert!(!ap.armed());
     assert!(has(&texts(&mut ap), "preflight"));
 
@@ -1390,15 +1303,15 @@ fn client_timers_on_the_wall_clock_fire_only_on_the_runtimes_event() {
         ap.command(AutopilotCommand::SetMode(FlightMode::Offboard)),
         CommandOutcome::Accepted
     );
-    run(&mut ap, 20.0);
+    ap.run(20.0);
     assert_eq!(ap.mode(), FlightMode::Offboard, "left offboard on simulated time");
-    let t = ap.0.pilot(0).client_timers();
+    let t = ap.pilot().client_timers();
     assert!(
         t.iter()
             .any(|p| p.timer == ClientTimer::OffboardLoss && p.started_s == last),
         "{t:?}"
     );
-    assert!(ap.0.client_timeout(0, ClientTimer::OffboardLoss, last));
+    assert!(ap.core_mut().client_timeout(0, ClientTimer::OffboardLoss, last));
     assert_eq!(ap.mode(), FlightMode::Hold);
     // lost: OFFBOARD is refused until a new setpoint arrives
     assert!(matches!(
@@ -1410,4 +1323,75 @@ fn client_timers_on_the_wall_clock_fire_only_on_the_runtimes_event() {
         ap.command(AutopilotCommand::SetMode(FlightMode::Offboard)),
         CommandOutcome::Accepted
     );
+}
+
+// ----- preflight: arming refused when the rotors cannot lift the true mass -------------------
+
+#[test]
+fn lockstep_refuses_to_arm_what_cannot_hover_and_says_why() {
+    let quad = Airframe::load("quad").unwrap();
+    let lift_kg = quad.max_thrust_n() / rotorpilot::signals::GRAVITY;
+    let mut v = Sitl::quad().params(&[("SIM_MASS", real(10.0))]).build();
+    for _ in 0..50 {
+        v.step();
+    }
+    let _ = v.core_mut().drain_world_texts(0);
+    let outcome = v.command(AutopilotCommand::Arm { force: false });
+    assert!(matches!(outcome, CommandOutcome::Denied(_)), "{outcome:?}");
+    assert!(!v.armed());
+    let texts: Vec<String> = v.core_mut().drain_world_texts(0).into_iter().map(|t| t.text).collect();
+    assert_eq!(
+        texts,
+        [format!("Preflight Fail: SIM_MASS 10.0 kg > lift {lift_kg:.1} kg")]
+    );
+    // forced arming skips the preflight checks, as PX4's
+    assert_eq!(
+        v.command(AutopilotCommand::Arm { force: true }),
+        CommandOutcome::Accepted
+    );
+
+    // nominal mass: arms
+    let mut v = Sitl::quad().build();
+    for _ in 0..50 {
+        v.step();
+    }
+    assert_eq!(
+        v.command(AutopilotCommand::Arm { force: false }),
+        CommandOutcome::Accepted
+    );
+}
+
+#[test]
+fn a_dead_rotor_takes_its_share_of_the_lift() {
+    let quad = Airframe::load("quad").unwrap();
+    let lift_kg = quad.max_thrust_n() / rotorpilot::signals::GRAVITY;
+    let healthy = [RotorHealth::Healthy; 4];
+    let one_dead = [
+        RotorHealth::Off,
+        RotorHealth::Healthy,
+        RotorHealth::Healthy,
+        RotorHealth::Healthy,
+    ];
+    let half = [
+        RotorHealth::Degraded { thrust_fraction: 0.5 },
+        RotorHealth::Healthy,
+        RotorHealth::Healthy,
+        RotorHealth::Healthy,
+    ];
+    let m = 0.8 * lift_kg;
+    assert_eq!(unliftable(&quad, m, &healthy), None);
+    assert_eq!(unliftable(&quad, m, &[]), None, "no fault list: all healthy");
+    assert_eq!(unliftable(&quad, m, &half), None, "7/8 of the lift is enough");
+    assert_eq!(
+        unliftable(&quad, m, &one_dead),
+        Some(format!(
+            "Preflight Fail: SIM_MASS {m:.1} kg > lift {:.1} kg",
+            0.75 * lift_kg
+        ))
+    );
+    assert!(
+        unliftable(&quad, lift_kg, &healthy).is_some(),
+        "hover at full speed is no hover"
+    );
+    assert!(unliftable(&quad, quad.mass_kg, &healthy).is_none());
 }

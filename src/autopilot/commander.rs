@@ -6,8 +6,8 @@
 
 use nalgebra::Vector3;
 
-use super::failsafe::FailsafeAction;
 use super::navigator::{HoldTarget, ManualMode, Nav};
+use super::settings::FailsafeAction;
 use super::{Autopilot, AutopilotCommand, CommandOutcome, FlightMode, OffboardSetpoint, PowerAction, Severity};
 use super::{BatteryWarning, RotorStatus};
 use crate::geo::GeoPoint;

@@ -7,10 +7,10 @@ use nalgebra::Vector3;
 use super::battery::BatteryMonitor;
 use super::control_loop::{ControlLoop, ControlLoopError, ControlOutput, RotorAllocation};
 use super::estimate::EstimateFeedback;
-use super::failsafe::FailsafeAction;
 use super::land_detector::{LandDetector, LandEvent};
 use super::navigator::Navigator;
 use super::rotor_monitor::{RotorEvent, RotorMonitor, RotorStatus};
+use super::settings::FailsafeAction;
 use super::settings::Settings;
 use super::telemetry::{Telemetry, VehicleType};
 use super::{Announcements, ClientClock, Severity, StatusText};
@@ -399,7 +399,7 @@ impl Autopilot {
                 self.failsafe_action("rotor loss", FailsafeAction::Land, m);
             }
             None => {
-                let action = self.settings.actuator_failure_action.action();
+                let action = self.settings.actuator_failure_action;
                 self.failsafe_action("rotor failure", action, m);
             }
         }

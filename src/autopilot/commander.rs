@@ -6,9 +6,11 @@
 
 use nalgebra::Vector3;
 
+use super::command::{AutopilotCommand, CommandOutcome, PowerAction};
 use super::navigator::{HoldTarget, ManualMode, Nav};
 use super::settings::FailsafeAction;
-use super::{Autopilot, AutopilotCommand, CommandOutcome, FlightMode, OffboardSetpoint, PowerAction, Severity};
+use super::status::Severity;
+use super::{Autopilot, FlightMode, OffboardSetpoint};
 use super::{BatteryWarning, RotorStatus};
 use crate::geo::GeoPoint;
 use crate::mission::MissionType;

@@ -42,7 +42,8 @@ use super::battery::BatteryWarning;
 use super::geofence::{self, Fence};
 use super::navigator::{DescendThen, Nav};
 use super::settings::FailsafeAction;
-use super::{Autopilot, Severity, TIME_EPS};
+use super::status::Severity;
+use super::{Autopilot, TIME_EPS};
 use crate::mission::MissionType;
 use crate::signals::{Measurement, SensorReadings};
 

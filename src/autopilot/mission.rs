@@ -12,9 +12,11 @@
 
 use nalgebra::Vector3;
 
+use super::command::CommandOutcome;
 use super::navigator::{self, Nav, SetHome};
+use super::status::Severity;
 use super::telemetry::{MissionState, MissionStatus};
-use super::{Autopilot, CommandOutcome, FlightMode, Severity};
+use super::{Autopilot, FlightMode};
 use crate::mission::MissionType;
 use crate::signals::Measurement;
 

@@ -5,8 +5,8 @@
 //! ([`FailsafeAction`]) live here, so the failsafes, the navigator and the
 //! commander all read them from one place.
 
-use super::AutopilotError;
 use super::battery::{BatteryThresholds, BatteryWarning};
+use super::error::AutopilotError;
 use super::geofence::DistanceLimits;
 use crate::control::ControllerKind;
 use crate::estimation::Polynomial;

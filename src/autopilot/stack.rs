@@ -4,60 +4,25 @@
 
 use nalgebra::Vector3;
 
+use super::ClientClock;
 use super::battery::BatteryMonitor;
-use super::control_loop::{ControlLoop, ControlLoopError, ControlOutput, RotorAllocation};
+use super::control_loop::{ControlLoop, ControlOutput, RotorAllocation};
+use super::error::AutopilotError;
 use super::estimate::EstimateFeedback;
 use super::land_detector::{LandDetector, LandEvent};
 use super::navigator::Navigator;
 use super::rotor_monitor::{RotorEvent, RotorMonitor, RotorStatus};
 use super::settings::FailsafeAction;
 use super::settings::Settings;
+use super::status::{Announcements, Severity, StatusText};
 use super::telemetry::{Telemetry, VehicleType};
-use super::{Announcements, ClientClock, Severity, StatusText};
 use crate::airframe::{Actuation, Airframe};
-use crate::control::{ControlGains, ControllerKind, GainError, RelaxedHoverError, ShaperError, ShaperLimits};
-use crate::estimation::{Discretization, EstimatorConfig, EstimatorError, MomentumEstimator};
+use crate::control::{ControlGains, ControllerKind, GainError, RelaxedHoverError, ShaperLimits};
+use crate::estimation::{Discretization, EstimatorConfig, MomentumEstimator};
 use crate::geo::GeoPoint;
 use crate::mission::{MissionResult, PlanChange, Plans};
 use crate::params::ParamStore;
 use crate::signals::{GRAVITY, NominalModel, SensorReadings, WrenchEstimate};
-
-/// Why an autopilot could not be built or parameters applied.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum AutopilotError {
-    /// The home position is not a valid point.
-    #[error("home {lat_deg}, {lon_deg}, {alt_amsl_m} m is not a valid position")]
-    InvalidHome {
-        /// Latitude [deg].
-        lat_deg: f64,
-        /// Longitude [deg].
-        lon_deg: f64,
-        /// Altitude AMSL [m].
-        alt_amsl_m: f64,
-    },
-    /// A parameter value the autopilot cannot use.
-    #[error("parameter: {0}")]
-    Param(String),
-    /// The control gains derived from the parameters are invalid.
-    #[error(transparent)]
-    Gains(#[from] GainError),
-    /// The estimator settings are invalid.
-    #[error("estimator: {0}")]
-    Estimator(#[from] EstimatorError),
-    /// The reference shaper limits are invalid.
-    #[error(transparent)]
-    Shaper(#[from] ShaperError),
-}
-
-impl From<ControlLoopError> for AutopilotError {
-    fn from(e: ControlLoopError) -> Self {
-        match e {
-            ControlLoopError::Gains(e) => AutopilotError::Gains(e),
-            ControlLoopError::Estimator(e) => AutopilotError::Estimator(e),
-        }
-    }
-}
 
 /// The gains for the airframe flown with the nominal mass `MDL_MASS`
 /// ([`ControlGains::for_airframe`]) and the loop frequency scales

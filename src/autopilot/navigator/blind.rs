@@ -23,8 +23,10 @@ use nalgebra::Vector2;
 use super::manual::ManualMode;
 use super::offboard::LocalSetpoint;
 use super::{DescendThen, Nav, Navigator, RtlPhase, Situation};
+use crate::autopilot::Autopilot;
+use crate::autopilot::command::CommandOutcome;
 use crate::autopilot::control_loop::Demand;
-use crate::autopilot::{Autopilot, CommandOutcome, Severity};
+use crate::autopilot::status::Severity;
 use crate::signals::{GpsFix, SensorReadings};
 
 impl Navigator {

@@ -14,9 +14,11 @@
 use nalgebra::{Rotation2, UnitQuaternion, Vector2, Vector3};
 
 use super::{Nav, Navigator, Situation};
+use crate::autopilot::command::CommandOutcome;
 use crate::autopilot::control_loop::Demand;
 use crate::autopilot::settings::ManualSettings;
-use crate::autopilot::{Autopilot, ClientClock, CommandOutcome, FlightMode, Severity, TIME_EPS};
+use crate::autopilot::status::Severity;
+use crate::autopilot::{Autopilot, ClientClock, FlightMode, TIME_EPS};
 use crate::control::{Reference, Setpoint, ShaperLimits, TranslationSetpoint, YawSetpoint};
 use crate::math::{euler_zyx, wrap_pi};
 use crate::signals::{GRAVITY, Measurement};

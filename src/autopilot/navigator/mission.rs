@@ -36,7 +36,7 @@ use nalgebra::Vector3;
 
 use super::{Nav, Navigator, Situation};
 use crate::autopilot::control_loop::Demand;
-use crate::autopilot::{Announcements, Severity};
+use crate::autopilot::status::{Announcements, Severity};
 use crate::control::{Reference, Setpoint, TranslationSetpoint, YawSetpoint};
 use crate::geo::GeoPoint;
 use crate::mission::{MissionItem, cmd};

@@ -22,10 +22,11 @@ pub use offboard::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetp
 
 use nalgebra::{UnitQuaternion, Vector2, Vector3};
 
+use super::FlightMode;
 use super::control_loop::Demand;
 use super::settings::Settings;
+use super::status::Announcements;
 use super::telemetry::LandedState;
-use super::{Announcements, FlightMode};
 use crate::control::{Reference, Setpoint, Shaper, ShaperError, ShaperLimits, TranslationSetpoint, YawSetpoint};
 use crate::geo::GeoPoint;
 use crate::mission::MissionItem;

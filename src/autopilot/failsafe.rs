@@ -7,6 +7,11 @@
 //! [`FailsafeAction`] per parameter value, one announcement, a landing under
 //! way never interrupted, a blind descent without a GPS fix).
 //!
+//! [`Failsafe`] is the part that remembers and decides (the data link, the
+//! battery level, the fence and its breach, the clamp announcement, the
+//! client clock) and [`respond`] the runner's choice; the [`Autopilot`]
+//! wires them to the commander and the navigator, which carry it out.
+//!
 //! # PX4's failsafes
 //! * Data-link loss: no GCS HEARTBEAT (MAV_TYPE_GCS, any link) for
 //!   `COM_DL_LOSS_T`, armed or not, once a GCS was heard: announced, then
@@ -39,12 +44,13 @@ use serde::Serialize;
 use nalgebra::Vector3;
 
 use super::battery::BatteryWarning;
-use super::geofence::{self, Fence};
+use super::geofence::{self, Breach, Fence};
 use super::navigator::{DescendThen, Nav};
-use super::settings::FailsafeAction;
-use super::status::Severity;
+use super::settings::{FailsafeAction, FailsafeSettings};
+use super::status::{Announcements, Severity};
 use super::{Autopilot, TIME_EPS};
-use crate::mission::MissionType;
+use crate::geo::GeoPoint;
+use crate::mission::{MissionType, Plan};
 use crate::signals::{Measurement, SensorReadings};
 
 /// The clock of the timers that wait for a client.
@@ -82,16 +88,290 @@ pub struct PendingTimer {
     pub duration_s: f64,
 }
 
+/// Offboard setpoints within the altitude limit this long [s] end an
+/// excursion: the next clamp is announced again.
+const CLAMP_REARM_S: f64 = 5.0;
+
+/// The failsafes' memory between steps and their decisions: the data link
+/// (the latest GCS HEARTBEAT, declared lost), the battery warning level (and
+/// the level at arming), the fence built from the plan and whether it is
+/// breached, the announcement of a clamped offboard setpoint, and the clock
+/// of the client timers.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Failsafe {
+    /// The clock of the timers that wait for a client.
+    clock: ClientClock,
+    /// When the latest GCS HEARTBEAT arrived [s] (`None`: never).
+    gcs_heard_s: Option<f64>,
+    /// The data link was declared lost (until the next GCS HEARTBEAT).
+    gcs_lost: bool,
+    /// The battery warning level in force (escalates only while armed).
+    battery_warning: BatteryWarning,
+    /// The level when it was armed: a failsafe acts only on worse (PX4).
+    battery_warning_at_arming: BatteryWarning,
+    /// The fence, built from the plan with this id and length.
+    fence: Option<(u32, usize, Fence)>,
+    /// Breached, and its action taken (re-armed once back inside).
+    breached: bool,
+    /// A clamped offboard setpoint was announced (re-armed after
+    /// [`CLAMP_REARM_S`] of setpoints within the limit).
+    clamp_announced: bool,
+    /// Since when the offboard setpoints are within the altitude limit [s].
+    clamp_clear_since_s: Option<f64>,
+}
+
+impl Failsafe {
+    /// The clock of the client timers.
+    pub(super) fn clock(&self) -> ClientClock {
+        self.clock
+    }
+
+    /// Time client timers on `clock` from now on.
+    pub(super) fn set_clock(&mut self, clock: ClientClock) {
+        self.clock = clock;
+    }
+
+    /// A GCS HEARTBEAT at `now_s` [s]: the data link is alive; after a loss
+    /// it is announced regained.
+    pub(super) fn gcs_heartbeat(&mut self, now_s: f64, say: &mut Announcements) {
+        self.gcs_heard_s = Some(now_s);
+        if self.gcs_lost {
+            self.gcs_lost = false;
+            say.announce(Severity::Info, "Data link regained");
+        }
+    }
+
+    /// The data-link timer: a GCS heard once and not yet declared lost,
+    /// armed or not (PX4 tracks the link either way, so arming long after
+    /// the last HEARTBEAT finds it lost on both clocks alike); it started at
+    /// the latest GCS HEARTBEAT and runs `COM_DL_LOSS_T`.
+    pub(super) fn data_link_timer(&self, s: &FailsafeSettings) -> Option<PendingTimer> {
+        if self.gcs_lost {
+            return None;
+        }
+        Some(PendingTimer {
+            timer: ClientTimer::DataLinkLoss,
+            started_s: self.gcs_heard_s?,
+            duration_s: s.data_link_loss_s,
+        })
+    }
+
+    /// Whether the data link is lost (no GCS HEARTBEAT for `COM_DL_LOSS_T`, none since).
+    pub(super) fn data_link_is_lost(&self) -> bool {
+        self.gcs_lost
+    }
+
+    /// No GCS HEARTBEAT for `COM_DL_LOSS_T`: declared lost and announced;
+    /// the action to take (`NAV_DLL_ACT`).
+    pub(super) fn data_link_lost(&mut self, s: &FailsafeSettings, say: &mut Announcements) -> FailsafeAction {
+        self.gcs_lost = true;
+        say.announce(Severity::Critical, "Connection to ground station lost");
+        s.data_link_loss_action
+    }
+
+    /// The battery warning level in force (BATTERY_STATUS `charge_state`).
+    pub(super) fn battery_warning(&self) -> BatteryWarning {
+        self.battery_warning
+    }
+
+    /// The battery monitor's warning `level` now: it follows the charge
+    /// while disarmed and only escalates while armed (PX4's hysteresis: a
+    /// sagging voltage that recovers does not clear it); each new level is
+    /// announced, and when worse than at arming the cause and action of
+    /// `COM_LOW_BAT_ACT` are returned for the runner (none for a warning).
+    pub(super) fn battery(
+        &mut self,
+        level: BatteryWarning,
+        armed: bool,
+        s: &FailsafeSettings,
+        say: &mut Announcements,
+    ) -> Option<(&'static str, FailsafeAction)> {
+        if !armed {
+            self.battery_warning = level;
+            self.battery_warning_at_arming = level;
+            return None;
+        }
+        if level <= self.battery_warning {
+            return None;
+        }
+        self.battery_warning = level;
+        let worse_than_at_arming = level > self.battery_warning_at_arming;
+        let (severity, text, cause) = match level {
+            BatteryWarning::None => return None,
+            BatteryWarning::Low => (Severity::Warning, "Low battery level, return advised", "battery low"),
+            BatteryWarning::Critical => (
+                Severity::Critical,
+                "Critical battery level, land now",
+                "battery critical",
+            ),
+            BatteryWarning::Emergency => (
+                Severity::Emergency,
+                "Emergency battery level, land immediately",
+                "battery emergency",
+            ),
+        };
+        say.announce(severity, text);
+        let action = if worse_than_at_arming {
+            s.low_battery_action.action(level)
+        } else {
+            FailsafeAction::Warn
+        };
+        (action != FailsafeAction::Warn).then_some((cause, action))
+    }
+
+    /// The fence of `plan` (the stored fence plan, rebuilt when it changed)
+    /// around `origin`.
+    pub(super) fn fence(&mut self, plan: &Plan, origin: &GeoPoint) -> &Fence {
+        let key = (plan.id(), plan.len());
+        let stale = self.fence.as_ref().is_none_or(|(id, n, _)| (*id, *n) != key);
+        if stale {
+            let fence = Fence::from_items(plan.items(), origin);
+            self.fence = Some((key.0, key.1, fence));
+        }
+        &self.fence.as_ref().expect("just built").2
+    }
+
+    /// Disarmed or landed: the fence is not watched, a breach is forgotten.
+    pub(super) fn geofence_at_rest(&mut self) {
+        self.breached = false;
+    }
+
+    /// The geofence's verdict on the current position (armed, in the air):
+    /// a new breach is announced (unless `GF_ACTION` is none) and its action
+    /// returned for the runner, once; back inside re-arms it.
+    pub(super) fn geofence(
+        &mut self,
+        breach: Option<Breach>,
+        s: &FailsafeSettings,
+        say: &mut Announcements,
+    ) -> Option<FailsafeAction> {
+        match (breach, self.breached) {
+            (Some(b), false) => {
+                self.breached = true;
+                let action = s.geofence_action;
+                if action != FailsafeAction::None {
+                    say.announce(Severity::Critical, format!("Geofence breached: {}", b.describe()));
+                }
+                Some(action)
+            }
+            (None, true) => {
+                self.breached = false;
+                None
+            }
+            _ => None,
+        }
+    }
+
+    /// An offboard position setpoint at `now_s` [s] was clamped to the
+    /// altitude limit (`clamped`) or was within it: announce a clamp once
+    /// per excursion (a stream at the limit, in and out of range by noise,
+    /// is announced once; [`CLAMP_REARM_S`] within the limit ends the excursion).
+    pub(super) fn offboard_clamped(&mut self, clamped: bool, now_s: f64, say: &mut Announcements) {
+        if clamped {
+            self.clamp_clear_since_s = None;
+            if !self.clamp_announced {
+                self.clamp_announced = true;
+                say.announce(Severity::Warning, "Offboard setpoint clamped to max altitude");
+            }
+            return;
+        }
+        let since = *self.clamp_clear_since_s.get_or_insert(now_s);
+        if now_s - since >= CLAMP_REARM_S - TIME_EPS {
+            self.clamp_announced = false;
+        }
+    }
+}
+
+/// What the one failsafe runner has the vehicle do.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Response {
+    /// Hold where it is.
+    Hold,
+    /// Return to launch.
+    Return,
+    /// Land where it is.
+    Land,
+    /// Descend without a position, then what was meant when the fix returns.
+    Descend(DescendThen),
+    /// Stop the rotors (flight termination, PX4's lockdown).
+    Disarm,
+}
+
+/// The runner's choice for failsafe `action` caused by `cause`, announced
+/// as PX4 does ("Failsafe activated due to {cause}, triggering {action}",
+/// shortened to fit a STATUSTEXT: "Failsafe: {cause}, triggering
+/// {action}"); `None` when nothing is to be done. Disarmed, nothing
+/// happens; a warning is only said. While the GNSS fix is lost
+/// (`gps_lost`), Hold, Return and Land become Descend (remembering which,
+/// for when the fix returns). A mode already in force (`nav`) is not entered
+/// again, and a landing (`landing`: Land, Descend, a return's or a mission's
+/// landing) is not interrupted by Hold, Return or Land (PX4).
+pub(super) fn respond(
+    cause: &str,
+    action: FailsafeAction,
+    armed: bool,
+    gps_lost: bool,
+    nav: Nav,
+    landing: bool,
+    say: &mut Announcements,
+) -> Option<Response> {
+    if action == FailsafeAction::None {
+        return None;
+    }
+    if !armed {
+        return None;
+    }
+    if action == FailsafeAction::Warn {
+        say.announce(Severity::Warning, format!("Failsafe warning: {cause}"));
+        return None;
+    }
+    let then = match action {
+        FailsafeAction::Land => Some(DescendThen::Land),
+        FailsafeAction::Return => Some(DescendThen::Return),
+        FailsafeAction::Hold => Some(DescendThen::Hold),
+        _ => None,
+    };
+    let action = match then {
+        Some(_) if gps_lost => FailsafeAction::Descend,
+        _ => action,
+    };
+    let already = match action {
+        FailsafeAction::Hold => landing || matches!(nav, Nav::Hold { target: None, .. }),
+        FailsafeAction::Return => landing || matches!(nav, Nav::Rtl { .. }),
+        FailsafeAction::Land | FailsafeAction::Descend => landing,
+        _ => false,
+    };
+    if already {
+        return None;
+    }
+    let severity = if matches!(action, FailsafeAction::Terminate | FailsafeAction::Disarm) {
+        Severity::Emergency
+    } else {
+        Severity::Critical
+    };
+    say.announce(severity, format!("Failsafe: {cause}, triggering {}", action.name()));
+    match action {
+        FailsafeAction::Hold => Some(Response::Hold),
+        FailsafeAction::Return => Some(Response::Return),
+        FailsafeAction::Land => Some(Response::Land),
+        FailsafeAction::Descend => Some(Response::Descend(then.unwrap_or(DescendThen::Hold))),
+        FailsafeAction::Terminate | FailsafeAction::Disarm => Some(Response::Disarm),
+        FailsafeAction::None | FailsafeAction::Warn => None,
+    }
+}
+
+// ----- the wiring: the failsafes' decisions carried out by the flight stack ---------------------
+
 impl Autopilot {
     /// Time client timers on `clock` from now on.
     pub fn set_client_clock(&mut self, clock: ClientClock) {
-        self.client_clock = clock;
+        self.failsafe.set_clock(clock);
     }
 
     /// The clock of the client timers.
     #[must_use]
     pub fn client_clock(&self) -> ClientClock {
-        self.client_clock
+        self.failsafe.clock()
     }
 
     /// The client timers running now (for the runtime to time on the wall clock).
@@ -99,12 +379,11 @@ impl Autopilot {
     pub fn client_timers(&self) -> Vec<PendingTimer> {
         let mut out = Vec::new();
         let s = &self.settings;
-        if self.armed && self.land.landed() && !self.took_off && s.disarm_preflight_s > 0.0 {
-            out.push(PendingTimer {
-                timer: ClientTimer::PreflightDisarm,
-                started_s: self.armed_at_s,
-                duration_s: s.disarm_preflight_s,
-            });
+        if let Some(p) = self
+            .commander
+            .preflight_disarm_timer(self.land.landed(), s.disarm_preflight_s)
+        {
+            out.push(p);
         }
         if let Some(t) = self.navigator.offboard_arrival() {
             out.push(PendingTimer {
@@ -114,7 +393,7 @@ impl Autopilot {
             });
         }
         // data-link loss (COM_DL_LOSS_T)
-        if let Some(p) = self.data_link_timer() {
+        if let Some(p) = self.failsafe.data_link_timer(&s.failsafe) {
             out.push(p);
         }
         if let Some(t) = self.navigator.manual_loss_timer_start() {
@@ -151,11 +430,15 @@ impl Autopilot {
             ClientTimer::PreflightDisarm => self.disarm_now("Disarmed by auto preflight disarming"),
             ClientTimer::OffboardLoss => {
                 self.navigator.offboard_timed_out();
-                if self.navigator.nav == Nav::Offboard {
+                if self.navigator.nav() == Nav::Offboard {
                     self.offboard_lost(m);
                 }
             }
-            ClientTimer::DataLinkLoss => self.data_link_lost(m),
+            ClientTimer::DataLinkLoss => {
+                // PX4 ignores the loss while landing: the runner's rule
+                let action = self.failsafe.data_link_lost(&self.settings.failsafe, &mut self.say);
+                self.failsafe_action("GCS connection lost", action, m);
+            }
             ClientTimer::ManualControlLoss => self.manual_control_lost(m),
         }
     }
@@ -163,7 +446,7 @@ impl Autopilot {
     /// Whether the offboard setpoints are fresh at `now` (on the client clock).
     pub(super) fn offboard_fresh(&self, now: f64) -> bool {
         self.navigator
-            .offboard_fresh(now, self.settings.offboard_loss_s, self.client_clock)
+            .offboard_fresh(now, self.settings.offboard_loss_s, self.failsafe.clock())
     }
 
     /// The client timers on simulated time (one boundary rule for all:
@@ -172,7 +455,7 @@ impl Autopilot {
     /// the geofence, at the instant of `m`.
     pub(super) fn supervise(&mut self, m: &Measurement) {
         let now = m.time_s;
-        if self.client_clock == ClientClock::Simulated {
+        if self.failsafe.clock() == ClientClock::Simulated {
             for p in self.client_timers() {
                 // an earlier expiry this step may have stopped or restarted it
                 let running = self
@@ -184,12 +467,10 @@ impl Autopilot {
                 }
             }
         }
-        if self.armed
-            && self.land.landed()
-            && self.took_off
-            && self.settings.disarm_land_s > 0.0
-            && !matches!(self.navigator.nav, Nav::Takeoff { .. })
-            && now - self.landed_at_s >= self.settings.disarm_land_s - TIME_EPS
+        let taking_off = matches!(self.navigator.nav(), Nav::Takeoff { .. });
+        if self
+            .commander
+            .landing_disarm_due(now, self.land.landed(), taking_off, self.settings.disarm_land_s)
         {
             self.disarm_now("Disarmed by landing");
         }
@@ -199,7 +480,7 @@ impl Autopilot {
     /// Offboard setpoints lost while in Offboard: announced, then `COM_OBL_RC_ACT`.
     fn offboard_lost(&mut self, m: &Measurement) {
         self.say.announce(Severity::Warning, "Offboard signal lost");
-        if !self.armed {
+        if !self.commander.armed() {
             // no failsafe on the ground: Offboard without setpoints is no
             // mode to stay in, so fall back to Hold as before arming
             self.navigator.enter_hold();
@@ -208,175 +489,63 @@ impl Autopilot {
         let action = self.settings.offboard_loss_action;
         self.failsafe_action("offboard signal lost", action, m);
     }
-}
 
-// ----- PX4's failsafes: data-link loss, low battery, geofence ----------------------------------
-
-/// Offboard setpoints within the altitude limit this long [s] end an
-/// excursion: the next clamp is announced again.
-const CLAMP_REARM_S: f64 = 5.0;
-
-/// What the failsafes remember between steps.
-#[derive(Clone, Debug, Default)]
-pub(super) struct FailsafeState {
-    /// When the latest GCS HEARTBEAT arrived [s] (`None`: never).
-    gcs_heard_s: Option<f64>,
-    /// The data link was declared lost (until the next GCS HEARTBEAT).
-    gcs_lost: bool,
-    /// The battery warning level in force (escalates only while armed).
-    battery_warning: BatteryWarning,
-    /// The level when it was armed: a failsafe acts only on worse (PX4).
-    battery_warning_at_arming: BatteryWarning,
-    /// The fence, built from the plan with this id and length.
-    fence: Option<(u32, usize, Fence)>,
-    /// Breached, and its action taken (re-armed once back inside).
-    breached: bool,
-    /// A clamped offboard setpoint was announced (re-armed after
-    /// [`CLAMP_REARM_S`] of setpoints within the limit).
-    clamp_announced: bool,
-    /// Since when the offboard setpoints are within the altitude limit [s].
-    clamp_clear_since_s: Option<f64>,
-}
-
-impl Autopilot {
     /// A GCS HEARTBEAT (MAV_TYPE_GCS, from any link) arrived at the instant of
     /// `readings`: the data link is alive; after a loss it is announced regained.
     pub fn gcs_heartbeat(&mut self, readings: &SensorReadings) {
         self.now_s = readings.measurement.time_s;
-        self.failsafes.gcs_heard_s = Some(self.now_s);
-        if self.failsafes.gcs_lost {
-            self.failsafes.gcs_lost = false;
-            self.say.announce(Severity::Info, "Data link regained");
-        }
+        self.failsafe.gcs_heartbeat(self.now_s, &mut self.say);
     }
 
     /// The battery warning level in force (BATTERY_STATUS `charge_state`).
     #[must_use]
     pub fn battery_warning(&self) -> BatteryWarning {
-        self.failsafes.battery_warning
+        self.failsafe.battery_warning()
     }
 
-    /// The data-link timer: a GCS heard once and not yet declared lost,
-    /// armed or not (PX4 tracks the link either way, so arming long after
-    /// the last HEARTBEAT finds it lost on both clocks alike); it started at
-    /// the latest GCS HEARTBEAT.
-    fn data_link_timer(&self) -> Option<PendingTimer> {
-        if self.failsafes.gcs_lost {
-            return None;
-        }
-        Some(PendingTimer {
-            timer: ClientTimer::DataLinkLoss,
-            started_s: self.failsafes.gcs_heard_s?,
-            duration_s: self.settings.failsafe.data_link_loss_s,
-        })
-    }
-
-    /// Whether the data link is lost (no GCS HEARTBEAT for `COM_DL_LOSS_T`, none since).
-    pub(super) fn data_link_is_lost(&self) -> bool {
-        self.failsafes.gcs_lost
-    }
-
-    /// No GCS HEARTBEAT for `COM_DL_LOSS_T`: announce it and, armed, take
-    /// `NAV_DLL_ACT` (PX4 ignores the loss while landing: the runner's rule).
-    fn data_link_lost(&mut self, m: &Measurement) {
-        self.failsafes.gcs_lost = true;
-        self.say
-            .announce(Severity::Critical, "Connection to ground station lost");
-        let action = self.settings.failsafe.data_link_loss_action;
-        self.failsafe_action("GCS connection lost", action, m);
-    }
-
-    /// The battery monitor's warning level at the instant of `readings`: it
-    /// follows the charge while disarmed and only escalates while armed
-    /// (PX4's hysteresis: a sagging voltage that recovers does not clear it);
-    /// each new level is announced and acted on (`COM_LOW_BAT_ACT`) when worse
-    /// than at arming.
+    /// The battery monitor's warning level at the instant of `readings`,
+    /// judged by [`Failsafe::battery`], its action taken.
     pub(super) fn supervise_battery(&mut self, readings: &SensorReadings) {
         let remaining = self.battery.remaining(&readings.battery);
         let level = self.settings.failsafe.battery.level(remaining);
-        let f = &mut self.failsafes;
-        if !self.armed {
-            f.battery_warning = level;
-            f.battery_warning_at_arming = level;
-            return;
-        }
-        if level <= f.battery_warning {
-            return;
-        }
-        f.battery_warning = level;
-        let worse_than_at_arming = level > f.battery_warning_at_arming;
-        let (severity, text, cause) = match level {
-            BatteryWarning::None => return,
-            BatteryWarning::Low => (Severity::Warning, "Low battery level, return advised", "battery low"),
-            BatteryWarning::Critical => (
-                Severity::Critical,
-                "Critical battery level, land now",
-                "battery critical",
-            ),
-            BatteryWarning::Emergency => (
-                Severity::Emergency,
-                "Emergency battery level, land immediately",
-                "battery emergency",
-            ),
-        };
-        self.say.announce(severity, text);
-        let action = if worse_than_at_arming {
-            self.settings.failsafe.low_battery_action.action(level)
-        } else {
-            FailsafeAction::Warn
-        };
-        if action != FailsafeAction::Warn {
+        let armed = self.commander.armed();
+        if let Some((cause, action)) = self
+            .failsafe
+            .battery(level, armed, &self.settings.failsafe, &mut self.say)
+        {
             self.failsafe_action(cause, action, &readings.measurement);
         }
     }
 
-    /// The fence of the stored plan (rebuilt when the plan changed).
-    fn fence(&mut self) -> &Fence {
-        let plan = self.plans.get(MissionType::Fence);
-        let key = (plan.id(), plan.len());
-        let stale = self.failsafes.fence.as_ref().is_none_or(|(id, n, _)| (*id, *n) != key);
-        if stale {
-            let fence = Fence::from_items(plan.items(), &self.origin);
-            self.failsafes.fence = Some((key.0, key.1, fence));
+    /// The geofence on the current position, armed and in the air
+    /// ([`Failsafe::geofence`]). Not checked while the GNSS fix is lost (PX4
+    /// checks the fence only with a valid global position; the drifting
+    /// solution would breach it).
+    fn supervise_geofence(&mut self, m: &Measurement) {
+        if !self.commander.armed() || self.land.landed() {
+            self.failsafe.geofence_at_rest();
+            return;
         }
-        &self.failsafes.fence.as_ref().expect("just built").2
+        if self.navigator.gps_lost() {
+            return;
+        }
+        let breach = self.geofence_breach(&m.position_ned);
+        if let Some(action) = self.failsafe.geofence(breach, &self.settings.failsafe, &mut self.say) {
+            self.failsafe_action("geofence breach", action, m);
+        }
     }
 
-    /// The geofence on the current position, armed and in the air: a breach
-    /// is announced and `GF_ACTION` taken once; back inside re-arms it.
-    /// Not checked while the GNSS fix is lost (PX4 checks the fence only
-    /// with a valid global position; the drifting solution would breach it).
-    fn supervise_geofence(&mut self, m: &Measurement) {
-        if !self.armed || self.land.landed() {
-            self.failsafes.breached = false;
-            return;
-        }
-        if self.navigator.gps_lost {
-            return;
-        }
+    /// The geofence's verdict (zones or limits) on `p` [m], NED.
+    fn geofence_breach(&mut self, p: &Vector3<f64>) -> Option<Breach> {
         let home = self.home_ned();
         let limits = self.settings.failsafe.geofence_limits;
-        let breach = geofence::check(self.fence(), &limits, &m.position_ned, &home);
-        match (breach, self.failsafes.breached) {
-            (Some(b), false) => {
-                self.failsafes.breached = true;
-                let action = self.settings.failsafe.geofence_action;
-                if action != FailsafeAction::None {
-                    self.say
-                        .announce(Severity::Critical, format!("Geofence breached: {}", b.describe()));
-                }
-                self.failsafe_action("geofence breach", action, m);
-            }
-            (None, true) => self.failsafes.breached = false,
-            _ => {}
-        }
+        let fence = self.failsafe.fence(self.plans.get(MissionType::Fence), &self.origin);
+        geofence::check(fence, &limits, p, &home)
     }
 
     /// Whether the target `p` [m], NED, lies outside the geofence (zones or limits).
     pub(super) fn outside_geofence(&mut self, p: &Vector3<f64>) -> bool {
-        let home = self.home_ned();
-        let limits = self.settings.failsafe.geofence_limits;
-        geofence::check(self.fence(), &limits, p, &home).is_some()
+        self.geofence_breach(p).is_some()
     }
 
     /// The lowest NED z [m] a target may have (`GF_MAX_VER_DIST` above home), if limited.
@@ -385,88 +554,36 @@ impl Autopilot {
     }
 
     /// An offboard position setpoint was clamped to the altitude limit
-    /// (`clamped`) or was within it: announce a clamp once per excursion (a
-    /// stream at the limit, in and out of range by noise, is announced once;
-    /// [`CLAMP_REARM_S`] within the limit ends the excursion).
+    /// (`clamped`) or was within it ([`Failsafe::offboard_clamped`]).
     pub(super) fn offboard_clamped(&mut self, clamped: bool) {
-        let now = self.now_s;
-        let f = &mut self.failsafes;
-        if clamped {
-            f.clamp_clear_since_s = None;
-            if !f.clamp_announced {
-                f.clamp_announced = true;
-                self.say
-                    .announce(Severity::Warning, "Offboard setpoint clamped to max altitude");
-            }
-            return;
-        }
-        let since = *f.clamp_clear_since_s.get_or_insert(now);
-        if now - since >= CLAMP_REARM_S - TIME_EPS {
-            f.clamp_announced = false;
-        }
+        self.failsafe.offboard_clamped(clamped, self.now_s, &mut self.say);
     }
 
     /// Take a failsafe action for `cause` (the one runner of every
-    /// failsafe), announced as PX4 does ("Failsafe activated due to {cause},
-    /// triggering {action}", shortened to fit a STATUSTEXT: "Failsafe:
-    /// {cause}, triggering {action}"). Disarmed, nothing happens. While the GNSS fix is lost, Hold, Return and Land become
-    /// Descend (remembering which, for when the fix returns). A mode already
-    /// in force is not entered again, and a landing (Land, Descend, a
-    /// return's or a mission's landing) is not interrupted by Hold, Return or
-    /// Land (PX4).
+    /// failsafe): [`respond`] chooses, the navigator or the commander carries it out.
     pub(in crate::autopilot) fn failsafe_action(&mut self, cause: &str, action: FailsafeAction, m: &Measurement) {
-        if action == FailsafeAction::None {
-            return;
-        }
-        if !self.armed {
-            return;
-        }
-        if action == FailsafeAction::Warn {
-            self.say
-                .announce(Severity::Warning, format!("Failsafe warning: {cause}"));
-            return;
-        }
-        let then = match action {
-            FailsafeAction::Land => Some(DescendThen::Land),
-            FailsafeAction::Return => Some(DescendThen::Return),
-            FailsafeAction::Hold => Some(DescendThen::Hold),
-            _ => None,
-        };
-        let action = match then {
-            Some(_) if self.navigator.gps_lost => FailsafeAction::Descend,
-            _ => action,
-        };
-        let nav = self.navigator.nav;
-        let landing = self.navigator.landing();
-        let already = match action {
-            FailsafeAction::Hold => landing || matches!(nav, Nav::Hold { target: None, .. }),
-            FailsafeAction::Return => landing || matches!(nav, Nav::Rtl { .. }),
-            FailsafeAction::Land | FailsafeAction::Descend => landing,
-            _ => false,
-        };
-        if already {
-            return;
-        }
-        let severity = if matches!(action, FailsafeAction::Terminate | FailsafeAction::Disarm) {
-            Severity::Emergency
-        } else {
-            Severity::Critical
-        };
-        self.say
-            .announce(severity, format!("Failsafe: {cause}, triggering {}", action.name()));
-        match action {
-            FailsafeAction::Hold => self.navigator.enter_hold(),
-            FailsafeAction::Return => {
+        let response = respond(
+            cause,
+            action,
+            self.commander.armed(),
+            self.navigator.gps_lost(),
+            self.navigator.nav(),
+            self.navigator.landing(),
+            &mut self.say,
+        );
+        match response {
+            Some(Response::Hold) => self.navigator.enter_hold(),
+            Some(Response::Return) => {
                 let cx = situation!(self, m);
                 self.navigator.enter_rtl(&cx, &mut self.say);
             }
-            FailsafeAction::Land => {
+            Some(Response::Land) => {
                 let landed = self.land.landed();
                 self.navigator.enter_land(m, landed, &mut self.say);
             }
-            FailsafeAction::Descend => self.navigator.enter_descend(then.unwrap_or(DescendThen::Hold)),
-            FailsafeAction::Terminate | FailsafeAction::Disarm => self.disarm_now("Disarmed by failsafe"),
-            FailsafeAction::None | FailsafeAction::Warn => {}
+            Some(Response::Descend(then)) => self.navigator.enter_descend(then),
+            Some(Response::Disarm) => self.disarm_now("Disarmed by failsafe"),
+            None => {}
         }
     }
 }

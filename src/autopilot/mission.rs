@@ -24,12 +24,12 @@ impl Autopilot {
     /// MISSION_CURRENT's content now.
     pub(super) fn mission_status(&self) -> MissionStatus {
         let mission = self.plans.get(MissionType::Mission);
-        let run = &self.navigator.mission;
+        let run = self.navigator.mission();
         let state = if mission.is_empty() {
             MissionState::NoMission
         } else if run.complete {
             MissionState::Complete
-        } else if self.armed && self.navigator.nav == Nav::Mission {
+        } else if self.commander.armed() && self.navigator.nav() == Nav::Mission {
             MissionState::Active
         } else if run.started {
             MissionState::Paused
@@ -49,8 +49,8 @@ impl Autopilot {
     /// A new mission was stored, or the mission cleared: from the first item;
     /// a cleared mission being flown gives way to Hold.
     pub(super) fn mission_replaced(&mut self) {
-        self.navigator.mission.reset();
-        if self.navigator.nav == Nav::Mission {
+        self.navigator.mission_mut().reset();
+        if self.navigator.nav() == Nav::Mission {
             if self.plans.get(MissionType::Mission).is_empty() {
                 self.navigator.enter_hold();
                 self.say.announce(Severity::Warning, "Mission cleared: holding");
@@ -115,20 +115,19 @@ impl Autopilot {
         if let Some(refused) = self.refuse_mission_outside_geofence(m) {
             return refused;
         }
-        let was = (self.navigator.nav, self.navigator.mission.clone());
+        let was = self.navigator.saved();
         if let Some(f) = first {
-            self.navigator.mission.set_current(usize::from(f));
+            self.navigator.mission_mut().set_current(usize::from(f));
         }
         if self.navigator.mode() != FlightMode::Mission {
             self.navigator.enter_mission();
         } else if first.is_some() {
-            self.navigator.mission.resume();
+            self.navigator.mission_mut().resume();
         }
-        if !self.armed {
+        if !self.commander.armed() {
             let outcome = self.arm(false, m);
             if outcome != CommandOutcome::Accepted {
-                self.navigator.nav = was.0;
-                self.navigator.mission = was.1;
+                self.navigator.restore(was);
                 return outcome;
             }
         }
@@ -140,7 +139,7 @@ impl Autopilot {
         if usize::from(seq) >= self.plans.get(MissionType::Mission).len() {
             return CommandOutcome::Denied("no such mission item");
         }
-        self.navigator.mission.set_current(usize::from(seq));
+        self.navigator.mission_mut().set_current(usize::from(seq));
         CommandOutcome::Accepted
     }
 

@@ -24,7 +24,6 @@ use super::manual::ManualMode;
 use super::offboard::LocalSetpoint;
 use super::{DescendThen, Nav, Navigator, RtlPhase, Situation};
 use crate::autopilot::Autopilot;
-use crate::autopilot::command::CommandOutcome;
 use crate::autopilot::control_loop::Demand;
 use crate::autopilot::status::Severity;
 use crate::signals::{GpsFix, SensorReadings};
@@ -87,17 +86,6 @@ impl Autopilot {
         self.say.announce(Severity::Critical, text);
     }
 
-    /// Refuse `what` while the GNSS fix is lost (it needs a position).
-    pub(in crate::autopilot) fn refuse_without_position(&mut self, what: &str) -> Option<CommandOutcome> {
-        self.navigator.gps_lost.then(|| {
-            self.refuse(
-                Severity::Critical,
-                &format!("{what} denied: no GPS fix"),
-                CommandOutcome::TemporarilyRejected("no position estimate"),
-            )
-        })
-    }
-
     /// The GNSS fix at the instant of `readings`, every step: while it is
     /// lost, armed, a mode that needs a position is replaced (the reaction
     /// of the module doc); on its return, Descend and the Altitude fallback
@@ -106,7 +94,7 @@ impl Autopilot {
         let lost = readings.gps.fix == GpsFix::None;
         let changed = lost != self.navigator.gps_lost;
         self.navigator.gps_lost = lost;
-        if !self.armed {
+        if !self.commander.armed() {
             return;
         }
         if lost {

@@ -14,7 +14,6 @@
 use nalgebra::{Rotation2, UnitQuaternion, Vector2, Vector3};
 
 use super::{Nav, Navigator, Situation};
-use crate::autopilot::command::CommandOutcome;
 use crate::autopilot::control_loop::Demand;
 use crate::autopilot::settings::ManualSettings;
 use crate::autopilot::status::Severity;
@@ -98,7 +97,7 @@ impl ManualMode {
         matches!(self, Self::Position | Self::Altitude)
     }
 
-    fn name(self) -> &'static str {
+    pub(in crate::autopilot) fn name(self) -> &'static str {
         match self {
             Self::Position => "Position",
             Self::Altitude => "Altitude",
@@ -407,38 +406,7 @@ impl Autopilot {
     /// Whether the sticks are fresh at `now` (on the client clock).
     pub(in crate::autopilot) fn manual_fresh(&self, now: f64) -> bool {
         self.navigator
-            .manual_fresh(now, self.settings.manual.loss_s, self.client_clock)
-    }
-
-    /// New sticks at the instant of `m`.
-    pub(in crate::autopilot) fn manual_control(&mut self, sticks: ManualControl, m: &Measurement) -> CommandOutcome {
-        if !sticks.is_valid() {
-            return CommandOutcome::Denied("invalid manual control");
-        }
-        self.navigator.set_manual(sticks, m.time_s);
-        CommandOutcome::Accepted
-    }
-
-    /// Switch to a manual mode: refused without fresh sticks (PX4: "No
-    /// manual control input"), and Position without a GPS fix.
-    pub(in crate::autopilot) fn enter_manual_mode(&mut self, mode: ManualMode, m: &Measurement) -> CommandOutcome {
-        if !self.manual_fresh(m.time_s) {
-            let text = format!("Switching to {} denied: no manual control", mode.name());
-            return self.refuse(
-                Severity::Critical,
-                &text,
-                CommandOutcome::TemporarilyRejected("no manual control input"),
-            );
-        }
-        if mode == ManualMode::Position && self.navigator.gps_lost {
-            return self.refuse(
-                Severity::Critical,
-                "Switching to Position denied: no GPS fix",
-                CommandOutcome::TemporarilyRejected("no position estimate"),
-            );
-        }
-        self.navigator.enter_manual(mode);
-        CommandOutcome::Accepted
+            .manual_fresh(now, self.settings.manual.loss_s, self.failsafe.clock())
     }
 
     /// Why arming in a manual mode would be refused (PX4's checks): no

@@ -352,6 +352,20 @@ impl Autopilot {
         })
     }
 
+    /// The gates of a command that flies to a point (`what`: Takeoff,
+    /// Reposition), in order: an AMSL altitude above `RP_ALT_MAX_AMSL`
+    /// (Denied), disarmed, no GPS fix (TemporarilyRejected); each announced.
+    /// The refusal, or `None` when it may go.
+    fn refuse_flight(&mut self, what: &str, altitude_amsl_m: Option<f64>) -> Option<CommandOutcome> {
+        if let Some(refused) = self.refuse_above_ceiling(what, altitude_amsl_m) {
+            return Some(refused);
+        }
+        if let Some(refused) = self.commander.refuse_unless_armed(what, &mut self.say) {
+            return Some(refused);
+        }
+        self.refuse_without_position(what)
+    }
+
     /// Why arming would be refused at the instant of `m`, if it would ([`Prearm::failure`]).
     pub(super) fn prearm_failure(&self, m: &Measurement) -> Option<&'static str> {
         let nav = self.navigator.nav();
@@ -410,13 +424,7 @@ impl Autopilot {
         if altitude_amsl_m.is_some_and(|a| !a.is_finite()) {
             return CommandOutcome::Denied("invalid takeoff altitude");
         }
-        if let Some(refused) = self.refuse_above_ceiling("Takeoff", altitude_amsl_m) {
-            return refused;
-        }
-        if let Some(refused) = self.commander.refuse_unless_armed("Takeoff", &mut self.say) {
-            return refused;
-        }
-        if let Some(refused) = self.refuse_without_position("Takeoff") {
+        if let Some(refused) = self.refuse_flight("Takeoff", altitude_amsl_m) {
             return refused;
         }
         let home = self.home_ned();
@@ -434,13 +442,19 @@ impl Autopilot {
             }
         }
         let here = self.navigator.current_position(m);
-        let z = z.min(here.z);
+        self.start_takeoff(&here, z.min(here.z), home.z, None)
+    }
+
+    /// Climb from `here` [m, NED] to NED z `z` [m] (home at NED z `home_z`),
+    /// then hold (at `then`, a reposition given on the ground); refused
+    /// above `GF_MAX_VER_DIST`, else announced.
+    fn start_takeoff(&mut self, here: &Vector3<f64>, z: f64, home_z: f64, then: Option<HoldTarget>) -> CommandOutcome {
         if let Some(refused) = self.refuse_takeoff_above_fence(z) {
             return refused;
         }
-        self.navigator.enter_takeoff(Vector3::new(here.x, here.y, z), None);
+        self.navigator.enter_takeoff(Vector3::new(here.x, here.y, z), then);
         self.say
-            .announce(Severity::Info, format!("Takeoff to {:.1} m above home", home.z - z));
+            .announce(Severity::Info, format!("Takeoff to {:.1} m above home", home_z - z));
         CommandOutcome::Accepted
     }
 
@@ -543,13 +557,7 @@ impl Autopilot {
                 CommandOutcome::Denied("invalid reposition position"),
             );
         }
-        if let Some(refused) = self.refuse_above_ceiling("Reposition", alt_amsl_m) {
-            return refused;
-        }
-        if let Some(refused) = self.commander.refuse_unless_armed("Reposition", &mut self.say) {
-            return refused;
-        }
-        if let Some(refused) = self.refuse_without_position("Reposition") {
+        if let Some(refused) = self.refuse_flight("Reposition", alt_amsl_m) {
             return refused;
         }
         let here = self.navigator.current_position(m);
@@ -585,16 +593,9 @@ impl Autopilot {
         if self.land.landed() {
             let home = self.home_ned();
             let z = target.z.min(home.z - self.settings.takeoff_alt_m).min(here.z);
-            if let Some(refused) = self.refuse_takeoff_above_fence(z) {
-                return refused;
-            }
-            self.navigator
-                .enter_takeoff(Vector3::new(here.x, here.y, z), Some(hold));
-            self.say
-                .announce(Severity::Info, format!("Takeoff to {:.1} m above home", home.z - z));
-        } else {
-            self.navigator.enter_hold_at(hold);
+            return self.start_takeoff(&here, z, home.z, Some(hold));
         }
+        self.navigator.enter_hold_at(hold);
         CommandOutcome::Accepted
     }
 
@@ -691,5 +692,231 @@ impl Autopilot {
                 CommandOutcome::TemporarilyRejected("no position estimate"),
             )
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn texts(say: &mut Announcements) -> Vec<String> {
+        say.drain().into_iter().map(|s| s.text).collect()
+    }
+
+    fn ready() -> Prearm {
+        Prearm {
+            landed: true,
+            estimator_initialised: true,
+            home_valid: true,
+            position_needed_without_fix: false,
+            rotors_healthy: true,
+            battery: BatteryWarning::None,
+            data_link_lost_with_action: false,
+            mode: None,
+        }
+    }
+
+    #[test]
+    fn prearm_checks_name_the_first_failure_in_px4_order() {
+        assert_eq!(ready().failure(), None);
+        let all_bad = Prearm {
+            landed: false,
+            estimator_initialised: false,
+            home_valid: false,
+            position_needed_without_fix: true,
+            rotors_healthy: false,
+            battery: BatteryWarning::Emergency,
+            data_link_lost_with_action: true,
+            mode: Some("no offboard signal"),
+        };
+        assert_eq!(all_bad.failure(), Some("vehicle not landed"));
+        let cases = [
+            (
+                Prearm {
+                    estimator_initialised: false,
+                    ..ready()
+                },
+                "estimator not initialised",
+            ),
+            (
+                Prearm {
+                    home_valid: false,
+                    ..ready()
+                },
+                "home position invalid",
+            ),
+            (
+                Prearm {
+                    position_needed_without_fix: true,
+                    ..ready()
+                },
+                "no GPS fix",
+            ),
+            (
+                Prearm {
+                    rotors_healthy: false,
+                    ..ready()
+                },
+                "ESC failure",
+            ),
+            (
+                Prearm {
+                    battery: BatteryWarning::Critical,
+                    ..ready()
+                },
+                "battery critical",
+            ),
+            (
+                Prearm {
+                    data_link_lost_with_action: true,
+                    ..ready()
+                },
+                "no ground station connection",
+            ),
+            (
+                Prearm {
+                    mode: Some("no valid mission"),
+                    ..ready()
+                },
+                "no valid mission",
+            ),
+        ];
+        for (p, why) in cases {
+            assert_eq!(p.failure(), Some(why));
+        }
+        // a low battery does not stop arming
+        assert_eq!(
+            Prearm {
+                battery: BatteryWarning::Low,
+                ..ready()
+            }
+            .failure(),
+            None
+        );
+        // the mode is judged last
+        let p = Prearm {
+            home_valid: false,
+            mode: Some("no manual control input"),
+            ..ready()
+        };
+        assert_eq!(p.failure(), Some("home position invalid"));
+    }
+
+    #[test]
+    fn arming_is_denied_with_the_reason_unless_forced() {
+        let mut c = Commander::default();
+        let mut say = Announcements::default();
+        let out = c.arm(false, Some("no GPS fix"), 1.0, true, &mut say);
+        assert_eq!(out, CommandOutcome::TemporarilyRejected("no GPS fix"));
+        assert!(!c.armed());
+        assert_eq!(texts(&mut say), ["Arming denied: no GPS fix"]);
+        assert_eq!(
+            c.arm(true, Some("no GPS fix"), 1.0, true, &mut say),
+            CommandOutcome::Accepted
+        );
+        assert!(c.armed());
+        assert_eq!(texts(&mut say), ["Armed by external command"]);
+        // armed again: accepted, nothing said
+        assert_eq!(
+            c.arm(false, Some("vehicle not landed"), 2.0, true, &mut say),
+            CommandOutcome::Accepted
+        );
+        assert!(texts(&mut say).is_empty());
+    }
+
+    #[test]
+    fn disarming_is_refused_in_the_air_unless_forced() {
+        let mut c = Commander::default();
+        let mut say = Announcements::default();
+        assert_eq!(c.disarm_refusal(false, false, &mut say), Some(CommandOutcome::Accepted));
+        c.arm(false, None, 0.0, true, &mut say);
+        say.drain();
+        assert_eq!(
+            c.disarm_refusal(false, false, &mut say),
+            Some(CommandOutcome::TemporarilyRejected("vehicle in the air"))
+        );
+        assert_eq!(texts(&mut say), ["Disarming denied: not landed"]);
+        assert_eq!(c.disarm_refusal(true, false, &mut say), None);
+        assert_eq!(c.disarm_refusal(false, true, &mut say), None);
+        c.disarmed("Disarmed by external command", &mut say);
+        assert!(!c.armed());
+        assert_eq!(texts(&mut say), ["Disarmed by external command"]);
+    }
+
+    #[test]
+    fn takeoff_land_and_return_need_the_vehicle_armed() {
+        let mut c = Commander::default();
+        let mut say = Announcements::default();
+        assert_eq!(
+            c.refuse_unless_armed("Takeoff", &mut say),
+            Some(CommandOutcome::TemporarilyRejected("vehicle not armed"))
+        );
+        assert_eq!(texts(&mut say), ["Takeoff denied: vehicle not armed"]);
+        c.arm(false, None, 0.0, true, &mut say);
+        assert_eq!(c.refuse_unless_armed("Return", &mut say), None);
+    }
+
+    #[test]
+    fn reboot_and_shutdown_only_disarmed() {
+        let mut c = Commander::default();
+        let mut say = Announcements::default();
+        let d = c.power(PowerAction::Reboot, &mut say);
+        assert_eq!(d, PowerDecision::Allowed(PowerAction::Reboot));
+        assert_eq!(d.outcome(), CommandOutcome::Accepted);
+        assert!(texts(&mut say).is_empty());
+        c.arm(false, None, 0.0, true, &mut say);
+        say.drain();
+        let d = c.power(PowerAction::Shutdown, &mut say);
+        assert_eq!(d, PowerDecision::Refused("disarm before shutdown"));
+        assert_eq!(d.outcome(), CommandOutcome::Denied("disarm before shutdown"));
+        assert_eq!(texts(&mut say), ["Shutdown denied: disarm first"]);
+    }
+
+    #[test]
+    fn failure_injection_needs_sys_failure_en() {
+        let mut say = Announcements::default();
+        assert_eq!(Commander::failure_injection(true, &mut say), CommandOutcome::Accepted);
+        assert!(matches!(
+            Commander::failure_injection(false, &mut say),
+            CommandOutcome::Denied(_)
+        ));
+        assert_eq!(texts(&mut say), ["Failure injection disabled (SYS_FAILURE_EN)"]);
+    }
+
+    #[test]
+    fn auto_disarm_before_takeoff_and_after_landing() {
+        let mut c = Commander::default();
+        let mut say = Announcements::default();
+        assert_eq!(c.preflight_disarm_timer(true, 10.0), None);
+        c.arm(false, None, 2.0, true, &mut say);
+        let t = c.preflight_disarm_timer(true, 10.0).expect("armed on the ground");
+        assert_eq!(
+            (t.timer, t.started_s, t.duration_s),
+            (ClientTimer::PreflightDisarm, 2.0, 10.0)
+        );
+        assert_eq!(c.preflight_disarm_timer(true, 0.0), None, "0 disables it");
+        say.drain();
+        c.land_event(Some(LandEvent::TookOff), 3.0, &mut say);
+        assert_eq!(texts(&mut say), ["Takeoff detected"]);
+        assert_eq!(c.preflight_disarm_timer(true, 10.0), None, "taken off");
+        assert!(!c.landing_disarm_due(30.0, false, false, 2.0), "in the air");
+        c.land_event(Some(LandEvent::Landed), 20.0, &mut say);
+        assert_eq!(texts(&mut say), ["Landing detected"]);
+        assert!(!c.landing_disarm_due(21.9, true, false, 2.0));
+        assert!(c.landing_disarm_due(22.0, true, false, 2.0));
+        assert!(!c.landing_disarm_due(22.0, true, true, 2.0), "a takeoff under way");
+        assert!(!c.landing_disarm_due(22.0, true, false, 0.0), "0 disables it");
+    }
+
+    #[test]
+    fn a_takeoff_disarmed_is_not_remembered() {
+        let mut c = Commander::default();
+        let mut say = Announcements::default();
+        c.land_event(Some(LandEvent::TookOff), 1.0, &mut say);
+        c.land_event(Some(LandEvent::Landed), 2.0, &mut say);
+        assert!(texts(&mut say).is_empty());
+        // armed in the air: taken off at arming
+        c.arm(true, None, 3.0, false, &mut say);
+        assert_eq!(c.preflight_disarm_timer(true, 10.0), None);
     }
 }

@@ -587,3 +587,197 @@ impl Autopilot {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::airframe::Airframe;
+    use crate::autopilot::settings::LowBatteryAction;
+    use crate::params::ParamStore;
+
+    fn settings() -> FailsafeSettings {
+        FailsafeSettings::from_store(&ParamStore::new(&Airframe::load("quad").unwrap()))
+    }
+
+    fn texts(say: &mut Announcements) -> Vec<String> {
+        say.drain().into_iter().map(|s| s.text).collect()
+    }
+
+    #[test]
+    fn a_critical_battery_in_flight_triggers_com_low_bat_act_once() {
+        let s = FailsafeSettings {
+            low_battery_action: LowBatteryAction::ReturnOrLand,
+            ..settings()
+        };
+        let mut f = Failsafe::default();
+        let mut say = Announcements::default();
+        // disarmed: the level follows the charge, nothing is said
+        assert_eq!(f.battery(BatteryWarning::Low, false, &s, &mut say), None);
+        assert_eq!(f.battery(BatteryWarning::None, false, &s, &mut say), None);
+        assert_eq!(f.battery_warning(), BatteryWarning::None);
+        assert!(texts(&mut say).is_empty());
+        // armed: low is a warning only
+        assert_eq!(f.battery(BatteryWarning::Low, true, &s, &mut say), None);
+        assert_eq!(texts(&mut say), ["Low battery level, return advised"]);
+        let got = f.battery(BatteryWarning::Critical, true, &s, &mut say);
+        assert_eq!(got, Some(("battery critical", FailsafeAction::Return)));
+        assert_eq!(texts(&mut say), ["Critical battery level, land now"]);
+        // no repeat, no recovery while armed
+        assert_eq!(f.battery(BatteryWarning::Critical, true, &s, &mut say), None);
+        assert_eq!(f.battery(BatteryWarning::None, true, &s, &mut say), None);
+        assert_eq!(f.battery_warning(), BatteryWarning::Critical);
+        let got = f.battery(BatteryWarning::Emergency, true, &s, &mut say);
+        assert_eq!(got, Some(("battery emergency", FailsafeAction::Land)));
+    }
+
+    #[test]
+    fn a_battery_level_held_at_arming_is_only_announced() {
+        let s = FailsafeSettings {
+            low_battery_action: LowBatteryAction::Land,
+            ..settings()
+        };
+        let mut f = Failsafe::default();
+        let mut say = Announcements::default();
+        f.battery(BatteryWarning::Critical, false, &s, &mut say);
+        // armed at critical: the warning level restarts from the charge
+        assert_eq!(f.battery(BatteryWarning::Critical, true, &s, &mut say), None);
+        assert_eq!(
+            f.battery(BatteryWarning::Emergency, true, &s, &mut say),
+            Some(("battery emergency", FailsafeAction::Land))
+        );
+        let warn_only = FailsafeSettings {
+            low_battery_action: LowBatteryAction::Warning,
+            ..settings()
+        };
+        let mut f = Failsafe::default();
+        assert_eq!(f.battery(BatteryWarning::Emergency, true, &warn_only, &mut say), None);
+    }
+
+    #[test]
+    fn the_data_link_is_timed_from_the_latest_gcs_heartbeat() {
+        let s = FailsafeSettings {
+            data_link_loss_action: FailsafeAction::Return,
+            ..settings()
+        };
+        let mut f = Failsafe::default();
+        let mut say = Announcements::default();
+        assert_eq!(f.data_link_timer(&s), None, "no GCS heard yet");
+        f.gcs_heartbeat(3.0, &mut say);
+        let t = f.data_link_timer(&s).unwrap();
+        assert_eq!(
+            (t.timer, t.started_s, t.duration_s),
+            (ClientTimer::DataLinkLoss, 3.0, s.data_link_loss_s)
+        );
+        assert_eq!(f.data_link_lost(&s, &mut say), FailsafeAction::Return);
+        assert!(f.data_link_is_lost());
+        assert_eq!(f.data_link_timer(&s), None);
+        assert_eq!(texts(&mut say), ["Connection to ground station lost"]);
+        f.gcs_heartbeat(9.0, &mut say);
+        assert!(!f.data_link_is_lost());
+        assert_eq!(texts(&mut say), ["Data link regained"]);
+        assert_eq!(f.data_link_timer(&s).unwrap().started_s, 9.0);
+    }
+
+    #[test]
+    fn the_runner_chooses_the_response() {
+        let mut say = Announcements::default();
+        let hold = Nav::Hold { target: None };
+        let run = |action, armed, gps_lost, nav, landing, say: &mut Announcements| {
+            respond("GCS connection lost", action, armed, gps_lost, nav, landing, say)
+        };
+        // disarmed or none: nothing, not even a message
+        assert_eq!(run(FailsafeAction::Return, false, false, hold, false, &mut say), None);
+        assert_eq!(run(FailsafeAction::None, true, false, hold, false, &mut say), None);
+        assert!(texts(&mut say).is_empty());
+        assert_eq!(run(FailsafeAction::Warn, true, false, hold, false, &mut say), None);
+        assert_eq!(texts(&mut say), ["Failsafe warning: GCS connection lost"]);
+        assert_eq!(
+            run(FailsafeAction::Return, true, false, hold, false, &mut say),
+            Some(Response::Return)
+        );
+        assert_eq!(texts(&mut say), ["Failsafe: GCS connection lost, triggering Return"]);
+        // without a fix: a blind descent that remembers the intent
+        assert_eq!(
+            run(FailsafeAction::Return, true, true, hold, false, &mut say),
+            Some(Response::Descend(DescendThen::Return))
+        );
+        assert_eq!(
+            run(FailsafeAction::Land, true, true, Nav::Offboard, false, &mut say),
+            Some(Response::Descend(DescendThen::Land))
+        );
+        say.drain();
+        // a landing goes on; a mode in force is not entered again
+        assert_eq!(
+            run(FailsafeAction::Hold, true, false, Nav::Offboard, true, &mut say),
+            None
+        );
+        assert_eq!(
+            run(FailsafeAction::Land, true, false, Nav::Offboard, true, &mut say),
+            None
+        );
+        assert_eq!(run(FailsafeAction::Hold, true, false, hold, false, &mut say), None);
+        assert!(texts(&mut say).is_empty());
+        // termination stops the rotors, even while landing
+        assert_eq!(
+            run(FailsafeAction::Terminate, true, false, hold, true, &mut say),
+            Some(Response::Disarm)
+        );
+        let said = say.drain();
+        assert_eq!(said[0].severity, Severity::Emergency);
+        assert_eq!(said[0].text, "Failsafe: GCS connection lost, triggering flight t");
+    }
+
+    #[test]
+    fn a_geofence_breach_acts_once_until_back_inside() {
+        let s = FailsafeSettings {
+            geofence_action: FailsafeAction::Land,
+            ..settings()
+        };
+        let mut f = Failsafe::default();
+        let mut say = Announcements::default();
+        assert_eq!(f.geofence(None, &s, &mut say), None);
+        assert_eq!(
+            f.geofence(Some(Breach::MaxAltitude), &s, &mut say),
+            Some(FailsafeAction::Land)
+        );
+        assert_eq!(texts(&mut say), ["Geofence breached: max altitude exceeded"]);
+        assert_eq!(f.geofence(Some(Breach::MaxAltitude), &s, &mut say), None);
+        assert_eq!(f.geofence(None, &s, &mut say), None);
+        assert_eq!(
+            f.geofence(Some(Breach::OutsideInclusion), &s, &mut say),
+            Some(FailsafeAction::Land)
+        );
+        f.geofence_at_rest();
+        assert_eq!(
+            f.geofence(Some(Breach::OutsideInclusion), &s, &mut say),
+            Some(FailsafeAction::Land)
+        );
+        // GF_ACTION none: nothing said, and the runner does nothing with it
+        let quiet = FailsafeSettings {
+            geofence_action: FailsafeAction::None,
+            ..settings()
+        };
+        let mut f = Failsafe::default();
+        say.drain();
+        assert_eq!(
+            f.geofence(Some(Breach::MaxAltitude), &quiet, &mut say),
+            Some(FailsafeAction::None)
+        );
+        assert!(texts(&mut say).is_empty());
+    }
+
+    #[test]
+    fn a_clamped_setpoint_is_announced_once_per_excursion() {
+        let mut f = Failsafe::default();
+        let mut say = Announcements::default();
+        f.offboard_clamped(true, 1.0, &mut say);
+        f.offboard_clamped(true, 1.1, &mut say);
+        f.offboard_clamped(false, 1.2, &mut say);
+        f.offboard_clamped(true, 2.0, &mut say);
+        assert_eq!(texts(&mut say), ["Offboard setpoint clamped to max altitude"]);
+        f.offboard_clamped(false, 3.0, &mut say);
+        f.offboard_clamped(false, 8.0, &mut say);
+        f.offboard_clamped(true, 8.1, &mut say);
+        assert_eq!(texts(&mut say), ["Offboard setpoint clamped to max altitude"]);
+    }
+}

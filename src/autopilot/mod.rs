@@ -10,10 +10,10 @@
 //! |---|---|
 //! | `stack` | [`Autopilot`]: the state, parameters, and one step in order (sense, detect, supervise, guide, act) |
 //! | `command` | the commands a client gives ([`AutopilotCommand`]) and the answers ([`CommandOutcome`]) |
-//! | `commander` | commands: arming and prearm checks, the mode state machine, home, reboot and failure-injection gates |
+//! | `commander` | commands: the `Commander` (arming state, prearm checks, disarm, auto-disarm timers, reboot and failure-injection gates) and the wiring of each command (the mode state machine, home) |
 //! | `navigator/` | guidance per mode family: `auto` (hold, takeoff, land, return), `offboard` (setpoints and their frames), `mission` (the stored mission flown as paths), `manual` (sticks and the manual modes), `blind` (the descent without a GPS fix) |
 //! | `mission` | the mission as the commander sees it: start, set current, what a new upload does, MISSION_CURRENT's state |
-//! | `failsafe` | supervision: offboard, data-link, manual-control loss, battery, geofence, auto-disarm, all through one action runner; which clock the timers that wait for a client run on |
+//! | `failsafe` | supervision: the `Failsafe` (data link, battery level, geofence breach, clamp notice, client clock) and the one runner's choice; offboard, data-link, manual-control loss, battery, geofence, auto-disarm wired through it; which clock the timers that wait for a client run on |
 //! | `geofence` | the stored fence's zones and PX4's distance limits, as pure geometry |
 //! | `rotor_monitor` | dead and degraded rotors from commanded versus ESC-reported speeds |
 //! | `land_detector` | landed or flying, from the measurements and the commanded thrust |

@@ -370,7 +370,10 @@ impl Autopilot {
     pub(super) fn prearm_failure(&self, m: &Measurement) -> Option<&'static str> {
         let nav = self.navigator.nav();
         let mode = match nav {
-            Nav::Manual(mode) => self.manual_prearm_failure(mode, m.time_s),
+            Nav::Manual(mode) => {
+                self.navigator
+                    .manual_prearm_failure(mode, m.time_s, self.settings.manual.loss_s, self.failsafe.clock())
+            }
             Nav::Offboard if !self.offboard_fresh(m.time_s) => Some("no offboard signal"),
             Nav::Mission if self.plans.get(MissionType::Mission).is_empty() => Some("no valid mission"),
             Nav::Hold { .. } | Nav::Offboard | Nav::Mission => None,
@@ -664,7 +667,10 @@ impl Autopilot {
     /// Switch to a manual mode: refused without fresh sticks (PX4: "No
     /// manual control input"), and Position without a GPS fix.
     pub(super) fn enter_manual_mode(&mut self, mode: ManualMode, m: &Measurement) -> CommandOutcome {
-        if !self.manual_fresh(m.time_s) {
+        let fresh = self
+            .navigator
+            .manual_fresh(m.time_s, self.settings.manual.loss_s, self.failsafe.clock());
+        if !fresh {
             let text = format!("Switching to {} denied: no manual control", mode.name());
             return self.refuse(
                 Severity::Critical,

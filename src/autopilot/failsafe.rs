@@ -439,7 +439,14 @@ impl Autopilot {
                 let action = self.failsafe.data_link_lost(&self.settings.failsafe, &mut self.say);
                 self.failsafe_action("GCS connection lost", action, m);
             }
-            ClientTimer::ManualControlLoss => self.manual_control_lost(m),
+            ClientTimer::ManualControlLoss => {
+                // in a manual mode NAV_RCL_ACT, descending instead of Hold,
+                // Return or Land without a GPS fix (the runner's rule)
+                if self.navigator.manual_control_lost(&mut self.say) {
+                    let action = self.settings.manual.loss_action;
+                    self.failsafe_action("manual control lost", action, m);
+                }
+            }
         }
     }
 

@@ -23,7 +23,7 @@ use crate::estimation::{Discretization, EstimatorConfig, MomentumEstimator};
 use crate::geo::GeoPoint;
 use crate::mission::{MissionResult, PlanChange, Plans};
 use crate::params::ParamStore;
-use crate::signals::{GRAVITY, NominalModel, SensorReadings, WrenchEstimate};
+use crate::signals::{GRAVITY, GpsFix, NominalModel, SensorReadings, WrenchEstimate};
 
 /// The gains for the airframe flown with the nominal mass `MDL_MASS`
 /// ([`ControlGains::for_airframe`]) and the loop frequency scales
@@ -244,8 +244,11 @@ impl Autopilot {
             self.control.cut_relaxed_hover();
         }
         self.supervise(m);
-        self.supervise_gps(readings);
-        self.supervise_manual(m);
+        // the GNSS fix; the sticks' loss is a client timer (in `supervise`)
+        let gps_lost = readings.gps.fix == GpsFix::None;
+        let armed = self.commander.armed();
+        let cx = situation!(self, m);
+        self.navigator.supervise_gps(gps_lost, armed, &cx, &mut self.say);
         let cx = situation!(self, m);
         let demand = self.navigator.guidance(self.commander.armed(), &cx, &mut self.say);
         if let Some(h) = self.navigator.take_mission_home() {

@@ -27,17 +27,17 @@ impl Autopilot {
         let run = self.navigator.mission();
         let state = if mission.is_empty() {
             MissionState::NoMission
-        } else if run.complete {
+        } else if run.complete() {
             MissionState::Complete
         } else if self.commander.armed() && self.navigator.nav() == Nav::Mission {
             MissionState::Active
-        } else if run.started {
+        } else if run.started() {
             MissionState::Paused
         } else {
             MissionState::NotStarted
         };
         MissionStatus {
-            seq: u16::try_from(run.current.min(mission.len().saturating_sub(1))).unwrap_or(u16::MAX),
+            seq: u16::try_from(run.current().min(mission.len().saturating_sub(1))).unwrap_or(u16::MAX),
             total: u16::try_from(mission.len()).unwrap_or(u16::MAX),
             state,
             mission_id: mission.id(),

@@ -3,13 +3,25 @@
 //! its prearm checks, the mode state machine, home, and the gates of reboot
 //! and failure injection. Each command is judged at the instant it is
 //! applied, against the sensor readings of that instant.
+//!
+//! [`Commander`] is the part that holds the arming state (armed, since
+//! when, taken off, landed since when) and decides on its own: the prearm
+//! checks in PX4's order ([`Prearm`]), arming and disarming, the gate of a
+//! command that needs the vehicle armed, the auto-disarm timers, reboot and
+//! shutdown ([`PowerDecision`]) and failure injection. The [`Autopilot`]
+//! gathers what the checks need from the other parts and carries out what
+//! needs the navigator.
 
 use nalgebra::Vector3;
 
-use super::failsafe::FailsafeAction;
+use super::command::{AutopilotCommand, CommandOutcome, PowerAction};
+use super::failsafe::{ClientTimer, PendingTimer};
+use super::land_detector::LandEvent;
 use super::navigator::{HoldTarget, ManualMode, Nav};
-use super::{Autopilot, AutopilotCommand, CommandOutcome, FlightMode, OffboardSetpoint, PowerAction, Severity};
-use super::{BatteryWarning, RotorStatus};
+use super::settings::FailsafeAction;
+use super::status::{Announcements, Severity};
+use super::{Autopilot, FlightMode, ManualControl, OffboardSetpoint};
+use super::{BatteryWarning, RotorStatus, TIME_EPS};
 use crate::geo::GeoPoint;
 use crate::mission::MissionType;
 use crate::signals::{Measurement, SensorReadings};
@@ -18,6 +30,239 @@ use crate::signals::{Measurement, SensorReadings};
 const SPEED_DEFAULT: f64 = -2.0;
 /// A target this little above `GF_MAX_VER_DIST` [m] is still at it (rounding of AMSL altitudes).
 const ALTITUDE_TOLERANCE_M: f64 = 1e-3;
+
+/// What the prearm checks look at, gathered by the [`Autopilot`] at one instant.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct Prearm {
+    /// The land detector says landed.
+    pub(super) landed: bool,
+    /// The estimator has had its first sample.
+    pub(super) estimator_initialised: bool,
+    /// Home is a valid point.
+    pub(super) home_valid: bool,
+    /// The GNSS fix is lost and the mode steers by position.
+    pub(super) position_needed_without_fix: bool,
+    /// Every rotor is healthy (the rotor monitor).
+    pub(super) rotors_healthy: bool,
+    /// The battery warning level in force.
+    pub(super) battery: BatteryWarning,
+    /// The data link is lost and `NAV_DLL_ACT` would act on it.
+    pub(super) data_link_lost_with_action: bool,
+    /// Why the selected mode cannot be armed in, if it cannot (no sticks,
+    /// no offboard signal, no mission, an automatic mode that is not armable).
+    pub(super) mode: Option<&'static str>,
+}
+
+impl Prearm {
+    /// The first failing check, in PX4's order, as the reason arming is denied.
+    pub(super) fn failure(&self) -> Option<&'static str> {
+        if !self.landed {
+            return Some("vehicle not landed");
+        }
+        if !self.estimator_initialised {
+            return Some("estimator not initialised");
+        }
+        if !self.home_valid {
+            return Some("home position invalid");
+        }
+        if self.position_needed_without_fix {
+            return Some("no GPS fix");
+        }
+        if !self.rotors_healthy {
+            return Some("ESC failure");
+        }
+        if self.battery >= BatteryWarning::Critical {
+            return Some("battery critical");
+        }
+        if self.data_link_lost_with_action {
+            return Some("no ground station connection");
+        }
+        self.mode
+    }
+}
+
+/// The commander's answer to MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN: the runtime
+/// carries out an allowed one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum PowerDecision {
+    /// Disarmed: go ahead.
+    Allowed(PowerAction),
+    /// Armed: refused (DENIED), with the reason.
+    Refused(&'static str),
+}
+
+impl PowerDecision {
+    /// The answer to the command (mapped to MAV_RESULT by the link).
+    pub(super) fn outcome(self) -> CommandOutcome {
+        match self {
+            Self::Allowed(_) => CommandOutcome::Accepted,
+            Self::Refused(why) => CommandOutcome::Denied(why),
+        }
+    }
+}
+
+/// Announce `text` and answer `outcome`: how a command is refused.
+pub(super) fn refuse(
+    say: &mut Announcements,
+    severity: Severity,
+    text: &str,
+    outcome: CommandOutcome,
+) -> CommandOutcome {
+    say.announce(severity, text);
+    outcome
+}
+
+/// The arming state and the decisions that rest on it.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Commander {
+    armed: bool,
+    /// When it was armed [s].
+    armed_at_s: f64,
+    /// Left the ground since arming.
+    took_off: bool,
+    /// When the land detector last said landed [s].
+    landed_at_s: f64,
+}
+
+impl Commander {
+    /// Armed.
+    pub(super) fn armed(&self) -> bool {
+        self.armed
+    }
+
+    /// Arm at `now_s` [s] unless a prearm check fails (`prearm`: the first
+    /// failing one) and `force` does not skip them; announced either way.
+    /// Already armed: accepted, nothing changes.
+    pub(super) fn arm(
+        &mut self,
+        force: bool,
+        prearm: Option<&'static str>,
+        now_s: f64,
+        landed: bool,
+        say: &mut Announcements,
+    ) -> CommandOutcome {
+        if self.armed {
+            return CommandOutcome::Accepted;
+        }
+        if !force && let Some(why) = prearm {
+            return refuse(
+                say,
+                Severity::Critical,
+                &format!("Arming denied: {why}"),
+                CommandOutcome::TemporarilyRejected(why),
+            );
+        }
+        self.armed = true;
+        self.armed_at_s = now_s;
+        self.took_off = !landed;
+        say.announce(Severity::Info, "Armed by external command");
+        CommandOutcome::Accepted
+    }
+
+    /// A disarm request: the answer when it does not disarm (already
+    /// disarmed: accepted; in the air unless forced: refused, announced), or
+    /// `None` when the vehicle is to be disarmed ([`Self::disarmed`]).
+    pub(super) fn disarm_refusal(&self, force: bool, landed: bool, say: &mut Announcements) -> Option<CommandOutcome> {
+        if !self.armed {
+            return Some(CommandOutcome::Accepted);
+        }
+        if !force && !landed {
+            return Some(refuse(
+                say,
+                Severity::Critical,
+                "Disarming denied: not landed",
+                CommandOutcome::TemporarilyRejected("vehicle in the air"),
+            ));
+        }
+        None
+    }
+
+    /// Disarmed, announced with `text`.
+    pub(super) fn disarmed(&mut self, text: &str, say: &mut Announcements) {
+        self.armed = false;
+        say.announce(Severity::Info, text);
+    }
+
+    /// `what` needs the vehicle armed: the refusal (announced), or `None` when armed.
+    pub(super) fn refuse_unless_armed(&self, what: &str, say: &mut Announcements) -> Option<CommandOutcome> {
+        (!self.armed).then(|| {
+            refuse(
+                say,
+                Severity::Critical,
+                &format!("{what} denied: vehicle not armed"),
+                CommandOutcome::TemporarilyRejected("vehicle not armed"),
+            )
+        })
+    }
+
+    /// The land detector's change at `now_s` [s]: a takeoff armed is
+    /// remembered and announced, a landing timed (and announced armed).
+    pub(super) fn land_event(&mut self, event: Option<LandEvent>, now_s: f64, say: &mut Announcements) {
+        match event {
+            Some(LandEvent::TookOff) if self.armed => {
+                self.took_off = true;
+                say.announce(Severity::Info, "Takeoff detected");
+            }
+            Some(LandEvent::Landed) => {
+                self.landed_at_s = now_s;
+                if self.armed {
+                    say.announce(Severity::Info, "Landing detected");
+                }
+            }
+            Some(LandEvent::TookOff) | None => {}
+        }
+    }
+
+    /// The preflight auto-disarm (`COM_DISARM_PRFLT` = `duration_s`, 0 off):
+    /// armed, landed and not taken off since arming, it runs from arming.
+    pub(super) fn preflight_disarm_timer(&self, landed: bool, duration_s: f64) -> Option<PendingTimer> {
+        (self.armed && landed && !self.took_off && duration_s > 0.0).then_some(PendingTimer {
+            timer: ClientTimer::PreflightDisarm,
+            started_s: self.armed_at_s,
+            duration_s,
+        })
+    }
+
+    /// Whether the disarm after a landing (`COM_DISARM_LAND` = `after_s`,
+    /// 0 off) is due at `now_s` [s]: armed, landed after a takeoff for
+    /// `after_s`, and no takeoff under way.
+    pub(super) fn landing_disarm_due(&self, now_s: f64, landed: bool, taking_off: bool, after_s: f64) -> bool {
+        self.armed
+            && landed
+            && self.took_off
+            && after_s > 0.0
+            && !taking_off
+            && now_s - self.landed_at_s >= after_s - TIME_EPS
+    }
+
+    /// Reboot or shutdown: allowed disarmed, refused (announced) armed.
+    pub(super) fn power(&self, action: PowerAction, say: &mut Announcements) -> PowerDecision {
+        if !self.armed {
+            return PowerDecision::Allowed(action);
+        }
+        let (text, why) = match action {
+            PowerAction::Reboot => ("Reboot denied: disarm first", "disarm before reboot"),
+            PowerAction::Shutdown => ("Shutdown denied: disarm first", "disarm before shutdown"),
+        };
+        say.announce(Severity::Critical, text);
+        PowerDecision::Refused(why)
+    }
+
+    /// MAV_CMD_INJECT_FAILURE: accepted with `SYS_FAILURE_EN` (`enabled`),
+    /// else denied (announced); the world carries it out.
+    pub(super) fn failure_injection(enabled: bool, say: &mut Announcements) -> CommandOutcome {
+        if enabled {
+            CommandOutcome::Accepted
+        } else {
+            refuse(
+                say,
+                Severity::Warning,
+                "Failure injection disabled (SYS_FAILURE_EN)",
+                CommandOutcome::Denied("failure injection disabled (SYS_FAILURE_EN)"),
+            )
+        }
+    }
+}
 
 impl Autopilot {
     /// Carry out a command at the instant of `readings`. Accepted commands
@@ -69,32 +314,16 @@ impl Autopilot {
             AutopilotCommand::SetHome(point) => self.set_home_to(point, m),
             AutopilotCommand::Offboard(sp) => self.offboard_setpoint(&sp, m),
             AutopilotCommand::ManualControl(sticks) => self.manual_control(sticks, m),
-            AutopilotCommand::Power(action) => self.power(action),
+            AutopilotCommand::Power(action) => self.commander.power(action, &mut self.say).outcome(),
             AutopilotCommand::InjectFailure { .. } => {
-                if self.settings.failure_injection {
-                    CommandOutcome::Accepted
-                } else {
-                    self.refuse(
-                        Severity::Warning,
-                        "Failure injection disabled (SYS_FAILURE_EN)",
-                        CommandOutcome::Denied("failure injection disabled (SYS_FAILURE_EN)"),
-                    )
-                }
+                Commander::failure_injection(self.settings.failure_injection, &mut self.say)
             }
         }
     }
 
+    /// Refuse a command: announce `text`, answer `outcome`.
     pub(super) fn refuse(&mut self, severity: Severity, text: &str, outcome: CommandOutcome) -> CommandOutcome {
-        self.say.announce(severity, text);
-        outcome
-    }
-
-    fn not_armed(&mut self, what: &str) -> CommandOutcome {
-        self.refuse(
-            Severity::Critical,
-            &format!("{what} denied: vehicle not armed"),
-            CommandOutcome::TemporarilyRejected("vehicle not armed"),
-        )
+        refuse(&mut self.say, severity, text, outcome)
     }
 
     /// A takeoff to `z` [m, NED] above `GF_MAX_VER_DIST` is refused (DENIED,
@@ -123,68 +352,63 @@ impl Autopilot {
         })
     }
 
-    /// Why arming would be refused at the instant of `m`, if it would.
+    /// The gates of a command that flies to a point (`what`: Takeoff,
+    /// Reposition), in order: an AMSL altitude above `RP_ALT_MAX_AMSL`
+    /// (Denied), disarmed, no GPS fix (TemporarilyRejected); each announced.
+    /// The refusal, or `None` when it may go.
+    fn refuse_flight(&mut self, what: &str, altitude_amsl_m: Option<f64>) -> Option<CommandOutcome> {
+        if let Some(refused) = self.refuse_above_ceiling(what, altitude_amsl_m) {
+            return Some(refused);
+        }
+        if let Some(refused) = self.commander.refuse_unless_armed(what, &mut self.say) {
+            return Some(refused);
+        }
+        self.refuse_without_position(what)
+    }
+
+    /// Why arming would be refused at the instant of `m`, if it would ([`Prearm::failure`]).
     pub(super) fn prearm_failure(&self, m: &Measurement) -> Option<&'static str> {
-        if !self.land.landed() {
-            return Some("vehicle not landed");
-        }
-        if !self.control_initialised() {
-            return Some("estimator not initialised");
-        }
-        if !self.home.is_valid() {
-            return Some("home position invalid");
-        }
-        if self.navigator.gps_lost && self.navigator.needs_position() {
-            return Some("no GPS fix");
-        }
-        if self.rotor_status().iter().any(|r| *r != RotorStatus::Healthy) {
-            return Some("ESC failure");
-        }
-        if self.battery_warning() >= BatteryWarning::Critical {
-            return Some("battery critical");
-        }
-        if self.data_link_is_lost() && self.settings.failsafe.data_link_loss_action != FailsafeAction::None {
-            return Some("no ground station connection");
-        }
-        match self.navigator.nav {
-            Nav::Manual(mode) => self.manual_prearm_failure(mode, m.time_s),
+        let nav = self.navigator.nav();
+        let mode = match nav {
+            Nav::Manual(mode) => {
+                self.navigator
+                    .manual_prearm_failure(mode, m.time_s, self.settings.manual.loss_s, self.failsafe.clock())
+            }
             Nav::Offboard if !self.offboard_fresh(m.time_s) => Some("no offboard signal"),
             Nav::Mission if self.plans.get(MissionType::Mission).is_empty() => Some("no valid mission"),
             Nav::Hold { .. } | Nav::Offboard | Nav::Mission => None,
             Nav::Takeoff { .. } | Nav::Land { .. } | Nav::Rtl { .. } | Nav::Descend { .. } => {
                 Some("flight mode not armable")
             }
+        };
+        Prearm {
+            landed: self.land.landed(),
+            estimator_initialised: self.control_initialised(),
+            home_valid: self.home.is_valid(),
+            position_needed_without_fix: self.navigator.gps_lost() && self.navigator.needs_position(),
+            rotors_healthy: self.rotor_status().iter().all(|r| *r == RotorStatus::Healthy),
+            battery: self.battery_warning(),
+            data_link_lost_with_action: self.failsafe.data_link_is_lost()
+                && self.settings.failsafe.data_link_loss_action != FailsafeAction::None,
+            mode,
         }
+        .failure()
     }
 
+    /// Arm (prearm checks unless `force`), at the instant of `m`.
     pub(super) fn arm(&mut self, force: bool, m: &Measurement) -> CommandOutcome {
-        if self.armed {
-            return CommandOutcome::Accepted;
-        }
-        if !force && let Some(why) = self.prearm_failure(m) {
-            return self.refuse(
-                Severity::Critical,
-                &format!("Arming denied: {why}"),
-                CommandOutcome::TemporarilyRejected(why),
-            );
-        }
-        self.armed = true;
-        self.armed_at_s = m.time_s;
-        self.took_off = !self.land.landed();
-        self.say.announce(Severity::Info, "Armed by external command");
-        CommandOutcome::Accepted
+        let prearm = if self.commander.armed() {
+            None
+        } else {
+            self.prearm_failure(m)
+        };
+        let landed = self.land.landed();
+        self.commander.arm(force, prearm, m.time_s, landed, &mut self.say)
     }
 
     fn disarm(&mut self, force: bool) -> CommandOutcome {
-        if !self.armed {
-            return CommandOutcome::Accepted;
-        }
-        if !force && !self.land.landed() {
-            return self.refuse(
-                Severity::Critical,
-                "Disarming denied: not landed",
-                CommandOutcome::TemporarilyRejected("vehicle in the air"),
-            );
+        if let Some(answer) = self.commander.disarm_refusal(force, self.land.landed(), &mut self.say) {
+            return answer;
         }
         self.disarm_now("Disarmed by external command");
         CommandOutcome::Accepted
@@ -192,10 +416,9 @@ impl Autopilot {
 
     /// Disarm: rotors stop, Hold (Position kept), the controller starts over.
     pub(super) fn disarm_now(&mut self, text: &str) {
-        self.armed = false;
+        self.commander.disarmed(text, &mut self.say);
         self.navigator.disarmed();
         self.reset_controller();
-        self.say.announce(Severity::Info, text);
     }
 
     /// Take off to `altitude_amsl_m` (None: home + MIS_TAKEOFF_ALT; lower
@@ -204,13 +427,7 @@ impl Autopilot {
         if altitude_amsl_m.is_some_and(|a| !a.is_finite()) {
             return CommandOutcome::Denied("invalid takeoff altitude");
         }
-        if let Some(refused) = self.refuse_above_ceiling("Takeoff", altitude_amsl_m) {
-            return refused;
-        }
-        if !self.armed {
-            return self.not_armed("Takeoff");
-        }
-        if let Some(refused) = self.refuse_without_position("Takeoff") {
+        if let Some(refused) = self.refuse_flight("Takeoff", altitude_amsl_m) {
             return refused;
         }
         let home = self.home_ned();
@@ -228,22 +445,28 @@ impl Autopilot {
             }
         }
         let here = self.navigator.current_position(m);
-        let z = z.min(here.z);
+        self.start_takeoff(&here, z.min(here.z), home.z, None)
+    }
+
+    /// Climb from `here` [m, NED] to NED z `z` [m] (home at NED z `home_z`),
+    /// then hold (at `then`, a reposition given on the ground); refused
+    /// above `GF_MAX_VER_DIST`, else announced.
+    fn start_takeoff(&mut self, here: &Vector3<f64>, z: f64, home_z: f64, then: Option<HoldTarget>) -> CommandOutcome {
         if let Some(refused) = self.refuse_takeoff_above_fence(z) {
             return refused;
         }
-        self.navigator.enter_takeoff(Vector3::new(here.x, here.y, z), None);
+        self.navigator.enter_takeoff(Vector3::new(here.x, here.y, z), then);
         self.say
-            .announce(Severity::Info, format!("Takeoff to {:.1} m above home", home.z - z));
+            .announce(Severity::Info, format!("Takeoff to {:.1} m above home", home_z - z));
         CommandOutcome::Accepted
     }
 
     fn land(&mut self, m: &Measurement) -> CommandOutcome {
-        if !self.armed {
-            return self.not_armed("Land");
+        if let Some(refused) = self.commander.refuse_unless_armed("Land", &mut self.say) {
+            return refused;
         }
-        if self.navigator.gps_lost {
-            if !matches!(self.navigator.nav, Nav::Descend { .. }) {
+        if self.navigator.gps_lost() {
+            if !matches!(self.navigator.nav(), Nav::Descend { .. }) {
                 // a landing asked for: the fix back keeps landing
                 self.navigator.enter_descend(super::navigator::DescendThen::Land);
                 self.say
@@ -251,7 +474,7 @@ impl Autopilot {
             }
             return CommandOutcome::Accepted;
         }
-        if !matches!(self.navigator.nav, Nav::Land { .. }) {
+        if !matches!(self.navigator.nav(), Nav::Land { .. }) {
             let landed = self.land.landed();
             self.navigator.enter_land(m, landed, &mut self.say);
         }
@@ -259,13 +482,13 @@ impl Autopilot {
     }
 
     fn return_to_launch(&mut self, m: &Measurement) -> CommandOutcome {
-        if !self.armed {
-            return self.not_armed("Return");
+        if let Some(refused) = self.commander.refuse_unless_armed("Return", &mut self.say) {
+            return refused;
         }
         if let Some(refused) = self.refuse_without_position("Return") {
             return refused;
         }
-        if !matches!(self.navigator.nav, Nav::Rtl { .. }) {
+        if !matches!(self.navigator.nav(), Nav::Rtl { .. }) {
             let cx = situation!(self, m);
             self.navigator.enter_rtl(&cx, &mut self.say);
         }
@@ -337,13 +560,7 @@ impl Autopilot {
                 CommandOutcome::Denied("invalid reposition position"),
             );
         }
-        if let Some(refused) = self.refuse_above_ceiling("Reposition", alt_amsl_m) {
-            return refused;
-        }
-        if !self.armed {
-            return self.not_armed("Reposition");
-        }
-        if let Some(refused) = self.refuse_without_position("Reposition") {
+        if let Some(refused) = self.refuse_flight("Reposition", alt_amsl_m) {
             return refused;
         }
         let here = self.navigator.current_position(m);
@@ -379,16 +596,9 @@ impl Autopilot {
         if self.land.landed() {
             let home = self.home_ned();
             let z = target.z.min(home.z - self.settings.takeoff_alt_m).min(here.z);
-            if let Some(refused) = self.refuse_takeoff_above_fence(z) {
-                return refused;
-            }
-            self.navigator
-                .enter_takeoff(Vector3::new(here.x, here.y, z), Some(hold));
-            self.say
-                .announce(Severity::Info, format!("Takeoff to {:.1} m above home", home.z - z));
-        } else {
-            self.navigator.enter_hold_at(hold);
+            return self.start_takeoff(&here, z, home.z, Some(hold));
         }
+        self.navigator.enter_hold_at(hold);
         CommandOutcome::Accepted
     }
 
@@ -421,8 +631,7 @@ impl Autopilot {
                 self.origin.offset(&p)
             }
         };
-        self.home = home;
-        self.home_altitude = super::stack::HomeAltitude::Set;
+        self.set_home(home);
         CommandOutcome::Accepted
     }
 
@@ -446,14 +655,274 @@ impl Autopilot {
         CommandOutcome::Accepted
     }
 
-    fn power(&mut self, action: PowerAction) -> CommandOutcome {
-        if !self.armed {
-            return CommandOutcome::Accepted;
+    /// New sticks at the instant of `m`.
+    pub(super) fn manual_control(&mut self, sticks: ManualControl, m: &Measurement) -> CommandOutcome {
+        if !sticks.is_valid() {
+            return CommandOutcome::Denied("invalid manual control");
         }
-        let (text, why) = match action {
-            PowerAction::Reboot => ("Reboot denied: disarm first", "disarm before reboot"),
-            PowerAction::Shutdown => ("Shutdown denied: disarm first", "disarm before shutdown"),
+        self.navigator.set_manual(sticks, m.time_s);
+        CommandOutcome::Accepted
+    }
+
+    /// Switch to a manual mode: refused without fresh sticks (PX4: "No
+    /// manual control input"), and Position without a GPS fix.
+    pub(super) fn enter_manual_mode(&mut self, mode: ManualMode, m: &Measurement) -> CommandOutcome {
+        let fresh = self
+            .navigator
+            .manual_fresh(m.time_s, self.settings.manual.loss_s, self.failsafe.clock());
+        if !fresh {
+            let text = format!("Switching to {} denied: no manual control", mode.name());
+            return self.refuse(
+                Severity::Critical,
+                &text,
+                CommandOutcome::TemporarilyRejected("no manual control input"),
+            );
+        }
+        if mode == ManualMode::Position && self.navigator.gps_lost() {
+            return self.refuse(
+                Severity::Critical,
+                "Switching to Position denied: no GPS fix",
+                CommandOutcome::TemporarilyRejected("no position estimate"),
+            );
+        }
+        self.navigator.enter_manual(mode);
+        CommandOutcome::Accepted
+    }
+
+    /// Refuse `what` while the GNSS fix is lost (it needs a position).
+    pub(super) fn refuse_without_position(&mut self, what: &str) -> Option<CommandOutcome> {
+        self.navigator.gps_lost().then(|| {
+            self.refuse(
+                Severity::Critical,
+                &format!("{what} denied: no GPS fix"),
+                CommandOutcome::TemporarilyRejected("no position estimate"),
+            )
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn texts(say: &mut Announcements) -> Vec<String> {
+        say.drain().into_iter().map(|s| s.text).collect()
+    }
+
+    fn ready() -> Prearm {
+        Prearm {
+            landed: true,
+            estimator_initialised: true,
+            home_valid: true,
+            position_needed_without_fix: false,
+            rotors_healthy: true,
+            battery: BatteryWarning::None,
+            data_link_lost_with_action: false,
+            mode: None,
+        }
+    }
+
+    #[test]
+    fn prearm_checks_name_the_first_failure_in_px4_order() {
+        assert_eq!(ready().failure(), None);
+        let all_bad = Prearm {
+            landed: false,
+            estimator_initialised: false,
+            home_valid: false,
+            position_needed_without_fix: true,
+            rotors_healthy: false,
+            battery: BatteryWarning::Emergency,
+            data_link_lost_with_action: true,
+            mode: Some("no offboard signal"),
         };
-        self.refuse(Severity::Critical, text, CommandOutcome::Denied(why))
+        assert_eq!(all_bad.failure(), Some("vehicle not landed"));
+        let cases = [
+            (
+                Prearm {
+                    estimator_initialised: false,
+                    ..ready()
+                },
+                "estimator not initialised",
+            ),
+            (
+                Prearm {
+                    home_valid: false,
+                    ..ready()
+                },
+                "home position invalid",
+            ),
+            (
+                Prearm {
+                    position_needed_without_fix: true,
+                    ..ready()
+                },
+                "no GPS fix",
+            ),
+            (
+                Prearm {
+                    rotors_healthy: false,
+                    ..ready()
+                },
+                "ESC failure",
+            ),
+            (
+                Prearm {
+                    battery: BatteryWarning::Critical,
+                    ..ready()
+                },
+                "battery critical",
+            ),
+            (
+                Prearm {
+                    data_link_lost_with_action: true,
+                    ..ready()
+                },
+                "no ground station connection",
+            ),
+            (
+                Prearm {
+                    mode: Some("no valid mission"),
+                    ..ready()
+                },
+                "no valid mission",
+            ),
+        ];
+        for (p, why) in cases {
+            assert_eq!(p.failure(), Some(why));
+        }
+        // a low battery does not stop arming
+        assert_eq!(
+            Prearm {
+                battery: BatteryWarning::Low,
+                ..ready()
+            }
+            .failure(),
+            None
+        );
+        // the mode is judged last
+        let p = Prearm {
+            home_valid: false,
+            mode: Some("no manual control input"),
+            ..ready()
+        };
+        assert_eq!(p.failure(), Some("home position invalid"));
+    }
+
+    #[test]
+    fn arming_is_denied_with_the_reason_unless_forced() {
+        let mut c = Commander::default();
+        let mut say = Announcements::default();
+        let out = c.arm(false, Some("no GPS fix"), 1.0, true, &mut say);
+        assert_eq!(out, CommandOutcome::TemporarilyRejected("no GPS fix"));
+        assert!(!c.armed());
+        assert_eq!(texts(&mut say), ["Arming denied: no GPS fix"]);
+        assert_eq!(
+            c.arm(true, Some("no GPS fix"), 1.0, true, &mut say),
+            CommandOutcome::Accepted
+        );
+        assert!(c.armed());
+        assert_eq!(texts(&mut say), ["Armed by external command"]);
+        // armed again: accepted, nothing said
+        assert_eq!(
+            c.arm(false, Some("vehicle not landed"), 2.0, true, &mut say),
+            CommandOutcome::Accepted
+        );
+        assert!(texts(&mut say).is_empty());
+    }
+
+    #[test]
+    fn disarming_is_refused_in_the_air_unless_forced() {
+        let mut c = Commander::default();
+        let mut say = Announcements::default();
+        assert_eq!(c.disarm_refusal(false, false, &mut say), Some(CommandOutcome::Accepted));
+        c.arm(false, None, 0.0, true, &mut say);
+        say.drain();
+        assert_eq!(
+            c.disarm_refusal(false, false, &mut say),
+            Some(CommandOutcome::TemporarilyRejected("vehicle in the air"))
+        );
+        assert_eq!(texts(&mut say), ["Disarming denied: not landed"]);
+        assert_eq!(c.disarm_refusal(true, false, &mut say), None);
+        assert_eq!(c.disarm_refusal(false, true, &mut say), None);
+        c.disarmed("Disarmed by external command", &mut say);
+        assert!(!c.armed());
+        assert_eq!(texts(&mut say), ["Disarmed by external command"]);
+    }
+
+    #[test]
+    fn takeoff_land_and_return_need_the_vehicle_armed() {
+        let mut c = Commander::default();
+        let mut say = Announcements::default();
+        assert_eq!(
+            c.refuse_unless_armed("Takeoff", &mut say),
+            Some(CommandOutcome::TemporarilyRejected("vehicle not armed"))
+        );
+        assert_eq!(texts(&mut say), ["Takeoff denied: vehicle not armed"]);
+        c.arm(false, None, 0.0, true, &mut say);
+        assert_eq!(c.refuse_unless_armed("Return", &mut say), None);
+    }
+
+    #[test]
+    fn reboot_and_shutdown_only_disarmed() {
+        let mut c = Commander::default();
+        let mut say = Announcements::default();
+        let d = c.power(PowerAction::Reboot, &mut say);
+        assert_eq!(d, PowerDecision::Allowed(PowerAction::Reboot));
+        assert_eq!(d.outcome(), CommandOutcome::Accepted);
+        assert!(texts(&mut say).is_empty());
+        c.arm(false, None, 0.0, true, &mut say);
+        say.drain();
+        let d = c.power(PowerAction::Shutdown, &mut say);
+        assert_eq!(d, PowerDecision::Refused("disarm before shutdown"));
+        assert_eq!(d.outcome(), CommandOutcome::Denied("disarm before shutdown"));
+        assert_eq!(texts(&mut say), ["Shutdown denied: disarm first"]);
+    }
+
+    #[test]
+    fn failure_injection_needs_sys_failure_en() {
+        let mut say = Announcements::default();
+        assert_eq!(Commander::failure_injection(true, &mut say), CommandOutcome::Accepted);
+        assert!(matches!(
+            Commander::failure_injection(false, &mut say),
+            CommandOutcome::Denied(_)
+        ));
+        assert_eq!(texts(&mut say), ["Failure injection disabled (SYS_FAILURE_EN)"]);
+    }
+
+    #[test]
+    fn auto_disarm_before_takeoff_and_after_landing() {
+        let mut c = Commander::default();
+        let mut say = Announcements::default();
+        assert_eq!(c.preflight_disarm_timer(true, 10.0), None);
+        c.arm(false, None, 2.0, true, &mut say);
+        let t = c.preflight_disarm_timer(true, 10.0).expect("armed on the ground");
+        assert_eq!(
+            (t.timer, t.started_s, t.duration_s),
+            (ClientTimer::PreflightDisarm, 2.0, 10.0)
+        );
+        assert_eq!(c.preflight_disarm_timer(true, 0.0), None, "0 disables it");
+        say.drain();
+        c.land_event(Some(LandEvent::TookOff), 3.0, &mut say);
+        assert_eq!(texts(&mut say), ["Takeoff detected"]);
+        assert_eq!(c.preflight_disarm_timer(true, 10.0), None, "taken off");
+        assert!(!c.landing_disarm_due(30.0, false, false, 2.0), "in the air");
+        c.land_event(Some(LandEvent::Landed), 20.0, &mut say);
+        assert_eq!(texts(&mut say), ["Landing detected"]);
+        assert!(!c.landing_disarm_due(21.9, true, false, 2.0));
+        assert!(c.landing_disarm_due(22.0, true, false, 2.0));
+        assert!(!c.landing_disarm_due(22.0, true, true, 2.0), "a takeoff under way");
+        assert!(!c.landing_disarm_due(22.0, true, false, 0.0), "0 disables it");
+    }
+
+    #[test]
+    fn a_takeoff_disarmed_is_not_remembered() {
+        let mut c = Commander::default();
+        let mut say = Announcements::default();
+        c.land_event(Some(LandEvent::TookOff), 1.0, &mut say);
+        c.land_event(Some(LandEvent::Landed), 2.0, &mut say);
+        assert!(texts(&mut say).is_empty());
+        // armed in the air: taken off at arming
+        c.arm(true, None, 3.0, false, &mut say);
+        assert_eq!(c.preflight_disarm_timer(true, 10.0), None);
     }
 }

@@ -7,6 +7,11 @@
 //! [`FailsafeAction`] per parameter value, one announcement, a landing under
 //! way never interrupted, a blind descent without a GPS fix).
 //!
+//! [`Failsafe`] is the part that remembers and decides (the data link, the
+//! battery level, the fence and its breach, the clamp announcement, the
+//! client clock) and [`respond`] the runner's choice; the [`Autopilot`]
+//! wires them to the commander and the navigator, which carry it out.
+//!
 //! # PX4's failsafes
 //! * Data-link loss: no GCS HEARTBEAT (MAV_TYPE_GCS, any link) for
 //!   `COM_DL_LOSS_T`, armed or not, once a GCS was heard: announced, then
@@ -38,12 +43,14 @@ use serde::Serialize;
 
 use nalgebra::Vector3;
 
-use super::battery::{BatteryThresholds, BatteryWarning};
-use super::geofence::{self, DistanceLimits, Fence};
+use super::battery::BatteryWarning;
+use super::geofence::{self, Breach, Fence};
 use super::navigator::{DescendThen, Nav};
-use super::{Autopilot, Severity, TIME_EPS};
-use crate::mission::MissionType;
-use crate::params::{Param, ParamStore};
+use super::settings::{FailsafeAction, FailsafeSettings};
+use super::status::{Announcements, Severity};
+use super::{Autopilot, TIME_EPS};
+use crate::geo::GeoPoint;
+use crate::mission::{MissionType, Plan};
 use crate::signals::{Measurement, SensorReadings};
 
 /// The clock of the timers that wait for a client.
@@ -81,16 +88,290 @@ pub struct PendingTimer {
     pub duration_s: f64,
 }
 
+/// Offboard setpoints within the altitude limit this long [s] end an
+/// excursion: the next clamp is announced again.
+const CLAMP_REARM_S: f64 = 5.0;
+
+/// The failsafes' memory between steps and their decisions: the data link
+/// (the latest GCS HEARTBEAT, declared lost), the battery warning level (and
+/// the level at arming), the fence built from the plan and whether it is
+/// breached, the announcement of a clamped offboard setpoint, and the clock
+/// of the client timers.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Failsafe {
+    /// The clock of the timers that wait for a client.
+    clock: ClientClock,
+    /// When the latest GCS HEARTBEAT arrived [s] (`None`: never).
+    gcs_heard_s: Option<f64>,
+    /// The data link was declared lost (until the next GCS HEARTBEAT).
+    gcs_lost: bool,
+    /// The battery warning level in force (escalates only while armed).
+    battery_warning: BatteryWarning,
+    /// The level when it was armed: a failsafe acts only on worse (PX4).
+    battery_warning_at_arming: BatteryWarning,
+    /// The fence, built from the plan with this id and length.
+    fence: Option<(u32, usize, Fence)>,
+    /// Breached, and its action taken (re-armed once back inside).
+    breached: bool,
+    /// A clamped offboard setpoint was announced (re-armed after
+    /// [`CLAMP_REARM_S`] of setpoints within the limit).
+    clamp_announced: bool,
+    /// Since when the offboard setpoints are within the altitude limit [s].
+    clamp_clear_since_s: Option<f64>,
+}
+
+impl Failsafe {
+    /// The clock of the client timers.
+    pub(super) fn clock(&self) -> ClientClock {
+        self.clock
+    }
+
+    /// Time client timers on `clock` from now on.
+    pub(super) fn set_clock(&mut self, clock: ClientClock) {
+        self.clock = clock;
+    }
+
+    /// A GCS HEARTBEAT at `now_s` [s]: the data link is alive; after a loss
+    /// it is announced regained.
+    pub(super) fn gcs_heartbeat(&mut self, now_s: f64, say: &mut Announcements) {
+        self.gcs_heard_s = Some(now_s);
+        if self.gcs_lost {
+            self.gcs_lost = false;
+            say.announce(Severity::Info, "Data link regained");
+        }
+    }
+
+    /// The data-link timer: a GCS heard once and not yet declared lost,
+    /// armed or not (PX4 tracks the link either way, so arming long after
+    /// the last HEARTBEAT finds it lost on both clocks alike); it started at
+    /// the latest GCS HEARTBEAT and runs `COM_DL_LOSS_T`.
+    pub(super) fn data_link_timer(&self, s: &FailsafeSettings) -> Option<PendingTimer> {
+        if self.gcs_lost {
+            return None;
+        }
+        Some(PendingTimer {
+            timer: ClientTimer::DataLinkLoss,
+            started_s: self.gcs_heard_s?,
+            duration_s: s.data_link_loss_s,
+        })
+    }
+
+    /// Whether the data link is lost (no GCS HEARTBEAT for `COM_DL_LOSS_T`, none since).
+    pub(super) fn data_link_is_lost(&self) -> bool {
+        self.gcs_lost
+    }
+
+    /// No GCS HEARTBEAT for `COM_DL_LOSS_T`: declared lost and announced;
+    /// the action to take (`NAV_DLL_ACT`).
+    pub(super) fn data_link_lost(&mut self, s: &FailsafeSettings, say: &mut Announcements) -> FailsafeAction {
+        self.gcs_lost = true;
+        say.announce(Severity::Critical, "Connection to ground station lost");
+        s.data_link_loss_action
+    }
+
+    /// The battery warning level in force (BATTERY_STATUS `charge_state`).
+    pub(super) fn battery_warning(&self) -> BatteryWarning {
+        self.battery_warning
+    }
+
+    /// The battery monitor's warning `level` now: it follows the charge
+    /// while disarmed and only escalates while armed (PX4's hysteresis: a
+    /// sagging voltage that recovers does not clear it); each new level is
+    /// announced, and when worse than at arming the cause and action of
+    /// `COM_LOW_BAT_ACT` are returned for the runner (none for a warning).
+    pub(super) fn battery(
+        &mut self,
+        level: BatteryWarning,
+        armed: bool,
+        s: &FailsafeSettings,
+        say: &mut Announcements,
+    ) -> Option<(&'static str, FailsafeAction)> {
+        if !armed {
+            self.battery_warning = level;
+            self.battery_warning_at_arming = level;
+            return None;
+        }
+        if level <= self.battery_warning {
+            return None;
+        }
+        self.battery_warning = level;
+        let worse_than_at_arming = level > self.battery_warning_at_arming;
+        let (severity, text, cause) = match level {
+            BatteryWarning::None => return None,
+            BatteryWarning::Low => (Severity::Warning, "Low battery level, return advised", "battery low"),
+            BatteryWarning::Critical => (
+                Severity::Critical,
+                "Critical battery level, land now",
+                "battery critical",
+            ),
+            BatteryWarning::Emergency => (
+                Severity::Emergency,
+                "Emergency battery level, land immediately",
+                "battery emergency",
+            ),
+        };
+        say.announce(severity, text);
+        let action = if worse_than_at_arming {
+            s.low_battery_action.action(level)
+        } else {
+            FailsafeAction::Warn
+        };
+        (action != FailsafeAction::Warn).then_some((cause, action))
+    }
+
+    /// The fence of `plan` (the stored fence plan, rebuilt when it changed)
+    /// around `origin`.
+    pub(super) fn fence(&mut self, plan: &Plan, origin: &GeoPoint) -> &Fence {
+        let key = (plan.id(), plan.len());
+        let stale = self.fence.as_ref().is_none_or(|(id, n, _)| (*id, *n) != key);
+        if stale {
+            let fence = Fence::from_items(plan.items(), origin);
+            self.fence = Some((key.0, key.1, fence));
+        }
+        &self.fence.as_ref().expect("just built").2
+    }
+
+    /// Disarmed or landed: the fence is not watched, a breach is forgotten.
+    pub(super) fn geofence_at_rest(&mut self) {
+        self.breached = false;
+    }
+
+    /// The geofence's verdict on the current position (armed, in the air):
+    /// a new breach is announced (unless `GF_ACTION` is none) and its action
+    /// returned for the runner, once; back inside re-arms it.
+    pub(super) fn geofence(
+        &mut self,
+        breach: Option<Breach>,
+        s: &FailsafeSettings,
+        say: &mut Announcements,
+    ) -> Option<FailsafeAction> {
+        match (breach, self.breached) {
+            (Some(b), false) => {
+                self.breached = true;
+                let action = s.geofence_action;
+                if action != FailsafeAction::None {
+                    say.announce(Severity::Critical, format!("Geofence breached: {}", b.describe()));
+                }
+                Some(action)
+            }
+            (None, true) => {
+                self.breached = false;
+                None
+            }
+            _ => None,
+        }
+    }
+
+    /// An offboard position setpoint at `now_s` [s] was clamped to the
+    /// altitude limit (`clamped`) or was within it: announce a clamp once
+    /// per excursion (a stream at the limit, in and out of range by noise,
+    /// is announced once; [`CLAMP_REARM_S`] within the limit ends the excursion).
+    pub(super) fn offboard_clamped(&mut self, clamped: bool, now_s: f64, say: &mut Announcements) {
+        if clamped {
+            self.clamp_clear_since_s = None;
+            if !self.clamp_announced {
+                self.clamp_announced = true;
+                say.announce(Severity::Warning, "Offboard setpoint clamped to max altitude");
+            }
+            return;
+        }
+        let since = *self.clamp_clear_since_s.get_or_insert(now_s);
+        if now_s - since >= CLAMP_REARM_S - TIME_EPS {
+            self.clamp_announced = false;
+        }
+    }
+}
+
+/// What the one failsafe runner has the vehicle do.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Response {
+    /// Hold where it is.
+    Hold,
+    /// Return to launch.
+    Return,
+    /// Land where it is.
+    Land,
+    /// Descend without a position, then what was meant when the fix returns.
+    Descend(DescendThen),
+    /// Stop the rotors (flight termination, PX4's lockdown).
+    Disarm,
+}
+
+/// The runner's choice for failsafe `action` caused by `cause`, announced
+/// as PX4 does ("Failsafe activated due to {cause}, triggering {action}",
+/// shortened to fit a STATUSTEXT: "Failsafe: {cause}, triggering
+/// {action}"); `None` when nothing is to be done. Disarmed, nothing
+/// happens; a warning is only said. While the GNSS fix is lost
+/// (`gps_lost`), Hold, Return and Land become Descend (remembering which,
+/// for when the fix returns). A mode already in force (`nav`) is not entered
+/// again, and a landing (`landing`: Land, Descend, a return's or a mission's
+/// landing) is not interrupted by Hold, Return or Land (PX4).
+pub(super) fn respond(
+    cause: &str,
+    action: FailsafeAction,
+    armed: bool,
+    gps_lost: bool,
+    nav: Nav,
+    landing: bool,
+    say: &mut Announcements,
+) -> Option<Response> {
+    if action == FailsafeAction::None {
+        return None;
+    }
+    if !armed {
+        return None;
+    }
+    if action == FailsafeAction::Warn {
+        say.announce(Severity::Warning, format!("Failsafe warning: {cause}"));
+        return None;
+    }
+    let then = match action {
+        FailsafeAction::Land => Some(DescendThen::Land),
+        FailsafeAction::Return => Some(DescendThen::Return),
+        FailsafeAction::Hold => Some(DescendThen::Hold),
+        _ => None,
+    };
+    let action = match then {
+        Some(_) if gps_lost => FailsafeAction::Descend,
+        _ => action,
+    };
+    let already = match action {
+        FailsafeAction::Hold => landing || matches!(nav, Nav::Hold { target: None, .. }),
+        FailsafeAction::Return => landing || matches!(nav, Nav::Rtl { .. }),
+        FailsafeAction::Land | FailsafeAction::Descend => landing,
+        _ => false,
+    };
+    if already {
+        return None;
+    }
+    let severity = if matches!(action, FailsafeAction::Terminate | FailsafeAction::Disarm) {
+        Severity::Emergency
+    } else {
+        Severity::Critical
+    };
+    say.announce(severity, format!("Failsafe: {cause}, triggering {}", action.name()));
+    match action {
+        FailsafeAction::Hold => Some(Response::Hold),
+        FailsafeAction::Return => Some(Response::Return),
+        FailsafeAction::Land => Some(Response::Land),
+        FailsafeAction::Descend => Some(Response::Descend(then.unwrap_or(DescendThen::Hold))),
+        FailsafeAction::Terminate | FailsafeAction::Disarm => Some(Response::Disarm),
+        FailsafeAction::None | FailsafeAction::Warn => None,
+    }
+}
+
+// ----- the wiring: the failsafes' decisions carried out by the flight stack ---------------------
+
 impl Autopilot {
     /// Time client timers on `clock` from now on.
     pub fn set_client_clock(&mut self, clock: ClientClock) {
-        self.client_clock = clock;
+        self.failsafe.set_clock(clock);
     }
 
     /// The clock of the client timers.
     #[must_use]
     pub fn client_clock(&self) -> ClientClock {
-        self.client_clock
+        self.failsafe.clock()
     }
 
     /// The client timers running now (for the runtime to time on the wall clock).
@@ -98,12 +379,11 @@ impl Autopilot {
     pub fn client_timers(&self) -> Vec<PendingTimer> {
         let mut out = Vec::new();
         let s = &self.settings;
-        if self.armed && self.land.landed() && !self.took_off && s.disarm_preflight_s > 0.0 {
-            out.push(PendingTimer {
-                timer: ClientTimer::PreflightDisarm,
-                started_s: self.armed_at_s,
-                duration_s: s.disarm_preflight_s,
-            });
+        if let Some(p) = self
+            .commander
+            .preflight_disarm_timer(self.land.landed(), s.disarm_preflight_s)
+        {
+            out.push(p);
         }
         if let Some(t) = self.navigator.offboard_arrival() {
             out.push(PendingTimer {
@@ -113,7 +393,7 @@ impl Autopilot {
             });
         }
         // data-link loss (COM_DL_LOSS_T)
-        if let Some(p) = self.data_link_timer() {
+        if let Some(p) = self.failsafe.data_link_timer(&s.failsafe) {
             out.push(p);
         }
         if let Some(t) = self.navigator.manual_loss_timer_start() {
@@ -150,19 +430,30 @@ impl Autopilot {
             ClientTimer::PreflightDisarm => self.disarm_now("Disarmed by auto preflight disarming"),
             ClientTimer::OffboardLoss => {
                 self.navigator.offboard_timed_out();
-                if self.navigator.nav == Nav::Offboard {
+                if self.navigator.nav() == Nav::Offboard {
                     self.offboard_lost(m);
                 }
             }
-            ClientTimer::DataLinkLoss => self.data_link_lost(m),
-            ClientTimer::ManualControlLoss => self.manual_control_lost(m),
+            ClientTimer::DataLinkLoss => {
+                // PX4 ignores the loss while landing: the runner's rule
+                let action = self.failsafe.data_link_lost(&self.settings.failsafe, &mut self.say);
+                self.failsafe_action("GCS connection lost", action, m);
+            }
+            ClientTimer::ManualControlLoss => {
+                // in a manual mode NAV_RCL_ACT, descending instead of Hold,
+                // Return or Land without a GPS fix (the runner's rule)
+                if self.navigator.manual_control_lost(&mut self.say) {
+                    let action = self.settings.manual.loss_action;
+                    self.failsafe_action("manual control lost", action, m);
+                }
+            }
         }
     }
 
     /// Whether the offboard setpoints are fresh at `now` (on the client clock).
     pub(super) fn offboard_fresh(&self, now: f64) -> bool {
         self.navigator
-            .offboard_fresh(now, self.settings.offboard_loss_s, self.client_clock)
+            .offboard_fresh(now, self.settings.offboard_loss_s, self.failsafe.clock())
     }
 
     /// The client timers on simulated time (one boundary rule for all:
@@ -171,7 +462,7 @@ impl Autopilot {
     /// the geofence, at the instant of `m`.
     pub(super) fn supervise(&mut self, m: &Measurement) {
         let now = m.time_s;
-        if self.client_clock == ClientClock::Simulated {
+        if self.failsafe.clock() == ClientClock::Simulated {
             for p in self.client_timers() {
                 // an earlier expiry this step may have stopped or restarted it
                 let running = self
@@ -183,12 +474,10 @@ impl Autopilot {
                 }
             }
         }
-        if self.armed
-            && self.land.landed()
-            && self.took_off
-            && self.settings.disarm_land_s > 0.0
-            && !matches!(self.navigator.nav, Nav::Takeoff { .. })
-            && now - self.landed_at_s >= self.settings.disarm_land_s - TIME_EPS
+        let taking_off = matches!(self.navigator.nav(), Nav::Takeoff { .. });
+        if self
+            .commander
+            .landing_disarm_due(now, self.land.landed(), taking_off, self.settings.disarm_land_s)
         {
             self.disarm_now("Disarmed by landing");
         }
@@ -198,7 +487,7 @@ impl Autopilot {
     /// Offboard setpoints lost while in Offboard: announced, then `COM_OBL_RC_ACT`.
     fn offboard_lost(&mut self, m: &Measurement) {
         self.say.announce(Severity::Warning, "Offboard signal lost");
-        if !self.armed {
+        if !self.commander.armed() {
             // no failsafe on the ground: Offboard without setpoints is no
             // mode to stay in, so fall back to Hold as before arming
             self.navigator.enter_hold();
@@ -207,332 +496,63 @@ impl Autopilot {
         let action = self.settings.offboard_loss_action;
         self.failsafe_action("offboard signal lost", action, m);
     }
-}
 
-// ----- PX4's failsafes: data-link loss, low battery, geofence ----------------------------------
-
-/// What a failsafe does (PX4's `FailsafeBase::Action`, the ones a multirotor
-/// uses): every failsafe parameter (`NAV_DLL_ACT`, `NAV_RCL_ACT`,
-/// `COM_OBL_RC_ACT`, `COM_LOW_BAT_ACT`, `GF_ACTION`, `COM_ACT_FAIL_ACT`) maps
-/// to one, and [`Autopilot::failsafe_action`] carries it out.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(in crate::autopilot) enum FailsafeAction {
-    /// Nothing (not even a message).
-    None,
-    /// A warning only.
-    Warn,
-    /// Hold (AUTO.LOITER) where it is.
-    Hold,
-    /// Return to launch (AUTO.RTL).
-    Return,
-    /// Land where it is (AUTO.LAND).
-    Land,
-    /// Flight termination: the rotors stop (a multirotor falls).
-    Terminate,
-    /// Disarm (PX4's lockdown): the rotors stop.
-    Disarm,
-    /// Descend without a position (what Hold, Return and Land become while
-    /// the GNSS fix is lost; no parameter names it).
-    Descend,
-}
-
-impl FailsafeAction {
-    /// `NAV_DLL_ACT` and `NAV_RCL_ACT`: 0 disabled, 1 Hold, 2 Return, 3 Land,
-    /// 5 Terminate, 6 Disarm (4: none, as PX4's default branch).
-    pub(in crate::autopilot) fn from_nav_dll_act(v: i64) -> Self {
-        match v {
-            1 => Self::Hold,
-            2 => Self::Return,
-            3 => Self::Land,
-            5 => Self::Terminate,
-            6 => Self::Disarm,
-            _ => Self::None,
-        }
-    }
-
-    /// `COM_OBL_RC_ACT`: 3 Return, 4 Land, 6 Terminate, 7 Disarm; 5 Hold, and
-    /// 0-2 (Position, Altitude, Manual: they need RC, which is absent here) Hold.
-    pub(in crate::autopilot) fn from_com_obl_rc_act(v: i64) -> Self {
-        match v {
-            3 => Self::Return,
-            4 => Self::Land,
-            6 => Self::Terminate,
-            7 => Self::Disarm,
-            _ => Self::Hold,
-        }
-    }
-
-    /// `GF_ACTION`: 0 none, 1 warning, 2 Hold, 3 Return, 4 Terminate, 5 Land.
-    fn from_gf_action(v: i64) -> Self {
-        match v {
-            0 => Self::None,
-            2 => Self::Hold,
-            3 => Self::Return,
-            4 => Self::Terminate,
-            5 => Self::Land,
-            _ => Self::Warn,
-        }
-    }
-
-    /// The mode or reaction as the STATUSTEXT names it.
-    fn name(self) -> &'static str {
-        match self {
-            Self::None | Self::Warn => "warning",
-            Self::Hold => "Hold",
-            Self::Return => "Return",
-            Self::Land => "Land",
-            Self::Terminate => "flight termination",
-            Self::Disarm => "Disarm",
-            Self::Descend => "Descend",
-        }
-    }
-}
-
-/// `COM_LOW_BAT_ACT` (PX4's `LowBatteryAction`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum LowBatteryAction {
-    /// 0: warnings only.
-    Warning,
-    /// 1 (PX4's legacy value): Return at critical and emergency.
-    Return,
-    /// 2: Land at critical and emergency.
-    Land,
-    /// 3: Return at critical, Land at emergency.
-    ReturnOrLand,
-}
-
-impl LowBatteryAction {
-    fn from_param(v: i64) -> Self {
-        match v {
-            1 => Self::Return,
-            2 => Self::Land,
-            3 => Self::ReturnOrLand,
-            _ => Self::Warning,
-        }
-    }
-
-    /// PX4's `fromBatteryWarningActParam`: the action at warning level `w`.
-    pub(super) fn action(self, w: BatteryWarning) -> FailsafeAction {
-        match (w, self) {
-            (BatteryWarning::None, _) => FailsafeAction::None,
-            (BatteryWarning::Low, _) | (_, Self::Warning) => FailsafeAction::Warn,
-            (BatteryWarning::Critical, Self::Return | Self::ReturnOrLand)
-            | (BatteryWarning::Emergency, Self::Return) => FailsafeAction::Return,
-            (BatteryWarning::Critical | BatteryWarning::Emergency, _) => FailsafeAction::Land,
-        }
-    }
-}
-
-/// The failsafe parameters as typed values.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) struct FailsafeSettings {
-    /// `COM_DL_LOSS_T` [s].
-    pub(super) data_link_loss_s: f64,
-    /// `NAV_DLL_ACT`.
-    pub(super) data_link_loss_action: FailsafeAction,
-    /// `BAT_LOW_THR`, `BAT_CRIT_THR`, `BAT_EMERGEN_THR`.
-    pub(super) battery: BatteryThresholds,
-    /// `COM_LOW_BAT_ACT`.
-    pub(super) low_battery_action: LowBatteryAction,
-    /// `GF_ACTION`.
-    pub(super) geofence_action: FailsafeAction,
-    /// `GF_MAX_HOR_DIST`, `GF_MAX_VER_DIST`.
-    pub(super) geofence_limits: DistanceLimits,
-}
-
-impl FailsafeSettings {
-    /// Read from the store (its ranges already hold each value in PX4's range).
-    pub(super) fn from_store(p: &ParamStore) -> Self {
-        Self {
-            data_link_loss_s: f64::from(p.int(Param::COM_DL_LOSS_T)),
-            data_link_loss_action: FailsafeAction::from_nav_dll_act(i64::from(p.int(Param::NAV_DLL_ACT))),
-            battery: BatteryThresholds {
-                low: p.real(Param::BAT_LOW_THR),
-                critical: p.real(Param::BAT_CRIT_THR),
-                emergency: p.real(Param::BAT_EMERGEN_THR),
-            },
-            low_battery_action: LowBatteryAction::from_param(i64::from(p.int(Param::COM_LOW_BAT_ACT))),
-            geofence_action: FailsafeAction::from_gf_action(i64::from(p.int(Param::GF_ACTION))),
-            geofence_limits: DistanceLimits {
-                max_horizontal_m: p.real(Param::GF_MAX_HOR_DIST),
-                max_vertical_m: p.real(Param::GF_MAX_VER_DIST),
-            },
-        }
-    }
-
-    /// An altitude above home [m] capped so that it stays inside
-    /// `GF_MAX_VER_DIST` (PX4 caps the return altitude the same way).
-    pub(super) fn cap_height(&self, height_m: f64) -> f64 {
-        let max = self.geofence_limits.max_vertical_m;
-        if max > 0.0 { height_m.min(max) } else { height_m }
-    }
-}
-
-/// Offboard setpoints within the altitude limit this long [s] end an
-/// excursion: the next clamp is announced again.
-const CLAMP_REARM_S: f64 = 5.0;
-
-/// What the failsafes remember between steps.
-#[derive(Clone, Debug, Default)]
-pub(super) struct FailsafeState {
-    /// When the latest GCS HEARTBEAT arrived [s] (`None`: never).
-    gcs_heard_s: Option<f64>,
-    /// The data link was declared lost (until the next GCS HEARTBEAT).
-    gcs_lost: bool,
-    /// The battery warning level in force (escalates only while armed).
-    battery_warning: BatteryWarning,
-    /// The level when it was armed: a failsafe acts only on worse (PX4).
-    battery_warning_at_arming: BatteryWarning,
-    /// The fence, built from the plan with this id and length.
-    fence: Option<(u32, usize, Fence)>,
-    /// Breached, and its action taken (re-armed once back inside).
-    breached: bool,
-    /// A clamped offboard setpoint was announced (re-armed after
-    /// [`CLAMP_REARM_S`] of setpoints within the limit).
-    clamp_announced: bool,
-    /// Since when the offboard setpoints are within the altitude limit [s].
-    clamp_clear_since_s: Option<f64>,
-}
-
-impl Autopilot {
     /// A GCS HEARTBEAT (MAV_TYPE_GCS, from any link) arrived at the instant of
     /// `readings`: the data link is alive; after a loss it is announced regained.
     pub fn gcs_heartbeat(&mut self, readings: &SensorReadings) {
         self.now_s = readings.measurement.time_s;
-        self.failsafes.gcs_heard_s = Some(self.now_s);
-        if self.failsafes.gcs_lost {
-            self.failsafes.gcs_lost = false;
-            self.say.announce(Severity::Info, "Data link regained");
-        }
+        self.failsafe.gcs_heartbeat(self.now_s, &mut self.say);
     }
 
     /// The battery warning level in force (BATTERY_STATUS `charge_state`).
     #[must_use]
     pub fn battery_warning(&self) -> BatteryWarning {
-        self.failsafes.battery_warning
+        self.failsafe.battery_warning()
     }
 
-    /// The data-link timer: a GCS heard once and not yet declared lost,
-    /// armed or not (PX4 tracks the link either way, so arming long after
-    /// the last HEARTBEAT finds it lost on both clocks alike); it started at
-    /// the latest GCS HEARTBEAT.
-    fn data_link_timer(&self) -> Option<PendingTimer> {
-        if self.failsafes.gcs_lost {
-            return None;
-        }
-        Some(PendingTimer {
-            timer: ClientTimer::DataLinkLoss,
-            started_s: self.failsafes.gcs_heard_s?,
-            duration_s: self.settings.failsafe.data_link_loss_s,
-        })
-    }
-
-    /// Whether the data link is lost (no GCS HEARTBEAT for `COM_DL_LOSS_T`, none since).
-    pub(super) fn data_link_is_lost(&self) -> bool {
-        self.failsafes.gcs_lost
-    }
-
-    /// No GCS HEARTBEAT for `COM_DL_LOSS_T`: announce it and, armed, take
-    /// `NAV_DLL_ACT` (PX4 ignores the loss while landing: the runner's rule).
-    fn data_link_lost(&mut self, m: &Measurement) {
-        self.failsafes.gcs_lost = true;
-        self.say
-            .announce(Severity::Critical, "Connection to ground station lost");
-        let action = self.settings.failsafe.data_link_loss_action;
-        self.failsafe_action("GCS connection lost", action, m);
-    }
-
-    /// The battery monitor's warning level at the instant of `readings`: it
-    /// follows the charge while disarmed and only escalates while armed
-    /// (PX4's hysteresis: a sagging voltage that recovers does not clear it);
-    /// each new level is announced and acted on (`COM_LOW_BAT_ACT`) when worse
-    /// than at arming.
+    /// The battery monitor's warning level at the instant of `readings`,
+    /// judged by [`Failsafe::battery`], its action taken.
     pub(super) fn supervise_battery(&mut self, readings: &SensorReadings) {
         let remaining = self.battery.remaining(&readings.battery);
         let level = self.settings.failsafe.battery.level(remaining);
-        let f = &mut self.failsafes;
-        if !self.armed {
-            f.battery_warning = level;
-            f.battery_warning_at_arming = level;
-            return;
-        }
-        if level <= f.battery_warning {
-            return;
-        }
-        f.battery_warning = level;
-        let worse_than_at_arming = level > f.battery_warning_at_arming;
-        let (severity, text, cause) = match level {
-            BatteryWarning::None => return,
-            BatteryWarning::Low => (Severity::Warning, "Low battery level, return advised", "battery low"),
-            BatteryWarning::Critical => (
-                Severity::Critical,
-                "Critical battery level, land now",
-                "battery critical",
-            ),
-            BatteryWarning::Emergency => (
-                Severity::Emergency,
-                "Emergency battery level, land immediately",
-                "battery emergency",
-            ),
-        };
-        self.say.announce(severity, text);
-        let action = if worse_than_at_arming {
-            self.settings.failsafe.low_battery_action.action(level)
-        } else {
-            FailsafeAction::Warn
-        };
-        if action != FailsafeAction::Warn {
+        let armed = self.commander.armed();
+        if let Some((cause, action)) = self
+            .failsafe
+            .battery(level, armed, &self.settings.failsafe, &mut self.say)
+        {
             self.failsafe_action(cause, action, &readings.measurement);
         }
     }
 
-    /// The fence of the stored plan (rebuilt when the plan changed).
-    fn fence(&mut self) -> &Fence {
-        let plan = self.plans.get(MissionType::Fence);
-        let key = (plan.id(), plan.len());
-        let stale = self.failsafes.fence.as_ref().is_none_or(|(id, n, _)| (*id, *n) != key);
-        if stale {
-            let fence = Fence::from_items(plan.items(), &self.origin);
-            self.failsafes.fence = Some((key.0, key.1, fence));
+    /// The geofence on the current position, armed and in the air
+    /// ([`Failsafe::geofence`]). Not checked while the GNSS fix is lost (PX4
+    /// checks the fence only with a valid global position; the drifting
+    /// solution would breach it).
+    fn supervise_geofence(&mut self, m: &Measurement) {
+        if !self.commander.armed() || self.land.landed() {
+            self.failsafe.geofence_at_rest();
+            return;
         }
-        &self.failsafes.fence.as_ref().expect("just built").2
+        if self.navigator.gps_lost() {
+            return;
+        }
+        let breach = self.geofence_breach(&m.position_ned);
+        if let Some(action) = self.failsafe.geofence(breach, &self.settings.failsafe, &mut self.say) {
+            self.failsafe_action("geofence breach", action, m);
+        }
     }
 
-    /// The geofence on the current position, armed and in the air: a breach
-    /// is announced and `GF_ACTION` taken once; back inside re-arms it.
-    /// Not checked while the GNSS fix is lost (PX4 checks the fence only
-    /// with a valid global position; the drifting solution would breach it).
-    fn supervise_geofence(&mut self, m: &Measurement) {
-        if !self.armed || self.land.landed() {
-            self.failsafes.breached = false;
-            return;
-        }
-        if self.navigator.gps_lost {
-            return;
-        }
+    /// The geofence's verdict (zones or limits) on `p` [m], NED.
+    fn geofence_breach(&mut self, p: &Vector3<f64>) -> Option<Breach> {
         let home = self.home_ned();
         let limits = self.settings.failsafe.geofence_limits;
-        let breach = geofence::check(self.fence(), &limits, &m.position_ned, &home);
-        match (breach, self.failsafes.breached) {
-            (Some(b), false) => {
-                self.failsafes.breached = true;
-                let action = self.settings.failsafe.geofence_action;
-                if action != FailsafeAction::None {
-                    self.say
-                        .announce(Severity::Critical, format!("Geofence breached: {}", b.describe()));
-                }
-                self.failsafe_action("geofence breach", action, m);
-            }
-            (None, true) => self.failsafes.breached = false,
-            _ => {}
-        }
+        let fence = self.failsafe.fence(self.plans.get(MissionType::Fence), &self.origin);
+        geofence::check(fence, &limits, p, &home)
     }
 
     /// Whether the target `p` [m], NED, lies outside the geofence (zones or limits).
     pub(super) fn outside_geofence(&mut self, p: &Vector3<f64>) -> bool {
-        let home = self.home_ned();
-        let limits = self.settings.failsafe.geofence_limits;
-        geofence::check(self.fence(), &limits, p, &home).is_some()
+        self.geofence_breach(p).is_some()
     }
 
     /// The lowest NED z [m] a target may have (`GF_MAX_VER_DIST` above home), if limited.
@@ -541,88 +561,230 @@ impl Autopilot {
     }
 
     /// An offboard position setpoint was clamped to the altitude limit
-    /// (`clamped`) or was within it: announce a clamp once per excursion (a
-    /// stream at the limit, in and out of range by noise, is announced once;
-    /// [`CLAMP_REARM_S`] within the limit ends the excursion).
+    /// (`clamped`) or was within it ([`Failsafe::offboard_clamped`]).
     pub(super) fn offboard_clamped(&mut self, clamped: bool) {
-        let now = self.now_s;
-        let f = &mut self.failsafes;
-        if clamped {
-            f.clamp_clear_since_s = None;
-            if !f.clamp_announced {
-                f.clamp_announced = true;
-                self.say
-                    .announce(Severity::Warning, "Offboard setpoint clamped to max altitude");
-            }
-            return;
-        }
-        let since = *f.clamp_clear_since_s.get_or_insert(now);
-        if now - since >= CLAMP_REARM_S - TIME_EPS {
-            f.clamp_announced = false;
-        }
+        self.failsafe.offboard_clamped(clamped, self.now_s, &mut self.say);
     }
 
     /// Take a failsafe action for `cause` (the one runner of every
-    /// failsafe), announced as PX4 does ("Failsafe activated due to {cause},
-    /// triggering {action}", shortened to fit a STATUSTEXT: "Failsafe:
-    /// {cause}, triggering {action}"). Disarmed, nothing happens. While the GNSS fix is lost, Hold, Return and Land become
-    /// Descend (remembering which, for when the fix returns). A mode already
-    /// in force is not entered again, and a landing (Land, Descend, a
-    /// return's or a mission's landing) is not interrupted by Hold, Return or
-    /// Land (PX4).
+    /// failsafe): [`respond`] chooses, the navigator or the commander carries it out.
     pub(in crate::autopilot) fn failsafe_action(&mut self, cause: &str, action: FailsafeAction, m: &Measurement) {
-        if action == FailsafeAction::None {
-            return;
-        }
-        if !self.armed {
-            return;
-        }
-        if action == FailsafeAction::Warn {
-            self.say
-                .announce(Severity::Warning, format!("Failsafe warning: {cause}"));
-            return;
-        }
-        let then = match action {
-            FailsafeAction::Land => Some(DescendThen::Land),
-            FailsafeAction::Return => Some(DescendThen::Return),
-            FailsafeAction::Hold => Some(DescendThen::Hold),
-            _ => None,
-        };
-        let action = match then {
-            Some(_) if self.navigator.gps_lost => FailsafeAction::Descend,
-            _ => action,
-        };
-        let nav = self.navigator.nav;
-        let landing = self.navigator.landing();
-        let already = match action {
-            FailsafeAction::Hold => landing || matches!(nav, Nav::Hold { target: None, .. }),
-            FailsafeAction::Return => landing || matches!(nav, Nav::Rtl { .. }),
-            FailsafeAction::Land | FailsafeAction::Descend => landing,
-            _ => false,
-        };
-        if already {
-            return;
-        }
-        let severity = if matches!(action, FailsafeAction::Terminate | FailsafeAction::Disarm) {
-            Severity::Emergency
-        } else {
-            Severity::Critical
-        };
-        self.say
-            .announce(severity, format!("Failsafe: {cause}, triggering {}", action.name()));
-        match action {
-            FailsafeAction::Hold => self.navigator.enter_hold(),
-            FailsafeAction::Return => {
+        let response = respond(
+            cause,
+            action,
+            self.commander.armed(),
+            self.navigator.gps_lost(),
+            self.navigator.nav(),
+            self.navigator.landing(),
+            &mut self.say,
+        );
+        match response {
+            Some(Response::Hold) => self.navigator.enter_hold(),
+            Some(Response::Return) => {
                 let cx = situation!(self, m);
                 self.navigator.enter_rtl(&cx, &mut self.say);
             }
-            FailsafeAction::Land => {
+            Some(Response::Land) => {
                 let landed = self.land.landed();
                 self.navigator.enter_land(m, landed, &mut self.say);
             }
-            FailsafeAction::Descend => self.navigator.enter_descend(then.unwrap_or(DescendThen::Hold)),
-            FailsafeAction::Terminate | FailsafeAction::Disarm => self.disarm_now("Disarmed by failsafe"),
-            FailsafeAction::None | FailsafeAction::Warn => {}
+            Some(Response::Descend(then)) => self.navigator.enter_descend(then),
+            Some(Response::Disarm) => self.disarm_now("Disarmed by failsafe"),
+            None => {}
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::airframe::Airframe;
+    use crate::autopilot::settings::LowBatteryAction;
+    use crate::params::ParamStore;
+
+    fn settings() -> FailsafeSettings {
+        FailsafeSettings::from_store(&ParamStore::new(&Airframe::load("quad").unwrap()))
+    }
+
+    fn texts(say: &mut Announcements) -> Vec<String> {
+        say.drain().into_iter().map(|s| s.text).collect()
+    }
+
+    #[test]
+    fn a_critical_battery_in_flight_triggers_com_low_bat_act_once() {
+        let s = FailsafeSettings {
+            low_battery_action: LowBatteryAction::ReturnOrLand,
+            ..settings()
+        };
+        let mut f = Failsafe::default();
+        let mut say = Announcements::default();
+        // disarmed: the level follows the charge, nothing is said
+        assert_eq!(f.battery(BatteryWarning::Low, false, &s, &mut say), None);
+        assert_eq!(f.battery(BatteryWarning::None, false, &s, &mut say), None);
+        assert_eq!(f.battery_warning(), BatteryWarning::None);
+        assert!(texts(&mut say).is_empty());
+        // armed: low is a warning only
+        assert_eq!(f.battery(BatteryWarning::Low, true, &s, &mut say), None);
+        assert_eq!(texts(&mut say), ["Low battery level, return advised"]);
+        let got = f.battery(BatteryWarning::Critical, true, &s, &mut say);
+        assert_eq!(got, Some(("battery critical", FailsafeAction::Return)));
+        assert_eq!(texts(&mut say), ["Critical battery level, land now"]);
+        // no repeat, no recovery while armed
+        assert_eq!(f.battery(BatteryWarning::Critical, true, &s, &mut say), None);
+        assert_eq!(f.battery(BatteryWarning::None, true, &s, &mut say), None);
+        assert_eq!(f.battery_warning(), BatteryWarning::Critical);
+        let got = f.battery(BatteryWarning::Emergency, true, &s, &mut say);
+        assert_eq!(got, Some(("battery emergency", FailsafeAction::Land)));
+    }
+
+    #[test]
+    fn a_battery_level_held_at_arming_is_only_announced() {
+        let s = FailsafeSettings {
+            low_battery_action: LowBatteryAction::Land,
+            ..settings()
+        };
+        let mut f = Failsafe::default();
+        let mut say = Announcements::default();
+        f.battery(BatteryWarning::Critical, false, &s, &mut say);
+        // armed at critical: the warning level restarts from the charge
+        assert_eq!(f.battery(BatteryWarning::Critical, true, &s, &mut say), None);
+        assert_eq!(
+            f.battery(BatteryWarning::Emergency, true, &s, &mut say),
+            Some(("battery emergency", FailsafeAction::Land))
+        );
+        let warn_only = FailsafeSettings {
+            low_battery_action: LowBatteryAction::Warning,
+            ..settings()
+        };
+        let mut f = Failsafe::default();
+        assert_eq!(f.battery(BatteryWarning::Emergency, true, &warn_only, &mut say), None);
+    }
+
+    #[test]
+    fn the_data_link_is_timed_from_the_latest_gcs_heartbeat() {
+        let s = FailsafeSettings {
+            data_link_loss_action: FailsafeAction::Return,
+            ..settings()
+        };
+        let mut f = Failsafe::default();
+        let mut say = Announcements::default();
+        assert_eq!(f.data_link_timer(&s), None, "no GCS heard yet");
+        f.gcs_heartbeat(3.0, &mut say);
+        let t = f.data_link_timer(&s).unwrap();
+        assert_eq!(
+            (t.timer, t.started_s, t.duration_s),
+            (ClientTimer::DataLinkLoss, 3.0, s.data_link_loss_s)
+        );
+        assert_eq!(f.data_link_lost(&s, &mut say), FailsafeAction::Return);
+        assert!(f.data_link_is_lost());
+        assert_eq!(f.data_link_timer(&s), None);
+        assert_eq!(texts(&mut say), ["Connection to ground station lost"]);
+        f.gcs_heartbeat(9.0, &mut say);
+        assert!(!f.data_link_is_lost());
+        assert_eq!(texts(&mut say), ["Data link regained"]);
+        assert_eq!(f.data_link_timer(&s).unwrap().started_s, 9.0);
+    }
+
+    #[test]
+    fn the_runner_chooses_the_response() {
+        let mut say = Announcements::default();
+        let hold = Nav::Hold { target: None };
+        let run = |action, armed, gps_lost, nav, landing, say: &mut Announcements| {
+            respond("GCS connection lost", action, armed, gps_lost, nav, landing, say)
+        };
+        // disarmed or none: nothing, not even a message
+        assert_eq!(run(FailsafeAction::Return, false, false, hold, false, &mut say), None);
+        assert_eq!(run(FailsafeAction::None, true, false, hold, false, &mut say), None);
+        assert!(texts(&mut say).is_empty());
+        assert_eq!(run(FailsafeAction::Warn, true, false, hold, false, &mut say), None);
+        assert_eq!(texts(&mut say), ["Failsafe warning: GCS connection lost"]);
+        assert_eq!(
+            run(FailsafeAction::Return, true, false, hold, false, &mut say),
+            Some(Response::Return)
+        );
+        assert_eq!(texts(&mut say), ["Failsafe: GCS connection lost, triggering Return"]);
+        // without a fix: a blind descent that remembers the intent
+        assert_eq!(
+            run(FailsafeAction::Return, true, true, hold, false, &mut say),
+            Some(Response::Descend(DescendThen::Return))
+        );
+        assert_eq!(
+            run(FailsafeAction::Land, true, true, Nav::Offboard, false, &mut say),
+            Some(Response::Descend(DescendThen::Land))
+        );
+        say.drain();
+        // a landing goes on; a mode in force is not entered again
+        assert_eq!(
+            run(FailsafeAction::Hold, true, false, Nav::Offboard, true, &mut say),
+            None
+        );
+        assert_eq!(
+            run(FailsafeAction::Land, true, false, Nav::Offboard, true, &mut say),
+            None
+        );
+        assert_eq!(run(FailsafeAction::Hold, true, false, hold, false, &mut say), None);
+        assert!(texts(&mut say).is_empty());
+        // termination stops the rotors, even while landing
+        assert_eq!(
+            run(FailsafeAction::Terminate, true, false, hold, true, &mut say),
+            Some(Response::Disarm)
+        );
+        let said = say.drain();
+        assert_eq!(said[0].severity, Severity::Emergency);
+        assert_eq!(said[0].text, "Failsafe: GCS connection lost, triggering flight t");
+    }
+
+    #[test]
+    fn a_geofence_breach_acts_once_until_back_inside() {
+        let s = FailsafeSettings {
+            geofence_action: FailsafeAction::Land,
+            ..settings()
+        };
+        let mut f = Failsafe::default();
+        let mut say = Announcements::default();
+        assert_eq!(f.geofence(None, &s, &mut say), None);
+        assert_eq!(
+            f.geofence(Some(Breach::MaxAltitude), &s, &mut say),
+            Some(FailsafeAction::Land)
+        );
+        assert_eq!(texts(&mut say), ["Geofence breached: max altitude exceeded"]);
+        assert_eq!(f.geofence(Some(Breach::MaxAltitude), &s, &mut say), None);
+        assert_eq!(f.geofence(None, &s, &mut say), None);
+        assert_eq!(
+            f.geofence(Some(Breach::OutsideInclusion), &s, &mut say),
+            Some(FailsafeAction::Land)
+        );
+        f.geofence_at_rest();
+        assert_eq!(
+            f.geofence(Some(Breach::OutsideInclusion), &s, &mut say),
+            Some(FailsafeAction::Land)
+        );
+        // GF_ACTION none: nothing said, and the runner does nothing with it
+        let quiet = FailsafeSettings {
+            geofence_action: FailsafeAction::None,
+            ..settings()
+        };
+        let mut f = Failsafe::default();
+        say.drain();
+        assert_eq!(
+            f.geofence(Some(Breach::MaxAltitude), &quiet, &mut say),
+            Some(FailsafeAction::None)
+        );
+        assert!(texts(&mut say).is_empty());
+    }
+
+    #[test]
+    fn a_clamped_setpoint_is_announced_once_per_excursion() {
+        let mut f = Failsafe::default();
+        let mut say = Announcements::default();
+        f.offboard_clamped(true, 1.0, &mut say);
+        f.offboard_clamped(true, 1.1, &mut say);
+        f.offboard_clamped(false, 1.2, &mut say);
+        f.offboard_clamped(true, 2.0, &mut say);
+        assert_eq!(texts(&mut say), ["Offboard setpoint clamped to max altitude"]);
+        f.offboard_clamped(false, 3.0, &mut say);
+        f.offboard_clamped(false, 8.0, &mut say);
+        f.offboard_clamped(true, 8.1, &mut say);
+        assert_eq!(texts(&mut say), ["Offboard setpoint clamped to max altitude"]);
     }
 }

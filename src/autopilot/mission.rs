@@ -12,9 +12,11 @@
 
 use nalgebra::Vector3;
 
+use super::command::CommandOutcome;
 use super::navigator::{self, Nav, SetHome};
+use super::status::Severity;
 use super::telemetry::{MissionState, MissionStatus};
-use super::{Autopilot, CommandOutcome, FlightMode, Severity};
+use super::{Autopilot, FlightMode};
 use crate::mission::MissionType;
 use crate::signals::Measurement;
 
@@ -22,20 +24,20 @@ impl Autopilot {
     /// MISSION_CURRENT's content now.
     pub(super) fn mission_status(&self) -> MissionStatus {
         let mission = self.plans.get(MissionType::Mission);
-        let run = &self.navigator.mission;
+        let run = self.navigator.mission();
         let state = if mission.is_empty() {
             MissionState::NoMission
-        } else if run.complete {
+        } else if run.complete() {
             MissionState::Complete
-        } else if self.armed && self.navigator.nav == Nav::Mission {
+        } else if self.commander.armed() && self.navigator.nav() == Nav::Mission {
             MissionState::Active
-        } else if run.started {
+        } else if run.started() {
             MissionState::Paused
         } else {
             MissionState::NotStarted
         };
         MissionStatus {
-            seq: u16::try_from(run.current.min(mission.len().saturating_sub(1))).unwrap_or(u16::MAX),
+            seq: u16::try_from(run.current().min(mission.len().saturating_sub(1))).unwrap_or(u16::MAX),
             total: u16::try_from(mission.len()).unwrap_or(u16::MAX),
             state,
             mission_id: mission.id(),
@@ -47,8 +49,8 @@ impl Autopilot {
     /// A new mission was stored, or the mission cleared: from the first item;
     /// a cleared mission being flown gives way to Hold.
     pub(super) fn mission_replaced(&mut self) {
-        self.navigator.mission.reset();
-        if self.navigator.nav == Nav::Mission {
+        self.navigator.mission_mut().reset();
+        if self.navigator.nav() == Nav::Mission {
             if self.plans.get(MissionType::Mission).is_empty() {
                 self.navigator.enter_hold();
                 self.say.announce(Severity::Warning, "Mission cleared: holding");
@@ -113,20 +115,19 @@ impl Autopilot {
         if let Some(refused) = self.refuse_mission_outside_geofence(m) {
             return refused;
         }
-        let was = (self.navigator.nav, self.navigator.mission.clone());
+        let was = self.navigator.saved();
         if let Some(f) = first {
-            self.navigator.mission.set_current(usize::from(f));
+            self.navigator.mission_mut().set_current(usize::from(f));
         }
         if self.navigator.mode() != FlightMode::Mission {
             self.navigator.enter_mission();
         } else if first.is_some() {
-            self.navigator.mission.resume();
+            self.navigator.mission_mut().resume();
         }
-        if !self.armed {
+        if !self.commander.armed() {
             let outcome = self.arm(false, m);
             if outcome != CommandOutcome::Accepted {
-                self.navigator.nav = was.0;
-                self.navigator.mission = was.1;
+                self.navigator.restore(was);
                 return outcome;
             }
         }
@@ -138,7 +139,7 @@ impl Autopilot {
         if usize::from(seq) >= self.plans.get(MissionType::Mission).len() {
             return CommandOutcome::Denied("no such mission item");
         }
-        self.navigator.mission.set_current(usize::from(seq));
+        self.navigator.mission_mut().set_current(usize::from(seq));
         CommandOutcome::Accepted
     }
 

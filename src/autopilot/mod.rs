@@ -9,10 +9,11 @@
 //! | file | job |
 //! |---|---|
 //! | `stack` | [`Autopilot`]: the state, parameters, and one step in order (sense, detect, supervise, guide, act) |
-//! | `commander` | commands: arming and prearm checks, the mode state machine, home, reboot and failure-injection gates |
+//! | `command` | the commands a client gives ([`AutopilotCommand`]) and the answers ([`CommandOutcome`]) |
+//! | `commander` | commands: the `Commander` (arming state, prearm checks, disarm, auto-disarm timers, reboot and failure-injection gates) and the wiring of each command (the mode state machine, home) |
 //! | `navigator/` | guidance per mode family: `auto` (hold, takeoff, land, return), `offboard` (setpoints and their frames), `mission` (the stored mission flown as paths), `manual` (sticks and the manual modes), `blind` (the descent without a GPS fix) |
 //! | `mission` | the mission as the commander sees it: start, set current, what a new upload does, MISSION_CURRENT's state |
-//! | `failsafe` | supervision: offboard, data-link, manual-control loss, battery, geofence, auto-disarm, all through one action runner; which clock the timers that wait for a client run on |
+//! | `failsafe` | supervision: the `Failsafe` (data link, battery level, geofence breach, clamp notice, client clock) and the one runner's choice; offboard, data-link, manual-control loss, battery, geofence, auto-disarm wired through it; which clock the timers that wait for a client run on |
 //! | `geofence` | the stored fence's zones and PX4's distance limits, as pure geometry |
 //! | `rotor_monitor` | dead and degraded rotors from commanded versus ESC-reported speeds |
 //! | `land_detector` | landed or flying, from the measurements and the commanded thrust |
@@ -20,7 +21,9 @@
 //! | `control_loop` | estimator update, control law, allocation (around a lost rotor; relaxed hover for a quad): the loop every pilot shares |
 //! | `battery` | the battery monitor: charge used and remaining from voltage and current |
 //! | `telemetry` | the snapshot clients are told |
-//! | `settings` | the parameters as typed values |
+//! | `settings` | the parameters as typed values, the failsafe actions among them |
+//! | `status` | status texts: severity, the announcement queue, the one 50-byte STATUSTEXT cut and split |
+//! | `error` | why an autopilot could not be built or parameters applied |
 //!
 //! # Behaviour (PX4's, `docs/mavlink.md` sections 3, 5, 8, 12)
 //! * Boot: disarmed, on the ground at home (the NED origin), Hold.
@@ -87,8 +90,10 @@ macro_rules! situation {
 }
 
 mod battery;
+mod command;
 mod commander;
 mod control_loop;
+mod error;
 mod estimate;
 mod failsafe;
 mod geofence;
@@ -98,23 +103,23 @@ mod navigator;
 mod rotor_monitor;
 mod settings;
 mod stack;
+mod status;
 mod telemetry;
 
 pub use battery::BatteryWarning;
+pub use command::{AutopilotCommand, CommandOutcome, PowerAction};
 pub use control_loop::RotorAllocation;
 pub use control_loop::{ControlLoop, ControlLoopError, ControlOutput, Demand};
+pub use error::AutopilotError;
 pub use failsafe::{ClientClock, ClientTimer, PendingTimer};
 pub use navigator::ManualControl;
 pub use navigator::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};
 pub use rotor_monitor::{FAILED_SPEED_RATIO, RotorEvent, RotorMonitor, RotorStatus};
-pub use stack::{Autopilot, AutopilotError};
+pub use stack::Autopilot;
+pub use status::{STATUS_TEXT_LEN, Severity, StatusText, cut_status_text, status_text_lines};
 pub use telemetry::{LandedState, MissionState, MissionStatus, Telemetry, VehicleType};
 
-use std::collections::VecDeque;
-
 use serde::Serialize;
-
-use crate::geo::GeoPoint;
 
 /// Flight modes, as PX4 names them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, serde::Deserialize)]
@@ -148,160 +153,6 @@ pub enum FlightMode {
     Descend,
 }
 
-/// What MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN asks for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub enum PowerAction {
-    /// Restart the vehicle (the simulation restarts on the ground at home).
-    Reboot,
-    /// Stop (PX4 SITL exits).
-    Shutdown,
-}
-
-/// A command to the autopilot. NaN from MAVLink is mapped to `None` by the link.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub enum AutopilotCommand {
-    /// Arm (prearm checks unless forced).
-    Arm {
-        /// MAV_CMD_COMPONENT_ARM_DISARM p2 = 21196.
-        force: bool,
-    },
-    /// Disarm (refused in flight unless forced).
-    Disarm {
-        /// MAV_CMD_COMPONENT_ARM_DISARM p2 = 21196.
-        force: bool,
-    },
-    /// Take off to this altitude AMSL [m], `None` = home + MIS_TAKEOFF_ALT (PX4 raises lower values to that).
-    Takeoff {
-        /// Target altitude AMSL [m].
-        altitude_amsl_m: Option<f64>,
-    },
-    /// Land where it is.
-    Land,
-    /// Return to launch.
-    ReturnToLaunch,
-    /// Switch mode.
-    SetMode(FlightMode),
-    /// Start the mission (MAV_CMD_MISSION_START, DO_SET_MODE AUTO.MISSION
-    /// goes through `SetMode`): arm-free start of AUTO.MISSION, from `first`
-    /// when given (p1), else where it stands.
-    StartMission {
-        /// The item to start from (MAVLink seq).
-        first: Option<u16>,
-    },
-    /// Make item `seq` the current one (MISSION_SET_CURRENT, DO_SET_MISSION_CURRENT).
-    SetMissionCurrent {
-        /// MAVLink seq.
-        seq: u16,
-    },
-    /// Fly to a point and hold there (DO_REPOSITION): `None` parts keep the current value.
-    Reposition {
-        /// Latitude [deg].
-        lat_deg: Option<f64>,
-        /// Longitude [deg].
-        lon_deg: Option<f64>,
-        /// Altitude AMSL [m].
-        alt_amsl_m: Option<f64>,
-        /// Yaw [rad].
-        yaw_rad: Option<f64>,
-        /// Ground speed [m/s].
-        speed_m_s: Option<f64>,
-    },
-    /// Change the cruise speed [m/s] (DO_CHANGE_SPEED).
-    ChangeSpeed {
-        /// Ground speed [m/s].
-        speed_m_s: f64,
-    },
-    /// Set home here (`None`) or at a point.
-    SetHome(Option<GeoPoint>),
-    /// A new offboard setpoint.
-    Offboard(OffboardSetpoint),
-    /// The pilot's sticks (MANUAL_CONTROL), kept with their arrival time.
-    ManualControl(ManualControl),
-    /// Reboot or shut down: accepted only disarmed; the runtime carries it out.
-    Power(PowerAction),
-    /// MAV_CMD_INJECT_FAILURE, PX4's numbers: accepted only with
-    /// `SYS_FAILURE_EN`; the world carries it out.
-    InjectFailure {
-        /// FAILURE_UNIT.
-        unit: u8,
-        /// FAILURE_TYPE.
-        kind: u8,
-        /// Instance, from 1; 0 = all.
-        instance: u8,
-    },
-}
-
-/// The answer to a command (mapped to MAV_RESULT by the link).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum CommandOutcome {
-    /// Done or started.
-    Accepted,
-    /// Not now (PX4's TEMPORARILY_REJECTED), with a reason for STATUSTEXT.
-    TemporarilyRejected(&'static str),
-    /// Never in this state (DENIED), with a reason.
-    Denied(&'static str),
-    /// Not supported (UNSUPPORTED).
-    Unsupported,
-    /// Failed, with a reason.
-    Failed(&'static str),
-}
-
 /// Time comparisons of the flight stack tolerate this much rounding [s]
 /// (simulated time is a step count times the step).
 const TIME_EPS: f64 = 1e-9;
-
-/// STATUSTEXT severity (MAV_SEVERITY).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-pub enum Severity {
-    /// 0
-    Emergency,
-    /// 2
-    Critical,
-    /// 3
-    Error,
-    /// 4
-    Warning,
-    /// 5
-    Notice,
-    /// 6
-    Info,
-}
-
-/// An event to announce as STATUSTEXT.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
-pub struct StatusText {
-    /// Severity.
-    pub severity: Severity,
-    /// Text (at most 50 characters fit one STATUSTEXT).
-    pub text: String,
-}
-
-/// Status texts waiting to be sent, oldest first; the oldest are dropped beyond 64.
-#[derive(Clone, Debug, Default)]
-struct Announcements(VecDeque<StatusText>);
-
-impl Announcements {
-    const CAPACITY: usize = 64;
-
-    fn announce(&mut self, severity: Severity, text: impl Into<String>) {
-        if self.0.len() >= Self::CAPACITY {
-            self.0.pop_front();
-        }
-        let mut text = text.into();
-        let mut end = text.len().min(50);
-        while !text.is_char_boundary(end) {
-            end -= 1;
-        }
-        text.truncate(end);
-        tracing::debug!(?severity, %text, "status");
-        self.0.push_back(StatusText { severity, text });
-    }
-
-    fn drain(&mut self) -> Vec<StatusText> {
-        // the lockstep looks every step: an empty queue must cost nothing
-        if self.0.is_empty() {
-            return Vec::new();
-        }
-        self.0.drain(..).collect()
-    }
-}

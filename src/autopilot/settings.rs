@@ -1,39 +1,182 @@
 //! The parameters the flight stack uses, read once per
 //! [`super::Autopilot::apply_params`] into plain typed fields (SI units). The
-//! `SIM_*` parameters are the world's and are not read here.
+//! `SIM_*` parameters are the world's and are not read here. A leaf of the
+//! flight stack: the failsafe actions each failsafe parameter names
+//! ([`FailsafeAction`]) live here, so the failsafes, the navigator and the
+//! commander all read them from one place.
 
-use super::AutopilotError;
+use super::battery::{BatteryThresholds, BatteryWarning};
+use super::error::AutopilotError;
+use super::geofence::DistanceLimits;
 use crate::control::ControllerKind;
 use crate::estimation::Polynomial;
 use crate::params::{Param, ParamStore};
 
-use super::failsafe::FailsafeAction;
-
-/// What to do when the rotor monitor flags a failed or degraded rotor in
-/// flight (`COM_ACT_FAIL_ACT`, PX4's values; PX4's 4, terminate, is outside its range).
+/// What a failsafe does (PX4's `FailsafeBase::Action`, the ones a multirotor
+/// uses): every failsafe parameter (`NAV_DLL_ACT`, `NAV_RCL_ACT`,
+/// `COM_OBL_RC_ACT`, `COM_LOW_BAT_ACT`, `GF_ACTION`, `COM_ACT_FAIL_ACT`) maps
+/// to one, and [`super::Autopilot::failsafe_action`] carries it out.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum ActuatorFailureAction {
-    /// 0: warn only, keep the mode (a mission goes on).
+pub(super) enum FailsafeAction {
+    /// Nothing (not even a message).
+    None,
+    /// A warning only.
     Warn,
-    /// 1: Hold.
+    /// Hold (AUTO.LOITER) where it is.
     Hold,
-    /// 2: Land.
-    Land,
-    /// 3: Return.
+    /// Return to launch (AUTO.RTL).
     Return,
+    /// Land where it is (AUTO.LAND).
+    Land,
+    /// Flight termination: the rotors stop (a multirotor falls).
+    Terminate,
+    /// Disarm (PX4's lockdown): the rotors stop.
+    Disarm,
+    /// Descend without a position (what Hold, Return and Land become while
+    /// the GNSS fix is lost; no parameter names it).
+    Descend,
 }
 
-impl ActuatorFailureAction {
-    /// The one failsafe runner's action (`Warn` keeps the mode), for
-    /// `rotors_changed` to route through [`super::Autopilot::failsafe_action`].
-    #[must_use]
-    pub(super) fn action(self) -> FailsafeAction {
-        match self {
-            Self::Warn => FailsafeAction::Warn,
-            Self::Hold => FailsafeAction::Hold,
-            Self::Land => FailsafeAction::Land,
-            Self::Return => FailsafeAction::Return,
+impl FailsafeAction {
+    /// `NAV_DLL_ACT` and `NAV_RCL_ACT`: 0 disabled, 1 Hold, 2 Return, 3 Land,
+    /// 5 Terminate, 6 Disarm (4: none, as PX4's default branch).
+    pub(super) fn from_nav_dll_act(v: i64) -> Self {
+        match v {
+            1 => Self::Hold,
+            2 => Self::Return,
+            3 => Self::Land,
+            5 => Self::Terminate,
+            6 => Self::Disarm,
+            _ => Self::None,
         }
+    }
+
+    /// `COM_OBL_RC_ACT`: 3 Return, 4 Land, 6 Terminate, 7 Disarm; 5 Hold, and
+    /// 0-2 (Position, Altitude, Manual: they need RC, which is absent here) Hold.
+    pub(super) fn from_com_obl_rc_act(v: i64) -> Self {
+        match v {
+            3 => Self::Return,
+            4 => Self::Land,
+            6 => Self::Terminate,
+            7 => Self::Disarm,
+            _ => Self::Hold,
+        }
+    }
+
+    /// `COM_ACT_FAIL_ACT`: 0 warn only (the mode is kept: a mission goes
+    /// on), 1 Hold, 2 Land, 3 Return (PX4's 4, terminate, is outside its range).
+    fn from_com_act_fail_act(v: i64) -> Self {
+        match v {
+            1 => Self::Hold,
+            2 => Self::Land,
+            3 => Self::Return,
+            _ => Self::Warn,
+        }
+    }
+
+    /// `GF_ACTION`: 0 none, 1 warning, 2 Hold, 3 Return, 4 Terminate, 5 Land.
+    fn from_gf_action(v: i64) -> Self {
+        match v {
+            0 => Self::None,
+            2 => Self::Hold,
+            3 => Self::Return,
+            4 => Self::Terminate,
+            5 => Self::Land,
+            _ => Self::Warn,
+        }
+    }
+
+    /// The mode or reaction as the STATUSTEXT names it.
+    pub(super) fn name(self) -> &'static str {
+        match self {
+            Self::None | Self::Warn => "warning",
+            Self::Hold => "Hold",
+            Self::Return => "Return",
+            Self::Land => "Land",
+            Self::Terminate => "flight termination",
+            Self::Disarm => "Disarm",
+            Self::Descend => "Descend",
+        }
+    }
+}
+
+/// `COM_LOW_BAT_ACT` (PX4's `LowBatteryAction`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum LowBatteryAction {
+    /// 0: warnings only.
+    Warning,
+    /// 1 (PX4's legacy value): Return at critical and emergency.
+    Return,
+    /// 2: Land at critical and emergency.
+    Land,
+    /// 3: Return at critical, Land at emergency.
+    ReturnOrLand,
+}
+
+impl LowBatteryAction {
+    fn from_param(v: i64) -> Self {
+        match v {
+            1 => Self::Return,
+            2 => Self::Land,
+            3 => Self::ReturnOrLand,
+            _ => Self::Warning,
+        }
+    }
+
+    /// PX4's `fromBatteryWarningActParam`: the action at warning level `w`.
+    pub(super) fn action(self, w: BatteryWarning) -> FailsafeAction {
+        match (w, self) {
+            (BatteryWarning::None, _) => FailsafeAction::None,
+            (BatteryWarning::Low, _) | (_, Self::Warning) => FailsafeAction::Warn,
+            (BatteryWarning::Critical, Self::Return | Self::ReturnOrLand)
+            | (BatteryWarning::Emergency, Self::Return) => FailsafeAction::Return,
+            (BatteryWarning::Critical | BatteryWarning::Emergency, _) => FailsafeAction::Land,
+        }
+    }
+}
+
+/// The failsafe parameters as typed values.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct FailsafeSettings {
+    /// `COM_DL_LOSS_T` [s].
+    pub(super) data_link_loss_s: f64,
+    /// `NAV_DLL_ACT`.
+    pub(super) data_link_loss_action: FailsafeAction,
+    /// `BAT_LOW_THR`, `BAT_CRIT_THR`, `BAT_EMERGEN_THR`.
+    pub(super) battery: BatteryThresholds,
+    /// `COM_LOW_BAT_ACT`.
+    pub(super) low_battery_action: LowBatteryAction,
+    /// `GF_ACTION`.
+    pub(super) geofence_action: FailsafeAction,
+    /// `GF_MAX_HOR_DIST`, `GF_MAX_VER_DIST`.
+    pub(super) geofence_limits: DistanceLimits,
+}
+
+impl FailsafeSettings {
+    /// Read from the store (its ranges already hold each value in PX4's range).
+    pub(super) fn from_store(p: &ParamStore) -> Self {
+        Self {
+            data_link_loss_s: f64::from(p.int(Param::COM_DL_LOSS_T)),
+            data_link_loss_action: FailsafeAction::from_nav_dll_act(i64::from(p.int(Param::NAV_DLL_ACT))),
+            battery: BatteryThresholds {
+                low: p.real(Param::BAT_LOW_THR),
+                critical: p.real(Param::BAT_CRIT_THR),
+                emergency: p.real(Param::BAT_EMERGEN_THR),
+            },
+            low_battery_action: LowBatteryAction::from_param(i64::from(p.int(Param::COM_LOW_BAT_ACT))),
+            geofence_action: FailsafeAction::from_gf_action(i64::from(p.int(Param::GF_ACTION))),
+            geofence_limits: DistanceLimits {
+                max_horizontal_m: p.real(Param::GF_MAX_HOR_DIST),
+                max_vertical_m: p.real(Param::GF_MAX_VER_DIST),
+            },
+        }
+    }
+
+    /// An altitude above home [m] capped so that it stays inside
+    /// `GF_MAX_VER_DIST` (PX4 caps the return altitude the same way).
+    pub(super) fn cap_height(&self, height_m: f64) -> f64 {
+        let max = self.geofence_limits.max_vertical_m;
+        if max > 0.0 { height_m.min(max) } else { height_m }
     }
 }
 
@@ -116,8 +259,9 @@ pub(super) struct Settings {
     pub(super) feedback: bool,
     pub(super) model_mass_kg: f64,
     /// Data-link, battery and geofence failsafes.
-    pub(super) failsafe: super::failsafe::FailsafeSettings,
-    pub(super) actuator_failure_action: ActuatorFailureAction,
+    pub(super) failsafe: FailsafeSettings,
+    /// `COM_ACT_FAIL_ACT`.
+    pub(super) actuator_failure_action: FailsafeAction,
     /// Manual control and its loss.
     pub(super) manual: ManualSettings,
 }
@@ -139,12 +283,7 @@ impl Settings {
         let estimator_order =
             usize::try_from(order).map_err(|_| AutopilotError::Param(format!("EST_ORDER {order} is negative")))?;
         let offboard_loss_action = FailsafeAction::from_com_obl_rc_act(i64::from(p.int(Param::COM_OBL_RC_ACT)));
-        let actuator_failure_action = match p.int(Param::COM_ACT_FAIL_ACT) {
-            1 => ActuatorFailureAction::Hold,
-            2 => ActuatorFailureAction::Land,
-            3 => ActuatorFailureAction::Return,
-            _ => ActuatorFailureAction::Warn,
-        };
+        let actuator_failure_action = FailsafeAction::from_com_act_fail_act(i64::from(p.int(Param::COM_ACT_FAIL_ACT)));
         let mut s = Self {
             takeoff_alt_m: p.real(Param::MIS_TAKEOFF_ALT),
             max_target_amsl_m: p.real(Param::RP_ALT_MAX_AMSL),
@@ -173,7 +312,7 @@ impl Settings {
             estimator_cutoff_rad_s: p.real(Param::EST_CUTOFF),
             feedback: p.int(Param::EST_COMP) != 0,
             model_mass_kg: p.real(Param::MDL_MASS),
-            failsafe: super::failsafe::FailsafeSettings::from_store(p),
+            failsafe: FailsafeSettings::from_store(p),
             actuator_failure_action,
             manual: ManualSettings::from_store(p),
         };

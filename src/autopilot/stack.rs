@@ -5,59 +5,25 @@
 use nalgebra::Vector3;
 
 use super::battery::BatteryMonitor;
-use super::control_loop::{ControlLoop, ControlLoopError, ControlOutput, RotorAllocation};
+use super::commander::Commander;
+use super::control_loop::{ControlLoop, ControlOutput, RotorAllocation};
+use super::error::AutopilotError;
 use super::estimate::EstimateFeedback;
-use super::failsafe::FailsafeAction;
-use super::land_detector::{LandDetector, LandEvent};
+use super::failsafe::Failsafe;
+use super::land_detector::LandDetector;
 use super::navigator::Navigator;
 use super::rotor_monitor::{RotorEvent, RotorMonitor, RotorStatus};
+use super::settings::FailsafeAction;
 use super::settings::Settings;
+use super::status::{Announcements, Severity, StatusText};
 use super::telemetry::{Telemetry, VehicleType};
-use super::{Announcements, ClientClock, Severity, StatusText};
 use crate::airframe::{Actuation, Airframe};
-use crate::control::{ControlGains, ControllerKind, GainError, RelaxedHoverError, ShaperError, ShaperLimits};
-use crate::estimation::{Discretization, EstimatorConfig, EstimatorError, MomentumEstimator};
+use crate::control::{ControlGains, ControllerKind, GainError, RelaxedHoverError, ShaperLimits};
+use crate::estimation::{Discretization, EstimatorConfig, MomentumEstimator};
 use crate::geo::GeoPoint;
 use crate::mission::{MissionResult, PlanChange, Plans};
 use crate::params::ParamStore;
-use crate::signals::{GRAVITY, NominalModel, SensorReadings, WrenchEstimate};
-
-/// Why an autopilot could not be built or parameters applied.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum AutopilotError {
-    /// The home position is not a valid point.
-    #[error("home {lat_deg}, {lon_deg}, {alt_amsl_m} m is not a valid position")]
-    InvalidHome {
-        /// Latitude [deg].
-        lat_deg: f64,
-        /// Longitude [deg].
-        lon_deg: f64,
-        /// Altitude AMSL [m].
-        alt_amsl_m: f64,
-    },
-    /// A parameter value the autopilot cannot use.
-    #[error("parameter: {0}")]
-    Param(String),
-    /// The control gains derived from the parameters are invalid.
-    #[error(transparent)]
-    Gains(#[from] GainError),
-    /// The estimator settings are invalid.
-    #[error("estimator: {0}")]
-    Estimator(#[from] EstimatorError),
-    /// The reference shaper limits are invalid.
-    #[error(transparent)]
-    Shaper(#[from] ShaperError),
-}
-
-impl From<ControlLoopError> for AutopilotError {
-    fn from(e: ControlLoopError) -> Self {
-        match e {
-            ControlLoopError::Gains(e) => AutopilotError::Gains(e),
-            ControlLoopError::Estimator(e) => AutopilotError::Estimator(e),
-        }
-    }
-}
+use crate::signals::{GRAVITY, GpsFix, NominalModel, SensorReadings, WrenchEstimate};
 
 /// The gains for the airframe flown with the nominal mass `MDL_MASS`
 /// ([`ControlGains::for_airframe`]) and the loop frequency scales
@@ -120,21 +86,16 @@ pub struct Autopilot {
     pub(super) origin: GeoPoint,
     pub(super) home: GeoPoint,
     /// Whether home's altitude still waits for the resting height.
-    pub(super) home_altitude: HomeAltitude,
-    pub(super) armed: bool,
-    pub(super) armed_at_s: f64,
-    /// Left the ground since arming.
-    pub(super) took_off: bool,
-    pub(super) landed_at_s: f64,
+    home_altitude: HomeAltitude,
+    /// Arming and the commands' gates.
+    pub(super) commander: Commander,
     /// The time of the latest readings [s].
     pub(super) now_s: f64,
     pub(super) say: Announcements,
     /// The stored mission, geofence and rally points.
     pub(super) plans: Plans,
-    /// The clock of the timers that wait for a client.
-    pub(super) client_clock: ClientClock,
-    /// Data-link, battery and geofence failsafe state.
-    pub(super) failsafes: super::failsafe::FailsafeState,
+    /// The failsafes: data link, battery, geofence, the client clock.
+    pub(super) failsafe: Failsafe,
 }
 
 impl Autopilot {
@@ -184,15 +145,11 @@ impl Autopilot {
                 ..home
             },
             home_altitude: HomeAltitude::Assumed,
-            armed: false,
-            armed_at_s: 0.0,
-            took_off: false,
-            landed_at_s: 0.0,
+            commander: Commander::default(),
             now_s: 0.0,
             say: Announcements::default(),
             plans: Plans::default(),
-            client_clock: ClientClock::Simulated,
-            failsafes: super::failsafe::FailsafeState::default(),
+            failsafe: Failsafe::default(),
         };
         ap.apply_params(params)?;
         Ok(ap)
@@ -263,19 +220,8 @@ impl Autopilot {
         let now = m.time_s;
         self.now_s = now;
         let weight = self.control.nominal().mass_kg * GRAVITY;
-        match self.land.update(m, self.control.last_applied().thrust_n, weight) {
-            Some(LandEvent::TookOff) if self.armed => {
-                self.took_off = true;
-                self.say.announce(Severity::Info, "Takeoff detected");
-            }
-            Some(LandEvent::Landed) => {
-                self.landed_at_s = now;
-                if self.armed {
-                    self.say.announce(Severity::Info, "Landing detected");
-                }
-            }
-            Some(LandEvent::TookOff) | None => {}
-        }
+        let event = self.land.update(m, self.control.last_applied().thrust_n, weight);
+        self.commander.land_event(event, now, &mut self.say);
         if self.home_altitude == HomeAltitude::Assumed {
             self.home_at_rest(m);
         }
@@ -298,11 +244,14 @@ impl Autopilot {
             self.control.cut_relaxed_hover();
         }
         self.supervise(m);
-        self.supervise_gps(readings);
-        self.supervise_manual(m);
+        // the GNSS fix; the sticks' loss is a client timer (in `supervise`)
+        let gps_lost = readings.gps.fix == GpsFix::None;
+        let armed = self.commander.armed();
         let cx = situation!(self, m);
-        let demand = self.navigator.guidance(self.armed, &cx, &mut self.say);
-        if let Some(h) = self.navigator.mission.new_home.take() {
+        self.navigator.supervise_gps(gps_lost, armed, &cx, &mut self.say);
+        let cx = situation!(self, m);
+        let demand = self.navigator.guidance(self.commander.armed(), &cx, &mut self.say);
+        if let Some(h) = self.navigator.take_mission_home() {
             self.mission_set_home(h, m);
         }
         let feedback = self.settings.feedback.then(|| self.feedback.feed_back(&estimate, now));
@@ -326,7 +275,7 @@ impl Autopilot {
     fn rotors_changed(&mut self, events: &[RotorEvent], m: &crate::signals::Measurement) {
         let gains: Vec<f64> = self.rotors.status().iter().map(|r| r.thrust_fraction()).collect();
         let allocation = self.control.set_rotor_gains(&gains).clone();
-        let flying = self.armed && !self.land.landed();
+        let flying = self.commander.armed() && !self.land.landed();
         // relaxed hover: land on the ground below the point of detection
         // (the resting height the land detector learned, plus the gear)
         let relaxed = match &allocation {
@@ -399,7 +348,7 @@ impl Autopilot {
                 self.failsafe_action("rotor loss", FailsafeAction::Land, m);
             }
             None => {
-                let action = self.settings.actuator_failure_action.action();
+                let action = self.settings.actuator_failure_action;
                 self.failsafe_action("rotor failure", action, m);
             }
         }
@@ -428,7 +377,7 @@ impl Autopilot {
     pub fn rotors_stopped(&mut self, why: &str) {
         self.say
             .announce(Severity::Critical, format!("Simulation fault: {why}"));
-        if self.armed {
+        if self.commander.armed() {
             self.disarm_now("Disarmed: simulation fault");
         }
         self.navigator.drop_reference();
@@ -445,9 +394,9 @@ impl Autopilot {
         Telemetry {
             time_s: m.time_s,
             vehicle_type: VehicleType::from_rotor_count(self.airframe.rotor_count()),
-            armed: self.armed,
+            armed: self.commander.armed(),
             mode: self.navigator.mode(),
-            landed: self.navigator.landed_state(self.armed, self.land.landed()),
+            landed: self.navigator.landed_state(self.commander.armed(), self.land.landed()),
             position_ned: m.position_ned,
             velocity_ned: m.velocity_ned,
             acceleration_ned: readings.acceleration_ned,
@@ -519,7 +468,7 @@ impl Autopilot {
 
     /// Mission items reached since the last call (MISSION_ITEM_REACHED), oldest first.
     pub fn drain_mission_reached(&mut self) -> Vec<u16> {
-        std::mem::take(&mut self.navigator.mission.reached)
+        self.navigator.drain_mission_reached()
     }
 
     // ----- accessors ------------------------------------------------------------------------------
@@ -539,13 +488,13 @@ impl Autopilot {
     /// Armed.
     #[must_use]
     pub fn armed(&self) -> bool {
-        self.armed
+        self.commander.armed()
     }
 
     /// The landed state clients are told (MAV_LANDED_STATE).
     #[must_use]
     pub fn landed_state(&self) -> super::LandedState {
-        self.navigator.landed_state(self.armed, self.land.landed())
+        self.navigator.landed_state(self.commander.armed(), self.land.landed())
     }
 
     /// The mission's progress (MISSION_CURRENT's content).
@@ -610,6 +559,12 @@ impl Autopilot {
         self.home_altitude = HomeAltitude::Set;
     }
 
+    /// Home is `home` from now on (set by a client or the mission).
+    pub(super) fn set_home(&mut self, home: GeoPoint) {
+        self.home = home;
+        self.home_altitude = HomeAltitude::Set;
+    }
+
     /// Home in local NED [m].
     pub(super) fn home_ned(&self) -> Vector3<f64> {
         self.home.ned_from(&self.origin)
@@ -630,7 +585,7 @@ impl Autopilot {
 
 /// Where home's altitude stands.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum HomeAltitude {
+enum HomeAltitude {
     /// Assumed: the vehicle on its gear at the NED origin (`z = -gear_height`), until the first step.
     Assumed,
     /// Where the vehicle rested at boot, or set by a client.

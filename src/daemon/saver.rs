@@ -20,7 +20,7 @@ use tokio::sync::{Notify, broadcast, watch};
 use tracing::{debug, info, warn};
 
 use super::sim_thread::Event;
-use crate::autopilot::{Severity, StatusText};
+use crate::autopilot::{Severity, StatusText, status_text_lines};
 use crate::lockstep::Snapshot;
 use crate::mission::Plans;
 use crate::mission::file::{MissionFileError, save_plans};
@@ -73,36 +73,13 @@ pub(super) fn backoff(failures: u32) -> Duration {
     (RETRY_FIRST * 2u32.pow(doublings)).min(RETRY_MAX)
 }
 
-/// The most characters of one STATUSTEXT.
-const STATUS_TEXT_LEN: usize = 50;
-
-/// `text` as status-text lines of at most 50 bytes, cut at spaces or path
-/// separators where it can (a path and an OS error do not fit one STATUSTEXT).
-pub(super) fn text_lines(text: &str) -> Vec<String> {
-    let mut lines = Vec::new();
-    let mut rest = text.trim();
-    while rest.len() > STATUS_TEXT_LEN {
-        let mut end = STATUS_TEXT_LEN;
-        while !rest.is_char_boundary(end) {
-            end -= 1;
-        }
-        let cut = rest[..end]
-            .rfind([' ', '/'])
-            .filter(|&k| k > STATUS_TEXT_LEN / 2)
-            .map_or(end, |k| k + 1);
-        lines.push(rest[..cut].trim_end().to_string());
-        rest = rest[cut..].trim_start();
-    }
-    if !rest.is_empty() {
-        lines.push(rest.to_string());
-    }
-    lines
-}
-
 /// Tell every link's clients `text` (split into STATUSTEXT lines).
 pub(super) fn announce(events: &broadcast::Sender<Event>, severity: Severity, text: &str) {
-    for line in text_lines(text) {
-        let _ = events.send(Event::StatusText(StatusText { severity, text: line }));
+    for line in status_text_lines(text) {
+        let _ = events.send(Event::StatusText(StatusText {
+            severity,
+            text: line.to_string(),
+        }));
     }
 }
 
@@ -374,16 +351,6 @@ mod tests {
         let s: Vec<u64> = (1..=7).map(|f| backoff(f).as_secs()).collect();
         assert_eq!(s, vec![1, 2, 4, 8, 16, 30, 30]);
         assert_eq!(backoff(u32::MAX), RETRY_MAX);
-    }
-
-    #[test]
-    fn long_texts_become_status_text_lines_cut_at_separators() {
-        let t = "Parameters not saved (retrying): parameter file /tmp/rotorpilot-client-abc/.params.toml.1234.tmp: Is a directory (os error 21)";
-        let lines = text_lines(t);
-        assert!(lines.len() >= 3, "{lines:?}");
-        assert!(lines.iter().all(|l| !l.is_empty() && l.len() <= 50), "{lines:?}");
-        assert_eq!(lines.concat().replace(' ', ""), t.replace(' ', ""));
-        assert_eq!(text_lines("short"), vec!["short".to_string()]);
     }
 
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

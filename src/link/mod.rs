@@ -57,7 +57,7 @@ use mavlink::dialects::common::{
 };
 use mission::{ItemMode, Missions, Partner, PlanTicket};
 
-use crate::autopilot::{AutopilotCommand, CommandOutcome, Severity, StatusText};
+use crate::autopilot::{AutopilotCommand, CommandOutcome, Severity, StatusText, cut_status_text, status_text_lines};
 use crate::lockstep::Snapshot;
 use crate::mission::{MissionResult, PlanChange};
 use crate::params::ParamValue;
@@ -393,9 +393,12 @@ impl Link {
         self.queue(To::Peer(t.to), bytes);
     }
 
+    /// Queue `text` as STATUSTEXT lines ([`status_text_lines`]: a longer text is split).
     fn text(&mut self, to: To, severity: Severity, text: &str) {
-        let msg = status_text_msg(severity, text);
-        self.send(to, &msg);
+        for line in status_text_lines(text) {
+            let msg = status_text_msg(severity, line);
+            self.send(to, &msg);
+        }
     }
 
     /// Queue a STATUSTEXT for every peer.
@@ -888,17 +891,8 @@ impl Link {
         );
         let to = To::Peer(ticket.to);
         self.send(to, &err);
-        let text = format!("{} not saved: {why}", ticket.name);
-        let mut rest = text.as_str();
-        // a path and an OS error do not fit one STATUSTEXT: 50-byte lines
-        while !rest.is_empty() {
-            let mut end = rest.len().min(50);
-            while !rest.is_char_boundary(end) {
-                end -= 1;
-            }
-            self.text(to, Severity::Critical, &rest[..end]);
-            rest = &rest[end..];
-        }
+        // a path and an OS error do not fit one STATUSTEXT: `text` splits it
+        self.text(to, Severity::Critical, &format!("{} not saved: {why}", ticket.name));
     }
 
     fn param_reply(&mut self, to: To, r: &param::SetReply) {
@@ -954,17 +948,10 @@ fn partner(addr: SocketAddr, (system, component): (u8, u8)) -> Partner {
     }
 }
 
-/// STATUSTEXT (text cut to the 50 characters one message holds).
+/// STATUSTEXT (text cut to the 50 bytes one message holds, [`cut_status_text`]).
 #[must_use]
 pub fn status_text_msg(severity: Severity, text: &str) -> MavMessage {
-    let mut cut = text;
-    if cut.len() > 50 {
-        let mut end = 50;
-        while !cut.is_char_boundary(end) {
-            end -= 1;
-        }
-        cut = &cut[..end];
-    }
+    let cut = cut_status_text(text);
     let sev = match severity {
         Severity::Emergency => MavSeverity::MAV_SEVERITY_EMERGENCY,
         Severity::Critical => MavSeverity::MAV_SEVERITY_CRITICAL,
@@ -976,7 +963,7 @@ pub fn status_text_msg(severity: Severity, text: &str) -> MavMessage {
     MavMessage::STATUSTEXT(STATUSTEXT_DATA {
         severity: sev,
         text: cut.into(),
-        // one chunk: id 0 (PX4 numbers only multi-chunk texts)
+        // a complete line: id 0 (a longer text goes as several lines, not as PX4's numbered chunks)
         id: 0,
         chunk_seq: 0,
     })

@@ -5,7 +5,7 @@ use nalgebra::{Vector2, Vector3};
 
 use super::{HoldTarget, Nav, Navigator, REF_ARRIVED_M, RtlPhase, Situation, arrived};
 use crate::autopilot::control_loop::Demand;
-use crate::autopilot::{Announcements, Severity};
+use crate::autopilot::status::{Announcements, Severity};
 use crate::control::{Reference, Setpoint, ShaperLimits, TranslationSetpoint, YawSetpoint};
 use crate::signals::Measurement;
 

@@ -24,8 +24,7 @@ use super::manual::ManualMode;
 use super::offboard::LocalSetpoint;
 use super::{DescendThen, Nav, Navigator, RtlPhase, Situation};
 use crate::autopilot::control_loop::Demand;
-use crate::autopilot::{Autopilot, CommandOutcome, Severity};
-use crate::signals::{GpsFix, SensorReadings};
+use crate::autopilot::status::{Announcements, Severity};
 
 impl Navigator {
     /// Descend without a position (level, heading held), then `then` if the fix returns.
@@ -76,79 +75,68 @@ impl Navigator {
     }
 }
 
-impl Autopilot {
+impl Navigator {
     /// Enter Descend, announced (Critical) with `text`; the fix back resumes
     /// what the active mode meant to do.
-    pub(in crate::autopilot) fn descend_without_position(&mut self, text: &str) {
-        let then = self.navigator.descend_then();
-        self.navigator.enter_descend(then);
-        self.say.announce(Severity::Critical, text);
+    fn descend_without_position(&mut self, text: &str, say: &mut Announcements) {
+        let then = self.descend_then();
+        self.enter_descend(then);
+        say.announce(Severity::Critical, text);
     }
 
-    /// Refuse `what` while the GNSS fix is lost (it needs a position).
-    pub(in crate::autopilot) fn refuse_without_position(&mut self, what: &str) -> Option<CommandOutcome> {
-        self.navigator.gps_lost.then(|| {
-            self.refuse(
-                Severity::Critical,
-                &format!("{what} denied: no GPS fix"),
-                CommandOutcome::TemporarilyRejected("no position estimate"),
-            )
-        })
-    }
-
-    /// The GNSS fix at the instant of `readings`, every step: while it is
-    /// lost, armed, a mode that needs a position is replaced (the reaction
-    /// of the module doc); on its return, Descend and the Altitude fallback
-    /// give way.
-    pub(in crate::autopilot) fn supervise_gps(&mut self, readings: &SensorReadings) {
-        let lost = readings.gps.fix == GpsFix::None;
-        let changed = lost != self.navigator.gps_lost;
-        self.navigator.gps_lost = lost;
-        if !self.armed {
+    /// The GNSS fix (`lost`: none) at the instant of `cx`, every step: while
+    /// it is lost, armed, a mode that needs a position is replaced (the
+    /// reaction of the module doc); on its return, Descend and the Altitude
+    /// fallback give way.
+    pub(in crate::autopilot) fn supervise_gps(
+        &mut self,
+        lost: bool,
+        armed: bool,
+        cx: &Situation<'_>,
+        say: &mut Announcements,
+    ) {
+        let changed = lost != self.gps_lost;
+        self.gps_lost = lost;
+        if !armed {
             return;
         }
         if lost {
-            if self.navigator.manual_mode() == Some(ManualMode::Position) {
-                self.navigator.enter_manual(ManualMode::Altitude);
-                self.navigator.gps_fallback = true;
-                self.say
-                    .announce(Severity::Critical, "No GPS fix: Position falls back to Altitude");
-            } else if self.navigator.needs_position() {
-                self.descend_without_position("No GPS fix: descending without position");
+            if self.manual_mode() == Some(ManualMode::Position) {
+                self.enter_manual(ManualMode::Altitude);
+                self.gps_fallback = true;
+                say.announce(Severity::Critical, "No GPS fix: Position falls back to Altitude");
+            } else if self.needs_position() {
+                self.descend_without_position("No GPS fix: descending without position", say);
             }
             return;
         }
         if !changed {
             return;
         }
-        match self.navigator.nav {
-            Nav::Descend { then } if !self.land.landed() => self.resume_after_descend(then, readings),
-            Nav::Manual(ManualMode::Altitude) if self.navigator.gps_fallback => {
-                self.navigator.enter_manual(ManualMode::Position);
-                self.say
-                    .announce(Severity::Warning, "GPS fix regained: back to Position");
+        match self.nav {
+            Nav::Descend { then } if !cx.landed => self.resume_after_descend(then, cx, say),
+            Nav::Manual(ManualMode::Altitude) if self.gps_fallback => {
+                self.enter_manual(ManualMode::Position);
+                say.announce(Severity::Warning, "GPS fix regained: back to Position");
             }
             _ => {}
         }
     }
 
     /// The fix is back during Descend: carry on with what was intended, announced.
-    fn resume_after_descend(&mut self, then: DescendThen, readings: &SensorReadings) {
-        let m = &readings.measurement;
+    fn resume_after_descend(&mut self, then: DescendThen, cx: &Situation<'_>, say: &mut Announcements) {
         match then {
             DescendThen::Hold => {
-                self.navigator.enter_hold();
-                self.say
-                    .announce(Severity::Warning, "GPS fix regained: holding position");
+                self.enter_hold();
+                say.announce(Severity::Warning, "GPS fix regained: holding position");
             }
             DescendThen::Land => {
-                self.say.announce(Severity::Warning, "GPS fix regained: landing");
-                self.navigator.enter_land(m, false, &mut self.say);
+                say.announce(Severity::Warning, "GPS fix regained: landing");
+                self.enter_land(cx.meas, false, say);
             }
             DescendThen::Return => {
-                self.say.announce(Severity::Warning, "GPS fix regained: returning");
-                let cx = situation!(self, m);
-                self.navigator.enter_rtl(&cx, &mut self.say);
+                say.announce(Severity::Warning, "GPS fix regained: returning");
+                self.enter_rtl(cx, say);
             }
         }
     }

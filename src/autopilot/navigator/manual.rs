@@ -16,7 +16,9 @@ use nalgebra::{Rotation2, UnitQuaternion, Vector2, Vector3};
 use super::{Nav, Navigator, Situation};
 use crate::autopilot::control_loop::Demand;
 use crate::autopilot::settings::ManualSettings;
-use crate::autopilot::{Autopilot, ClientClock, CommandOutcome, FlightMode, Severity, TIME_EPS};
+use crate::autopilot::status::Announcements;
+use crate::autopilot::status::Severity;
+use crate::autopilot::{ClientClock, FlightMode, TIME_EPS};
 use crate::control::{Reference, Setpoint, ShaperLimits, TranslationSetpoint, YawSetpoint};
 use crate::math::{euler_zyx, wrap_pi};
 use crate::signals::{GRAVITY, Measurement};
@@ -96,7 +98,7 @@ impl ManualMode {
         matches!(self, Self::Position | Self::Altitude)
     }
 
-    fn name(self) -> &'static str {
+    pub(in crate::autopilot) fn name(self) -> &'static str {
         match self {
             Self::Position => "Position",
             Self::Altitude => "Altitude",
@@ -220,6 +222,40 @@ impl Navigator {
     pub(in crate::autopilot) fn manual_loss_timer_start(&self) -> Option<f64> {
         self.manual_mode()?;
         self.manual.filter(|_| !self.manual_lost).map(|(_, t)| t)
+    }
+
+    /// Why arming in `mode` at `now` would be refused (PX4's checks): no
+    /// sticks fresh within `loss_s` on `clock`; throttle above centre where
+    /// it is a climb rate; throttle not low where it is thrust.
+    pub(in crate::autopilot) fn manual_prearm_failure(
+        &self,
+        mode: ManualMode,
+        now: f64,
+        loss_s: f64,
+        clock: ClientClock,
+    ) -> Option<&'static str> {
+        if !self.manual_fresh(now, loss_s, clock) {
+            return Some("no manual control input");
+        }
+        let t = self.sticks().throttle;
+        if mode.throttle_is_climb_rate() {
+            (t > THROTTLE_ABOVE_CENTER).then_some("throttle above center")
+        } else {
+            (t >= THROTTLE_LOW).then_some("high throttle")
+        }
+    }
+
+    /// The sticks are lost (their timer, a client timer, ran out): from now
+    /// on they read centred (PX4 zeroes timed-out sticks). In a manual mode
+    /// it is announced (PX4's words, Critical) and true: `NAV_RCL_ACT` is to
+    /// be carried out by the one failsafe runner.
+    pub(in crate::autopilot) fn manual_control_lost(&mut self, say: &mut Announcements) -> bool {
+        self.manual_lost = true;
+        if self.manual_mode().is_none() {
+            return false;
+        }
+        say.announce(Severity::Critical, "Manual control lost");
+        true
     }
 
     /// Fly `mode` with the sticks from the vehicle's current state.
@@ -399,79 +435,6 @@ fn acro_rates(sticks: &ManualControl, man: &ManualSettings) -> Vector3<f64> {
         superexpo(-sticks.pitch, e, g) * p,
         superexpo(sticks.yaw, ey, gy) * y,
     )
-}
-
-impl Autopilot {
-    /// Whether the sticks are fresh at `now` (on the client clock).
-    pub(in crate::autopilot) fn manual_fresh(&self, now: f64) -> bool {
-        self.navigator
-            .manual_fresh(now, self.settings.manual.loss_s, self.client_clock)
-    }
-
-    /// New sticks at the instant of `m`.
-    pub(in crate::autopilot) fn manual_control(&mut self, sticks: ManualControl, m: &Measurement) -> CommandOutcome {
-        if !sticks.is_valid() {
-            return CommandOutcome::Denied("invalid manual control");
-        }
-        self.navigator.set_manual(sticks, m.time_s);
-        CommandOutcome::Accepted
-    }
-
-    /// Switch to a manual mode: refused without fresh sticks (PX4: "No
-    /// manual control input"), and Position without a GPS fix.
-    pub(in crate::autopilot) fn enter_manual_mode(&mut self, mode: ManualMode, m: &Measurement) -> CommandOutcome {
-        if !self.manual_fresh(m.time_s) {
-            let text = format!("Switching to {} denied: no manual control", mode.name());
-            return self.refuse(
-                Severity::Critical,
-                &text,
-                CommandOutcome::TemporarilyRejected("no manual control input"),
-            );
-        }
-        if mode == ManualMode::Position && self.navigator.gps_lost {
-            return self.refuse(
-                Severity::Critical,
-                "Switching to Position denied: no GPS fix",
-                CommandOutcome::TemporarilyRejected("no position estimate"),
-            );
-        }
-        self.navigator.enter_manual(mode);
-        CommandOutcome::Accepted
-    }
-
-    /// Why arming in a manual mode would be refused (PX4's checks): no
-    /// sticks; throttle above centre where it is a climb rate; throttle not
-    /// low where it is thrust.
-    pub(in crate::autopilot) fn manual_prearm_failure(&self, mode: ManualMode, now: f64) -> Option<&'static str> {
-        if !self.manual_fresh(now) {
-            return Some("no manual control input");
-        }
-        let t = self.navigator.sticks().throttle;
-        if mode.throttle_is_climb_rate() {
-            (t > THROTTLE_ABOVE_CENTER).then_some("throttle above center")
-        } else {
-            (t >= THROTTLE_LOW).then_some("high throttle")
-        }
-    }
-
-    /// Sticks lost in a manual mode: timed with the other client timers
-    /// ([`Self::supervise`] on simulated time, [`Self::client_timeout`] on the
-    /// wall clock); nothing left to do here.
-    pub(in crate::autopilot) fn supervise_manual(&mut self, _m: &Measurement) {}
-
-    /// The sticks are lost: announced (PX4's words, Critical); in a manual
-    /// mode `NAV_RCL_ACT` is carried out by the one failsafe runner (which
-    /// descends instead of Hold, Return or Land without a GPS fix). From now
-    /// on the sticks read centred (PX4 zeroes timed-out sticks).
-    pub(in crate::autopilot) fn manual_control_lost(&mut self, m: &Measurement) {
-        self.navigator.manual_lost = true;
-        if self.navigator.manual_mode().is_none() {
-            return;
-        }
-        self.say.announce(Severity::Critical, "Manual control lost");
-        let action = self.settings.manual.loss_action;
-        self.failsafe_action("manual control lost", action, m);
-    }
 }
 
 #[cfg(test)]

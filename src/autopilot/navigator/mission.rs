@@ -36,7 +36,7 @@ use nalgebra::Vector3;
 
 use super::{Nav, Navigator, Situation};
 use crate::autopilot::control_loop::Demand;
-use crate::autopilot::{Announcements, Severity};
+use crate::autopilot::status::{Announcements, Severity};
 use crate::control::{Reference, Setpoint, TranslationSetpoint, YawSetpoint};
 use crate::geo::GeoPoint;
 use crate::mission::{MissionItem, cmd};
@@ -56,19 +56,19 @@ const DEFAULT_LOITER_RADIUS_M: f64 = 5.0;
 #[derive(Clone, Debug, Default, PartialEq)]
 pub(in crate::autopilot) struct MissionRun {
     /// The current item (MAVLink seq).
-    pub(in crate::autopilot) current: usize,
+    current: usize,
     /// Flown since it was stored (or restarted).
-    pub(in crate::autopilot) started: bool,
+    started: bool,
     /// The last item is done.
-    pub(in crate::autopilot) complete: bool,
+    complete: bool,
     /// DO_JUMP repeats left, by item (`None`: not met yet this run).
     jumps: Vec<Option<i32>>,
     /// The current item's progress.
     phase: Phase,
     /// Items reached since the autopilot last took them (MISSION_ITEM_REACHED), oldest first.
-    pub(in crate::autopilot) reached: Vec<u16>,
+    pub(super) reached: Vec<u16>,
     /// A DO_SET_HOME the autopilot must apply.
-    pub(in crate::autopilot) new_home: Option<SetHome>,
+    pub(super) new_home: Option<SetHome>,
 }
 
 /// What DO_SET_HOME asks for.
@@ -138,6 +138,21 @@ impl Phase {
 }
 
 impl MissionRun {
+    /// The current item (MAVLink seq).
+    pub(in crate::autopilot) fn current(&self) -> usize {
+        self.current
+    }
+
+    /// Flown since it was stored (or restarted).
+    pub(in crate::autopilot) fn started(&self) -> bool {
+        self.started
+    }
+
+    /// The last item is done.
+    pub(in crate::autopilot) fn complete(&self) -> bool {
+        self.complete
+    }
+
     /// A new or cleared mission: from the first item, not started, counters reset.
     pub(in crate::autopilot) fn reset(&mut self) {
         *self = MissionRun {

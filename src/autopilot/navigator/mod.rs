@@ -22,10 +22,11 @@ pub use offboard::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetp
 
 use nalgebra::{UnitQuaternion, Vector2, Vector3};
 
+use super::FlightMode;
 use super::control_loop::Demand;
 use super::settings::Settings;
+use super::status::Announcements;
 use super::telemetry::LandedState;
-use super::{Announcements, FlightMode};
 use crate::control::{Reference, Setpoint, Shaper, ShaperError, ShaperLimits, TranslationSetpoint, YawSetpoint};
 use crate::geo::GeoPoint;
 use crate::mission::MissionItem;
@@ -155,7 +156,7 @@ fn arrived(r: &Reference, target: &Vector3<f64>) -> bool {
 /// Guidance state.
 #[derive(Debug)]
 pub(super) struct Navigator {
-    pub(super) nav: Nav,
+    nav: Nav,
     base_limits: ShaperLimits,
     shaper: Shaper,
     /// The shaper's state is the reference of the previous step (else reset it to the measurement first).
@@ -169,17 +170,17 @@ pub(super) struct Navigator {
     /// Attitude target integrated from body-rate setpoints.
     rate_target: Option<UnitQuaternion<f64>>,
     /// Where the mission stands (kept while other modes fly: pause and resume).
-    pub(super) mission: MissionRun,
+    mission: MissionRun,
     /// Latest sticks and their arrival time [s].
     manual: Option<(ManualControl, f64)>,
     /// The sticks were declared lost (simulated or wall-clock timing).
-    pub(super) manual_lost: bool,
+    manual_lost: bool,
     /// Vertical reference of Altitude and Descend.
     vertical: Option<manual::Vertical>,
     /// Heading setpoint of Altitude, Stabilized and Descend [rad].
     yaw_sp: Option<f64>,
     /// The GNSS receiver has no fix.
-    pub(super) gps_lost: bool,
+    gps_lost: bool,
     /// Altitude is flown because Position lost its GPS fix (back on its return).
     gps_fallback: bool,
 }
@@ -221,6 +222,47 @@ impl Navigator {
             Nav::Manual(mode) => mode.flight_mode(),
             Nav::Descend { .. } => FlightMode::Descend,
         }
+    }
+
+    /// The active mode with its state.
+    pub(super) fn nav(&self) -> Nav {
+        self.nav
+    }
+
+    /// Whether the GNSS receiver has no fix (as of the latest step).
+    pub(super) fn gps_lost(&self) -> bool {
+        self.gps_lost
+    }
+
+    /// Where the mission stands.
+    pub(super) fn mission(&self) -> &MissionRun {
+        &self.mission
+    }
+
+    /// Where the mission stands, to change it (start, set current, reset).
+    pub(super) fn mission_mut(&mut self) -> &mut MissionRun {
+        &mut self.mission
+    }
+
+    /// The mode and the mission's standing, to put back with [`Self::restore`].
+    pub(super) fn saved(&self) -> (Nav, MissionRun) {
+        (self.nav, self.mission.clone())
+    }
+
+    /// Put back what [`Self::saved`] gave (a command that failed half-way).
+    pub(super) fn restore(&mut self, (nav, mission): (Nav, MissionRun)) {
+        self.nav = nav;
+        self.mission = mission;
+    }
+
+    /// A DO_SET_HOME the mission flew past, for the autopilot to carry out.
+    pub(super) fn take_mission_home(&mut self) -> Option<SetHome> {
+        self.mission.new_home.take()
+    }
+
+    /// Mission items reached since the last call, oldest first.
+    pub(super) fn drain_mission_reached(&mut self) -> Vec<u16> {
+        std::mem::take(&mut self.mission.reached)
     }
 
     /// The landed state (never undefined): Takeoff while a takeoff runs,

@@ -56,8 +56,8 @@ use crate::signals::{Measurement, NominalModel, WrenchEstimate};
 use attitude::{AttitudeTarget, so3_attitude};
 use law::{LawInput, LawOutput};
 use sanitise::{
-    NO_ESTIMATE, all_finite, estimate_usable, finite_m3, finite3, measurement_ok, model_ok, sanitize_estimate,
-    sanitize_reference,
+    NO_ESTIMATE, all_finite, estimate_usable, finite_m3, finite_or_zero, finite3, measurement_ok, model_ok,
+    sanitize_estimate, sanitize_reference,
 };
 use saturation::saturate;
 
@@ -467,11 +467,7 @@ impl Controller {
             kind: self.kind,
             time_s: meas.time_s,
             attitude_sp: attitude_of(&out.attitude_sp),
-            rate_sp_frd: if finite3(&out.rate_sp_frd) {
-                out.rate_sp_frd
-            } else {
-                Vector3::zeros()
-            },
+            rate_sp_frd: finite_or_zero(&out.rate_sp_frd),
             thrust_request_n: if out.thrust_n.is_finite() {
                 out.thrust_n
             } else {
@@ -479,11 +475,7 @@ impl Controller {
             },
             position_error_ned: input.position_error(),
             velocity_error_ned: input.velocity_error(),
-            attitude_error_rad: if finite3(&out.attitude_error) {
-                out.attitude_error
-            } else {
-                Vector3::zeros()
-            },
+            attitude_error_rad: finite_or_zero(&out.attitude_error),
             guard_active: out.limited,
             output_saturated: saturated,
             recovery: out.recovery,
@@ -527,11 +519,7 @@ impl Controller {
         } else {
             r
         };
-        let w_d = if finite3(body_rate_ff_frd) {
-            *body_rate_ff_frd
-        } else {
-            Vector3::zeros()
-        };
+        let w_d = finite_or_zero(body_rate_ff_frd);
         let thrust = if thrust_n.is_finite() {
             thrust_n
         } else {
@@ -556,7 +544,7 @@ impl Controller {
             attitude_sp: attitude_of(&r_d),
             rate_sp_frd: w_d,
             thrust_request_n: thrust,
-            attitude_error_rad: if finite3(&out.e_r) { out.e_r } else { Vector3::zeros() },
+            attitude_error_rad: finite_or_zero(&out.e_r),
             output_saturated: saturated,
             input_replaced: !sp_ok || !finite3(body_rate_ff_frd) || !thrust_n.is_finite(),
             attitude_mode: true,

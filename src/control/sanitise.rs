@@ -32,6 +32,12 @@ pub(super) fn finite3(v: &Vector3<f64>) -> bool {
     all_finite(v.as_slice())
 }
 
+/// `v` when finite, else zero.
+#[inline]
+pub(super) fn finite_or_zero(v: &Vector3<f64>) -> Vector3<f64> {
+    if finite3(v) { *v } else { Vector3::zeros() }
+}
+
 pub(super) fn finite_m3(m: &Matrix3<f64>) -> bool {
     all_finite(m.as_slice())
 }

@@ -20,6 +20,13 @@
 //! the attitude to the SO(3) loop before `theta` nears 90 deg, and the output
 //! is clamped ([`ControlLimits`]).
 //!
+//! The pieces the laws share, one job a file: `law.rs` (what a law reads in a
+//! step and what it returns), `sanitise.rs` (input checks and holds),
+//! `rpy.rs` (the RPY laws' thrust/roll/pitch inversion, setpoint stage and
+//! recovery), `euler.rs` (ZYX rate map in closed form), `derivative_filter.rs`
+//! (`phi_d, theta_d` derivatives), `attitude.rs` (the SO(3) loop),
+//! `saturation.rs` (output clamp) and `memo.rs`.
+//!
 //! Pure: no clock, no I/O, no global state; time enters only through `dt`.
 //! Imports `math`, `signals` and `airframe` types, never the plant.
 

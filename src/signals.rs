@@ -141,6 +141,37 @@ pub struct BatteryReading {
     pub current_a: f64,
 }
 
+/// The LiPo cell of the simulated packs, which the flight stack's battery
+/// monitor assumes too: the open-circuit voltage is linear in the state of
+/// charge between empty and full, behind a series resistance,
+/// ```text
+/// V_oc = V_empty + (V_full - V_empty) soc        [V], soc 0..1
+/// V    = V_oc - R_cell I                         [V] at the terminals, drawing I [A]
+/// ```
+pub mod lipo_cell {
+    /// Cell voltage when empty [V] (PX4's `BAT1_V_EMPTY`).
+    pub const EMPTY_V: f64 = 3.5;
+    /// Cell voltage when full [V] (PX4's `BAT1_V_CHARGED`).
+    pub const FULL_V: f64 = 4.2;
+    /// Internal resistance [Ohm] (PX4's `BAT1_R_INTERNAL` per cell).
+    pub const R_OHM: f64 = 0.010;
+
+    /// `V_oc` [V] at the state of charge `soc`.
+    #[inline]
+    #[must_use]
+    pub fn open_circuit_v(soc: f64) -> f64 {
+        EMPTY_V + (FULL_V - EMPTY_V) * soc
+    }
+
+    /// The state of charge at the open-circuit voltage `open_circuit_v` [V]
+    /// (the inverse of [`open_circuit_v`], not clamped to 0..1).
+    #[inline]
+    #[must_use]
+    pub fn charge(open_circuit_v: f64) -> f64 {
+        (open_circuit_v - EMPTY_V) / (FULL_V - EMPTY_V)
+    }
+}
+
 /// Everything the flight stack's sensors report at one instant `t_k`: all a
 /// real autopilot knows of its vehicle.
 #[derive(Clone, Copy, Debug, PartialEq)]

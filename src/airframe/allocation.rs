@@ -112,31 +112,8 @@ impl Allocator {
     /// # Errors
     /// The rank of `B` when it is below 4 (no inverse), or when `n` is out of range.
     pub fn new(b: &DMatrix<f64>, w_min: f64, w_max: f64) -> Result<Self, usize> {
-        let n = b.ncols();
-        let r = rank(b);
-        if b.nrows() != 4 || n > MAX_ROTORS || r < 4 {
-            return Err(r);
-        }
-        let bbt = b * b.transpose();
-        let inv = bbt.try_inverse().ok_or(r)?;
-        let pinv = b.transpose() * inv;
-        let mut bp = SMatrix::<f64, 4, MAX_ROTORS>::zeros();
-        let mut pp = SMatrix::<f64, MAX_ROTORS, 4>::zeros();
-        for i in 0..n {
-            for k in 0..4 {
-                bp[(k, i)] = b[(k, i)];
-                pp[(i, k)] = pinv[(i, k)];
-            }
-        }
-        Ok(Self {
-            n,
-            b: bp,
-            b_pinv: pp,
-            w_min,
-            w_max,
-            delta_max_fraction: 0.3,
-            active: std::array::from_fn(|i| i < n),
-        })
+        // every rotor healthy: the fault allocator with all thrust fractions 1
+        Self::with_rotor_gains(b, w_min, w_max, &vec![1.0; b.ncols()], false)
     }
 
     /// The allocator after rotor faults (`docs/model.md` sections 3

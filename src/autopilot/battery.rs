@@ -8,18 +8,11 @@
 //! The open-circuit cell voltage is the terminal voltage corrected for the
 //! internal resistance under load (PX4's `BAT1_R_INTERNAL`), interpolated
 //! between empty (3.5 V) and full (4.2 V) per cell, with `R_cell` = 10 mOhm:
-//! the values of the packs this simulator flies.
+//! the cell of the packs this simulator flies ([`lipo_cell`]).
 
 use serde::Serialize;
 
-use crate::signals::BatteryReading;
-
-/// Cell voltage when empty [V] (PX4's `BAT1_V_EMPTY`).
-const CELL_EMPTY_V: f64 = 3.5;
-/// Cell voltage when full [V] (PX4's `BAT1_V_CHARGED`).
-const CELL_FULL_V: f64 = 4.2;
-/// Internal resistance per cell [Ohm].
-const CELL_R_OHM: f64 = 0.010;
+use crate::signals::{BatteryReading, lipo_cell};
 
 /// The monitor's state.
 #[derive(Clone, Debug, PartialEq)]
@@ -59,8 +52,8 @@ impl BatteryMonitor {
     /// Remaining charge 0..1 from the load-corrected cell voltage.
     pub(super) fn remaining(&self, reading: &BatteryReading) -> f64 {
         let n = self.cells;
-        let cell = (reading.voltage_v + n * CELL_R_OHM * reading.current_a) / n;
-        let soc = (cell - CELL_EMPTY_V) / (CELL_FULL_V - CELL_EMPTY_V);
+        let cell = (reading.voltage_v + n * lipo_cell::R_OHM * reading.current_a) / n;
+        let soc = lipo_cell::charge(cell);
         if soc.is_finite() { soc.clamp(0.0, 1.0) } else { 0.0 }
     }
 }

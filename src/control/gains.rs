@@ -251,10 +251,6 @@ const YAW: Pole = Pole { w: 5.0, zeta: 0.9 };
 /// Coupling gains of the passivity-based law as fractions of the natural frequency.
 const SIGMA_FRACTION: f64 = 0.25;
 
-fn diag(inertia: &nalgebra::Matrix3<f64>) -> Vector3<f64> {
-    Vector3::new(inertia[(0, 0)], inertia[(1, 1)], inertia[(2, 2)])
-}
-
 impl Default for ControlLimits {
     fn default() -> Self {
         Self {
@@ -276,7 +272,7 @@ impl ControlGains {
     #[must_use]
     pub fn for_vehicle(model: &NominalModel) -> Self {
         let m = model.mass_kg;
-        let i = diag(&model.inertia_kg_m2);
+        let i = model.inertia_kg_m2.diagonal();
         let att = |p_rp: Pole, p_y: Pole| Vector3::new(p_rp.w, p_rp.w, p_y.w);
         let stiff = |pp: Pole, py: Pole| Vector3::new(pp.stiffness(), pp.stiffness(), py.stiffness());
         let damp = |pp: Pole, py: Pole| Vector3::new(pp.damping(), pp.damping(), py.damping());

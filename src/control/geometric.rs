@@ -27,12 +27,14 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use super::Reference;
-use super::common::{LawOutput, Memo, e3, finite_m3, finite3, so3_attitude};
+use super::attitude::{AttitudeTarget, So3Gains, so3_attitude};
+use super::e3;
 use super::gains::{ControlLimits, GeometricGains};
+use super::law::{LawInput, LawOutput};
+use super::memo::Memo;
+use super::sanitise::{finite_m3, finite3};
 use crate::math::vee;
 use crate::signals::GRAVITY;
-use crate::signals::{Measurement, NominalModel, WrenchEstimate};
 
 /// Desired-attitude step rate [rad/s] above which `R_d` is treated as having
 /// jumped (reference jump, guard switching): its derivatives restart at zero.
@@ -55,6 +57,7 @@ pub(super) struct Geometric {
 
 /// `log(R)^vee` (rotation vector) of a rotation matrix; `None` near 180 deg,
 /// where the axis is ill-defined.
+#[inline]
 fn log_so3(m: &Matrix3<f64>) -> Option<Vector3<f64>> {
     let v = vee(m); // sin(angle) * axis
     let s2 = v.norm_squared(); // sin^2(angle): no square root on the common paths
@@ -81,6 +84,7 @@ impl Geometric {
     /// the first sample after a reset or a jump there is no previous `R_d`: the
     /// desired rate is then the current one, `w_now() = R_d^T R w` (no damping
     /// kick when a law is switched in; only evaluated then).
+    #[inline]
     fn desired_rates(
         &mut self,
         r_d: &Matrix3<f64>,
@@ -134,26 +138,18 @@ impl Geometric {
     }
 
     /// One step of the law (module doc).
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn update(
-        &mut self,
-        gains: &GeometricGains,
-        limits: &ControlLimits,
-        model: &NominalModel,
-        meas: &Measurement,
-        reference: &Reference,
-        estimate: &WrenchEstimate,
-        dt: f64,
-    ) -> LawOutput {
+    #[inline]
+    pub(super) fn update(&mut self, gains: &GeometricGains, input: &LawInput) -> LawOutput {
+        let (model, meas, reference, limits) = (input.model, input.measurement, input.reference, input.limits);
         let m = model.mass_kg;
         let rot = meas.attitude.to_rotation_matrix();
         let r = rot.matrix();
-        let e_p = meas.position_ned - reference.position_ned;
-        let e_v = meas.velocity_ned - reference.velocity_ned;
         let weight = Vector3::new(0.0, 0.0, m * GRAVITY); // m g e3
-        let a = -gains.kp_n_per_m.component_mul(&e_p) - gains.kv_n_s_per_m.component_mul(&e_v) - weight
+        let a = -gains.kp_n_per_m.component_mul(&input.position_error())
+            - gains.kv_n_s_per_m.component_mul(&input.velocity_error())
+            - weight
             + reference.acceleration_ned * m
-            - estimate.force_ned;
+            - input.estimate.force_ned;
         let max_tilt = limits.max_tilt_rad;
         let tan_max_tilt = self.tan_max_tilt.get(max_tilt.to_bits(), || max_tilt.tan());
         let (a, limited) = guard_a(a, m, limits, tan_max_tilt);
@@ -164,22 +160,18 @@ impl Geometric {
         let (w_d, w_dot_d, jump) = self.desired_rates(
             &r_d,
             || r_d.tr_mul(&(r * meas.rate_frd)),
-            dt,
+            input.dt,
             limits.max_angular_accel_rad_s2,
         );
-        let out = so3_attitude(
-            &model.inertia_kg_m2,
-            r,
-            &meas.rate_frd,
-            &r_d,
-            &w_d,
-            &w_dot_d,
-            &gains.kr_n_m_per_rad,
-            &gains.komega_n_m_s_per_rad,
-        );
+        let target = AttitudeTarget {
+            r_d: &r_d,
+            omega_d: &w_d,
+            omega_dot_d: &w_dot_d,
+        };
+        let out = so3_attitude(&model.inertia_kg_m2, r, &meas.rate_frd, &target, &gains.so3());
         LawOutput {
             thrust_n: thrust,
-            torque_frd: out.torque - estimate.torque_frd,
+            torque_frd: out.torque - input.estimate.torque_frd,
             attitude_sp: r_d,
             rate_sp_frd: w_d,
             attitude_error: out.e_r,
@@ -191,6 +183,7 @@ impl Geometric {
 
     /// `R_d = [y_d x z_d, y_d, z_d]` with `z_d = -A/|A|` and the heading `psi_d`.
     /// `yaw` is `(sin psi_d, cos psi_d)`.
+    #[inline]
     fn desired_attitude(&self, a: &Vector3<f64>, yaw: (f64, f64), r: &Matrix3<f64>) -> Matrix3<f64> {
         let a2 = a.norm_squared();
         let z_d = a * (-1.0 / a2.sqrt());
@@ -220,8 +213,19 @@ impl Geometric {
     }
 }
 
+impl GeometricGains {
+    /// The attitude loop's gains `K_R`, `K_w`.
+    pub(super) fn so3(&self) -> So3Gains<'_> {
+        So3Gains {
+            kr: &self.kr_n_m_per_rad,
+            kw: &self.komega_n_m_s_per_rad,
+        }
+    }
+}
+
 /// Guards on `A` (module doc) with `tan_max_tilt = tan(limits.max_tilt_rad)`;
 /// returns the guarded `A` and whether it changed.
+#[inline]
 fn guard_a(mut a: Vector3<f64>, m: f64, limits: &ControlLimits, tan_max_tilt: f64) -> (Vector3<f64>, bool) {
     let mut limited = false;
     if !finite3(&a) {
@@ -247,7 +251,9 @@ fn guard_a(mut a: Vector3<f64>, m: f64, limits: &ControlLimits, tan_max_tilt: f6
 
 #[cfg(test)]
 mod tests {
+    use super::super::Reference;
     use super::*;
+    use crate::signals::{Measurement, NominalModel};
     use nalgebra::{Rotation3, UnitQuaternion};
 
     #[test]
@@ -283,12 +289,7 @@ mod tests {
         for _ in 0..3 {
             let out = g.update(
                 &gains.geometric,
-                &gains.limits,
-                &model,
-                &meas,
-                &reference,
-                &WrenchEstimate::default(),
-                1e-3,
+                &LawInput::without_estimate(&model, &meas, &reference, &gains.limits),
             );
             assert!((out.thrust_n - 1.5 * GRAVITY).abs() < 1e-12);
             assert!(out.torque_frd.norm() < 1e-12);

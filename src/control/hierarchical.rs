@@ -17,7 +17,7 @@
 //! giving `e_eta'' + K_D,eta e_eta' + K_P,eta e_eta = M^-1 tau_tilde`. The second
 //! form is the one evaluated: with `C` of doc section 1,
 //! `Q^-T C eta' = I_b Q_dot eta' - (I_b w) x w`, so neither `C` nor `Q^-1` is
-//! formed as a matrix (the `sin`/`cos` of `eta` come from `R`, see `common`). `phi_d, theta_d`
+//! formed as a matrix (the `sin`/`cos` of `eta` come from `R`, see `euler`). `phi_d, theta_d`
 //! derivatives come from a critically damped second-order filter (`w_n` =
 //! `eta_filter_rad_s`), yaw ones from the reference.
 //!
@@ -29,14 +29,9 @@
 //! and the thrust is projected on the body axis, `u_T max(0, z_b . z_d)`,
 //! until the tilt is back below the midpoint of `max_tilt` and `recovery_tilt`.
 
-use nalgebra::Vector3;
-
-use super::Reference;
-use super::common::{
-    LawOutput, MeasuredEuler, RpySetpoint, RpyStage, inertia_diag, projected_thrust, rpy_setpoint_on_so3, wrap3,
-};
-use super::gains::{ControlLimits, HierarchicalGains};
-use crate::signals::{Measurement, NominalModel, WrenchEstimate};
+use super::gains::HierarchicalGains;
+use super::law::{LawInput, LawOutput};
+use super::rpy::{EulerTracking, RpyStage};
 
 /// Internal state: the attitude-setpoint stage.
 #[derive(Clone, Copy, Debug, Default)]
@@ -50,109 +45,47 @@ impl Hierarchical {
     }
 
     /// One step of the law (module doc).
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn update(
-        &mut self,
-        gains: &HierarchicalGains,
-        limits: &ControlLimits,
-        model: &NominalModel,
-        meas: &Measurement,
-        reference: &Reference,
-        estimate: &WrenchEstimate,
-        dt: f64,
-    ) -> LawOutput {
+    #[inline]
+    pub(super) fn update(&mut self, gains: &HierarchicalGains, input: &LawInput) -> LawOutput {
+        let (model, estimate) = (input.model, input.estimate);
         let m = model.mass_kg;
         let inertia = &model.inertia_kg_m2;
-        let rot = meas.attitude.to_rotation_matrix();
-        let r = rot.matrix();
-        let e_p = meas.position_ned - reference.position_ned;
-        let e_v = meas.velocity_ned - reference.velocity_ned;
-        let mu = reference.acceleration_ned
-            - gains.kp_pos_per_s2.component_mul(&e_p)
-            - gains.kd_pos_per_s.component_mul(&e_v)
+        let mu = input.reference.acceleration_ned
+            - gains.kp_pos_per_s2.component_mul(&input.position_error())
+            - gains.kd_pos_per_s.component_mul(&input.velocity_error())
             - estimate.force_ned / m;
-        let now = MeasuredEuler::new(r, &meas.rate_frd);
-        let sp = self.stage.setpoint(
-            &mu,
-            reference,
-            m,
-            limits,
-            gains.eta_filter_rad_s,
-            r[(2, 2)],
-            &now.filter_start(),
-            dt,
-        );
-        match (sp.recovery, now.rates) {
-            (false, Some((q_inv, eta_dot))) => {
-                let e = wrap3(&(now.eta - sp.eta_d));
-                let e_dot = eta_dot - sp.eta_d_dot;
-                let nu =
-                    sp.eta_d_ddot - gains.kd_att_per_s.component_mul(&e_dot) - gains.kp_att_per_s2.component_mul(&e);
-                let w = &meas.rate_frd;
-                let torque = inertia * (now.trig.q_mul(&nu) + now.trig.q_dot_mul(&eta_dot, &eta_dot))
-                    + w.cross(&(inertia * w))
-                    - q_inv.tr_mul(&estimate.torque_rpy);
-                LawOutput {
-                    thrust_n: sp.thrust_n,
-                    torque_frd: torque,
-                    attitude_sp: sp.rotation(),
-                    rate_sp_frd: sp.body_rate(),
-                    attitude_error: e,
-                    limited: sp.limited,
-                    recovery: false,
-                    reference_jump: false,
-                }
-            }
-            _ => {
-                let i = inertia_diag(model);
-                let kr = i.component_mul(&gains.kp_att_per_s2);
-                let kw = i.component_mul(&gains.kd_att_per_s);
-                recovery_output(model, meas, &sp, &kr, &kw, estimate)
-            }
-        }
-    }
-}
-
-/// The RPY laws' recovery: SO(3) attitude loop on `R(eta_d)`, projected thrust.
-pub(super) fn recovery_output(
-    model: &NominalModel,
-    meas: &Measurement,
-    sp: &RpySetpoint,
-    kr: &Vector3<f64>,
-    kw: &Vector3<f64>,
-    estimate: &WrenchEstimate,
-) -> LawOutput {
-    let rot = meas.attitude.to_rotation_matrix();
-    let r = rot.matrix();
-    let (out, r_d, w_d) = rpy_setpoint_on_so3(
-        &model.inertia_kg_m2,
-        r,
-        &meas.rate_frd,
-        sp,
-        kr,
-        kw,
-        &estimate.torque_frd,
-    );
-    LawOutput {
-        thrust_n: projected_thrust(sp.thrust_n, r, &r_d),
-        torque_frd: out.torque,
-        attitude_sp: r_d,
-        rate_sp_frd: w_d,
-        attitude_error: out.e_r,
-        limited: sp.limited,
-        recovery: true,
-        reference_jump: false,
+        let inner_torque = |t: &EulerTracking| {
+            let nu =
+                t.sp.eta_d_ddot - gains.kd_att_per_s.component_mul(&t.e_dot) - gains.kp_att_per_s2.component_mul(&t.e);
+            let w = &input.measurement.rate_frd;
+            inertia * (t.trig.q_mul(&nu) + t.trig.q_dot_mul(&t.eta_dot, &t.eta_dot)) + w.cross(&(inertia * w))
+                - t.q_inv.tr_mul(&estimate.torque_rpy)
+        };
+        // K_R = I_b K_P,eta, K_w = I_b K_D,eta: the same linearized poles
+        let recovery_gains = || {
+            let i = inertia.diagonal();
+            (
+                i.component_mul(&gains.kp_att_per_s2),
+                i.component_mul(&gains.kd_att_per_s),
+            )
+        };
+        self.stage
+            .step(input, &mu, gains.eta_filter_rad_s, inner_torque, recovery_gains)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::super::ControlGains;
+    use super::super::Reference;
+    use super::super::rpy::wrap3;
     use super::*;
     use crate::math::{euler_zyx, from_euler_zyx, rate_map, rate_map_dot};
     use crate::signals::GRAVITY;
+    use crate::signals::{Measurement, NominalModel};
     use nalgebra::Matrix3;
     use nalgebra::UnitQuaternion;
+    use nalgebra::Vector3;
 
     fn model() -> NominalModel {
         NominalModel {
@@ -182,12 +115,7 @@ mod tests {
         let mut law = Hierarchical::default();
         let out = law.update(
             &g.hierarchical,
-            &g.limits,
-            &model,
-            &meas,
-            &reference,
-            &WrenchEstimate::default(),
-            1e-3,
+            &LawInput::without_estimate(&model, &meas, &reference, &g.limits),
         );
         assert!(!out.recovery);
         // nu from the reported setpoint: first sample, the filter starts at the measured rates
@@ -222,12 +150,7 @@ mod tests {
         for _ in 0..3 {
             let out = law.update(
                 &g.hierarchical,
-                &g.limits,
-                &model,
-                &meas,
-                &reference,
-                &WrenchEstimate::default(),
-                1e-3,
+                &LawInput::without_estimate(&model, &meas, &reference, &g.limits),
             );
             assert!((out.thrust_n - 2.0 * GRAVITY).abs() < 1e-12);
             assert!(out.torque_frd.norm() < 1e-12, "{}", out.torque_frd);

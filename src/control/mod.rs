@@ -20,15 +20,29 @@
 //! the attitude to the SO(3) loop before `theta` nears 90 deg, and the output
 //! is clamped ([`ControlLimits`]).
 //!
+//! The pieces the laws share, one job a file: `law.rs` (what a law reads in a
+//! step and what it returns), `sanitise.rs` (input checks and holds),
+//! `rpy.rs` (the RPY laws' thrust/roll/pitch inversion, setpoint stage and
+//! recovery), `euler.rs` (ZYX rate map in closed form), `derivative_filter.rs`
+//! (`phi_d, theta_d` derivatives), `attitude.rs` (the SO(3) loop),
+//! `saturation.rs` (output clamp) and `memo.rs`.
+//!
 //! Pure: no clock, no I/O, no global state; time enters only through `dt`.
 //! Imports `math`, `signals` and `airframe` types, never the plant.
 
-mod common;
+mod attitude;
+mod derivative_filter;
+mod euler;
 mod gains;
 mod geometric;
 mod hierarchical;
+mod law;
+mod memo;
 mod passivity;
 mod relaxed_hover;
+mod rpy;
+mod sanitise;
+mod saturation;
 pub mod shaper;
 
 pub use gains::{
@@ -46,10 +60,18 @@ use serde::{Deserialize, Serialize};
 
 use crate::signals::{ControlWrench, GRAVITY};
 use crate::signals::{Measurement, NominalModel, WrenchEstimate};
-use common::{
-    LawOutput, NO_ESTIMATE, all_finite, e3, estimate_usable, finite3, measurement_ok, model_ok, sanitize_estimate,
-    sanitize_reference, saturate, so3_attitude,
+use attitude::{AttitudeTarget, so3_attitude};
+use law::{LawInput, LawOutput};
+use sanitise::{
+    NO_ESTIMATE, all_finite, estimate_usable, finite_m3, finite_or_zero, finite3, measurement_ok, model_ok,
+    sanitize_estimate, sanitize_reference,
 };
+use saturation::saturate;
+
+/// `e3 = [0, 0, 1]`: NED down.
+fn e3() -> Vector3<f64> {
+    Vector3::new(0.0, 0.0, 1.0)
+}
 
 /// Which control law flies the vehicle (PX4-style parameter `CTRL_TYPE`: 0, 1, 2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
@@ -434,42 +456,33 @@ impl Controller {
             }
         };
         let g = &self.gains;
+        let input = LawInput {
+            model,
+            measurement: meas,
+            reference,
+            estimate: est,
+            limits: &g.limits,
+            dt,
+        };
         let out: LawOutput = match self.kind {
-            ControllerKind::Hierarchical => {
-                self.hierarchical
-                    .update(&g.hierarchical, &g.limits, model, meas, reference, est, dt)
-            }
-            ControllerKind::Geometric => {
-                self.geometric
-                    .update(&g.geometric, &g.limits, model, meas, reference, est, dt)
-            }
-            ControllerKind::Passivity => {
-                self.passivity
-                    .update(&g.passivity, &g.limits, model, meas, reference, est, dt)
-            }
+            ControllerKind::Hierarchical => self.hierarchical.update(&g.hierarchical, &input),
+            ControllerKind::Geometric => self.geometric.update(&g.geometric, &input),
+            ControllerKind::Passivity => self.passivity.update(&g.passivity, &input),
         };
         let (wrench, saturated) = saturate(out.thrust_n, &out.torque_frd, model, &g.limits);
         self.status = ControlStatus {
             kind: self.kind,
             time_s: meas.time_s,
             attitude_sp: attitude_of(&out.attitude_sp),
-            rate_sp_frd: if finite3(&out.rate_sp_frd) {
-                out.rate_sp_frd
-            } else {
-                Vector3::zeros()
-            },
+            rate_sp_frd: finite_or_zero(&out.rate_sp_frd),
             thrust_request_n: if out.thrust_n.is_finite() {
                 out.thrust_n
             } else {
                 wrench.thrust_n
             },
-            position_error_ned: meas.position_ned - reference.position_ned,
-            velocity_error_ned: meas.velocity_ned - reference.velocity_ned,
-            attitude_error_rad: if finite3(&out.attitude_error) {
-                out.attitude_error
-            } else {
-                Vector3::zeros()
-            },
+            position_error_ned: input.position_error(),
+            velocity_error_ned: input.velocity_error(),
+            attitude_error_rad: finite_or_zero(&out.attitude_error),
             guard_active: out.limited,
             output_saturated: saturated,
             recovery: out.recovery,
@@ -513,26 +526,23 @@ impl Controller {
         } else {
             r
         };
-        let w_d = if finite3(body_rate_ff_frd) {
-            *body_rate_ff_frd
-        } else {
-            Vector3::zeros()
-        };
+        let w_d = finite_or_zero(body_rate_ff_frd);
         let thrust = if thrust_n.is_finite() {
             thrust_n
         } else {
             model.mass_kg * GRAVITY
         };
-        let g = &self.gains.geometric;
+        let target = AttitudeTarget {
+            r_d: &r_d,
+            omega_d: &w_d,
+            omega_dot_d: &Vector3::zeros(),
+        };
         let out = so3_attitude(
             &model.inertia_kg_m2,
             &r,
             &meas.rate_frd,
-            &r_d,
-            &w_d,
-            &Vector3::zeros(),
-            &g.kr_n_m_per_rad,
-            &g.komega_n_m_s_per_rad,
+            &target,
+            &self.gains.geometric.so3(),
         );
         let (wrench, saturated) = saturate(thrust, &out.torque, model, &self.gains.limits);
         self.status = ControlStatus {
@@ -541,7 +551,7 @@ impl Controller {
             attitude_sp: attitude_of(&r_d),
             rate_sp_frd: w_d,
             thrust_request_n: thrust,
-            attitude_error_rad: if finite3(&out.e_r) { out.e_r } else { Vector3::zeros() },
+            attitude_error_rad: finite_or_zero(&out.e_r),
             output_saturated: saturated,
             input_replaced: !sp_ok || !finite3(body_rate_ff_frd) || !thrust_n.is_finite(),
             attitude_mode: true,
@@ -554,7 +564,7 @@ impl Controller {
 
 /// Unit quaternion of a rotation matrix (identity if not finite).
 fn attitude_of(r: &nalgebra::Matrix3<f64>) -> UnitQuaternion<f64> {
-    if common::finite_m3(r) {
+    if finite_m3(r) {
         UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(*r))
     } else {
         UnitQuaternion::identity()
@@ -572,7 +582,7 @@ pub fn feedforward_attitude(acceleration_ned: &Vector3<f64>, yaw_rad: f64) -> Un
     let (s, c) = yaw_rad.sin_cos();
     let y_d = z_d.cross(&Vector3::new(c, s, 0.0)).normalize();
     let r = nalgebra::Matrix3::from_columns(&[y_d.cross(&z_d), y_d, z_d]);
-    if common::finite_m3(&r) {
+    if finite_m3(&r) {
         attitude_of(&r)
     } else if yaw_rad.is_finite() {
         UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw_rad)

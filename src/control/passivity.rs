@@ -24,11 +24,9 @@
 //! loop with the matching `K_R = D_o sigma + K_o`, `K_w = I_b sigma + D_o`
 //! (see the hierarchical module for the recovery rule).
 
-use super::Reference;
-use super::common::{LawOutput, MeasuredEuler, RpyStage, inertia_diag, wrap3};
-use super::gains::{ControlLimits, PassivityGains};
-use super::hierarchical::recovery_output;
-use crate::signals::{Measurement, NominalModel, WrenchEstimate};
+use super::gains::PassivityGains;
+use super::law::{LawInput, LawOutput};
+use super::rpy::{EulerTracking, RpyStage};
 
 /// Internal state: the attitude-setpoint stage.
 #[derive(Clone, Copy, Debug, Default)]
@@ -42,81 +40,54 @@ impl Passivity {
     }
 
     /// One step of the law (module doc).
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn update(
-        &mut self,
-        gains: &PassivityGains,
-        limits: &ControlLimits,
-        model: &NominalModel,
-        meas: &Measurement,
-        reference: &Reference,
-        estimate: &WrenchEstimate,
-        dt: f64,
-    ) -> LawOutput {
+    #[inline]
+    pub(super) fn update(&mut self, gains: &PassivityGains, input: &LawInput) -> LawOutput {
+        let (model, estimate) = (input.model, input.estimate);
         let m = model.mass_kg;
         let inertia = &model.inertia_kg_m2;
-        let rot = meas.attitude.to_rotation_matrix();
-        let r = rot.matrix();
-        let e_p = meas.position_ned - reference.position_ned;
-        let e_v = meas.velocity_ned - reference.velocity_ned;
+        let e_p = input.position_error();
+        let e_v = input.velocity_error();
         let sigma_p = gains.sigma_p_per_s;
         let nu_p = e_v + e_p * sigma_p;
-        let a_r = reference.acceleration_ned - e_v * sigma_p;
+        let a_r = input.reference.acceleration_ned - e_v * sigma_p;
         let mu_d = a_r
             - (gains.dp_n_s_per_m.component_mul(&nu_p) + gains.kp_n_per_m.component_mul(&e_p) + estimate.force_ned) / m;
-        let now = MeasuredEuler::new(r, &meas.rate_frd);
-        let sp = self.stage.setpoint(
-            &mu_d,
-            reference,
-            m,
-            limits,
-            gains.eta_filter_rad_s,
-            r[(2, 2)],
-            &now.filter_start(),
-            dt,
-        );
         let sigma = gains.sigma_per_s;
-        match (sp.recovery, now.rates) {
-            (false, Some((q_inv, eta_dot))) => {
-                let e = wrap3(&(now.eta - sp.eta_d));
-                let e_dot = eta_dot - sp.eta_d_dot;
-                let eta_r_dot = sp.eta_d_dot - e * sigma;
-                let eta_r_ddot = sp.eta_d_ddot - e_dot * sigma;
-                let nu = e_dot + e * sigma;
-                let w = &meas.rate_frd;
-                // Q^-T (M eta_r'' + C eta_r') = I_b (Q eta_r'' + Q_dot eta_r') + (Q eta_r') x I_b w
-                let model_terms = inertia * (now.trig.q_mul(&eta_r_ddot) + now.trig.q_dot_mul(&eta_dot, &eta_r_dot))
-                    + now.trig.q_mul(&eta_r_dot).cross(&(inertia * w));
-                let generalized = -estimate.torque_rpy
-                    - gains.do_n_m_s_per_rad.component_mul(&nu)
-                    - gains.ko_n_m_per_rad.component_mul(&e);
-                LawOutput {
-                    thrust_n: sp.thrust_n,
-                    torque_frd: model_terms + q_inv.tr_mul(&generalized),
-                    attitude_sp: sp.rotation(),
-                    rate_sp_frd: sp.body_rate(),
-                    attitude_error: e,
-                    limited: sp.limited,
-                    recovery: false,
-                    reference_jump: false,
-                }
-            }
-            _ => {
-                let i = inertia_diag(model);
-                let kr = gains.do_n_m_s_per_rad * sigma + gains.ko_n_m_per_rad;
-                let kw = i * sigma + gains.do_n_m_s_per_rad;
-                recovery_output(model, meas, &sp, &kr, &kw, estimate)
-            }
-        }
+        let inner_torque = |t: &EulerTracking| {
+            let (e, e_dot) = (t.e, t.e_dot);
+            let eta_r_dot = t.sp.eta_d_dot - e * sigma;
+            let eta_r_ddot = t.sp.eta_d_ddot - e_dot * sigma;
+            let nu = e_dot + e * sigma;
+            let w = &input.measurement.rate_frd;
+            // Q^-T (M eta_r'' + C eta_r') = I_b (Q eta_r'' + Q_dot eta_r') + (Q eta_r') x I_b w
+            let model_terms = inertia * (t.trig.q_mul(&eta_r_ddot) + t.trig.q_dot_mul(&t.eta_dot, &eta_r_dot))
+                + t.trig.q_mul(&eta_r_dot).cross(&(inertia * w));
+            let generalized = -estimate.torque_rpy
+                - gains.do_n_m_s_per_rad.component_mul(&nu)
+                - gains.ko_n_m_per_rad.component_mul(&e);
+            model_terms + t.q_inv.tr_mul(&generalized)
+        };
+        // K_R = D_o sigma + K_o, K_w = I_b sigma + D_o: the same linearized poles
+        let recovery_gains = || {
+            let i = inertia.diagonal();
+            (
+                gains.do_n_m_s_per_rad * sigma + gains.ko_n_m_per_rad,
+                i * sigma + gains.do_n_m_s_per_rad,
+            )
+        };
+        self.stage
+            .step(input, &mu_d, gains.eta_filter_rad_s, inner_torque, recovery_gains)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::super::ControlGains;
+    use super::super::Reference;
     use super::super::hierarchical::Hierarchical;
     use super::*;
     use crate::signals::GRAVITY;
+    use crate::signals::{Measurement, NominalModel};
     use nalgebra::{Matrix3, UnitQuaternion};
 
     /// GIVEN gains matched to the same linearized poles (doc section 10) and a
@@ -138,9 +109,9 @@ mod tests {
             rate_frd: nalgebra::Vector3::zeros(),
         };
         let reference = Reference::hold(nalgebra::Vector3::new(0.0, 0.0, -1.0), 0.0);
-        let est = WrenchEstimate::default();
-        let h = Hierarchical::default().update(&g.hierarchical, &g.limits, &model, &meas, &reference, &est, 1e-3);
-        let p = Passivity::default().update(&g.passivity, &g.limits, &model, &meas, &reference, &est, 1e-3);
+        let input = LawInput::without_estimate(&model, &meas, &reference, &g.limits);
+        let h = Hierarchical::default().update(&g.hierarchical, &input);
+        let p = Passivity::default().update(&g.passivity, &input);
         assert!((h.thrust_n - p.thrust_n).abs() < 1e-12 * model.mass_kg * GRAVITY);
         assert!(
             (h.torque_frd - p.torque_frd).norm() < 1e-3 * h.torque_frd.norm(),
@@ -155,7 +126,8 @@ mod tests {
             attitude: UnitQuaternion::identity(),
             ..meas
         };
-        let p = Passivity::default().update(&g.passivity, &g.limits, &model, &hover, &reference, &est, 1e-3);
+        let input = LawInput::without_estimate(&model, &hover, &reference, &g.limits);
+        let p = Passivity::default().update(&g.passivity, &input);
         assert!((p.thrust_n - model.mass_kg * GRAVITY).abs() < 1e-12 && p.torque_frd.norm() < 1e-15);
     }
 }

@@ -12,7 +12,9 @@
 //! efficiency `eta` = 0.8, `I_avionics` = 0.3 A, `R_cell` = 10 mOhm. An
 //! x500-class quad at hover draws about 16 A from 4S. A failed cell
 //! (`n_failed` = 1, an injected fault) gives no voltage: a monitor that
-//! counts `n` cells reads a low charge.
+//! counts `n` cells reads a low charge. The cell is [`lipo_cell`].
+
+use crate::signals::lipo_cell;
 
 /// Air density [kg/m^3].
 const RHO: f64 = 1.225;
@@ -20,11 +22,6 @@ const RHO: f64 = 1.225;
 const EFFICIENCY: f64 = 0.65 * 0.8;
 /// Current drawn by the electronics [A].
 const AVIONICS_A: f64 = 0.3;
-/// Internal resistance per cell [Ohm].
-const CELL_R_OHM: f64 = 0.010;
-/// Cell voltage at 0 % and 100 % charge [V].
-const CELL_EMPTY_V: f64 = 3.5;
-const CELL_FULL_V: f64 = 4.2;
 
 /// Pack state.
 #[derive(Clone, Debug, PartialEq)]
@@ -87,11 +84,11 @@ impl Battery {
     }
 
     fn open_circuit_v(&self) -> f64 {
-        (self.cells - self.failed_cells) * (CELL_EMPTY_V + (CELL_FULL_V - CELL_EMPTY_V) * self.soc)
+        (self.cells - self.failed_cells) * lipo_cell::open_circuit_v(self.soc)
     }
 
     fn terminal_v(&self) -> f64 {
-        (self.open_circuit_v() - self.cells * CELL_R_OHM * self.current_a).max(0.0)
+        (self.open_circuit_v() - self.cells * lipo_cell::R_OHM * self.current_a).max(0.0)
     }
 
     /// Advance by `dt` [s] with total rotor thrust `thrust_n` [N].
@@ -149,7 +146,7 @@ mod tests {
         b.set_cell_failed(true);
         // 3 of 4 cells at 4.2 V, the avionics' current through 4 cells' resistance
         assert!(
-            (b.voltage_v() - (12.6 - 4.0 * CELL_R_OHM * AVIONICS_A)).abs() < 1e-9,
+            (b.voltage_v() - (12.6 - 4.0 * lipo_cell::R_OHM * AVIONICS_A)).abs() < 1e-9,
             "{}",
             b.voltage_v()
         );

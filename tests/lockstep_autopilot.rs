@@ -17,7 +17,7 @@ use rotorpilot::autopilot::{
 };
 use rotorpilot::control::ControllerKind;
 use rotorpilot::geo::GeoPoint;
-use rotorpilot::lockstep::unliftable;
+use rotorpilot::lockstep::preflight::unliftable;
 use rotorpilot::math::euler_zyx;
 use rotorpilot::sim::{RotorHealth, SensorConfig, SensorNoise};
 

@@ -13,6 +13,7 @@
 //! | [`math`] | SO(3) helpers (hat, vee, ZYX Euler angles) and the RPY model matrices `Q`, `M`, `C` | nalgebra |
 //! | [`signals`] | what crosses between world and flight stack and between blocks: sensor readings, actuator commands, measurement, control wrench, nominal model, wrench estimate; gravity and the step | nalgebra |
 //! | [`tomlfile`] | TOML files to typed values, errors naming file, line/field and problem | serde, toml |
+//! | [`error`] | an error and its causes said once, on one line | anyhow |
 //! | [`statefile`] | atomic replacement of the state directory's files (temp file, fsync, rename) | std |
 //! | [`geo`] | flat-earth NED <-> latitude/longitude/AMSL around home | nalgebra |
 //! | [`params`] | the parameter table (PX4 style, a typed [`params::Param`] per entry), store, validation, atomic persistence | `airframe` (types) |
@@ -24,13 +25,12 @@
 //! | [`mission`] | missions, geofences and rally points as data: items as stored, PX4's checks, result codes and CRC32 id; `.plan`, WPL 110 and `missions.json` files | `statefile`, serde_json |
 //! | [`lockstep`] | the one loop: sense, decide, act, integrate for every vehicle; parameter routing and transaction; telemetry with the injected truth | `sim`, `autopilot`, `signals`, `params`, `airframe`, `geo` |
 //! | [`scenario`] | scenario files and the flat-out runner behind `rotorpilot simulate` | `lockstep`, `sim`, `autopilot`, `control`, `estimation` |
-//! | [`simulate`] | `rotorpilot simulate`: one scenario or a campaign on every core, one shard of it, one line per scenario | `scenario`, std threads and clock |
 //! | [`record`] | flight records (JSON Lines: header, every input with its step, end) and exact replay behind `rotorpilot replay` | `lockstep`, `autopilot`, `mission`, `params`, `scenario` (the CSV), serde_json |
 //! | [`flightlog`] | flight-log CSV reading and the offline estimator sweep of `rotorpilot estimate` | `estimation` |
 //! | [`ulog`] | PX4's ULog format written to any `io::Write`; `ulog::flight` fills PX4-named topics from the lockstep core (the daemon's `flight.ulg`) | `lockstep`, `autopilot`, `params` |
 //! | [`link`] | MAVLink 2 over UDP as PX4 SITL, sans I/O: translates messages to autopilot commands and telemetry to messages (never physics, never a decision) | `autopilot`, `lockstep::Snapshot` (with the world's `sim::Truth` in it), `params`, `geo`, mavlink |
 //! | [`daemon`] | the runtime: the simulation thread paced against wall time, link tasks on tokio, parameter and plan saving, shutdown | everything |
-//! | [`cli`] | the `rotorpilot` command line (thin: parses, calls the modules, prints) | everything |
+//! | [`cli`] | the `rotorpilot` command line (thin: parses, calls the modules, prints); `cli::simulate` one scenario or a campaign on every core, one shard of it, a headless fleet | everything |
 //!
 //! Everything up to `scenario` is pure and deterministic: no sockets, no
 //! tokio, no wall clock, no global RNG. The same inputs and seed give a
@@ -51,6 +51,7 @@ pub mod autopilot;
 pub mod cli;
 pub mod control;
 pub mod daemon;
+pub mod error;
 pub mod estimation;
 pub mod flightlog;
 pub mod geo;
@@ -63,7 +64,6 @@ pub mod record;
 pub mod scenario;
 pub mod signals;
 pub mod sim;
-pub mod simulate;
 pub mod statefile;
 pub mod tomlfile;
 pub mod ulog;

@@ -202,10 +202,10 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
         // one daemon per state directory, before its files are read (lock.rs)
         locks.push(
             lock::StateLock::take(&c.state_dir)
-                .map_err(|e| anyhow::anyhow!("{}{}", which(c), crate::cli::error_chain(&e)))?,
+                .map_err(|e| anyhow::anyhow!("{}{}", which(c), crate::error::error_chain(&e)))?,
         );
-        let (params, warnings) =
-            vehicle_params(c, &airframe).map_err(|e| anyhow::anyhow!("{}{}", which(c), crate::cli::error_chain(&e)))?;
+        let (params, warnings) = vehicle_params(c, &airframe)
+            .map_err(|e| anyhow::anyhow!("{}{}", which(c), crate::error::error_chain(&e)))?;
         airframes.push(airframe);
         stores.push((params, warnings));
     }
@@ -252,7 +252,7 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
                     "cannot restore the stored mission, geofence and rally points \
                      (mend or remove the file, or start with --reset-plans to discard them)",
                 )
-                .map_err(|e| anyhow::anyhow!("{}{}", which(&config), crate::cli::error_chain(&e)))?
+                .map_err(|e| anyhow::anyhow!("{}{}", which(&config), crate::error::error_chain(&e)))?
         };
         core.pilot_mut(i).restore_plans(plans);
         let vehicle_signing =

@@ -17,7 +17,8 @@
 //! |---|---|
 //! | `config` | [`Config`], [`LinkSpec`]: the instance and PX4 SITL's port rules, home, speed, state directory |
 //! | `fleet` | [`FleetConfig`]: the vehicles of `--count N` and `--fleet FILE`, their spawn points, the fleet file and its errors |
-//! | `sim_thread` | the simulation thread: the only owner of the core, paced against wall time; commands and parameter sets are applied there, between steps |
+//! | `sim_thread` | the simulation thread: the only owner of the core, paced against wall time; every input is applied (and recorded) there, between steps; reboot and shutdown are carried out there |
+//! | `messages` | what the links and the simulation thread say to each other ([`SimRequest`](messages::SimRequest), [`Event`](messages::Event)), a request's answer and its claim, the parameter store's lock |
 //! | `inbox` | the requests of each vehicle's links to the simulation thread: a bounded queue per vehicle, served round robin |
 //! | `link_task` | one task per UDP link: datagrams in, streams and answers out |
 //! | `logs` | the run's log directory below `--log-dir` |
@@ -47,7 +48,9 @@
 //! current parameters, on the ground at the configured home, disarmed; the
 //! simulated clock keeps counting, so `time_boot_ms` stays monotonic for the
 //! clients already connected. Shutdown (p1 = 2) stops the daemon, as PX4 SITL
-//! exits. Both are refused while armed (the autopilot decides).
+//! exits. Both are refused while armed (the autopilot decides); both are
+//! carried out by the simulation thread (`Sim::power`), reboot before the
+//! ACK, shutdown after it.
 
 mod config;
 mod fleet;
@@ -55,9 +58,9 @@ mod inbox;
 mod link_task;
 mod lock;
 mod logs;
+mod messages;
 mod ready;
 mod recorder;
-mod reply;
 mod saver;
 mod signing;
 mod sim_thread;
@@ -94,8 +97,9 @@ use crate::mission::{MissionType, Plans};
 use crate::params::{ParamStore, ParamValue};
 use crate::sim::SensorConfig;
 use link_task::LinkTask;
+use messages::{Event, SimRequest};
 use saver::{ParamsFile, PlansFile, plan_saver, saver};
-use sim_thread::{Event, Sim, SimRequest, VehicleIo};
+use sim_thread::{Sim, VehicleIo};
 
 /// Fleets this large are stepped on every core ([`Lockstep::set_threads`]).
 const PARALLEL_FLEET: usize = 64;
@@ -566,7 +570,6 @@ impl Daemon {
                     events_rx: ev_tx.subscribe(),
                     save: save.clone(),
                     params_file: params_file.clone(),
-                    exit: exit_tx.clone(),
                     dests: Vec::new(),
                     send_errors: 0,
                     tlog: log_dir
@@ -587,6 +590,7 @@ impl Daemon {
             speed,
             tick,
             vehicles: ios,
+            exit: exit_tx,
         };
         let (sim_done_tx, sim_done_rx) = oneshot::channel::<()>();
         let sim_thread = std::thread::Builder::new()
@@ -604,7 +608,6 @@ impl Daemon {
             link_tasks.spawn(name, task.run(stop_rx.clone()));
         }
         let mut link_died: Option<String> = None;
-        drop(exit_tx);
 
         let mut sim_done = sim_done_rx;
         let sim_died = tokio::select! {

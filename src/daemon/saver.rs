@@ -12,27 +12,20 @@
 //! shutdown by the daemon itself. Writes are atomic (`crate::statefile`).
 
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Mutex};
 
 use std::time::Duration;
 
 use tokio::sync::{Notify, broadcast, watch};
 use tracing::{debug, info, warn};
 
-use super::sim_thread::Event;
+use super::messages::{Event, lock};
 use crate::autopilot::{Severity, StatusText};
 use crate::lockstep::Snapshot;
 use crate::mission::Plans;
 use crate::mission::file::{MissionFileError, save_plans};
 use crate::params::ParamFileError;
 use crate::params::ParamStore;
-
-/// The parameter store, locked (never across an `.await`).
-pub(super) fn lock(p: &Mutex<ParamStore>) -> MutexGuard<'_, ParamStore> {
-    // A panic while holding the lock leaves the store consistent (every
-    // mutation is a single checked set), so a poisoned lock is still usable.
-    p.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
-}
 
 /// A vehicle's parameter file at start ([`ParamStore::load_keeping_bad`]):
 /// a file with lines that do not read, or an empty one, is renamed aside to

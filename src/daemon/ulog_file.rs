@@ -11,7 +11,7 @@ use std::sync::{Arc, Mutex};
 
 use tracing::warn;
 
-use super::saver::lock;
+use super::messages::lock;
 use crate::autopilot::{Autopilot, StatusText};
 use crate::lockstep::Lockstep;
 use crate::params::ParamStore;

@@ -65,7 +65,8 @@ pub struct DaemonArgs {
     pub count: Option<u32>,
     /// Run the fleet a TOML file describes: [[vehicle]] entries with an
     /// instance and optionally airframe, offset_m = [NORTH, EAST], params =
-    /// { NAME = value } and count; optional top-level home = [LAT, LON, ALT]
+    /// { NAME = value }, count and spacing_m = [NORTH, EAST] (as a headless
+    /// fleet file places its vehicles); optional top-level home = [LAT, LON, ALT]
     /// and proximity_m. Command-line options apply to every vehicle, as with
     /// --count (--airframe to the entries that name none); --home and
     /// --proximity override the file's.

@@ -8,13 +8,16 @@
 //! estimator and whether it is fed back, sensor noise and its seed, failures
 //! injected at given instants (`[[fault]]`, see [`fault`]), and the
 //! duration. See `tools/scenarios/` for examples. Errors name the file, the
-//! field and the problem.
+//! field and the problem. Headless fleets ([`fleet`]) fly several in one
+//! world; [`placement`] is where a fleet file's vehicles spawn, read the same
+//! way for the daemon's fleet files.
 
 pub mod campaign;
 mod csv_log;
 pub mod fault;
 pub mod fleet;
 mod mission;
+pub mod placement;
 mod run;
 mod trajectory;
 

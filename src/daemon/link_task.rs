@@ -414,16 +414,9 @@ mod tests {
     /// A link task whose simulation thread is stalled: the test holds the
     /// inbox and serves it (or not) by hand.
     async fn stalled() -> (LinkTask, super::super::inbox::Inbox<SimRequest>) {
-        use crate::airframe::Airframe;
-        use crate::geo::GeoPoint;
         use crate::link::LinkConfig;
         use crate::link::streams::{Identity, gcs_rates};
-        use crate::lockstep::Lockstep;
-        use crate::sim::SensorConfig;
-        let airframe = Airframe::load("quad").unwrap();
-        let store = ParamStore::new(&airframe);
-        let mut core =
-            Lockstep::one_vehicle(&airframe, GeoPoint::PX4_SITL_HOME, &store, SensorConfig::default()).unwrap();
+        let (store, mut core) = crate::daemon::testing::quad();
         let (_tel_tx, tel) = watch::channel(core.snapshot(0));
         let (_lost_tx, link_lost) = watch::channel(false);
         let (events, events_rx) = broadcast::channel(16);

@@ -74,19 +74,11 @@ impl StateLock {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::path::PathBuf;
-
-    /// A fresh directory under the system temp dir for one test.
-    fn scratch(test: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("rotorpilot-lock-{}-{test}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        d
-    }
+    use crate::daemon::testing::scratch;
 
     #[test]
     fn a_second_lock_on_one_dir_is_refused_with_the_holders_pid() {
-        let dir = scratch("second").join("state/0");
+        let dir = scratch("lock-second").join("state/0");
         let first = StateLock::take(&dir).unwrap();
         let err = StateLock::take(&dir).unwrap_err().to_string();
         assert!(
@@ -103,7 +95,7 @@ mod tests {
 
     #[test]
     fn a_state_dir_below_a_file_names_the_dir_and_the_cause_once() {
-        let file = scratch("below-file").join("afile");
+        let file = scratch("lock-below-file").join("afile");
         std::fs::write(&file, "x").unwrap();
         let err = StateLock::take(&file.join("sub")).unwrap_err();
         let text = format!("{err:#}");

@@ -65,13 +65,13 @@ mod saver;
 mod signing;
 mod sim_thread;
 mod supervise;
+#[cfg(test)]
+mod testing;
 mod tlog;
 mod ulog_file;
 
 pub use config::{Config, LinkSpec, parse_home, resolve};
-pub use fleet::{
-    DEFAULT_PROXIMITY_M, DEFAULT_STATE_ROOT, FLEET_SPACING_M, FleetConfig, FleetOptions, MAX_INSTANCE, Remote,
-};
+pub use fleet::{DEFAULT_PROXIMITY_M, DEFAULT_STATE_ROOT, FleetConfig, FleetOptions, MAX_INSTANCE, Remote};
 
 use std::future::Future;
 use std::net::SocketAddr;
@@ -483,21 +483,13 @@ impl Daemon {
         // each state directory stays locked until its final save is done (run returns)
         let mut held_locks = Vec::with_capacity(vehicles.len());
         for (i, v) in vehicles.into_iter().enumerate() {
-            let Vehicle {
-                config,
-                params,
-                warnings,
-                sockets,
-                log_dir,
-                recorder,
-                signing: vehicle_signing,
-                state_lock,
-            } = v;
-            tasks.push(tokio::spawn(signing::persist(vehicle_signing.clone(), stop_rx.clone())));
-            held_locks.push(state_lock);
-            let params = Arc::new(Mutex::new(params));
+            let config = v.config;
+            tasks.push(tokio::spawn(signing::persist(v.signing.clone(), stop_rx.clone())));
+            held_locks.push(v.state_lock);
+            let params = Arc::new(Mutex::new(v.params));
             // the vehicle's ULog (`--log-dir`), started before the first step
-            let ulog = log_dir
+            let ulog = v
+                .log_dir
                 .as_deref()
                 .and_then(|d| ulog_file::UlogFile::create(d, &params, &core, i));
             let path = config.params_path();
@@ -523,7 +515,7 @@ impl Daemon {
                 wall_timers: Vec::new(),
                 link_lost: link_lost_tx,
                 ulog,
-                recorder,
+                recorder: v.recorder,
             });
             // one writer per file: the saver, links' write-through and the final save share its lock
             let params_file = ParamsFile::new(path.clone());
@@ -546,7 +538,7 @@ impl Daemon {
                 system_id: config.system_id(),
                 component_id: 1,
             };
-            for (index, (spec, socket)) in sockets.into_iter().enumerate() {
+            for (index, (spec, socket)) in v.sockets.into_iter().enumerate() {
                 let mut link = Link::new(
                     LinkConfig {
                         name: spec.name.clone(),
@@ -557,7 +549,7 @@ impl Daemon {
                     },
                     Instant::now().into_std(),
                 );
-                link.set_signing(vehicle_signing.shared.clone(), u8::try_from(index).unwrap_or(u8::MAX));
+                link.set_signing(v.signing.shared.clone(), u8::try_from(index).unwrap_or(u8::MAX));
                 link_names.push(format!("{}{} link", vehicle_prefix(lone, config.instance), spec.name));
                 links.push(LinkTask {
                     link,
@@ -572,15 +564,16 @@ impl Daemon {
                     params_file: params_file.clone(),
                     dests: Vec::new(),
                     send_errors: 0,
-                    tlog: log_dir
+                    tlog: v
+                        .log_dir
                         .as_deref()
                         .map(|d| tlog::Tlog::create(d, &tlog::file_name(index, &spec.name)))
                         .unwrap_or_default(),
-                    signing_changed: vehicle_signing.changed.clone(),
+                    signing_changed: v.signing.changed.clone(),
                 });
             }
             // the links are subscribed: they send it once they run
-            saver::announce_params_warnings(&warnings, &ev_tx);
+            saver::announce_params_warnings(&v.warnings, &ev_tx);
             finals.push((config.instance, params, params_file, plans_file, tel_rx));
         }
         // stops the simulation thread out of band (a full queue cannot hold it up)

@@ -164,17 +164,8 @@ mod tests {
 
     #[test]
     fn a_status_text_is_logged_at_the_step_it_was_raised_not_when_drained() {
-        let airframe = crate::airframe::Airframe::load("quad").unwrap();
-        let store = ParamStore::new(&airframe);
-        let mut core = Lockstep::one_vehicle(
-            &airframe,
-            crate::geo::GeoPoint::PX4_SITL_HOME,
-            &store,
-            crate::sim::SensorConfig::default(),
-        )
-        .unwrap();
-        let dir = std::env::temp_dir().join(format!("rotorpilot-ulog-stamp-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let (store, mut core) = crate::daemon::testing::quad();
+        let dir = crate::daemon::testing::scratch("ulog-stamp");
         let params = Arc::new(Mutex::new(store));
         let mut log = UlogFile::create(&dir, &params, &core, 0);
         assert!(log.is_some());

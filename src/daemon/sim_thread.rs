@@ -34,6 +34,15 @@ const CHUNK_VEHICLE_STEPS: u64 = 50;
 /// At most this much wall time is spent stepping per tick; the rest waits.
 const MAX_BATCH_WALL: Duration = Duration::from_millis(20);
 
+/// What follows a command's answer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum AfterAnswer {
+    /// Nothing: the simulation goes on.
+    GoOn,
+    /// The daemon stops (an accepted shutdown).
+    StopDaemon,
+}
+
 /// The simulation thread's state.
 pub(super) struct Sim {
     pub(super) core: Lockstep<Autopilot>,
@@ -211,11 +220,11 @@ impl Sim {
         match r {
             SimRequest::Command { command, reply } => {
                 let mut outcome = self.command(v, command);
-                let mut exit = false;
+                let mut then = AfterAnswer::GoOn;
                 if let AutopilotCommand::Power(action) = command
                     && outcome == CommandOutcome::Accepted
                 {
-                    (outcome, exit) = self.power(v, action);
+                    (outcome, then) = self.power(v, action);
                 }
                 // Publish before answering: a client that acts on the ACK (disarm,
                 // then shutdown) must find the links already seeing the new state.
@@ -227,7 +236,7 @@ impl Sim {
                 if let Some(tx) = reply {
                     let _ = tx.send(outcome);
                 }
-                if exit {
+                if then == AfterAnswer::StopDaemon {
                     // after the answer: PX4 SITL exits after acknowledging
                     let _ = self.exit.try_send(());
                 }
@@ -256,21 +265,17 @@ impl Sim {
 
     /// PREFLIGHT_REBOOT_SHUTDOWN that the autopilot accepted (it refuses
     /// both while armed: the decision is its), carried out here, the one
-    /// place: the answer for the ACK, and whether the daemon is to stop once
-    /// it is sent.
+    /// place: the answer for the ACK, and what follows once it is sent.
     ///
     /// - Reboot (p1 = 1): the vehicle restarts on the ground at home,
     ///   disarmed, from the current parameters; simulated time goes on.
     ///   Done before the ACK, so that ACCEPTED means done.
     /// - Shutdown (p1 = 2): the daemon stops (every task, the final saves),
     ///   as PX4 SITL exits, after the ACK.
-    fn power(&mut self, v: usize, action: PowerAction) -> (CommandOutcome, bool) {
+    fn power(&mut self, v: usize, action: PowerAction) -> (CommandOutcome, AfterAnswer) {
         match action {
-            PowerAction::Reboot => (self.reboot(v), false),
-            PowerAction::Shutdown => {
-                info!(vehicle = v, "shutdown requested by a client");
-                (CommandOutcome::Accepted, true)
-            }
+            PowerAction::Reboot => (self.reboot(v), AfterAnswer::GoOn),
+            PowerAction::Shutdown => (CommandOutcome::Accepted, AfterAnswer::StopDaemon),
         }
     }
 

@@ -18,7 +18,7 @@
 //! | `config` | [`Config`], [`LinkSpec`]: the instance and PX4 SITL's port rules, home, speed, state directory |
 //! | `fleet` | [`FleetConfig`]: the vehicles of `--count N` and `--fleet FILE`, their spawn points, the fleet file and its errors |
 //! | `sim_thread` | the simulation thread: the only owner of the core, paced against wall time; every input is applied (and recorded) there, between steps; reboot and shutdown are carried out there |
-//! | `messages` | what the links and the simulation thread say to each other ([`SimRequest`](messages::SimRequest), [`Event`](messages::Event)), a request's answer and its claim, the parameter store's lock |
+//! | `messages` | what the links and the simulation thread say to each other (`SimRequest`, `Event`), a request's answer and its claim, the parameter store's lock |
 //! | `inbox` | the requests of each vehicle's links to the simulation thread: a bounded queue per vehicle, served round robin |
 //! | `link_task` | one task per UDP link: datagrams in, streams and answers out |
 //! | `logs` | the run's log directory below `--log-dir` |

@@ -271,8 +271,8 @@ fn bad_fleets_are_answered_clearly() {
             ":6:9: vehicle[1].count: must be 1",
         ),
         (
-            format!("[fleet]\nproximity_m = 2.0\n[[vehicle]]\n{hover}count = 3\n"),
-            "vehicle[1].spacing_m: needed",
+            format!("[fleet]\nproximity_m = 2.0\n[[vehicle]]\n{hover}count = 3\nspacing_m = [1.0, inf]\n"),
+            ":7:13: vehicle[1].spacing_m: expected [NORTH, EAST]",
         ),
         ("[fleet]\nproximity_m = 2.0\n".into(), "no [[vehicle]]"),
         (

@@ -192,6 +192,11 @@ mod tests {
         assert!(t.starts_with(&format!("{} (REAL32)\n", PARAMS[0].name)));
     }
 
+    /// Parameter `name`'s object in the JSON reference.
+    fn param<'a>(js: &'a serde_json::Value, name: &str) -> &'a serde_json::Value {
+        js.as_array().unwrap().iter().find(|p| p["name"] == name).unwrap()
+    }
+
     #[test]
     fn formats_carry_type_range_unit_values_and_reboot() {
         let md = markdown();
@@ -213,12 +218,7 @@ mod tests {
         assert!(t.contains("  Default 5 m/s, range 0.5 .. 20 m/s\n"));
         assert!(t.contains("GF_ACTION (INT32)\n  Geofence breach action\n  Values: 0: none, 1: warning, 2: Hold"));
         let js = json();
-        let gf = js
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|p| p["name"] == "GF_ACTION")
-            .unwrap();
+        let gf = param(&js, "GF_ACTION");
         assert_eq!(gf["type"], "INT32");
         assert_eq!(gf["default"], serde_json::json!(2));
         assert_eq!(
@@ -226,12 +226,7 @@ mod tests {
             serde_json::json!({"value": 3, "description": "Return"})
         );
         assert_eq!(gf["reboot_required"], false);
-        let alt = js
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|p| p["name"] == "MIS_TAKEOFF_ALT")
-            .unwrap();
+        let alt = param(&js, "MIS_TAKEOFF_ALT");
         assert_eq!(alt["default"], serde_json::json!(2.5));
         assert_eq!(alt["unit"], "m");
     }

@@ -15,8 +15,13 @@
 //! airframe = "octo"                      # optional (else --airframe); a relative path is read from the file's directory
 //! offset_m = [0.0, 5.0]                  # optional: spawn NORTH, EAST of the origin [m]; else 3 m x instance north
 //! params = { MPC_XY_CRUISE = 8.0 }       # optional: set at start, over the vehicle's stored parameter file
-//! count = 4                              # optional: instances instance..instance+count-1, each 3 m further north
+//! count = 4                              # optional: instances instance..instance+count-1
+//! spacing_m = [3.0, 0.0]                 # optional: NORTH, EAST [m] between them (else 3 m north)
 //! ```
+//!
+//! `count`, `offset_m` and `spacing_m` are read as a headless fleet's
+//! ([`crate::scenario::placement`]: one set of rules), numbering the
+//! vehicles by instance.
 //!
 //! Errors name the file, the line and column, the field (`vehicle[2].instance`,
 //! entries counted from 1 as campaign paths count them) and the problem, as
@@ -35,14 +40,8 @@ use super::{Config, LinkSpec};
 use crate::airframe::Airframe;
 use crate::geo::GeoPoint;
 use crate::params::{PARAMS, ParamStore, ParamType, ParamValue};
+use crate::scenario::placement::Placement;
 use crate::tomlfile::{self, FileError};
-
-/// Distance [m] between the spawn points of consecutive instances, north
-/// (PX4 gazebo-classic `sitl_multiple_run.sh` spawns instance N at y = 3N m):
-/// instance i spawns `FLEET_SPACING_M * i` north of the fleet's origin, by
-/// absolute instance, so that fleets split across processes by instance
-/// ranges keep one layout.
-pub const FLEET_SPACING_M: f64 = 3.0;
 
 /// Default root of the vehicles' state directories (`ROOT/i`), as a lone
 /// vehicle's default `rotorpilot-state/i`.
@@ -158,8 +157,8 @@ impl FleetConfig {
     }
 
     /// `--instance first --count n`: instances `first..first+n-1` with the
-    /// options' airframe, instance i spawned `FLEET_SPACING_M * i` north of
-    /// the origin (`--home`, else PX4's).
+    /// options' airframe, in PX4's layout ([`Placement::px4`]: instance i
+    /// spawned 3 m x i north of the origin, `--home`, else PX4's).
     ///
     /// # Errors
     /// `n` is 0, the instances pass [`MAX_INSTANCE`], the airframe does not load.
@@ -168,10 +167,11 @@ impl FleetConfig {
         check_ids(u64::from(first), u64::from(n)).map_err(|p| anyhow::anyhow!("--count {n}: {p}"))?;
         Airframe::load(&opts.base.airframe)?;
         let origin = opts.home.unwrap_or(GeoPoint::PX4_SITL_HOME);
+        let place = Placement::px4(u64::from(first), n as usize);
         let vehicles = (0..n)
             .map(|k| {
                 let i = first + u8::try_from(k).unwrap_or(MAX_INSTANCE);
-                opts.vehicle(i, &opts.base.airframe, origin, [FLEET_SPACING_M * f64::from(i), 0.0])
+                opts.vehicle(i, &opts.base.airframe, origin, place.spawn(k as usize))
             })
             .collect();
         Ok(Self {
@@ -344,45 +344,36 @@ impl Reader<'_> {
         })
     }
 
-    /// The instances `first..=last` of entry `k` (counted from 1): in range
-    /// and taken by no earlier entry.
-    fn instances(&mut self, k: usize, entry_at: usize, v: &RawVehicle) -> Result<(u8, u8), FileError> {
-        let field = |name: &str| format!("vehicle[{k}].{name}");
+    /// The first instance of entry `k` (counted from 1): given and in range.
+    fn first_instance(&self, k: usize, entry_at: usize, v: &RawVehicle) -> Result<u8, FileError> {
+        let field = format!("vehicle[{k}].instance");
         let Some(instance) = &v.instance else {
             return Err(self.at(
                 entry_at,
-                format!(
-                    "{}: missing: which PX4 SITL instance (system id instance + 1)?",
-                    field("instance")
-                ),
+                format!("{field}: missing: which PX4 SITL instance (system id instance + 1)?"),
             ));
         };
         let at = instance.span().start;
         let first = *instance.get_ref();
         if first < 0 {
-            return Err(self.at(
-                at,
-                format!("{}: must be in 0..={MAX_INSTANCE}, got {first}", field("instance")),
-            ));
+            return Err(self.at(at, format!("{field}: must be in 0..={MAX_INSTANCE}, got {first}")));
         }
-        check_ids(first.unsigned_abs(), 1).map_err(|p| self.at(at, format!("{}: {p}", field("instance"))))?;
-        let n = match &v.count {
-            None => 1,
-            Some(c) if *c.get_ref() >= 1 => {
-                check_ids(first.unsigned_abs(), c.get_ref().unsigned_abs())
-                    .map_err(|p| self.at(c.span().start, format!("{}: {p}", field("count"))))?;
-                *c.get_ref()
-            }
-            Some(c) => {
-                return Err(self.at(
-                    c.span().start,
-                    format!("{}: must be at least 1, got {}", field("count"), c.get_ref()),
-                ));
-            }
-        };
-        // both in 0..=MAX_INSTANCE, checked above
-        let first = u8::try_from(first).unwrap_or(MAX_INSTANCE);
-        let last = u8::try_from(i64::from(first) + n - 1).unwrap_or(MAX_INSTANCE);
+        check_ids(first.unsigned_abs(), 1).map_err(|p| self.at(at, format!("{field}: {p}")))?;
+        // in 0..=MAX_INSTANCE, checked above
+        Ok(u8::try_from(first).unwrap_or(MAX_INSTANCE))
+    }
+
+    /// The last of the `n` instances of entry `k` from `first`: within the
+    /// system ids and taken by no earlier entry, which it then takes.
+    fn take_instances(&mut self, k: usize, first: u8, n: usize, v: &RawVehicle) -> Result<u8, FileError> {
+        let field = |name: &str| format!("vehicle[{k}].{name}");
+        if let Some(c) = &v.count {
+            check_ids(u64::from(first), n as u64)
+                .map_err(|p| self.at(c.span().start, format!("{}: {p}", field("count"))))?;
+        }
+        let at = v.instance.as_ref().map_or(0, |i| i.span().start);
+        // within MAX_INSTANCE, checked above
+        let last = u8::try_from(usize::from(first) + n - 1).unwrap_or(MAX_INSTANCE);
         if let Some(&(a, b, j, other_at)) = self.taken.iter().find(|(a, b, ..)| *a <= last && first <= *b) {
             let x = a.max(first);
             let mine = if n > 1 {
@@ -399,7 +390,7 @@ impl Reader<'_> {
             return Err(self.at(at, format!("{}: {mine} vehicle[{j}]'s ({theirs})", field("instance"))));
         }
         self.taken.push((first, last, k, at));
-        Ok((first, last))
+        Ok(last)
     }
 
     /// The airframe of entry `k`, loaded (once per name) to check it.
@@ -429,36 +420,27 @@ impl Reader<'_> {
         }
     }
 
-    /// The vehicles of entry `k` (counted from 1).
+    /// The vehicles of entry `k` (counted from 1), placed by
+    /// [`Placement`] (numbered by instance).
     fn entry(&mut self, k: usize, entry: Spanned<RawVehicle>, origin: GeoPoint) -> Result<Vec<Config>, FileError> {
         let entry_at = entry.span().start;
         let v = entry.into_inner();
-        let (first, last) = self.instances(k, entry_at, &v)?;
+        let first = self.first_instance(k, entry_at, &v)?;
+        let place = Placement::read(
+            k,
+            u64::from(first),
+            v.count.as_ref(),
+            v.offset_m.as_ref(),
+            v.spacing_m.as_ref(),
+        )
+        .map_err(|(o, m)| self.at(o, m))?;
+        let last = self.take_instances(k, first, place.count(), &v)?;
         let airframe = self.airframe(k, entry_at, &v)?;
-        let offset = match &v.offset_m {
-            None => None,
-            Some(o) => match o.get_ref()[..] {
-                [north, east] if north.is_finite() && east.is_finite() => Some([north, east]),
-                _ => {
-                    return Err(self.at(
-                        o.span().start,
-                        format!(
-                            "vehicle[{k}].offset_m: expected [NORTH, EAST] in metres, two finite numbers, got {:?}",
-                            o.get_ref()
-                        ),
-                    ));
-                }
-            },
-        };
         let params = param_overrides(v.params, &format!("vehicle[{k}].params")).map_err(|(o, m)| self.at(o, m))?;
         Ok((first..=last)
-            .map(|i| {
-                let spawn = match offset {
-                    // the entry's first at the offset, each next one 3 m further north
-                    Some([north, east]) => [north + FLEET_SPACING_M * f64::from(i - first), east],
-                    None => [FLEET_SPACING_M * f64::from(i), 0.0],
-                };
-                let mut c = self.opts.vehicle(i, &airframe, origin, spawn);
+            .enumerate()
+            .map(|(n, i)| {
+                let mut c = self.opts.vehicle(i, &airframe, origin, place.spawn(n));
                 c.param_overrides.clone_from(&params);
                 c
             })
@@ -540,6 +522,7 @@ struct RawVehicle {
     offset_m: Option<Spanned<Vec<f64>>>,
     params: Option<std::collections::BTreeMap<Spanned<String>, Spanned<Value>>>,
     count: Option<Spanned<i64>>,
+    spacing_m: Option<Spanned<Vec<f64>>>,
 }
 
 #[cfg(test)]
@@ -562,6 +545,13 @@ mod tests {
         Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("tests/fixtures/fleets")
             .join(name)
+    }
+
+    /// The fixture's path as errors print it, and its error.
+    fn fixture_error(name: &str) -> (String, String) {
+        let path = fixture(name);
+        let e = FleetConfig::from_file(&path, &opts()).unwrap_err();
+        (path.display().to_string(), e.to_string())
     }
 
     /// The error of fleet TOML `text` (labelled `f.toml`), as printed.
@@ -624,10 +614,7 @@ mod tests {
 
     #[test]
     fn a_duplicate_instance_names_the_entry_that_has_it() {
-        let e = FleetConfig::from_file(&fixture("duplicate-instance.toml"), &opts())
-            .unwrap_err()
-            .to_string();
-        let file = fixture("duplicate-instance.toml").display().to_string();
+        let (file, e) = fixture_error("duplicate-instance.toml");
         assert_eq!(
             e,
             format!("{file}:10:12: vehicle[3].instance: instance 3 is already vehicle[1]'s (line 2: instances 0..3)")
@@ -640,10 +627,7 @@ mod tests {
 
     #[test]
     fn an_unknown_airframe_is_reported_once_at_its_line() {
-        let e = FleetConfig::from_file(&fixture("unknown-airframe.toml"), &opts())
-            .unwrap_err()
-            .to_string();
-        let file = fixture("unknown-airframe.toml").display().to_string();
+        let (file, e) = fixture_error("unknown-airframe.toml");
         assert_eq!(
             e,
             format!(
@@ -669,10 +653,7 @@ mod tests {
 
     #[test]
     fn more_vehicles_than_system_ids_are_refused() {
-        let e = FleetConfig::from_file(&fixture("too-many.toml"), &opts())
-            .unwrap_err()
-            .to_string();
-        let file = fixture("too-many.toml").display().to_string();
+        let (file, e) = fixture_error("too-many.toml");
         assert_eq!(
             e,
             format!(
@@ -728,7 +709,7 @@ mod tests {
             ),
             (
                 "[[vehicle]]\ninstance = 0\ncount = 0\n",
-                "f.toml:3:9: vehicle[1].count: must be at least 1, got 0",
+                "f.toml:3:9: vehicle[1].count: must be 1 to 100000, got 0",
             ),
             (
                 "[[vehicle]]\ninstance = 0\noffset_m = [nan, 1.0]\n",

@@ -12,14 +12,12 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use tokio::net::UdpSocket;
-use tokio::sync::{Notify, broadcast, mpsc, watch};
+use tokio::sync::{Notify, broadcast, watch};
 use tokio::time::Instant;
 use tracing::{debug, warn};
 
-use super::reply::{Answer, reply};
-use super::saver::lock;
-use super::sim_thread::{Event, SimRequest};
-use crate::autopilot::{AutopilotCommand, CommandOutcome, PowerAction};
+use super::messages::{Answer, Event, SimRequest, lock, reply};
+use crate::autopilot::{AutopilotCommand, CommandOutcome};
 use crate::link::{Effect, Link, Outgoing, To};
 use crate::lockstep::Snapshot;
 use crate::mission::MissionResult;
@@ -39,7 +37,6 @@ pub(super) struct LinkTask {
     pub(super) save: Arc<Notify>,
     /// The parameter file, written through on each accepted set before the echo.
     pub(super) params_file: super::saver::ParamsFile,
-    pub(super) exit: mpsc::Sender<()>,
     pub(super) dests: Vec<SocketAddr>,
     pub(super) send_errors: u64,
     /// This link's `.tlog` (`--log-dir`; inert without).
@@ -51,7 +48,7 @@ pub(super) struct LinkTask {
 /// How long a link waits for the simulation thread to take a request up
 /// before giving it up: ACK FAILED ("autopilot did not answer"), PARAM_ERROR,
 /// or MISSION_ACK ERROR, and the request is never applied. One taken up in
-/// time is answered when done, however late ([`super::reply`]).
+/// time is answered when done, however late ([`super::messages`]).
 const COMMAND_TIMEOUT: Duration = Duration::from_secs(1);
 
 fn unix_time_us() -> u64 {
@@ -226,10 +223,6 @@ impl LinkTask {
                     self.flush_muted(false).await;
                 } else {
                     self.flush().await;
-                }
-                if command == AutopilotCommand::Power(PowerAction::Shutdown) && outcome == CommandOutcome::Accepted {
-                    // PX4 SITL exits after acknowledging
-                    let _ = self.exit.try_send(());
                 }
             }
             Effect::SetParam { ticket, value } => {
@@ -421,20 +414,12 @@ mod tests {
     /// A link task whose simulation thread is stalled: the test holds the
     /// inbox and serves it (or not) by hand.
     async fn stalled() -> (LinkTask, super::super::inbox::Inbox<SimRequest>) {
-        use crate::airframe::Airframe;
-        use crate::geo::GeoPoint;
         use crate::link::LinkConfig;
         use crate::link::streams::{Identity, gcs_rates};
-        use crate::lockstep::Lockstep;
-        use crate::sim::SensorConfig;
-        let airframe = Airframe::load("quad").unwrap();
-        let store = ParamStore::new(&airframe);
-        let mut core =
-            Lockstep::one_vehicle(&airframe, GeoPoint::PX4_SITL_HOME, &store, SensorConfig::default()).unwrap();
+        let (mut core, store) = crate::lockstep::test_quad();
         let (_tel_tx, tel) = watch::channel(core.snapshot(0));
         let (_lost_tx, link_lost) = watch::channel(false);
         let (events, events_rx) = broadcast::channel(16);
-        let (exit, _) = mpsc::channel(1);
         let inbox = super::super::inbox::inbox::<SimRequest>(1);
         let dir = std::env::temp_dir().join(format!("rotorpilot-stalled-{}", std::process::id()));
         let task = LinkTask {
@@ -461,7 +446,6 @@ mod tests {
             save: Arc::new(Notify::new()),
             params_file: super::super::saver::ParamsFile::new(dir.join("params.toml")),
             signing_changed: Arc::new(Notify::new()),
-            exit,
             dests: Vec::new(),
             send_errors: 0,
             tlog: super::super::tlog::Tlog::default(),
@@ -478,10 +462,7 @@ mod tests {
         assert!(t0.elapsed() >= COMMAND_TIMEOUT);
         // the simulation wakes up: the request is there, and it must drop it
         let (_, r) = inbox.try_recv().unwrap();
-        assert!(
-            super::super::reply::given_up(&r),
-            "a FAILED command must never be applied"
-        );
+        assert!(!r.claim(), "a FAILED command must never be applied");
     }
 
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -490,7 +471,7 @@ mod tests {
         // the simulation takes it up in time, then takes longer than the timeout to apply it
         let sim = std::thread::spawn(move || {
             let (_, r) = inbox.recv_timeout(Duration::from_secs(5)).unwrap();
-            assert!(!super::super::reply::given_up(&r), "taken up in time");
+            assert!(r.claim(), "taken up in time");
             std::thread::sleep(COMMAND_TIMEOUT + Duration::from_millis(500));
             match r {
                 SimRequest::Command { reply: Some(x), .. } => {

@@ -78,7 +78,7 @@ mod tests {
 
     #[test]
     fn a_second_lock_on_one_dir_is_refused_with_the_holders_pid() {
-        let dir = scratch("second").join("state/0");
+        let dir = scratch("lock-second").join("state/0");
         let first = StateLock::take(&dir).unwrap();
         let err = StateLock::take(&dir).unwrap_err().to_string();
         assert!(
@@ -95,7 +95,7 @@ mod tests {
 
     #[test]
     fn a_state_dir_below_a_file_names_the_dir_and_the_cause_once() {
-        let file = scratch("below-file").join("afile");
+        let file = scratch("lock-below-file").join("afile");
         std::fs::write(&file, "x").unwrap();
         let err = StateLock::take(&file.join("sub")).unwrap_err();
         let text = format!("{err:#}");

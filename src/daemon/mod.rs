@@ -17,7 +17,8 @@
 //! |---|---|
 //! | `config` | [`Config`], [`LinkSpec`]: the instance and PX4 SITL's port rules, home, speed, state directory |
 //! | `fleet` | [`FleetConfig`]: the vehicles of `--count N` and `--fleet FILE`, their spawn points, the fleet file and its errors |
-//! | `sim_thread` | the simulation thread: the only owner of the core, paced against wall time; commands and parameter sets are applied there, between steps |
+//! | `sim_thread` | the simulation thread: the only owner of the core, paced against wall time; every input is applied (and recorded) there, between steps; reboot and shutdown are carried out there |
+//! | `messages` | what the links and the simulation thread say to each other (`SimRequest`, `Event`), a request's answer and its claim, the parameter store's lock |
 //! | `inbox` | the requests of each vehicle's links to the simulation thread: a bounded queue per vehicle, served round robin |
 //! | `link_task` | one task per UDP link: datagrams in, streams and answers out |
 //! | `logs` | the run's log directory below `--log-dir` |
@@ -47,7 +48,9 @@
 //! current parameters, on the ground at the configured home, disarmed; the
 //! simulated clock keeps counting, so `time_boot_ms` stays monotonic for the
 //! clients already connected. Shutdown (p1 = 2) stops the daemon, as PX4 SITL
-//! exits. Both are refused while armed (the autopilot decides).
+//! exits. Both are refused while armed (the autopilot decides); both are
+//! carried out by the simulation thread (`Sim::power`), reboot before the
+//! ACK, shutdown after it.
 
 mod config;
 mod fleet;
@@ -55,9 +58,9 @@ mod inbox;
 mod link_task;
 mod lock;
 mod logs;
+mod messages;
 mod ready;
 mod recorder;
-mod reply;
 mod saver;
 mod signing;
 mod sim_thread;
@@ -66,9 +69,7 @@ mod tlog;
 mod ulog_file;
 
 pub use config::{Config, LinkSpec, parse_home, resolve};
-pub use fleet::{
-    DEFAULT_PROXIMITY_M, DEFAULT_STATE_ROOT, FLEET_SPACING_M, FleetConfig, FleetOptions, MAX_INSTANCE, Remote,
-};
+pub use fleet::{DEFAULT_PROXIMITY_M, DEFAULT_STATE_ROOT, FleetConfig, FleetOptions, MAX_INSTANCE, Remote};
 
 use std::future::Future;
 use std::net::SocketAddr;
@@ -94,8 +95,9 @@ use crate::mission::{MissionType, Plans};
 use crate::params::{ParamStore, ParamValue};
 use crate::sim::SensorConfig;
 use link_task::LinkTask;
+use messages::{Event, SimRequest};
 use saver::{ParamsFile, PlansFile, plan_saver, saver};
-use sim_thread::{Event, Sim, SimRequest, VehicleIo};
+use sim_thread::{Sim, VehicleIo};
 
 /// Fleets this large are stepped on every core ([`Lockstep::set_threads`]).
 const PARALLEL_FLEET: usize = 64;
@@ -202,10 +204,10 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
         // one daemon per state directory, before its files are read (lock.rs)
         locks.push(
             lock::StateLock::take(&c.state_dir)
-                .map_err(|e| anyhow::anyhow!("{}{}", which(c), crate::cli::error_chain(&e)))?,
+                .map_err(|e| anyhow::anyhow!("{}{}", which(c), crate::error::error_chain(&e)))?,
         );
-        let (params, warnings) =
-            vehicle_params(c, &airframe).map_err(|e| anyhow::anyhow!("{}{}", which(c), crate::cli::error_chain(&e)))?;
+        let (params, warnings) = vehicle_params(c, &airframe)
+            .map_err(|e| anyhow::anyhow!("{}{}", which(c), crate::error::error_chain(&e)))?;
         airframes.push(airframe);
         stores.push((params, warnings));
     }
@@ -252,7 +254,7 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
                     "cannot restore the stored mission, geofence and rally points \
                      (mend or remove the file, or start with --reset-plans to discard them)",
                 )
-                .map_err(|e| anyhow::anyhow!("{}{}", which(&config), crate::cli::error_chain(&e)))?
+                .map_err(|e| anyhow::anyhow!("{}{}", which(&config), crate::error::error_chain(&e)))?
         };
         core.pilot_mut(i).restore_plans(plans);
         let vehicle_signing =
@@ -479,21 +481,13 @@ impl Daemon {
         // each state directory stays locked until its final save is done (run returns)
         let mut held_locks = Vec::with_capacity(vehicles.len());
         for (i, v) in vehicles.into_iter().enumerate() {
-            let Vehicle {
-                config,
-                params,
-                warnings,
-                sockets,
-                log_dir,
-                recorder,
-                signing: vehicle_signing,
-                state_lock,
-            } = v;
-            tasks.push(tokio::spawn(signing::persist(vehicle_signing.clone(), stop_rx.clone())));
-            held_locks.push(state_lock);
-            let params = Arc::new(Mutex::new(params));
+            let config = v.config;
+            tasks.push(tokio::spawn(signing::persist(v.signing.clone(), stop_rx.clone())));
+            held_locks.push(v.state_lock);
+            let params = Arc::new(Mutex::new(v.params));
             // the vehicle's ULog (`--log-dir`), started before the first step
-            let ulog = log_dir
+            let ulog = v
+                .log_dir
                 .as_deref()
                 .and_then(|d| ulog_file::UlogFile::create(d, &params, &core, i));
             let path = config.params_path();
@@ -519,7 +513,7 @@ impl Daemon {
                 wall_timers: Vec::new(),
                 link_lost: link_lost_tx,
                 ulog,
-                recorder,
+                recorder: v.recorder,
             });
             // one writer per file: the saver, links' write-through and the final save share its lock
             let params_file = ParamsFile::new(path.clone());
@@ -542,7 +536,7 @@ impl Daemon {
                 system_id: config.system_id(),
                 component_id: 1,
             };
-            for (index, (spec, socket)) in sockets.into_iter().enumerate() {
+            for (index, (spec, socket)) in v.sockets.into_iter().enumerate() {
                 let mut link = Link::new(
                     LinkConfig {
                         name: spec.name.clone(),
@@ -553,7 +547,7 @@ impl Daemon {
                     },
                     Instant::now().into_std(),
                 );
-                link.set_signing(vehicle_signing.shared.clone(), u8::try_from(index).unwrap_or(u8::MAX));
+                link.set_signing(v.signing.shared.clone(), u8::try_from(index).unwrap_or(u8::MAX));
                 link_names.push(format!("{}{} link", vehicle_prefix(lone, config.instance), spec.name));
                 links.push(LinkTask {
                     link,
@@ -566,18 +560,18 @@ impl Daemon {
                     events_rx: ev_tx.subscribe(),
                     save: save.clone(),
                     params_file: params_file.clone(),
-                    exit: exit_tx.clone(),
                     dests: Vec::new(),
                     send_errors: 0,
-                    tlog: log_dir
+                    tlog: v
+                        .log_dir
                         .as_deref()
                         .map(|d| tlog::Tlog::create(d, &tlog::file_name(index, &spec.name)))
                         .unwrap_or_default(),
-                    signing_changed: vehicle_signing.changed.clone(),
+                    signing_changed: v.signing.changed.clone(),
                 });
             }
             // the links are subscribed: they send it once they run
-            saver::announce_params_warnings(&warnings, &ev_tx);
+            saver::announce_params_warnings(&v.warnings, &ev_tx);
             finals.push((config.instance, params, params_file, plans_file, tel_rx));
         }
         // stops the simulation thread out of band (a full queue cannot hold it up)
@@ -587,6 +581,7 @@ impl Daemon {
             speed,
             tick,
             vehicles: ios,
+            exit: exit_tx,
         };
         let (sim_done_tx, sim_done_rx) = oneshot::channel::<()>();
         let sim_thread = std::thread::Builder::new()
@@ -604,7 +599,6 @@ impl Daemon {
             link_tasks.spawn(name, task.run(stop_rx.clone()));
         }
         let mut link_died: Option<String> = None;
-        drop(exit_tx);
 
         let mut sim_done = sim_done_rx;
         let sim_died = tokio::select! {

@@ -2,9 +2,9 @@
 //! and, with `--log-csv`, its flight CSV (`flight.csv`, the rows of
 //! `rotorpilot simulate --csv`, one per step, with its sidecar
 //! `flight.csv.meta.json`: what flew it, see [`crate::logs::meta::LogMeta`]),
-//! written by the simulation thread. Every input reaches the core through [`Sim::apply`], which
-//! records it; each record line is flushed as it is written, so a killed
-//! daemon leaves a record that replays up to its last input; a write that
+//! written by the simulation thread. Every input reaches the core through
+//! `Sim::apply` (`sim_thread.rs`), which records it here; each record line
+//! is flushed as it is written, so a killed daemon leaves a record that replays up to its last input; a write that
 //! fails (disk full, I/O error) cuts the file back to its last whole line
 //! and ends the record there, so it still replays up to there. The CSV is
 //! buffered (written out whenever 256 KiB are due, and at shutdown).
@@ -14,18 +14,15 @@ use std::io::{BufWriter, Write};
 use std::path::Path;
 
 use anyhow::Context as _;
-use tracing::{info, warn};
+use tracing::warn;
 
-use super::saver::lock;
-use super::sim_thread::Sim;
 use crate::airframe::Airframe;
-use crate::autopilot::{Autopilot, AutopilotCommand, AutopilotError, ClientTimer, CommandOutcome};
+use crate::autopilot::Autopilot;
 use crate::lockstep::Lockstep;
 use crate::lockstep::input::{Applied, Input};
 use crate::logs::csv::{CsvLog, create_csv_file};
 use crate::logs::record::{Header, end_line, header_line, input_line};
-use crate::mission::{MissionResult, PlanChange};
-use crate::params::{ParamStore, ParamValue};
+use crate::params::ParamStore;
 use crate::sim::SensorConfig;
 
 /// The record file's name in the run directory.
@@ -128,7 +125,7 @@ impl Recorder {
     }
 
     /// One input line, written out at once.
-    fn input(&mut self, step: u64, input: &Input, applied: &Applied) {
+    pub(super) fn input(&mut self, step: u64, input: &Input, applied: &Applied) {
         // a proximity event is recorded after its chunk, at the older step
         // that raised it: the end line counts the steps flown, not that
         self.steps = self.steps.max(step);
@@ -202,110 +199,6 @@ impl Drop for Recorder {
             && let Err(e) = l.finish()
         {
             warn!(error = %e, "cannot write {CSV_FILE}");
-        }
-    }
-}
-
-impl Sim {
-    /// Apply one input to vehicle `v` at the current instant (between
-    /// steps), recording it in its record when recording: the only way
-    /// inputs reach the core.
-    pub(super) fn apply(&mut self, v: usize, input: Input) -> Applied {
-        let step = self.core.steps();
-        let io = &mut self.vehicles[v];
-        let applied = {
-            let mut p = lock(&io.params);
-            crate::lockstep::input::apply(&mut self.core, v, &mut p, &input)
-        };
-        if let Some(r) = &mut io.recorder {
-            r.input(step, &input, &applied);
-        }
-        applied
-    }
-
-    /// [`Self::apply`] a command.
-    pub(super) fn command(&mut self, v: usize, command: AutopilotCommand) -> CommandOutcome {
-        match self.apply(v, Input::Command(command)) {
-            Applied::Command(o) => o,
-            other => unreachable!("a command answered {other:?}"),
-        }
-    }
-
-    /// [`Self::apply`] a parameter set.
-    pub(super) fn set_param(&mut self, v: usize, name: &str, value: ParamValue) -> Result<ParamValue, String> {
-        match self.apply(
-            v,
-            Input::SetParam {
-                name: name.to_string(),
-                value,
-            },
-        ) {
-            Applied::SetParam(r) => r,
-            other => unreachable!("a parameter set answered {other:?}"),
-        }
-    }
-
-    /// [`Self::apply`] a plan change.
-    pub(super) fn change_plans(&mut self, v: usize, change: PlanChange) -> Result<u32, MissionResult> {
-        match self.apply(v, Input::ChangePlans(change)) {
-            Applied::Plans(r) => r,
-            other => unreachable!("a plan change answered {other:?}"),
-        }
-    }
-
-    /// [`Self::apply`] a ground station's heartbeat.
-    pub(super) fn gcs_heartbeat(&mut self, v: usize) {
-        self.apply(v, Input::GcsHeartbeat);
-    }
-
-    /// [`Self::apply`] a client timer's expiry on the wall clock.
-    pub(super) fn client_timeout(&mut self, v: usize, timer: ClientTimer, started_s: f64) -> bool {
-        match self.apply(v, Input::ClientTimeout { timer, started_s }) {
-            Applied::ClientTimeout(b) => b,
-            other => unreachable!("a client timeout answered {other:?}"),
-        }
-    }
-
-    /// [`Self::apply`] a reboot from the parameters in force.
-    pub(super) fn reboot_core(&mut self, v: usize) -> Result<(), AutopilotError> {
-        match self.apply(v, Input::Reboot) {
-            Applied::Reboot(r) => r,
-            other => unreachable!("a reboot answered {other:?}"),
-        }
-    }
-
-    /// Record the proximity events the core raised since the last call in
-    /// both vehicles' records (the core announced them itself: recorded,
-    /// not applied; a replay applies them). Called after every chunk of
-    /// steps, before the requests waiting are served, so that the record's
-    /// lines stay in step order.
-    pub(super) fn record_proximity(&mut self) {
-        let events = self.core.drain_proximity_events();
-        let dt = self.core.dt_s();
-        for (t, e) in events {
-            // raised after the step that ended at t: before step t/dt runs
-            let step = (t / dt).round() as u64;
-            for (me, other) in [(e.a, e.b), (e.b, e.a)] {
-                info!(vehicle = me, other = %self.core.label(other), kind = e.kind.name(), distance_m = e.distance_m, "proximity");
-                if let Some(r) = &mut self.vehicles[me].recorder {
-                    let input = Input::Proximity {
-                        other: self.core.label(other).to_string(),
-                        kind: e.kind,
-                        distance_m: e.distance_m,
-                    };
-                    r.input(step, &input, &Applied::Announced);
-                }
-            }
-        }
-    }
-
-    /// After each step: every vehicle's CSV row and ULog topics.
-    pub(super) fn after_step(&mut self) {
-        for io in &mut self.vehicles {
-            if let Some(r) = &mut io.recorder {
-                r.after_step(&self.core);
-            }
-            super::ulog_file::after_step(&mut io.ulog, &mut self.core);
         }
     }
 }

@@ -11,28 +11,21 @@
 //! force, and a `--reset-*` run replaces the old file) and once more at
 //! shutdown by the daemon itself. Writes are atomic (`crate::statefile`).
 
+use std::marker::PhantomData;
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex, MutexGuard};
-
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use tokio::sync::{Notify, broadcast, watch};
 use tracing::{debug, info, warn};
 
-use super::sim_thread::Event;
+use super::messages::{Event, lock};
 use crate::autopilot::{Severity, StatusText, status_text_lines};
 use crate::lockstep::Snapshot;
 use crate::mission::Plans;
 use crate::mission::file::{MissionFileError, save_plans};
 use crate::params::ParamFileError;
 use crate::params::ParamStore;
-
-/// The parameter store, locked (never across an `.await`).
-pub(super) fn lock(p: &Mutex<ParamStore>) -> MutexGuard<'_, ParamStore> {
-    // A panic while holding the lock leaves the store consistent (every
-    // mutation is a single checked set), so a poisoned lock is still usable.
-    p.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
-}
 
 /// A vehicle's parameter file at start ([`ParamStore::load_keeping_bad`]):
 /// a file with lines that do not read, or an empty one, is renamed aside to
@@ -148,19 +141,36 @@ pub(super) async fn keep_saved<F>(
 /// write-through, the one at shutdown) holds the lock while it takes its
 /// snapshot and writes it, so writes never share the temporary file, the
 /// last write holds the latest state, and once the final write at shutdown
-/// is made no late write can put older state over it.
+/// is made no late write can put older state over it. `K` says which file
+/// ([`ParamsFile`], [`PlansFile`]) and so what it saves.
 #[derive(Clone, Debug)]
-pub(super) struct StateFile {
+pub(super) struct StateFile<K> {
     path: PathBuf,
     /// Held while writing; true once the final write is done.
     finished: Arc<Mutex<bool>>,
+    kind: PhantomData<K>,
 }
 
-impl StateFile {
+/// The parameter file's kind ([`ParamsFile`]).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Parameters;
+
+/// The plans file's kind ([`PlansFile`]).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct StoredPlans;
+
+/// The parameter file (`params.toml`).
+pub(super) type ParamsFile = StateFile<Parameters>;
+
+/// The plans file (`missions.json`).
+pub(super) type PlansFile = StateFile<StoredPlans>;
+
+impl<K> StateFile<K> {
     pub(super) fn new(path: PathBuf) -> Self {
         Self {
             path,
             finished: Arc::new(Mutex::new(false)),
+            kind: PhantomData,
         }
     }
 
@@ -186,27 +196,37 @@ impl StateFile {
     }
 }
 
-/// The parameter file ([`StateFile`]).
-#[derive(Clone, Debug)]
-pub(super) struct ParamsFile(StateFile);
-
 impl ParamsFile {
-    pub(super) fn new(path: PathBuf) -> Self {
-        Self(StateFile::new(path))
-    }
-
-    pub(super) fn path(&self) -> &Path {
-        self.0.path()
-    }
-
     /// Write the parameters in force (blocking), the snapshot taken under the file's lock.
     pub(super) fn save(&self, params: &Mutex<ParamStore>) -> Result<(), ParamFileError> {
-        self.0.write(|p| lock(params).clone().save(p))
+        self.write(|p| lock(params).clone().save(p))
     }
 
     /// The last write, at shutdown.
     pub(super) fn save_final(&self, params: &Mutex<ParamStore>) -> Result<(), ParamFileError> {
-        self.0.write_final(|p| lock(params).clone().save(p))
+        self.write_final(|p| lock(params).clone().save(p))
+    }
+}
+
+impl PlansFile {
+    /// Write `plans` (blocking: the file system), unless the final write was made.
+    #[cfg(test)]
+    pub(super) fn save(&self, plans: &Plans) -> Result<(), MissionFileError> {
+        self.write(|p| save_plans(p, plans))
+    }
+
+    /// Write the plans of the latest snapshot, taken under the file's lock.
+    pub(super) fn save_latest(&self, tel: &watch::Receiver<Snapshot>) -> Result<(), MissionFileError> {
+        self.write(|p| {
+            // shared items: a cheap clone, the lock of the watch released at once
+            let plans = tel.borrow().plans.clone();
+            save_plans(p, &plans)
+        })
+    }
+
+    /// The last write, at shutdown; later [`Self::save`] calls do nothing.
+    pub(super) fn save_final(&self, plans: &Plans) -> Result<(), MissionFileError> {
+        self.write_final(|p| save_plans(p, plans))
     }
 }
 
@@ -220,40 +240,6 @@ pub(super) async fn saver(
 ) {
     let write = move || file.save(&params).map_err(|e| e.to_string());
     keep_saved("Parameters", write, save, events, stop).await;
-}
-
-/// The plans file ([`StateFile`]).
-#[derive(Clone, Debug)]
-pub(super) struct PlansFile(StateFile);
-
-impl PlansFile {
-    pub(super) fn new(path: PathBuf) -> Self {
-        Self(StateFile::new(path))
-    }
-
-    pub(super) fn path(&self) -> &Path {
-        self.0.path()
-    }
-
-    /// Write `plans` (blocking: the file system), unless the final write was made.
-    #[cfg(test)]
-    pub(super) fn save(&self, plans: &Plans) -> Result<(), MissionFileError> {
-        self.0.write(|p| save_plans(p, plans))
-    }
-
-    /// Write the plans of the latest snapshot, taken under the file's lock.
-    pub(super) fn save_latest(&self, tel: &watch::Receiver<Snapshot>) -> Result<(), MissionFileError> {
-        self.0.write(|p| {
-            // shared items: a cheap clone, the lock of the watch released at once
-            let plans = tel.borrow().plans.clone();
-            save_plans(p, &plans)
-        })
-    }
-
-    /// The last write, at shutdown; later [`Self::save`] calls do nothing.
-    pub(super) fn save_final(&self, plans: &Plans) -> Result<(), MissionFileError> {
-        self.0.write_final(|p| save_plans(p, plans))
-    }
 }
 
 /// Writes the plans file whenever notified ([`keep_saved`]), from the
@@ -274,12 +260,10 @@ mod tests {
     use std::time::Duration;
 
     use super::*;
-    use crate::airframe::Airframe;
-    use crate::geo::GeoPoint;
-    use crate::lockstep::Lockstep;
+    use crate::lockstep::test_quad;
+    use crate::statefile::scratch_dir as scratch;
     use crate::mission::file::load_plans;
     use crate::mission::{MissionItem, MissionType, PlanChange, cmd};
-    use crate::sim::SensorConfig;
 
     fn waypoint(z: f32) -> MissionItem {
         MissionItem {
@@ -295,14 +279,9 @@ mod tests {
 
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn a_burst_of_plan_changes_ends_with_the_last_plans_on_disk() {
-        let dir = std::env::temp_dir().join(format!("rotorpilot-plan-saver-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = scratch("plan-saver");
         let file = PlansFile::new(dir.join("missions.json"));
-        let airframe = Airframe::load("quad").unwrap();
-        let params = ParamStore::new(&airframe);
-        let mut core =
-            Lockstep::one_vehicle(&airframe, GeoPoint::PX4_SITL_HOME, &params, SensorConfig::default()).unwrap();
+        let (mut core, _) = test_quad();
         let (tel_tx, tel_rx) = watch::channel(core.snapshot(0));
         let (stop_tx, stop_rx) = watch::channel(false);
         let changed = Arc::new(Notify::new());

@@ -132,18 +132,12 @@ pub(super) async fn persist(v: VehicleSigning, mut stop: watch::Receiver<bool>) 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::statefile::scratch_dir as scratch;
     use crate::link::signing::KEY_LEN;
-
-    fn dir(name: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("rotorpilot-signing-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        d
-    }
 
     #[test]
     fn no_file_is_no_key_and_a_bad_file_is_an_error_naming_it() {
-        let d = dir("bad");
+        let d = scratch("signing-bad");
         let v = load(&d).unwrap();
         assert!(!lock(&v.shared).is_keyed());
         // nothing written without a key
@@ -156,7 +150,7 @@ mod tests {
 
     #[test]
     fn a_key_is_written_0600_and_read_back_with_a_later_timestamp() {
-        let d = dir("rw");
+        let d = scratch("signing-rw");
         let v = load(&d).unwrap();
         lock(&v.shared).setup([4; KEY_LEN], 0);
         v.save().unwrap();

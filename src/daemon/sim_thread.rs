@@ -13,17 +13,20 @@ use std::sync::mpsc::{RecvTimeoutError, TryRecvError};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use mavlink::dialects::common::MavMessage;
-use tokio::sync::{Notify, broadcast, watch};
+use tokio::sync::{Notify, broadcast, mpsc, watch};
 use tracing::{debug, info, warn};
 
 use super::inbox::Inbox;
+use super::messages::{Event, SimRequest, lock};
+use super::recorder::Recorder;
+use super::ulog_file::{self, UlogFile};
 use crate::autopilot::{
-    Autopilot, AutopilotCommand, ClientClock, CommandOutcome, PendingTimer, PowerAction, StatusText,
+    Autopilot, AutopilotCommand, AutopilotError, ClientClock, ClientTimer, CommandOutcome, PendingTimer, PowerAction,
 };
 use crate::lockstep::{Lockstep, Snapshot};
 use crate::mission::{MissionResult, PlanChange};
 use crate::params::{ParamStore, ParamValue};
+use crate::lockstep::input::{Applied, Input};
 
 /// Vehicle-steps run between two looks at the requests (50 steps of a lone
 /// vehicle; one step of a fleet of 50 or more).
@@ -31,36 +34,13 @@ const CHUNK_VEHICLE_STEPS: u64 = 50;
 /// At most this much wall time is spent stepping per tick; the rest waits.
 const MAX_BATCH_WALL: Duration = Duration::from_millis(20);
 
-/// Messages from the link tasks to the simulation thread.
-#[derive(Debug)]
-pub(super) enum SimRequest {
-    /// A command, answered on `reply` (offboard setpoints have none).
-    Command {
-        command: AutopilotCommand,
-        reply: Option<super::reply::Reply<CommandOutcome>>,
-    },
-    /// A parameter set, answered with the stored value or why it was refused.
-    SetParam {
-        name: String,
-        value: ParamValue,
-        reply: super::reply::Reply<Result<ParamValue, String>>,
-    },
-    /// Store or clear plans, answered with the new plan's id or why nothing changed.
-    Plans {
-        change: PlanChange,
-        reply: super::reply::Reply<Result<u32, MissionResult>>,
-    },
-    /// A ground station's HEARTBEAT arrived (data-link loss supervision; no answer).
-    GcsHeartbeat,
-}
-
-/// Messages to every link task.
-#[derive(Clone, Debug)]
-pub(super) enum Event {
-    StatusText(StatusText),
-    /// MISSION_ITEM_REACHED for this seq.
-    MissionItemReached(u16),
-    ParamValue(Arc<MavMessage>),
+/// What follows a command's answer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum AfterAnswer {
+    /// Nothing: the simulation goes on.
+    GoOn,
+    /// The daemon stops (an accepted shutdown).
+    StopDaemon,
 }
 
 /// The simulation thread's state.
@@ -70,6 +50,8 @@ pub(super) struct Sim {
     pub(super) tick: Duration,
     /// Vehicle `i`'s channels and logs.
     pub(super) vehicles: Vec<VehicleIo>,
+    /// Stops the daemon: a client's accepted shutdown ([`Self::power`]).
+    pub(super) exit: mpsc::Sender<()>,
 }
 
 /// What the simulation thread holds for one vehicle.
@@ -86,9 +68,9 @@ pub(super) struct VehicleIo {
     /// failure): the link tasks send nothing meanwhile.
     pub(super) link_lost: watch::Sender<bool>,
     /// The run's `flight.ulg` (`--log-dir`), fed after every step.
-    pub(super) ulog: Option<super::ulog_file::UlogFile>,
+    pub(super) ulog: Option<UlogFile>,
     /// The flight record and CSV (`--log-dir`): every input goes through `Sim::apply`.
-    pub(super) recorder: Option<super::recorder::Recorder>,
+    pub(super) recorder: Option<Recorder>,
 }
 
 impl Sim {
@@ -220,7 +202,7 @@ impl Sim {
         io.tel.send_replace(self.core.snapshot(v));
         let lost = self.core.world().faults(v).link_lost;
         io.link_lost.send_if_modified(|l| std::mem::replace(l, lost) != lost);
-        for s in super::ulog_file::drain_status_texts(&mut io.ulog, &mut self.core, v) {
+        for s in ulog_file::drain_status_texts(&mut io.ulog, &mut self.core, v) {
             info!(vehicle = v, text = %s.text, "status");
             let _ = io.events.send(Event::StatusText(s));
         }
@@ -231,16 +213,18 @@ impl Sim {
 
     /// Serve vehicle `v`'s request.
     fn handle(&mut self, v: usize, r: SimRequest) {
-        // a request its link gave up on (timed out) is never applied (reply.rs)
-        if super::reply::given_up(&r) {
+        // a request its link gave up on (timed out) is never applied (messages.rs)
+        if !r.claim() {
             return;
         }
         match r {
             SimRequest::Command { command, reply } => {
                 let mut outcome = self.command(v, command);
-                if command == AutopilotCommand::Power(PowerAction::Reboot) && outcome == CommandOutcome::Accepted {
-                    // carried out before the ACK, so that ACCEPTED means done
-                    outcome = self.reboot(v);
+                let mut then = AfterAnswer::GoOn;
+                if let AutopilotCommand::Power(action) = command
+                    && outcome == CommandOutcome::Accepted
+                {
+                    (outcome, then) = self.power(v, action);
                 }
                 // Publish before answering: a client that acts on the ACK (disarm,
                 // then shutdown) must find the links already seeing the new state.
@@ -251,6 +235,10 @@ impl Sim {
                 }
                 if let Some(tx) = reply {
                     let _ = tx.send(outcome);
+                }
+                if then == AfterAnswer::StopDaemon {
+                    // after the answer: PX4 SITL exits after acknowledging
+                    let _ = self.exit.try_send(());
                 }
             }
             SimRequest::SetParam { name, value, reply } => {
@@ -275,9 +263,23 @@ impl Sim {
         }
     }
 
-    /// PREFLIGHT_REBOOT_SHUTDOWN p1 = 1: the vehicle restarts on the ground at
-    /// home, disarmed, from the current parameters; simulated time goes on.
-    /// The answer for the ACK.
+    /// PREFLIGHT_REBOOT_SHUTDOWN that the autopilot accepted (it refuses
+    /// both while armed: the decision is its), carried out here, the one
+    /// place: the answer for the ACK, and what follows once it is sent.
+    ///
+    /// - Reboot (p1 = 1): the vehicle restarts on the ground at home,
+    ///   disarmed, from the current parameters; simulated time goes on.
+    ///   Done before the ACK, so that ACCEPTED means done.
+    /// - Shutdown (p1 = 2): the daemon stops (every task, the final saves),
+    ///   as PX4 SITL exits, after the ACK.
+    fn power(&mut self, v: usize, action: PowerAction) -> (CommandOutcome, AfterAnswer) {
+        match action {
+            PowerAction::Reboot => (self.reboot(v), AfterAnswer::GoOn),
+            PowerAction::Shutdown => (CommandOutcome::Accepted, AfterAnswer::StopDaemon),
+        }
+    }
+
+    /// Reboot vehicle `v` ([`Self::power`]); the answer for the ACK.
     fn reboot(&mut self, v: usize) -> CommandOutcome {
         match self.reboot_core(v) {
             Ok(()) => {
@@ -290,6 +292,108 @@ impl Sim {
                 warn!(vehicle = v, error = %e, "reboot failed");
                 CommandOutcome::Failed("reboot failed")
             }
+        }
+    }
+
+    /// Apply one input to vehicle `v` at the current instant (between
+    /// steps), recording it in its record when recording: the only way
+    /// inputs reach the core.
+    pub(super) fn apply(&mut self, v: usize, input: Input) -> Applied {
+        let step = self.core.steps();
+        let io = &mut self.vehicles[v];
+        let applied = {
+            let mut p = lock(&io.params);
+            crate::lockstep::input::apply(&mut self.core, v, &mut p, &input)
+        };
+        if let Some(r) = &mut io.recorder {
+            r.input(step, &input, &applied);
+        }
+        applied
+    }
+
+    /// [`Self::apply`] a command.
+    pub(super) fn command(&mut self, v: usize, command: AutopilotCommand) -> CommandOutcome {
+        match self.apply(v, Input::Command(command)) {
+            Applied::Command(o) => o,
+            other => unreachable!("a command answered {other:?}"),
+        }
+    }
+
+    /// [`Self::apply`] a parameter set.
+    pub(super) fn set_param(&mut self, v: usize, name: &str, value: ParamValue) -> Result<ParamValue, String> {
+        match self.apply(
+            v,
+            Input::SetParam {
+                name: name.to_string(),
+                value,
+            },
+        ) {
+            Applied::SetParam(r) => r,
+            other => unreachable!("a parameter set answered {other:?}"),
+        }
+    }
+
+    /// [`Self::apply`] a plan change.
+    pub(super) fn change_plans(&mut self, v: usize, change: PlanChange) -> Result<u32, MissionResult> {
+        match self.apply(v, Input::ChangePlans(change)) {
+            Applied::Plans(r) => r,
+            other => unreachable!("a plan change answered {other:?}"),
+        }
+    }
+
+    /// [`Self::apply`] a ground station's heartbeat.
+    pub(super) fn gcs_heartbeat(&mut self, v: usize) {
+        self.apply(v, Input::GcsHeartbeat);
+    }
+
+    /// [`Self::apply`] a client timer's expiry on the wall clock.
+    pub(super) fn client_timeout(&mut self, v: usize, timer: ClientTimer, started_s: f64) -> bool {
+        match self.apply(v, Input::ClientTimeout { timer, started_s }) {
+            Applied::ClientTimeout(b) => b,
+            other => unreachable!("a client timeout answered {other:?}"),
+        }
+    }
+
+    /// [`Self::apply`] a reboot from the parameters in force.
+    pub(super) fn reboot_core(&mut self, v: usize) -> Result<(), AutopilotError> {
+        match self.apply(v, Input::Reboot) {
+            Applied::Reboot(r) => r,
+            other => unreachable!("a reboot answered {other:?}"),
+        }
+    }
+
+    /// Record the proximity events the core raised since the last call in
+    /// both vehicles' records (the core announced them itself: recorded,
+    /// not applied; a replay applies them). Called after every chunk of
+    /// steps, before the requests waiting are served, so that the record's
+    /// lines stay in step order.
+    pub(super) fn record_proximity(&mut self) {
+        let events = self.core.drain_proximity_events();
+        let dt = self.core.dt_s();
+        for (t, e) in events {
+            // raised after the step that ended at t: before step t/dt runs
+            let step = (t / dt).round() as u64;
+            for (me, other) in [(e.a, e.b), (e.b, e.a)] {
+                info!(vehicle = me, other = %self.core.label(other), kind = e.kind.name(), distance_m = e.distance_m, "proximity");
+                if let Some(r) = &mut self.vehicles[me].recorder {
+                    let input = Input::Proximity {
+                        other: self.core.label(other).to_string(),
+                        kind: e.kind,
+                        distance_m: e.distance_m,
+                    };
+                    r.input(step, &input, &Applied::Announced);
+                }
+            }
+        }
+    }
+
+    /// After each step: every vehicle's CSV row and ULog topics.
+    pub(super) fn after_step(&mut self) {
+        for io in &mut self.vehicles {
+            if let Some(r) = &mut io.recorder {
+                r.after_step(&self.core);
+            }
+            ulog_file::after_step(&mut io.ulog, &mut self.core);
         }
     }
 }

@@ -11,7 +11,7 @@ use std::sync::{Arc, Mutex};
 
 use tracing::warn;
 
-use super::saver::lock;
+use super::messages::lock;
 use crate::autopilot::{Autopilot, StatusText};
 use crate::lockstep::Lockstep;
 use crate::logs::ulog::flight::FlightUlog;
@@ -161,8 +161,7 @@ mod tests {
     #[test]
     fn a_status_text_is_logged_at_the_step_it_was_raised_not_when_drained() {
         let (mut core, store) = crate::lockstep::test_quad();
-        let dir = std::env::temp_dir().join(format!("rotorpilot-ulog-stamp-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::statefile::scratch_dir("ulog-stamp");
         let params = Arc::new(Mutex::new(store));
         let mut log = UlogFile::create(&dir, &params, &core, 0);
         assert!(log.is_some());

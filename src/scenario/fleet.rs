@@ -19,7 +19,10 @@
 //! ```
 //!
 //! Vehicles are numbered from 0 in the order of the file (a block's copies
-//! in turn). Each keeps everything of its own file: reference or
+//! in turn). `count`, `offset_m` and `spacing_m` are read as the daemon's
+//! fleet files read them ([`super::placement`]: one set of rules; without
+//! `offset_m` a block starts 3 m north per vehicle number, without
+//! `spacing_m` its copies are 3 m apart to the north, PX4's layout). Each keeps everything of its own file: reference or
 //! setpoints, controller and switches, estimator, noise seed, disturbances,
 //! `[[fault]]`s, mission and parameters, duration (unless `[fleet]` sets
 //! one), and flies exactly as it would alone: its vehicle's flight in its own
@@ -44,6 +47,7 @@ use toml::Spanned;
 
 use super::campaign::Outcome;
 use super::mission::MissionFlown;
+use super::placement::{MAX_VEHICLES, Placement};
 use super::run::{self, Flown};
 use super::{MissionFlight, Scenario, is_mission, mission};
 use crate::autopilot::Autopilot;
@@ -52,9 +56,6 @@ use crate::logs::csv::CsvLog;
 use crate::sim::World;
 use crate::sim::proximity::{ProximityEvent, ProximityKind};
 use crate::tomlfile::{self, FileError};
-
-/// The most vehicles one fleet file may make.
-pub const MAX_VEHICLES: usize = 100_000;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -67,9 +68,9 @@ struct FileFleetTable {
 #[serde(deny_unknown_fields)]
 struct FileVehicle {
     scenario: Spanned<String>,
-    offset_m: [f64; 2],
+    offset_m: Option<Spanned<Vec<f64>>>,
     count: Option<Spanned<i64>>,
-    spacing_m: Option<[f64; 2]>,
+    spacing_m: Option<Spanned<Vec<f64>>>,
 }
 
 #[derive(Deserialize)]
@@ -177,37 +178,15 @@ impl Fleet {
             let start = v.span().start;
             let v = v.get_ref();
             let field = |name: &str| format!("vehicle[{}].{name}", k + 1);
-            let count = match &v.count {
-                None => 1,
-                Some(c) => match usize::try_from(*c.get_ref()) {
-                    Ok(n) if (1..=MAX_VEHICLES).contains(&n) => n,
-                    _ => {
-                        return Err(at(
-                            c.span().start,
-                            format!("{}: must be 1 to {MAX_VEHICLES}, got {}", field("count"), c.get_ref()),
-                        ));
-                    }
-                },
-            };
-            let spacing = match (v.spacing_m, count) {
-                (Some(s), _) => s,
-                (None, 1) => [0.0, 0.0],
-                (None, _) => {
-                    return Err(at(
-                        start,
-                        format!(
-                            "{}: needed with count > 1 (north, east [m] between copies)",
-                            field("spacing_m")
-                        ),
-                    ));
-                }
-            };
-            if !v.offset_m.iter().chain(&spacing).all(|x| x.is_finite()) {
-                return Err(at(
-                    start,
-                    format!("{}: offset_m and spacing_m must be finite", field("offset_m")),
-                ));
-            }
+            let place = Placement::read(
+                k + 1,
+                offsets_m.len() as u64,
+                v.count.as_ref(),
+                v.offset_m.as_ref(),
+                v.spacing_m.as_ref(),
+            )
+            .map_err(|(o, m)| at(o, m))?;
+            let count = place.count();
             if offsets_m.len() + count > MAX_VEHICLES {
                 return Err(at(
                     start,
@@ -273,10 +252,7 @@ impl Fleet {
                 }
                 plain.extend(std::iter::repeat_n(s, count));
             }
-            for c in 0..count {
-                let c = c as f64;
-                offsets_m.push([v.offset_m[0] + c * spacing[0], v.offset_m[1] + c * spacing[1]]);
-            }
+            offsets_m.extend((0..count).map(|c| place.spawn(c)));
         }
         let flights = if missions.is_empty() {
             FleetFlights::Plain(plain)

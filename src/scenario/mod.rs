@@ -8,12 +8,15 @@
 //! estimator and whether it is fed back, sensor noise and its seed, failures
 //! injected at given instants (`[[fault]]`, see [`fault`]), and the
 //! duration. See `tools/scenarios/` for examples. Errors name the file, the
-//! field and the problem.
+//! field and the problem. Headless fleets ([`fleet`]) fly several in one
+//! world; [`placement`] is where a fleet file's vehicles spawn, read the same
+//! way for the daemon's fleet files.
 
 pub mod campaign;
 pub mod fault;
 pub mod fleet;
 mod mission;
+pub mod placement;
 mod run;
 mod trajectory;
 

@@ -1,6 +1,15 @@
-//! The answer to a link's request to the simulation thread, with a claim
-//! that makes a timed-out request either applied (and answered late) or
-//! never applied — never refused and then applied.
+//! What the link tasks and the simulation thread say to each other, and
+//! what they share: [`SimRequest`] (links to the simulation thread), [`Event`]
+//! (the simulation thread and the savers to every link), the one-shot
+//! answer of a request with its claim ([`Reply`], [`Waiter`]), and the
+//! parameter store's [`lock`]. A leaf of the daemon: every task file
+//! imports it, it imports none of them.
+//!
+//! # The claim
+//!
+//! A link's request to the simulation thread is answered once, with a
+//! claim that makes a timed-out request either applied (and answered late)
+//! or never applied — never refused and then applied.
 //!
 //! Each request carries one [`Reply`] (the simulation thread's end) and the
 //! link keeps its [`Waiter`]. Both ends share one state, changed once by
@@ -17,11 +26,73 @@
 //! link's timeout is waited for to the end and answered with what the
 //! autopilot decided, however late.
 
-use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
+use mavlink::dialects::common::MavMessage;
 use tokio::sync::oneshot;
+
+use crate::autopilot::{AutopilotCommand, CommandOutcome, StatusText};
+use crate::mission::{MissionResult, PlanChange};
+use crate::params::{ParamStore, ParamValue};
+
+/// Messages from the link tasks to the simulation thread.
+#[derive(Debug)]
+pub(super) enum SimRequest {
+    /// A command, answered on `reply` (offboard setpoints have none).
+    Command {
+        command: AutopilotCommand,
+        reply: Option<Reply<CommandOutcome>>,
+    },
+    /// A parameter set, answered with the stored value or why it was refused.
+    SetParam {
+        name: String,
+        value: ParamValue,
+        reply: Reply<Result<ParamValue, String>>,
+    },
+    /// Store or clear plans, answered with the new plan's id or why nothing changed.
+    Plans {
+        change: PlanChange,
+        reply: Reply<Result<u32, MissionResult>>,
+    },
+    /// A ground station's HEARTBEAT arrived (data-link loss supervision; no answer).
+    GcsHeartbeat,
+}
+
+impl SimRequest {
+    /// Take the request up before applying it: true when it may be applied
+    /// (claimed, or one without an answer), false when its link has given
+    /// up on it: the simulation thread then drops it unapplied.
+    pub(super) fn claim(&self) -> bool {
+        let claimed = match self {
+            SimRequest::Command { reply: Some(x), .. } => x.claim(),
+            SimRequest::SetParam { reply, .. } => reply.claim(),
+            SimRequest::Plans { reply, .. } => reply.claim(),
+            _ => true,
+        };
+        if !claimed {
+            tracing::debug!("a request its link gave up on is dropped unapplied");
+        }
+        claimed
+    }
+}
+
+/// Messages to every link task.
+#[derive(Clone, Debug)]
+pub(super) enum Event {
+    StatusText(StatusText),
+    /// MISSION_ITEM_REACHED for this seq.
+    MissionItemReached(u16),
+    ParamValue(Arc<MavMessage>),
+}
+
+/// The parameter store, locked (never across an `.await`).
+pub(super) fn lock(p: &Mutex<ParamStore>) -> MutexGuard<'_, ParamStore> {
+    // A panic while holding the lock leaves the store consistent (every
+    // mutation is a single checked set), so a poisoned lock is still usable.
+    p.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
 
 const PENDING: u8 = 0;
 const CLAIMED: u8 = 1;
@@ -106,22 +177,6 @@ impl<T> Waiter<T> {
             Err(_) => Answer::Gone,
         }
     }
-}
-
-/// Whether `r`'s link has given up on it: the simulation thread then drops
-/// it unapplied. Claims it otherwise (it is applied now).
-pub(super) fn given_up(r: &super::sim_thread::SimRequest) -> bool {
-    use super::sim_thread::SimRequest;
-    let claimed = match r {
-        SimRequest::Command { reply: Some(x), .. } => x.claim(),
-        SimRequest::SetParam { reply, .. } => reply.claim(),
-        SimRequest::Plans { reply, .. } => reply.claim(),
-        _ => true,
-    };
-    if !claimed {
-        tracing::debug!("a request its link gave up on is dropped unapplied");
-    }
-    !claimed
 }
 
 #[cfg(test)]

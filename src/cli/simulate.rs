@@ -31,6 +31,7 @@ use std::time::Instant;
 use anyhow::Context as _;
 use serde::Serialize;
 
+use crate::error::error_chain;
 use crate::scenario::campaign::{self, CampaignFile, EXTENSIONS, Outcome, Shard, Values};
 use crate::scenario::fleet::{self, Fleet};
 
@@ -65,9 +66,9 @@ pub struct SimulateArgs {
 }
 
 /// Exit status: a mission failed its verdict.
-pub const EXIT_MISSION_FAILED: u8 = 1;
+const EXIT_MISSION_FAILED: u8 = 1;
 /// Exit status: a scenario could not be read or flown, or the arguments name no campaign.
-pub const EXIT_BAD_SCENARIO: u8 = 2;
+const EXIT_BAD_SCENARIO: u8 = 2;
 
 /// One entry of the campaign this run flies.
 #[derive(Debug)]
@@ -148,9 +149,9 @@ fn short(v: &toml::Value) -> String {
 /// as an empty directory, printed to stderr), so that 1 always means a
 /// failed verdict.
 #[must_use]
-pub fn main(args: &SimulateArgs) -> u8 {
+pub(super) fn main(args: &SimulateArgs) -> u8 {
     run(args).unwrap_or_else(|e| {
-        eprintln!("rotorpilot: {}", crate::cli::error_chain(&e));
+        eprintln!("rotorpilot: {}", error_chain(&e));
         EXIT_BAD_SCENARIO
     })
 }
@@ -226,17 +227,15 @@ fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
         let f = files[e.file].as_ref().map_err(Clone::clone)?;
         let v = e.variant.unwrap_or(0);
         let start = Instant::now();
-        let flight = f.flight(v).map_err(|e| crate::cli::error_chain(&e))?;
+        let flight = f.flight(v).map_err(|e| error_chain(&e))?;
         let path = csv_path(e);
         let mut writer = path.as_deref().map(crate::logs::csv::create_csv_file).transpose()?;
         if let Some(p) = &path {
-            flight_meta(&flight)
-                .map_err(|e| crate::cli::error_chain(&e))?
-                .write_beside(p)?;
+            flight_meta(&flight).map_err(|e| error_chain(&e))?.write_beside(p)?;
         }
         let mut outcome = flight
             .fly(writer.as_mut().map(|w| w as &mut dyn std::io::Write))
-            .map_err(|e| crate::cli::error_chain(&e))?;
+            .map_err(|e| error_chain(&e))?;
         outcome.set_wall_time_s(start.elapsed().as_secs_f64());
         Ok(outcome)
     };
@@ -401,7 +400,7 @@ fn run_fleet(args: &SimulateArgs, path: &Path) -> anyhow::Result<u8> {
     let fleet = match Fleet::load(path) {
         Ok(f) => f,
         Err(e) => {
-            eprintln!("rotorpilot: {}", crate::cli::error_chain(&e));
+            eprintln!("rotorpilot: {}", error_chain(&e));
             return Ok(EXIT_BAD_SCENARIO);
         }
     };
@@ -412,7 +411,7 @@ fn run_fleet(args: &SimulateArgs, path: &Path) -> anyhow::Result<u8> {
     let mut summary = match fleet::fly(&fleet, threads, args.csv.as_deref()) {
         Ok(s) => s,
         Err(e) => {
-            eprintln!("rotorpilot: {}", crate::cli::error_chain(&e));
+            eprintln!("rotorpilot: {}", error_chain(&e));
             return Ok(EXIT_BAD_SCENARIO);
         }
     };

@@ -10,8 +10,8 @@ use std::path::{Path, PathBuf};
 use anyhow::Context as _;
 
 use crate::airframe::Airframe;
-use crate::estimation::{Discretization, EstimatorConfig, Polynomial};
 use crate::estimation::sweep::{SweepResult, estimate_log, sweep_config, sweep_result};
+use crate::estimation::{Discretization, EstimatorConfig, Polynomial};
 use crate::logs::csv::{FlightLog, write_estimates};
 use crate::logs::meta::{LogMeta, meta_path};
 use crate::signals::{NominalModel, WrenchEstimate};

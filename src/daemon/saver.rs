@@ -261,9 +261,9 @@ mod tests {
 
     use super::*;
     use crate::lockstep::test_quad;
-    use crate::statefile::scratch_dir as scratch;
     use crate::mission::file::load_plans;
     use crate::mission::{MissionItem, MissionType, PlanChange, cmd};
+    use crate::statefile::scratch_dir as scratch;
 
     fn waypoint(z: f32) -> MissionItem {
         MissionItem {

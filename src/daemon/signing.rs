@@ -132,8 +132,8 @@ pub(super) async fn persist(v: VehicleSigning, mut stop: watch::Receiver<bool>) 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::statefile::scratch_dir as scratch;
     use crate::link::signing::KEY_LEN;
+    use crate::statefile::scratch_dir as scratch;
 
     #[test]
     fn no_file_is_no_key_and_a_bad_file_is_an_error_naming_it() {

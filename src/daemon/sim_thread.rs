@@ -23,10 +23,10 @@ use super::ulog_file::{self, UlogFile};
 use crate::autopilot::{
     Autopilot, AutopilotCommand, AutopilotError, ClientClock, ClientTimer, CommandOutcome, PendingTimer, PowerAction,
 };
+use crate::lockstep::input::{Applied, Input};
 use crate::lockstep::{Lockstep, Snapshot};
 use crate::mission::{MissionResult, PlanChange};
 use crate::params::{ParamStore, ParamValue};
-use crate::lockstep::input::{Applied, Input};
 
 /// Vehicle-steps run between two looks at the requests (50 steps of a lone
 /// vehicle; one step of a fleet of 50 or more).

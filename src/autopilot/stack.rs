@@ -85,6 +85,9 @@ pub struct Autopilot {
     rotors: RotorMonitor,
     pub(super) origin: GeoPoint,
     pub(super) home: GeoPoint,
+    /// `home` in local NED [m] around `origin`, kept with it: read several
+    /// times a step, and each conversion costs a cosine.
+    home_ned: Vector3<f64>,
     /// Whether home's altitude still waits for the resting height.
     home_altitude: HomeAltitude,
     /// Arming and the commands' gates.
@@ -144,6 +147,7 @@ impl Autopilot {
                 alt_amsl_m: home.alt_amsl_m + airframe.gear_height_m,
                 ..home
             },
+            home_ned: Vector3::zeros(),
             home_altitude: HomeAltitude::Assumed,
             commander: Commander::default(),
             now_s: 0.0,
@@ -151,6 +155,7 @@ impl Autopilot {
             plans: Plans::default(),
             failsafe: Failsafe::default(),
         };
+        ap.home_ned = ap.home.ned_from(&ap.origin);
         ap.apply_params(params)?;
         Ok(ap)
     }
@@ -556,18 +561,20 @@ impl Autopilot {
     /// down). Its latitude and longitude stay the given home's.
     fn home_at_rest(&mut self, m: &crate::signals::Measurement) {
         self.home.alt_amsl_m = self.origin.alt_amsl_m - self.land.rest_z(m);
+        self.home_ned = self.home.ned_from(&self.origin);
         self.home_altitude = HomeAltitude::Set;
     }
 
     /// Home is `home` from now on (set by a client or the mission).
     pub(super) fn set_home(&mut self, home: GeoPoint) {
         self.home = home;
+        self.home_ned = self.home.ned_from(&self.origin);
         self.home_altitude = HomeAltitude::Set;
     }
 
     /// Home in local NED [m].
     pub(super) fn home_ned(&self) -> Vector3<f64> {
-        self.home.ned_from(&self.origin)
+        self.home_ned
     }
 
     /// The largest collective thrust [N] (what offboard thrust 1.0 means):

@@ -9,12 +9,21 @@
 //! ```
 //!
 //! The file stays behind after the daemon ends; a stale file locks nothing.
+//!
+//! A lock found taken is tried again for [`GRACE`] before the start is
+//! refused: a process that forks (to start any program) shares its open
+//! files with the child until the child's `exec` closes them, so a lock
+//! released in that instant stays held for a moment by a process that never
+//! wanted it (a daemon restarted in place by a test harness or supervisor).
 
 use std::fs::{File, OpenOptions, TryLockError};
 use std::io::{Read as _, Seek as _, SeekFrom, Write as _};
 use std::path::Path;
 
 use anyhow::Context as _;
+
+/// How long a taken lock is tried again before the start is refused.
+const GRACE: std::time::Duration = std::time::Duration::from_millis(500);
 
 /// The lock file's name in a state directory.
 pub(super) const LOCK_FILE: &str = "lock";
@@ -43,7 +52,13 @@ impl StateLock {
             .truncate(false)
             .open(&path)
             .with_context(|| format!("cannot open the state directory's lock file {}", path.display()))?;
-        match file.try_lock() {
+        let deadline = std::time::Instant::now() + GRACE;
+        let mut outcome = file.try_lock();
+        while matches!(outcome, Err(TryLockError::WouldBlock)) && std::time::Instant::now() < deadline {
+            std::thread::sleep(std::time::Duration::from_millis(10));
+            outcome = file.try_lock();
+        }
+        match outcome {
             Ok(()) => {}
             Err(TryLockError::WouldBlock) => {
                 let mut text = String::new();

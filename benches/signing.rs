@@ -1,4 +1,4 @@
-//! Cost of MAVLink 2 signing per message (issue 15): encoding a typical frame
+//! Cost of MAVLink 2 signing per message: encoding a typical frame
 //! unsigned (the baseline), encoding and signing it (what the vehicle does for
 //! every frame it sends once a key is set), and the gate's check of a signed
 //! frame as it arrives (signature and stream timestamp). Frames: ATTITUDE (28

@@ -1,4 +1,4 @@
-//! `rotorpilot estimate` on the logs a new user brings (issue 16): a `quad`
+//! `rotorpilot estimate` on the logs a new user brings: a `quad`
 //! log is estimated with the quad's own nominal model (from the sidecar
 //! `simulate --csv` writes next to it), `--inertia` takes what its help
 //! says, a log whose step varies is accepted and estimated as well as a

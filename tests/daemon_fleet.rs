@@ -236,7 +236,7 @@ async fn boot_ms(c: &mut Client, sysid: u8) -> u32 {
 
 /// A flood of COMMAND_LONGs and offboard setpoints on vehicle 0's API link,
 /// from a thread of its own, about 20,000 datagrams a second (twice the rate
-/// of issue 15's robustness flood; faster only fills the kernel's buffer),
+/// of the robustness flood; faster only fills the kernel's buffer),
 /// for `for_s` seconds; the datagrams sent.
 fn flood(to: SocketAddr, for_s: f64) -> std::thread::JoinHandle<u64> {
     std::thread::spawn(move || {

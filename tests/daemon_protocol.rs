@@ -604,7 +604,7 @@ async fn two_peers_are_both_served_and_a_new_port_is_served_again() {
     }
     // the second client restarts on a new port: served again at once
     drop(other);
-    // (it heartbeats, as every client does: what proves it listens, issue 15 §2)
+    // (it heartbeats, as every client does: what proves it listens)
     let mut again = Client::with_ids(255, 0).await;
     again.heartbeat(v.gcs).await;
     again.command_long(v.gcs, 31_000, [0.0; 7], (1, 0)).await;

@@ -1,4 +1,4 @@
-//! Exact replay (issue 13): a flight driven through the daemon by a MAVLink
+//! Exact replay: a flight driven through the daemon by a MAVLink
 //! client on UDP, with `--log-dir` and `--log-csv`, replays from its
 //! `flight.record` to the live `flight.csv` byte for byte (twice, and with a
 //! reboot and parameter changes in it); a record cut off by a kill replays

@@ -1,4 +1,4 @@
-//! MAVLink signing in the daemon (issue 15): every vehicle of a fleet reads
+//! MAVLink signing in the daemon: every vehicle of a fleet reads
 //! its own `signing.key` at bind (a bad one stops the start, naming the file
 //! and the vehicle); a vehicle with a key answers only signed frames, and
 //! signs what it sends, while its neighbour without a key answers anyone.

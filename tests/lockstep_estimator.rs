@@ -124,7 +124,7 @@ fn noise_rms_falls_with_the_order_as_the_doc_says() {
     assert!((bw[0] - 0.298).abs() < 0.06, "r=1 {bw:?}");
     // doc: Butterworth r = 2 gives 0.020 N; from r = 3..5 on it flattens (the
     // doc's prototype printed 0.016 for r >= 3, we measure about 0.012 falling to
-    // 0.008: the same flattening at half the level, see the closing note of issue 4)
+    // 0.008: the same flattening at half the level)
     assert!((bw[1] - 0.020).abs() < 0.35 * 0.020, "Butterworth r=2 {bw:?}");
     assert!(bw[1] > bw[2] && bw[2] > bw[3], "Butterworth falls up to r = 5: {bw:?}");
     let flat = &bw[3..];

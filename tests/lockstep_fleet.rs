@@ -1,4 +1,4 @@
-//! Headless fleets (issue 14): several vehicles in one scenario, flown flat
+//! Headless fleets: several vehicles in one scenario, flown flat
 //! out in lockstep. Each vehicle flies exactly as it would alone (its log
 //! byte for byte), the proximity events come at the instant the references
 //! say, the same on every run and on any number of threads, and bad fleet

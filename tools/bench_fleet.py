@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Benchmarks of a fleet in one process (issue 14), against the release
+"""Benchmarks of a fleet in one process, against the release
 binary, printed as Markdown tables with the exact commands:
 
 1. Real-time factor reached by `rotorpilot --count N` for N = 64 and 250

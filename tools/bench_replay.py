@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Measure flight records and replay (issue 13's figures):
+"""Measure flight records and replay:
 
 1. `flight`: fly a ~5-minute (simulated) flight at --speed 20 with --log-dir
    and --log-csv (takeoff, a minute of streamed offboard velocity setpoints,

@@ -114,7 +114,7 @@ fn refuse_param_set(name: &str, value: ParamValue, params: &Mutex<ParamStore>) -
 }
 
 impl LinkTask {
-    /// Serve the link until `stop`. Fair under a flood (issue 15 §2): the
+    /// Serve the link until `stop`. Fair under a flood: the
     /// branches are tried in order stop, due streams, events, socket, so
     /// the scheduler runs whenever a deadline has passed and at most one
     /// datagram is handled between two looks at it; a datagram whose

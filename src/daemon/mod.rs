@@ -591,7 +591,7 @@ impl Daemon {
                 let _ = sim_done_tx.send(());
             })
             .context("starting the simulation thread")?;
-        // issue 13: one stdout line when the vehicles first are ready to arm (ready.rs)
+        // one stdout line when the vehicles first are ready to arm (ready.rs)
         tasks.push(tokio::spawn(ready::announce(started, tels, stop_rx.clone())));
         // watched: a link task that ends while running stops the daemon (supervise.rs)
         let mut link_tasks = supervise::LinkTasks::default();

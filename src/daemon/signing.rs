@@ -1,4 +1,4 @@
-//! The vehicle's MAVLink signing key on disk (issue 15; the protocol side is
+//! The vehicle's MAVLink signing key on disk (the protocol side is
 //! [`crate::link::signing`]): `signing.key` in the state directory, 40 bytes
 //! as PX4 keeps `mavlink/mavlink-signing-key.bin` (the 32-byte key, then the
 //! last signing timestamp as a little-endian u64 [10 µs since 2015]). An

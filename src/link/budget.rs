@@ -1,5 +1,5 @@
 //! Byte budgets that bound what a link sends, so that the vehicle cannot be
-//! used to flood a third party (issue 15 §2):
+//! used to flood a third party:
 //!
 //! - [`TokenBucket`]: at most `rate` bytes per second on average and `burst`
 //!   at once. A proven peer's direct answers, the answers to all unproven

@@ -320,7 +320,7 @@ impl Link {
         }
     }
 
-    /// The signing gate (issue 15, [`signing`]): false when `frame` goes no
+    /// The signing gate ([`signing`]): false when `frame` goes no
     /// further: refused (unsigned, bad signature, replay, stale), or a
     /// SETUP_SIGNING for us, which it applies (with no key, or signed with
     /// the key: the refusals came first) and turns into

@@ -5,7 +5,7 @@
 //! restarts on a new port is served again at once.
 //!
 //! A UDP source address can be forged, so a peer is learned in two stages
-//! (issue 15 §2, no amplification):
+//! (no amplification):
 //!
 //! - **unproven** (any valid frame): it gets direct answers only, at most
 //!   [`budget::UNPROVEN_FACTOR`] times the bytes it sent ([`budget::Credit`])

@@ -246,7 +246,7 @@ parameters! {
         10.0, 0.0, 1000.0, "m",
         "Injected GPS WRONG: the position reported is this far north (world NED) of the truth",
     ),
-    // --- rotorpilot: bounds on what a client may ask (issue 15) -----------------------------------
+    // --- rotorpilot: bounds on what a client may ask -----------------------------------
     RP_ALT_MAX_AMSL: real(
         9_000.0, 0.0, 20_000.0, "m",
         "Highest altitude AMSL a takeoff or reposition may ask for; higher is refused (DENIED)",

@@ -1,5 +1,5 @@
 """A fleet in one process (`rotorpilot --count N`) against real clients, as
-a PX4 SITL user runs several instances (issue 14): each vehicle on PX4's
+a PX4 SITL user runs several instances: each vehicle on PX4's
 ports for its instance, the whole fleet reporting to one ground station on
 UDP 14550.
 

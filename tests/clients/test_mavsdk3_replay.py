@@ -1,4 +1,4 @@
-"""Exact replay of a MAVSDK 3 flight (issue 13): a flight at --speed 10 with
+"""Exact replay of a MAVSDK 3 flight: a flight at --speed 10 with
 --log-dir and --log-csv (parameter changes, takeoff, offboard velocity and
 position setpoints, a mission upload and start, a failure injection, land),
 stopped with SIGTERM; then `rotorpilot replay flight.record --csv` twice.

@@ -1,4 +1,4 @@
-"""MAVLink 2 message signing against the real rotorpilot binary (issue 15),
+"""MAVLink 2 message signing against the real rotorpilot binary,
 with pymavlink's signing (`setup_signing`) as the key holder, as MAVProxy's
 `signing setup` does it: SETUP_SIGNING installs the key; then a signed client
 flies (sets a parameter, arms, takes off, changes mode) while an unsigned

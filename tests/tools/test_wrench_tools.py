@@ -1,5 +1,5 @@
 """tools/show_wrench.py and tools/inject_disturbance.py as a new user meets
-them (issue 16): on the ground the live estimate is held, and show_wrench says
+them: on the ground the live estimate is held, and show_wrench says
 so instead of printing zeros against a non-zero truth; it never prints a
 truth it has not heard as 0.000; inject_disturbance checks every value first
 and changes all or nothing. Against rotorpilot itself, and the printed lines

@@ -1,5 +1,5 @@
-"""pymavlink against the real binary, what a new user sees in the first hour
-: the relative altitude reads 0 on the ground and "take off to
+"""pymavlink against the real binary, what a new user sees in the first hour:
+the relative altitude reads 0 on the ground and "take off to
 5 m" ends 5 m above it; an injection kept in the parameter file is listed in
 the start-up banner; arming a vehicle whose rotors cannot lift its true mass
 is DENIED with a Preflight Fail STATUSTEXT. Every wait is bounded.

@@ -248,6 +248,26 @@ mod tests {
         assert_eq!(at(51.0, 0.0), Some(Breach::OutsideInclusion));
     }
 
+    /// MAVSDK's `geofence.py` example uploads its polygon with a
+    /// zero-radius inclusion circle at latitude 0, longitude 0 ("the circle
+    /// object is necessary"); PX4 stores it, and inside the polygon is inside.
+    #[test]
+    fn a_zero_radius_circle_beside_a_polygon_changes_nothing() {
+        let mut items = square(POLYGON_INCLUSION, -50.0, -50.0, 100.0);
+        items.push(MissionItem {
+            x: 0.0,
+            y: 0.0,
+            ..item(CIRCLE_INCLUSION, 0.0, 0.0, 0.0)
+        });
+        assert_eq!(
+            crate::mission::validate(crate::mission::MissionType::Fence, &items[4]),
+            Ok(())
+        );
+        let f = Fence::from_items(&items, &GeoPoint::PX4_SITL_HOME);
+        assert_eq!(f.zones_breach(Vector2::new(0.0, 0.0)), None);
+        assert_eq!(f.zones_breach(Vector2::new(60.0, 0.0)), Some(Breach::OutsideInclusion));
+    }
+
     #[test]
     fn concave_polygon() {
         // an L: the notch (north-east quarter) is outside

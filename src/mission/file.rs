@@ -400,7 +400,7 @@ fn describe(kind: MissionType, item: &MissionItem, r: MissionResult) -> String {
                 (cmd::FENCE_POLYGON_VERTEX_INCLUSION | cmd::FENCE_POLYGON_VERTEX_EXCLUSION, 0) => {
                     "a vertex count of 3 or more (a polygon has at least 3 vertices)"
                 }
-                (cmd::FENCE_CIRCLE_INCLUSION | cmd::FENCE_CIRCLE_EXCLUSION, 0) => "a radius > 0 m",
+                (cmd::FENCE_CIRCLE_INCLUSION | cmd::FENCE_CIRCLE_EXCLUSION, 0) => "a radius ≥ 0 m",
                 _ => "another value",
             };
             format!("param{} = {v} is refused: command {c} needs {needs}", k + 1)

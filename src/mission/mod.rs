@@ -542,7 +542,7 @@ pub fn validate(kind: MissionType, item: &MissionItem) -> Result<(), MissionResu
         {
             Err(R::InvalidParam1)
         }
-        cmd::FENCE_CIRCLE_INCLUSION | cmd::FENCE_CIRCLE_EXCLUSION if !(p1.is_finite() && p1 > 0.0) => {
+        cmd::FENCE_CIRCLE_INCLUSION | cmd::FENCE_CIRCLE_EXCLUSION if !(p1.is_finite() && p1 >= 0.0) => {
             Err(R::InvalidParam1)
         }
         _ => Ok(()),

@@ -25,7 +25,7 @@ from test_mavsdk3 import free_tcp_port, run_script  # noqa: E402
 
 import common  # noqa: E402  (mavsdk_examples/common.py: next_matching, sample, pause)
 from mavsdk import System  # noqa: E402
-from mavsdk.geofence import FenceType, GeofenceData, Point, Polygon  # noqa: E402
+from mavsdk.geofence import Circle, FenceType, GeofenceData, Point, Polygon  # noqa: E402
 from mavsdk.mission import MissionItem, MissionPlan  # noqa: E402
 from mavsdk.mission_raw import MissionItem as RawItem  # noqa: E402
 from mavsdk.telemetry import FlightMode  # noqa: E402
@@ -276,6 +276,33 @@ def test_geofence_upload_and_clear():
 
     with Vehicle(speed=5.0) as v:
         fly(v, scenario, 60)
+
+
+def test_geofence_as_mavsdks_example_uploads_it():
+    """MAVSDK's geofence.py example uploads its polygon together with a
+    zero-radius inclusion circle at latitude 0, longitude 0 ("the circle object
+    is necessary"): PX4 stores a fence circle whatever its radius
+    (mavlink_mission.cpp), and a vehicle inside the polygon flies on."""
+    async def scenario(uav, v):
+        home = await ready(uav)
+        corners = [at(home, n, e) for n, e in ((-80, -80), (-80, 80), (80, 80), (80, -80))]
+        await uav.geofence.upload_geofence(GeofenceData(
+            [Polygon([Point(lat, lon) for lat, lon in corners], FenceType.INCLUSION)],
+            [Circle(Point(0.0, 0.0), 0.0, FenceType.INCLUSION)]))
+        raw = await uav.mission_raw.download_geofence()
+        assert [(r.command, r.param1) for r in raw] == [(5001, 4.0)] * 4 + [(5003, 0.0)]
+        await uav.action.set_takeoff_altitude(5.0)
+        await uav.action.arm()
+        await uav.action.takeoff()
+        await common.next_matching(uav.telemetry.in_air(), lambda f: f, 30, "in the air")
+        await common.pause(uav, 8.0)
+        mode = await common.sample(uav.telemetry.flight_mode(), "flight mode")
+        assert mode in (FlightMode.TAKEOFF, FlightMode.HOLD), f"{mode}: the fence was breached"
+        await uav.action.land()
+        await common.next_matching(uav.telemetry.in_air(), lambda f: not f, 60, "touchdown")
+
+    with Vehicle(speed=5.0) as v:
+        fly(v, scenario, 90)
 
 
 def test_rally_points_upload_download_and_clear():

@@ -675,10 +675,10 @@ mod tests {
             ),
             (
                 with(
-                    r#""circles": [{"inclusion": true, "circle": {"center": [47.1, 8.1], "radius": 0}}]"#,
+                    r#""circles": [{"inclusion": true, "circle": {"center": [47.1, 8.1], "radius": -5}}]"#,
                     "[]",
                 ),
-                "geoFence.circles[0].circle.radius: param1 = 0 is refused: command 5003 needs a radius > 0 m",
+                "geoFence.circles[0].circle.radius: param1 = -5 is refused: command 5003 needs a radius ≥ 0 m",
             ),
             (
                 with(

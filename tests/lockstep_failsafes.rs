@@ -314,9 +314,14 @@ fn geofence_zones_hold_once_per_breach_and_rearm_inside() {
     let mut ap = vehicle(&[]);
     store_fence(&mut ap, fence());
     take_off_to(&mut ap, 5.0);
-    // a target outside every inclusion zone is refused
-    assert!(matches!(reposition(&mut ap, 30.0, 0.0, 5.0), CommandOutcome::Denied(_)));
+    // a target outside every inclusion zone: accepted and ignored, as PX4's
+    // navigator ignores it; the vehicle holds where it is
+    let before = ap.telemetry().position_ned;
+    assert_eq!(reposition(&mut ap, 30.0, 0.0, 5.0), CommandOutcome::Accepted);
     assert_eq!(ap.count("Reposition is outside geofence"), 1);
+    ap.run(3.0);
+    assert_eq!(ap.mode(), FlightMode::Hold);
+    assert!((ap.telemetry().position_ned - before).norm() < 0.5, "stayed");
     // inside the far inclusion circle: accepted, but the way there leaves the fence
     assert_eq!(reposition(&mut ap, 0.0, 60.0, 5.0), CommandOutcome::Accepted);
     let (mut crossed, mut acted) = (None, None);
@@ -369,11 +374,15 @@ fn geofence_zones_hold_once_per_breach_and_rearm_inside() {
         "held at its edge: {}",
         t.position_ned.x
     );
-    // the exclusion circle is refused as a target
-    assert!(matches!(
-        reposition(&mut ap, -12.0, 0.0, 5.0),
-        CommandOutcome::Denied(_)
-    ));
+    // a target in the exclusion circle is ignored too (announced a second time)
+    assert_eq!(reposition(&mut ap, -12.0, 0.0, 5.0), CommandOutcome::Accepted);
+    assert_eq!(ap.count("Reposition is outside geofence"), 2);
+    ap.run(2.0);
+    assert!(
+        ap.telemetry().position_ned.x >= 9.5,
+        "stayed: {}",
+        ap.telemetry().position_ned.x
+    );
 }
 
 #[test]
@@ -423,9 +432,12 @@ fn max_altitude_refuses_targets_clamps_offboard_and_holds_on_breach() {
     ap.run(1.0);
     assert!(ap.telemetry().position_ned.z > z0 - 0.05, "did not climb");
     take_off_to(&mut ap, 8.0);
-    // a reposition above it: DENIED
-    assert!(matches!(reposition(&mut ap, 0.0, 0.0, 12.0), CommandOutcome::Denied(_)));
+    // a reposition above it: accepted and ignored (PX4), no climb
+    assert_eq!(reposition(&mut ap, 0.0, 0.0, 12.0), CommandOutcome::Accepted);
     assert_eq!(ap.count("Reposition is outside geofence"), 1);
+    let z = ap.telemetry().position_ned.z;
+    ap.run(3.0);
+    assert!(ap.telemetry().position_ned.z > z - 0.3, "did not climb");
     // an offboard position above it: clamped to it, announced once
     let sp = |z: f64| {
         AutopilotCommand::Offboard(OffboardSetpoint::Local(Targets {

@@ -279,7 +279,7 @@ impl Autopilot {
     /// | `SetMode` | Takeoff, Land, RTL as above; Offboard TemporarilyRejected without a fresh setpoint (COM_OF_LOSS_T, on the client clock); Mission TemporarilyRejected without a mission |
     /// | `StartMission` | Denied without a mission or with a first item beyond it; TemporarilyRejected when arming is (it arms) |
     /// | `SetMissionCurrent` | Denied beyond the mission |
-    /// | `Reposition` | Denied for non-finite parts, lat/lon out of range, an AMSL altitude above `RP_ALT_MAX_AMSL`, or a target outside the geofence (zones, `GF_MAX_HOR_DIST`, `GF_MAX_VER_DIST`; also its takeoff); TemporarilyRejected when disarmed |
+    /// | `Reposition` | Denied for non-finite parts, lat/lon out of range, or an AMSL altitude above `RP_ALT_MAX_AMSL`; TemporarilyRejected when disarmed; a target outside the geofence (zones, `GF_MAX_HOR_DIST`, `GF_MAX_VER_DIST`) is Accepted, announced ("Reposition is outside geofence") and ignored, the vehicle holding where it is (PX4) |
     /// | `ChangeSpeed` | Denied when not finite |
     /// | `SetHome` | Denied for an invalid point |
     /// | `Offboard` | Denied when a given part is not finite, or nothing is given; a position above `GF_MAX_VER_DIST` is clamped to it (announced once) |
@@ -580,11 +580,14 @@ impl Autopilot {
             target.z = here.z;
         }
         if self.outside_geofence(&target) {
-            return self.refuse(
-                Severity::Critical,
-                "Reposition is outside geofence",
-                CommandOutcome::Denied("reposition outside the geofence"),
-            );
+            // PX4: the commander accepts DO_REPOSITION and switches to Hold;
+            // the navigator ignores a target outside the fence
+            // (navigator_main.cpp), so the vehicle stays where it is.
+            self.say.announce(Severity::Critical, "Reposition is outside geofence");
+            if !self.land.landed() && !matches!(self.navigator.nav(), Nav::Hold { .. }) {
+                self.navigator.enter_hold();
+            }
+            return CommandOutcome::Accepted;
         }
         let hold = HoldTarget {
             position_ned: target,

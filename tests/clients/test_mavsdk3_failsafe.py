@@ -23,7 +23,6 @@ from test_mavsdk3 import free_tcp_port  # noqa: E402
 
 import common  # noqa: E402
 from mavsdk import System  # noqa: E402
-from mavsdk.action import ActionError, ActionResult  # noqa: E402
 from mavsdk.geofence import FenceType, GeofenceData, Point, Polygon  # noqa: E402
 from mavsdk.offboard import VelocityNedYaw  # noqa: E402
 from mavsdk.telemetry import FlightMode  # noqa: E402
@@ -102,7 +101,7 @@ def wait_msg(m, kind, cond, wall_limit, seen=None):
     return msg
 
 
-def test_geofence_breach_holds_and_a_goto_outside_is_refused():
+def test_geofence_breach_holds_and_a_goto_outside_is_ignored():
     async def scenario(v):
         uav = await connect(v)
         try:
@@ -111,17 +110,19 @@ def test_geofence_breach_holds_and_a_goto_outside_is_refused():
             await uav.geofence.upload_geofence(
                 GeofenceData([Polygon([Point(lat, lon) for lat, lon in corners], FenceType.INCLUSION)], []))
             await take_off(uav, 5.0)
-            # a target outside the fence: DENIED (DO_REPOSITION)
-            lat, lon = at(home, 40, 0)
-            try:
-                await uav.action.goto_location(lat, lon, home.absolute_altitude_m + 5.0, 0.0)
-                raise AssertionError("goto outside the geofence was accepted")
-            except ActionError as e:
-                print(f"goto outside the fence: {e._result.result}")
-                assert e._result.result == ActionResult.Result.COMMAND_DENIED
-            # out of the fence by offboard velocity: Hold at its border
+            # a target outside the fence: as on PX4, goto succeeds (DO_REPOSITION
+            # ACCEPTED), the vehicle says why it ignores it and stays
             texts = []
             collector = collect_texts(uav, texts)
+            before = north_east_m(home, await common.sample(uav.telemetry.position(), "position"))
+            lat, lon = at(home, 40, 0)
+            await uav.action.goto_location(lat, lon, home.absolute_altitude_m + 5.0, 0.0)
+            await until_said(texts, "Reposition is outside geofence", 10)
+            await common.pause(uav, 3.0)
+            after = north_east_m(home, await common.sample(uav.telemetry.position(), "position"))
+            print(f"goto outside the fence: stayed at {after} (was {before})")
+            assert math.dist(before, after) < 1.0, (before, after)
+            # out of the fence by offboard velocity: Hold at its border
             await uav.offboard.set_velocity_ned(VelocityNedYaw(3.0, 0.0, 0.0, 0.0))
             await uav.offboard.start()
             await until_said(texts, "Failsafe: geofence breach, triggering Hold", 20)

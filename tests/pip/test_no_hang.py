@@ -196,13 +196,14 @@ def test_docs_style_failing_mavsdk_test_neither_hangs_nor_leaks(tmp_path, mod, x
 
 
 def _fixture_module():
-    """The gRPC wrapper the fixture uses: mavsdk_grpc when installed."""
+    """The gRPC wrapper the fixture picks by itself: mavsdk_grpc when installed."""
     return "mavsdk_grpc" if "mavsdk_grpc" in MAVSDK_MODULES else "mavsdk"
 
 
 @pytest.mark.parametrize("xdist", [[], ["-n", "2"]], ids=["plain", "n2"])
-def test_fixture_failing_tests_neither_hang_nor_leak(tmp_path, xdist):
-    rc, out, left = run_inner(tmp_path, PRELUDE.format(mod=_fixture_module()) + WITH_FIXTURE, *xdist)
+@pytest.mark.parametrize("mod", MAVSDK_MODULES)
+def test_fixture_failing_tests_neither_hang_nor_leak(tmp_path, mod, xdist):
+    rc, out, left = run_inner(tmp_path, PRELUDE.format(mod=mod) + WITH_FIXTURE, "--rotorpilot-mavsdk", mod, *xdist)
     check(rc, out, left, 3)
 
 

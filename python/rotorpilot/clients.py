@@ -22,6 +22,7 @@ import re
 import signal
 import socket
 import subprocess
+import sys
 import time
 import warnings
 
@@ -34,11 +35,18 @@ class ClientError(RuntimeError):
 
 def mavsdk_module(name=None):
     """The installed gRPC MAVSDK-Python module: `name` ("mavsdk_grpc" or
-    "mavsdk") if given, else `mavsdk_grpc` (`pip install mavsdk-grpc`) if
-    installed, else `mavsdk` when it is the gRPC wrapper (3.x; 4.x under that
-    name is the native binding, another API)."""
+    "mavsdk") if given; else the one this process already imported (the two
+    cannot both be imported: they register the same protobuf files); else
+    `mavsdk_grpc` (`pip install mavsdk-grpc`) if installed, else `mavsdk`
+    when it is the gRPC wrapper (3.x; 4.x under that name is the native
+    binding, another API)."""
     tried = []
-    for name in (name,) if name else ("mavsdk_grpc", "mavsdk"):
+    if name:
+        names = (name,)
+    else:
+        imported = [n for n in ("mavsdk_grpc", "mavsdk") if n in sys.modules]
+        names = imported[:1] or ("mavsdk_grpc", "mavsdk")
+    for name in names:
         try:
             with warnings.catch_warnings():
                 # mavsdk 3.17.4 warns that the package is now mavsdk-grpc: the user chose it

@@ -66,7 +66,8 @@ def pytest_addoption(parser):
                 help="keep a vehicle's directory after the test: when it failed (default), always, never")
     g.addoption("--rotorpilot-mavsdk", choices=("mavsdk_grpc", "mavsdk"), metavar="MODULE",
                 help="the MAVSDK-Python module of the rotorpilot_mavsdk fixture: mavsdk_grpc "
-                     "(pip install mavsdk-grpc) or mavsdk (3.x) (default: mavsdk_grpc if installed)")
+                     "(pip install mavsdk-grpc) or mavsdk (3.x) (default: the one the tests imported, "
+                     "else mavsdk_grpc if installed)")
     g.addoption("--rotorpilot-ready-timeout", type=float, default=20.0, metavar="SECONDS",
                 help="wall seconds to wait for a vehicle to be ready to arm, and for the "
                      "rotorpilot_mavsdk/rotorpilot_mavlink clients to connect (default 20)")
@@ -203,8 +204,9 @@ def rotorpilot_vehicle(rotorpilot_vehicles):
 
 @pytest.fixture
 def rotorpilot_mavsdk(rotorpilot_vehicle, request):
-    """A MAVSDK-Python `System` (gRPC wrapper: `mavsdk_grpc`, else `mavsdk`
-    3.x; `--rotorpilot-mavsdk` chooses) for `rotorpilot_vehicle`. The fixture starts its `mavsdk_server` on
+    """A MAVSDK-Python `System` (gRPC wrapper: the one the test imported, else
+    `mavsdk_grpc`, else `mavsdk` 3.x; `--rotorpilot-mavsdk` chooses) for
+    `rotorpilot_vehicle`. The fixture starts its `mavsdk_server` on
     the vehicle's `mavsdk_server_port`, connected to `mavsdk_url`, waits
     until the server has found the vehicle, and kills the server at teardown,
     whatever the test did; the server's output is `mavsdk_server.log` in the

@@ -25,13 +25,13 @@ command line (`--rotorpilot-airframe`, `--rotorpilot-speed`), the defaults
 
 Teardown stops the clients, then each vehicle (SIGTERM, wait); a
 `mavsdk_server` still bound to, or started with, one of a vehicle's client
-ports is killed first, whoever started it (`rotorpilot.clients`), so a failed
-MAVSDK test neither hangs pytest's exit nor leaves a process behind. When the test failed (setup or
-call), its directory with the flight record (`flight.record`; replay with
-`rotorpilot replay`) and the other logs is kept and named in the failure's
-report section and in the terminal summary; otherwise it is deleted
-(`--rotorpilot-keep always|failed|never`; a vehicle that failed to start
-too). Every vehicle's ports are reserved (outside the kernel's ephemeral
+ports is killed first, whoever started it (`rotorpilot.clients`), so a
+failed MAVSDK test neither hangs pytest's exit nor leaves a process behind.
+When the test failed (setup or call), its directory with the flight record
+(`flight.record`; replay with `rotorpilot replay`) and the other logs is
+kept and named in the failure's report section and in the terminal summary;
+otherwise it is deleted (`--rotorpilot-keep always|failed|never`; a vehicle
+that failed to start too). Every vehicle's ports are reserved (outside the kernel's ephemeral
 range, under a lock file held until it stops: `rotorpilot.reserve_port`), so
 `pytest -n auto` (pytest-xdist) runs tests in parallel.
 """

@@ -207,27 +207,45 @@ def test_fixture_failing_tests_neither_hang_nor_leak(tmp_path, mod, xdist):
     check(rc, out, left, 3)
 
 
-def test_interrupted_run_leaves_nothing(tmp_path):
-    """SIGINT (Ctrl-C) in the middle of a flight: pytest stops and tears down."""
-    src = PRELUDE.format(mod=_fixture_module()) + textwrap.dedent('''
+INTERRUPTED_DOCS_STYLE = '''
 
-    @pytest.mark.rotorpilot(speed=10)
-    def test_long_flight(rotorpilot_vehicle, tmp_path_factory):
-        async def fly():
-            drone = System(port=rotorpilot_vehicle.mavsdk_server_port)
-            await drone.connect(system_address=rotorpilot_vehicle.mavsdk_url)
-            await take_off(drone)
-            open(__import__("os").environ["INNER_FLAG"], "w").close()
-            await asyncio.sleep(120)
+@pytest.mark.rotorpilot(speed=10)
+def test_long_flight(rotorpilot_vehicle):
+    async def fly():
+        drone = System(port=rotorpilot_vehicle.mavsdk_server_port)
+        await drone.connect(system_address=rotorpilot_vehicle.mavsdk_url)
+        await take_off(drone)
+        open(os.environ["INNER_FLAG"], "w").close()
+        await asyncio.sleep(120)
 
-        asyncio.run(fly())
-    ''')
+    asyncio.run(fly())
+'''
+
+INTERRUPTED_FIXTURE = '''
+
+@pytest.mark.rotorpilot(speed=10)
+def test_long_flight(rotorpilot_mavsdk):
+    async def fly():
+        await rotorpilot_mavsdk.connect()
+        await take_off(rotorpilot_mavsdk)
+        open(os.environ["INNER_FLAG"], "w").close()
+        await asyncio.sleep(120)
+
+    asyncio.run(fly())
+'''
+
+
+@pytest.mark.parametrize("body", [INTERRUPTED_DOCS_STYLE, INTERRUPTED_FIXTURE], ids=["docs_style", "fixture"])
+def test_interrupted_run_leaves_nothing(tmp_path, body):
+    """SIGINT (Ctrl-C) in the middle of a flight: pytest stops, tears down and exits 2."""
+    src = "import os\n" + PRELUDE.format(mod=_fixture_module()) + body
     test = tmp_path / "test_inner.py"
     test.write_text(src)
     marker = uuid.uuid4().hex
     flag = tmp_path / "flying"
     env = dict(os.environ, ROTORPILOT_INNER_RUN=marker, INNER_FLAG=str(flag), PYTHONWARNINGS="ignore::FutureWarning")
-    proc = subprocess.Popen([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", str(test)],
+    proc = subprocess.Popen([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+                             "--rotorpilot-log-dir", str(tmp_path / "logs"), str(test)],
                             cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             start_new_session=True)
     try:

@@ -2,9 +2,12 @@
 
 `pip install .` (from a checkout) puts the `rotorpilot` executable on the
 PATH and installs this package: a pytest plugin (fixtures
-`rotorpilot_vehicle` and `rotorpilot_vehicles`, marker `rotorpilot`, options
+`rotorpilot_vehicle`, `rotorpilot_vehicles`, and the clients
+`rotorpilot_mavsdk` and `rotorpilot_mavlink`, marker `rotorpilot`, options
 `--rotorpilot-*`; see `rotorpilot.pytest_plugin`) and `Vehicle`, which
-starts one vehicle on free loopback ports and waits until it is ready to arm.
+starts one vehicle on free loopback ports and waits until it is ready to arm
+(and, when it stops, kills any `mavsdk_server` left on its ports:
+`rotorpilot.clients`).
 
 Standard library only.
 """

@@ -8,6 +8,13 @@ Fixtures
   rotorpilot_vehicle   a started `rotorpilot.Vehicle`, ready to arm
   rotorpilot_vehicles  a factory: `rotorpilot_vehicles(**options)` starts one
                        more (system ids 1, 2, ... unless `instance=` is given)
+  rotorpilot_mavsdk    a MAVSDK-Python (gRPC) `System` for rotorpilot_vehicle:
+                       its mavsdk_server started by the fixture, on the
+                       vehicle's `mavsdk_server_port`, connected to the
+                       vehicle, and killed at teardown whatever the test did;
+                       `await drone.connect()` attaches it in the test's loop
+  rotorpilot_mavlink   a pymavlink connection to rotorpilot_vehicle, heartbeat
+                       received; closed at teardown
 
 Options, first found wins: the factory's keyword arguments, the marker
 `@pytest.mark.rotorpilot(airframe="octo", speed=10, params={...},
@@ -16,12 +23,15 @@ class, module), the
 command line (`--rotorpilot-airframe`, `--rotorpilot-speed`), the defaults
 (quad, speed 1, PX4's default parameters and SITL home).
 
-Teardown stops each vehicle (SIGTERM, wait). When the test failed (setup or
-call), its directory with the flight record (`flight.record`; replay with
-`rotorpilot replay`) and the other logs is kept and named in the failure's
-report section and in the terminal summary; otherwise it is deleted
-(`--rotorpilot-keep always|failed|never`; a vehicle that failed to start
-too). Every vehicle's ports are reserved (outside the kernel's ephemeral
+Teardown stops the clients, then each vehicle (SIGTERM, wait); a
+`mavsdk_server` still bound to, or started with, one of a vehicle's client
+ports is killed first, whoever started it (`rotorpilot.clients`), so a
+failed MAVSDK test neither hangs pytest's exit nor leaves a process behind.
+When the test failed (setup or call), its directory with the flight record
+(`flight.record`; replay with `rotorpilot replay`) and the other logs is
+kept and named in the failure's report section and in the terminal summary;
+otherwise it is deleted (`--rotorpilot-keep always|failed|never`; a vehicle
+that failed to start too). Every vehicle's ports are reserved (outside the kernel's ephemeral
 range, under a lock file held until it stops: `rotorpilot.reserve_port`), so
 `pytest -n auto` (pytest-xdist) runs tests in parallel.
 """
@@ -30,11 +40,15 @@ import os
 
 import pytest
 
+from . import clients
 from .vehicle import Vehicle, VehicleError
 
 OPTIONS = ("airframe", "speed", "params", "home", "instance", "extra_args")
 _VEHICLES = pytest.StashKey()
 _PROPERTY = "rotorpilot_logs"
+# every vehicle the plugin started in this process: pytest_unconfigure stops
+# any still running (a teardown that never ran: an interrupted session)
+_STARTED = []
 
 
 def pytest_addoption(parser):
@@ -50,8 +64,13 @@ def pytest_addoption(parser):
                      "(default: the system temp dir); point CI's artifact upload here")
     g.addoption("--rotorpilot-keep", choices=("failed", "always", "never"), default="failed",
                 help="keep a vehicle's directory after the test: when it failed (default), always, never")
+    g.addoption("--rotorpilot-mavsdk", choices=("mavsdk_grpc", "mavsdk"), metavar="MODULE",
+                help="the MAVSDK-Python module of the rotorpilot_mavsdk fixture: mavsdk_grpc "
+                     "(pip install mavsdk-grpc) or mavsdk (3.x) (default: the one the tests imported, "
+                     "else mavsdk_grpc if installed)")
     g.addoption("--rotorpilot-ready-timeout", type=float, default=20.0, metavar="SECONDS",
-                help="wall seconds to wait for a vehicle to be ready to arm (default 20)")
+                help="wall seconds to wait for a vehicle to be ready to arm, and for the "
+                     "rotorpilot_mavsdk/rotorpilot_mavlink clients to connect (default 20)")
 
 
 def pytest_configure(config):
@@ -124,6 +143,7 @@ def rotorpilot_vehicles(request):
         opts.setdefault("instance", len(vehicles))
         v = Vehicle(bin=cfg.getoption("rotorpilot_bin"), root=cfg.getoption("rotorpilot_log_dir"), **opts)
         v.keep_failed = cfg.getoption("rotorpilot_keep") != "never"
+        _STARTED.append(v)
         try:
             v.start(timeout=cfg.getoption("rotorpilot_ready_timeout"))
         except BaseException:
@@ -180,6 +200,58 @@ def rotorpilot_vehicle(rotorpilot_vehicles):
     `state_dir`, `log_dir`, `record`, `proc`. Options from the `rotorpilot`
     marker and the `--rotorpilot-*` command-line options."""
     return rotorpilot_vehicles()
+
+
+@pytest.fixture
+def rotorpilot_mavsdk(rotorpilot_vehicle, request):
+    """A MAVSDK-Python `System` (gRPC wrapper: the one the test imported, else
+    `mavsdk_grpc`, else `mavsdk` 3.x; `--rotorpilot-mavsdk` chooses) for
+    `rotorpilot_vehicle`. The fixture starts its `mavsdk_server` on
+    the vehicle's `mavsdk_server_port`, connected to `mavsdk_url`, waits
+    until the server has found the vehicle, and kills the server at teardown,
+    whatever the test did; the server's output is `mavsdk_server.log` in the
+    vehicle's directory. gRPC channels belong to an event loop, so the test
+    attaches the `System` in its own: `await drone.connect()`."""
+    v = rotorpilot_vehicle
+    mod = clients.mavsdk_module(request.config.getoption("rotorpilot_mavsdk"))
+    server = clients.MavsdkServer(clients.mavsdk_server_exe(mod), v.mavsdk_server_port, v.mavsdk_url,
+                                  os.path.join(v.root, "mavsdk_server.log"))
+    try:
+        server.start()
+        server.wait_ready(request.config.getoption("rotorpilot_ready_timeout"))
+        yield mod.System(mavsdk_server_address="127.0.0.1", port=v.mavsdk_server_port)
+    finally:
+        server.stop()
+
+
+@pytest.fixture
+def rotorpilot_mavlink(rotorpilot_vehicle, request):
+    """A pymavlink connection (`mavutil.mavlink_connection(pymavlink_url,
+    source_system=255)`) to `rotorpilot_vehicle`, its first heartbeat
+    received (`target_system` set); closed at teardown."""
+    from pymavlink import mavutil
+
+    timeout = request.config.getoption("rotorpilot_ready_timeout")
+    m = mavutil.mavlink_connection(rotorpilot_vehicle.pymavlink_url, source_system=255)
+    try:
+        if m.wait_heartbeat(timeout=timeout) is None:
+            raise clients.ClientError(f"no heartbeat from the vehicle on {rotorpilot_vehicle.pymavlink_url} "
+                                      f"within {timeout} s")
+        yield m
+    finally:
+        m.close()
+
+
+def pytest_unconfigure(config):
+    """Stop any vehicle (and the mavsdk_servers on its ports) whose teardown
+    did not run, so no process outlives the session."""
+    while _STARTED:
+        v = _STARTED.pop()
+        if v.proc is not None and v.proc.returncode is None:
+            try:
+                v.stop()
+            except Exception:  # noqa: BLE001 - the session is ending; stop the others
+                pass
 
 
 def pytest_terminal_summary(terminalreporter):

@@ -39,6 +39,8 @@ import tempfile
 import threading
 from pathlib import Path
 
+from .clients import kill_mavsdk_servers
+
 try:
     import fcntl
 except ImportError:  # Windows: the ephemeral-range guard alone
@@ -271,6 +273,7 @@ class Vehicle:
         self.ready_s = None
         self.returncode = None
         self._ports = []
+        self.killed_clients = []  # pids of mavsdk_servers stop() had to kill
         # whether a failed start() leaves `root` for a post-mortem (the
         # pytest plugin clears it for --rotorpilot-keep never)
         self.keep_failed = True
@@ -396,8 +399,15 @@ class Vehicle:
     def stop(self, timeout=5.0):
         """SIGTERM and wait (then SIGKILL); the daemon saves its state and
         closes its logs on SIGTERM. Returns its exit status; raises
-        VehicleError if it outlives SIGKILL too. Releases its ports either way."""
+        VehicleError if it outlives SIGKILL too. Releases its ports either way.
+
+        First it kills any `mavsdk_server` still bound to, or started with,
+        one of this vehicle's client ports (`client_port`,
+        `mavsdk_server_port`): a MAVSDK `System` a failed test never closed
+        would otherwise outlive the test, and keep Python from exiting."""
         try:
+            if any(r.held for r in self._ports):  # still ours
+                self.killed_clients += kill_mavsdk_servers([self.client_port, self.mavsdk_server_port])
             if self.proc is not None and self.proc.returncode is None:
                 if self.proc.poll() is None:
                     self.proc.terminate()  # SIGTERM

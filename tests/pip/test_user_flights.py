@@ -1,6 +1,8 @@
 """Flights written as a user of the fixture writes them: MAVSDK 3 (takeoff,
-a short mission, land) and pymavlink (arm, takeoff, land), each against its
-own vehicle from `rotorpilot_vehicle`. Passes alone and under `pytest -n 2`.
+a short mission, land; with its own `System`, and with the
+`rotorpilot_mavsdk` fixture's) and pymavlink (arm, takeoff, land), each
+against its own vehicle from `rotorpilot_vehicle`. Passes alone and under
+`pytest -n 2`.
 
 Needs `pip install .` (or the plugin on the path), mavsdk==3.17.4 and
 pymavlink==2.4.50. Every wait is bounded.
@@ -40,6 +42,29 @@ def waypoint(home, north_m, east_m, alt_m):
                        nan, nan, MissionItem.VehicleAction.NONE)
 
 
+async def takeoff_mission_land(drone):
+    await first(drone.core.connection_state(), lambda c: c.is_connected, 20, "connection")
+    await first(drone.telemetry.health(), lambda h: h.is_armable and h.is_home_position_ok, 10, "health")
+    home = await first(drone.telemetry.home(), lambda h: True, 10, "home")
+
+    await drone.action.arm()
+    await drone.action.takeoff()
+    await first(drone.telemetry.position(), lambda p: p.relative_altitude_m > 4.5, 30, "takeoff to 5 m")
+
+    plan = MissionPlan([waypoint(home, 15, 0, 8), waypoint(home, 15, 15, 8), waypoint(home, 0, 0, 8)])
+    await drone.mission.set_return_to_launch_after_mission(False)
+    await drone.mission.upload_mission(plan)
+    await drone.mission.start_mission()
+    await first(drone.mission.mission_progress(), lambda p: p.current == p.total == 3, 60, "mission done")
+    assert await drone.mission.is_mission_finished()
+
+    await drone.action.land()
+    await first(drone.telemetry.armed(), lambda armed: not armed, 60, "landed and disarmed")
+    p = await first(drone.telemetry.position(), lambda p: True, 5, "position")
+    assert abs(p.relative_altitude_m) < 0.5
+    assert abs(p.latitude_deg - home.latitude_deg) * M_PER_DEG < 3.0, "landed near home"
+
+
 @pytest.mark.rotorpilot(speed=10, params={"MIS_TAKEOFF_ALT": 5.0})
 def test_mavsdk3_takeoff_mission_land(rotorpilot_vehicle):
     async def fly():
@@ -47,28 +72,18 @@ def test_mavsdk3_takeoff_mission_land(rotorpilot_vehicle):
         drone = System(port=rotorpilot_vehicle.mavsdk_server_port)
         await drone.connect(system_address=rotorpilot_vehicle.mavsdk_url)
         try:
-            await first(drone.core.connection_state(), lambda c: c.is_connected, 20, "connection")
-            await first(drone.telemetry.health(), lambda h: h.is_armable and h.is_home_position_ok, 10, "health")
-            home = await first(drone.telemetry.home(), lambda h: True, 10, "home")
-
-            await drone.action.arm()
-            await drone.action.takeoff()
-            await first(drone.telemetry.position(), lambda p: p.relative_altitude_m > 4.5, 30, "takeoff to 5 m")
-
-            plan = MissionPlan([waypoint(home, 15, 0, 8), waypoint(home, 15, 15, 8), waypoint(home, 0, 0, 8)])
-            await drone.mission.set_return_to_launch_after_mission(False)
-            await drone.mission.upload_mission(plan)
-            await drone.mission.start_mission()
-            await first(drone.mission.mission_progress(), lambda p: p.current == p.total == 3, 60, "mission done")
-            assert await drone.mission.is_mission_finished()
-
-            await drone.action.land()
-            await first(drone.telemetry.armed(), lambda armed: not armed, 60, "landed and disarmed")
-            p = await first(drone.telemetry.position(), lambda p: True, 5, "position")
-            assert abs(p.relative_altitude_m) < 0.5
-            assert abs(p.latitude_deg - home.latitude_deg) * M_PER_DEG < 3.0, "landed near home"
+            await takeoff_mission_land(drone)
         finally:
             drone._stop_mavsdk_server()  # MAVSDK 3 has no public close
+
+    asyncio.run(asyncio.wait_for(fly(), 180))
+
+
+@pytest.mark.rotorpilot(speed=10, params={"MIS_TAKEOFF_ALT": 5.0})
+def test_mavsdk_fixture_takeoff_mission_land(rotorpilot_mavsdk):
+    async def fly():
+        await rotorpilot_mavsdk.connect()  # to the fixture's mavsdk_server, which it stops
+        await takeoff_mission_land(rotorpilot_mavsdk)
 
     asyncio.run(asyncio.wait_for(fly(), 180))
 

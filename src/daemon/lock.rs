@@ -108,6 +108,20 @@ mod tests {
         StateLock::take(&dir).expect("free again once the first is dropped");
     }
 
+    /// A lock released within [`GRACE`] (here: a holder that lets go after
+    /// 100 ms, as a forked child lets go at its exec) is taken, not refused.
+    #[test]
+    fn a_lock_released_within_the_grace_is_taken() {
+        let dir = scratch("lock-grace").join("state/0");
+        let first = StateLock::take(&dir).unwrap();
+        let holder = std::thread::spawn(move || {
+            std::thread::sleep(std::time::Duration::from_millis(100));
+            drop(first);
+        });
+        StateLock::take(&dir).expect("taken once the holder lets go");
+        holder.join().unwrap();
+    }
+
     #[test]
     fn a_state_dir_below_a_file_names_the_dir_and_the_cause_once() {
         let file = scratch("lock-below-file").join("afile");

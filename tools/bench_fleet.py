@@ -37,7 +37,7 @@ machine's load average at each start is shown: other work on the machine
 lowers the figures.
 
     cargo build --release
-    /work/main/.venv/pymavlink/bin/python tools/bench_fleet.py [--quick] [--only rt,mem,cpu,side]
+    .venv/pymavlink/bin/python tools/bench_fleet.py [--quick] [--only rt,mem,cpu,side]
 
 stdlib + pymavlink; Linux (/proc). Fleets of 64 start at instance 100
 (ports 14680+, 18670+), away from PX4's instances 0..9 that client tests

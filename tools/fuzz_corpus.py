@@ -6,7 +6,7 @@ setpoints, FTP, timesync, ...), packed by pymavlink (an encoder that shares
 no code with rotorpilot). tests/fuzz.rs mutates these seeds; a seed that
 reaches a handler lets the mutants reach it too.
 
-    /work/main/.venv/pymavlink/bin/python tools/fuzz_corpus.py
+    .venv/pymavlink/bin/python tools/fuzz_corpus.py
 
 (any Python with pymavlink==2.4.50). The files are checked in; rerun only to
 add seeds.

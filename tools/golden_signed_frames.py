@@ -4,7 +4,7 @@ pymavlink (an implementation that shares no code with rotorpilot or the Rust
 `mavlink` crate), so that src/link/signing.rs's signature check and signer
 are held against bytes they did not make.
 
-    /work/main/.venv/pymavlink/bin/python tools/golden_signed_frames.py
+    .venv/pymavlink/bin/python tools/golden_signed_frames.py
 
 One frame a line: `name key_hex link_id timestamp frame_hex`. The key is
 SHA-256 of a passphrase, as MAVProxy's `signing setup PASSPHRASE` makes it.

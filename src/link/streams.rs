@@ -19,9 +19,10 @@ use mavlink::MessageData;
 use mavlink::dialects::common::{
     ALTITUDE_DATA, ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, DEBUG_VECT_DATA,
     EXTENDED_SYS_STATE_DATA, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA,
-    HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA, MISSION_CURRENT_DATA, MavAutopilot, MavBatteryFunction,
-    MavBatteryType, MavLandedState, MavMessage, MavModeFlag, MavState, MavSysStatusSensor, MavType, MavVtolState,
-    MissionState as MavMissionState, NAMED_VALUE_FLOAT_DATA, SYS_STATUS_DATA, SYSTEM_TIME_DATA, VFR_HUD_DATA,
+    HIL_STATE_QUATERNION_DATA, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA, MISSION_CURRENT_DATA, MavAutopilot,
+    MavBatteryFunction, MavBatteryType, MavLandedState, MavMessage, MavModeFlag, MavState, MavSysStatusSensor, MavType,
+    MavVtolState, MissionState as MavMissionState, NAMED_VALUE_FLOAT_DATA, SYS_STATUS_DATA, SYSTEM_TIME_DATA,
+    VFR_HUD_DATA,
 };
 
 use super::convert;
@@ -48,6 +49,9 @@ pub enum Stream {
     LocalPositionNed,
     /// GLOBAL_POSITION_INT (33).
     GlobalPositionInt,
+    /// HIL_STATE_QUATERNION (115): the world's true state, PX4 SITL's ground
+    /// truth; off unless a client asks for it (MAVSDK's `set_rate_ground_truth`).
+    HilStateQuaternion,
     /// MISSION_CURRENT (42); also sent at once on change ([`super::mission`]).
     MissionCurrent,
     /// VFR_HUD (74).
@@ -69,7 +73,7 @@ pub enum Stream {
 
 impl Stream {
     /// Every stream.
-    pub const ALL: [Stream; 16] = [
+    pub const ALL: [Stream; 17] = [
         Stream::Heartbeat,
         Stream::SysStatus,
         Stream::SystemTime,
@@ -78,6 +82,7 @@ impl Stream {
         Stream::AttitudeQuaternion,
         Stream::LocalPositionNed,
         Stream::GlobalPositionInt,
+        Stream::HilStateQuaternion,
         Stream::MissionCurrent,
         Stream::VfrHud,
         Stream::Altitude,
@@ -100,6 +105,7 @@ impl Stream {
             Stream::AttitudeQuaternion => ATTITUDE_QUATERNION_DATA::ID,
             Stream::LocalPositionNed => LOCAL_POSITION_NED_DATA::ID,
             Stream::GlobalPositionInt => GLOBAL_POSITION_INT_DATA::ID,
+            Stream::HilStateQuaternion => HIL_STATE_QUATERNION_DATA::ID,
             Stream::MissionCurrent => MISSION_CURRENT_DATA::ID,
             Stream::VfrHud => VFR_HUD_DATA::ID,
             Stream::Altitude => ALTITUDE_DATA::ID,
@@ -429,6 +435,7 @@ pub fn build(stream: Stream, snapshot: &Snapshot, unix_time_us: u64) -> Vec<MavM
             vz: convert::sat_i16(t.velocity_ned.z * 100.0),
             hdg: convert::heading_cdeg(yaw),
         }),
+        Stream::HilStateQuaternion => MavMessage::HIL_STATE_QUATERNION(ground_truth(snapshot)),
         Stream::MissionCurrent => MavMessage::MISSION_CURRENT(mission_current(t)),
         Stream::VfrHud => MavMessage::VFR_HUD(VFR_HUD_DATA {
             airspeed: ground_speed as f32,
@@ -547,6 +554,39 @@ pub fn mission_current(t: &Telemetry) -> MISSION_CURRENT_DATA {
         mission_id: m.mission_id,
         fence_id: m.fence_id,
         rally_points_id: m.rally_id,
+    }
+}
+
+/// HIL_STATE_QUATERNION as PX4 SITL fills it from its ground-truth topics
+/// (`HIL_STATE_QUATERNION.hpp`): the true attitude and body rates, the true
+/// position as latitude/longitude/AMSL around the vehicle's NED origin
+/// (flat earth, [`crate::geo`]), the true NED velocity [cm/s], airspeeds 0,
+/// and the true NED acceleration written as PX4 writes it: the value in
+/// m/s^2 cut to an integer (not the milli-g the message's definition names),
+/// so that a client sees what it sees from PX4.
+#[must_use]
+pub fn ground_truth(snapshot: &Snapshot) -> HIL_STATE_QUATERNION_DATA {
+    let g = &snapshot.ground_truth;
+    let s = &g.state;
+    let q = s.attitude.quaternion();
+    let at = snapshot.telemetry.origin.offset(&s.position_ned);
+    HIL_STATE_QUATERNION_DATA {
+        time_usec: (s.time_s * 1e6) as u64,
+        attitude_quaternion: [q.w as f32, q.i as f32, q.j as f32, q.k as f32],
+        rollspeed: s.rate_frd.x as f32,
+        pitchspeed: s.rate_frd.y as f32,
+        yawspeed: s.rate_frd.z as f32,
+        lat: convert::deg_e7(at.lat_deg),
+        lon: convert::deg_e7(at.lon_deg),
+        alt: convert::sat_i32(at.alt_amsl_m * 1e3),
+        vx: convert::sat_i16(s.velocity_ned.x * 100.0),
+        vy: convert::sat_i16(s.velocity_ned.y * 100.0),
+        vz: convert::sat_i16(s.velocity_ned.z * 100.0),
+        ind_airspeed: 0,
+        true_airspeed: 0,
+        xacc: convert::sat_i16(g.acceleration_ned.x.trunc()),
+        yacc: convert::sat_i16(g.acceleration_ned.y.trunc()),
+        zacc: convert::sat_i16(g.acceleration_ned.z.trunc()),
     }
 }
 

@@ -99,6 +99,7 @@ pub(crate) fn snapshot() -> Snapshot {
             degraded_rotors: 0,
         },
         truth: Default::default(),
+        ground_truth: Default::default(),
         plans: Plans::default(),
     };
     // the injected wrench the estimate above has found (the world's truth

@@ -100,8 +100,24 @@ pub struct Snapshot {
     pub telemetry: Telemetry,
     /// The injected wrench and true mass.
     pub truth: Truth,
+    /// The vehicle's true motion (PX4 SITL's ground truth).
+    pub ground_truth: GroundTruth,
     /// The stored mission, geofence and rally points (shared, not copied).
     pub plans: Plans,
+}
+
+/// The vehicle's true motion, what PX4 SITL calls its ground truth (the
+/// simulator's state, never the flight stack's estimate); NED from the
+/// vehicle's own origin (its home), body FRD.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct GroundTruth {
+    /// True position [m] and velocity [m/s] (NED), attitude (FRD to NED) and
+    /// body rates [rad/s] (FRD), at the snapshot's instant.
+    pub state: Measurement,
+    /// True acceleration of the centre of mass [m/s^2], NED: the second
+    /// derivative of the position, `a = g e3 + (-u_T R e3 + f_e) / m` (zero
+    /// in a hover and at rest on the ground).
+    pub acceleration_ned: Vector3<f64>,
 }
 
 /// The world and one pilot per vehicle.
@@ -548,11 +564,17 @@ impl Lockstep<Autopilot> {
         self.pilots[i].telemetry(readings)
     }
 
-    /// Vehicle `i`'s telemetry and the world's injected truth.
+    /// Vehicle `i`'s telemetry, the world's injected truth and its ground truth.
     pub fn snapshot(&mut self, i: usize) -> Snapshot {
+        let plant = self.world.plant(i);
+        let ground_truth = GroundTruth {
+            state: plant.truth(),
+            acceleration_ned: plant.acceleration_ned(),
+        };
         Snapshot {
             telemetry: self.telemetry(i),
             truth: self.world.truth(i),
+            ground_truth,
             plans: self.pilots[i].plans().clone(),
         }
     }

@@ -3,6 +3,7 @@
 
 use super::*;
 use crate::link::testing::snapshot;
+use nalgebra::{UnitQuaternion, Vector3};
 
 #[test]
 fn heartbeat_type_follows_the_airframe() {
@@ -60,7 +61,10 @@ fn default_rates_and_deadlines() {
     let mut s = Scheduler::new(t0, &gcs_rates());
     let mut due = Vec::new();
     s.due(t0, &mut due);
-    assert_eq!(due.len(), Stream::ALL.len());
+    // every stream but the ground truth, which waits to be asked for (as in PX4 SITL)
+    assert_eq!(due.len(), Stream::ALL.len() - 1);
+    assert!(!due.contains(&Stream::HilStateQuaternion));
+    assert_eq!(due.len(), gcs_rates().len());
     due.clear();
     // 20 ms later only the 50 Hz streams are due
     s.due(t0 + Duration::from_millis(20), &mut due);
@@ -125,4 +129,34 @@ fn a_late_poll_does_not_burst() {
     s.due(t0 + Duration::from_secs(5), &mut due);
     s.due(t0 + Duration::from_millis(5100), &mut due);
     assert_eq!(due.len(), 2);
+}
+
+#[test]
+fn ground_truth_is_the_worlds_state_around_the_origin() {
+    let mut snap = snapshot();
+    let origin = snap.telemetry.origin;
+    // the estimate says one thing, the world another: the message carries the world's
+    snap.telemetry.position_ned = Vector3::new(0.0, 0.0, 0.0);
+    snap.ground_truth.state.time_s = 12.5;
+    snap.ground_truth.state.position_ned = Vector3::new(100.0, -50.0, -20.0);
+    snap.ground_truth.state.velocity_ned = Vector3::new(1.5, -0.25, -3.0);
+    snap.ground_truth.state.attitude = UnitQuaternion::from_euler_angles(0.1, -0.2, 1.0);
+    snap.ground_truth.state.rate_frd = Vector3::new(0.01, 0.02, -0.3);
+    snap.ground_truth.acceleration_ned = Vector3::new(0.4, -2.7, 9.9);
+    let [m] = build(Stream::HilStateQuaternion, &snap, 0).try_into().unwrap();
+    let MavMessage::HIL_STATE_QUATERNION(h) = m else {
+        panic!("{m:?}")
+    };
+    let at = origin.offset(&Vector3::new(100.0, -50.0, -20.0));
+    assert_eq!(h.time_usec, 12_500_000);
+    assert_eq!(h.lat, convert::deg_e7(at.lat_deg));
+    assert_eq!(h.lon, convert::deg_e7(at.lon_deg));
+    assert_eq!(h.alt, ((origin.alt_amsl_m + 20.0) * 1e3) as i32);
+    assert_eq!((h.vx, h.vy, h.vz), (150, -25, -300));
+    let q = snap.ground_truth.state.attitude.quaternion();
+    assert_eq!(h.attitude_quaternion, [q.w as f32, q.i as f32, q.j as f32, q.k as f32]);
+    assert_eq!((h.rollspeed, h.pitchspeed, h.yawspeed), (0.01, 0.02, -0.3));
+    // PX4 writes the acceleration in m/s^2, cut to an integer
+    assert_eq!((h.xacc, h.yacc, h.zacc), (0, -2, 9));
+    assert_eq!((h.ind_airspeed, h.true_airspeed), (0, 0));
 }

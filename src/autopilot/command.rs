@@ -3,7 +3,7 @@
 //! ([`CommandOutcome`], mapped to MAV_RESULT by the link).
 
 use super::FlightMode;
-use super::navigator::{ManualControl, OffboardSetpoint};
+use super::navigator::{ManualControl, OffboardSetpoint, OrbitYaw};
 use crate::geo::GeoPoint;
 
 /// What MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN asks for.
@@ -63,6 +63,22 @@ pub enum AutopilotCommand {
         yaw_rad: Option<f64>,
         /// Ground speed [m/s].
         speed_m_s: Option<f64>,
+    },
+    /// Circle a centre, switching to Orbit (DO_ORBIT): `None` parts keep the
+    /// current value (the centre needs both latitude and longitude).
+    Orbit {
+        /// Signed radius [m]: its sign is the direction, positive clockwise seen from above.
+        radius_m: Option<f64>,
+        /// Tangential speed [m/s].
+        velocity_m_s: Option<f64>,
+        /// Where the nose points.
+        yaw: Option<OrbitYaw>,
+        /// Centre latitude [deg].
+        lat_deg: Option<f64>,
+        /// Centre longitude [deg].
+        lon_deg: Option<f64>,
+        /// Altitude AMSL [m].
+        alt_amsl_m: Option<f64>,
     },
     /// Change the cruise speed [m/s] (DO_CHANGE_SPEED).
     ChangeSpeed {

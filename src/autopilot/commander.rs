@@ -17,7 +17,7 @@ use nalgebra::Vector3;
 use super::command::{AutopilotCommand, CommandOutcome, PowerAction};
 use super::failsafe::{ClientTimer, PendingTimer};
 use super::land_detector::LandEvent;
-use super::navigator::{HoldTarget, ManualMode, Nav};
+use super::navigator::{HoldTarget, ManualMode, Nav, OrbitChange};
 use super::settings::FailsafeAction;
 use super::status::{Announcements, Severity};
 use super::{Autopilot, FlightMode, ManualControl, OffboardSetpoint};
@@ -280,6 +280,7 @@ impl Autopilot {
     /// | `StartMission` | Denied without a mission or with a first item beyond it; TemporarilyRejected when arming is (it arms) |
     /// | `SetMissionCurrent` | Denied beyond the mission |
     /// | `Reposition` | Denied for non-finite parts, lat/lon out of range, or an AMSL altitude above `RP_ALT_MAX_AMSL`; TemporarilyRejected when disarmed; a target outside the geofence (zones, `GF_MAX_HOR_DIST`, `GF_MAX_VER_DIST`) is Accepted, announced ("Reposition is outside geofence") and ignored, the vehicle holding where it is (PX4) |
+    /// | `Orbit` | Denied for non-finite parts, lat/lon out of range, an AMSL altitude above `RP_ALT_MAX_AMSL`, or a radius outside `[1, 1000]` m ("Orbit radius limit exceeded", PX4's `MC_ORBIT_RAD_MAX`); TemporarilyRejected without a GPS fix. Accepted disarmed too (the mode is selected; it cannot be armed in) |
     /// | `ChangeSpeed` | Denied when not finite |
     /// | `SetHome` | Denied for an invalid point |
     /// | `Offboard` | Denied when a given part is not finite, or nothing is given; a position above `GF_MAX_VER_DIST` is clamped to it (announced once) |
@@ -310,6 +311,14 @@ impl Autopilot {
                 yaw_rad,
                 speed_m_s,
             } => self.reposition([lat_deg, lon_deg, alt_amsl_m], yaw_rad, speed_m_s, m),
+            AutopilotCommand::Orbit {
+                radius_m,
+                velocity_m_s,
+                yaw,
+                lat_deg,
+                lon_deg,
+                alt_amsl_m,
+            } => self.orbit(radius_m, velocity_m_s, yaw, [lat_deg, lon_deg, alt_amsl_m], m),
             AutopilotCommand::ChangeSpeed { speed_m_s } => self.change_speed(speed_m_s),
             AutopilotCommand::SetHome(point) => self.set_home_to(point, m),
             AutopilotCommand::Offboard(sp) => self.offboard_setpoint(&sp, m),
@@ -377,7 +386,7 @@ impl Autopilot {
             Nav::Offboard if !self.offboard_fresh(m.time_s) => Some("no offboard signal"),
             Nav::Mission if self.plans.get(MissionType::Mission).is_empty() => Some("no valid mission"),
             Nav::Hold { .. } | Nav::Offboard | Nav::Mission => None,
-            Nav::Takeoff { .. } | Nav::Land { .. } | Nav::Rtl { .. } | Nav::Descend { .. } => {
+            Nav::Takeoff { .. } | Nav::Land { .. } | Nav::Rtl { .. } | Nav::Orbit(_) | Nav::Descend { .. } => {
                 Some("flight mode not armable")
             }
         };
@@ -511,6 +520,14 @@ impl Autopilot {
                 CommandOutcome::Accepted
             }
             FlightMode::Descend => self.land(m),
+            FlightMode::Orbit => {
+                if let Some(refused) = self.refuse_without_position("Switching to Orbit") {
+                    return refused;
+                }
+                let cx = situation!(self, m);
+                self.navigator.enter_orbit(&cx);
+                CommandOutcome::Accepted
+            }
             FlightMode::Position => self.enter_manual_mode(ManualMode::Position, m),
             FlightMode::Altitude => self.enter_manual_mode(ManualMode::Altitude, m),
             FlightMode::Stabilized => self.enter_manual_mode(ManualMode::Stabilized, m),
@@ -603,6 +620,61 @@ impl Autopilot {
         }
         self.navigator.enter_hold_at(hold);
         CommandOutcome::Accepted
+    }
+
+    /// DO_ORBIT: switch to Orbit and circle as asked (`None` parts keep the
+    /// orbit's current value; PX4's placeholder when another mode flew).
+    fn orbit(
+        &mut self,
+        radius_m: Option<f64>,
+        velocity_m_s: Option<f64>,
+        yaw: Option<super::OrbitYaw>,
+        [lat_deg, lon_deg, alt_amsl_m]: [Option<f64>; 3],
+        m: &Measurement,
+    ) -> CommandOutcome {
+        let parts = [radius_m, velocity_m_s, lat_deg, lon_deg, alt_amsl_m];
+        if parts.iter().flatten().any(|x| !x.is_finite()) {
+            return CommandOutcome::Denied("invalid orbit value");
+        }
+        if lat_deg.is_some_and(|l| l.abs() > 90.0) || lon_deg.is_some_and(|l| l.abs() > 180.0) {
+            return self.refuse(
+                Severity::Critical,
+                "Orbit denied: latitude/longitude out of range",
+                CommandOutcome::Denied("invalid orbit centre"),
+            );
+        }
+        if let Some(refused) = self.refuse_above_ceiling("Orbit", alt_amsl_m) {
+            return refused;
+        }
+        if let Some(refused) = self.refuse_without_position("Orbit") {
+            return refused;
+        }
+        let centre_xy = lat_deg.zip(lon_deg).map(|(lat_deg, lon_deg)| {
+            let c = GeoPoint {
+                lat_deg,
+                lon_deg,
+                alt_amsl_m: self.origin.alt_amsl_m,
+            }
+            .ned_from(&self.origin);
+            [c.x, c.y]
+        });
+        let change = OrbitChange {
+            radius_m,
+            velocity_m_s,
+            yaw,
+            centre_xy,
+            z: alt_amsl_m.map(|a| self.origin.alt_amsl_m - a),
+        };
+        let cx = situation!(self, m);
+        if self.navigator.command_orbit(&cx, &change) {
+            CommandOutcome::Accepted
+        } else {
+            self.refuse(
+                Severity::Critical,
+                "Orbit radius limit exceeded",
+                CommandOutcome::Denied("orbit radius out of range"),
+            )
+        }
     }
 
     /// DO_CHANGE_SPEED: a positive speed becomes the cruise speed (capped at

@@ -11,7 +11,7 @@
 //! | `stack` | [`Autopilot`]: the state, parameters, and one step in order (sense, detect, supervise, guide, act) |
 //! | `command` | the commands a client gives ([`AutopilotCommand`]) and the answers ([`CommandOutcome`]) |
 //! | `commander` | commands: the `Commander` (arming state, prearm checks, disarm, auto-disarm timers, reboot and failure-injection gates) and the wiring of each command (the mode state machine, home) |
-//! | `navigator/` | guidance per mode family: `auto` (hold, takeoff, land, return), `offboard` (setpoints and their frames), `mission` (the stored mission flown as paths), `manual` (sticks and the manual modes), `blind` (the descent without a GPS fix) |
+//! | `navigator/` | guidance per mode family: `auto` (hold, takeoff, land, return), `offboard` (setpoints and their frames), `mission` (the stored mission flown as paths), `manual` (sticks and the manual modes), `blind` (the descent without a GPS fix), `orbit` (circling a centre) |
 //! | `mission` | the mission as the commander sees it: start, set current, what a new upload does, MISSION_CURRENT's state |
 //! | `failsafe` | supervision: the `Failsafe` (data link, battery level, geofence breach, clamp notice, client clock) and the one runner's choice; offboard, data-link, manual-control loss, battery, geofence, auto-disarm wired through it; which clock the timers that wait for a client run on |
 //! | `geofence` | the stored fence's zones and PX4's distance limits, as pure geometry |
@@ -37,6 +37,8 @@
 //!   `MPC_LAND_ALT1` and `MPC_LAND_SPEED` below; RTL climbs to
 //!   `RTL_RETURN_ALT`, returns at the cruise speed, descends to
 //!   `RTL_DESCEND_ALT`, lands. Reposition is Hold with a target.
+//! * Orbit (DO_ORBIT, `navigator/orbit.rs`): flies to the circle, then
+//!   round it at the commanded radius, speed and heading behaviour; not armable.
 //! * Offboard: accepted with a setpoint younger than `COM_OF_LOSS_T`; left
 //!   for `COM_OBL_RC_ACT`'s action (Hold by default) when they stop. Landed,
 //!   the rotors idle until a setpoint asks to climb (a position 0.2 m above,
@@ -112,12 +114,12 @@ pub use control_loop::RotorAllocation;
 pub use control_loop::{ControlLoop, ControlLoopError, ControlOutput, Demand};
 pub use error::AutopilotError;
 pub use failsafe::{ClientClock, ClientTimer, PendingTimer};
-pub use navigator::ManualControl;
 pub use navigator::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};
+pub use navigator::{ManualControl, OrbitYaw};
 pub use rotor_monitor::{FAILED_SPEED_RATIO, RotorEvent, RotorMonitor, RotorStatus};
 pub use stack::Autopilot;
 pub use status::{STATUS_TEXT_LEN, Severity, StatusText, cut_status_text, status_text_lines};
-pub use telemetry::{LandedState, MissionState, MissionStatus, Telemetry, VehicleType};
+pub use telemetry::{LandedState, MissionState, MissionStatus, OrbitStatus, Telemetry, VehicleType};
 
 use serde::Serialize;
 
@@ -148,6 +150,8 @@ pub enum FlightMode {
     Acro,
     /// MANUAL: on a multicopter flown as Stabilized (PX4).
     Manual,
+    /// POSCTL.ORBIT: circle a centre (MAV_CMD_DO_ORBIT), as PX4's Orbit task.
+    Orbit,
     /// PX4's Descend (shown as AUTO.LAND): land without a position estimate —
     /// level, no horizontal control, sinking at MPC_LAND_SPEED (GPS loss).
     Descend,

@@ -16,7 +16,7 @@ use super::rotor_monitor::{RotorEvent, RotorMonitor, RotorStatus};
 use super::settings::FailsafeAction;
 use super::settings::Settings;
 use super::status::{Announcements, Severity, StatusText};
-use super::telemetry::{Telemetry, VehicleType};
+use super::telemetry::{OrbitStatus, Telemetry, VehicleType};
 use crate::airframe::{Actuation, Airframe};
 use crate::control::{ControlGains, ControllerKind, GainError, RelaxedHoverError, ShaperLimits};
 use crate::estimation::{Discretization, EstimatorConfig, MomentumEstimator};
@@ -428,6 +428,11 @@ impl Autopilot {
             mission: self.mission_status(),
             failed_rotors: rotor_mask(self.rotors.status(), |r| r == RotorStatus::Failed),
             degraded_rotors: rotor_mask(self.rotors.status(), |r| matches!(r, RotorStatus::Degraded { .. })),
+            orbit: self.navigator.orbit().map(|o| OrbitStatus {
+                radius_m: o.velocity_m_s.signum() * o.radius_m,
+                centre: self.origin.offset(&o.centre_ned),
+                yaw: o.yaw,
+            }),
         }
     }
 

@@ -111,6 +111,19 @@ pub struct Telemetry {
     pub failed_rotors: u16,
     /// Rotors flagged degraded (below ~90 % thrust): bit `i - 1` for rotor `i`.
     pub degraded_rotors: u16,
+    /// The orbit flown, in Orbit (ORBIT_EXECUTION_STATUS).
+    pub orbit: Option<OrbitStatus>,
+}
+
+/// An orbit as ORBIT_EXECUTION_STATUS reports it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct OrbitStatus {
+    /// Radius [m], signed: positive clockwise seen from above.
+    pub radius_m: f64,
+    /// Centre (latitude, longitude) and the altitude flown (AMSL).
+    pub centre: GeoPoint,
+    /// Where the nose points.
+    pub yaw: super::OrbitYaw,
 }
 
 /// MISSION_CURRENT's `mission_state`.

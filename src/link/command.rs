@@ -11,7 +11,7 @@ use std::time::Duration;
 use super::convert::{self, ModeRequest, result};
 use super::streams::Interval;
 use super::wire::{CommandInt, CommandLong};
-use crate::autopilot::{AutopilotCommand, PowerAction};
+use crate::autopilot::{AutopilotCommand, OrbitYaw, PowerAction};
 use crate::geo::GeoPoint;
 
 /// MAV_CMD ids handled here.
@@ -22,6 +22,8 @@ pub mod id {
     pub const NAV_LAND: u16 = 21;
     /// MAV_CMD_NAV_TAKEOFF.
     pub const NAV_TAKEOFF: u16 = 22;
+    /// MAV_CMD_DO_ORBIT.
+    pub const DO_ORBIT: u16 = 34;
     /// MAV_CMD_DO_SET_MODE.
     pub const DO_SET_MODE: u16 = 176;
     /// MAV_CMD_DO_CHANGE_SPEED.
@@ -218,6 +220,23 @@ pub fn classify(c: &Command) -> Action {
                 alt_amsl_m: c.z(),
                 yaw_rad: convert::finite(p4),
                 speed_m_s: convert::finite(p1).filter(|s| *s > 0.0),
+            })
+        }
+        // p1 signed radius, p2 speed, p3 yaw behaviour (5: unchanged; a
+        // number MAVLink does not define flies PX4's default, front to the
+        // centre), p5/p6 centre, p7 altitude AMSL; NaN keeps
+        id::DO_ORBIT => {
+            let (lat, lon) = c.lat_lon().unzip();
+            Action::Autopilot(AutopilotCommand::Orbit {
+                radius_m: convert::finite(p1),
+                velocity_m_s: convert::finite(p2),
+                yaw: convert::finite(p3)
+                    .map(|y| y.round())
+                    .filter(|y| *y != 5.0)
+                    .map(|y| OrbitYaw::from_mavlink(y.clamp(0.0, 255.0) as u8).unwrap_or(OrbitYaw::FrontToCentre)),
+                lat_deg: lat,
+                lon_deg: lon,
+                alt_amsl_m: c.z(),
             })
         }
         // p2 = speed; NaN (MAVSDK's "unchanged") is PX4's -1, no change

@@ -23,6 +23,12 @@ pub mod main_mode {
     pub const STABILIZED: u8 = 7;
 }
 
+/// PX4 POSCTL sub-modes.
+pub mod posctl_sub {
+    /// POSCTL.ORBIT.
+    pub const ORBIT: u8 = 1;
+}
+
 /// PX4 AUTO sub-modes.
 pub mod auto_sub {
     /// AUTO.READY.
@@ -46,6 +52,7 @@ pub mod auto_sub {
 pub fn px4_mode(mode: FlightMode) -> (u8, u8) {
     match mode {
         FlightMode::Position => (main_mode::POSCTL, 0),
+        FlightMode::Orbit => (main_mode::POSCTL, posctl_sub::ORBIT),
         FlightMode::Hold => (main_mode::AUTO, auto_sub::LOITER),
         FlightMode::Takeoff => (main_mode::AUTO, auto_sub::TAKEOFF),
         FlightMode::Land => (main_mode::AUTO, auto_sub::LAND),
@@ -81,11 +88,12 @@ pub enum ModeRequest {
 }
 
 /// Map a PX4 (main, sub) pair to a flight mode. AUTO with sub 0 is MISSION
-/// (PX4); the other main modes ignore the sub-mode (POSCTL's ORBIT and
-/// SLOW are flown as POSCTL).
+/// (PX4); POSCTL with sub-mode ORBIT is Orbit; the other main modes ignore
+/// the sub-mode (POSCTL's SLOW is flown as POSCTL).
 #[must_use]
 pub fn mode_from_px4(main: u8, sub: u8) -> ModeRequest {
     match (main, sub) {
+        (main_mode::POSCTL, posctl_sub::ORBIT) => ModeRequest::Mode(FlightMode::Orbit),
         (main_mode::POSCTL, _) => ModeRequest::Mode(FlightMode::Position),
         (main_mode::MANUAL, _) => ModeRequest::Mode(FlightMode::Manual),
         (main_mode::ALTCTL, _) => ModeRequest::Mode(FlightMode::Altitude),
@@ -157,6 +165,7 @@ pub fn base_mode(mode: FlightMode, armed: bool) -> u8 {
         | FlightMode::Land
         | FlightMode::ReturnToLaunch
         | FlightMode::Mission
+        | FlightMode::Orbit
         | FlightMode::Offboard => mode_flag::AUTO | mode_flag::GUIDED | mode_flag::STABILIZE,
     };
     if armed {

@@ -20,9 +20,9 @@ use mavlink::dialects::common::{
     ALTITUDE_DATA, ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, DEBUG_VECT_DATA,
     EXTENDED_SYS_STATE_DATA, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA,
     HIL_STATE_QUATERNION_DATA, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA, MISSION_CURRENT_DATA, MavAutopilot,
-    MavBatteryFunction, MavBatteryType, MavLandedState, MavMessage, MavModeFlag, MavState, MavSysStatusSensor, MavType,
-    MavVtolState, MissionState as MavMissionState, NAMED_VALUE_FLOAT_DATA, SYS_STATUS_DATA, SYSTEM_TIME_DATA,
-    VFR_HUD_DATA,
+    MavBatteryFunction, MavBatteryType, MavFrame, MavLandedState, MavMessage, MavModeFlag, MavState,
+    MavSysStatusSensor, MavType, MavVtolState, MissionState as MavMissionState, NAMED_VALUE_FLOAT_DATA,
+    ORBIT_EXECUTION_STATUS_DATA, SYS_STATUS_DATA, SYSTEM_TIME_DATA, VFR_HUD_DATA,
 };
 
 use super::convert;
@@ -60,6 +60,8 @@ pub enum Stream {
     Altitude,
     /// BATTERY_STATUS (147).
     BatteryStatus,
+    /// ORBIT_EXECUTION_STATUS (360): sent only while orbiting.
+    OrbitExecutionStatus,
     /// HOME_POSITION (242).
     HomePosition,
     /// EXTENDED_SYS_STATE (245).
@@ -73,7 +75,7 @@ pub enum Stream {
 
 impl Stream {
     /// Every stream.
-    pub const ALL: [Stream; 17] = [
+    pub const ALL: [Stream; 18] = [
         Stream::Heartbeat,
         Stream::SysStatus,
         Stream::SystemTime,
@@ -87,6 +89,7 @@ impl Stream {
         Stream::VfrHud,
         Stream::Altitude,
         Stream::BatteryStatus,
+        Stream::OrbitExecutionStatus,
         Stream::HomePosition,
         Stream::ExtendedSysState,
         Stream::DebugVect,
@@ -110,6 +113,7 @@ impl Stream {
             Stream::VfrHud => VFR_HUD_DATA::ID,
             Stream::Altitude => ALTITUDE_DATA::ID,
             Stream::BatteryStatus => BATTERY_STATUS_DATA::ID,
+            Stream::OrbitExecutionStatus => ORBIT_EXECUTION_STATUS_DATA::ID,
             Stream::HomePosition => HOME_POSITION_DATA::ID,
             Stream::ExtendedSysState => EXTENDED_SYS_STATE_DATA::ID,
             Stream::DebugVect => DEBUG_VECT_DATA::ID,
@@ -144,6 +148,7 @@ pub fn gcs_rates() -> Rates {
         (Stream::VfrHud, 4.0),
         (Stream::Altitude, 1.0),
         (Stream::BatteryStatus, 0.5),
+        (Stream::OrbitExecutionStatus, 2.0),
         (Stream::HomePosition, 0.5),
         (Stream::ExtendedSysState, 1.0),
         (Stream::DebugVect, 10.0),
@@ -167,6 +172,7 @@ pub fn api_rates() -> Rates {
         (Stream::VfrHud, 10.0),
         (Stream::Altitude, 10.0),
         (Stream::BatteryStatus, 0.5),
+        (Stream::OrbitExecutionStatus, 5.0),
         (Stream::HomePosition, 0.5),
         (Stream::ExtendedSysState, 5.0),
         (Stream::DebugVect, 10.0),
@@ -471,6 +477,18 @@ pub fn build(stream: Stream, snapshot: &Snapshot, unix_time_us: u64) -> Vec<MavM
                 charge_state: convert::charge_state(t.battery_warning),
                 // other MAVLink 2 extensions: not reported (zero, cut off the wire)
                 ..Default::default()
+            })
+        }
+        Stream::OrbitExecutionStatus => {
+            // PX4 sends it only while its orbit task publishes
+            let Some(o) = &t.orbit else { return Vec::new() };
+            MavMessage::ORBIT_EXECUTION_STATUS(ORBIT_EXECUTION_STATUS_DATA {
+                time_usec: us,
+                radius: o.radius_m as f32,
+                frame: MavFrame::MAV_FRAME_GLOBAL,
+                x: convert::deg_e7(o.centre.lat_deg),
+                y: convert::deg_e7(o.centre.lon_deg),
+                z: o.centre.alt_amsl_m as f32,
             })
         }
         Stream::HomePosition => MavMessage::HOME_POSITION(home_position(t)),

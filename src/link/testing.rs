@@ -97,6 +97,7 @@ pub(crate) fn snapshot() -> Snapshot {
             },
             failed_rotors: 0,
             degraded_rotors: 0,
+            orbit: None,
         },
         truth: Default::default(),
         ground_truth: Default::default(),

@@ -139,6 +139,7 @@ impl Navigator {
             Nav::Offboard => self.offboard_demand(cx),
             Nav::Mission => self.mission_demand(cx, say),
             Nav::Manual(mode) => self.manual_demand(cx, mode),
+            Nav::Orbit(orbit) => self.orbit_demand(cx, orbit),
             Nav::Descend { .. } => self.descend_demand(cx),
         }
     }

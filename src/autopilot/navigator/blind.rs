@@ -50,7 +50,12 @@ impl Navigator {
     /// Whether the active mode steers by the horizontal position or velocity.
     pub(in crate::autopilot) fn needs_position(&self) -> bool {
         match self.nav {
-            Nav::Hold { .. } | Nav::Takeoff { .. } | Nav::Land { .. } | Nav::Rtl { .. } | Nav::Mission => true,
+            Nav::Hold { .. }
+            | Nav::Takeoff { .. }
+            | Nav::Land { .. }
+            | Nav::Rtl { .. }
+            | Nav::Mission
+            | Nav::Orbit(_) => true,
             Nav::Manual(mode) => mode == ManualMode::Position,
             Nav::Offboard => !matches!(self.offboard, Some((LocalSetpoint::Attitude(_), _))),
             Nav::Descend { .. } => false,

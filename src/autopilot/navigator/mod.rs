@@ -1,6 +1,6 @@
 //! Guidance: the active mode turned into this step's [`Demand`] (a shaped
 //! reference, an attitude setpoint, idle or stopped rotors), one file per
-//! mode family — `auto` (hold, takeoff, land, return to launch),
+//! mode family — `auto` (hold, takeoff, land, return to launch), `orbit`,
 //! `offboard` (external setpoints), `mission` (the stored mission),
 //! `manual` (the pilot's sticks) and `blind` (Descend without a GPS fix). The
 //! [`Navigator`] owns what guidance remembers between steps: the mode and its
@@ -12,11 +12,15 @@ mod blind;
 mod manual;
 mod mission;
 mod offboard;
+mod orbit;
 
 pub use manual::ManualControl;
 pub(super) use manual::ManualMode;
 
 pub(super) use mission::{MissionRun, SetHome, item_point_ned};
+
+pub use orbit::OrbitYaw;
+pub(super) use orbit::{Orbit, OrbitChange};
 
 pub use offboard::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};
 
@@ -129,6 +133,8 @@ pub(super) enum Nav {
     Mission,
     /// Fly with the pilot's sticks.
     Manual(ManualMode),
+    /// Circle a centre.
+    Orbit(Orbit),
     /// Descend without a position (GPS loss).
     Descend {
         /// What to fly when the fix returns before touchdown.
@@ -220,6 +226,7 @@ impl Navigator {
             Nav::Offboard => FlightMode::Offboard,
             Nav::Mission => FlightMode::Mission,
             Nav::Manual(mode) => mode.flight_mode(),
+            Nav::Orbit(_) => FlightMode::Orbit,
             Nav::Descend { .. } => FlightMode::Descend,
         }
     }

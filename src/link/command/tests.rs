@@ -249,3 +249,61 @@ fn set_home() {
         Action::Autopilot(AutopilotCommand::SetHome(Some(p))) if !p.is_valid()
     ));
 }
+
+#[test]
+fn orbit_as_mavsdk_sends_it_and_nan_keeps() {
+    // MAVSDK's do_orbit: COMMAND_INT, global frame, lat/lon in degE7
+    let c = Command::from(&CommandInt {
+        params: [-10.0, 2.0, 3.0, N],
+        x: 473_977_420,
+        y: 85_455_940,
+        z: 498.0,
+        command: id::DO_ORBIT,
+        frame: 0,
+        current: 0,
+        autocontinue: 0,
+        target_system: 1,
+        target_component: 1,
+    });
+    let Action::Autopilot(AutopilotCommand::Orbit {
+        radius_m,
+        velocity_m_s,
+        yaw,
+        lat_deg,
+        lon_deg,
+        alt_amsl_m,
+    }) = classify(&c)
+    else {
+        panic!("{:?}", classify(&c))
+    };
+    assert_eq!(
+        (radius_m, velocity_m_s, yaw),
+        (Some(-10.0), Some(2.0), Some(OrbitYaw::FrontTangent))
+    );
+    assert!((lat_deg.unwrap() - 47.397742).abs() < 1e-9 && (lon_deg.unwrap() - 8.545594).abs() < 1e-9);
+    assert_eq!(alt_amsl_m, Some(498.0));
+    // NaN keeps; 5 (ORBIT_YAW_BEHAVIOUR_UNCHANGED) keeps; an undefined number is PX4's default
+    let keep = |p3: f32| classify(&long(id::DO_ORBIT, [N, N, p3, N, N, N, N]));
+    assert_eq!(
+        keep(N),
+        Action::Autopilot(AutopilotCommand::Orbit {
+            radius_m: None,
+            velocity_m_s: None,
+            yaw: None,
+            lat_deg: None,
+            lon_deg: None,
+            alt_amsl_m: None,
+        })
+    );
+    assert!(matches!(
+        keep(5.0),
+        Action::Autopilot(AutopilotCommand::Orbit { yaw: None, .. })
+    ));
+    assert!(matches!(
+        keep(42.0),
+        Action::Autopilot(AutopilotCommand::Orbit {
+            yaw: Some(OrbitYaw::FrontToCentre),
+            ..
+        })
+    ));
+}

@@ -18,6 +18,8 @@ fn custom_modes_match_px4_numbers() {
     assert_eq!(custom_mode(FlightMode::Stabilized), 458_752);
     // PX4's Descend is shown as AUTO.LAND
     assert_eq!(custom_mode(FlightMode::Descend), 100_925_440);
+    // POSCTL.ORBIT: main 3, sub 1
+    assert_eq!(custom_mode(FlightMode::Orbit), 16_973_824);
 }
 
 #[test]
@@ -34,6 +36,7 @@ fn every_mode_round_trips() {
         FlightMode::Stabilized,
         FlightMode::Acro,
         FlightMode::Manual,
+        FlightMode::Orbit,
     ] {
         let (main, sub) = px4_mode(m);
         assert_eq!(mode_from_px4(main, sub), ModeRequest::Mode(m));

@@ -160,3 +160,26 @@ fn ground_truth_is_the_worlds_state_around_the_origin() {
     assert_eq!((h.xacc, h.yacc, h.zacc), (0, -2, 9));
     assert_eq!((h.ind_airspeed, h.true_airspeed), (0, 0));
 }
+
+#[test]
+fn orbit_status_only_while_orbiting() {
+    let mut snap = snapshot();
+    assert!(build(Stream::OrbitExecutionStatus, &snap, 0).is_empty());
+    let centre = snap.telemetry.origin.offset(&Vector3::new(20.0, 10.0, -8.0));
+    snap.telemetry.orbit = Some(crate::autopilot::OrbitStatus {
+        radius_m: -10.0,
+        centre,
+        yaw: crate::autopilot::OrbitYaw::FrontToCentre,
+    });
+    let [m] = build(Stream::OrbitExecutionStatus, &snap, 0).try_into().unwrap();
+    let MavMessage::ORBIT_EXECUTION_STATUS(o) = m else {
+        panic!("{m:?}")
+    };
+    assert_eq!(o.radius, -10.0);
+    assert_eq!(o.frame, MavFrame::MAV_FRAME_GLOBAL);
+    assert_eq!(
+        (o.x, o.y),
+        (convert::deg_e7(centre.lat_deg), convert::deg_e7(centre.lon_deg))
+    );
+    assert_eq!(o.z, centre.alt_amsl_m as f32);
+}

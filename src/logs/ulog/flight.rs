@@ -181,6 +181,7 @@ pub fn nav_state(mode: FlightMode) -> u8 {
         FlightMode::Stabilized => 15,
         FlightMode::Takeoff => 17,
         FlightMode::Land => 18,
+        FlightMode::Orbit => 21,
     }
 }
 

@@ -41,10 +41,12 @@ import os
 import pytest
 
 from . import clients
+from .shared import VehiclePool
 from .vehicle import Vehicle, VehicleError
 
-OPTIONS = ("airframe", "speed", "params", "home", "instance", "extra_args")
+OPTIONS = ("airframe", "speed", "params", "home", "instance", "extra_args", "reuse")
 _VEHICLES = pytest.StashKey()
+_SHARED = pytest.StashKey()  # the shared vehicles (reuse=True) a test was handed: pool entries
 _PROPERTY = "rotorpilot_logs"
 # every vehicle the plugin started in this process: pytest_unconfigure stops
 # any still running (a teardown that never ran: an interrupted session)
@@ -90,7 +92,7 @@ def pytest_runtest_makereport(item, call):
     setattr(item, "rep_" + rep.when, rep)
     if rep.failed and rep.when in ("setup", "call"):
         keep = item.config.getoption("rotorpilot_keep") != "never"
-        lines = [_kept_line(v) for v in item.stash.get(_VEHICLES, []) if v.root]
+        lines = [_kept_line(v) for v in item.stash.get(_VEHICLES, []) if v.root] + _shared_kept_lines(item)
         if keep and lines:
             rep.sections.append(("rotorpilot", "\n".join(lines)))
 
@@ -140,6 +142,8 @@ def rotorpilot_vehicles(request):
 
     def start(**given):
         opts = _options(request, given)
+        if opts.pop("reuse", False):
+            return _shared_vehicle(request, opts)
         opts.setdefault("instance", len(vehicles))
         v = Vehicle(bin=cfg.getoption("rotorpilot_bin"), root=cfg.getoption("rotorpilot_log_dir"), **opts)
         v.keep_failed = cfg.getoption("rotorpilot_keep") != "never"
@@ -158,7 +162,7 @@ def rotorpilot_vehicles(request):
     yield start
 
     keep_mode = cfg.getoption("rotorpilot_keep")
-    problems = []
+    problems = _release_shared(request)
     first_error = None
     for v in vehicles:  # stop every one, even when one of them cannot be stopped
         if v.proc is None:
@@ -191,6 +195,78 @@ def rotorpilot_vehicles(request):
         raise first_error
     if problems:
         raise VehicleError("\n\n".join(problems))
+
+
+# --- one vehicle for many tests (marker option reuse=True) ----------------------
+
+@pytest.fixture(scope="session")
+def _rotorpilot_pool(request):
+    """The shared vehicles of this pytest process (each xdist worker has its
+    own), stopped at the session's end; their directories deleted unless a
+    test they served failed (`--rotorpilot-keep`)."""
+    cfg = request.config
+
+    def start(opts):
+        v = Vehicle(bin=cfg.getoption("rotorpilot_bin"), root=cfg.getoption("rotorpilot_log_dir"), **opts)
+        v.keep_failed = cfg.getoption("rotorpilot_keep") != "never"
+        _STARTED.append(v)
+        v.start(timeout=cfg.getoption("rotorpilot_ready_timeout"))  # VehicleError: it stopped itself
+        return v
+
+    pool = VehiclePool(start, reset_timeout=cfg.getoption("rotorpilot_ready_timeout"))
+    yield pool
+    errors = pool.close(cfg.getoption("rotorpilot_keep"))
+    if errors:
+        raise errors[0]
+
+
+def _shared_vehicle(request, opts):
+    """A running vehicle with options `opts` from the pool, reset to its start
+    state if it served a test before (`rotorpilot.shared`)."""
+    pool = request.getfixturevalue("_rotorpilot_pool")
+    shared = request.node.stash.setdefault(_SHARED, [])
+    opts.setdefault("instance", len(shared))
+    key = repr(sorted(opts.items()))
+    try:
+        entry = pool.acquire(key, opts)
+    except VehicleError:
+        for e in pool.dropped:  # a vehicle that failed to start or reset: say where its logs are
+            request.node.user_properties.append((_PROPERTY, e.vehicle.log_dir or e.vehicle.root))
+        raise
+    shared.append(entry)
+    return entry.vehicle
+
+
+def _release_shared(request):
+    """Hand the test's shared vehicles back to the pool; name their records
+    when the test failed. Returns the problems to raise (a daemon that died)."""
+    entries = request.node.stash.get(_SHARED, [])
+    if not entries:
+        return []
+    pool = request.getfixturevalue("_rotorpilot_pool")
+    failed = _failed(request.node)
+    keep = request.config.getoption("rotorpilot_keep") != "never"
+    problems = []
+    for e in entries:
+        problem = pool.release(e, failed)
+        if problem:
+            problems.append(problem)
+        if keep and (failed or problem):
+            request.node.user_properties.append((_PROPERTY, e.vehicle.log_dir or e.vehicle.root))
+    return problems
+
+
+def _shared_kept_lines(item):
+    """The failure report's lines for the shared vehicles of `item`: the
+    record and the step where this test's flight starts in it."""
+    lines = []
+    for e in item.stash.get(_SHARED, []):
+        if e.vehicle.root:
+            line = _kept_line(e.vehicle)
+            if e.served > 1:
+                line += f" (a shared vehicle: this test's flight starts at step {e.start_step}, its reset's reboot)"
+            lines.append(line)
+    return lines
 
 
 @pytest.fixture

@@ -310,12 +310,22 @@ def rotorpilot_mavlink(rotorpilot_vehicle, request):
     timeout = request.config.getoption("rotorpilot_ready_timeout")
     m = mavutil.mavlink_connection(rotorpilot_vehicle.pymavlink_url, source_system=255)
     try:
+        _request_heartbeat(m, rotorpilot_vehicle)
         if m.wait_heartbeat(timeout=timeout) is None:
             raise clients.ClientError(f"no heartbeat from the vehicle on {rotorpilot_vehicle.pymavlink_url} "
                                       f"within {timeout} s")
         yield m
     finally:
         m.close()
+
+
+def _request_heartbeat(m, vehicle):
+    """Ask the vehicle's API link, from the client's own port, for a
+    HEARTBEAT now (MAV_CMD_REQUEST_MESSAGE 0): the stream sends one a second,
+    and a client bound after the vehicle started (or after a shared
+    vehicle's reset) would otherwise wait up to a second for it."""
+    request = m.mav.command_long_encode(vehicle.system_id, 1, 512, 0, 0, 0, 0, 0, 0, 0, 0)
+    m.port.sendto(request.pack(m.mav), ("127.0.0.1", vehicle.api_port))  # from the udpin socket, before it heard anyone
 
 
 def pytest_unconfigure(config):

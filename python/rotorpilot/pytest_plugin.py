@@ -18,10 +18,16 @@ Fixtures
 
 Options, first found wins: the factory's keyword arguments, the marker
 `@pytest.mark.rotorpilot(airframe="octo", speed=10, params={...},
-home=(lat, lon, alt))` (each option separately, from the closest marker: function,
+home=(lat, lon, alt), reuse=True)` (each option separately, from the closest marker: function,
 class, module), the
 command line (`--rotorpilot-airframe`, `--rotorpilot-speed`), the defaults
 (quad, speed 1, PX4's default parameters and SITL home).
+
+With `reuse=True` the tests with the same options share one running vehicle
+per pytest process (per xdist worker), reset between them over its GCS link
+(`rotorpilot.shared`: parameters back to their start values, plans cleared,
+disarmed and rebooted at home, failures gone) and stopped at the session's
+end; a test's clients are still its own.
 
 Teardown stops the clients, then each vehicle (SIGTERM, wait); a
 `mavsdk_server` still bound to, or started with, one of a vehicle's client
@@ -78,8 +84,9 @@ def pytest_addoption(parser):
 def pytest_configure(config):
     config.addinivalue_line(
         "markers",
-        "rotorpilot(airframe='quad', speed=1, params={}, home=(lat, lon, alt)): "
-        "options of the rotorpilot_vehicle fixture",
+        "rotorpilot(airframe='quad', speed=1, params={}, home=(lat, lon, alt), reuse=False): "
+        "options of the rotorpilot_vehicle fixture (reuse=True: one vehicle for the tests with "
+        "the same options, reset between them)",
     )
 
 
@@ -210,7 +217,12 @@ def _rotorpilot_pool(request):
         v = Vehicle(bin=cfg.getoption("rotorpilot_bin"), root=cfg.getoption("rotorpilot_log_dir"), **opts)
         v.keep_failed = cfg.getoption("rotorpilot_keep") != "never"
         _STARTED.append(v)
-        v.start(timeout=cfg.getoption("rotorpilot_ready_timeout"))  # VehicleError: it stopped itself
+        try:
+            v.start(timeout=cfg.getoption("rotorpilot_ready_timeout"))  # VehicleError: it stopped itself
+        except BaseException:
+            if not v.keep_failed:
+                v.cleanup()
+            raise
         return v
 
     pool = VehiclePool(start, reset_timeout=cfg.getoption("rotorpilot_ready_timeout"))
@@ -245,13 +257,13 @@ def _release_shared(request):
         return []
     pool = request.getfixturevalue("_rotorpilot_pool")
     failed = _failed(request.node)
-    keep = request.config.getoption("rotorpilot_keep") != "never"
+    keep_mode = request.config.getoption("rotorpilot_keep")
     problems = []
     for e in entries:
         problem = pool.release(e, failed)
         if problem:
             problems.append(problem)
-        if keep and (failed or problem):
+        if keep_mode == "always" or (keep_mode == "failed" and (failed or problem)):
             request.node.user_properties.append((_PROPERTY, e.vehicle.log_dir or e.vehicle.root))
     return problems
 

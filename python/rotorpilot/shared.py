@@ -190,6 +190,7 @@ class _Entry:
         self.served = 0  # tests it was handed to
         self.failed = False  # a test it served failed: its directory is kept
         self.start_step = 0  # where the current test's flight starts in its record
+        self.why = None  # why the pool dropped it
 
 
 class VehiclePool:

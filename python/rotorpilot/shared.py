@@ -224,16 +224,19 @@ class VehiclePool:
     def release(self, e, failed):
         """Back into the pool after a test (`failed`: it failed). Kills any
         `mavsdk_server` the test left on the vehicle's ports; drops the
-        vehicle if its daemon exited. Returns a problem to report, or None."""
+        vehicle if its daemon exited (a problem to report unless it exited
+        with status 0: a client's shutdown). Returns the problem, or None."""
         e.in_use = False
         e.failed = e.failed or failed
         v = e.vehicle
         kill_mavsdk_servers([v.client_port, v.mavsdk_server_port])
         rc = v.proc.poll()
-        if rc is not None:
-            self._drop(e, f"exited with status {rc}")
-            return f"rotorpilot (system id {v.system_id}) exited with status {rc} during the test:\n" + v.stderr()[-4000:]
-        return None
+        if rc is None:
+            return None
+        self._drop(e, f"exited with status {rc}")
+        if rc == 0:  # a client shut it down: the next test gets a new one
+            return None
+        return f"rotorpilot (system id {v.system_id}) exited with status {rc} during the test:\n" + v.stderr()[-4000:]
 
     def _drop(self, e, why):
         self._entries.remove(e)

@@ -233,14 +233,14 @@ class VehiclePool:
         rc = v.proc.poll()
         if rc is None:
             return None
-        self._drop(e, f"exited with status {rc}")
+        self._drop(e, f"exited with status {rc}", failed=rc != 0)
         if rc == 0:  # a client shut it down: the next test gets a new one
             return None
         return f"rotorpilot (system id {v.system_id}) exited with status {rc} during the test:\n" + v.stderr()[-4000:]
 
-    def _drop(self, e, why):
+    def _drop(self, e, why, failed=True):
         self._entries.remove(e)
-        e.failed = True
+        e.failed = e.failed or failed
         e.why = why
         try:
             e.vehicle.stop()

@@ -148,7 +148,10 @@ def reset(vehicle: Vehicle, timeout=10.0):
     """Bring `vehicle` (running) back to its start state (module doc); return
     the step of the flight record's `reboot` line where the next flight
     starts. Raises VehicleError saying which step failed."""
-    from pymavlink import mavutil
+    try:
+        from pymavlink import mavutil
+    except ImportError as e:  # not a VehicleError: the pool must not fall back to a fresh vehicle each test
+        raise ImportError("resetting a shared vehicle (reuse=True) needs pymavlink: pip install pymavlink") from e
 
     if vehicle.proc is None or vehicle.proc.poll() is not None:
         raise VehicleError("reset: the vehicle is not running")

@@ -89,15 +89,15 @@ timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/cl
 timeout 900 "$VENV/mavsdk4/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk4.py
 timeout 600 "$VENV/mavproxy/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavproxy.py
 
-echo "== pip install . in a fresh venv; the pytest fixture flies MAVSDK 3 and pymavlink tests, plain and -n 2; failing MAVSDK tests end and leave nothing"
+echo "== pip install . in a fresh venv; the pytest fixture flies MAVSDK 3 and pymavlink tests, plain and -n 2; failing MAVSDK tests end and leave nothing; a shared vehicle is reset between tests"
 # What a user does: a new venv each run, `pip install .` (maturin builds the
 # wheel: the rotorpilot executable plus python/rotorpilot, the pytest plugin),
 # then tests that use the fixture and know no path. maturin runs cargo with
 # the same target dir as above (CARGO_TARGET_DIR or target/), so it compiles
 # nothing again: the first time it links a stripped copy of the executable
 # (~2 s), which cargo then keeps beside the unstripped one. The step takes
-# ~2 min: ~30 s pip fetching the clients from its cache, ~60 s the inner
-# pytest runs of test_no_hang.py; a machine with
+# ~3 min: ~30 s pip fetching the clients from its cache, ~60 s the inner
+# pytest runs of test_no_hang.py, ~40 s test_reuse.py; a machine with
 # an empty target dir spends ~5 CPU-minutes compiling instead.
 rm -rf "${VENV:?}/pip-fresh"
 # mavsdk-grpc (imported as mavsdk_grpc) beside mavsdk 3: test_no_hang.py runs

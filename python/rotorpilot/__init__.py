@@ -4,7 +4,8 @@
 PATH and installs this package: a pytest plugin (fixtures
 `rotorpilot_vehicle`, `rotorpilot_vehicles`, and the clients
 `rotorpilot_mavsdk` and `rotorpilot_mavlink`, marker `rotorpilot`, options
-`--rotorpilot-*`; see `rotorpilot.pytest_plugin`) and `Vehicle`, which
+`--rotorpilot-*`; see `rotorpilot.pytest_plugin`; one vehicle for many tests,
+reset between them: `rotorpilot.shared`) and `Vehicle`, which
 starts one vehicle on free loopback ports and waits until it is ready to arm
 (and, when it stops, kills any `mavsdk_server` left on its ports:
 `rotorpilot.clients`).

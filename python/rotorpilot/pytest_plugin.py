@@ -18,10 +18,16 @@ Fixtures
 
 Options, first found wins: the factory's keyword arguments, the marker
 `@pytest.mark.rotorpilot(airframe="octo", speed=10, params={...},
-home=(lat, lon, alt))` (each option separately, from the closest marker: function,
+home=(lat, lon, alt), reuse=True)` (each option separately, from the closest marker: function,
 class, module), the
 command line (`--rotorpilot-airframe`, `--rotorpilot-speed`), the defaults
 (quad, speed 1, PX4's default parameters and SITL home).
+
+With `reuse=True` the tests with the same options share one running vehicle
+per pytest process (per xdist worker), reset between them over its GCS link
+(`rotorpilot.shared`: parameters back to their start values, plans cleared,
+disarmed and rebooted at home, failures gone) and stopped at the session's
+end; a test's clients are still its own.
 
 Teardown stops the clients, then each vehicle (SIGTERM, wait); a
 `mavsdk_server` still bound to, or started with, one of a vehicle's client
@@ -41,10 +47,12 @@ import os
 import pytest
 
 from . import clients
+from .shared import VehiclePool
 from .vehicle import Vehicle, VehicleError
 
-OPTIONS = ("airframe", "speed", "params", "home", "instance", "extra_args")
+OPTIONS = ("airframe", "speed", "params", "home", "instance", "extra_args", "reuse")
 _VEHICLES = pytest.StashKey()
+_SHARED = pytest.StashKey()  # the shared vehicles (reuse=True) a test was handed: pool entries
 _PROPERTY = "rotorpilot_logs"
 # every vehicle the plugin started in this process: pytest_unconfigure stops
 # any still running (a teardown that never ran: an interrupted session)
@@ -76,8 +84,9 @@ def pytest_addoption(parser):
 def pytest_configure(config):
     config.addinivalue_line(
         "markers",
-        "rotorpilot(airframe='quad', speed=1, params={}, home=(lat, lon, alt)): "
-        "options of the rotorpilot_vehicle fixture",
+        "rotorpilot(airframe='quad', speed=1, params={}, home=(lat, lon, alt), reuse=False): "
+        "options of the rotorpilot_vehicle fixture (reuse=True: one vehicle for the tests with "
+        "the same options, reset between them)",
     )
 
 
@@ -90,7 +99,7 @@ def pytest_runtest_makereport(item, call):
     setattr(item, "rep_" + rep.when, rep)
     if rep.failed and rep.when in ("setup", "call"):
         keep = item.config.getoption("rotorpilot_keep") != "never"
-        lines = [_kept_line(v) for v in item.stash.get(_VEHICLES, []) if v.root]
+        lines = [_kept_line(v) for v in item.stash.get(_VEHICLES, []) if v.root] + _shared_kept_lines(item)
         if keep and lines:
             rep.sections.append(("rotorpilot", "\n".join(lines)))
 
@@ -140,6 +149,8 @@ def rotorpilot_vehicles(request):
 
     def start(**given):
         opts = _options(request, given)
+        if opts.pop("reuse", False):
+            return _shared_vehicle(request, opts)
         opts.setdefault("instance", len(vehicles))
         v = Vehicle(bin=cfg.getoption("rotorpilot_bin"), root=cfg.getoption("rotorpilot_log_dir"), **opts)
         v.keep_failed = cfg.getoption("rotorpilot_keep") != "never"
@@ -158,7 +169,7 @@ def rotorpilot_vehicles(request):
     yield start
 
     keep_mode = cfg.getoption("rotorpilot_keep")
-    problems = []
+    problems = _release_shared(request)
     first_error = None
     for v in vehicles:  # stop every one, even when one of them cannot be stopped
         if v.proc is None:
@@ -191,6 +202,83 @@ def rotorpilot_vehicles(request):
         raise first_error
     if problems:
         raise VehicleError("\n\n".join(problems))
+
+
+# --- one vehicle for many tests (marker option reuse=True) ----------------------
+
+@pytest.fixture(scope="session")
+def _rotorpilot_pool(request):
+    """The shared vehicles of this pytest process (each xdist worker has its
+    own), stopped at the session's end; their directories deleted unless a
+    test they served failed (`--rotorpilot-keep`)."""
+    cfg = request.config
+
+    def start(opts):
+        v = Vehicle(bin=cfg.getoption("rotorpilot_bin"), root=cfg.getoption("rotorpilot_log_dir"), **opts)
+        v.keep_failed = cfg.getoption("rotorpilot_keep") != "never"
+        _STARTED.append(v)
+        try:
+            v.start(timeout=cfg.getoption("rotorpilot_ready_timeout"))  # VehicleError: it stopped itself
+        except BaseException:
+            if not v.keep_failed:
+                v.cleanup()
+            raise
+        return v
+
+    pool = VehiclePool(start, reset_timeout=cfg.getoption("rotorpilot_ready_timeout"))
+    yield pool
+    errors = pool.close(cfg.getoption("rotorpilot_keep"))
+    if errors:
+        raise errors[0]
+
+
+def _shared_vehicle(request, opts):
+    """A running vehicle with options `opts` from the pool, reset to its start
+    state if it served a test before (`rotorpilot.shared`)."""
+    pool = request.getfixturevalue("_rotorpilot_pool")
+    shared = request.node.stash.setdefault(_SHARED, [])
+    opts.setdefault("instance", len(shared))
+    key = repr(sorted(opts.items()))
+    try:
+        entry = pool.acquire(key, opts)
+    except VehicleError:
+        for e in pool.dropped:  # a vehicle that failed to start or reset: say where its logs are
+            request.node.user_properties.append((_PROPERTY, e.vehicle.log_dir or e.vehicle.root))
+        raise
+    shared.append(entry)
+    return entry.vehicle
+
+
+def _release_shared(request):
+    """Hand the test's shared vehicles back to the pool; name their records
+    when the test failed. Returns the problems to raise (a daemon that died)."""
+    entries = request.node.stash.get(_SHARED, [])
+    if not entries:
+        return []
+    pool = request.getfixturevalue("_rotorpilot_pool")
+    failed = _failed(request.node)
+    keep_mode = request.config.getoption("rotorpilot_keep")
+    problems = []
+    for e in entries:
+        problem = pool.release(e, failed)
+        if problem:
+            problems.append(problem)
+        if keep_mode == "always" or (keep_mode == "failed" and (failed or problem)):
+            request.node.user_properties.append((_PROPERTY, e.vehicle.log_dir or e.vehicle.root))
+    return problems
+
+
+def _shared_kept_lines(item):
+    """The failure report's lines for the shared vehicles of `item`: the
+    record and the step where this test's flight starts in it."""
+    lines = []
+    for e in item.stash.get(_SHARED, []):
+        if e.vehicle.root:
+            line = _kept_line(e.vehicle)
+            if e.served > 1:
+                line += f" (a shared vehicle: this test's flight starts at step {e.start_step}, its reset's reboot)"
+            lines.append(line)
+    return lines
 
 
 @pytest.fixture
@@ -234,12 +322,22 @@ def rotorpilot_mavlink(rotorpilot_vehicle, request):
     timeout = request.config.getoption("rotorpilot_ready_timeout")
     m = mavutil.mavlink_connection(rotorpilot_vehicle.pymavlink_url, source_system=255)
     try:
+        _request_heartbeat(m, rotorpilot_vehicle)
         if m.wait_heartbeat(timeout=timeout) is None:
             raise clients.ClientError(f"no heartbeat from the vehicle on {rotorpilot_vehicle.pymavlink_url} "
                                       f"within {timeout} s")
         yield m
     finally:
         m.close()
+
+
+def _request_heartbeat(m, vehicle):
+    """Ask the vehicle's API link, from the client's own port, for a
+    HEARTBEAT now (MAV_CMD_REQUEST_MESSAGE 0): the stream sends one a second,
+    and a client bound after the vehicle started (or after a shared
+    vehicle's reset) would otherwise wait up to a second for it."""
+    request = m.mav.command_long_encode(vehicle.system_id, 1, 512, 0, 0, 0, 0, 0, 0, 0, 0)
+    m.port.sendto(request.pack(m.mav), ("127.0.0.1", vehicle.api_port))  # from the udpin socket, before it heard anyone
 
 
 def pytest_unconfigure(config):

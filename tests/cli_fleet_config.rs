@@ -230,3 +230,32 @@ fn count_applies_every_option_to_each_vehicle() {
     }
     assert!(Cli::try_parse_from(["rotorpilot", "--count", "0"]).is_err());
 }
+
+/// `--check` refuses what a real start refuses, with the same message: a
+/// check that passes options a start then rejects tells the user nothing.
+#[test]
+fn check_refuses_what_a_real_start_refuses_with_the_same_message() {
+    let state = common::scratch_dir("check-as-start");
+    let state = state.to_str().unwrap();
+    for bad in [
+        &["--airframe", "quadx"][..],
+        &["--speed", "0"],
+        &["--speed", "2000"],
+        &["--count", "3", "--airframe", "quadx"],
+        &["--count", "2", "--speed", "0"],
+    ] {
+        // a start that got through would bind PX4's ports: the refusal comes first
+        let mut start: Vec<&str> = bad.to_vec();
+        start.extend(["--state-dir", state]);
+        let started = common::bin::run_within(&start, std::time::Duration::from_secs(20));
+        assert_eq!(started.code, Some(1), "a real start with {bad:?}: {}", started.stderr);
+        let mut check = start.clone();
+        check.push("--check");
+        let (status, stdout, stderr) = run(&check);
+        assert_eq!(
+            (status, stdout.as_str(), stderr.as_str()),
+            (Some(1), "", started.stderr.as_str()),
+            "--check with {bad:?}"
+        );
+    }
+}

@@ -77,7 +77,9 @@ pub struct DaemonArgs {
     pub proximity: Option<f64>,
     /// Print the vehicles these options run (instance, system id, airframe,
     /// spawn point, links, state directory, parameters set) and exit
-    /// without starting any: checks a fleet file.
+    /// without starting any, after the checks a start makes before it
+    /// reads a state directory or binds a socket (speed, instances,
+    /// airframes, parameters): checks a fleet file or a command line.
     #[arg(long)]
     pub check: bool,
 }

@@ -96,9 +96,13 @@ def pytest_runtest_makereport(item, call):
 
 
 def _kept_line(vehicle):
+    """Where a vehicle's directory is kept; the replay command only when
+    there is a flight record to replay (a vehicle that never started has none)."""
     where = vehicle.log_dir or vehicle.root
-    return (f"rotorpilot: flight record kept in {where} — replay with "
-            f"`rotorpilot replay {os.path.join(where, 'flight.record')}`")
+    record = os.path.join(where, "flight.record")
+    if os.path.isfile(record):
+        return f"rotorpilot: flight record kept in {where} — replay with `rotorpilot replay {record}`"
+    return f"rotorpilot: logs kept in {where} (no flight record: the vehicle never started)"
 
 
 def _failed(item):

@@ -102,7 +102,24 @@ def test_a_misspelled_parameter_fails_the_fixture(pytester, tmp_path):
            "def test_x(rotorpilot_vehicle):\n    pass\n")
     r = run_inner(pytester, src, "--rotorpilot-log-dir", str(tmp_path))
     r.assert_outcomes(errors=1)
-    assert "unknown parameter MIS_TAKEOF_ALT" in r.stdout.str(), r.stdout.str()
+    out = r.stdout.str()
+    # said once in the error (not again from the daemon's stderr below it)
+    said = [line for line in out.splitlines() if line.startswith("E ") and "unknown parameter MIS_TAKEOF_ALT" in line]
+    assert len(said) == 1, out
+
+
+def test_a_vehicle_that_never_started_names_no_replay(pytester, tmp_path):
+    """An unknown airframe in the marker: the vehicle never started, so no
+    flight record exists, and the report names its directory but no replay;
+    every replay command the run prints names a record that exists."""
+    src = ('import pytest\n@pytest.mark.rotorpilot(airframe="quadx")\n'
+           "def test_x(rotorpilot_vehicle):\n    pass\n")
+    r = run_inner(pytester, src, "--rotorpilot-log-dir", str(tmp_path))
+    r.assert_outcomes(errors=1)
+    out = r.stdout.str()
+    assert "unknown airframe `quadx`" in out, out
+    assert re.search(r"rotorpilot: logs kept in \S+ \(no flight record: the vehicle never started\)", out), out
+    assert "replay with" not in out, out
 
 
 def connect(v):

@@ -73,12 +73,19 @@ def pytest_addoption(parser):
                      "rotorpilot_mavsdk/rotorpilot_mavlink clients to connect (default 20)")
 
 
+# mavsdk 3.17.4, the last gRPC wrapper under that name, warns on import that
+# the package is now mavsdk-grpc: a name change, not a test's problem, which
+# the user's `import mavsdk` would print in every run's warnings summary
+MAVSDK_RENAMED = "ignore:The 'mavsdk' package has been renamed to 'mavsdk-grpc':FutureWarning"
+
+
 def pytest_configure(config):
     config.addinivalue_line(
         "markers",
         "rotorpilot(airframe='quad', speed=1, params={}, home=(lat, lon, alt)): "
         "options of the rotorpilot_vehicle fixture",
     )
+    config.addinivalue_line("filterwarnings", MAVSDK_RENAMED)
 
 
 @pytest.hookimpl(hookwrapper=True)

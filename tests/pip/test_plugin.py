@@ -252,3 +252,20 @@ def test_a_vehicle_that_cannot_be_stopped_does_not_stop_the_teardown(pytester, t
     for pid in pids:  # both were stopped (reaped), the second one after the first's stop raised
         assert not os.path.exists(f"/proc/{pid}") or "zombie" in open(f"/proc/{pid}/status").read().lower()
     assert os.listdir(base) == []
+
+
+def test_mavsdk_3s_renaming_warning_is_not_shown(pytester, tmp_path):
+    """mavsdk 3.17.4 warns on import that it is now mavsdk-grpc: a test
+    module that imports it sees no FutureWarning in its run (the plugin
+    filters that one warning and no other)."""
+    try:
+        metadata.distribution("mavsdk")
+    except metadata.PackageNotFoundError:
+        pytest.skip("mavsdk 3 is not installed")
+    src = ("import warnings\nimport mavsdk\n\n"
+           "def test_x():\n    warnings.warn('another', FutureWarning)\n")
+    r = run_inner(pytester, src, "--rotorpilot-log-dir", str(tmp_path))
+    r.assert_outcomes(passed=1)
+    out = r.stdout.str()
+    assert "renamed to 'mavsdk-grpc'" not in out, out
+    assert "FutureWarning: another" in out, out

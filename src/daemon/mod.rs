@@ -556,6 +556,8 @@ impl Daemon {
             // the same for the plans (--reset-plans)
             plans_changed.notify_one();
             ios.push(VehicleIo {
+                instance: config.instance,
+                system_id: config.system_id(),
                 params: params.clone(),
                 tel: tel_tx,
                 events: ev_tx.clone(),

@@ -390,7 +390,7 @@ fn a_failed_mission_in_a_campaign_gives_exit_status_1() {
     assert_eq!(run.status, Some(1), "{}", run.stderr);
     assert_eq!(run.lines[1]["verdict"], "fail");
     assert!(
-        run.stderr.contains("1 ok, 1 missions failed, 0 errors"),
+        run.stderr.contains("1 ok, 1 mission failed, 0 errors"),
         "{}",
         run.stderr
     );

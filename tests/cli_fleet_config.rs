@@ -61,14 +61,12 @@ fn more_vehicles_than_system_ids_are_refused() {
         "too-many.toml",
         "7:9: vehicle[2].count: instances 200..259 need system ids up to 260; the most is 250 (instances 0..249)",
     );
+    // clap refuses more than 250 at once, and its help and error say the real limit
     let (status, stdout, stderr) = run(&["--count", "300", "--check"]);
-    assert_eq!(
-        (status, stdout.as_str(), stderr.as_str()),
-        (
-            Some(1),
-            "",
-            "rotorpilot: --count 300: instances 0..299 need system ids up to 300; the most is 250 (instances 0..249)\n"
-        )
+    assert_eq!((status, stdout.as_str()), (Some(2), ""));
+    assert!(
+        stderr.starts_with("error: invalid value '300' for '--count <N>': 300 is not in 1..=250\n"),
+        "{stderr}"
     );
     let (status, _, stderr) = run(&["--instance", "100", "--count", "151", "--check"]);
     assert_eq!(status, Some(1));
@@ -229,4 +227,99 @@ fn count_applies_every_option_to_each_vehicle() {
         );
     }
     assert!(Cli::try_parse_from(["rotorpilot", "--count", "0"]).is_err());
+}
+
+/// `--check` refuses what a real start refuses, with the same message: a
+/// check that passes options a start then rejects tells the user nothing.
+#[test]
+fn check_refuses_what_a_real_start_refuses_with_the_same_message() {
+    let state = common::scratch_dir("check-as-start");
+    let state = state.to_str().unwrap();
+    for bad in [
+        &["--airframe", "quadx"][..],
+        &["--speed", "0"],
+        &["--speed", "2000"],
+        &["--count", "3", "--airframe", "quadx"],
+        &["--count", "2", "--speed", "0"],
+    ] {
+        // a start that got through would bind PX4's ports: the refusal comes first
+        let mut start: Vec<&str> = bad.to_vec();
+        start.extend(["--state-dir", state]);
+        let started = common::bin::run_within(&start, std::time::Duration::from_secs(20));
+        assert_eq!(started.code, Some(1), "a real start with {bad:?}: {}", started.stderr);
+        let mut check = start.clone();
+        check.push("--check");
+        let (status, stdout, stderr) = run(&check);
+        assert_eq!(
+            (status, stdout.as_str(), stderr.as_str()),
+            (Some(1), "", started.stderr.as_str()),
+            "--check with {bad:?}"
+        );
+    }
+}
+
+/// A malformed address names the option that gave it and what it takes.
+#[test]
+fn a_bad_address_names_its_option() {
+    for (flag, takes) in [
+        ("--gcs-remote", "HOST:PORT or none"),
+        ("--api-remote", "HOST:PORT or none"),
+        ("--gcs-bind", "HOST:PORT"),
+        ("--api-bind", "HOST:PORT"),
+    ] {
+        let (status, stdout, stderr) = run(&[flag, "nowhere", "--check"]);
+        assert_eq!(
+            (status, stdout.as_str(), stderr.as_str()),
+            (
+                Some(1),
+                "",
+                format!("rotorpilot: {flag} takes {takes}: `nowhere` is not HOST:PORT: invalid socket address\n")
+                    .as_str()
+            )
+        );
+    }
+    let (status, _, stderr) = run(&["--count", "2", "--api-remote", "nowhere", "--check"]);
+    assert_eq!(status, Some(1));
+    assert!(
+        stderr.starts_with("rotorpilot: --api-remote takes HOST:PORT or none: "),
+        "{stderr}"
+    );
+}
+
+/// Log lines name a vehicle by the instance and system id the user set,
+/// never by its place in the process: the proximity of instances 200 and
+/// 201 (spawned 3 m apart, reported below 5 m) is logged for each.
+#[test]
+fn log_lines_name_the_instance_and_system_id() {
+    let state = common::scratch_dir("log-names");
+    let out = common::bin::run_within(
+        &[
+            "--count",
+            "2",
+            "--instance",
+            "200",
+            "--proximity",
+            "5",
+            "--state-dir",
+            state.to_str().unwrap(),
+            "--gcs-remote",
+            "none",
+            "--api-remote",
+            "none",
+        ],
+        std::time::Duration::from_secs(3),
+    );
+    let proximity: Vec<&str> = out.stderr.lines().filter(|l| l.contains(" proximity ")).collect();
+    assert_eq!(proximity.len(), 2, "{}", out.stderr);
+    assert!(
+        proximity[0].contains("instance=200 sysid=201 other=system 202"),
+        "{}",
+        out.stderr
+    );
+    assert!(
+        proximity[1].contains("instance=201 sysid=202 other=system 201"),
+        "{}",
+        out.stderr
+    );
+    assert!(!out.stderr.contains("vehicle="), "{}", out.stderr);
 }

@@ -371,3 +371,76 @@ async fn an_unusable_log_dir_is_refused_at_start_with_its_path() {
     assert!(msg.contains(&file.join("logs").display().to_string()), "{msg}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `rotorpilot replay` prints the per-item summary `simulate` gives: a
+/// record of the shipped square (the mission stored at start, started as
+/// `simulate` starts it) replays to the same item lines and tracking error
+/// as `rotorpilot simulate` prints for that scenario.
+#[test]
+fn replay_prints_the_per_item_summary_simulate_gives() {
+    use rotorpilot::autopilot::{AutopilotCommand, ClientClock};
+    use rotorpilot::lockstep::input::{Input, apply};
+    use rotorpilot::logs::record::{Header, end_line, header_line, input_line};
+
+    let scenario = "tools/scenarios/mission-square.toml";
+    let f = rotorpilot::scenario::MissionFlight::from_file(Path::new(scenario)).unwrap();
+    let stored = rotorpilot::scenario::mission_lockstep(&f).unwrap();
+    let header = Header::new(
+        rotorpilot::airframe::Airframe::load_text("quad").unwrap(),
+        f.home,
+        &f.params,
+        stored.pilot(0).plans(),
+        f.sensors,
+        ClientClock::Simulated,
+        rotorpilot::signals::DEFAULT_STEP_S,
+    );
+    // the mission started on the first step whose prearm checks pass, as simulate starts it
+    let (mut core, mut params) = header.build().unwrap();
+    let start = Input::Command(AutopilotCommand::StartMission { first: Some(0) });
+    let outcome = loop {
+        core.step();
+        if core.telemetry(0).prearm_ok {
+            break apply(&mut core, 0, &mut params, &start).text();
+        }
+    };
+    let text = format!(
+        "{}\n{}\n{}\n",
+        header_line(&header).unwrap(),
+        input_line(core.steps(), &start, &outcome).unwrap(),
+        end_line(90_000)
+    );
+    let dir = scratch_path("replay-items");
+    std::fs::create_dir_all(&dir).unwrap();
+    let record = dir.join("flight.record");
+    std::fs::write(&record, text).unwrap();
+
+    let replayed = common::bin::run(&["replay", record.to_str().unwrap()]);
+    assert!(replayed.ok(), "{}", replayed.stderr);
+    let simulated = common::bin::run(&["simulate", scenario]);
+    let items = |out: &str| -> Vec<String> {
+        out.lines()
+            .filter(|l| l.starts_with("  item "))
+            .map(str::to_string)
+            .collect()
+    };
+    assert_eq!(items(&replayed.stdout).len(), 7, "{}", replayed.stdout);
+    assert_eq!(items(&replayed.stdout), items(&simulated.stdout), "{}", replayed.stdout);
+    assert!(replayed.stdout.contains("mission: 7 items\n"), "{}", replayed.stdout);
+    let tracking = |out: &str| {
+        out.lines()
+            .find(|l| l.starts_with("tracking error: "))
+            .and_then(|l| l.split(';').next())
+            .map(str::to_string)
+    };
+    assert_eq!(
+        tracking(&replayed.stdout),
+        tracking(&simulated.stdout),
+        "{}",
+        replayed.stdout
+    );
+    let json = common::bin::run(&["replay", record.to_str().unwrap(), "--json"]);
+    let v: serde_json::Value = serde_json::from_str(&json.stdout).unwrap();
+    assert_eq!(v["items"][3]["outcome"], "ran");
+    assert_eq!(v["items"][6]["outcome"], "reached");
+    let _ = std::fs::remove_dir_all(&dir);
+}

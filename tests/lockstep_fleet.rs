@@ -138,6 +138,44 @@ fn crossing_paths_report_the_event_at_the_expected_instant_every_run() {
     assert_eq!(without_wall(&first), without_wall(&threaded));
 }
 
+/// A fleet event tells the encounter's closest approach (distance and
+/// instant), not only the threshold it crossed: the crossing fleet's two
+/// vehicles pass 1.1 m apart, where their references come closest.
+#[test]
+fn an_encounter_reports_its_closest_approach() {
+    let path = root().join("tools/fleets/fleet-crossing.toml");
+    let fleet = Fleet::load(&path).unwrap();
+    let flown = fleet::fly(&fleet, 1, None).unwrap();
+    let e = flown.events[0];
+    // the references' closest approach after the event, scanned at 0.1 ms
+    let gap = |t: f64| (reference_world(&fleet, 0, t) - reference_world(&fleet, 1, t)).norm();
+    let (t_min, d_min) = (0..40_000)
+        .map(|k| e.time_s + k as f64 * 1e-4)
+        .take_while(|&t| t <= 8.0 && gap(t) <= fleet.proximity_m * 1.1)
+        .map(|t| (t, gap(t)))
+        .fold((0.0, f64::INFINITY), |m, x| if x.1 < m.1 { x } else { m });
+    let e01 = max_err(&flown.results[0].outcome) + max_err(&flown.results[1].outcome);
+    println!(
+        "event at {:.3} s, {:.3} m; closest {:.4} m at {:.3} s; references {d_min:.4} m at {t_min:.3} s",
+        e.time_s, e.distance_m, e.closest_m, e.closest_s
+    );
+    assert!(e.closest_m < e.distance_m - 0.5, "{e:?}");
+    assert!((e.closest_m - d_min).abs() <= e01 + 1e-3, "{e:?} vs {d_min}");
+    assert!((e.closest_s - t_min).abs() <= 0.05, "{e:?} vs {t_min}");
+    let text = flown.to_text();
+    assert!(
+        text.contains(&format!(
+            "closest approach {:.3} m at t = {:.3} s",
+            e.closest_m, e.closest_s
+        )),
+        "{text}"
+    );
+    assert!(
+        text.contains("proximity (closer than 2 m): 1 event, 0 collisions"),
+        "{text}"
+    );
+}
+
 /// Two paths that meet (vehicle 0's figure-eight through the point where
 /// vehicle 1 hovers, reached at `t = pi`): near first, then a collision
 /// before the references meet, bodies closer than the sum of their radii.

@@ -9,7 +9,9 @@ mod common;
 
 use common::sitl::{HOME, Sitl};
 use nalgebra::Vector3;
-use rotorpilot::autopilot::{AutopilotCommand, CommandOutcome, FlightMode, LandedState, MissionState, Telemetry};
+use rotorpilot::autopilot::{
+    AutopilotCommand, CommandOutcome, FlightMode, ItemDone, LandedState, MissionState, Telemetry,
+};
 use rotorpilot::mission::{MissionItem, MissionResult, MissionType, PlanChange, cmd, frame};
 
 fn vehicle() -> Sitl {
@@ -64,7 +66,8 @@ fn fly(v: &mut Sitl, max_s: f64, mut done: impl FnMut(&Telemetry) -> bool) -> (b
     let n = (max_s / v.dt_s()) as usize;
     for _ in 0..n {
         v.step();
-        for seq in v.core_mut().drain_mission_reached(0) {
+        for item in v.core_mut().drain_mission_done(0) {
+            let ItemDone::Reached(seq) = item else { continue };
             let t = v.telemetry();
             reached.push((seq, t.time_s, t.position_ned));
         }

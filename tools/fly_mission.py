@@ -281,6 +281,8 @@ class Vehicle:
         self.armed = False
         self.landed_state = None
         self.mode = None
+        # every STATUSTEXT the vehicle sent, in order (a refusal quotes those it gave)
+        self.texts = []
         # udpout links must talk first; on udpin this goes nowhere yet
         self.m.mav.heartbeat_send(self.mavlink.MAV_TYPE_GCS, self.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
         deadline = time.monotonic() + wait_s
@@ -314,6 +316,7 @@ class Vehicle:
                 self.mode = mode
             elif kind == "STATUSTEXT":
                 print(f"  vehicle: {msg.text}")
+                self.texts.append(msg.text)
             elif kind == "EXTENDED_SYS_STATE":
                 self.landed_state = msg.landed_state
             if kind in types:
@@ -354,6 +357,7 @@ class Vehicle:
         n = len(items)
         sent = set()
         highest = -1
+        texts_before = len(self.texts)
         count_tries = 0
         last_heard = time.monotonic()
         mav.mission_count_send(self.sysid, self.compid, n, kind)
@@ -375,8 +379,7 @@ class Vehicle:
             last_heard = now
             if msg.get_type() == "MISSION_ACK":
                 if msg.type != self.mavlink.MAV_MISSION_ACCEPTED:
-                    at = f" at item {highest}" if highest >= 0 else ""
-                    raise Failure(f"{name}: refused{at}: {self.result_name('MAV_MISSION_RESULT', msg.type)}")
+                    self.refused(name, msg.type, texts_before, f"after item {highest} of {n} was sent")
                 if highest != n - 1:
                     raise Failure(f"{name}: accepted before item {n - 1} was asked for (protocol error)")
                 print(f"{name}: {n} items uploaded")
@@ -402,6 +405,19 @@ class Vehicle:
                 )
             sent.add(seq)
             highest = max(highest, seq)
+
+    def refused(self, name, result, texts_before, when):
+        """Raise the refusal of a plan: the MAV_MISSION_RESULT, and the
+        vehicle's own words when it gave any (PX4 and rotorpilot say which
+        item and which limit, e.g. "Plan rejected: item 3 at 12488 m >
+        RP_ALT_MAX_AMSL"): the ACK names no item, so neither does this but
+        through the vehicle's text."""
+        # the texts may trail the ACK on the wire (the link's and the flight
+        # stack's come apart): listen half a second for them
+        self.recv([], time.monotonic() + 0.5)
+        said = "; ".join(self.texts[texts_before:])
+        why = f"{self.result_name('MAV_MISSION_RESULT', result)}" + (f": the vehicle said \"{said}\"" if said else "")
+        raise Failure(f"{name}: refused ({when}): {why}")
 
     def wait_ack(self, kind, name, deadline):
         while True:

@@ -1,19 +1,28 @@
 #!/usr/bin/env python3
-"""Plot a rotorpilot flight log (the CSV of `rotorpilot simulate --csv`) as PNG
-figures like the origin report's: position and velocity errors, attitude
-(roll and pitch as flown, heading error: the log has no roll/pitch setpoint),
-angular-velocity error, thrust and torques.
+"""Plot a rotorpilot flight (the CSV of `rotorpilot simulate --csv` or of a
+daemon's `--log-csv`, or a kept flight's `flight.record`) as PNG figures like
+the origin report's: the north/east path, position and velocity errors,
+attitude (roll and pitch as flown, heading error: the log has no roll/pitch
+setpoint), angular-velocity error, thrust and torques.
 
     rotorpilot simulate tools/scenarios/fsr-exercise5.toml --csv flight.csv
     python3 tools/plot_flight.py flight.csv --out figures/
+    python3 tools/plot_flight.py logs/2026-12-02T03-27-51Z-i0/flight.record --out figures/
 
-Frames: NED world, FRD body; SI units. Needs matplotlib.
+A flight record (the pytest plugin keeps one per failed test; it has no CSV)
+is replayed first with `rotorpilot replay RECORD --csv` into a temporary
+file: the executable is --rotorpilot, else $ROTORPILOT_BIN, else `rotorpilot`
+on the PATH. Frames: NED world, FRD body; SI units. Needs matplotlib.
 """
 import argparse
 import csv
+import json
 import math
 import os
+import shutil
+import subprocess
 import sys
+import tempfile
 
 import matplotlib
 
@@ -34,6 +43,29 @@ def read_log(path):
         for name, value in zip(header, row):
             cols[name].append(float(value))
     return cols
+
+
+def is_record(path):
+    """A flight record's first line is its JSON header: {"header": {"format": "rotorpilot-flight-record", ...}}."""
+    try:
+        with open(path, "rb") as f:
+            first = f.readline(1 << 20)
+        return json.loads(first)["header"]["format"] == "rotorpilot-flight-record"
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+
+
+def replayed_csv(record, exe, into):
+    """`rotorpilot replay RECORD --csv` into the directory `into`: the CSV's path."""
+    exe = exe or os.environ.get("ROTORPILOT_BIN") or shutil.which("rotorpilot")
+    if not exe:
+        sys.exit(f"{record}: a flight record is replayed to plot it: give --rotorpilot PATH, "
+                 "set ROTORPILOT_BIN, or put rotorpilot on the PATH")
+    out = os.path.join(into, "flight.csv")
+    r = subprocess.run([exe, "replay", record, "--csv", out], capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit(f"{record}: rotorpilot replay failed (status {r.returncode}):\n{r.stderr.strip()}")
+    return out
 
 
 def need(cols, path, *names):
@@ -64,12 +96,37 @@ def figure(title, t, series, ylabel, out):
     return out
 
 
+def path_figure(c, out):
+    """The north/east path (NED world, seen from above: north up, east
+    right), as flown and as referenced, with where it started and ended."""
+    fig, ax = plt.subplots(figsize=(7, 7))
+    ax.plot(c["ref_e"], c["ref_n"], label="reference", linewidth=1, linestyle="--")
+    ax.plot(c["true_pos_e"], c["true_pos_n"], label="flown", linewidth=1)
+    ax.plot(c["true_pos_e"][:1], c["true_pos_n"][:1], "o", label="start")
+    ax.plot(c["true_pos_e"][-1:], c["true_pos_n"][-1:], "s", label="end")
+    ax.set_xlabel("east [m]")
+    ax.set_ylabel("north [m]")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize="small")
+    ax.set_title("path, north/east (NED)")
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("log", help="flight CSV from `rotorpilot simulate --csv`")
+    p.add_argument("log", help="flight CSV (`rotorpilot simulate --csv`, `--log-csv`) or a flight.record")
     p.add_argument("--out", default=".", help="directory for the PNG files")
+    p.add_argument("--rotorpilot", metavar="PATH", help="the rotorpilot executable that replays a flight record")
     a = p.parse_args()
-    c = read_log(a.log)
+    if is_record(a.log):
+        with tempfile.TemporaryDirectory() as tmp:
+            c = read_log(replayed_csv(a.log, a.rotorpilot, tmp))
+    else:
+        c = read_log(a.log)
     need(c, a.log, "time_s", "true_pos_n", "true_pos_e", "true_pos_d", "ref_n", "ref_e", "ref_d", "ref_yaw",
          "true_vel_n", "true_vel_e", "true_vel_d", "roll", "pitch", "yaw", "p_frd", "q_frd", "r_frd",
          "thrust_n", "tau_x", "tau_y", "tau_z")
@@ -81,7 +138,7 @@ def main():
     axes = ("n", "e", "d")
     e_p = [[c[f"true_pos_{x}"][k] - c[f"ref_{x}"][k] for k in range(len(t))] for x in axes]
     e_v = [[c[f"true_vel_{x}"][k] - v for k, v in enumerate(diff(c[f"ref_{x}"]))] for x in axes]
-    out = []
+    out = [path_figure(c, os.path.join(a.out, "path_ne.png"))]
     out.append(figure("position error e_p = p - p_d", t,
                       [(f"e_{x} [m]", [(f"e_p,{x}", e_p[i])]) for i, x in enumerate(axes)],
                       "m", os.path.join(a.out, "position_error.png")))

@@ -81,6 +81,12 @@ def pytest_addoption(parser):
                      "rotorpilot_mavsdk/rotorpilot_mavlink clients to connect (default 20)")
 
 
+# mavsdk 3.17.4, the last gRPC wrapper under that name, warns on import that
+# the package is now mavsdk-grpc: a name change, not a test's problem, which
+# the user's `import mavsdk` would print in every run's warnings summary
+MAVSDK_RENAMED = "ignore:The 'mavsdk' package has been renamed to 'mavsdk-grpc':FutureWarning"
+
+
 def pytest_configure(config):
     config.addinivalue_line(
         "markers",
@@ -88,6 +94,7 @@ def pytest_configure(config):
         "options of the rotorpilot_vehicle fixture (reuse=True: one vehicle for the tests with "
         "the same options, reset between them)",
     )
+    config.addinivalue_line("filterwarnings", MAVSDK_RENAMED)
 
 
 @pytest.hookimpl(hookwrapper=True)
@@ -105,9 +112,13 @@ def pytest_runtest_makereport(item, call):
 
 
 def _kept_line(vehicle):
+    """Where a vehicle's directory is kept; the replay command only when
+    there is a flight record to replay (a vehicle that never started has none)."""
     where = vehicle.log_dir or vehicle.root
-    return (f"rotorpilot: flight record kept in {where} — replay with "
-            f"`rotorpilot replay {os.path.join(where, 'flight.record')}`")
+    record = os.path.join(where, "flight.record")
+    if os.path.isfile(record):
+        return f"rotorpilot: flight record kept in {where} — replay with `rotorpilot replay {record}`"
+    return f"rotorpilot: logs kept in {where} (no flight record: the vehicle never started)"
 
 
 def _failed(item):

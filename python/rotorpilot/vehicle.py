@@ -388,7 +388,9 @@ class Vehicle:
             self.stop()
         except VehicleError as e:
             why += f" ({e})"
-        tail = self.stderr()[-6000:]
+        # each line once: a line `why` already quotes is not repeated from stderr
+        said = set(why.splitlines())
+        tail = "\n".join(line for line in self.stderr()[-6000:].splitlines() if line not in said)
         out = "\n".join(self.banner[-20:])
         raise VehicleError(
             f"{why}\ncommand: {' '.join(self.proc.args if self.proc else [])}\n"

@@ -114,6 +114,7 @@ pub use control_loop::RotorAllocation;
 pub use control_loop::{ControlLoop, ControlLoopError, ControlOutput, Demand};
 pub use error::AutopilotError;
 pub use failsafe::{ClientClock, ClientTimer, PendingTimer};
+pub use navigator::ItemDone;
 pub use navigator::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};
 pub use navigator::{ManualControl, OrbitYaw};
 pub use rotor_monitor::{FAILED_SPEED_RATIO, RotorEvent, RotorMonitor, RotorStatus};

@@ -476,9 +476,10 @@ impl Autopilot {
         self.mission_replaced();
     }
 
-    /// Mission items reached since the last call (MISSION_ITEM_REACHED), oldest first.
-    pub fn drain_mission_reached(&mut self) -> Vec<u16> {
-        self.navigator.drain_mission_reached()
+    /// Mission items reached (MISSION_ITEM_REACHED) or run (items done at
+    /// once) since the last call, oldest first.
+    pub fn drain_mission_done(&mut self) -> Vec<super::ItemDone> {
+        self.navigator.drain_mission_done()
     }
 
     // ----- accessors ------------------------------------------------------------------------------

@@ -61,7 +61,7 @@ pub struct DaemonArgs {
     /// 3 m x i north of --home as PX4's sitl_multiple_run.sh spawns them.
     /// --count 1 is a fleet of one, spawned 3 m x K north. Every option
     /// applies to each vehicle, except --gcs-bind, --api-bind and --link.
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=250))]
     pub count: Option<u32>,
     /// Run the fleet a TOML file describes: [[vehicle]] entries with an
     /// instance and optionally airframe, offset_m = [NORTH, EAST], params =
@@ -77,7 +77,9 @@ pub struct DaemonArgs {
     pub proximity: Option<f64>,
     /// Print the vehicles these options run (instance, system id, airframe,
     /// spawn point, links, state directory, parameters set) and exit
-    /// without starting any: checks a fleet file.
+    /// without starting any, after the checks a start makes before it
+    /// reads a state directory or binds a socket (speed, instances,
+    /// airframes, parameters): checks a fleet file or a command line.
     #[arg(long)]
     pub check: bool,
 }
@@ -101,20 +103,24 @@ impl DaemonArgs {
         c.reset_plans = self.reset_plans;
         c.log_dir.clone_from(&self.log_dir);
         c.log_csv = self.log_csv;
-        let remote = |s: &str| -> anyhow::Result<Option<std::net::SocketAddr>> {
-            if s == "none" { Ok(None) } else { resolve(s).map(Some) }
+        let remote = |flag: &str, s: &str| -> anyhow::Result<Option<std::net::SocketAddr>> {
+            if s == "none" {
+                Ok(None)
+            } else {
+                address(flag, s).map(Some)
+            }
         };
         if let Some(b) = &self.gcs_bind {
-            c.links[0].bind = resolve(b)?;
+            c.links[0].bind = address("--gcs-bind", b)?;
         }
         if let Some(r) = &self.gcs_remote {
-            c.links[0].remote = remote(r)?;
+            c.links[0].remote = remote("--gcs-remote", r)?;
         }
         if let Some(b) = &self.api_bind {
-            c.links[1].bind = resolve(b)?;
+            c.links[1].bind = address("--api-bind", b)?;
         }
         if let Some(r) = &self.api_remote {
-            c.links[1].remote = remote(r)?;
+            c.links[1].remote = remote("--api-remote", r)?;
         }
         for l in &self.links {
             c.links.push(LinkSpec::parse(l)?);
@@ -158,17 +164,17 @@ impl DaemonArgs {
                  --api-remote apply to every vehicle"
             );
         }
-        let remote = |s: Option<&str>| -> anyhow::Result<Remote> {
+        let remote = |flag: &str, s: Option<&str>| -> anyhow::Result<Remote> {
             Ok(match s {
                 None => Remote::Px4,
                 Some("none") => Remote::Nowhere,
-                Some(a) => Remote::To(resolve(a)?),
+                Some(a) => Remote::To(address(flag, a)?),
             })
         };
         let opts = FleetOptions {
             base: self.config()?,
-            gcs_remote: remote(self.gcs_remote.as_deref())?,
-            api_remote: remote(self.api_remote.as_deref())?,
+            gcs_remote: remote("--gcs-remote", self.gcs_remote.as_deref())?,
+            api_remote: remote("--api-remote", self.api_remote.as_deref())?,
             state_root: self.state_dir.clone().unwrap_or_else(|| DEFAULT_STATE_ROOT.into()),
             home: self.home.as_deref().map(parse_home).transpose()?,
             proximity_m: self.proximity,
@@ -178,6 +184,16 @@ impl DaemonArgs {
             None => FleetConfig::counted(&opts, self.instance, self.count.unwrap_or(1)),
         }
     }
+}
+
+/// The address an option gives, its error naming the option and what it takes.
+fn address(flag: &str, s: &str) -> anyhow::Result<std::net::SocketAddr> {
+    let takes = if flag.ends_with("-remote") {
+        "HOST:PORT or none"
+    } else {
+        "HOST:PORT"
+    };
+    resolve(s).map_err(|e| anyhow::anyhow!("{flag} takes {takes}: {}", crate::error::error_chain(&e)))
 }
 
 /// Run the vehicle until Ctrl-C or SIGTERM (or a client's shutdown command).

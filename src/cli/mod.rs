@@ -141,7 +141,10 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
         }) => replay::run(&record, csv.as_deref(), ulog.as_deref(), json, any_version),
         Some(Command::Params(args)) => params::run(&args),
         None if cli.daemon.check => {
-            print!("{}", cli.daemon.fleet_config()?.to_text());
+            let fleet = cli.daemon.fleet_config()?;
+            // what a real start refuses, --check refuses too
+            crate::daemon::check_fleet(&fleet)?;
+            print!("{}", fleet.to_text());
             Ok(())
         }
         None => daemon_args::run(&cli.daemon),

@@ -93,6 +93,15 @@ pub(super) fn run(
             s.inputs,
             if s.complete { "" } else { " (no end line)" }
         );
+        // the per-item summary `simulate` gives a mission
+        if !s.items.is_empty() {
+            println!("mission: {} items", s.items.len());
+            print!("{}", crate::logs::items::item_lines(&s.items));
+            println!(
+                "tracking error: max {:.3} m, RMS {:.3} m",
+                s.max_tracking_error_m, s.rms_tracking_error_m
+            );
+        }
         println!(
             "final state: {}, mode {}, {}, position NED {n:.2}, {e:.2}, {d:.2} m",
             if s.armed { "armed" } else { "disarmed" },

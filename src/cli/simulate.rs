@@ -345,10 +345,14 @@ fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
         } else {
             String::new()
         };
+        let count = |n: u64, one, many| fleet::count(usize::try_from(n).unwrap_or(usize::MAX), one, many);
         eprintln!(
-            "rotorpilot simulate: {n} scenarios{of} in {wall:.3} s wall on {threads} jobs ({:.1} per s): \
-             {ran} ok, {failed} missions failed, {errors} errors",
-            n as f64 / wall.max(1e-9)
+            "rotorpilot simulate: {}{of} in {wall:.3} s wall on {} ({:.1} per s): {ran} ok, {}, {}",
+            count(n, "scenario", "scenarios"),
+            count(threads as u64, "job", "jobs"),
+            n as f64 / wall.max(1e-9),
+            count(failed, "mission failed", "missions failed"),
+            count(errors, "error", "errors"),
         );
     }
     Ok(if errors > 0 {

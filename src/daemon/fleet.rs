@@ -477,7 +477,7 @@ fn param_overrides(
             let spec = PARAMS
                 .iter()
                 .find(|s| s.name == name)
-                .ok_or_else(|| fail("unknown parameter".into()))?;
+                .ok_or_else(|| fail(format!("unknown parameter{}", crate::params::did_you_mean(&name))))?;
             if name == "MAV_SYS_ID" {
                 return Err(fail(
                     "set by the instance (system id = instance + 1), as PX4 SITL does".into(),
@@ -733,7 +733,7 @@ mod tests {
             ),
             (
                 "[[vehicle]]\ninstance = 0\nparams = { MPC_XY_CRUSE = 8.0 }\n",
-                "f.toml:3:12: vehicle[1].params.MPC_XY_CRUSE: unknown parameter",
+                "f.toml:3:12: vehicle[1].params.MPC_XY_CRUSE: unknown parameter (did you mean MPC_XY_CRUISE?)",
             ),
             (
                 "[[vehicle]]\ninstance = 0\nparams = { CTRL_TYPE = 1.5 }\n",

@@ -159,6 +159,67 @@ fn vehicle_params(config: &Config, airframe: &Airframe) -> anyhow::Result<(Param
     Ok((params, warnings))
 }
 
+/// Everything a start checks before it touches a state directory or a
+/// socket (`rotorpilot --check` runs this, so that it refuses what a real
+/// start refuses): at least one vehicle, the speed factor, distinct
+/// instances below 250, airframes that load, and each vehicle's autopilot
+/// built from default parameters with the fleet file's overrides. The saved
+/// parameter and plan files and the sockets are left to the start itself.
+///
+/// # Errors
+/// The first problem, naming its vehicle when the fleet has more than one.
+pub fn check_fleet(fleet: &FleetConfig) -> anyhow::Result<()> {
+    let configs = &fleet.vehicles;
+    anyhow::ensure!(!configs.is_empty(), "a fleet needs at least one vehicle");
+    let lone = configs.len() == 1;
+    let speed = configs[0].speed;
+    anyhow::ensure!(
+        speed.is_finite() && speed > 0.0 && speed <= 1000.0,
+        "--speed must be in (0, 1000], got {speed}"
+    );
+    let which = |c: &Config| vehicle_prefix(lone, c.instance);
+    // two vehicles on one instance would share ports, system id and state
+    let mut instances: Vec<u8> = configs.iter().map(|c| c.instance).collect();
+    instances.sort_unstable();
+    if let Some(w) = instances.windows(2).find(|w| w[0] == w[1]) {
+        anyhow::bail!("two vehicles of the fleet are instance {}", w[0]);
+    }
+    let mut airframes = Vec::with_capacity(configs.len());
+    let mut stores = Vec::with_capacity(configs.len());
+    for c in configs {
+        anyhow::ensure!(c.instance < 250, "{}--instance must be below 250", which(c));
+        let airframe = Airframe::load(&c.airframe).map_err(|e| anyhow::anyhow!("{}{e}", which(c)))?;
+        // default parameters (no file read): what a fresh state directory starts from
+        let fresh = Config {
+            reset_params: true,
+            ..c.clone()
+        };
+        let (params, _) = vehicle_params(&fresh, &airframe)
+            .map_err(|e| anyhow::anyhow!("{}{}", which(c), crate::error::error_chain(&e)))?;
+        airframes.push(airframe);
+        stores.push(params);
+    }
+    let list: Vec<FleetVehicle<'_>> = configs
+        .iter()
+        .zip(&airframes)
+        .zip(&stores)
+        .map(|((c, airframe), params)| FleetVehicle {
+            airframe,
+            home: c.home,
+            params,
+            sensors: SensorConfig::default(),
+        })
+        .collect();
+    Lockstep::fleet(fleet.origin, &list).map_err(|(i, e)| {
+        anyhow::anyhow!(
+            "{}starting the autopilot on {}: {e}",
+            which(&configs[i]),
+            airframes[i].source
+        )
+    })?;
+    Ok(())
+}
+
 /// Load the airframe, parameters and stored plans and bind every link's
 /// socket of one lone vehicle ([`bind_fleet`] of a fleet of one).
 ///
@@ -176,30 +237,19 @@ pub async fn bind(config: Config) -> anyhow::Result<Daemon> {
 /// As [`bind`], for any vehicle (the message names its instance when the
 /// fleet has more than one); no vehicle at all.
 pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
+    check_fleet(&fleet)?;
     let FleetConfig {
         vehicles: configs,
         origin,
         proximity_m,
     } = fleet;
-    anyhow::ensure!(!configs.is_empty(), "a fleet needs at least one vehicle");
     let lone = configs.len() == 1;
     let speed = configs[0].speed;
-    anyhow::ensure!(
-        speed.is_finite() && speed > 0.0 && speed <= 1000.0,
-        "--speed must be in (0, 1000], got {speed}"
-    );
     let which = |c: &Config| vehicle_prefix(lone, c.instance);
-    // two vehicles on one instance would share ports, system id and state
-    let mut instances: Vec<u8> = configs.iter().map(|c| c.instance).collect();
-    instances.sort_unstable();
-    if let Some(w) = instances.windows(2).find(|w| w[0] == w[1]) {
-        anyhow::bail!("two vehicles of the fleet are instance {}", w[0]);
-    }
     let mut airframes = Vec::with_capacity(configs.len());
     let mut stores = Vec::with_capacity(configs.len());
     let mut locks = Vec::with_capacity(configs.len());
     for c in &configs {
-        anyhow::ensure!(c.instance < 250, "{}--instance must be below 250", which(c));
         let airframe = Airframe::load(&c.airframe).map_err(|e| anyhow::anyhow!("{}{e}", which(c)))?;
         // one daemon per state directory, before its files are read (lock.rs)
         locks.push(
@@ -506,6 +556,8 @@ impl Daemon {
             // the same for the plans (--reset-plans)
             plans_changed.notify_one();
             ios.push(VehicleIo {
+                instance: config.instance,
+                system_id: config.system_id(),
                 params: params.clone(),
                 tel: tel_tx,
                 events: ev_tx.clone(),

@@ -21,7 +21,8 @@ use super::messages::{Event, SimRequest, lock};
 use super::recorder::Recorder;
 use super::ulog_file::{self, UlogFile};
 use crate::autopilot::{
-    Autopilot, AutopilotCommand, AutopilotError, ClientClock, ClientTimer, CommandOutcome, PendingTimer, PowerAction,
+    Autopilot, AutopilotCommand, AutopilotError, ClientClock, ClientTimer, CommandOutcome, ItemDone, PendingTimer,
+    PowerAction,
 };
 use crate::lockstep::input::{Applied, Input};
 use crate::lockstep::{Lockstep, Snapshot};
@@ -56,6 +57,10 @@ pub(super) struct Sim {
 
 /// What the simulation thread holds for one vehicle.
 pub(super) struct VehicleIo {
+    /// Its PX4 SITL instance, as the user set it (named in log lines).
+    pub(super) instance: u8,
+    /// Its MAVLink system id (named in log lines).
+    pub(super) system_id: u8,
     pub(super) params: Arc<Mutex<ParamStore>>,
     pub(super) tel: watch::Sender<Snapshot>,
     pub(super) events: broadcast::Sender<Event>,
@@ -190,9 +195,17 @@ impl Sim {
         }
         for p in expired {
             if self.client_timeout(v, p.timer, p.started_s) {
-                debug!(vehicle = v, timer = ?p.timer, "client timer ran out on the wall clock");
+                let (instance, sysid) = self.who(v);
+                debug!(instance, sysid, timer = ?p.timer, "client timer ran out on the wall clock");
             }
         }
+    }
+
+    /// Vehicle `v`'s instance and system id, as the user set them (log lines
+    /// name a vehicle by these, never by its place in the fleet).
+    fn who(&self, v: usize) -> (u8, u8) {
+        let io = &self.vehicles[v];
+        (io.instance, io.system_id)
     }
 
     /// Publish vehicle `v`'s snapshot and status texts.
@@ -203,11 +216,14 @@ impl Sim {
         let lost = self.core.world().faults(v).link_lost;
         io.link_lost.send_if_modified(|l| std::mem::replace(l, lost) != lost);
         for s in ulog_file::drain_status_texts(&mut io.ulog, &mut self.core, v) {
-            info!(vehicle = v, text = %s.text, "status");
+            info!(instance = io.instance, sysid = io.system_id, text = %s.text, "status");
             let _ = io.events.send(Event::StatusText(s));
         }
-        for seq in self.core.drain_mission_reached(v) {
-            let _ = io.events.send(Event::MissionItemReached(seq));
+        // MISSION_ITEM_REACHED tells the items reached, not those run at once (PX4)
+        for done in self.core.drain_mission_done(v) {
+            if let ItemDone::Reached(seq) = done {
+                let _ = io.events.send(Event::MissionItemReached(seq));
+            }
         }
     }
 
@@ -243,16 +259,18 @@ impl Sim {
             }
             SimRequest::SetParam { name, value, reply } => {
                 let outcome = self.set_param(v, &name, value);
+                let (instance, sysid) = self.who(v);
                 match &outcome {
-                    Ok(x) => info!(vehicle = v, %name, value = %x, "parameter set"),
-                    Err(e) => info!(vehicle = v, %name, error = %e, "parameter refused"),
+                    Ok(x) => info!(instance, sysid, %name, value = %x, "parameter set"),
+                    Err(e) => info!(instance, sysid, %name, error = %e, "parameter refused"),
                 }
                 self.publish(v);
                 let _ = reply.send(outcome);
             }
             SimRequest::Plans { change, reply } => {
                 let outcome = self.change_plans(v, change);
-                info!(vehicle = v, ?outcome, "plans changed");
+                let (instance, sysid) = self.who(v);
+                info!(instance, sysid, ?outcome, "plans changed");
                 self.publish(v);
                 if outcome.is_ok() {
                     self.vehicles[v].plans_changed.notify_one();
@@ -285,11 +303,13 @@ impl Sim {
             Ok(()) => {
                 // the core announces it ("Rebooted: simulation reset"); the
                 // caller publishes before the ACK
-                info!(vehicle = v, "rebooted: simulation reset");
+                let (instance, sysid) = self.who(v);
+                info!(instance, sysid, "rebooted: simulation reset");
                 CommandOutcome::Accepted
             }
             Err(e) => {
-                warn!(vehicle = v, error = %e, "reboot failed");
+                let (instance, sysid) = self.who(v);
+                warn!(instance, sysid, error = %e, "reboot failed");
                 CommandOutcome::Failed("reboot failed")
             }
         }
@@ -374,7 +394,8 @@ impl Sim {
             // raised after the step that ended at t: before step t/dt runs
             let step = (t / dt).round() as u64;
             for (me, other) in [(e.a, e.b), (e.b, e.a)] {
-                info!(vehicle = me, other = %self.core.label(other), kind = e.kind.name(), distance_m = e.distance_m, "proximity");
+                let (instance, sysid) = self.who(me);
+                info!(instance, sysid, other = %self.core.label(other), kind = e.kind.name(), distance_m = e.distance_m, "proximity");
                 if let Some(r) = &mut self.vehicles[me].recorder {
                     let input = Input::Proximity {
                         other: self.core.label(other).to_string(),

@@ -261,6 +261,14 @@ impl<P: Pilot> Lockstep<P> {
         self.proximity = Some(Proximity::new(distance_m));
     }
 
+    /// The pairs now near or touching, `(a, b, level)` with `a < b`, sorted
+    /// (none when proximity is not watched): a pair stays here from its
+    /// event until it is apart again (beyond the threshold x 1.1).
+    #[must_use]
+    pub fn proximity_pairs(&self) -> &[(usize, usize, ProximityKind)] {
+        self.proximity.as_ref().map_or(&[], Proximity::levels)
+    }
+
     /// Name the vehicles in proximity texts (`labels[i]` for vehicle `i`,
     /// e.g. `system 3`); missing ones keep `vehicle i`.
     pub fn set_labels(&mut self, labels: Vec<String>) {
@@ -604,9 +612,9 @@ impl Lockstep<Autopilot> {
         self.pilots[i].gcs_heartbeat(readings);
     }
 
-    /// Vehicle `i`'s mission items reached since the last call, oldest first.
-    pub fn drain_mission_reached(&mut self, i: usize) -> Vec<u16> {
-        self.pilots[i].drain_mission_reached()
+    /// Vehicle `i`'s mission items reached or run since the last call, oldest first.
+    pub fn drain_mission_done(&mut self, i: usize) -> Vec<crate::autopilot::ItemDone> {
+        self.pilots[i].drain_mission_done()
     }
 
     /// Vehicle `i`'s status texts since the last call: its autopilot's, then

@@ -6,6 +6,8 @@
 //! - [`csv`]: the flight CSV, written one row per step and read back for
 //!   `rotorpilot estimate`, and the estimates CSV;
 //! - [`meta`]: the CSV's `<csv>.meta.json` sidecar (what produced it);
+//! - [`items`]: what became of each mission item (reached, ran, never), as
+//!   `simulate` and `replay` report it;
 //! - [`ulog`]: PX4's ULog format, and the flight's PX4-named topics
 //!   ([`ulog::flight`], the daemon's `flight.ulg`).
 //!
@@ -13,6 +15,7 @@
 //! [`std::io::Write`], no clock.
 
 pub mod csv;
+pub mod items;
 pub mod meta;
 pub mod record;
 pub mod replay;

@@ -6,11 +6,13 @@
 use std::io::Write;
 
 use super::csv::CsvLog;
+use super::items::{ItemResult, ItemTally};
 use super::record::Record;
 use super::ulog::flight::FlightUlog;
 use crate::autopilot::Autopilot;
 use crate::lockstep::Lockstep;
 use crate::lockstep::input::apply;
+use crate::mission::MissionType;
 use crate::params::ParamStore;
 
 /// What a replay did.
@@ -32,6 +34,14 @@ pub struct ReplaySummary {
     pub landed_state: String,
     /// True position at the end, NED [m].
     pub position_ned_m: [f64; 3],
+    /// The items of the last mission stored (as `simulate` reports them:
+    /// reached, ran, never reached, never ran), tallied from when it was
+    /// stored (from the start for the mission the vehicle started with).
+    pub items: Vec<ItemResult>,
+    /// Max distance [m] from the shaped reference, in the air.
+    pub max_tracking_error_m: f64,
+    /// RMS distance [m] from the shaped reference, in the air.
+    pub rms_tracking_error_m: f64,
 }
 
 /// Re-fly `record`: rebuild the core from the header, step it, applying
@@ -53,6 +63,10 @@ struct ReplayLogs<'a> {
     /// Steps run (the parameters are looked at every [`PARAM_CHECK_EVERY`]).
     steps: u64,
     generation: u64,
+    /// The mission's items as flown, and its plan id (a new mission restarts the tally).
+    items: ItemTally,
+    mission_id: u32,
+    home: crate::geo::GeoPoint,
 }
 
 /// Steps between two looks at the parameters for the ULog (0.1 s at 1 kHz),
@@ -68,11 +82,17 @@ impl ReplayLogs<'_> {
         if let Some(l) = &mut self.csv {
             l.step_row(core, 0).map_err(|e| format!("writing the CSV: {e}"))?;
         }
+        let mission = core.pilot(0).plans().get(MissionType::Mission);
+        if mission.id() != self.mission_id {
+            self.mission_id = mission.id();
+            self.items = ItemTally::new(mission.items(), self.home);
+        }
+        // reads (and drains) the item events: the queues do not steer the flight
+        self.items.after_step(core, 0);
         let Some(u) = &mut self.ulog else {
             if core.steps().is_multiple_of(1024) {
                 // as the daemon publishes: the queues do not steer the flight
                 let _ = core.drain_status_texts(0);
-                let _ = core.drain_mission_reached(0);
             }
             return Ok(());
         };
@@ -85,7 +105,6 @@ impl ReplayLogs<'_> {
         for (time_s, t) in core.drain_stamped_status_texts(0) {
             u.status_text(time_s, &t).map_err(ue)?;
         }
-        let _ = core.drain_mission_reached(0);
         Ok(())
     }
 }
@@ -114,6 +133,9 @@ pub fn replay_logs<'a>(
             .map_err(|e| format!("writing the ULog: {e}"))?,
         steps: 0,
         generation: params.generation(),
+        items: ItemTally::new(&record.header.mission, record.header.home),
+        mission_id: core.pilot(0).plans().get(MissionType::Mission).id(),
+        home: record.header.home,
     };
     let end = record.end.unwrap_or_else(|| record.inputs.last().map_or(0, |e| e.step));
     let step_to = |core: &mut Lockstep<Autopilot>, params: &ParamStore, target: u64, logs: &mut ReplayLogs<'_>| {
@@ -142,6 +164,8 @@ pub fn replay_logs<'a>(
     }
     let ap = core.pilot(0);
     let p = core.last_step(0).world.truth.position_ned;
+    let (max_tracking_error_m, rms_tracking_error_m) =
+        (logs.items.max_tracking_error_m(), logs.items.rms_tracking_error_m());
     Ok(ReplaySummary {
         steps: core.steps(),
         sim_time_s: core.time_s(),
@@ -151,5 +175,8 @@ pub fn replay_logs<'a>(
         mode: format!("{:?}", ap.mode()),
         landed_state: format!("{:?}", ap.landed_state()),
         position_ned_m: [p.x, p.y, p.z],
+        items: logs.items.into_results(),
+        max_tracking_error_m,
+        rms_tracking_error_m,
     })
 }

@@ -134,7 +134,10 @@ impl ParamStore {
             };
             let name = name.trim().trim_matches('"');
             let Some(index) = self.index_of(name) else {
-                warnings.push(format!("{label}:{line_no}: unknown parameter {name}, skipped"));
+                warnings.push(format!(
+                    "{label}:{line_no}: unknown parameter {name}{}, skipped",
+                    super::did_you_mean(name)
+                ));
                 continue;
             };
             let kind = PARAMS[index].kind;

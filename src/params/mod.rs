@@ -23,6 +23,36 @@ pub use file::{Loaded, ParamFileError, set_aside_path};
 pub use store::{ParamError, ParamStore};
 pub use table::{PARAMS, Param};
 
+/// ` (did you mean NAME?)` for an unknown parameter name within two edits
+/// (insertions, deletions, substitutions; letters compared case-blind) of
+/// a real one, the closest first in table order; else empty.
+#[must_use]
+pub fn did_you_mean(name: &str) -> String {
+    let wanted = name.to_ascii_uppercase();
+    PARAMS
+        .iter()
+        .map(|p| (edit_distance(&wanted, p.name), p.name))
+        .filter(|&(d, _)| d <= 2)
+        .min_by_key(|&(d, _)| d)
+        .map_or_else(String::new, |(_, n)| format!(" (did you mean {n}?)"))
+}
+
+/// Levenshtein distance between two ASCII strings (bytes).
+fn edit_distance(a: &str, b: &str) -> usize {
+    let (a, b) = (a.as_bytes(), b.as_bytes());
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, &x) in a.iter().enumerate() {
+        let mut diagonal = row[0];
+        row[0] = i + 1;
+        for (j, &y) in b.iter().enumerate() {
+            let next = (diagonal + usize::from(x != y)).min(row[j] + 1).min(row[j + 1] + 1);
+            diagonal = row[j + 1];
+            row[j + 1] = next;
+        }
+    }
+    row[b.len()]
+}
+
 use serde::Serialize;
 
 /// MAVLink parameter types rotorpilot uses.
@@ -173,6 +203,16 @@ impl ParamSpec {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_misspelled_parameter_gets_the_closest_name() {
+        assert_eq!(super::did_you_mean("MPC_XY_CRUIS"), " (did you mean MPC_XY_CRUISE?)");
+        assert_eq!(
+            super::did_you_mean("mis_takeoff_alt"),
+            " (did you mean MIS_TAKEOFF_ALT?)"
+        );
+        assert_eq!(super::did_you_mean("NOTHING_LIKE_IT"), "");
+    }
+
     use super::*;
 
     #[test]

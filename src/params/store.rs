@@ -8,7 +8,7 @@ use crate::airframe::Airframe;
 #[non_exhaustive]
 pub enum ParamError {
     /// No parameter has this name.
-    #[error("unknown parameter {name}")]
+    #[error("unknown parameter {name}{}", super::did_you_mean(name))]
     Unknown {
         /// The name asked for.
         name: String,

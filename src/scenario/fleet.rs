@@ -277,10 +277,16 @@ pub struct FleetEvent {
     pub a: usize,
     /// The higher vehicle index.
     pub b: usize,
-    /// Their distance [m] then.
+    /// Their distance [m] then: the threshold just crossed.
     pub distance_m: f64,
     /// `near` or `collision`.
     pub kind: ProximityKind,
+    /// The encounter's closest approach [m]: the least distance between
+    /// the two (centre to centre) from this event until they are apart
+    /// again (beyond the reporting distance x 1.1) or the flight ends.
+    pub closest_m: f64,
+    /// When it came [s] (simulated time after its step).
+    pub closest_s: f64,
 }
 
 impl From<(f64, ProximityEvent)> for FleetEvent {
@@ -291,6 +297,8 @@ impl From<(f64, ProximityEvent)> for FleetEvent {
             b: e.b,
             distance_m: e.distance_m,
             kind: e.kind,
+            closest_m: e.distance_m,
+            closest_s: time_s,
         }
     }
 }
@@ -388,18 +396,21 @@ impl FleetSummary {
             .filter(|e| e.kind == ProximityKind::Collision)
             .count();
         s.push_str(&format!(
-            "proximity (closer than {} m): {} events, {collisions} collisions\n",
+            "proximity (closer than {} m): {}, {}\n",
             self.proximity_m,
-            self.events.len()
+            count(self.events.len(), "event", "events"),
+            count(collisions, "collision", "collisions")
         ));
         for e in &self.events {
             s.push_str(&format!(
-                "  t = {:.3} s: vehicles {} and {} {} at {:.3} m\n",
+                "  t = {:.3} s: vehicles {} and {} {} (at {:.3} m); closest approach {:.3} m at t = {:.3} s\n",
                 e.time_s,
                 e.a,
                 e.b,
                 e.kind.name(),
-                e.distance_m
+                e.distance_m,
+                e.closest_m,
+                e.closest_s
             ));
         }
         s
@@ -485,6 +496,8 @@ fn fly_tracks<P: Pilot, T: Track<P>>(
     let mut tracks: Vec<Option<T>> = tracks.into_iter().map(Some).collect();
     let mut outcomes: Vec<Option<Outcome>> = vec![None; n];
     let mut events = Vec::new();
+    // the events whose encounter goes on (the pair not apart yet)
+    let mut open: Vec<usize> = Vec::new();
     let mut running = n;
     // a flight over before its first step (a zero duration) is judged at once
     for i in 0..n {
@@ -508,9 +521,39 @@ fn fly_tracks<P: Pilot, T: Track<P>>(
                 running -= 1;
             }
         }
-        events.extend(core.drain_proximity_events().into_iter().map(FleetEvent::from));
+        let new = core.drain_proximity_events();
+        open.extend(events.len()..events.len() + new.len());
+        events.extend(new.into_iter().map(FleetEvent::from));
+        follow_encounters(&core, &mut events, &mut open);
     }
     Ok((outcomes.into_iter().flatten().collect(), events, core.steps()))
+}
+
+/// After a step: each open encounter's closest approach so far
+/// ([`FleetEvent::closest_m`]); an encounter whose pair is apart again is
+/// closed.
+fn follow_encounters<P: Pilot>(core: &Lockstep<P>, events: &mut [FleetEvent], open: &mut Vec<usize>) {
+    let pairs = core.proximity_pairs();
+    let world = core.world();
+    let t = core.time_s();
+    open.retain(|&k| {
+        let e = &mut events[k];
+        if pairs.binary_search_by(|&(a, b, _)| (a, b).cmp(&(e.a, e.b))).is_err() {
+            return false;
+        }
+        let d = (world.position_ned(e.b) - world.position_ned(e.a)).norm();
+        if d < e.closest_m {
+            e.closest_m = d;
+            e.closest_s = t;
+        }
+        true
+    });
+}
+
+/// `n` and the noun, singular for one: `1 event`, `2 events`.
+#[must_use]
+pub fn count(n: usize, one: &str, many: &str) -> String {
+    format!("{n} {}", if n == 1 { one } else { many })
 }
 
 /// Judge vehicle `i` now and close its log.

@@ -53,6 +53,8 @@ use crate::autopilot::{Autopilot, AutopilotCommand, CommandOutcome, LandedState,
 use crate::geo::GeoPoint;
 use crate::lockstep::Lockstep;
 use crate::logs::csv::CsvLog;
+pub use crate::logs::items::ItemResult;
+use crate::logs::items::{ItemTally, item_lines};
 use crate::logs::meta::LogMeta;
 use crate::mission::file::{PlanFile, load_mission_file};
 use crate::mission::{MissionItem, MissionType, PlanChange, cmd, frame, quantise_deg};
@@ -68,8 +70,8 @@ const SETTLE_S: f64 = 1.0;
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct File {
-    #[serde(default = "default_airframe")]
-    airframe: String,
+    /// Default quad; its span places an error at its line.
+    airframe: Option<toml::Spanned<String>>,
     #[serde(default = "default_duration")]
     duration_s: f64,
     home: Option<[f64; 3]>,
@@ -77,15 +79,12 @@ struct File {
     seed: u64,
     #[serde(default)]
     noise: SensorNoise,
+    /// With each name's span, for errors at its line.
     #[serde(default)]
-    params: toml::Table,
+    params: std::collections::BTreeMap<toml::Spanned<String>, toml::Value>,
     #[serde(default, rename = "fault")]
     faults: Vec<FileFault>,
     mission: FileMission,
-}
-
-fn default_airframe() -> String {
-    "quad".into()
 }
 
 fn default_duration() -> f64 {
@@ -200,12 +199,19 @@ impl MissionFlight {
             Some(d) if !Path::new(p).is_absolute() => d.join(p),
             _ => Path::new(p).to_path_buf(),
         };
-        let airframe_spec = if raw.airframe.ends_with(".toml") {
-            rel(&raw.airframe).display().to_string()
+        // a problem at a key whose place is known: file:line:column: field: problem
+        let fail_at =
+            |at: usize, field: &str, problem: String| tomlfile::error_at(text, file, at, format!("{field}: {problem}"));
+        let (name, airframe_at) = raw
+            .airframe
+            .as_ref()
+            .map_or(("quad", 0), |a| (a.get_ref().as_str(), a.span().start));
+        let airframe_spec = if name.ends_with(".toml") {
+            rel(name).display().to_string()
         } else {
-            raw.airframe.clone()
+            name.to_string()
         };
-        let airframe = Airframe::load(&airframe_spec).map_err(|e| fail("airframe", e.to_string()))?;
+        let airframe = Airframe::load(&airframe_spec).map_err(|e| fail_at(airframe_at, "airframe", e.to_string()))?;
         if !(raw.duration_s.is_finite() && raw.duration_s > 0.0 && raw.duration_s <= 86_400.0) {
             return Err(fail("duration_s", format!("must be in (0, 86400] s, got {}", raw.duration_s)).into());
         }
@@ -221,7 +227,9 @@ impl MissionFlight {
             return Err(fail("home", format!("{:?} is not a valid position", raw.home)).into());
         }
         let mut params = ParamStore::new(&airframe);
-        for (name, v) in &raw.params {
+        for (spanned, v) in &raw.params {
+            let (name, at) = (spanned.get_ref(), spanned.span().start);
+            let fail = |field: &str, problem: String| fail_at(at, field, problem);
             let value = match v {
                 toml::Value::Integer(i) => ParamValue::Int32(
                     i32::try_from(*i).map_err(|_| fail(&format!("params.{name}"), "out of range".into()))?,
@@ -240,7 +248,7 @@ impl MissionFlight {
                 .map_err(|e| fail(&format!("params.{name}"), e.to_string()))?;
         }
         let faults = fault::validate(&raw.faults, raw.duration_s, &airframe).map_err(|(f, p)| fail(&f, p))?;
-        if !faults.is_empty() && !raw.params.contains_key("SYS_FAILURE_EN") {
+        if !faults.is_empty() && !raw.params.keys().any(|k| k.get_ref() == "SYS_FAILURE_EN") {
             // a scenario that injects failures allows them (PX4 needs it for MAV_CMD_INJECT_FAILURE)
             params
                 .set("SYS_FAILURE_EN", ParamValue::Int32(1))
@@ -305,21 +313,6 @@ impl MissionFlight {
             faults,
         })
     }
-}
-
-/// One item of the mission as flown.
-#[derive(Clone, Debug, Serialize)]
-pub struct ItemResult {
-    /// MAVLink seq.
-    pub seq: u16,
-    /// MAV_CMD.
-    pub command: u16,
-    /// When it was first reached [s] (`None`: never; items done at once are not reported).
-    pub reached_s: Option<f64>,
-    /// How often it was reached (DO_JUMP loops).
-    pub times_reached: u32,
-    /// Distance [m] from the true position to the item's point when first reached (positional items).
-    pub distance_m: Option<f64>,
 }
 
 /// What `rotorpilot simulate` prints for a mission.
@@ -393,17 +386,50 @@ pub(super) fn store_plans(core: &mut Lockstep<Autopilot>, i: usize, f: &MissionF
         if items.is_empty() {
             continue;
         }
-        core.change_plans(
+        let stored = core.change_plans(
             i,
             PlanChange::Store {
                 kind,
                 items: items.clone(),
                 base_id: None,
             },
-        )
-        .map_err(|r| anyhow::anyhow!("{}: {} refused: {}", f.source, kind.name(), r.reason()))?;
+        );
+        if let Err(r) = stored {
+            let said: Vec<String> = core.drain_status_texts(i).into_iter().map(|t| t.text).collect();
+            anyhow::bail!(
+                "{}: {} refused: {}",
+                f.source,
+                kind.name(),
+                refusal(r.reason(), &said, &f.params)
+            );
+        }
     }
     Ok(())
+}
+
+/// Why a plan was refused, as a user wants it: the vehicle's own words
+/// (which name the item and the parameter whose limit it broke), the
+/// parameters they name with their values, then the MAV_MISSION_RESULT's
+/// reason: `Plan rejected: item 3 at 12488 m > RP_ALT_MAX_AMSL
+/// (RP_ALT_MAX_AMSL = 9000; invalid altitude / z)`.
+fn refusal(reason: &str, said: &[String], params: &ParamStore) -> String {
+    if said.is_empty() {
+        return reason.to_string();
+    }
+    let mut named: Vec<String> = Vec::new();
+    for word in said
+        .iter()
+        .flat_map(|t| t.split(|c: char| !(c.is_ascii_alphanumeric() || c == '_')))
+    {
+        if let Some((_, v)) = params.get(word) {
+            let line = format!("{word} = {v}");
+            if !named.contains(&line) {
+                named.push(line);
+            }
+        }
+    }
+    named.push(reason.to_string());
+    format!("{} ({})", said.join("; "), named.join("; "))
 }
 
 /// Fly the mission; `csv` receives the flight log (the format of
@@ -440,13 +466,10 @@ pub(super) struct MissionFlown<'f> {
     /// Steps flown.
     k: u64,
     over: bool,
-    results: Vec<ItemResult>,
+    items: ItemTally,
     lands: bool,
     started_s: Option<f64>,
     complete_s: Option<f64>,
-    sum_sq: f64,
-    n_air: u64,
-    max_err: f64,
     upright: bool,
     finite: bool,
     applied: Vec<AppliedFault>,
@@ -462,23 +485,10 @@ impl<'f> MissionFlown<'f> {
             steps: (f.duration_s / dt_s).round() as u64,
             k: 0,
             over: false,
-            results: items
-                .iter()
-                .enumerate()
-                .map(|(k, it)| ItemResult {
-                    seq: u16::try_from(k).unwrap_or(u16::MAX),
-                    command: it.command,
-                    reached_s: None,
-                    times_reached: 0,
-                    distance_m: None,
-                })
-                .collect(),
+            items: ItemTally::new(items, f.home),
             lands: ends_on_ground(items),
             started_s: None,
             complete_s: None,
-            sum_sq: 0.0,
-            n_air: 0,
-            max_err: 0.0,
             upright: true,
             finite: true,
             applied: Vec::new(),
@@ -527,7 +537,6 @@ impl<'f> MissionFlown<'f> {
             l.row(&rec)?;
         }
         let truth = rec.world.truth;
-        let reference = rec.control.reference.position_ned;
         self.upright &= (truth.attitude * Vector3::z()).z > 0.0;
         self.finite &= truth.position_ned.iter().all(|x| x.is_finite());
         if rec.world.fault.is_some() {
@@ -535,29 +544,10 @@ impl<'f> MissionFlown<'f> {
             self.over = true;
             return Ok(());
         }
+        self.items.after_step(core, i);
         let time_s = core.time_s();
-        let ap = core.pilot(i);
-        let (armed, progress) = (ap.armed(), ap.mission_progress());
-        if ap.landed_state() == LandedState::InAir {
-            let e = (truth.position_ned - reference).norm();
-            self.sum_sq += e * e;
-            self.n_air += 1;
-            self.max_err = self.max_err.max(e);
-        }
-        for seq in core.drain_mission_reached(i) {
-            if let Some(r) = self.results.get_mut(usize::from(seq)) {
-                r.times_reached += 1;
-                if r.reached_s.is_none() {
-                    r.reached_s = Some(time_s);
-                    let it = &f.plans.mission[usize::from(seq)];
-                    // relative altitudes are above the vehicle's home (where it rested)
-                    let home_alt_amsl_m = core.telemetry(i).home.alt_amsl_m;
-                    r.distance_m = it
-                        .geo_point(home_alt_amsl_m)
-                        .map(|g| (core.world().plant(i).state().position_ned - g.ned_from(&f.home)).norm());
-                }
-            }
-        }
+        let armed = core.pilot(i).armed();
+        let progress = core.pilot(i).mission_progress();
         if self.started_s.is_none() && !armed && core.telemetry(i).prearm_ok {
             match core.command(i, AutopilotCommand::StartMission { first: Some(0) }) {
                 CommandOutcome::Accepted => self.started_s = Some(time_s),
@@ -588,7 +578,7 @@ impl<'f> MissionFlown<'f> {
                 f.duration_s, t.mission.seq, t.mission.total
             ));
         }
-        for r in &self.results {
+        for r in self.items.results() {
             if r.reached_s.is_none() && items[usize::from(r.seq)].geo_point(t.home.alt_amsl_m).is_some() {
                 reasons.push(format!("item {} (command {}) was never reached", r.seq, r.command));
             }
@@ -602,7 +592,8 @@ impl<'f> MissionFlown<'f> {
         if !self.finite {
             reasons.push("the simulation stopped on a non-finite state".into());
         }
-        let max_err = self.max_err;
+        let max_err = self.items.max_tracking_error_m();
+        let rms_err = self.items.rms_tracking_error_m();
         if let Some(limit) = f.max_tracking_error_m
             && max_err > limit
         {
@@ -614,16 +605,12 @@ impl<'f> MissionFlown<'f> {
             verdict: if reasons.is_empty() { "pass" } else { "fail" },
             reasons,
             complete,
-            items: self.results,
+            items: self.items.into_results(),
             mission_time_s: self.started_s.map_or(0.0, |s| t.time_s - s),
             sim_time_s: t.time_s,
             wall_time_s: 0.0,
             max_tracking_error_m: max_err,
-            rms_tracking_error_m: if self.n_air > 0 {
-                (self.sum_sq / self.n_air as f64).sqrt()
-            } else {
-                0.0
-            },
+            rms_tracking_error_m: rms_err,
             final_position_ned: [p.x, p.y, p.z],
             landed_and_disarmed,
             upright: self.upright,
@@ -646,19 +633,7 @@ impl MissionSummary {
             self.mission_time_s,
             self.wall_time_s
         );
-        for r in &self.items {
-            let when = r.reached_s.map_or("          -".to_string(), |t| format!("{t:9.2} s"));
-            let off = r.distance_m.map_or(String::new(), |d| format!(", {d:.2} m off"));
-            let times = if r.times_reached > 1 {
-                format!(" ({} times)", r.times_reached)
-            } else {
-                String::new()
-            };
-            s.push_str(&format!(
-                "  item {:3} cmd {:5}: reached {when}{off}{times}\n",
-                r.seq, r.command
-            ));
-        }
+        s.push_str(&item_lines(&self.items));
         s.push_str(&format!(
             "tracking error: max {:.3} m, RMS {:.3} m; final position {:.2?} m NED; landed and disarmed: {}\n",
             self.max_tracking_error_m, self.rms_tracking_error_m, self.final_position_ned, self.landed_and_disarmed

@@ -41,10 +41,14 @@ pub enum ScenarioError {
     #[error(transparent)]
     File(#[from] FileError),
     /// The airframe it names could not be loaded.
-    #[error("{file}: airframe: {error}")]
+    #[error("{file}:{line}:{column}: airframe: {error}")]
     Airframe {
         /// Scenario path.
         file: String,
+        /// 1-based line of the `airframe` value.
+        line: usize,
+        /// 1-based column of it.
+        column: usize,
         /// The airframe's own error (in the message, not also its source:
         /// `{:#}` would print it twice).
         error: AirframeError,
@@ -64,7 +68,8 @@ pub enum ScenarioError {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct File {
-    airframe: String,
+    /// With its span, for an error at its line.
+    airframe: toml::Spanned<String>,
     #[serde(default = "default_controller")]
     controller: ControllerKind,
     duration_s: f64,
@@ -239,15 +244,21 @@ impl Scenario {
     pub fn from_toml(text: &str, file: &str, dir: Option<&std::path::Path>) -> Result<Self, ScenarioError> {
         let raw: File = tomlfile::parse(text, file)?;
         let fail = |field: &str, problem: String| ScenarioError::File(FileError::invalid(file, field, problem));
+        let name = raw.airframe.get_ref();
         let airframe_spec = match dir {
-            Some(d) if raw.airframe.ends_with(".toml") && !std::path::Path::new(&raw.airframe).is_absolute() => {
-                d.join(&raw.airframe).display().to_string()
+            Some(d) if name.ends_with(".toml") && !std::path::Path::new(name).is_absolute() => {
+                d.join(name).display().to_string()
             }
-            _ => raw.airframe.clone(),
+            _ => name.clone(),
         };
-        let airframe = Airframe::load(&airframe_spec).map_err(|error| ScenarioError::Airframe {
-            file: file.to_string(),
-            error,
+        let airframe = Airframe::load(&airframe_spec).map_err(|error| {
+            let (line, column) = tomlfile::line_column(text, raw.airframe.span().start);
+            ScenarioError::Airframe {
+                file: file.to_string(),
+                line,
+                column,
+                error,
+            }
         })?;
         if !(raw.duration_s.is_finite() && raw.duration_s > 0.0 && raw.duration_s <= 86_400.0) {
             return Err(fail(

@@ -102,7 +102,24 @@ def test_a_misspelled_parameter_fails_the_fixture(pytester, tmp_path):
            "def test_x(rotorpilot_vehicle):\n    pass\n")
     r = run_inner(pytester, src, "--rotorpilot-log-dir", str(tmp_path))
     r.assert_outcomes(errors=1)
-    assert "unknown parameter MIS_TAKEOF_ALT" in r.stdout.str(), r.stdout.str()
+    out = r.stdout.str()
+    # said once in the error (not again from the daemon's stderr below it)
+    said = [line for line in out.splitlines() if line.startswith("E ") and "unknown parameter MIS_TAKEOF_ALT" in line]
+    assert len(said) == 1, out
+
+
+def test_a_vehicle_that_never_started_names_no_replay(pytester, tmp_path):
+    """An unknown airframe in the marker: the vehicle never started, so no
+    flight record exists, and the report names its directory but no replay;
+    every replay command the run prints names a record that exists."""
+    src = ('import pytest\n@pytest.mark.rotorpilot(airframe="quadx")\n'
+           "def test_x(rotorpilot_vehicle):\n    pass\n")
+    r = run_inner(pytester, src, "--rotorpilot-log-dir", str(tmp_path))
+    r.assert_outcomes(errors=1)
+    out = r.stdout.str()
+    assert "unknown airframe `quadx`" in out, out
+    assert re.search(r"rotorpilot: logs kept in \S+ \(no flight record: the vehicle never started\)", out), out
+    assert "replay with" not in out, out
 
 
 def connect(v):
@@ -235,3 +252,20 @@ def test_a_vehicle_that_cannot_be_stopped_does_not_stop_the_teardown(pytester, t
     for pid in pids:  # both were stopped (reaped), the second one after the first's stop raised
         assert not os.path.exists(f"/proc/{pid}") or "zombie" in open(f"/proc/{pid}/status").read().lower()
     assert os.listdir(base) == []
+
+
+def test_mavsdk_3s_renaming_warning_is_not_shown(pytester, tmp_path):
+    """mavsdk 3.17.4 warns on import that it is now mavsdk-grpc: a test
+    module that imports it sees no FutureWarning in its run (the plugin
+    filters that one warning and no other)."""
+    try:
+        metadata.distribution("mavsdk")
+    except metadata.PackageNotFoundError:
+        pytest.skip("mavsdk 3 is not installed")
+    src = ("import warnings\nimport mavsdk\n\n"
+           "def test_x():\n    warnings.warn('another', FutureWarning)\n")
+    r = run_inner(pytester, src, "--rotorpilot-log-dir", str(tmp_path))
+    r.assert_outcomes(passed=1)
+    out = r.stdout.str()
+    assert "renamed to 'mavsdk-grpc'" not in out, out
+    assert "FutureWarning: another" in out, out

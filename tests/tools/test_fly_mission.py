@@ -197,7 +197,8 @@ def test_an_empty_plan_section_clears_it_on_the_vehicle(tmp_path):
 def test_a_refused_upload_names_the_plan_and_the_answer():
     out, _ = fly(PLAN, refuse={1: mavlink.MAV_MISSION_INVALID_PARAM1})
     assert out.returncode == 1
-    assert "fly_mission: geofence: refused at item 0: MAV_MISSION_INVALID_PARAM1" in out.stderr, out.stderr
+    assert "fly_mission: geofence: refused (after item 0 of 5 was sent): MAV_MISSION_INVALID_PARAM1\n" in out.stderr, \
+        out.stderr
 
 
 def test_a_disarm_before_the_end_fails():
@@ -241,3 +242,27 @@ def test_the_real_vehicle_flies_both_files_at_20x():
             assert p.returncode == 0, out + v.logs()
             assert "mission complete; landed and disarmed" in out, out
             assert "reached item 1" in out and "complete" in out, out
+
+
+def test_a_plan_the_real_vehicle_refuses_quotes_the_vehicle(tmp_path):
+    """rotorpilot refuses a mission whose item 3 is above RP_ALT_MAX_AMSL
+    once all 7 items are sent: the script says so with the vehicle's own
+    text, which names item 3, and blames no item of its own (it used to say
+    "refused at item 6")."""
+    sys.path.insert(0, os.path.join(ROOT, "tests", "clients"))
+    from harness import Vehicle
+
+    wpl = tmp_path / "high.txt"
+    rows = ["QGC WPL 110"]
+    for seq, z in enumerate([10, 10, 10, 12000, 10, 10, 10]):
+        rows.append(f"{seq}\t0\t3\t16\t0\t0\t0\t0\t{47.3978 + seq * 1e-4:.7f}\t8.5456\t{z}\t1")
+    wpl.write_text("\n".join(rows) + "\n")
+    with Vehicle(speed=20) as v:
+        p = subprocess.run(
+            [sys.executable, SCRIPT, "--connect", f"udpin:127.0.0.1:{v.gcs_port}", str(wpl), "--upload-only"],
+            capture_output=True, text=True, timeout=60,
+        )
+    assert p.returncode == 1, p.stdout + p.stderr
+    assert p.stderr.startswith("fly_mission: mission: refused (after item 6 of 7 was sent): "
+                               "MAV_MISSION_INVALID_PARAM7: the vehicle said \""), p.stderr
+    assert "Plan rejected: item 3 at 12488 m > RP_ALT_MAX_AMSL" in p.stderr, p.stderr

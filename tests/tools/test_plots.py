@@ -72,3 +72,39 @@ def test_plot_estimates_takes_the_nominal_mass_from_the_flights_sidecar(tmp_path
     assert plot_estimates.nominal_mass(str(log), None) == 1.5
     err = capsys.readouterr().err
     assert "warning" in err and "quad.csv.meta.json" in err and "--nominal-mass" in err
+
+
+def test_plot_flight_reads_a_flight_record_and_draws_the_path(tmp_path):
+    """A kept flight has a flight.record and no CSV: plot_flight.py replays
+    it (`rotorpilot replay --csv`) and draws its figures, the north/east
+    path among them, as from the CSV of the same flight."""
+    logs = tmp_path / "logs"
+    env = dict(os.environ, ROTORPILOT_BIN=BIN)
+    daemon = subprocess.Popen(
+        [BIN, "--speed", "50", "--log-dir", str(logs), "--state-dir", str(tmp_path / "state"),
+         "--gcs-bind", "127.0.0.1:0", "--api-bind", "127.0.0.1:0", "--gcs-remote", "none", "--api-remote", "none"],
+        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        for line in daemon.stdout:
+            if line.startswith("rotorpilot: ready to arm"):
+                break
+        import time
+        time.sleep(0.5)
+    finally:
+        daemon.terminate()
+        daemon.wait(10)
+    (run_dir,) = list(logs.iterdir())
+    record = run_dir / "flight.record"
+    assert record.is_file() and not (run_dir / "flight.csv").exists()
+    out = run(sys.executable, os.path.join(ROOT, "tools/plot_flight.py"), str(record), "--out",
+              str(tmp_path / "fig"), env=env)
+    written = out.stdout.split()
+    names = {os.path.basename(p) for p in written}
+    assert {"path_ne.png", "position_error.png", "attitude.png", "inputs.png"} <= names, names
+    assert_pngs(written)
+    # a record that does not replay is named with replay's own error
+    bad = tmp_path / "bad.record"
+    bad.write_text(record.read_text().splitlines()[0] + "\nhello\n")
+    r = subprocess.run([sys.executable, os.path.join(ROOT, "tools/plot_flight.py"), str(bad)],
+                       capture_output=True, text=True, timeout=60, env=env)
+    assert r.returncode != 0 and "rotorpilot replay failed" in r.stderr and "not a record line" in r.stderr, r.stderr

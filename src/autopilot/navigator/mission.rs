@@ -65,10 +65,22 @@ pub(in crate::autopilot) struct MissionRun {
     jumps: Vec<Option<i32>>,
     /// The current item's progress.
     phase: Phase,
-    /// Items reached since the autopilot last took them (MISSION_ITEM_REACHED), oldest first.
-    pub(super) reached: Vec<u16>,
+    /// Items reached or run since the autopilot last took them, oldest first.
+    pub(super) done: Vec<ItemDone>,
     /// A DO_SET_HOME the autopilot must apply.
     pub(super) new_home: Option<SetHome>,
+}
+
+/// A mission item done, by MAVLink seq: a navigation item whose point (or
+/// end: a landing, a return) was reached, as MISSION_ITEM_REACHED tells it,
+/// or an item done at once (DO_CHANGE_SPEED, DO_JUMP, DO_SET_HOME, the no-ops)
+/// that ran, which MISSION_ITEM_REACHED does not tell.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ItemDone {
+    /// A navigation item reached.
+    Reached(u16),
+    /// An item done at once ran.
+    Ran(u16),
 }
 
 /// What DO_SET_HOME asks for.
@@ -156,7 +168,7 @@ impl MissionRun {
     /// A new or cleared mission: from the first item, not started, counters reset.
     pub(in crate::autopilot) fn reset(&mut self) {
         *self = MissionRun {
-            reached: std::mem::take(&mut self.reached),
+            done: std::mem::take(&mut self.done),
             new_home: self.new_home.take(),
             ..MissionRun::default()
         };
@@ -180,7 +192,13 @@ impl MissionRun {
     }
 
     fn reach(&mut self, seq: usize) {
-        self.reached.push(u16::try_from(seq).unwrap_or(u16::MAX));
+        self.done
+            .push(ItemDone::Reached(u16::try_from(seq).unwrap_or(u16::MAX)));
+    }
+
+    /// Item `seq`, done at once (DO_*), ran.
+    fn ran(&mut self, seq: usize) {
+        self.done.push(ItemDone::Ran(u16::try_from(seq).unwrap_or(u16::MAX)));
     }
 
     fn next(&mut self) {
@@ -281,6 +299,7 @@ impl Navigator {
                     } else if v == -2.0 {
                         self.set_cruise(None);
                     }
+                    self.mission.ran(seq);
                     self.mission.next();
                 }
                 cmd::DO_JUMP => {
@@ -289,6 +308,7 @@ impl Navigator {
                     if self.mission.jumps.len() < items.len() {
                         self.mission.jumps.resize(items.len(), None);
                     }
+                    self.mission.ran(seq);
                     let left = self.mission.jumps[seq].get_or_insert(repeat);
                     if target < items.len() && (*left == -1 || *left > 0) {
                         if *left > 0 {
@@ -309,9 +329,13 @@ impl Navigator {
                             alt_amsl_m: it.alt_amsl(cx.home.alt_amsl_m),
                         })
                     });
+                    self.mission.ran(seq);
                     self.mission.next();
                 }
-                c if cmd::NO_OPS.contains(&c) => self.mission.next(),
+                c if cmd::NO_OPS.contains(&c) => {
+                    self.mission.ran(seq);
+                    self.mission.next();
+                }
                 _ => break,
             }
         }

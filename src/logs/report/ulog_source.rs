@@ -85,6 +85,39 @@ fn euler_columns(topic: Option<&Topic>, q: &str, grid: &[u64]) -> [Vec<f64>; 3] 
     out
 }
 
+/// The distance from the trajectory setpoint at each setpoint's instant
+/// (the position, `truth` or the local position, held within a sample), as
+/// a topic with the field `err`; and its largest value in the air with its time [s].
+fn tracking_error(
+    pos: Option<&Topic>,
+    truth: bool,
+    sp: Option<&Topic>,
+    land: Option<&Topic>,
+) -> (Topic, Option<(f64, f64)>) {
+    let mut out = Topic::default();
+    let Some(sp) = sp else {
+        return (out, None);
+    };
+    let at = &sp.timestamp_us;
+    let f = |k: usize| if truth { format!("position_ned[{k}]") } else { ["x", "y", "z"][k].to_string() };
+    let p: Vec<Vec<f64>> = (0..3).map(|k| hold(pos, &f(k), at, 100_000)).collect();
+    let r: Vec<Vec<f64>> = (0..3).map(|k| hold(Some(sp), &format!("position[{k}]"), at, 0)).collect();
+    let landed = hold(land, "landed", at, u64::MAX);
+    let mut max: Option<(f64, f64)> = None;
+    let err: Vec<f64> = (0..at.len())
+        .map(|i| {
+            let e = (0..3).map(|k| (p[k][i] - r[k][i]).powi(2)).sum::<f64>().sqrt();
+            if e.is_finite() && landed[i] == 0.0 && max.is_none_or(|(m, _)| e > m) {
+                max = Some((e, at[i] as f64 * 1e-6));
+            }
+            e
+        })
+        .collect();
+    out.timestamp_us.clone_from(at);
+    out.fields.insert("err".into(), err);
+    (out, max)
+}
+
 /// The report of a ULog file's bytes; `file` labels it, `test` names the test.
 ///
 /// # Errors
@@ -146,16 +179,10 @@ fn report(u: &UlogFile, file: &str, test: Option<&str>) -> Result<FlightReport, 
     let mut series = Series::new(rotors, "0..1");
     let mut cols: Vec<Vec<f64>> = Vec::with_capacity(COLUMNS.len() + rotors);
     let hyp = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x.hypot(*y)).collect::<Vec<_>>();
-    let err: Vec<f64> = (0..grid.len())
-        .map(|i| ((n[i] - rn[i]).powi(2) + (e[i] - re[i]).powi(2) + (d[i] - rd[i]).powi(2)).sqrt())
-        .collect();
-    let mut max_err: Option<(f64, f64)> = None;
-    for (i, x) in err.iter().enumerate() {
-        // in the air (the land detector says so) and tracking
-        if x.is_finite() && landed[i] == 0.0 && max_err.is_none_or(|(m, _)| *x > m) {
-            max_err = Some((*x, grid[i] as f64 * 1e-6));
-        }
-    }
+    // the tracking error at the setpoints' own instants (held between two
+    // setpoints it would count the vehicle's motion over 0.2 s as error)
+    let (err_topic, max_err) = tracking_error(truth.or(local), truth.is_some(), sp, u.topic("vehicle_land_detected"));
+    let err = hold(Some(&err_topic), "err", &grid, SETPOINT_STALE_US);
     cols.extend([
         n.clone(),
         e.clone(),
@@ -264,5 +291,32 @@ mod tests {
         assert!(got[0].is_nan());
         assert_eq!(&got[1..4], &[1.0, 1.0, 2.0]);
         assert!(got[4].is_nan(), "700 us after the last sample, stale at 500");
+    }
+
+    #[test]
+    fn a_flight_ulog_gives_the_plots_and_the_timeline() {
+        use crate::autopilot::AutopilotCommand;
+        use crate::logs::ulog::flight::FlightUlog;
+        let (mut core, params) = crate::lockstep::test_quad();
+        let mut log = FlightUlog::new(Vec::new(), &params, &core, 0).unwrap();
+        for k in 0..4000 {
+            if k == 2000 {
+                let _ = core.command(0, AutopilotCommand::Arm { force: false });
+            }
+            core.step();
+            log.on_step(&mut core, 0).unwrap();
+        }
+        let bytes = log.finish().unwrap();
+        let r = from_ulog(&bytes, "flight.ulg", Some("t::x")).unwrap();
+        assert_eq!(r.meta.title, "t::x");
+        assert_eq!(r.meta.airframe, "quad");
+        assert_eq!(r.series.t.len(), 200, "the truth at 50 Hz for 4 s");
+        assert_eq!(r.series.names.iter().filter(|n| n.starts_with('w')).count(), 4);
+        assert!(r.series.column("true_mass").iter().all(|m| *m > 0.0));
+        assert_eq!(
+            r.arming.iter().map(|s| s.label.as_str()).collect::<Vec<_>>(),
+            ["disarmed", "armed"]
+        );
+        assert!(r.plans.mission.is_empty() && !r.meta.notes.is_empty());
     }
 }

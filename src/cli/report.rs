@@ -52,5 +52,14 @@ fn build(input: &Path, test: Option<&str>) -> anyhow::Result<FlightReport> {
         "{label}: written by rotorpilot {written_by}, this is rotorpilot {this}: the page replays the record, which \
          only that version flies bit for bit (use that version, or give the flight's ULog)"
     );
-    report::from_record(&record, &label, test).map_err(anyhow::Error::msg)
+    let meta = report::ReportMeta {
+        title: test.map_or_else(|| label.clone(), str::to_string),
+        test: test.map(str::to_string),
+        source: label.clone(),
+        method: "flight record, replayed exactly".into(),
+        rotorpilot: record.header.rotorpilot.clone(),
+        reproduce: Some(format!("rotorpilot replay {label}")),
+        ..report::ReportMeta::default()
+    };
+    crate::logs::replay::replay_report(&record, &label, meta).map_err(anyhow::Error::msg)
 }

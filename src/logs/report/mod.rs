@@ -7,7 +7,8 @@
 //! torque and mass beside the injected truth.
 //!
 //! Two halves, both pure: a [`Collector`] watches a lockstep core step by
-//! step (an exact replay of a flight record, [`from_record`], or a headless
+//! step (an exact replay of a flight record,
+//! `replay_report` of the replay module, or a headless
 //! `simulate` flight) and gives a [`FlightReport`], the page's data; a
 //! ULog gives the same data from its topics ([`from_ulog`]); [`html::page`]
 //! renders it into a `String` with its JavaScript and CSS inlined (uPlot, at
@@ -26,7 +27,6 @@ pub use ulog_source::from_ulog;
 use nalgebra::Vector3;
 use serde::Serialize;
 
-use super::record::Record;
 use crate::autopilot::{Autopilot, LandedState, Severity, StatusText};
 use crate::control::Reference;
 use crate::geo::GeoPoint;
@@ -666,23 +666,4 @@ pub fn command_name(command: u16) -> String {
         cmd::DO_SET_ROI => "DO_SET_ROI".into(),
         other => format!("MAV_CMD {other}"),
     }
-}
-
-/// The report of a flight record, by exact replay
-/// ([`super::replay::replay_report`]); `file` labels errors.
-///
-/// # Errors
-/// As the replay.
-pub fn from_record(record: &Record, file: &str, test: Option<&str>) -> Result<FlightReport, String> {
-    let meta = ReportMeta {
-        title: test.map_or_else(|| file.to_string(), str::to_string),
-        test: test.map(str::to_string),
-        source: file.into(),
-        method: "flight record, replayed exactly".into(),
-        airframe: String::new(),
-        rotorpilot: record.header.rotorpilot.clone(),
-        reproduce: Some(format!("rotorpilot replay {file}")),
-        notes: Vec::new(),
-    };
-    super::replay::replay_report(record, file, meta)
 }

@@ -99,9 +99,17 @@ fn tracking_error(
         return (out, None);
     };
     let at = &sp.timestamp_us;
-    let f = |k: usize| if truth { format!("position_ned[{k}]") } else { ["x", "y", "z"][k].to_string() };
+    let f = |k: usize| {
+        if truth {
+            format!("position_ned[{k}]")
+        } else {
+            ["x", "y", "z"][k].to_string()
+        }
+    };
     let p: Vec<Vec<f64>> = (0..3).map(|k| hold(pos, &f(k), at, 100_000)).collect();
-    let r: Vec<Vec<f64>> = (0..3).map(|k| hold(Some(sp), &format!("position[{k}]"), at, 0)).collect();
+    let r: Vec<Vec<f64>> = (0..3)
+        .map(|k| hold(Some(sp), &format!("position[{k}]"), at, 0))
+        .collect();
     let landed = hold(land, "landed", at, u64::MAX);
     let mut max: Option<(f64, f64)> = None;
     let err: Vec<f64> = (0..at.len())

@@ -274,7 +274,7 @@ mod tests {
     fn what_the_writer_wrote_reads_back() {
         let f = Format {
             name: "t",
-            fields: "uint64_t timestamp;float[2] xy;bool ok;uint8_t _padding0[3];",
+            fields: "uint64_t timestamp;float[2] xy;bool ok;uint8_t[3] _padding0;",
         };
         let mut w = UlogWriter::new(Vec::new(), 0).unwrap();
         w.format(&f).unwrap();

@@ -363,12 +363,12 @@ fn path(h: &mut String, r: &FlightReport) {
         );
     }
     h.push_str("</svg>");
-    let _ = write!(
+    let _ = writeln!(
         h,
         "<p class=\"legend\"><span class=\"k track\"></span> flown &middot; <span class=\"k plan\"></span> mission \
          ({} items; green reached, red not) &middot; <span class=\"k fence-in\"></span> fence (inclusion) \
          <span class=\"k fence-out\"></span> (exclusion): {} &middot; R rally points: {} &middot; H home \
-         &middot; grid {step} m</p></section>\n",
+         &middot; grid {step} m</p></section>",
         r.plans.mission.len(),
         r.plans.fence.len(),
         r.plans.rally.len()
@@ -424,9 +424,9 @@ fn timeline(h: &mut String, r: &FlightReport) {
             esc(&e.text)
         );
     }
-    let _ = write!(
+    let _ = writeln!(
         h,
-        "</div></div><div class=\"tl-axis\"><span>0 s</span><span>{}</span></div></section>\n",
+        "</div></div><div class=\"tl-axis\"><span>0 s</span><span>{}</span></div></section>",
         fmt_s(r.duration_s)
     );
 }

@@ -72,11 +72,11 @@ fn euler_columns(topic: Option<&Topic>, q: &str, grid: &[u64]) -> [Vec<f64>; 3] 
         .map(|k| hold(topic, &format!("{q}[{k}]"), grid, u64::MAX))
         .collect();
     let mut out = [Vec::new(), Vec::new(), Vec::new()];
-    for i in 0..grid.len() {
-        let (r, p, y) = if c[0][i].is_nan() {
+    for (((w, x), y), z) in c[0].iter().zip(&c[1]).zip(&c[2]).zip(&c[3]) {
+        let (r, p, y) = if w.is_nan() {
             (f64::NAN, f64::NAN, f64::NAN)
         } else {
-            UnitQuaternion::from_quaternion(Quaternion::new(c[0][i], c[1][i], c[2][i], c[3][i])).euler_angles()
+            UnitQuaternion::from_quaternion(Quaternion::new(*w, *x, *y, *z)).euler_angles()
         };
         out[0].push(r.to_degrees());
         out[1].push(p.to_degrees());
@@ -292,9 +292,10 @@ mod tests {
 
     #[test]
     fn hold_keeps_the_latest_sample_until_it_is_stale() {
-        let mut t = Topic::default();
-        t.timestamp_us = vec![100, 200];
-        t.fields.insert("x".into(), vec![1.0, 2.0]);
+        let t = Topic {
+            timestamp_us: vec![100, 200],
+            fields: [("x".to_string(), vec![1.0, 2.0])].into_iter().collect(),
+        };
         let got = hold(Some(&t), "x", &[50, 100, 150, 200, 900], 500);
         assert!(got[0].is_nan());
         assert_eq!(&got[1..4], &[1.0, 1.0, 2.0]);

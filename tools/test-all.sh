@@ -6,6 +6,12 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+echo "== report/vendor/ is uPlot as npm serves it at the pinned version (integrity and bytes)"
+if ! command -v npm >/dev/null; then
+    apt-get install -y -qq npm >/dev/null 2>&1 || { apt-get update -qq && apt-get install -y -qq npm; }
+fi
+bash tools/vendor_report_assets.sh --check
+
 echo "== cargo fmt --check"
 cargo fmt --all -- --check
 
@@ -117,6 +123,17 @@ client_venv pip-fresh . "mavsdk==3.17.4" "mavsdk-grpc==4.0.5" "pymavlink==2.4.50
     timeout 900 "$VENV/pip-fresh/bin/python" -m pytest -q -p no:cacheprovider .
     timeout 600 "$VENV/pip-fresh/bin/python" -m pytest -q -p no:cacheprovider -n 2 test_user_flights.py test_first.py
 )
+
+echo "== the flight report page in a real browser: Debian's chromium, headless and offline (Playwright drives it)"
+# Debian's chromium, installed only when missing; Playwright (pinned) drives
+# it by its path: no browser download. The screenshot is the CI artifact.
+if [ ! -x /usr/bin/chromium ]; then
+    apt-get install -y -qq chromium >/dev/null 2>&1 || { apt-get update -qq && apt-get install -y -qq chromium; }
+fi
+client_venv report "playwright==1.65.2" "pymavlink==2.4.50" "pytest==9.2.0"
+export REPORT_SCREENSHOT="${CARGO_TARGET_DIR:-$PWD/target}/report-screenshot.png"
+timeout 600 "$VENV/report/bin/python" -m pytest -q -p no:cacheprovider tests/report
+echo "   screenshot of the report page: $REPORT_SCREENSHOT"
 
 echo "== tools: plot scripts on real logs (matplotlib)"
 client_venv tools -r tools/requirements.txt "pytest==9.2.0"

@@ -34,8 +34,10 @@ Teardown stops the clients, then each vehicle (SIGTERM, wait); a
 ports is killed first, whoever started it (`rotorpilot.clients`), so a
 failed MAVSDK test neither hangs pytest's exit nor leaves a process behind.
 When the test failed (setup or call), its directory with the flight record
-(`flight.record`; replay with `rotorpilot replay`) and the other logs is
-kept and named in the failure's report section and in the terminal summary;
+(`flight.record`; replay with `rotorpilot replay`), the other logs and the
+flight's report page (`flight.html`, written by `rotorpilot report` at
+teardown: one HTML file that opens offline) is kept and named in the
+failure's report section and in the terminal summary;
 otherwise it is deleted (`--rotorpilot-keep always|failed|never`; a vehicle
 that failed to start too). Every vehicle's ports are reserved (outside the kernel's ephemeral
 range, under a lock file held until it stops: `rotorpilot.reserve_port`), so
@@ -43,6 +45,7 @@ range, under a lock file held until it stops: `rotorpilot.reserve_port`), so
 """
 
 import os
+import subprocess
 
 import pytest
 
@@ -116,9 +119,34 @@ def _kept_line(vehicle):
     there is a flight record to replay (a vehicle that never started has none)."""
     where = vehicle.log_dir or vehicle.root
     record = os.path.join(where, "flight.record")
-    if os.path.isfile(record):
-        return f"rotorpilot: flight record kept in {where} — replay with `rotorpilot replay {record}`"
-    return f"rotorpilot: logs kept in {where} (no flight record: the vehicle never started)"
+    if not os.path.isfile(record):
+        return f"rotorpilot: logs kept in {where} (no flight record: the vehicle never started)"
+    line = f"rotorpilot: flight record kept in {where} — replay with `rotorpilot replay {record}`"
+    if vehicle.log_dir:
+        # written at the fixture's teardown, from the record
+        line += f"\nrotorpilot: report page {_page(vehicle)} (open it in a browser)"
+    return line
+
+
+def _page(vehicle):
+    return os.path.join(vehicle.log_dir, "flight.html")
+
+
+def _write_page(vehicle, nodeid):
+    """`rotorpilot report` of a stopped vehicle's record into its log
+    directory, titled with the test's node id; a failure is written beside
+    it (`flight.html.error`) and never fails the test."""
+    if not vehicle.log_dir or not os.path.exists(vehicle.record):
+        return
+    try:
+        r = subprocess.run([vehicle.bin, "report", vehicle.record, "-o", _page(vehicle), "--test", nodeid],
+                           capture_output=True, text=True, timeout=300)
+        why = None if r.returncode == 0 else r.stderr
+    except (OSError, subprocess.TimeoutExpired) as e:
+        why = str(e)
+    if why:
+        with open(_page(vehicle) + ".error", "w", encoding="utf-8") as f:
+            f.write(why)
 
 
 def _failed(item):
@@ -206,6 +234,7 @@ def rotorpilot_vehicles(request):
         if not v.root:
             continue
         if keep:
+            _write_page(v, request.node.nodeid)
             request.node.user_properties.append((_PROPERTY, v.log_dir or v.root))
         else:
             v.cleanup()
@@ -377,8 +406,11 @@ def pytest_terminal_summary(terminalreporter):
     terminalreporter.section("rotorpilot")
     for where, nodeid in kept.items():
         record = os.path.join(where, "flight.record")
+        page = os.path.join(where, "flight.html")
         if os.path.exists(record):
             terminalreporter.write_line(
                 f"rotorpilot: flight record kept in {where} — replay with `rotorpilot replay {record}` ({nodeid})")
+            if os.path.exists(page):
+                terminalreporter.write_line(f"rotorpilot:   report page {page}")
         else:
             terminalreporter.write_line(f"rotorpilot: logs kept in {where} ({nodeid})")

@@ -8,6 +8,7 @@
 //! | `estimate` | `estimate`: the offline estimator sweep over a flight log |
 //! | `merge` | `merge`: a campaign's shard outputs merged into the whole campaign's |
 //! | `replay` | `replay`: a daemon's flight record re-flown |
+//! | `report` | `report`: a flight's report page (one offline HTML file) |
 //! | `params` | `params`: the parameter reference |
 //!
 //! `airframe` (the airframe report) is a few lines and stays here.
@@ -17,6 +18,7 @@ mod estimate;
 mod merge;
 pub mod params;
 mod replay;
+mod report;
 mod simulate;
 
 use std::path::PathBuf;
@@ -104,6 +106,23 @@ pub enum Command {
         #[arg(long)]
         any_version: bool,
     },
+    /// Write a flight's report page: one self-contained HTML file (scripts
+    /// and styles inlined; it opens offline in any browser) with the
+    /// verdict, the north/east path with the mission items, geofence and
+    /// rally points, altitude, speed, attitude, modes and arming, every
+    /// status text, failure and failsafe at its instant, the rotor speeds and
+    /// the estimated wrench and mass beside the injected truth. From a
+    /// flight record (replayed exactly) or a ULog (no mission items).
+    Report {
+        /// The flight record (`flight.record`) or ULog (`flight.ulg`).
+        input: PathBuf,
+        /// The page to write.
+        #[arg(short, long, value_name = "HTML")]
+        output: PathBuf,
+        /// The test's name for the page's title (the pytest plugin gives its node id).
+        #[arg(long, value_name = "NAME")]
+        test: Option<String>,
+    },
     /// Print the parameter reference (every parameter: type, default, range,
     /// unit, description, values, reboot required) as text, JSON or Markdown.
     Params(params::ParamsArgs),
@@ -154,6 +173,7 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             json,
             any_version,
         }) => replay::run(&record, csv.as_deref(), ulog.as_deref(), json, any_version),
+        Some(Command::Report { input, output, test }) => report::run(&input, &output, test.as_deref()),
         Some(Command::Params(args)) => params::run(&args),
         None if cli.daemon.check => {
             let fleet = cli.daemon.fleet_config()?;

@@ -55,6 +55,12 @@ pub struct SimulateArgs {
     /// NNNN-NAME.csv per entry.
     #[arg(long, value_name = "PATH")]
     pub csv: Option<PathBuf>,
+    /// Write each mission flight's report page (one offline HTML file,
+    /// `rotorpilot report`'s) into this directory (made if missing): STEM.html
+    /// for one file, NNNN-STEM.html per campaign entry. Plain scenarios (a
+    /// controller flying a reference, no flight stack) get none.
+    #[arg(long, value_name = "DIR")]
+    pub report: Option<PathBuf>,
     /// Scenarios flown at once (default: the cores available).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub jobs: Option<u32>,
@@ -218,6 +224,14 @@ fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
         }
         _ => None,
     };
+    let report_dir = match &args.report {
+        Some(dir) => {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("--report {}: cannot make the directory", dir.display()))?;
+            Some(dir.as_path())
+        }
+        None => None,
+    };
     let width = (total.max(2) - 1).to_string().len();
     let csv_path = |e: &Entry| -> Option<PathBuf> {
         if single {
@@ -237,9 +251,33 @@ fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
         if let Some(p) = &path {
             flight_meta(&flight).map_err(|e| error_chain(&e))?.write_beside(p)?;
         }
-        let mut outcome = flight
-            .fly(writer.as_mut().map(|w| w as &mut dyn std::io::Write))
+        let page_path = report_dir.map(|d| {
+            let varied = files[e.file].as_ref().is_ok_and(CampaignFile::is_varied);
+            let mut name = csv_name(e.index, width, &paths[e.file], e.variant.filter(|_| varied));
+            if single {
+                name = paths[e.file]
+                    .file_stem()
+                    .map_or("flight".into(), |s| s.to_string_lossy().into_owned());
+                name.push_str(".csv");
+            }
+            d.join(name.replace(".csv", ".html"))
+        });
+        let meta = page_path.as_ref().map(|_| crate::logs::report::ReportMeta {
+            title: paths[e.file].display().to_string(),
+            source: paths[e.file].display().to_string(),
+            method: "rotorpilot simulate (headless)".into(),
+            rotorpilot: crate::logs::record::ROTORPILOT_VERSION.into(),
+            reproduce: Some(format!("rotorpilot simulate {}", paths[e.file].display())),
+            ..Default::default()
+        });
+        let (mut outcome, page) = flight
+            .fly_with(writer.as_mut().map(|w| w as &mut dyn std::io::Write), meta)
             .map_err(|e| error_chain(&e))?;
+        if let (Some(p), Some(mut page)) = (page_path, page) {
+            page.meta.airframe.clone_from(&outcome_airframe(&outcome));
+            std::fs::write(&p, crate::logs::report::html::page(&page))
+                .map_err(|err| format!("--report {}: cannot write the page: {err}", p.display()))?;
+        }
         outcome.set_wall_time_s(start.elapsed().as_secs_f64());
         Ok(outcome)
     };
@@ -384,6 +422,14 @@ pub(super) fn exit_status(failed: u64, errors: u64) -> u8 {
     }
 }
 
+/// The airframe a flight's outcome names.
+fn outcome_airframe(o: &Outcome) -> String {
+    match o {
+        Outcome::Scenario(s) => s.airframe.clone(),
+        Outcome::Mission(m) => m.airframe.clone(),
+    }
+}
+
 /// The sidecar of a flight's CSV (`<csv>.meta.json`, [`crate::logs::meta::LogMeta`]).
 ///
 /// # Errors
@@ -416,6 +462,11 @@ fn csv_name(index: u64, width: usize, path: &Path, variant: Option<u64>) -> Stri
 /// bytes its file flown alone writes. Exit status as for a campaign: 2 for
 /// a fleet that cannot be read or flown, 1 when a mission vehicle failed.
 fn run_fleet(args: &SimulateArgs, path: &Path) -> anyhow::Result<u8> {
+    anyhow::ensure!(
+        args.report.is_none(),
+        "--report: a fleet's vehicles get no report page yet (fly them as missions, or run the daemon and use \
+         `rotorpilot report` on each vehicle's flight.record)"
+    );
     let threads = args.threads.map_or(1, |t| t as usize);
     anyhow::ensure!(
         args.jobs.is_none(),

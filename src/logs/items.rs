@@ -114,8 +114,8 @@ impl ItemTally {
     /// After a step of vehicle `i`: the distance `e = |p - p_ref|` [m]
     /// between the true position and the shaped reference, in the air
     /// (its maximum and `sqrt(sum e^2 / n)`), and the items reached or run
-    /// at this step (the flight stack's events, drained here).
-    pub fn after_step(&mut self, core: &mut Lockstep<Autopilot>, i: usize) {
+    /// at this step (the flight stack's events, drained here and returned).
+    pub fn after_step(&mut self, core: &mut Lockstep<Autopilot>, i: usize) -> Vec<ItemDone> {
         let rec = core.last_step(i);
         let (truth, reference) = (rec.world.truth.position_ned, rec.control.reference.position_ned);
         if core.pilot(i).landed_state() == LandedState::InAir {
@@ -125,7 +125,8 @@ impl ItemTally {
             self.max_err = self.max_err.max(e);
         }
         let time_s = core.time_s();
-        for done in core.drain_mission_done(i) {
+        let events = core.drain_mission_done(i);
+        for &done in &events {
             let seq = match done {
                 ItemDone::Reached(seq) => seq,
                 ItemDone::Ran(seq) => {
@@ -151,6 +152,19 @@ impl ItemTally {
                 }
             }
         }
+        events
+    }
+
+    /// The items reached among `events` (seq numbers, in order).
+    #[must_use]
+    pub fn reached_seqs(events: &[ItemDone]) -> Vec<u16> {
+        events
+            .iter()
+            .filter_map(|d| match d {
+                ItemDone::Reached(seq) => Some(*seq),
+                ItemDone::Ran(_) => None,
+            })
+            .collect()
     }
 
     /// The items, in seq order.

@@ -3,6 +3,7 @@
 //! - [`record`]: the flight record (`flight.record`, JSON Lines: the header
 //!   that rebuilds the core, every input with its step, the end);
 //! - [`replay`]: re-flying a record bit for bit (`rotorpilot replay`);
+//! - [`report`]: the flight report page (`rotorpilot report`), one offline HTML file;
 //! - [`csv`]: the flight CSV, written one row per step and read back for
 //!   `rotorpilot estimate`, and the estimates CSV;
 //! - [`meta`]: the CSV's `<csv>.meta.json` sidecar (what produced it);
@@ -19,4 +20,5 @@ pub mod items;
 pub mod meta;
 pub mod record;
 pub mod replay;
+pub mod report;
 pub mod ulog;

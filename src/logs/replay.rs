@@ -8,6 +8,7 @@ use std::io::Write;
 use super::csv::CsvLog;
 use super::items::{ItemResult, ItemTally};
 use super::record::Record;
+use super::report::{Collector, FlightReport, ReportMeta};
 use super::ulog::flight::FlightUlog;
 use crate::autopilot::Autopilot;
 use crate::lockstep::Lockstep;
@@ -60,6 +61,8 @@ pub fn replay(record: &Record, file: &str, csv: Option<&mut dyn Write>) -> Resul
 struct ReplayLogs<'a> {
     csv: Option<CsvLog<&'a mut dyn Write>>,
     ulog: Option<FlightUlog<&'a mut dyn Write>>,
+    /// The report page's data, when one is wanted.
+    report: Option<Collector>,
     /// Steps run (the parameters are looked at every [`PARAM_CHECK_EVERY`]).
     steps: u64,
     generation: u64,
@@ -88,22 +91,32 @@ impl ReplayLogs<'_> {
             self.items = ItemTally::new(mission.items(), self.home);
         }
         // reads (and drains) the item events: the queues do not steer the flight
-        self.items.after_step(core, 0);
-        let Some(u) = &mut self.ulog else {
+        let done = self.items.after_step(core, 0);
+        if let Some(r) = &mut self.report {
+            r.after_step(core);
+        }
+        if self.ulog.is_none() && self.report.is_none() {
             if core.steps().is_multiple_of(1024) {
                 // as the daemon publishes: the queues do not steer the flight
                 let _ = core.drain_status_texts(0);
             }
             return Ok(());
-        };
-        let ue = |e: std::io::Error| format!("writing the ULog: {e}");
-        if self.steps.is_multiple_of(PARAM_CHECK_EVERY) && params.generation() != self.generation {
-            self.generation = params.generation();
-            u.parameters(params).map_err(ue)?;
         }
-        u.on_step(core, 0).map_err(ue)?;
-        for (time_s, t) in core.drain_stamped_status_texts(0) {
-            u.status_text(time_s, &t).map_err(ue)?;
+        let ue = |e: std::io::Error| format!("writing the ULog: {e}");
+        let texts = core.drain_stamped_status_texts(0);
+        if let Some(r) = &mut self.report {
+            r.texts(&texts);
+            r.reached(core, &ItemTally::reached_seqs(&done));
+        }
+        if let Some(u) = &mut self.ulog {
+            if self.steps.is_multiple_of(PARAM_CHECK_EVERY) && params.generation() != self.generation {
+                self.generation = params.generation();
+                u.parameters(params).map_err(ue)?;
+            }
+            u.on_step(core, 0).map_err(ue)?;
+            for (time_s, t) in &texts {
+                u.status_text(*time_s, t).map_err(ue)?;
+            }
         }
         Ok(())
     }
@@ -120,6 +133,37 @@ pub fn replay_logs<'a>(
     csv: Option<&'a mut dyn Write>,
     ulog: Option<&'a mut dyn Write>,
 ) -> Result<ReplaySummary, String> {
+    replay_into(record, file, csv, ulog, None).map(|(s, _)| s)
+}
+
+/// The flight report page's data ([`super::report`]) of `record`, by
+/// exact replay: the core's full state at every step, downsampled for the
+/// page. `meta` names the page (its airframe is filled in here).
+///
+/// # Errors
+/// As [`replay`].
+pub fn replay_report(record: &Record, file: &str, mut meta: ReportMeta) -> Result<FlightReport, String> {
+    let (core, _) = record.header.build().map_err(|e| format!("{file}:1: header: {e}"))?;
+    let end = record.end.unwrap_or_else(|| record.inputs.last().map_or(0, |e| e.step));
+    meta.airframe.clone_from(&core.pilot(0).airframe().name);
+    let collector = Collector::new(&core, 0, end);
+    let (_, report) = replay_into(record, file, None, None, Some(collector))?;
+    report
+        .map(|(r, mut core)| r.finish(&mut core, meta))
+        .ok_or_else(|| "no report".to_string())
+}
+
+/// The summary, and the collector with the core at the end when one was given.
+type Replayed = (ReplaySummary, Option<(Collector, Lockstep<Autopilot>)>);
+
+/// Replay writing the logs asked for and collecting the report's data.
+fn replay_into<'a>(
+    record: &Record,
+    file: &str,
+    csv: Option<&'a mut dyn Write>,
+    ulog: Option<&'a mut dyn Write>,
+    report: Option<Collector>,
+) -> Result<Replayed, String> {
     let (mut core, mut params) = record.header.build().map_err(|e| format!("{file}:1: header: {e}"))?;
     let n = core.pilot(0).airframe().rotor_count();
     let mut logs = ReplayLogs {
@@ -131,6 +175,7 @@ pub fn replay_logs<'a>(
             .map(|w| FlightUlog::new(w, &params, &core, 0))
             .transpose()
             .map_err(|e| format!("writing the ULog: {e}"))?,
+        report,
         steps: 0,
         generation: params.generation(),
         items: ItemTally::new(&record.header.mission, record.header.home),
@@ -154,6 +199,9 @@ pub fn replay_logs<'a>(
                 e.line, e.step, e.outcome
             ));
         }
+        if let Some(r) = &mut logs.report {
+            r.watch_plans(&core);
+        }
     }
     step_to(&mut core, &params, end, &mut logs)?;
     if let Some(l) = logs.csv {
@@ -166,7 +214,7 @@ pub fn replay_logs<'a>(
     let p = core.last_step(0).world.truth.position_ned;
     let (max_tracking_error_m, rms_tracking_error_m) =
         (logs.items.max_tracking_error_m(), logs.items.rms_tracking_error_m());
-    Ok(ReplaySummary {
+    let summary = ReplaySummary {
         steps: core.steps(),
         sim_time_s: core.time_s(),
         inputs: record.inputs.len(),
@@ -178,5 +226,6 @@ pub fn replay_logs<'a>(
         items: logs.items.into_results(),
         max_tracking_error_m,
         rms_tracking_error_m,
-    })
+    };
+    Ok((summary, logs.report.map(|r| (r, core))))
 }

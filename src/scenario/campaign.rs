@@ -591,9 +591,26 @@ impl Flight {
     /// # Errors
     /// As [`super::run`] and [`super::run_mission`].
     pub fn fly(&self, csv: Option<&mut dyn Write>) -> anyhow::Result<Outcome> {
+        self.fly_with(csv, None).map(|(o, _)| o)
+    }
+
+    /// [`Self::fly`], also collecting a mission's report page when `report`
+    /// gives its meta ([`super::run_mission_with`]); a plain scenario (a
+    /// controller flying a reference, no flight stack) has none.
+    ///
+    /// # Errors
+    /// As [`Self::fly`].
+    pub fn fly_with(
+        &self,
+        csv: Option<&mut dyn Write>,
+        report: Option<crate::logs::report::ReportMeta>,
+    ) -> anyhow::Result<(Outcome, Option<crate::logs::report::FlightReport>)> {
         Ok(match self {
-            Flight::Scenario(s) => Outcome::Scenario(Box::new(super::run(s, csv)?)),
-            Flight::Mission(m) => Outcome::Mission(Box::new(super::run_mission(m, csv)?)),
+            Flight::Scenario(s) => (Outcome::Scenario(Box::new(super::run(s, csv)?)), None),
+            Flight::Mission(m) => {
+                let (summary, page) = super::run_mission_with(m, csv, report)?;
+                (Outcome::Mission(Box::new(summary)), page)
+            }
         })
     }
 }

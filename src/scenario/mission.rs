@@ -56,6 +56,7 @@ use crate::logs::csv::CsvLog;
 pub use crate::logs::items::ItemResult;
 use crate::logs::items::{ItemTally, item_lines};
 use crate::logs::meta::LogMeta;
+use crate::logs::report::{Collector, FlightReport, ReportMeta};
 use crate::mission::file::{PlanFile, load_mission_file};
 use crate::mission::{MissionItem, MissionType, PlanChange, cmd, frame, quantise_deg};
 use crate::params::{ParamStore, ParamValue};
@@ -438,18 +439,58 @@ fn refusal(reason: &str, said: &[String], params: &ParamStore) -> String {
 /// # Errors
 /// As [`mission_lockstep`], or a failed write to `csv`.
 pub fn run_mission(f: &MissionFlight, csv: Option<&mut dyn Write>) -> anyhow::Result<MissionSummary> {
+    run_mission_with(f, csv, None).map(|(s, _)| s)
+}
+
+/// [`run_mission`], also collecting the flight's report page
+/// ([`crate::logs::report`]) when `report` gives its meta: the page's
+/// verdict is the summary's (PASS/FAIL, reasons, items reached). The
+/// collector only watches: the flight is the same to the bit.
+///
+/// # Errors
+/// As [`run_mission`].
+pub fn run_mission_with(
+    f: &MissionFlight,
+    csv: Option<&mut dyn Write>,
+    report: Option<ReportMeta>,
+) -> anyhow::Result<(MissionSummary, Option<FlightReport>)> {
     let mut core = mission_lockstep(f)?;
     let mut log = csv.map(|w| CsvLog::new(w, f.airframe.rotor_count())).transpose()?;
     let mut flight = MissionFlown::new(f, core.dt_s());
+    let mut collector = report
+        .as_ref()
+        .map(|_| Collector::new(&core, 0, (f.duration_s / core.dt_s()).round() as u64));
     while !flight.is_over() {
         flight.before_step(&mut core, 0);
         core.step();
         flight.after_step(&mut core, 0, log.as_mut())?;
+        if let Some(c) = &mut collector {
+            c.after_step(&mut core);
+            // the texts are output only: draining them steers nothing
+            let texts = core.drain_stamped_status_texts(0);
+            c.texts(&texts);
+        }
     }
     if let Some(l) = log {
         l.finish()?;
     }
-    Ok(flight.summary(&mut core, 0))
+    let summary = flight.summary(&mut core, 0);
+    let page = match (collector, report) {
+        (Some(mut c), Some(meta)) => {
+            // the runner drained the items reached: its findings, first reach of each
+            for r in &summary.items {
+                if let Some(t) = r.reached_s {
+                    c.reached_at(r.seq, t, r.distance_m);
+                }
+            }
+            let mut page = c.finish(&mut core, meta);
+            page.verdict.outcome = Some(summary.verdict.to_string());
+            page.verdict.reasons.clone_from(&summary.reasons);
+            Some(page)
+        }
+        _ => None,
+    };
+    Ok((summary, page))
 }
 
 /// A mission vehicle's flight as it goes, step by step: its `[[fault]]`s

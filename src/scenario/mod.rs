@@ -23,7 +23,10 @@ pub mod shards;
 mod trajectory;
 
 pub use fault::{AppliedFault, FaultType, FaultUnit, ScheduledFault};
-pub use mission::{ItemResult, MissionFlight, MissionSummary, is_mission, mission_lockstep, mission_meta, run_mission};
+pub use mission::{
+    ItemResult, MissionFlight, MissionSummary, is_mission, mission_lockstep, mission_meta, run_mission,
+    run_mission_with,
+};
 pub use run::{ScenarioPilot, Summary, lockstep, run, scenario_meta};
 pub use trajectory::Trajectory;
 

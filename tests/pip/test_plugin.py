@@ -74,6 +74,11 @@ def test_a_failed_test_keeps_its_record_and_says_where(pytester, tmp_path, xdist
     assert f"replay with `rotorpilot replay {record}`" in out, out
     replay = subprocess.run([binary(), "replay", record], capture_output=True, text=True, timeout=120)
     assert replay.returncode == 0, replay.stdout + replay.stderr
+    # its report page is written, titled with the test, and named in the failure's report and the summary
+    page = os.path.join(where, "flight.html")
+    assert os.path.isfile(page), os.listdir(where)
+    assert "test_inner.py::test_fails" in open(page, encoding="utf-8").read()
+    assert out.count(f"report page {page}") >= 2, out  # the failure's report section and the summary
 
 
 def test_a_passing_run_leaves_nothing_and_keep_always_keeps(pytester, tmp_path):

@@ -20,9 +20,11 @@
 //! format's first field is `uint64_t timestamp` [us]. Fields are packed in
 //! the order given (no padding), as pyulog and PX4's readers read them.
 //!
-//! [`flight`] fills PX4-named topics from the lockstep core.
+//! [`flight`] fills PX4-named topics from the lockstep core; [`read`] reads a
+//! file back (the report page of a ULog).
 
 pub mod flight;
+pub mod read;
 
 use std::io::{self, Write};
 

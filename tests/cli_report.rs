@@ -1,0 +1,84 @@
+//! `rotorpilot report` and `simulate --report`: a mission flown headless
+//! gets a page with its verdict, items, failure and plots' data, and flies
+//! the same with or without the page (the collector only watches); bad
+//! input gets one clear error naming the file, never a panic.
+
+mod common;
+
+use common::bin::run;
+
+/// The summary's JSON without its wall time (the only field that varies).
+fn summary(stdout: &str) -> serde_json::Value {
+    let mut v: serde_json::Value = serde_json::from_str(stdout).unwrap();
+    v.as_object_mut().unwrap().remove("wall_time_s");
+    v
+}
+
+#[test]
+fn simulate_report_writes_a_mission_page_and_the_flight_is_the_same() {
+    let dir = common::scratch_dir("sim-report");
+    let scenario = "tools/scenarios/octo-mission-rotor-loss.toml";
+    let plain = run(&["simulate", scenario, "--json"]);
+    assert!(plain.ok(), "{}", plain.stderr);
+    let with = run(&["simulate", scenario, "--json", "--report", dir.to_str().unwrap()]);
+    assert!(with.ok(), "{}", with.stderr);
+    assert_eq!(
+        summary(&plain.stdout),
+        summary(&with.stdout),
+        "the page changed the flight"
+    );
+    let page = std::fs::read_to_string(dir.join("octo-mission-rotor-loss.html")).unwrap();
+    assert!(page.len() < 5_000_000, "{} bytes", page.len());
+    assert!(page.contains("<span class=\"badge pass\">PASS</span>"));
+    assert!(
+        page.contains("CMD_INJECT_FAILURE, motor 3 off"),
+        "the rotor loss is an event"
+    );
+    for id in ["verdict", "path", "timeline", "plots", "events"] {
+        assert!(page.contains(&format!("id=\"{id}\"")), "section {id}");
+    }
+    assert!(page.contains("<g class=\"item reached\">"), "items on the path");
+    assert!(page.contains("id=\"report-data\""));
+    // nothing to fetch: every script and style is inline
+    assert!(!page.contains("src=\"http") && !page.contains("href=\"http"));
+    assert!(!page.contains("<script src") && !page.contains("<link"));
+}
+
+#[test]
+fn bad_input_gets_one_clear_error_naming_the_file() {
+    let dir = common::scratch_dir("report-bad");
+    let out = dir.join("x.html");
+    let o = out.to_str().unwrap();
+    let missing = dir.join("nothing.record");
+    let r = run(&["report", missing.to_str().unwrap(), "-o", o]);
+    assert_eq!(r.code, Some(1));
+    assert!(r.stderr.contains("nothing.record"), "{}", r.stderr);
+    let text = dir.join("text.record");
+    std::fs::write(&text, "hello\n").unwrap();
+    let r = run(&["report", text.to_str().unwrap(), "-o", o]);
+    assert_eq!(r.code, Some(1));
+    assert!(r.stderr.contains("text.record: not a flight record"), "{}", r.stderr);
+    let binary = dir.join("binary.bin");
+    std::fs::write(&binary, [0xff, 0xfe, 0x00, 0x01]).unwrap();
+    let r = run(&["report", binary.to_str().unwrap(), "-o", o]);
+    assert_eq!(r.code, Some(1));
+    assert!(r.stderr.contains("neither a flight record"), "{}", r.stderr);
+    // a ULog with its header and no topic
+    let ulog = dir.join("empty.ulg");
+    let mut bytes = vec![b'U', b'L', b'o', b'g', 0x01, 0x12, 0x35, 0x01];
+    bytes.extend_from_slice(&0u64.to_le_bytes());
+    std::fs::write(&ulog, bytes).unwrap();
+    let r = run(&["report", ulog.to_str().unwrap(), "-o", o]);
+    assert_eq!(r.code, Some(1));
+    assert!(r.stderr.contains("empty.ulg: no rotorpilot_sim_truth"), "{}", r.stderr);
+    assert!(!out.exists(), "no page for bad input");
+    // a page that cannot be written
+    let r = run(&[
+        "simulate",
+        "tools/scenarios/mission-square.toml",
+        "--report",
+        "/dev/null/x",
+    ]);
+    assert_eq!(r.code, Some(2));
+    assert!(r.stderr.contains("--report /dev/null/x"), "{}", r.stderr);
+}

@@ -25,6 +25,7 @@
 //! | `battery` | the pack: discharge with the power drawn |
 //! | `fault` | faults and their effect on the plant and sensors |
 //! | `settings` | the `SIM_*` parameters |
+//! | [`wind`] | mean wind, 1-cosine gusts, Dryden turbulence |
 //! | [`proximity`] | vehicle–vehicle proximity and collisions |
 //!
 //! **One world frame.** Each vehicle's plant lives in its own NED frame,
@@ -42,6 +43,7 @@ pub mod plant;
 pub mod proximity;
 mod sensors;
 mod settings;
+pub mod wind;
 
 pub use fault::{ActiveFaults, Fault, FaultError, RotorHealth};
 pub use plant::{

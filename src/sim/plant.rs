@@ -13,7 +13,7 @@
 //! ```
 //!
 //! Aerodynamics (RotorPy's `Multirotor(aero=True)` terms in FRD, doc section
-//! 9; [`Plant::aero_wrench_frd`]): with the wind `w` (NED, held over the
+//! 8b; [`Plant::aero_wrench_frd`]): with the wind `w` (NED, held over the
 //! step) the body airspeed is `v_a = R^T (v - w)` and hub `i`'s
 //! `v_i = v_a + w x r_i`; then, in body FRD,
 //!

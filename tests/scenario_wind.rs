@@ -31,8 +31,8 @@ fn a_hover_in_a_west_wind_is_pushed_east_and_the_estimator_sees_the_drag() {
     // calm: nothing to find, no error
     assert!(calm.est_force_ned[1].abs() < 1e-3, "{:?}", calm.est_force_ned);
     assert!(calm.final_pos_err_ned[1].abs() < 1e-4, "{:?}", calm.final_pos_err_ned);
-    // windy: the vehicle sits east of its setpoint (error = reference - position, so negative)
-    let east = -windy.final_pos_err_ned[1];
+    // windy: the vehicle sits east of its setpoint (error = position - reference)
+    let east = windy.final_pos_err_ned[1];
     assert!(east > 0.005, "pushed east by {east} m: {:?}", windy.final_pos_err_ned);
     // the estimate is the aerodynamic force the world applies (the true external force)
     let mut core = lockstep(&windy_scenario).unwrap();
@@ -67,7 +67,7 @@ fn a_bad_wind_value_is_refused_naming_the_field() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("wind.gust.duration_s"), "{e}");
-    let text = "airframe = \"quad\"\nduration_s = 1.0\n[reference]\nkind = \"hover\"\n[wind]\nspeeed_m_s = 3.0\n";
+    let text = "airframe = \"quad\"\nduration_s = 1.0\n[reference]\nkind = \"hover\"\nposition_ned = [0.0, 0.0, -5.0]\n[wind]\nspeeed_m_s = 3.0\n";
     let e = Scenario::from_toml(text, "typo.toml", None).unwrap_err().to_string();
     assert!(e.contains("typo.toml") && e.contains("speeed_m_s"), "{e}");
 }

@@ -203,10 +203,12 @@ def command_schedule(af, hover):
     return segments
 
 
-def run_rotorpilot(tmp_path, airframe_path, init, segments):
+def run_rotorpilot(tmp_path, airframe_path, init, segments, wind_ned=None):
     exe = example_binary()
     assert exe.is_file(), f"{exe} missing: cargo build --release --example plant_open_loop"
     case = dict(init, airframe=str(airframe_path), dt_s=DT_S, segments=segments)
+    if wind_ned is not None:
+        case["wind_ned_m_s"] = list(wind_ned)
     case_path = tmp_path / "case.json"
     case_path.write_text(json.dumps(case))
     out = subprocess.run([str(exe), str(case_path)], capture_output=True, text=True, timeout=120)
@@ -289,36 +291,82 @@ def report(label, d, samples):
     )
 
 
-def without_gyro_and_rotational_drag(path, tmp_path):
-    """The airframe file with `J_r` and `gamma` set to 0 (terms RotorPy has not)."""
+def without_aero_table(text):
+    """The TOML text without its `[aero]` table (header to the next header)."""
+    out, inside = [], False
+    for line in text.splitlines(keepends=True):
+        if line.lstrip().startswith("["):
+            inside = line.strip().startswith("[aero]")
+        if not inside:
+            out.append(line)
+    return "".join(out)
+
+
+AERO_KEYS = ("c_dx", "c_dy", "c_dz", "k_d", "k_z", "k_h", "k_flap")
+
+
+def variant(path, tmp_path, aero):
+    """A copy of the airframe file for the check: its `J_r` and `gamma` set
+    to 0 (terms RotorPy has not), and its `[aero]` table the file's own
+    (``aero="file"``), none (``None``: every coefficient 0) or the file's
+    with the given coefficients changed (a dict)."""
     text = pathlib.Path(path).read_text()
     for key in ("inertia_kg_m2", "rotational_drag_n_m_s"):
         text = re.sub(rf"^{key}\s*=[^#\n]*", f"{key} = 0.0 ", text, flags=re.MULTILINE)
+    table = dict(load_airframe(path).get("aero", {}))
+    if aero != "file":
+        # drop the table: from its header to the next header
+        text = without_aero_table(text)
+        table = {} if aero is None else dict(table, **aero)
+        if table:
+            text += "\n[aero]\n" + "".join(f"{k} = {v!r}\n" for k, v in table.items())
     out = tmp_path / pathlib.Path(path).name
     out.write_text(text)
     af = load_airframe(out)
     assert af["rotor"].get("inertia_kg_m2", 0.0) == 0.0 and af["body"].get("rotational_drag_n_m_s", 0.0) == 0.0
+    assert af.get("aero", {}) == table
     return out
 
 
 AIRFRAMES = {
-    # RotorPy's own vehicle in our format
+    # RotorPy's own vehicle in our format, with its aero coefficients
     "hummingbird": HERE / "hummingbird.toml",
-    # rotorpilot's default vehicle (x500-class), its rotor inertia and rotational drag set to 0
+    # rotorpilot's default vehicle (x500-class) as shipped
     "quad": ROOT / "params" / "airframes" / "quad.toml",
 }
 
+# a wind with all three components [m/s], NED (mostly from the west, and rising)
+WIND_NED = (1.5, 4.0, -0.5)
 
-@pytest.mark.parametrize("name", sorted(AIRFRAMES))
-def test_aero_off_the_plants_agree(name, tmp_path):
-    path = without_gyro_and_rotational_drag(AIRFRAMES[name], tmp_path)
+# (airframe, aero, wind): aero None is RotorPy's aero=False and our
+# coefficients all 0; "file" the airframe file's [aero] table; a dict changes
+# some of it (RotorPy's shipped vehicles all have k_flap = 0: one case sets it,
+# so that every term is exercised)
+CASES = {
+    "hummingbird, aero off, no wind": ("hummingbird", None, None),
+    "quad, aero off, no wind": ("quad", None, None),
+    "hummingbird, aero off, wind": ("hummingbird", None, WIND_NED),
+    "hummingbird, aero on, no wind": ("hummingbird", "file", None),
+    "hummingbird, aero on, wind": ("hummingbird", "file", WIND_NED),
+    "hummingbird, aero on with k_flap = 2e-6, wind": ("hummingbird", {"k_flap": 2e-6}, WIND_NED),
+    "quad, aero on, wind": ("quad", "file", WIND_NED),
+}
+
+
+@pytest.mark.parametrize("label", list(CASES))
+def test_the_plants_agree(label, tmp_path):
+    name, aero, wind = CASES[label]
+    path = variant(AIRFRAMES[name], tmp_path, aero)
     af = load_airframe(path)
+    coefficients = af.get("aero", {})
+    if aero is not None:
+        assert any(coefficients.get(k, 0.0) > 0 for k in AERO_KEYS), f"{path}: no aero coefficient to check"
     init, hover = initial_state(af)
     segments = command_schedule(af, hover)
-    ours = run_rotorpilot(tmp_path, path, init, segments)
-    theirs = run_rotorpy(quad_params(af), init, segments, aero=False)
+    ours = run_rotorpilot(tmp_path, path, init, segments, wind)
+    theirs = run_rotorpy(quad_params(af, coefficients), init, segments, aero=aero is not None, wind_ned=wind or (0, 0, 0))
     d = differences(ours, theirs)
-    report(f"{name}, aero off, no wind", d, ours)
+    report(label, d, ours)
     turn, dist, _, _ = excursion(ours)
     # the flight is not a hover: it turns and moves, and commands beyond both
     # rotor limits (the rotor speeds agree only if both clamp them alike)
@@ -335,8 +383,11 @@ def test_the_shipped_quads_rotor_gyroscopics_and_rotational_drag_are_ours_alone(
     rotational drag (`-gamma w`): with the shipped quad's `J_r` and `gamma`
     the plants part beyond the bar (which shows the bar sees terms this
     small), and with them zeroed they agree (test above)."""
-    path = AIRFRAMES["quad"]
+    path = tmp_path / "quad.toml"
+    text = AIRFRAMES["quad"].read_text()
+    path.write_text(without_aero_table(text))
     af = load_airframe(path)
+    assert "aero" not in af
     assert af["rotor"]["inertia_kg_m2"] > 0 and af["body"]["rotational_drag_n_m_s"] > 0
     init, hover = initial_state(af)
     segments = command_schedule(af, hover)

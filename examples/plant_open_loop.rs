@@ -2,7 +2,7 @@
 //! of held rotor-speed commands, read from a JSON case file; the state after
 //! each segment of the schedule printed as JSON on stdout. No flight stack,
 //! no sensors, no ground (the case must start above it), ground and ceiling
-//! effect off. For cross-checks against other simulators
+//! effect off; the airframe file's `[aero]` coefficients and a constant wind. For cross-checks against other simulators
 //! (`tests/rotorpy/test_rotorpy_crosscheck.py` drives it beside RotorPy).
 //!
 //! ```sh
@@ -19,6 +19,7 @@
 //!  "attitude_wxyz": [1, 0, 0, 0],          // FRD -> NED, Hamilton
 //!  "rate_frd": [0, 0, 0],
 //!  "rotor_speeds_rad_s": [500, 500, 500, 500],
+//!  "wind_ned_m_s": [0, 5, 0],              // optional, constant (here from the west)
 //!  "segments": [{"steps": 10, "rotor_speeds_rad_s": [510, 490, 510, 490]}, ...]}
 //! ```
 //!
@@ -55,6 +56,9 @@ struct Case {
     attitude_wxyz: [f64; 4],
     rate_frd: [f64; 3],
     rotor_speeds_rad_s: Vec<f64>,
+    /// Constant wind [m/s], NED (the air's velocity; absent: still air).
+    #[serde(default)]
+    wind_ned_m_s: [f64; 3],
     segments: Vec<Segment>,
 }
 
@@ -124,6 +128,10 @@ fn main() -> anyhow::Result<()> {
     }
     let n = plant.rotor_count();
     plant.set_rotor_speeds(&rotor_vector(&case.rotor_speeds_rad_s, n, "rotor_speeds_rad_s")?);
+    if !case.wind_ned_m_s.iter().all(|x| x.is_finite()) {
+        bail!("{path}: wind_ned_m_s must be finite");
+    }
+    plant.set_wind_ned(case.wind_ned_m_s.into());
     let no_wrench = ExternalWrench::default();
     let mut samples = vec![sample(&plant)];
     for (k, seg) in case.segments.iter().enumerate() {

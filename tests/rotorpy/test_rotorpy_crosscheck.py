@@ -320,6 +320,7 @@ def variant(path, tmp_path, aero):
         table = {} if aero is None else dict(table, **aero)
         if table:
             text += "\n[aero]\n" + "".join(f"{k} = {v!r}\n" for k, v in table.items())
+    tmp_path.mkdir(parents=True, exist_ok=True)
     out = tmp_path / pathlib.Path(path).name
     out.write_text(text)
     af = load_airframe(out)
@@ -338,6 +339,10 @@ AIRFRAMES = {
 # a wind with all three components [m/s], NED (mostly from the west, and rising)
 WIND_NED = (1.5, 4.0, -0.5)
 
+# for a quad file without an [aero] table: RotorPy's hummingbird's
+# coefficients with a flapping moment
+QUAD_AERO = {"c_dx": 0.5e-2, "c_dy": 0.5e-2, "c_dz": 1e-2, "k_d": 1.19e-4, "k_z": 2.32e-4, "k_h": 3.39e-3, "k_flap": 2e-7}
+
 # (airframe, aero, wind): aero None is RotorPy's aero=False and our
 # coefficients all 0; "file" the airframe file's [aero] table; a dict changes
 # some of it (RotorPy's shipped vehicles all have k_flap = 0: one case sets it,
@@ -348,8 +353,8 @@ CASES = {
     "hummingbird, aero off, wind": ("hummingbird", None, WIND_NED),
     "hummingbird, aero on, no wind": ("hummingbird", "file", None),
     "hummingbird, aero on, wind": ("hummingbird", "file", WIND_NED),
-    "hummingbird, aero on with k_flap = 2e-6, wind": ("hummingbird", {"k_flap": 2e-6}, WIND_NED),
-    "quad, aero on, wind": ("quad", "file", WIND_NED),
+    "hummingbird, aero on with k_flap = 2e-7, wind": ("hummingbird", {"k_flap": 2e-7}, WIND_NED),
+    "quad, aero on, wind": ("quad", "file" if "aero" in load_airframe(AIRFRAMES["quad"]) else QUAD_AERO, WIND_NED),
 }
 
 
@@ -367,6 +372,8 @@ def test_the_plants_agree(label, tmp_path):
     theirs = run_rotorpy(quad_params(af, coefficients), init, segments, aero=aero is not None, wind_ned=wind or (0, 0, 0))
     d = differences(ours, theirs)
     report(label, d, ours)
+    if aero is not None:
+        print(f"  with {coefficients}")
     turn, dist, _, _ = excursion(ours)
     # the flight is not a hover: it turns and moves, and commands beyond both
     # rotor limits (the rotor speeds agree only if both clamp them alike)
@@ -376,6 +383,26 @@ def test_the_plants_agree(label, tmp_path):
     assert d["rotor_rad_s"] < 1e-6, d
     assert d["position_m"] < POSITION_BAR_M, d
     assert d["attitude_deg"] < ATTITUDE_BAR_DEG, d
+
+
+@pytest.mark.parametrize("term", AERO_KEYS)
+def test_every_aero_term_alone_moves_the_flight_far_beyond_the_bar(term, tmp_path):
+    """The agreement above has power over each term: each coefficient of
+    the k_flap case alone (the others 0), in the wind, moves our flight from
+    the flight without aerodynamics by far more than the bar."""
+    name, aero, wind = CASES["hummingbird, aero on with k_flap = 2e-7, wind"]
+    full = load_airframe(variant(AIRFRAMES[name], tmp_path, aero))["aero"]
+    alone = variant(AIRFRAMES[name], tmp_path / "alone", None)
+    path = tmp_path / "alone.toml"
+    path.write_text(alone.read_text() + f"\n[aero]\n{term} = {full[term]!r}\n")
+    af = load_airframe(path)
+    init, hover = initial_state(af)
+    segments = command_schedule(af, hover)
+    with_term = run_rotorpilot(tmp_path, path, init, segments, wind)
+    without = run_rotorpilot(tmp_path, alone, init, segments, wind)
+    d = differences(with_term, [dict(s, **{k: np.array(v) for k, v in s.items() if k != "t_s"}) for s in without])
+    print(f"\n{term} = {full[term]} alone moves the flight by {d['position_m']:.3f} m, {d['attitude_deg']:.2f} deg")
+    assert d["position_m"] > 10 * POSITION_BAR_M or d["attitude_deg"] > 10 * ATTITUDE_BAR_DEG, d
 
 
 def test_the_shipped_quads_rotor_gyroscopics_and_rotational_drag_are_ours_alone(tmp_path):

@@ -9,17 +9,24 @@
 //! valgrind --tool=callgrind target/release/examples/steps quad geometric 2000
 //! ```
 //! The difference of the two totals over 10,000 is the count per step.
+//!
+//! Optional: `steps AIRFRAME LAW STEPS WIND_M_S [TURB_M_S]` flies in a mean
+//! wind from the west (and Dryden turbulence of that `sigma_w`); give an
+//! airframe file with an `[aero]` table for the cost of a step with wind and drag.
 
 use nalgebra::Vector3;
 use rotorpilot::control::ControllerKind;
 use rotorpilot::scenario::{Scenario, lockstep};
-use rotorpilot::sim::{DisturbanceSource, ExternalWrench};
+use rotorpilot::sim::{DisturbanceSource, ExternalWrench, WindSettings};
 use std::hint::black_box;
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
-    let [_, airframe, law, steps] = &args[..] else {
-        anyhow::bail!("usage: steps AIRFRAME LAW STEPS (e.g. steps quad geometric 12000)");
+    let (airframe, law, steps, air) = match &args[..] {
+        [_, a, l, s] => (a, l, s, None),
+        [_, a, l, s, w] => (a, l, s, Some((w.parse::<f64>()?, 0.0))),
+        [_, a, l, s, w, t] => (a, l, s, Some((w.parse::<f64>()?, t.parse::<f64>()?))),
+        _ => anyhow::bail!("usage: steps AIRFRAME LAW STEPS [WIND_M_S [TURB_M_S]] (e.g. steps quad geometric 12000)"),
     };
     let law: ControllerKind = law.parse()?;
     let steps: u64 = steps.parse()?;
@@ -36,6 +43,15 @@ fn main() -> anyhow::Result<()> {
         torque_frd: Vector3::new(0.0, 0.0, 0.05),
     };
     core.world_mut().set_disturbance(0, DisturbanceSource::Constant(wind));
+    if let Some((speed_m_s, turbulence_m_s)) = air {
+        let air = WindSettings {
+            speed_m_s,
+            from_deg: 270.0,
+            turbulence_m_s,
+            ..WindSettings::default()
+        };
+        core.world_mut().set_wind(0, air);
+    }
     for _ in 0..steps {
         core.step();
         black_box(core.last_step(0));

@@ -119,7 +119,7 @@ pub struct CeilingEffectParams {
 }
 
 /// Aerodynamic coefficients of body and rotors: exactly the terms of
-/// RotorPy 3.0.0's `Multirotor(aero=True)` (`docs/model.md` section 9), read
+/// RotorPy 3.0.0's `Multirotor(aero=True)` (`docs/model.md` section 8b), read
 /// from the airframe file's optional `[aero]` table. Every coefficient is
 /// `>= 0` and 0 when absent; all 0 means no aerodynamic force at all.
 ///

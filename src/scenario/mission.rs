@@ -79,6 +79,8 @@ struct File {
     noise: SensorNoise,
     #[serde(default)]
     params: toml::Table,
+    /// The air, as the `SIM_WIND_*` and `SIM_GUST_*` parameters it sets.
+    wind: Option<crate::sim::WindSettings>,
     #[serde(default, rename = "fault")]
     faults: Vec<FileFault>,
     mission: FileMission,
@@ -238,6 +240,24 @@ impl MissionFlight {
             params
                 .set(name, value)
                 .map_err(|e| fail(&format!("params.{name}"), e.to_string()))?;
+        }
+        if let Some(w) = &raw.wind {
+            w.validate().map_err(|(f, p)| fail(&format!("wind.{f}"), p))?;
+            for (name, v, field) in [
+                ("SIM_WIND_SPD", w.speed_m_s, "speed_m_s"),
+                ("SIM_WIND_DIR", w.from_deg, "from_deg"),
+                ("SIM_WIND_DIR_Z", w.dir_z_deg, "dir_z_deg"),
+                ("SIM_WIND_TURB", w.turbulence_m_s, "turbulence_m_s"),
+                ("SIM_GUST_SPD", w.gust.speed_m_s, "gust.speed_m_s"),
+                ("SIM_GUST_DIR", w.gust.from_deg, "gust.from_deg"),
+                ("SIM_GUST_T0", w.gust.start_s, "gust.start_s"),
+                ("SIM_GUST_DUR", w.gust.duration_s, "gust.duration_s"),
+                ("SIM_GUST_PER", w.gust.period_s, "gust.period_s"),
+            ] {
+                params
+                    .set(name, ParamValue::Real32(v as f32))
+                    .map_err(|e| fail(&format!("wind.{field}"), e.to_string()))?;
+            }
         }
         let faults = fault::validate(&raw.faults, raw.duration_s, &airframe).map_err(|(f, p)| fail(&f, p))?;
         if !faults.is_empty() && !raw.params.contains_key("SYS_FAILURE_EN") {

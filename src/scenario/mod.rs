@@ -31,7 +31,7 @@ use serde::Deserialize;
 use crate::airframe::{Airframe, AirframeError};
 use crate::control::{ControlGains, ControllerKind, GainError, GainOverrides, Setpoint};
 use crate::estimation::{Discretization, EstimatorConfig, Polynomial};
-use crate::sim::{DisturbanceChange, Environment, SensorNoise};
+use crate::sim::{DisturbanceChange, Environment, SensorNoise, WindSettings};
 use crate::tomlfile::{self, FileError};
 
 /// Why a scenario could not be loaded.
@@ -79,6 +79,8 @@ struct File {
     noise: SensorNoise,
     #[serde(default)]
     world: Environment,
+    #[serde(default)]
+    wind: WindSettings,
     #[serde(default)]
     estimator: FileEstimator,
     reference: Option<Trajectory>,
@@ -204,6 +206,8 @@ pub struct Scenario {
     pub noise: SensorNoise,
     /// Environment.
     pub world: Environment,
+    /// The air (`[wind]`: mean wind, turbulence, gusts; calm by default).
+    pub wind: WindSettings,
     /// Estimator.
     pub estimator: EstimatorConfig,
     /// Feed the estimate back.
@@ -286,6 +290,7 @@ impl Scenario {
                 return Err(fail(name, format!("must be finite and >= 0, got {v}")));
             }
         }
+        raw.wind.validate().map_err(|(f, p)| fail(&format!("wind.{f}"), p))?;
         if let Some(zc) = raw.world.ceiling_z_ned
             && !(zc.is_finite() && zc < raw.world.ground_z_ned)
         {
@@ -387,6 +392,7 @@ impl Scenario {
             seed: raw.seed,
             noise: raw.noise,
             world: raw.world,
+            wind: raw.wind,
             estimator,
             feedback: raw.estimator.feedback,
             initial,

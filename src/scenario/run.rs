@@ -149,15 +149,17 @@ pub fn lockstep(s: &Scenario) -> anyhow::Result<Lockstep<ScenarioPilot<'_>>> {
     Ok(core)
 }
 
-/// Add `s`'s vehicle to `world` (its airframe and sensors); its index.
+/// Add `s`'s vehicle to `world` (its airframe, sensors and air); its index.
 pub(super) fn add_vehicle(world: &mut World, s: &Scenario) -> usize {
-    world.add_vehicle(
+    let i = world.add_vehicle(
         &s.airframe,
         SensorConfig {
             noise: s.noise,
             seed: s.seed,
         },
-    )
+    );
+    world.set_wind(i, s.wind);
+    i
 }
 
 /// `s`'s pilot, at `t = 0`, before its vehicle is [`place`]d.

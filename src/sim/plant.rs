@@ -13,7 +13,7 @@
 //! ```
 //!
 //! Aerodynamics (RotorPy's `Multirotor(aero=True)` terms in FRD, doc section
-//! 9; [`Plant::aero_wrench_frd`]): with the wind `w` (NED, held over the
+//! 8b; [`Plant::aero_wrench_frd`]): with the wind `w` (NED, held over the
 //! step) the body airspeed is `v_a = R^T (v - w)` and hub `i`'s
 //! `v_i = v_a + w x r_i`; then, in body FRD,
 //!
@@ -401,7 +401,28 @@ impl Plant {
     /// possibly unnormalised quaternion of an RK4 stage, divided by `|q|^2`).
     #[must_use]
     pub fn aero_wrench_frd(&self, state: &RigidBodyState, speeds: &RotorVector) -> (Vector3<f64>, Vector3<f64>) {
+        self.aero_body(&rotation_matrix(state), state, speeds)
+    }
+
+    /// The aerodynamic wrench as the derivative adds it: force [N] world
+    /// NED (`R f_a`), torque [N m] body FRD.
+    fn aero_ned(&self, state: &RigidBodyState, speeds: &RotorVector) -> ExternalWrench {
         let r = rotation_matrix(state);
+        let (f, torque_frd) = self.aero_body(&r, state, speeds);
+        ExternalWrench {
+            force_ned: r * f,
+            torque_frd,
+        }
+    }
+
+    /// [`Self::aero_wrench_frd`] with `R(q)` given.
+    #[inline(always)]
+    fn aero_body(
+        &self,
+        r: &Matrix3<f64>,
+        state: &RigidBodyState,
+        speeds: &RotorVector,
+    ) -> (Vector3<f64>, Vector3<f64>) {
         let c = &self.aero_coefficients;
         let va = r.transpose() * (state.velocity_ned - self.wind_ned);
         let speed = va.norm();
@@ -722,7 +743,7 @@ impl Plant {
         w: &ControlWrench,
         ext: &ExternalWrench,
         gyro_h: f64,
-        aero_speeds: Option<&RotorVector>,
+        aero: Option<&ExternalWrench>,
     ) -> Deriv {
         // thrust along -z_b in NED: -u_T R e3, with R e3 the third column of
         // R(q) = [2(xz + wy), 2(yz - wx), w^2 - x^2 - y^2 + z^2] / |q|^2 (RK4
@@ -744,10 +765,10 @@ impl Plant {
             // rotational drag tau_d = -gamma w (body FRD)
             torque -= om * self.rotational_drag;
         }
-        if let Some(speeds) = aero_speeds {
-            let (f, t) = self.aero_wrench_frd(s, speeds);
-            acc += rotation_matrix(s) * f * inv_m;
-            torque += t;
+        if let Some(a) = aero {
+            // the aerodynamic wrench (force NED, torque FRD) of this stage
+            acc += a.force_ned * inv_m;
+            torque += a.torque_frd;
         }
         let alpha = self.body_inertia.solve(&torque);
         // q' = 1/2 q (x) [0, w], written out (the product with a pure quaternion)
@@ -775,6 +796,45 @@ impl Plant {
             attitude: UnitQuaternion::new_unchecked(s.attitude.quaternion() + d.q * h),
             rate_frd: s.rate_frd + d.w * h,
         }
+    }
+
+    /// `s + h/6 (k1 + 2 k2 + 2 k3 + k4)`, the quaternion renormalised.
+    #[inline(always)]
+    fn rk4_combine(s: &RigidBodyState, k1: &Deriv, k2: &Deriv, k3: &Deriv, k4: &Deriv, h: f64) -> RigidBodyState {
+        let sixth = h / 6.0;
+        let q = s.attitude.quaternion() + (k1.q + (k2.q + k3.q) * 2.0 + k4.q) * sixth;
+        RigidBodyState {
+            position_ned: s.position_ned + (k1.p + (k2.p + k3.p) * 2.0 + k4.p) * sixth,
+            velocity_ned: s.velocity_ned + (k1.v + (k2.v + k3.v) * 2.0 + k4.v) * sixth,
+            attitude: UnitQuaternion::new_unchecked(q * inv_sqrt_near_one(q.norm_squared())),
+            rate_frd: s.rate_frd + (k1.w + (k2.w + k3.w) * 2.0 + k4.w) * sixth,
+        }
+    }
+
+    /// One RK4 step with the aerodynamic terms (rotor speeds at the stage
+    /// times, [`Self::stage_speeds`]), and the aerodynamic wrench at the
+    /// step's start (force NED, torque FRD). Out of line: a plant without
+    /// coefficients never comes here.
+    #[inline(never)]
+    fn rk4_with_aero(
+        &self,
+        s: &RigidBodyState,
+        w: [&ControlWrench; 3],
+        e: [&ExternalWrench; 3],
+        spin_mom: [f64; 3],
+        target: Option<&RotorVector>,
+    ) -> (RigidBodyState, ExternalWrench) {
+        let h = self.dt;
+        let speeds = self.stage_speeds(target, w[0]);
+        let a1 = self.aero_ned(s, &speeds[0]);
+        let k1 = self.deriv(s, w[0], e[0], spin_mom[0], Some(&a1));
+        let s2 = Self::advance(s, &k1, 0.5 * h);
+        let k2 = self.deriv(&s2, w[1], e[1], spin_mom[1], Some(&self.aero_ned(&s2, &speeds[1])));
+        let s3 = Self::advance(s, &k2, 0.5 * h);
+        let k3 = self.deriv(&s3, w[1], e[1], spin_mom[1], Some(&self.aero_ned(&s3, &speeds[1])));
+        let s4 = Self::advance(s, &k3, h);
+        let k4 = self.deriv(&s4, w[2], e[2], spin_mom[2], Some(&self.aero_ned(&s4, &speeds[2])));
+        (Self::rk4_combine(s, &k1, &k2, &k3, &k4, h), a1)
     }
 
     /// Rotor speeds [rad/s] at the stage times `t, t + h/2, t + h`: the exact
@@ -865,31 +925,20 @@ impl Plant {
         let emid = disturbance.wrench_at(t + 0.5 * h);
         let e1 = disturbance.wrench_at(t + h);
 
-        // rotor speeds at the stage times for the aerodynamic terms
-        let aero = self.aero_on.then(|| self.stage_speeds(target.as_ref(), &w0));
-        let aero_at = |k: usize| aero.as_ref().map(|a| &a[k]);
         let s = self.state;
-        let k1 = self.deriv(&s, &w0, &e0, spin_mom[0], aero_at(0));
-        let s2 = Self::advance(&s, &k1, 0.5 * h);
-        let k2 = self.deriv(&s2, &wmid, &emid, spin_mom[1], aero_at(1));
-        let s3 = Self::advance(&s, &k2, 0.5 * h);
-        let k3 = self.deriv(&s3, &wmid, &emid, spin_mom[1], aero_at(1));
-        let s4 = Self::advance(&s, &k3, h);
-        let k4 = self.deriv(&s4, &w1, &e1, spin_mom[2], aero_at(2));
-        if let Some(a) = &aero {
-            let (f, tq) = self.aero_wrench_frd(&s, &a[0]);
-            self.last_aero = ExternalWrench {
-                force_ned: rotation_matrix(&s) * f,
-                torque_frd: tq,
-            };
-        }
-        let sixth = h / 6.0;
-        let q = s.attitude.quaternion() + (k1.q + (k2.q + k3.q) * 2.0 + k4.q) * sixth;
-        let mut next = RigidBodyState {
-            position_ned: s.position_ned + (k1.p + (k2.p + k3.p) * 2.0 + k4.p) * sixth,
-            velocity_ned: s.velocity_ned + (k1.v + (k2.v + k3.v) * 2.0 + k4.v) * sixth,
-            attitude: UnitQuaternion::new_unchecked(q * inv_sqrt_near_one(q.norm_squared())),
-            rate_frd: s.rate_frd + (k1.w + (k2.w + k3.w) * 2.0 + k4.w) * sixth,
+        let mut next = if self.aero_on {
+            let (next, aero) = self.rk4_with_aero(&s, [&w0, &wmid, &w1], [&e0, &emid, &e1], spin_mom, target.as_ref());
+            self.last_aero = aero;
+            next
+        } else {
+            let k1 = self.deriv(&s, &w0, &e0, spin_mom[0], None);
+            let s2 = Self::advance(&s, &k1, 0.5 * h);
+            let k2 = self.deriv(&s2, &wmid, &emid, spin_mom[1], None);
+            let s3 = Self::advance(&s, &k2, 0.5 * h);
+            let k3 = self.deriv(&s3, &wmid, &emid, spin_mom[1], None);
+            let s4 = Self::advance(&s, &k3, h);
+            let k4 = self.deriv(&s4, &w1, &e1, spin_mom[2], None);
+            Self::rk4_combine(&s, &k1, &k2, &k3, &k4, h)
         };
         let finite3 = |v: &Vector3<f64>| v.x.is_finite() && v.y.is_finite() && v.z.is_finite();
         let c = &next.attitude.coords;

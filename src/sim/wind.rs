@@ -1,6 +1,6 @@
 //! The air each vehicle flies in: a mean wind, discrete 1-cosine gusts and
 //! Dryden turbulence (MIL-F-8785C, low altitude), as the NED velocity of the
-//! air at the vehicle (`docs/model.md` section 9). The flight stack never
+//! air at the vehicle (`docs/model.md` section 8b). The flight stack never
 //! reads it; the plant turns it into airspeed (`v_a = v - w`).
 //!
 //! ```text
@@ -40,7 +40,7 @@ const FT_PER_M: f64 = 1.0 / 0.3048;
 
 /// A discrete 1-cosine gust, repeated or not.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct Gust {
     /// Peak gust speed `A` [m/s] (0: no gust).
     pub speed_m_s: f64,

@@ -139,6 +139,14 @@ echo "== tools: plot scripts on real logs (matplotlib)"
 client_venv tools -r tools/requirements.txt "pytest==9.2.0"
 timeout 600 "$VENV/tools/bin/python" -m pytest -q -p no:cacheprovider tests/tools/test_plots.py
 
+echo "== RotorPy cross-check: the plant open loop beside RotorPy 3.0.0's Multirotor (tests/rotorpy/)"
+# the plant alone, driven by examples/plant_open_loop.rs; RotorPy and its
+# dependencies pinned in tests/rotorpy/requirements.txt, in a venv of their own
+cargo build --release --quiet --example plant_open_loop
+client_venv rotorpy -r tests/rotorpy/requirements.txt
+ROTORPILOT_PLANT_OPEN_LOOP="${CARGO_TARGET_DIR:-$PWD/target}/release/examples/plant_open_loop" \
+    timeout 900 "$VENV/rotorpy/bin/python" -m pytest -q -p no:cacheprovider tests/rotorpy
+
 echo "== tools: fly_mission.py against a scripted vehicle and the real one (pymavlink)"
 timeout 300 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/tools/test_fly_mission.py
 echo "== tools: show_wrench.py and inject_disturbance.py against the real vehicle (pymavlink)"

@@ -276,6 +276,33 @@ fn every_shipped_airframe_loads() {
     assert!(matches!(Airframe::load("nope"), Err(AirframeError::Unknown { .. })));
 }
 
+/// The `[aero]` table is optional (every coefficient 0 when absent, and when
+/// a key is left out) and its values reach `airframe.aero` as written.
+#[test]
+fn aero_coefficients_are_read_and_default_to_zero() {
+    // the shipped quad's text without any `[aero]` table it may have
+    let text = Airframe::load_text("quad").unwrap().0;
+    let plain = match text.find("\n[aero]") {
+        Some(at) => {
+            let rest = &text[at + 1..];
+            let end = rest.find("\n[").map_or(text.len(), |e| at + 1 + e + 1);
+            format!("{}{}", &text[..at + 1], &text[end..])
+        }
+        None => text.clone(),
+    };
+    let without = Airframe::from_toml(&plain, "plain.toml").unwrap();
+    assert_eq!(without.aero, rotorpilot::airframe::AeroCoefficients::default());
+    assert!(without.aero.is_zero());
+    let table = "[aero]\nc_dx = 0.005\nc_dy = 0.006\nc_dz = 0.01\nk_d = 1.19e-4\nk_z = 2.32e-4\nk_h = 3.39e-3\n";
+    let with = Airframe::from_toml(&format!("{plain}\n{table}"), "with-aero.toml").unwrap();
+    let a = with.aero;
+    assert_eq!(
+        [a.c_dx, a.c_dy, a.c_dz, a.k_d, a.k_z, a.k_h, a.k_flap],
+        [0.005, 0.006, 0.01, 1.19e-4, 2.32e-4, 3.39e-3, 0.0]
+    );
+    assert!(!a.is_zero());
+}
+
 /// A non-positive rotor constant is refused with the whole message: the
 /// file, the line and column of the value, the field and the problem, from
 /// the library and from the CLI (exit status 1, no panic).
@@ -328,6 +355,8 @@ fn malformed_airframes_get_named_errors() {
             "triangle inequality",
         ),
         ("not-toml.toml", "not-toml.toml:2", ""),
+        ("negative-aero.toml", "aero.k_d", "must be a finite number >= 0"),
+        ("unknown-aero-key.toml", "c_d", "unknown field"),
     ];
     for (file, field, problem) in cases {
         let path = format!("{dir}/{file}");

@@ -9,7 +9,9 @@
 //! quad.toml:19:27: rotor.radius_m: must be a finite number > 0, got 0
 //! ```
 
-use super::{Actuation, Airframe, CeilingEffectParams, GroundEffectParams, RotorGeometry, RotorParams, Spin};
+use super::{
+    Actuation, AeroCoefficients, Airframe, CeilingEffectParams, GroundEffectParams, RotorGeometry, RotorParams, Spin,
+};
 use crate::signals::{GRAVITY, MAX_ROTORS};
 use nalgebra::Matrix3;
 
@@ -44,6 +46,9 @@ struct FileAirframe {
     rotors: Vec<FileRotorGeometry>,
     ground_effect: FileGroundEffect,
     ceiling_effect: FileCeilingEffect,
+    /// Optional aerodynamic coefficients (all 0 when absent).
+    #[serde(default)]
+    aero: FileAero,
     /// Optional controller gain overrides for this vehicle (checked by `control`).
     #[serde(default)]
     control: toml::Table,
@@ -99,6 +104,19 @@ struct FileGroundEffect {
 struct FileCeilingEffect {
     k1: f64,
     k2_m: f64,
+}
+
+/// The `[aero]` table: RotorPy's `Multirotor(aero=True)` coefficients, each 0 when absent.
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+struct FileAero {
+    c_dx: f64,
+    c_dy: f64,
+    c_dz: f64,
+    k_d: f64,
+    k_z: f64,
+    k_h: f64,
+    k_flap: f64,
 }
 
 pub(super) fn parse(text: &str, file: &str) -> Result<Airframe, AirframeError> {
@@ -289,6 +307,17 @@ fn validate(raw: FileAirframe, file: &str) -> Result<Airframe, FileError> {
         ));
     }
 
+    let a = &raw.aero;
+    let aero = AeroCoefficients {
+        c_dx: c.non_negative("aero.c_dx", a.c_dx)?,
+        c_dy: c.non_negative("aero.c_dy", a.c_dy)?,
+        c_dz: c.non_negative("aero.c_dz", a.c_dz)?,
+        k_d: c.non_negative("aero.k_d", a.k_d)?,
+        k_z: c.non_negative("aero.k_z", a.k_z)?,
+        k_h: c.non_negative("aero.k_h", a.k_h)?,
+        k_flap: c.non_negative("aero.k_flap", a.k_flap)?,
+    };
+
     let airframe = Airframe {
         name: raw.name.trim().to_string(),
         description: raw.description,
@@ -305,6 +334,7 @@ fn validate(raw: FileAirframe, file: &str) -> Result<Airframe, FileError> {
         rotors,
         ground_effect,
         ceiling_effect,
+        aero,
         control: raw.control,
     };
     let b = airframe.effectiveness();

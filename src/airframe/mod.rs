@@ -118,6 +118,43 @@ pub struct CeilingEffectParams {
     pub k2_m: f64,
 }
 
+/// Aerodynamic coefficients of body and rotors: exactly the terms of
+/// RotorPy 3.0.0's `Multirotor(aero=True)` (`docs/model.md` section 9), read
+/// from the airframe file's optional `[aero]` table. Every coefficient is
+/// `>= 0` and 0 when absent; all 0 means no aerodynamic force at all.
+///
+/// With `v` the body-FRD airspeed of the centre of mass and `v_i = v + omega x r_i`
+/// the airspeed of hub `i`:
+/// * parasitic drag at the centre of mass: `D = -|v| diag(c_dx, c_dy, c_dz) v`;
+/// * rotor drag at hub `i`: `H_i = -omega_i diag(k_d, k_d, k_z) v_i`;
+/// * translational lift: thrust `T_i += k_h (v_i,x^2 + v_i,y^2)` along `-z_b`;
+/// * flapping moment: `M_i = -k_flap omega_i (e_z x v_i)` (FRD, see the model doc).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct AeroCoefficients {
+    /// Parasitic drag along body `x_b` [N/(m/s)^2] (RotorPy `c_Dx`).
+    pub c_dx: f64,
+    /// Parasitic drag along body `y_b` [N/(m/s)^2] (RotorPy `c_Dy`).
+    pub c_dy: f64,
+    /// Parasitic drag along body `z_b` [N/(m/s)^2] (RotorPy `c_Dz`).
+    pub c_dz: f64,
+    /// Rotor drag in the rotor plane [N/(rad/s)/(m/s)] (RotorPy `k_d`).
+    pub k_d: f64,
+    /// Induced-inflow drag along the rotor axis [N/(rad/s)/(m/s)] (RotorPy `k_z`).
+    pub k_z: f64,
+    /// Translational lift [N/(m/s)^2] (RotorPy `k_h`).
+    pub k_h: f64,
+    /// Blade-flapping moment [N m/(rad/s)/(m/s)] (RotorPy `k_flap`).
+    pub k_flap: f64,
+}
+
+impl AeroCoefficients {
+    /// Whether every coefficient is 0 (the body feels no air at all).
+    #[must_use]
+    pub fn is_zero(&self) -> bool {
+        *self == Self::default()
+    }
+}
+
 /// A validated vehicle description.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Airframe {
@@ -149,6 +186,8 @@ pub struct Airframe {
     pub ground_effect: GroundEffectParams,
     /// Ceiling-effect constants.
     pub ceiling_effect: CeilingEffectParams,
+    /// Aerodynamic drag, lift and flapping coefficients (all 0 unless the file has an `[aero]` table).
+    pub aero: AeroCoefficients,
     /// The file's `[control]` table as written: controller gain overrides that
     /// `control::ControlGains::for_airframe` reads, applies and checks (the
     /// airframe does not know the control laws).

@@ -44,6 +44,8 @@
 use nalgebra::{UnitQuaternion, Vector2, Vector3};
 use serde::Serialize;
 
+use crate::signals::WindEstimate;
+
 /// The largest airspeed [m/s] the solver looks for; a force that needs more
 /// is not drag (no estimate).
 pub const MAX_AIRSPEED_M_S: f64 = 200.0;
@@ -172,17 +174,6 @@ struct FilterState {
     last_s: f64,
     mean_ne: Vector2<f64>,
     variance_ne: Vector2<f64>,
-}
-
-/// The filtered wind at one instant.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct WindEstimate {
-    /// When it was last updated [s] (simulated time).
-    pub time_s: f64,
-    /// The wind [m/s], NED (`z` = 0: horizontal).
-    pub wind_ned: Vector3<f64>,
-    /// The variance of the solutions about it [(m/s)^2], north and east.
-    pub variance_ne: Vector2<f64>,
 }
 
 impl WindFilter {

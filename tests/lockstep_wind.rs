@@ -1,0 +1,134 @@
+//! The wind the vehicle feels, end to end in the lockstep core: the world
+//! blows (`SIM_WIND_*`), the flight stack sees only its sensors, estimates the
+//! external force, explains it by the quad's nominal drag and reports the
+//! wind (WIND_COV's content, `Telemetry::wind`); and the estimate's feedback
+//! (`EST_COMP`) holds the hover closer in that wind.
+
+mod common;
+
+use common::sitl::{Sitl, int, real};
+use nalgebra::Vector3;
+use rotorpilot::airframe::{AeroCoefficients, Airframe};
+
+/// Wind speed [m/s] and the direction it comes from [deg] of a NED wind.
+fn speed_from(w: &Vector3<f64>) -> (f64, f64) {
+    (w.xy().norm(), (-w.y).atan2(-w.x).to_degrees().rem_euclid(360.0))
+}
+
+/// The smallest difference between two directions [deg].
+fn angle_between(a: f64, b: f64) -> f64 {
+    ((a - b + 180.0).rem_euclid(360.0) - 180.0).abs()
+}
+
+/// A quad hovering 5 m up, then the wind set: (seconds until the reported
+/// wind is within 0.5 m/s and 10 deg of 5 m/s from the west and stays so
+/// over `seconds`, the worst speed error after that).
+fn hover_in_wind(ap: &mut Sitl, seconds: f64) -> (Option<f64>, f64) {
+    ap.step();
+    ap.take_off_to(Some(5.0));
+    ap.run(3.0);
+    let calm = ap.telemetry().wind.expect("an estimate in still air");
+    assert!(calm.wind_ned.norm() < 0.2, "still air: {}", calm.wind_ned);
+    ap.set_param("SIM_WIND_DIR", real(270.0));
+    ap.set_param("SIM_WIND_SPD", real(5.0));
+    let t0 = ap.time_s();
+    let mut settled_at = None;
+    let mut worst: f64 = 0.0;
+    for _ in 0..ap.steps(seconds) {
+        ap.step();
+        let w = ap.telemetry().wind.expect("an estimate in the air");
+        let (speed, from) = speed_from(&w.wind_ned);
+        let inside = (speed - 5.0).abs() < 0.5 && angle_between(from, 270.0) < 10.0;
+        match (inside, settled_at) {
+            (true, None) => settled_at = Some(ap.time_s() - t0),
+            (false, Some(_)) => settled_at = None,
+            _ => {}
+        }
+        if settled_at.is_some() {
+            worst = worst.max((speed - 5.0).abs());
+        }
+    }
+    (settled_at, worst)
+}
+
+#[test]
+fn a_hovering_quad_reports_5_m_s_from_the_west_within_bounds() {
+    let mut ap = Sitl::quad().params(&[("SIM_WIND_TURB", real(0.0))]).build();
+    let (settled, worst) = hover_in_wind(&mut ap, 30.0);
+    let settled = settled.expect("the estimate settles within 0.5 m/s and 10 deg");
+    let w = ap.telemetry().wind.unwrap();
+    let (speed, from) = speed_from(&w.wind_ned);
+    println!(
+        "no turbulence: within bounds {settled:.2} s after the wind was set; then worst speed error \
+         {worst:.3} m/s; final {speed:.3} m/s from {from:.2} deg, variance {:?}",
+        w.variance_ne
+    );
+    assert!(settled < 8.0, "settled after {settled} s");
+    assert!((speed - 5.0).abs() < 0.1 && angle_between(from, 270.0) < 2.0, "{speed} from {from}");
+    assert!(w.variance_ne.x < 0.01 && w.variance_ne.y < 0.01, "{:?}", w.variance_ne);
+}
+
+#[test]
+fn under_turbulence_the_estimate_follows_the_mean_wind() {
+    let mut ap = Sitl::quad().params(&[("SIM_WIND_TURB", real(1.0))]).build();
+    ap.step();
+    ap.take_off_to(Some(5.0));
+    ap.set_param("SIM_WIND_DIR", real(270.0));
+    ap.set_param("SIM_WIND_SPD", real(5.0));
+    ap.run(10.0);
+    let (mut sum_sq, mut n, mut worst): (f64, f64, f64) = (0.0, 0.0, 0.0);
+    let mean = Vector3::new(0.0, 5.0, 0.0);
+    for _ in 0..ap.steps(60.0) {
+        ap.step();
+        let w = ap.telemetry().wind.expect("an estimate in the air");
+        let e = (w.wind_ned - mean).norm();
+        sum_sq += e * e;
+        n += 1.0;
+        worst = worst.max(e);
+    }
+    let rms = (sum_sq / n).sqrt();
+    let w = ap.telemetry().wind.unwrap();
+    println!(
+        "turbulence 1 m/s: estimate vs the 5 m/s mean over 60 s: rms {rms:.3} m/s, worst {worst:.3} m/s; \
+         variance reported {:?}",
+        w.variance_ne
+    );
+    assert!(rms < 1.0, "rms {rms}");
+    assert!(w.variance_ne.x + w.variance_ne.y > 1e-3, "turbulence shows in the variance");
+}
+
+#[test]
+fn an_airframe_without_drag_reports_no_wind() {
+    let mut af = Airframe::load("quad").unwrap();
+    af.aero = AeroCoefficients::default();
+    let mut ap = Sitl::of(af).params(&[("SIM_WIND_SPD", real(5.0))]).build();
+    ap.step();
+    ap.take_off_to(Some(5.0));
+    ap.run(10.0);
+    assert!(ap.telemetry().estimate.force_ned.norm().is_finite());
+    assert_eq!(ap.telemetry().wind, None);
+}
+
+#[test]
+fn feedback_of_the_estimate_holds_the_hover_closer_in_wind() {
+    let mut off_on = [0.0; 2];
+    for (i, comp) in [0, 1].into_iter().enumerate() {
+        let mut ap = Sitl::quad()
+            .params(&[("SIM_WIND_TURB", real(0.0)), ("EST_COMP", int(comp))])
+            .build();
+        ap.step();
+        ap.take_off_to(Some(5.0));
+        ap.run(3.0);
+        let p0 = ap.telemetry().position_ned;
+        ap.set_param("SIM_WIND_DIR", real(270.0));
+        ap.set_param("SIM_WIND_SPD", real(5.0));
+        ap.run(15.0);
+        off_on[i] = (ap.telemetry().position_ned - p0).xy().norm();
+    }
+    println!(
+        "5 m/s wind, after 15 s: pushed {:.4} m without EST_COMP, {:.4} m with",
+        off_on[0], off_on[1]
+    );
+    assert!(off_on[0] > 0.05, "the wind pushes: {}", off_on[0]);
+    assert!(off_on[1] < off_on[0] / 5.0, "{off_on:?}");
+}

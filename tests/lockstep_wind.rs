@@ -64,7 +64,10 @@ fn a_hovering_quad_reports_5_m_s_from_the_west_within_bounds() {
         w.variance_ne
     );
     assert!(settled < 8.0, "settled after {settled} s");
-    assert!((speed - 5.0).abs() < 0.1 && angle_between(from, 270.0) < 2.0, "{speed} from {from}");
+    assert!(
+        (speed - 5.0).abs() < 0.1 && angle_between(from, 270.0) < 2.0,
+        "{speed} from {from}"
+    );
     assert!(w.variance_ne.x < 0.01 && w.variance_ne.y < 0.01, "{:?}", w.variance_ne);
 }
 
@@ -94,7 +97,10 @@ fn under_turbulence_the_estimate_follows_the_mean_wind() {
         w.variance_ne
     );
     assert!(rms < 1.0, "rms {rms}");
-    assert!(w.variance_ne.x + w.variance_ne.y > 1e-3, "turbulence shows in the variance");
+    assert!(
+        w.variance_ne.x + w.variance_ne.y > 1e-3,
+        "turbulence shows in the variance"
+    );
 }
 
 #[test]
@@ -131,4 +137,46 @@ fn feedback_of_the_estimate_holds_the_hover_closer_in_wind() {
     );
     assert!(off_on[0] > 0.05, "the wind pushes: {}", off_on[0]);
     assert!(off_on[1] < off_on[0] / 5.0, "{off_on:?}");
+}
+
+/// Drag coefficients for the injected-force test (not a shipped airframe's).
+fn some_drag() -> AeroCoefficients {
+    AeroCoefficients {
+        c_dx: 0.01,
+        c_dy: 0.01,
+        k_d: 1e-5,
+        ..AeroCoefficients::default()
+    }
+}
+
+#[test]
+fn an_injected_force_reads_as_the_wind_whose_drag_it_equals() {
+    // the estimate assumes every force in the body plane is drag: 0.4 N east
+    // on a level quad is the drag of the airspeed v that solves
+    // (c |v| + k_d S) |v| = 0.4 N, blowing east (from the west)
+    let mut af = Airframe::load("quad").unwrap();
+    af.aero = some_drag();
+    let mut ap = Sitl::of(af).build();
+    ap.step();
+    ap.take_off_to(Some(5.0));
+    assert_eq!(
+        ap.telemetry().wind.map(|w| w.wind_ned.norm() < 0.05),
+        Some(true),
+        "calm in still air"
+    );
+    ap.set_param("SIM_FEXT_Y", real(0.4));
+    ap.run(15.0);
+    let t = ap.telemetry();
+    let w = t.wind.expect("an estimate");
+    let s: f64 = ap.readings().rotor_speeds_rad_s.sum();
+    // the positive root of 0.01 v^2 + 1e-5 S v - 0.4 = 0
+    let b = 1e-5 * s;
+    let v = (-b + (b * b + 4.0 * 0.01 * 0.4).sqrt()) / (2.0 * 0.01);
+    let (speed, from) = speed_from(&w.wind_ned);
+    println!(
+        "0.4 N east: wind {speed:.4} m/s from {from:.2} deg (drag model: {v:.4} m/s), f_e {:?}",
+        t.estimate.force_ned.as_slice()
+    );
+    assert!((speed - v).abs() < 0.05 * v, "{speed} vs {v}");
+    assert!(angle_between(from, 270.0) < 3.0, "{from}");
 }

@@ -9,7 +9,9 @@ Run with the pymavlink venv: `python -m pytest tests/clients/test_pymavlink_wind
 """
 
 import math
+import shutil
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -28,9 +30,11 @@ WIND_COV = 231
 
 @pytest.fixture
 def vehicle():
-    with Vehicle(speed=5.0) as v:
+    logs = tempfile.mkdtemp(prefix="rotorpilot-wind-logs-")
+    with Vehicle(speed=5.0, extra=["--log-dir", logs]) as v:
         yield v
         print("rotorpilot log (tail):\n" + v.logs())
+    shutil.rmtree(logs, ignore_errors=True)
 
 
 def from_deg(w):
@@ -88,3 +92,19 @@ def test_wind_cov_reports_the_wind_set_in_flight(vehicle):
     time.sleep(0.5)
     drain(m)
     assert wait(m, "WIND_COV", timeout=1.0) is None
+
+    # the flight's ULog has PX4's `wind` topic, 1 Hz while the estimate exists
+    from pyulog import ULog
+
+    run_dir = Path(next(line.split("logs:", 1)[1].strip() for line in vehicle.banner if "logs:" in line))
+    vehicle.stop()
+    ulog = ULog(str(run_dir / "flight.ulg"))
+    wind = next(d for d in ulog.data_list if d.name == "wind").data
+    late = [i for i, t in enumerate(wind["timestamp"]) if t / 1e6 > w.time_usec / 1e6 - 3.0]
+    assert late, "wind logged up to the end of the hover"
+    i = late[0]
+    print(f"ULog wind: {len(wind['timestamp'])} samples; at {wind['timestamp'][i] / 1e6:.1f} s north "
+          f"{wind['windspeed_north'][i]:.3f} east {wind['windspeed_east'][i]:.3f} m/s")
+    assert wind["windspeed_north"][i] == pytest.approx(0.0, abs=0.5)
+    assert wind["windspeed_east"][i] == pytest.approx(5.0, abs=0.5)
+    assert wind["variance_north"][i] >= 0.0 and wind["tas_innov"][i] == 0.0

@@ -108,7 +108,8 @@ pub fn wind_from_force(
         return None;
     }
     let linear = model.k_d * rotor_speed_sum.max(0.0);
-    if !(model.c_dx > 0.0 || linear > 0.0) || !(model.c_dy > 0.0 || linear > 0.0) {
+    let drag_on_both_axes = linear > 0.0 || (model.c_dx > 0.0 && model.c_dy > 0.0);
+    if !drag_on_both_axes {
         return None;
     }
     let r = attitude.to_rotation_matrix();

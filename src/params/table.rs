@@ -213,6 +213,25 @@ parameters! {
     SIM_GE_EN: switch(1, "Simulate ground effect"),
     SIM_CE_EN: switch(1, "Simulate ceiling effect (needs SIM_CEIL_Z > 0)"),
     SIM_CEIL_Z: real(0.0, 0.0, 100.0, "m", "Height of a flat ceiling above the home ground (0: no ceiling)"),
+    // --- simulation: the air (ArduPilot SITL's SIM_WIND_* names and meanings; gusts our own) ---
+    SIM_WIND_SPD: real(0.0, 0.0, 50.0, "m/s", "Simulated mean wind speed (as ArduPilot SITL)"),
+    SIM_WIND_DIR: real(
+        180.0, 0.0, 360.0, "deg",
+        "Direction the simulated wind comes from, true (0 north, 90 east; as ArduPilot SITL)",
+    ),
+    SIM_WIND_DIR_Z: real(
+        0.0, -90.0, 90.0, "deg",
+        "Vertical angle of the simulated wind: 0 horizontal, 90 pure updraft (as ArduPilot SITL)",
+    ),
+    SIM_WIND_TURB: real(
+        0.0, 0.0, 10.0, "m/s",
+        "Turbulence: Dryden (MIL-F-8785C low altitude) vertical RMS sigma_w, horizontal from height; 0 off (light 0.77, moderate 1.54, severe 2.31)",
+    ),
+    SIM_GUST_SPD: real(0.0, 0.0, 30.0, "m/s", "1-cosine gust: peak speed (0: no gust)"),
+    SIM_GUST_DIR: real(180.0, 0.0, 360.0, "deg", "1-cosine gust: direction it comes from, true"),
+    SIM_GUST_T0: real(0.0, 0.0, 1_000_000.0, "s", "1-cosine gust: simulated time the first gust starts"),
+    SIM_GUST_DUR: real(2.0, 0.1, 60.0, "s", "1-cosine gust: duration of one gust"),
+    SIM_GUST_PER: real(0.0, 0.0, 3600.0, "s", "1-cosine gust: repeat period (0: a single gust)"),
     // --- PX4: failsafes (data link, battery, geofence) -------------------------------------------
     COM_DL_LOSS_T: int(10, 5, 300, "GCS connection loss: no GCS HEARTBEAT for this long [s] while armed"),
     NAV_DLL_ACT: choice(

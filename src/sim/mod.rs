@@ -25,6 +25,7 @@
 //! | `battery` | the pack: discharge with the power drawn |
 //! | `fault` | faults and their effect on the plant and sensors |
 //! | `settings` | the `SIM_*` parameters |
+//! | [`wind`] | mean wind, 1-cosine gusts, Dryden turbulence |
 //! | [`proximity`] | vehicle–vehicle proximity and collisions |
 //!
 //! **One world frame.** Each vehicle's plant lives in its own NED frame,
@@ -42,6 +43,7 @@ pub mod plant;
 pub mod proximity;
 mod sensors;
 mod settings;
+pub mod wind;
 
 pub use fault::{ActiveFaults, Fault, FaultError, RotorHealth};
 pub use plant::{
@@ -50,6 +52,7 @@ pub use plant::{
 pub use proximity::{Proximity, ProximityEvent, ProximityKind};
 pub use sensors::{DEAD_RECKONING_BIAS_M_S2, SensorNoise, Sensors};
 pub use settings::{FaultSettings, WorldSettings};
+pub use wind::{Gust, Wind, WindSettings};
 
 use nalgebra::Vector3;
 
@@ -150,6 +153,11 @@ pub struct StepReport {
     pub external: ExternalWrench,
     /// The true mass [kg] over the step.
     pub true_mass_kg: f64,
+    /// The air's velocity at the vehicle over the step [m/s], world NED.
+    pub wind_ned: Vector3<f64>,
+    /// The aerodynamic wrench at `t_k` (force world NED, torque body FRD;
+    /// zero for an airframe without aerodynamic coefficients).
+    pub aero: ExternalWrench,
     /// Touchdown, liftoff or nothing.
     pub event: StepEvent,
     /// The command the plant refused, or the integration that failed: the
@@ -164,21 +172,45 @@ impl Default for StepReport {
             truth: RigidBodyState::at_rest(Vector3::zeros()),
             external: ExternalWrench::default(),
             true_mass_kg: 0.0,
+            wind_ned: Vector3::zeros(),
+            aero: ExternalWrench::default(),
             event: StepEvent::None,
             fault: None,
         }
     }
 }
 
-/// The injected truth a client may compare the estimates with.
+/// The injected truth a client may compare the estimates with. The true
+/// external wrench on the body is the injected one plus the aerodynamic one
+/// ([`Truth::external_force_ned`], [`Truth::external_torque_frd`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct Truth {
-    /// External force [N], world NED.
+    /// Injected external force [N], world NED.
     pub force_ned: Vector3<f64>,
-    /// External torque [N m], body FRD.
+    /// Injected external torque [N m], body FRD.
     pub torque_frd: Vector3<f64>,
     /// True mass [kg].
     pub true_mass_kg: f64,
+    /// The air's velocity at the vehicle [m/s], world NED (held over the last step).
+    pub wind_ned: Vector3<f64>,
+    /// Aerodynamic force [N], world NED, at the start of the last step.
+    pub aero_force_ned: Vector3<f64>,
+    /// Aerodynamic torque [N m], body FRD, at the start of the last step.
+    pub aero_torque_frd: Vector3<f64>,
+}
+
+impl Truth {
+    /// The whole external force [N], world NED: injected plus aerodynamic.
+    #[must_use]
+    pub fn external_force_ned(&self) -> Vector3<f64> {
+        self.force_ned + self.aero_force_ned
+    }
+
+    /// The whole external torque [N m], body FRD: injected plus aerodynamic.
+    #[must_use]
+    pub fn external_torque_frd(&self) -> Vector3<f64> {
+        self.torque_frd + self.aero_torque_frd
+    }
 }
 
 /// One vehicle of the world.
@@ -190,6 +222,8 @@ struct Body {
     /// Total rotor disk area [m^2] (battery power).
     disk_area_m2: f64,
     disturbance: DisturbanceSource,
+    /// The air at this vehicle (its turbulence on its own stream).
+    wind: Wind,
     faults: ActiveFaults,
     /// What an injected WRONG fault does (`SIM_*_WRONG_*`).
     fault_settings: FaultSettings,
@@ -208,6 +242,14 @@ struct Body {
 }
 
 impl Body {
+    /// Set the air; calm air is no air at all for the plant.
+    fn set_wind(&mut self, wind: WindSettings) {
+        self.wind.set(wind);
+        if wind.is_calm() {
+            self.plant.set_wind_ned(Vector3::zeros());
+        }
+    }
+
     /// Read the sensors at the current instant into `self.reading`: the
     /// navigation solution once per instant, the others every time (they
     /// follow a fault or a new pack at once).
@@ -250,6 +292,13 @@ impl Body {
             }
         };
         report.truth = *self.plant.state();
+        // the air at t, held over the step; the turbulence then moves on
+        if !self.wind.is_calm() {
+            let s = report.truth;
+            let height_m = self.plant.environment().ground_z_ned - s.position_ned.z;
+            self.plant.set_wind_ned(self.wind.at(t, height_m));
+            self.wind.advance(self.plant.dt_s(), height_m, &s.velocity_ned);
+        }
         // RK4 evaluates the wrench at t, t + dt/2 and t + dt: held constant
         // unless a scheduled change falls inside the step
         let held = until_s > t + self.plant.dt_s();
@@ -270,6 +319,8 @@ impl Body {
         self.measured = false;
         report.external = self.plant.last_external_wrench();
         report.true_mass_kg = self.plant.true_mass_kg();
+        report.wind_ned = self.plant.wind_ned();
+        report.aero = self.plant.last_aero_wrench();
         report.event = event;
         report.fault = fault;
     }
@@ -354,6 +405,7 @@ impl World {
             battery: Battery::new(disk_area_m2, DEFAULT_CELLS, DEFAULT_CAPACITY_MAH, 0.0),
             disk_area_m2,
             disturbance: DisturbanceSource::Constant(ExternalWrench::default()),
+            wind: Wind::new(sensors.seed),
             faults: ActiveFaults::none(if airframe.actuation == Actuation::Rotors { n } else { 0 }),
             fault_settings: FaultSettings::default(),
             nav: Measurement::default(),
@@ -504,6 +556,7 @@ impl World {
         let b = &mut self.bodies[i];
         b.disturbance = DisturbanceSource::Constant(s.external);
         b.plant.set_true_mass(s.true_mass_kg);
+        b.set_wind(s.wind);
         b.plant.set_environment(Environment {
             ground_z_ned: ground,
             ceiling_z_ned: s.ceiling_height_m.map(|h| ground - h),
@@ -525,6 +578,18 @@ impl World {
     #[must_use]
     pub fn fault_settings(&self, i: usize) -> FaultSettings {
         self.bodies[i].fault_settings
+    }
+
+    /// Set the air at vehicle `i` (mean wind, turbulence, gusts; its
+    /// turbulence state carries on).
+    pub fn set_wind(&mut self, i: usize, wind: WindSettings) {
+        self.bodies[i].set_wind(wind);
+    }
+
+    /// The air at vehicle `i` as set.
+    #[must_use]
+    pub fn wind(&self, i: usize) -> &WindSettings {
+        self.bodies[i].wind.settings()
     }
 
     /// Let a schedule drive vehicle `i`'s external wrench and true mass.
@@ -623,10 +688,14 @@ impl World {
             DisturbanceSource::Constant(w) => (*w, None),
             DisturbanceSource::Schedule(changes) => schedule_at(changes, self.time_s()),
         };
+        let aero = b.plant.last_aero_wrench();
         Truth {
             force_ned: w.force_ned,
             torque_frd: w.torque_frd,
             true_mass_kg: mass.unwrap_or_else(|| b.plant.true_mass_kg()),
+            wind_ned: b.plant.wind_ned(),
+            aero_force_ned: aero.force_ned,
+            aero_torque_frd: aero.torque_frd,
         }
     }
 

@@ -12,6 +12,21 @@
 //! omega_i' = (h_i clamp(omega_cmd_i, omega_min, omega_max) - omega_i) / tau_m   (h_i: 1 healthy, 0 dead motor)
 //! ```
 //!
+//! Aerodynamics (RotorPy's `Multirotor(aero=True)` terms in FRD, doc section
+//! 9; [`Plant::aero_wrench_frd`]): with the wind `w` (NED, held over the
+//! step) the body airspeed is `v_a = R^T (v - w)` and hub `i`'s
+//! `v_i = v_a + w x r_i`; then, in body FRD,
+//!
+//! ```text
+//! f_a = -|v_a| C_D v_a + sum_i (H_i - k_h (v_i,x^2 + v_i,y^2) e3)     C_D = diag(c_dx, c_dy, c_dz)
+//! H_i = -omega_i diag(k_d, k_d, k_z) v_i
+//! tau_a = sum_i r_i x (H_i - k_h (v_i,x^2 + v_i,y^2) e3) + k_flap omega_i [v_i,y, -v_i,x, 0]
+//! m v' += R f_a,   I w' += tau_a
+//! ```
+//!
+//! evaluated at every RK4 stage with that stage's state and rotor speeds.
+//! With every coefficient 0 the terms are skipped, bit for bit.
+//!
 //! Integration: fixed-step RK4 (1 ms by default) with the command held over the
 //! step; the motor lag is integrated exactly (`omega(t) = w_bar + (omega_0 - w_bar) e^{-t/tau_m}`)
 //! and evaluated at the RK4 stage times, as is the external wrench. The
@@ -29,7 +44,7 @@ use nalgebra::{Matrix3, Quaternion, SMatrix, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::aero::AeroEffects;
-use crate::airframe::{Actuation, Airframe, Allocator};
+use crate::airframe::{Actuation, AeroCoefficients, Airframe, Allocator};
 use crate::signals::{ActuatorCommand, ControlWrench, DEFAULT_STEP_S, GRAVITY, MAX_ROTORS, Measurement, RotorVector};
 
 /// External wrench acting on the body.
@@ -205,6 +220,14 @@ pub struct Plant {
     rotor_health: Option<RotorVector>,
     last_wrench: ControlWrench,
     last_external: ExternalWrench,
+    /// Aerodynamic coefficients of body and rotors.
+    aero_coefficients: AeroCoefficients,
+    /// Whether any of them is not 0 (else the aerodynamic terms are skipped).
+    aero_on: bool,
+    /// The air's velocity at the vehicle [m/s], NED, held over a step.
+    wind_ned: Vector3<f64>,
+    /// The aerodynamic wrench at the start of the last step (force NED, torque FRD).
+    last_aero: ExternalWrench,
 }
 
 /// `1 / sqrt(n)`, by its series `1 - e/2 + 3 e^2/8` (`e = n - 1`, remainder
@@ -265,6 +288,24 @@ impl BodyInertia {
     }
 }
 
+/// `R(q)` (FRD to NED) of a possibly unnormalised quaternion, `R(q / |q|)`.
+fn rotation_matrix(s: &RigidBodyState) -> Matrix3<f64> {
+    let q = s.attitude.quaternion();
+    let (w, x, y, z) = (q.w, q.i, q.j, q.k);
+    let k = 1.0 / q.norm_squared();
+    Matrix3::new(
+        (w * w + x * x - y * y - z * z) * k,
+        2.0 * (x * y - w * z) * k,
+        2.0 * (x * z + w * y) * k,
+        2.0 * (x * y + w * z) * k,
+        (w * w - x * x + y * y - z * z) * k,
+        2.0 * (y * z - w * x) * k,
+        2.0 * (x * z - w * y) * k,
+        2.0 * (y * z + w * x) * k,
+        (w * w - x * x - y * y + z * z) * k,
+    )
+}
+
 /// Time derivative of the rigid-body part.
 struct Deriv {
     p: Vector3<f64>,
@@ -322,7 +363,63 @@ impl Plant {
             rotor_health: None,
             last_wrench: ControlWrench::default(),
             last_external: ExternalWrench::default(),
+            aero_coefficients: airframe.aero,
+            aero_on: !airframe.aero.is_zero(),
+            wind_ned: Vector3::zeros(),
+            last_aero: ExternalWrench::default(),
         }
+    }
+
+    /// Set the air's velocity at the vehicle [m/s], NED, for the next steps
+    /// (held constant over each step, as RotorPy holds it).
+    pub fn set_wind_ned(&mut self, wind_ned: Vector3<f64>) {
+        self.wind_ned = wind_ned;
+    }
+
+    /// The air's velocity at the vehicle [m/s], NED.
+    #[must_use]
+    pub fn wind_ned(&self) -> Vector3<f64> {
+        self.wind_ned
+    }
+
+    /// The aerodynamic coefficients the plant flies with.
+    #[must_use]
+    pub fn aero_coefficients(&self) -> &AeroCoefficients {
+        &self.aero_coefficients
+    }
+
+    /// The aerodynamic wrench at the start of the last step: force [N] world
+    /// NED, torque [N m] body FRD (zero when every coefficient is 0).
+    #[must_use]
+    pub fn last_aero_wrench(&self) -> ExternalWrench {
+        self.last_aero
+    }
+
+    /// The aerodynamic force and torque on the body, both body FRD [N], [N m],
+    /// at `state` with rotor speeds `speeds` [rad/s] in the wind set by
+    /// [`Self::set_wind_ned`] (the terms of the module doc; `R` from the
+    /// possibly unnormalised quaternion of an RK4 stage, divided by `|q|^2`).
+    #[must_use]
+    pub fn aero_wrench_frd(&self, state: &RigidBodyState, speeds: &RotorVector) -> (Vector3<f64>, Vector3<f64>) {
+        let r = rotation_matrix(state);
+        let c = &self.aero_coefficients;
+        let va = r.transpose() * (state.velocity_ned - self.wind_ned);
+        let speed = va.norm();
+        let mut force = Vector3::new(-speed * c.c_dx * va.x, -speed * c.c_dy * va.y, -speed * c.c_dz * va.z);
+        let mut torque = Vector3::zeros();
+        let om = &state.rate_frd;
+        for (p, &wi) in self.rotor_positions_frd[..self.n]
+            .iter()
+            .zip(&speeds.as_slice()[..self.n])
+        {
+            let vi = va + om.cross(p);
+            let lift = c.k_h * (vi.x * vi.x + vi.y * vi.y);
+            // rotor drag H_i and translational lift along -z_b, acting at the hub
+            let f = Vector3::new(-wi * c.k_d * vi.x, -wi * c.k_d * vi.y, -wi * c.k_z * vi.z - lift);
+            force += f;
+            torque += p.cross(&f) + Vector3::new(c.k_flap * wi * vi.y, -c.k_flap * wi * vi.x, 0.0);
+        }
+        (force, torque)
     }
 
     /// Simulated time [s] (`steps x dt`).
@@ -438,8 +535,11 @@ impl Plant {
             2.0 * (y * z - w * x),
             w * w - x * x - y * y + z * z,
         );
-        (self.last_external.force_ned - r_e3 * self.last_wrench.thrust_n) * self.inv_mass
-            + Vector3::new(0.0, 0.0, GRAVITY)
+        let mut f = self.last_external.force_ned - r_e3 * self.last_wrench.thrust_n;
+        if self.aero_on {
+            f += self.last_aero.force_ned;
+        }
+        f * self.inv_mass + Vector3::new(0.0, 0.0, GRAVITY)
     }
 
     /// How commands reach the body.
@@ -616,7 +716,14 @@ impl Plant {
     }
 
     #[inline(always)]
-    fn deriv(&self, s: &RigidBodyState, w: &ControlWrench, ext: &ExternalWrench, gyro_h: f64) -> Deriv {
+    fn deriv(
+        &self,
+        s: &RigidBodyState,
+        w: &ControlWrench,
+        ext: &ExternalWrench,
+        gyro_h: f64,
+        aero_speeds: Option<&RotorVector>,
+    ) -> Deriv {
         // thrust along -z_b in NED: -u_T R e3, with R e3 the third column of
         // R(q) = [2(xz + wy), 2(yz - wx), w^2 - x^2 - y^2 + z^2] / |q|^2 (RK4
         // stages carry unnormalised quaternions); one division per evaluation
@@ -624,7 +731,7 @@ impl Plant {
         let (qw, qx, qy, qz) = (q.w, q.i, q.j, q.k);
         let inv_m = self.inv_mass;
         let thrust_per_m = -w.thrust_n * inv_m / q.norm_squared();
-        let acc = Vector3::new(
+        let mut acc = Vector3::new(
             thrust_per_m * (2.0 * (qx * qz + qw * qy)) + ext.force_ned.x * inv_m,
             thrust_per_m * (2.0 * (qy * qz - qw * qx)) + ext.force_ned.y * inv_m,
             thrust_per_m * (qw * qw - qx * qx - qy * qy + qz * qz) + ext.force_ned.z * inv_m + GRAVITY,
@@ -636,6 +743,11 @@ impl Plant {
         if self.rotational_drag != 0.0 {
             // rotational drag tau_d = -gamma w (body FRD)
             torque -= om * self.rotational_drag;
+        }
+        if let Some(speeds) = aero_speeds {
+            let (f, t) = self.aero_wrench_frd(s, speeds);
+            acc += rotation_matrix(s) * f * inv_m;
+            torque += t;
         }
         let alpha = self.body_inertia.solve(&torque);
         // q' = 1/2 q (x) [0, w], written out (the product with a pure quaternion)
@@ -663,6 +775,25 @@ impl Plant {
             attitude: UnitQuaternion::new_unchecked(s.attitude.quaternion() + d.q * h),
             rate_frd: s.rate_frd + d.w * h,
         }
+    }
+
+    /// Rotor speeds [rad/s] at the stage times `t, t + h/2, t + h`: the exact
+    /// motor lag towards `target`, or (ideal actuation, no target) the speeds
+    /// that give the applied wrench `direct`, `sqrt(max(B^+ [u_T, tau], 0))`.
+    fn stage_speeds(&self, target: Option<&RotorVector>, direct: &ControlWrench) -> [RotorVector; 3] {
+        let Some(bar) = target else {
+            let w = self.allocator.inverse(direct).map(|x| x.max(0.0).sqrt());
+            return [w; 3];
+        };
+        let (decay_half, decay_full) = self.decay;
+        let mut out = [RotorVector::zeros(); 3];
+        for i in 0..self.n {
+            let (b, om0) = (bar[i], self.rotor_speed[i]);
+            out[0][i] = om0;
+            out[1][i] = b + (om0 - b) * decay_half;
+            out[2][i] = b + (om0 - b) * decay_full;
+        }
+        out
     }
 
     /// Clamp the vehicle's rotor commands to `[omega_min, omega_max]`; unused slots stay 0.
@@ -734,14 +865,24 @@ impl Plant {
         let emid = disturbance.wrench_at(t + 0.5 * h);
         let e1 = disturbance.wrench_at(t + h);
 
+        // rotor speeds at the stage times for the aerodynamic terms
+        let aero = self.aero_on.then(|| self.stage_speeds(target.as_ref(), &w0));
+        let aero_at = |k: usize| aero.as_ref().map(|a| &a[k]);
         let s = self.state;
-        let k1 = self.deriv(&s, &w0, &e0, spin_mom[0]);
+        let k1 = self.deriv(&s, &w0, &e0, spin_mom[0], aero_at(0));
         let s2 = Self::advance(&s, &k1, 0.5 * h);
-        let k2 = self.deriv(&s2, &wmid, &emid, spin_mom[1]);
+        let k2 = self.deriv(&s2, &wmid, &emid, spin_mom[1], aero_at(1));
         let s3 = Self::advance(&s, &k2, 0.5 * h);
-        let k3 = self.deriv(&s3, &wmid, &emid, spin_mom[1]);
+        let k3 = self.deriv(&s3, &wmid, &emid, spin_mom[1], aero_at(1));
         let s4 = Self::advance(&s, &k3, h);
-        let k4 = self.deriv(&s4, &w1, &e1, spin_mom[2]);
+        let k4 = self.deriv(&s4, &w1, &e1, spin_mom[2], aero_at(2));
+        if let Some(a) = &aero {
+            let (f, tq) = self.aero_wrench_frd(&s, &a[0]);
+            self.last_aero = ExternalWrench {
+                force_ned: rotation_matrix(&s) * f,
+                torque_frd: tq,
+            };
+        }
         let sixth = h / 6.0;
         let q = s.attitude.quaternion() + (k1.q + (k2.q + k3.q) * 2.0 + k4.q) * sixth;
         let mut next = RigidBodyState {

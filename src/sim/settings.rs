@@ -1,11 +1,12 @@
 //! What the parameters say about the simulated world: the `SIM_*` truth (an
 //! injected wrench, the true mass, ground and ceiling effect, the battery's
-//! floor) and the battery pack fitted (the one `BAT1_*` describes, as PX4
+//! floor, the wind) and the battery pack fitted (the one `BAT1_*` describes, as PX4
 //! SITL's battery simulator does). The flight stack never reads these.
 
 use nalgebra::Vector3;
 
 use super::plant::ExternalWrench;
+use super::wind::{Gust, WindSettings};
 use crate::params::{Param, ParamStore};
 
 /// One vehicle's world configuration, read from its parameters.
@@ -29,6 +30,8 @@ pub struct WorldSettings {
     pub battery_min_fraction: f64,
     /// What injected WRONG faults do.
     pub faults: FaultSettings,
+    /// The air: mean wind, turbulence and gusts (`SIM_WIND_*`, `SIM_GUST_*`).
+    pub wind: WindSettings,
 }
 
 /// What an injected FAILURE_TYPE_WRONG does, per unit.
@@ -80,6 +83,19 @@ impl WorldSettings {
             faults: FaultSettings {
                 motor_thrust_fraction: p.real(Param::SIM_MOT_WRONG_FR),
                 gps_offset_north_m: p.real(Param::SIM_GPS_WRONG_M),
+            },
+            wind: WindSettings {
+                speed_m_s: p.real(Param::SIM_WIND_SPD),
+                from_deg: p.real(Param::SIM_WIND_DIR),
+                dir_z_deg: p.real(Param::SIM_WIND_DIR_Z),
+                turbulence_m_s: p.real(Param::SIM_WIND_TURB),
+                gust: Gust {
+                    speed_m_s: p.real(Param::SIM_GUST_SPD),
+                    from_deg: p.real(Param::SIM_GUST_DIR),
+                    start_s: p.real(Param::SIM_GUST_T0),
+                    duration_s: p.real(Param::SIM_GUST_DUR),
+                    period_s: p.real(Param::SIM_GUST_PER),
+                },
             },
         }
     }

@@ -24,6 +24,7 @@
 //! | `rotorpilot_wrench_estimate` | 50 Hz | the momentum-based estimator (and its order) |
 //! | `rotorpilot_control_wrench` | 50 Hz | the controller's wrench |
 //! | `rotorpilot_sim_truth` | 50 Hz | the simulated world (truth) |
+//! | `rotorpilot_sim_wind` | 10 Hz | the air at the vehicle and its aerodynamic wrench (truth) |
 //!
 //! The rates are the intervals of PX4's default logger profile
 //! (`logged_topics.cpp`); status and land detection are logged on change, as
@@ -139,8 +140,14 @@ const SIM_TRUTH: Topic = topic(
      float mass_kg;",
 );
 
+const SIM_WIND: Topic = topic(
+    "rotorpilot_sim_wind",
+    100,
+    "uint64_t timestamp;float[3] wind_ned;float[3] aero_force_ned;float[3] aero_torque_frd;",
+);
+
 /// Every topic, in subscription order (message id = index).
-const TOPICS: [&Topic; 14] = [
+const TOPICS: [&Topic; 15] = [
     &ATTITUDE,
     &ANGULAR_VELOCITY,
     &LOCAL_POSITION,
@@ -155,6 +162,7 @@ const TOPICS: [&Topic; 14] = [
     &CONTROL_WRENCH,
     &SIM_TRUTH,
     &WIND,
+    &SIM_WIND,
 ];
 
 /// Message ids (indices into [`TOPICS`]).
@@ -173,6 +181,7 @@ mod id {
     pub(super) const CONTROL_WRENCH: u16 = 11;
     pub(super) const SIM_TRUTH: u16 = 12;
     pub(super) const WIND: u16 = 13;
+    pub(super) const SIM_WIND: u16 = 14;
 }
 
 /// PX4's `vehicle_status.nav_state` for a mode (`NAVIGATION_STATE_*`).
@@ -415,6 +424,14 @@ impl<W: Write> FlightUlog<W> {
                 .f32(w.true_mass_kg);
             self.ulog.data(id::SIM_TRUTH, &s)?;
         }
+        if self.due(id::SIM_WIND, k) {
+            let w = step.world;
+            let s = Sample::new(t)
+                .f32s(&v3(&w.wind_ned))
+                .f32s(&v3(&w.aero.force_ned))
+                .f32s(&v3(&w.aero.torque_frd));
+            self.ulog.data(id::SIM_WIND, &s)?;
+        }
         let pilot = core.pilot(vehicle);
         if self.due(id::WIND, k)
             && let Some(w) = pilot.wind()
@@ -576,6 +593,7 @@ mod tests {
         assert_eq!(counts[usize::from(id::TRAJECTORY_SETPOINT)], 0);
         // on the ground: no wind estimate
         assert_eq!(counts[usize::from(id::WIND)], 0);
+        assert_eq!(counts[usize::from(id::SIM_WIND)], 10);
     }
 
     #[test]
@@ -609,6 +627,7 @@ mod tests {
             (id::CONTROL_WRENCH, "rotorpilot_control_wrench"),
             (id::SIM_TRUTH, "rotorpilot_sim_truth"),
             (id::WIND, "wind"),
+            (id::SIM_WIND, "rotorpilot_sim_wind"),
         ];
         for (i, name) in names {
             assert_eq!(TOPICS[usize::from(i)].format.name, name);

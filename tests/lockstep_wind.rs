@@ -6,9 +6,25 @@
 
 mod common;
 
-use common::sitl::{Sitl, int, real};
+use common::sitl::{Sitl, SitlBuilder, int, real};
 use nalgebra::Vector3;
 use rotorpilot::airframe::{AeroCoefficients, Airframe};
+
+/// The shipped quad with drag: PX4's EKF2 drag-fusion defaults scaled to its
+/// 2 kg (`EKF2_BCOEF_X/Y` = 100 kg/m^2: `c_d = 0.5 rho m / BCOEF`;
+/// `EKF2_MCOEF` = 0.15 1/s at its hover speeds: `k_d = 0.15 m / sum omega`),
+/// so that these tests do not hang on the airframe file's own numbers.
+fn quad_with_drag() -> SitlBuilder {
+    let mut af = Airframe::load("quad").unwrap();
+    af.aero = AeroCoefficients {
+        c_dx: 0.012,
+        c_dy: 0.012,
+        c_dz: 0.02,
+        k_d: 1.0e-4,
+        ..AeroCoefficients::default()
+    };
+    Sitl::of(af)
+}
 
 /// Wind speed [m/s] and the direction it comes from [deg] of a NED wind.
 fn speed_from(w: &Vector3<f64>) -> (f64, f64) {
@@ -53,7 +69,7 @@ fn hover_in_wind(ap: &mut Sitl, seconds: f64) -> (Option<f64>, f64) {
 
 #[test]
 fn a_hovering_quad_reports_5_m_s_from_the_west_within_bounds() {
-    let mut ap = Sitl::quad().params(&[("SIM_WIND_TURB", real(0.0))]).build();
+    let mut ap = quad_with_drag().params(&[("SIM_WIND_TURB", real(0.0))]).build();
     let (settled, worst) = hover_in_wind(&mut ap, 30.0);
     let settled = settled.expect("the estimate settles within 0.5 m/s and 10 deg");
     let w = ap.telemetry().wind.unwrap();
@@ -80,7 +96,7 @@ fn rms(pairs: &[(Vector3<f64>, Vector3<f64>)]) -> f64 {
 fn under_turbulence_the_estimate_follows_the_felt_wind() {
     // MIL-F-8785C "light" at W20 = 5 m/s is sigma_w = 0.5 m/s; 1.5 m/s is "moderate"
     for sigma_w in [0.5, 1.5] {
-        let mut ap = Sitl::quad().params(&[("SIM_WIND_TURB", real(sigma_w))]).build();
+        let mut ap = quad_with_drag().params(&[("SIM_WIND_TURB", real(sigma_w))]).build();
         ap.step();
         ap.take_off_to(Some(5.0));
         ap.set_param("SIM_WIND_DIR", real(270.0));
@@ -133,7 +149,7 @@ fn an_airframe_without_drag_reports_no_wind() {
 fn feedback_of_the_estimate_holds_the_hover_closer_in_wind() {
     let mut off_on = [0.0; 2];
     for (i, comp) in [0, 1].into_iter().enumerate() {
-        let mut ap = Sitl::quad()
+        let mut ap = quad_with_drag()
             .params(&[("SIM_WIND_TURB", real(0.0)), ("EST_COMP", int(comp))])
             .build();
         ap.step();

@@ -4,7 +4,7 @@
 //! and what it sends back. The flight stack imports these, never [`crate::sim`].
 //! Also the constants everyone shares: gravity and the simulation step.
 
-use nalgebra::{Matrix3, SVector, UnitQuaternion, Vector3, Vector4};
+use nalgebra::{Matrix3, SVector, UnitQuaternion, Vector2, Vector3, Vector4};
 use serde::Serialize;
 
 /// Standard gravity [m/s^2] used everywhere (doc section 1: use 9.81 in tests).
@@ -112,6 +112,17 @@ pub struct WrenchEstimate {
     pub torque_frd: Vector3<f64>,
     /// Real mass `m + f_e,z / g` [kg].
     pub mass_kg: f64,
+}
+
+/// The wind the flight stack estimates (`estimation::wind`), at one instant.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct WindEstimate {
+    /// When it was last updated [s] (simulated time).
+    pub time_s: f64,
+    /// The wind [m/s], NED (`z` = 0: horizontal).
+    pub wind_ned: Vector3<f64>,
+    /// The variance of the solutions about it [(m/s)^2], north and east.
+    pub variance_ne: Vector2<f64>,
 }
 
 /// What a GNSS receiver reports about its fix.

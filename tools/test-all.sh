@@ -93,11 +93,13 @@ timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/
 timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_signing.py
 timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_hardening.py
 timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_startup.py
+timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_wind.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_mission.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_failsafe.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_failure.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_replay.py
+timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_wind.py
 # a fleet in one process on PX4's ports: needs UDP 14550, 14540..14543 and the instances' ports free
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_fleet.py
 timeout 900 "$VENV/mavsdk4/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk4.py

@@ -19,6 +19,7 @@
 //! | `land_detector` | landed or flying, from the measurements and the commanded thrust |
 //! | `estimate` | the wrench estimate fed back: held on the ground, cross-faded after a rebuild |
 //! | `control_loop` | estimator update, control law, allocation (around a lost rotor; relaxed hover for a quad): the loop every pilot shares |
+//! | `wind` | the wind estimate reported (WIND_COV): the estimated force through the nominal drag model, filtered |
 //! | `battery` | the battery monitor: charge used and remaining from voltage and current |
 //! | `telemetry` | the snapshot clients are told |
 //! | `settings` | the parameters as typed values, the failsafe actions among them |
@@ -107,6 +108,7 @@ mod settings;
 mod stack;
 mod status;
 mod telemetry;
+mod wind;
 
 pub use battery::BatteryWarning;
 pub use command::{AutopilotCommand, CommandOutcome, PowerAction};

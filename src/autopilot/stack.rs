@@ -17,6 +17,7 @@ use super::settings::FailsafeAction;
 use super::settings::Settings;
 use super::status::{Announcements, Severity, StatusText};
 use super::telemetry::{OrbitStatus, Telemetry, VehicleType};
+use super::wind::WindMonitor;
 use crate::airframe::{Actuation, Airframe};
 use crate::control::{ControlGains, ControllerKind, GainError, RelaxedHoverError, ShaperLimits};
 use crate::estimation::{Discretization, EstimatorConfig, MomentumEstimator};
@@ -99,6 +100,8 @@ pub struct Autopilot {
     pub(super) plans: Plans,
     /// The failsafes: data link, battery, geofence, the client clock.
     pub(super) failsafe: Failsafe,
+    /// The wind estimate (the estimated force through the nominal drag).
+    wind: WindMonitor,
 }
 
 impl Autopilot {
@@ -154,6 +157,7 @@ impl Autopilot {
             say: Announcements::default(),
             plans: Plans::default(),
             failsafe: Failsafe::default(),
+            wind: WindMonitor::new(airframe),
         };
         ap.home_ned = ap.home.ned_from(&ap.origin);
         ap.apply_params(params)?;
@@ -237,6 +241,8 @@ impl Autopilot {
             self.feedback.cancel_fade();
         }
         let estimate = self.control.sense(m);
+        let airborne = !(self.land.landed() || self.land.ground_contact());
+        self.wind.update(airborne, readings, &estimate);
         self.battery.update(&readings.battery, self.dt);
         self.supervise_battery(readings);
         let rotor_events = self.rotors.update(now, &readings.rotor_speeds_rad_s);
@@ -424,6 +430,7 @@ impl Autopilot {
                 0.0
             },
             estimate: self.control.estimate(),
+            wind: self.wind.estimate(),
             prearm_ok: self.prearm_failure(m).is_none(),
             mission: self.mission_status(),
             failed_rotors: rotor_mask(self.rotors.status(), |r| r == RotorStatus::Failed),
@@ -536,6 +543,13 @@ impl Autopilot {
     #[must_use]
     pub fn estimate(&self) -> WrenchEstimate {
         self.control.estimate()
+    }
+
+    /// The wind estimate, once settled in the air (`None` on the ground or
+    /// without a drag model to explain the force by).
+    #[must_use]
+    pub fn wind(&self) -> Option<crate::signals::WindEstimate> {
+        self.wind.estimate()
     }
 
     /// The wrench estimator (its configuration and nominal model, which a flight log's sidecar records).

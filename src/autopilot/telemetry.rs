@@ -7,7 +7,7 @@ use serde::Serialize;
 
 use super::FlightMode;
 use crate::geo::GeoPoint;
-use crate::signals::{GpsFix, WrenchEstimate};
+use crate::signals::{GpsFix, WindEstimate, WrenchEstimate};
 
 /// What the vehicle reports as its landed state (MAV_LANDED_STATE).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -103,6 +103,8 @@ pub struct Telemetry {
     pub throttle: f64,
     /// The wrench estimate (force NED, torque FRD, real mass).
     pub estimate: WrenchEstimate,
+    /// The wind the vehicle feels (NED, horizontal), once estimated (WIND_COV).
+    pub wind: Option<WindEstimate>,
     /// Prearm checks pass.
     pub prearm_ok: bool,
     /// The mission's progress (MISSION_CURRENT).

@@ -17,6 +17,7 @@
 //! * [`momentum`]: the estimator proper ([`MomentumEstimator`]): RPY channels
 //!   as in the report plus a body-frame angular variant.
 //! * [`metrics`]: 2 % settling time, overshoot and RMS error of a time series.
+//! * [`wind`]: the wind that explains the estimated force through the nominal drag model.
 //!
 //! Pure and deterministic: no clock, no I/O, no allocation per update.
 
@@ -25,6 +26,7 @@ pub mod gains;
 pub mod metrics;
 pub mod momentum;
 pub mod sweep;
+pub mod wind;
 
 pub use chain::{ChainFilter, Discretization, step_response};
 pub use gains::{MAX_ORDER, Polynomial};

@@ -989,14 +989,18 @@ pub fn autopilot_version(identity: Identity) -> MavMessage {
 }
 
 /// The messages a REQUEST_MESSAGE for `id` gets: AUTOPILOT_VERSION, or any
-/// stream's message; `None` (DENIED, as PX4) for the rest.
+/// stream's message; `None` (DENIED, as PX4) for the rest and for a stream
+/// with nothing to send (WIND_COV without a wind estimate: PX4 denies a
+/// request its stream does not answer).
 #[must_use]
 pub fn requested(id: u32, t: &Snapshot, identity: Identity) -> Option<Vec<MavMessage>> {
     if id == command::AUTOPILOT_VERSION_ID {
         return Some(vec![autopilot_version(identity)]);
     }
     // SYSTEM_TIME's unix time is not known here; 0 means "unknown".
-    Stream::from_message_id(id).map(|s| streams::build(s, t, 0))
+    Stream::from_message_id(id)
+        .map(|s| streams::build(s, t, 0))
+        .filter(|m| !m.is_empty())
 }
 
 /// MAVLink FTP opcodes and errors used here.

@@ -22,7 +22,7 @@ use mavlink::dialects::common::{
     HIL_STATE_QUATERNION_DATA, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA, MISSION_CURRENT_DATA, MavAutopilot,
     MavBatteryFunction, MavBatteryType, MavFrame, MavLandedState, MavMessage, MavModeFlag, MavState,
     MavSysStatusSensor, MavType, MavVtolState, MissionState as MavMissionState, NAMED_VALUE_FLOAT_DATA,
-    ORBIT_EXECUTION_STATUS_DATA, SYS_STATUS_DATA, SYSTEM_TIME_DATA, VFR_HUD_DATA,
+    ORBIT_EXECUTION_STATUS_DATA, SYS_STATUS_DATA, SYSTEM_TIME_DATA, VFR_HUD_DATA, WIND_COV_DATA,
 };
 
 use super::convert;
@@ -71,11 +71,13 @@ pub enum Stream {
     DebugVect,
     /// NAMED_VALUE_FLOAT (251): `EST_MASS`, and the true `SIM_MASS`.
     NamedValueFloat,
+    /// WIND_COV (231): the wind the vehicle feels, once estimated ([`wind_cov`]).
+    WindCov,
 }
 
 impl Stream {
     /// Every stream.
-    pub const ALL: [Stream; 18] = [
+    pub const ALL: [Stream; 19] = [
         Stream::Heartbeat,
         Stream::SysStatus,
         Stream::SystemTime,
@@ -94,6 +96,7 @@ impl Stream {
         Stream::ExtendedSysState,
         Stream::DebugVect,
         Stream::NamedValueFloat,
+        Stream::WindCov,
     ];
 
     /// MAVLink message id.
@@ -118,6 +121,7 @@ impl Stream {
             Stream::ExtendedSysState => EXTENDED_SYS_STATE_DATA::ID,
             Stream::DebugVect => DEBUG_VECT_DATA::ID,
             Stream::NamedValueFloat => NAMED_VALUE_FLOAT_DATA::ID,
+            Stream::WindCov => WIND_COV_DATA::ID,
         }
     }
 
@@ -131,8 +135,8 @@ impl Stream {
 /// Default stream rates [Hz] of a link.
 pub type Rates = Vec<(Stream, f64)>;
 
-/// PX4's GCS link (normal mode, after the SITL overrides), plus the
-/// estimator streams at 10 Hz.
+/// PX4's GCS link (normal mode, after the SITL overrides; WIND_COV at
+/// PX4's 0.5 Hz), plus the estimator streams at 10 Hz.
 #[must_use]
 pub fn gcs_rates() -> Rates {
     vec![
@@ -153,10 +157,12 @@ pub fn gcs_rates() -> Rates {
         (Stream::ExtendedSysState, 1.0),
         (Stream::DebugVect, 10.0),
         (Stream::NamedValueFloat, 10.0),
+        (Stream::WindCov, 0.5),
     ]
 }
 
-/// PX4's API link (onboard mode), plus the estimator streams at 10 Hz.
+/// PX4's API link (onboard mode; WIND_COV at PX4's 10 Hz), plus the
+/// estimator streams at 10 Hz.
 #[must_use]
 pub fn api_rates() -> Rates {
     vec![
@@ -177,6 +183,7 @@ pub fn api_rates() -> Rates {
         (Stream::ExtendedSysState, 5.0),
         (Stream::DebugVect, 10.0),
         (Stream::NamedValueFloat, 10.0),
+        (Stream::WindCov, 10.0),
     ]
 }
 
@@ -519,6 +526,7 @@ pub fn build(stream: Stream, snapshot: &Snapshot, unix_time_us: u64) -> Vec<MavM
                 named_float("SIM_MASS", ms, snapshot.truth.true_mass_kg),
             ];
         }
+        Stream::WindCov => return wind_cov(t).map(MavMessage::WIND_COV).into_iter().collect(),
     };
     vec![m]
 }
@@ -606,6 +614,29 @@ pub fn ground_truth(snapshot: &Snapshot) -> HIL_STATE_QUATERNION_DATA {
         yacc: convert::sat_i16(g.acceleration_ned.y.trunc()),
         zacc: convert::sat_i16(g.acceleration_ned.z.trunc()),
     }
+}
+
+/// WIND_COV as PX4 fills it (`streams/WIND_COV.hpp`) from its wind
+/// estimate: `wind_x` north, `wind_y` east [m/s], `wind_z` 0 (the estimate is
+/// horizontal), `var_horiz` the sum of the north and east variances
+/// [(m/s)^2], `var_vert` 0, `wind_alt` the altitude AMSL [m], the accuracies
+/// 0; `time_usec` the estimate's time. Nothing without an estimate (on the
+/// ground, or an airframe without drag coefficients), as PX4 sends nothing
+/// until its wind topic is published.
+#[must_use]
+pub fn wind_cov(t: &Telemetry) -> Option<WIND_COV_DATA> {
+    let w = t.wind.as_ref()?;
+    Some(WIND_COV_DATA {
+        time_usec: (w.time_s * 1e6) as u64,
+        wind_x: w.wind_ned.x as f32,
+        wind_y: w.wind_ned.y as f32,
+        wind_z: 0.0,
+        var_horiz: (w.variance_ne.x + w.variance_ne.y) as f32,
+        var_vert: 0.0,
+        wind_alt: t.global.alt_amsl_m as f32,
+        horiz_accuracy: 0.0,
+        vert_accuracy: 0.0,
+    })
 }
 
 /// HOME_POSITION from telemetry.

@@ -86,6 +86,7 @@ pub(crate) fn snapshot() -> Snapshot {
                 torque_frd: Vector3::new(0.0, 0.0, 0.2),
                 mass_kg: 1.8,
             },
+            wind: None,
             prearm_ok: true,
             mission: MissionStatus {
                 seq: 0,

@@ -183,3 +183,31 @@ fn orbit_status_only_while_orbiting() {
     );
     assert_eq!(o.z, centre.alt_amsl_m as f32);
 }
+
+#[test]
+fn wind_cov_as_px4_fills_it_and_only_once_estimated() {
+    let mut s = snapshot();
+    assert!(build(Stream::WindCov, &s, 0).is_empty(), "no estimate: nothing sent");
+    s.telemetry.wind = Some(crate::signals::WindEstimate {
+        time_s: 12.25,
+        wind_ned: nalgebra::Vector3::new(0.25, 5.0, 0.0),
+        variance_ne: nalgebra::Vector2::new(0.01, 0.02),
+    });
+    let Some(MavMessage::WIND_COV(w)) = build(Stream::WindCov, &s, 0).pop() else {
+        panic!("WIND_COV expected")
+    };
+    assert_eq!(
+        (w.time_usec, w.wind_x, w.wind_y, w.wind_z),
+        (12_250_000, 0.25, 5.0, 0.0)
+    );
+    assert_eq!((w.var_horiz, w.var_vert), (0.03, 0.0));
+    assert_eq!(w.wind_alt, s.telemetry.global.alt_amsl_m as f32);
+    assert_eq!((w.horiz_accuracy, w.vert_accuracy), (0.0, 0.0));
+    assert_eq!(Stream::from_message_id(231), Some(Stream::WindCov));
+    // PX4's rates: 0.5 Hz in normal mode (GCS), 10 Hz onboard (API)
+    let t0 = Instant::now();
+    let gcs = Scheduler::new(t0, &gcs_rates());
+    let api = Scheduler::new(t0, &api_rates());
+    assert_eq!(gcs.interval(Stream::WindCov), Some(Duration::from_secs(2)));
+    assert_eq!(api.interval(Stream::WindCov), Some(Duration::from_millis(100)));
+}

@@ -20,9 +20,11 @@
 //! | `battery_status` | 5 Hz | battery |
 //! | `vehicle_status` | 1 Hz and on change | commander |
 //! | `vehicle_land_detected` | 1 Hz and on change | land detector |
+//! | `wind` | 1 Hz, once estimated | the wind estimate (PX4's fields; no airspeed or sideslip fusion: innovations 0) |
 //! | `rotorpilot_wrench_estimate` | 50 Hz | the momentum-based estimator (and its order) |
 //! | `rotorpilot_control_wrench` | 50 Hz | the controller's wrench |
 //! | `rotorpilot_sim_truth` | 50 Hz | the simulated world (truth) |
+//! | `rotorpilot_sim_wind` | 10 Hz | the air at the vehicle and its aerodynamic wrench (truth) |
 //!
 //! The rates are the intervals of PX4's default logger profile
 //! (`logged_topics.cpp`); status and land detection are logged on change, as
@@ -111,6 +113,13 @@ const VEHICLE_STATUS: Topic = topic(
      bool pre_flight_checks_pass;",
 );
 const LAND_DETECTED: Topic = topic("vehicle_land_detected", 0, "uint64_t timestamp;bool landed;");
+const WIND: Topic = topic(
+    "wind",
+    1000,
+    "uint64_t timestamp;uint64_t timestamp_sample;float windspeed_north;\
+     float windspeed_east;float variance_north;float variance_east;float tas_innov;\
+     float tas_innov_var;float beta_innov;float beta_innov_var;",
+);
 const WRENCH_ESTIMATE: Topic = topic(
     "rotorpilot_wrench_estimate",
     20,
@@ -131,8 +140,14 @@ const SIM_TRUTH: Topic = topic(
      float mass_kg;",
 );
 
+const SIM_WIND: Topic = topic(
+    "rotorpilot_sim_wind",
+    100,
+    "uint64_t timestamp;float[3] wind_ned;float[3] aero_force_ned;float[3] aero_torque_frd;",
+);
+
 /// Every topic, in subscription order (message id = index).
-const TOPICS: [&Topic; 13] = [
+const TOPICS: [&Topic; 15] = [
     &ATTITUDE,
     &ANGULAR_VELOCITY,
     &LOCAL_POSITION,
@@ -146,6 +161,8 @@ const TOPICS: [&Topic; 13] = [
     &WRENCH_ESTIMATE,
     &CONTROL_WRENCH,
     &SIM_TRUTH,
+    &WIND,
+    &SIM_WIND,
 ];
 
 /// Message ids (indices into [`TOPICS`]).
@@ -163,6 +180,8 @@ mod id {
     pub(super) const WRENCH_ESTIMATE: u16 = 10;
     pub(super) const CONTROL_WRENCH: u16 = 11;
     pub(super) const SIM_TRUTH: u16 = 12;
+    pub(super) const WIND: u16 = 13;
+    pub(super) const SIM_WIND: u16 = 14;
 }
 
 /// PX4's `vehicle_status.nav_state` for a mode (`NAVIGATION_STATE_*`).
@@ -406,7 +425,28 @@ impl<W: Write> FlightUlog<W> {
                 .f32(w.true_mass_kg);
             self.ulog.data(id::SIM_TRUTH, &s)?;
         }
+        if self.due(id::SIM_WIND, k) {
+            let w = step.world;
+            let s = Sample::new(t)
+                .f32s(&v3(&w.wind_ned))
+                .f32s(&v3(&w.aero.force_ned))
+                .f32s(&v3(&w.aero.torque_frd));
+            self.ulog.data(id::SIM_WIND, &s)?;
+        }
         let pilot = core.pilot(vehicle);
+        if self.due(id::WIND, k)
+            && let Some(w) = pilot.wind()
+        {
+            let tw = us(w.time_s);
+            let s = Sample::new(tw)
+                .u64(tw)
+                .f32(w.wind_ned.x)
+                .f32(w.wind_ned.y)
+                .f32(w.variance_ne.x)
+                .f32(w.variance_ne.y)
+                .f32s(&[0.0; 4]);
+            self.ulog.data(id::WIND, &s)?;
+        }
         let now = Status {
             armed: pilot.armed(),
             mode: pilot.mode(),
@@ -552,6 +592,9 @@ mod tests {
         assert_eq!(counts[usize::from(id::LAND_DETECTED)], 1);
         // disarmed: no reference is tracked
         assert_eq!(counts[usize::from(id::TRAJECTORY_SETPOINT)], 0);
+        // on the ground: no wind estimate
+        assert_eq!(counts[usize::from(id::WIND)], 0);
+        assert_eq!(counts[usize::from(id::SIM_WIND)], 10);
     }
 
     #[test]
@@ -584,6 +627,8 @@ mod tests {
             (id::WRENCH_ESTIMATE, "rotorpilot_wrench_estimate"),
             (id::CONTROL_WRENCH, "rotorpilot_control_wrench"),
             (id::SIM_TRUTH, "rotorpilot_sim_truth"),
+            (id::WIND, "wind"),
+            (id::SIM_WIND, "rotorpilot_sim_wind"),
         ];
         for (i, name) in names {
             assert_eq!(TOPICS[usize::from(i)].format.name, name);

@@ -19,7 +19,8 @@ fn px4_parameters_clients_read_have_px4_types_and_defaults() {
     let s = ParamStore::new(&quad());
     for (name, want) in [
         ("MIS_TAKEOFF_ALT", ParamValue::Real32(2.5)),
-        ("RTL_RETURN_ALT", ParamValue::Real32(60.0)),
+        ("RTL_RETURN_ALT", ParamValue::Real32(30.0)),
+        ("RTL_DESCEND_ALT", ParamValue::Real32(10.0)),
         ("MPC_XY_CRUISE", ParamValue::Real32(5.0)),
         ("SYS_FAILURE_EN", ParamValue::Int32(0)),
         ("COM_OF_LOSS_T", ParamValue::Real32(1.0)),
@@ -129,10 +130,10 @@ fn save_load_round_trip_keeps_every_value_and_airframe_defaults() {
     assert_eq!(other.get("RTL_RETURN_ALT").unwrap().1, ParamValue::Real32(25.5));
     assert_eq!(other.get("SIM_MASS").unwrap().1, ParamValue::Real32(1.5));
     // saving again over the old file
-    s.set("RTL_RETURN_ALT", ParamValue::Real32(30.0)).unwrap();
+    s.set("RTL_RETURN_ALT", ParamValue::Real32(45.0)).unwrap();
     s.save(&path).unwrap();
     let (back, _) = ParamStore::load(&quad(), &path).unwrap();
-    assert_eq!(back.get("RTL_RETURN_ALT").unwrap().1, ParamValue::Real32(30.0));
+    assert_eq!(back.get("RTL_RETURN_ALT").unwrap().1, ParamValue::Real32(45.0));
     assert_eq!(fs::read_dir(&dir).unwrap().count(), 1, "no temporary file left");
     let (missing, w) = ParamStore::load_or_default(&quad(), &dir.join("none.toml")).unwrap();
     assert_eq!(missing, ParamStore::new(&quad()));
@@ -194,18 +195,6 @@ const SHARED_WITH_PX4: &[&str] = &[
 /// Shared parameters whose default here differs from PX4 SITL's boot value,
 /// each with PX4's value and why: (name, rotorpilot, PX4 SITL, reason).
 const DEVIATIONS: &[(&str, f64, f64, &str)] = &[
-    (
-        "RTL_RETURN_ALT",
-        60.0,
-        30.0,
-        "PX4's module default; rc.mc_defaults sets 30",
-    ),
-    (
-        "RTL_DESCEND_ALT",
-        30.0,
-        10.0,
-        "PX4's module default; rc.mc_defaults sets 10",
-    ),
     (
         "MC_ACRO_R_MAX",
         720.0,

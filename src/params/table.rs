@@ -134,8 +134,8 @@ impl Param {
 parameters! {
     // --- PX4: mission, return, navigation -------------------------------------------------------
     MIS_TAKEOFF_ALT: real(2.5, 0.0, 80.0, "m", "Takeoff altitude above home (a lower takeoff target is raised to it)"),
-    RTL_RETURN_ALT: real(60.0, 0.0, 150.0, "m", "RTL: climb to at least this altitude above home before returning"),
-    RTL_DESCEND_ALT: real(30.0, 2.0, 100.0, "m", "RTL: above home, descend to this altitude before landing"),
+    RTL_RETURN_ALT: real(30.0, 0.0, 150.0, "m", "RTL: climb to at least this altitude above home before returning"),
+    RTL_DESCEND_ALT: real(10.0, 2.0, 100.0, "m", "RTL: above home, descend to this altitude before landing"),
     NAV_ACC_RAD: real(2.0, 0.05, 200.0, "m", "Horizontal acceptance radius of a target (mission items without their own, RTL arrival over home)"),
     NAV_MC_ALT_RAD: real(0.8, 0.05, 200.0, "m", "Vertical acceptance radius of a mission item"),
     // --- PX4: multicopter position control --------------------------------------------------------

@@ -35,7 +35,7 @@ fn json_lists_every_parameter_in_index_order() {
     let json: serde_json::Value = serde_json::from_str(&rotorpilot(&["params", "--json"])).expect("JSON");
     let list = json.as_array().expect("a list");
     assert_eq!(list.len(), rotorpilot::params::PARAMS.len());
-    for (i, (p, spec)) in list.iter().zip(rotorpilot::params::PARAMS).enumerate() {
+    for (i, (p, spec)) in list.iter().zip(rotorpilot::params::PARAMS.iter()).enumerate() {
         assert_eq!(p["name"], spec.name);
         assert_eq!(p["index"], i);
         assert_eq!(p["type"], spec.kind.name());

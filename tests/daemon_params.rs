@@ -77,7 +77,9 @@ async fn list_is_complete_ordered_and_consistent() {
         }
     }
     let n = got[0].param_count;
-    assert!(n >= 30, "{n} parameters");
+    // the whole table: rotorpilot's and every other PX4 SITL multicopter parameter
+    assert_eq!(usize::from(n), rotorpilot::params::PARAMS.len(), "{n} parameters");
+    assert!(n > 1000, "{n} parameters");
     assert_eq!(got.len(), usize::from(n));
     for (i, p) in got.iter().enumerate() {
         assert_eq!(usize::from(p.param_index), i, "index order");

@@ -19,7 +19,8 @@ fn px4_parameters_clients_read_have_px4_types_and_defaults() {
     let s = ParamStore::new(&quad());
     for (name, want) in [
         ("MIS_TAKEOFF_ALT", ParamValue::Real32(2.5)),
-        ("RTL_RETURN_ALT", ParamValue::Real32(60.0)),
+        ("RTL_RETURN_ALT", ParamValue::Real32(30.0)),
+        ("RTL_DESCEND_ALT", ParamValue::Real32(10.0)),
         ("MPC_XY_CRUISE", ParamValue::Real32(5.0)),
         ("SYS_FAILURE_EN", ParamValue::Int32(0)),
         ("COM_OF_LOSS_T", ParamValue::Real32(1.0)),
@@ -129,13 +130,176 @@ fn save_load_round_trip_keeps_every_value_and_airframe_defaults() {
     assert_eq!(other.get("RTL_RETURN_ALT").unwrap().1, ParamValue::Real32(25.5));
     assert_eq!(other.get("SIM_MASS").unwrap().1, ParamValue::Real32(1.5));
     // saving again over the old file
-    s.set("RTL_RETURN_ALT", ParamValue::Real32(30.0)).unwrap();
+    s.set("RTL_RETURN_ALT", ParamValue::Real32(45.0)).unwrap();
     s.save(&path).unwrap();
     let (back, _) = ParamStore::load(&quad(), &path).unwrap();
-    assert_eq!(back.get("RTL_RETURN_ALT").unwrap().1, ParamValue::Real32(30.0));
+    assert_eq!(back.get("RTL_RETURN_ALT").unwrap().1, ParamValue::Real32(45.0));
     assert_eq!(fs::read_dir(&dir).unwrap().count(), 1, "no temporary file left");
     let (missing, w) = ParamStore::load_or_default(&quad(), &dir.join("none.toml")).unwrap();
     assert_eq!(missing, ParamStore::new(&quad()));
     assert!(w.is_empty());
     fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Every parameter rotorpilot implements that PX4 SITL's multicopter also
+/// has: this list is exact, so a parameter newly shared is a deliberate step.
+const SHARED_WITH_PX4: &[&str] = &[
+    "MIS_TAKEOFF_ALT",
+    "RTL_RETURN_ALT",
+    "RTL_DESCEND_ALT",
+    "NAV_ACC_RAD",
+    "NAV_MC_ALT_RAD",
+    "MPC_XY_CRUISE",
+    "MPC_XY_VEL_MAX",
+    "MPC_Z_VEL_MAX_UP",
+    "MPC_Z_VEL_MAX_DN",
+    "MPC_TKO_SPEED",
+    "MPC_LAND_SPEED",
+    "MPC_LAND_ALT1",
+    "COM_OF_LOSS_T",
+    "COM_OBL_RC_ACT",
+    "COM_DISARM_LAND",
+    "COM_DISARM_PRFLT",
+    "COM_ACT_FAIL_ACT",
+    "COM_RC_LOSS_T",
+    "NAV_RCL_ACT",
+    "MPC_VEL_MANUAL",
+    "MPC_MAN_Y_MAX",
+    "MPC_HOLD_DZ",
+    "MPC_MAN_TILT_MAX",
+    "MPC_MANTHR_MIN",
+    "MC_ACRO_R_MAX",
+    "MC_ACRO_P_MAX",
+    "MC_ACRO_Y_MAX",
+    "MC_ACRO_EXPO",
+    "MC_ACRO_EXPO_Y",
+    "MC_ACRO_SUPEXPO",
+    "MC_ACRO_SUPEXPOY",
+    "SYS_FAILURE_EN",
+    "MAV_SYS_ID",
+    "MAV_COMP_ID",
+    "BAT1_N_CELLS",
+    "BAT1_CAPACITY",
+    "SIM_BAT_MIN_PCT",
+    "COM_DL_LOSS_T",
+    "NAV_DLL_ACT",
+    "BAT_LOW_THR",
+    "BAT_CRIT_THR",
+    "BAT_EMERGEN_THR",
+    "COM_LOW_BAT_ACT",
+    "GF_ACTION",
+    "GF_MAX_HOR_DIST",
+    "GF_MAX_VER_DIST",
+];
+
+/// Shared parameters whose default here differs from PX4 SITL's boot value,
+/// each with PX4's value and why: (name, rotorpilot, PX4 SITL, reason).
+const DEVIATIONS: &[(&str, f64, f64, &str)] = &[
+    (
+        "MC_ACRO_R_MAX",
+        720.0,
+        100.0,
+        "PX4 v1.14's acro rates; later PX4 made them beginner-friendly",
+    ),
+    ("MC_ACRO_P_MAX", 720.0, 100.0, "as MC_ACRO_R_MAX"),
+    ("MC_ACRO_Y_MAX", 540.0, 100.0, "as MC_ACRO_R_MAX"),
+    ("MC_ACRO_EXPO", 0.69, 0.0, "as MC_ACRO_R_MAX"),
+    ("MC_ACRO_EXPO_Y", 0.69, 0.0, "as MC_ACRO_R_MAX"),
+    ("MC_ACRO_SUPEXPO", 0.7, 0.0, "as MC_ACRO_R_MAX"),
+    ("MC_ACRO_SUPEXPOY", 0.7, 0.0, "as MC_ACRO_R_MAX"),
+    (
+        "SYS_FAILURE_EN",
+        0.0,
+        1.0,
+        "PX4 SITL's rcS enables failure injection; here it must be asked for",
+    ),
+    (
+        "BAT1_CAPACITY",
+        5000.0,
+        -1.0,
+        "the simulated pack's capacity; PX4's -1 is 'unknown'",
+    ),
+    (
+        "NAV_DLL_ACT",
+        0.0,
+        2.0,
+        "the x500 airframe sets Return on data-link loss; here none by default",
+    ),
+    (
+        "COM_LOW_BAT_ACT",
+        0.0,
+        3.0,
+        "PX4 SITL's rcS sets Return/Land; here a warning by default",
+    ),
+];
+
+#[test]
+fn shared_defaults_are_px4_sitl_boot_defaults() {
+    use rotorpilot::params::{Effect, px4_params};
+    let px4 = px4_params();
+    let s = ParamStore::new(&quad());
+    let shared: Vec<&str> = PARAMS
+        .iter()
+        .filter(|p| p.effect == Effect::Acts && px4.iter().any(|q| q.name == p.name))
+        .map(|p| p.name)
+        .collect();
+    assert_eq!(shared, SHARED_WITH_PX4, "the parameters shared with PX4");
+    for name in SHARED_WITH_PX4 {
+        let theirs = px4.iter().find(|q| q.name == *name).unwrap();
+        let (i, ours) = s.get(name).unwrap();
+        assert_eq!(s.spec(i).unwrap().kind, theirs.kind, "{name}: PX4's type");
+        let px4_default = match theirs.kind {
+            ParamType::Int32 => ParamValue::Int32(theirs.default as i32),
+            ParamType::Real32 => ParamValue::Real32(theirs.default as f32),
+        };
+        match DEVIATIONS.iter().find(|d| d.0 == *name) {
+            None => assert_eq!(ours, px4_default, "{name}: PX4 SITL boots with {px4_default}"),
+            Some(&(_, here, there, why)) => {
+                assert_eq!(
+                    ours.as_f64() as f32,
+                    here as f32,
+                    "{name}: the listed deviation ({why})"
+                );
+                assert_eq!(theirs.default as f32, there as f32, "{name}: PX4's value moved");
+                assert_ne!(ours, px4_default, "{name} now matches PX4: drop it from DEVIATIONS");
+            }
+        }
+    }
+}
+
+#[test]
+fn px4_parameters_rotorpilot_does_not_use_are_stored_checked_and_saved() {
+    use rotorpilot::params::{Effect, px4_params};
+    let mut s = ParamStore::new(&quad());
+    // every PX4 parameter exists here, with PX4's type and boot default
+    for q in px4_params() {
+        let (i, v) = s.get(q.name).unwrap_or_else(|| panic!("{} missing", q.name));
+        assert_eq!(s.spec(i).unwrap().kind, q.kind, "{}", q.name);
+        if s.spec(i).unwrap().effect == Effect::StoredOnly {
+            assert_eq!(v.as_f64() as f32, q.default as f32, "{}", q.name);
+        }
+    }
+    // the ones PX4's own integration tests set
+    assert_eq!(
+        s.set("MPC_Z_V_AUTO_DN", ParamValue::Real32(2.5)),
+        Ok(ParamValue::Real32(2.5))
+    );
+    assert_eq!(s.set("RTL_TYPE", ParamValue::Int32(1)), Ok(ParamValue::Int32(1)));
+    assert_eq!(s.set("RTL_APPR_FORCE", ParamValue::Int32(1)), Ok(ParamValue::Int32(1)));
+    assert_eq!(s.set("EKF2_HGT_REF", ParamValue::Int32(0)), Ok(ParamValue::Int32(0)));
+    // PX4's range: MPC_Z_V_AUTO_DN is 0.5 .. 4 m/s
+    assert!(matches!(
+        s.set("MPC_Z_V_AUTO_DN", ParamValue::Real32(9.0)),
+        Err(ParamError::OutOfRange { .. })
+    ));
+    assert!(matches!(
+        s.set("RTL_TYPE", ParamValue::Real32(1.0)),
+        Err(ParamError::WrongType { .. })
+    ));
+    let mut back = ParamStore::new(&quad());
+    let warnings = back.apply_file_text(&s.to_file_text(), "params.toml");
+    assert!(warnings.is_empty(), "{warnings:?}");
+    for name in ["MPC_Z_V_AUTO_DN", "RTL_TYPE", "RTL_APPR_FORCE", "EKF2_HGT_REF"] {
+        assert_eq!(back.get(name), s.get(name), "{name} saved and read back");
+    }
 }

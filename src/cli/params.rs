@@ -5,7 +5,7 @@
 
 use std::fmt::Write as _;
 
-use crate::params::{PARAMS, ParamSpec, ParamType};
+use crate::params::{Effect, PARAMS, ParamSpec, ParamType};
 
 /// The command that writes `docs/parameters.md`.
 pub const REGENERATE: &str = "cargo run --release -- params --markdown > docs/parameters.md";
@@ -43,6 +43,8 @@ fn number(p: &ParamSpec, x: f64) -> String {
     match p.kind {
         // integer entries are whole numbers (a table test checks it)
         ParamType::Int32 => format!("{}", x as i64),
+        // PX4 declared no bound: the range is f32's
+        ParamType::Real32 if x.abs() >= f64::from(f32::MAX) => format!("{:e}", x as f32),
         ParamType::Real32 => format!("{x}"),
     }
 }
@@ -76,9 +78,12 @@ fn values_line(p: &ParamSpec) -> String {
 #[must_use]
 pub fn text() -> String {
     let mut out = String::new();
-    for p in PARAMS {
+    for p in PARAMS.iter() {
         let _ = writeln!(out, "{} ({})", p.name, p.kind);
         let _ = writeln!(out, "  {}", p.description);
+        if p.effect == Effect::StoredOnly {
+            let _ = writeln!(out, "  {NO_EFFECT}");
+        }
         if !p.values.is_empty() {
             let _ = writeln!(out, "  Values: {}", values_line(p));
         }
@@ -96,6 +101,9 @@ pub fn text() -> String {
     }
     out
 }
+
+/// How the references mark a parameter rotorpilot stores but does not use.
+const NO_EFFECT: &str = "No effect here (PX4 parameter: stored, range-checked and saved only)";
 
 /// Every parameter as one JSON object, in index order.
 #[must_use]
@@ -121,10 +129,17 @@ pub fn json() -> serde_json::Value {
                     .map(|(v, meaning)| serde_json::json!({"value": v, "description": meaning}))
                     .collect::<Vec<_>>(),
                 "reboot_required": p.reboot_required,
+                "effect": match p.effect {
+                    Effect::Acts => "acts",
+                    Effect::StoredOnly => "none",
+                },
             })
         })
         .collect()
 }
+
+/// The section of `docs/parameters.md` on where PX4's parameters come from.
+const PX4_SOURCE: &str = include_str!("params_px4_source.md");
 
 /// `docs/parameters.md`: a heading, how it is made, and one table row per
 /// parameter (`|` in a text escaped).
@@ -140,15 +155,38 @@ pub fn markdown() -> String {
          PARAM_ERROR. Values are saved in the vehicle's state directory\n\
          (`params.toml`) and kept across restarts.\n\n\
          `SIM_MASS` and `MDL_MASS` default to the airframe's nominal mass; the\n\
-         default shown is the `quad`'s.\n\n",
+         default shown is the `quad`'s.\n\n\
+         The first parameters are the ones rotorpilot implements (column Acts:\n\
+         yes). Then come the other parameters PX4 SITL's default multicopter\n\
+         (gz_x500) boots with, with PX4's name, type, boot default, range, unit\n\
+         and short description: a script written for PX4 can set and read them,\n\
+         and they are saved like the others, but they have no effect here (Acts:\n\
+         no). They come from `params/px4-multicopter.tsv`, which\n\
+         `tools/px4_params.py` extracts from PX4's own parameter definitions;\n\
+         [the section below](#where-the-px4-parameters-come-from) says which\n\
+         PX4 commit, which modules, and how to refresh it.\n\n",
     );
     let _ = write!(
         out,
         "Generated from the parameter table (`src/params/table.rs`) by\n`{REGENERATE}`;\n\
          `rotorpilot params` prints it as text, `rotorpilot params --json` as JSON.\n\n"
     );
-    out.push_str("| Name | Type | Default | Min | Max | Unit | Description |\n|---|---|---|---|---|---|---|\n");
-    for p in PARAMS {
+    out.push_str(PX4_SOURCE);
+    let stored = PARAMS.iter().filter(|p| p.effect == Effect::StoredOnly).count();
+    let _ = write!(
+        out,
+        "The data file lists {} PX4 parameters; {} of them are implemented here. \
+         With rotorpilot's own, {} parameters in all, {} of them acting.\n\n",
+        crate::params::px4_params().len(),
+        crate::params::px4_params().len() - stored,
+        PARAMS.len(),
+        PARAMS.len() - stored,
+    );
+    out.push_str(
+        "## The parameters\n\n\
+         | Name | Type | Default | Min | Max | Unit | Acts | Description |\n|---|---|---|---|---|---|---|---|\n",
+    );
+    for p in PARAMS.iter() {
         let mut description = cell(p.description);
         if !p.values.is_empty() {
             let _ = write!(description, ". Values: {}", cell(&values_line(p)));
@@ -158,13 +196,17 @@ pub fn markdown() -> String {
         }
         let _ = writeln!(
             out,
-            "| `{}` | {} | {} | {} | {} | {} | {} |",
+            "| `{}` | {} | {} | {} | {} | {} | {} | {} |",
             p.name,
             p.kind,
             number(p, p.default),
             number(p, p.min),
             number(p, p.max),
-            p.unit,
+            cell(p.unit),
+            match p.effect {
+                Effect::Acts => "yes",
+                Effect::StoredOnly => "no",
+            },
             description
         );
     }
@@ -201,20 +243,31 @@ mod tests {
     fn formats_carry_type_range_unit_values_and_reboot() {
         let md = markdown();
         assert!(
-            md.contains("| `MIS_TAKEOFF_ALT` | REAL32 | 2.5 | 0 | 80 | m | Takeoff altitude"),
+            md.contains("| `MIS_TAKEOFF_ALT` | REAL32 | 2.5 | 0 | 80 | m | yes | Takeoff altitude"),
             "{md}"
         );
         assert!(
-            md.contains("| `CTRL_TYPE` | INT32 | 1 | 0 | 2 |  | Control law"),
+            md.contains("| `CTRL_TYPE` | INT32 | 1 | 0 | 2 |  | yes | Control law"),
             "{md}"
         );
         assert!(
             md.contains("Values: 0: hierarchical, 1: geometric, 2: passivity |"),
             "{md}"
         );
-        assert!(md.contains("| `MAV_SYS_ID` | INT32 | 1 | 1 | 250 |  | MAVLink system id: --instance + 1"));
+        assert!(md.contains("| `MAV_SYS_ID` | INT32 | 1 | 1 | 250 |  | yes | MAVLink system id: --instance + 1"));
+        // a PX4 parameter rotorpilot stores without using, with PX4's range and unit
+        assert!(
+            md.contains(
+                "| `MPC_Z_V_AUTO_DN` | REAL32 | 1.5 | 0.5 | 4 | m/s | no | Descent velocity in autonomous modes |"
+            ),
+            "{md}"
+        );
+        assert!(md.contains("| `RTL_TYPE` | INT32 | 0 | -2147483648 | 2147483647 |  | no | Return type |"));
         let t = text();
         assert!(t.contains("MPC_XY_CRUISE (REAL32)\n  Cruise ground speed"));
+        assert!(t.contains(&format!(
+            "EKF2_HGT_REF (INT32)\n  Determines the reference source of height data used by the EKF\n  {NO_EFFECT}\n"
+        )));
         assert!(t.contains("  Default 5 m/s, range 0.5 .. 20 m/s\n"));
         assert!(t.contains("GF_ACTION (INT32)\n  Geofence breach action\n  Values: 0: none, 1: warning, 2: Hold"));
         let js = json();
@@ -226,6 +279,8 @@ mod tests {
             serde_json::json!({"value": 3, "description": "Return"})
         );
         assert_eq!(gf["reboot_required"], false);
+        assert_eq!(gf["effect"], "acts");
+        assert_eq!(param(&js, "RTL_APPR_FORCE")["effect"], "none");
         let alt = param(&js, "MIS_TAKEOFF_ALT");
         assert_eq!(alt["default"], serde_json::json!(2.5));
         assert_eq!(alt["unit"], "m");

@@ -22,9 +22,10 @@ pub const UNPROVEN_MAX_CREDIT: usize = 4096;
 /// Every unproven peer of a link together [bytes/s] (and as a burst).
 pub const UNPROVEN_POOL_RATE: f64 = 8192.0;
 /// A proven peer's direct answers (not streams) [bytes/s] (and as a burst):
-/// a full parameter list is about 2.5 kB (67 PARAM_VALUEs of 37 bytes; 3.4 kB
-/// signed), a mission item about 50 bytes.
-pub const PROVEN_RATE: f64 = 32_768.0;
+/// a full parameter list is about 49 kB (PX4 SITL's multicopter parameters,
+/// about 1,300 PARAM_VALUEs of 37 bytes; 66 kB signed), a mission item about
+/// 50 bytes.
+pub const PROVEN_RATE: f64 = 65_536.0;
 /// A link's streams to all its peers together [bytes/s] (and twice as a
 /// burst); heartbeats are never held back. Default rates to one peer are
 /// estimated at about 12 kB/s (GCS link) and 20 kB/s (API link).

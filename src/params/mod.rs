@@ -3,7 +3,10 @@
 //! PARAM_* protocol, the persisted file and the parameter reference
 //! (`rotorpilot params`, `docs/parameters.md`) derive from it.
 //!
-//! * [`PARAMS`] (`table.rs`): the table, in MAVLink index order.
+//! * [`PARAMS`] (`table.rs`): the table, in MAVLink index order: the
+//!   parameters rotorpilot implements, then the rest of PX4 SITL's
+//!   multicopter parameters (`px4.rs`, from `params/px4-multicopter.tsv`),
+//!   stored without effect ([`Effect`]).
 //! * [`ParamStore`] (`store.rs`): typed values with airframe-dependent
 //!   defaults, checked `set` that changes nothing on refusal ([`ParamError`]).
 //! * persistence (`file.rs`): [`ParamStore::save`] writes a small TOML file
@@ -16,10 +19,12 @@
 //! Pure: no clock, no global state; only `save`/`load` touch the file system.
 
 mod file;
+mod px4;
 mod store;
 mod table;
 
 pub use file::{Loaded, ParamFileError, set_aside_path};
+pub use px4::{Px4Param, px4_params};
 pub use store::{ParamError, ParamStore};
 pub use table::{PARAMS, Param};
 
@@ -187,6 +192,19 @@ pub struct ParamSpec {
     /// The value is stored and persisted at once but used only from the next
     /// start (PX4's `reboot_required`), e.g. `MAV_SYS_ID`.
     pub reboot_required: bool,
+    /// Whether setting it changes anything here.
+    pub effect: Effect,
+}
+
+/// What a parameter does in rotorpilot.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum Effect {
+    /// rotorpilot implements it: its value is used.
+    Acts,
+    /// One of PX4's parameters that rotorpilot does not implement: stored,
+    /// range-checked and persisted so a script written for PX4 can set and
+    /// read it, but it changes nothing here.
+    StoredOnly,
 }
 
 impl ParamSpec {

@@ -62,11 +62,12 @@ impl ParamStore {
     /// Every parameter at its default for `airframe`.
     #[must_use]
     pub fn new(airframe: &Airframe) -> Self {
-        let defaults: Vec<ParamValue> = Param::ALL
+        let defaults: Vec<ParamValue> = PARAMS
             .iter()
-            .map(|&p| match p {
-                Param::SIM_MASS | Param::MDL_MASS => Self::airframe_mass(p.spec(), airframe.mass_kg),
-                _ => p.spec().default_value(),
+            .enumerate()
+            .map(|(i, spec)| match Param::ALL.get(i) {
+                Some(Param::SIM_MASS | Param::MDL_MASS) => Self::airframe_mass(spec, airframe.mass_kg),
+                _ => spec.default_value(),
             })
             .collect();
         Self {
@@ -107,7 +108,7 @@ impl ParamStore {
     /// Index of `name` (exact, case-sensitive, as PX4).
     #[must_use]
     pub fn index_of(&self, name: &str) -> Option<usize> {
-        PARAMS.iter().position(|p| p.name == name)
+        super::table::index_of(name)
     }
 
     /// Index and value of `name`.

@@ -1,9 +1,14 @@
-//! The parameter table: every parameter once, as data, in MAVLink index order
-//! (PX4 names and defaults first, then rotorpilot's own). PX4 defaults and
-//! ranges are from PX4 v1.14 `module.yaml`/`*_params.c` where a client reads
-//! them. `rotorpilot params` prints it (`--markdown` is `docs/parameters.md`).
+//! The parameter table: every parameter once, as data, in MAVLink index order.
+//! First the parameters rotorpilot implements (PX4 names first, then
+//! rotorpilot's own), declared here with a [`Param`] each; then every other
+//! parameter PX4 SITL's multicopter boots with, from `params/px4-multicopter.tsv`
+//! (`px4.rs`), stored but without effect. `rotorpilot params` prints it
+//! (`--markdown` is `docs/parameters.md`).
 
-use super::{ParamSpec, ParamType};
+use std::sync::LazyLock;
+
+use super::px4::px4_params;
+use super::{Effect, ParamSpec, ParamType};
 
 /// A REAL32 parameter.
 const fn real(
@@ -24,6 +29,7 @@ const fn real(
         description,
         values: &[],
         reboot_required: false,
+        effect: Effect::Acts,
     }
 }
 
@@ -39,6 +45,7 @@ const fn int(name: &'static str, default: i32, min: i32, max: i32, description: 
         description,
         values: &[],
         reboot_required: false,
+        effect: Effect::Acts,
     }
 }
 
@@ -81,11 +88,33 @@ macro_rules! parameters {
             pub const ALL: &'static [Param] = &[$(Param::$name),*];
         }
 
-        /// Every parameter, in index order.
-        pub static PARAMS: &[ParamSpec] = &[
+        /// The parameters rotorpilot implements, in index order (the first of [`PARAMS`]).
+        static IMPLEMENTED: &[ParamSpec] = &[
             $( $(#[$meta])* $ctor(stringify!($name), $($arg),*), )*
         ];
     };
+}
+
+/// Every parameter, in MAVLink index order: the implemented ones (index =
+/// `Param::X as usize`), then PX4's others in name order, each once.
+pub static PARAMS: LazyLock<Vec<ParamSpec>> = LazyLock::new(|| {
+    let mut all = IMPLEMENTED.to_vec();
+    all.extend(
+        px4_params()
+            .iter()
+            .filter(|p| IMPLEMENTED.iter().all(|q| q.name != p.name))
+            .map(|p| p.stored_only()),
+    );
+    all
+});
+
+/// Index of every parameter by name.
+static INDEX: LazyLock<std::collections::HashMap<&'static str, usize>> =
+    LazyLock::new(|| PARAMS.iter().enumerate().map(|(i, p)| (p.name, i)).collect());
+
+/// The index of parameter `name` (exact, case-sensitive, as PX4).
+pub(super) fn index_of(name: &str) -> Option<usize> {
+    INDEX.get(name).copied()
 }
 
 impl Param {
@@ -105,8 +134,8 @@ impl Param {
 parameters! {
     // --- PX4: mission, return, navigation -------------------------------------------------------
     MIS_TAKEOFF_ALT: real(2.5, 0.0, 80.0, "m", "Takeoff altitude above home (a lower takeoff target is raised to it)"),
-    RTL_RETURN_ALT: real(60.0, 0.0, 150.0, "m", "RTL: climb to at least this altitude above home before returning"),
-    RTL_DESCEND_ALT: real(30.0, 2.0, 100.0, "m", "RTL: above home, descend to this altitude before landing"),
+    RTL_RETURN_ALT: real(30.0, 0.0, 150.0, "m", "RTL: climb to at least this altitude above home before returning"),
+    RTL_DESCEND_ALT: real(10.0, 2.0, 100.0, "m", "RTL: above home, descend to this altitude before landing"),
     NAV_ACC_RAD: real(2.0, 0.05, 200.0, "m", "Horizontal acceptance radius of a target (mission items without their own, RTL arrival over home)"),
     NAV_MC_ALT_RAD: real(0.8, 0.05, 200.0, "m", "Vertical acceptance radius of a mission item"),
     // --- PX4: multicopter position control --------------------------------------------------------
@@ -294,7 +323,7 @@ mod tests {
             if p.kind == ParamType::Int32 {
                 for x in [p.default, p.min, p.max] {
                     assert_eq!(x.fract(), 0.0, "{}", p.name);
-                    assert!(x.abs() < f64::from(i32::MAX));
+                    assert!(x.abs() <= f64::from(i32::MAX) + 1.0);
                 }
             } else {
                 // the f32 default must itself pass the f32 range check
@@ -306,7 +335,14 @@ mod tests {
 
     #[test]
     fn every_param_names_its_own_entry() {
-        assert_eq!(Param::ALL.len(), PARAMS.len());
+        assert_eq!(Param::ALL.len(), IMPLEMENTED.len());
+        assert_eq!(&PARAMS[..IMPLEMENTED.len()], IMPLEMENTED);
+        assert!(
+            PARAMS[IMPLEMENTED.len()..]
+                .iter()
+                .all(|p| p.effect == Effect::StoredOnly)
+        );
+        assert!(IMPLEMENTED.iter().all(|p| p.effect == Effect::Acts));
         for (i, p) in Param::ALL.iter().enumerate() {
             assert_eq!(*p as usize, i);
             assert_eq!(p.spec().name, format!("{p:?}"));
@@ -316,7 +352,7 @@ mod tests {
     #[test]
     fn listed_values_ascend_in_range_and_name_the_default() {
         let mut listed = 0;
-        for p in PARAMS {
+        for p in PARAMS.iter() {
             if p.values.is_empty() {
                 continue;
             }

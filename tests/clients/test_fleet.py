@@ -46,7 +46,7 @@ M_PER_DEG = common.M_PER_DEG_LAT
 ARMED = mavlink.MAV_MODE_FLAG_SAFETY_ARMED
 # SYS_STATUS health: PX4's pre-arm check bit (all checks pass)
 PREARM_OK = 0x10000000
-# a short RTL for the mission: climb to 10 m, not PX4's 60 m
+# a short RTL for the mission: climb to 10 m, not PX4 SITL's 30 m
 SHORT_RTL = {"RTL_RETURN_ALT": 10.0, "RTL_DESCEND_ALT": 10.0}
 
 

@@ -33,7 +33,7 @@ from mavsdk.telemetry import FlightMode  # noqa: E402
 FAST = 20.0
 PLAN = HERE.parents[1] / "tools" / "missions" / "home-square.plan"
 M_PER_DEG = common.M_PER_DEG_LAT
-# a short RTL for the flights: climb to 10 m, not PX4's 60 m
+# a short RTL for the flights: climb to 10 m, not PX4 SITL's 30 m
 SHORT_RTL = {"RTL_RETURN_ALT": 10.0, "RTL_DESCEND_ALT": 10.0}
 
 

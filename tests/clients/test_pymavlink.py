@@ -184,6 +184,71 @@ def test_param_fetch_set_and_refuse(vehicle):
     assert param_get(m, "MIS_TAKEOFF_ALT").param_value == 3.0
 
 
+# PX4 parameters that PX4's own integration tests (test/mavsdk_tests) set:
+# name -> (MAVLink type, PX4 SITL's boot default, a value to set)
+PX4_TEST_PARAMS = {
+    "MPC_Z_V_AUTO_DN": (mavlink.MAV_PARAM_TYPE_REAL32, 1.5, 2.5),
+    "RTL_TYPE": (mavlink.MAV_PARAM_TYPE_INT32, 0, 1),
+    "RTL_APPR_FORCE": (mavlink.MAV_PARAM_TYPE_INT32, 0, 1),
+    "EKF2_HGT_REF": (mavlink.MAV_PARAM_TYPE_INT32, 1, 0),
+}
+
+
+def wire_value(p):
+    return float_as_int32(p.param_value) if p.param_type == mavlink.MAV_PARAM_TYPE_INT32 else p.param_value
+
+
+def test_px4_parameters_px4s_integration_tests_set(vehicle):
+    """A script written for PX4 sets the parameters PX4's own tests set: each
+    exists with PX4's type and boot default, a set is echoed and reads back
+    by name and by index, and PX4's range is enforced."""
+    m = connect(vehicle)
+    for name, (kind, default, value) in PX4_TEST_PARAMS.items():
+        p = param_get(m, name)
+        assert p is not None, f"{name}: no PARAM_VALUE (DOES_NOT_EXIST?)"
+        assert p.param_type == kind, name
+        assert wire_value(p) == default, f"{name} boots at {wire_value(p)}"
+        a = param_answers(m, name, value, kind)
+        assert kinds(a) == ["PARAM_VALUE", "PARAM_VALUE"], f"{name}: {a}"
+        assert all(wire_value(v) == value for v in a), a
+        assert wire_value(param_get(m, name)) == value, f"{name} read back by name"
+        drain(m)
+        m.mav.param_request_read_send(m.target_system, m.target_component, b"", p.param_index)
+        by_index = wait(m, "PARAM_VALUE", lambda q: q.param_index == p.param_index, 3.0)
+        assert by_index is not None and by_index.param_id == name, f"{name} by index {p.param_index}"
+        assert wire_value(by_index) == value
+    # PX4's range for MPC_Z_V_AUTO_DN is 0.5 .. 4 m/s
+    a = param_answers(m, "MPC_Z_V_AUTO_DN", 9.0)
+    assert kinds(a) == ["PARAM_ERROR", "PARAM_VALUE"], a
+    assert a[0].error == mavlink.MAV_PARAM_ERROR_VALUE_OUT_OF_RANGE
+    assert a[1].param_value == 2.5
+
+
+def test_full_parameter_list_at_1x():
+    """MAVROS and QGroundControl load the whole list at connect: all of it,
+    in index order, quickly, at 1x."""
+    with Vehicle(speed=1.0) as v:
+        m = connect(v)
+        drain(m)
+        t0 = time.monotonic()
+        m.mav.param_request_list_send(m.target_system, m.target_component)
+        seen = []
+        count = None
+        while time.monotonic() - t0 < 10.0:
+            p = m.recv_match(type="PARAM_VALUE", blocking=True, timeout=1.0)
+            if p is None:
+                break
+            count = p.param_count
+            seen.append(p.param_index)
+            if len(seen) == count:
+                break
+        took = time.monotonic() - t0
+        assert count is not None and count > 1000, count
+        assert seen == list(range(count)), "every parameter once, in index order"
+        print(f"full parameter list at 1x: {count} parameters in {took * 1000:.0f} ms")
+        assert took < 3.0, f"{took:.2f} s"
+
+
 @pytest.mark.parametrize("vehicle", [SPEED, FAST], ids=lambda s: f"x{s:g}", indirect=True)
 def test_flight_with_disturbance_estimation_offboard_and_landing(vehicle):
     m = connect(vehicle)

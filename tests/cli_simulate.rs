@@ -63,7 +63,8 @@ fn fsr_exercise4_summary_matches_the_report() {
     assert!((v["est_mass_kg"].as_f64().unwrap() - 1.25).abs() < 0.00625);
 }
 
-/// Every shipped scenario flies upright and finite; the figure-eights stay within centimetres.
+/// Every shipped scenario flies upright and finite; the figure-eights stay
+/// within centimetres, the flights in turbulent wind within a decimetre.
 #[test]
 fn every_shipped_scenario_flies() {
     let dir = format!("{}/tools/scenarios", env!("CARGO_MANIFEST_DIR"));
@@ -74,7 +75,12 @@ fn every_shipped_scenario_flies() {
         assert_eq!(v["upright"], true, "{}", path.display());
         assert_eq!(v["finite"], true, "{}", path.display());
         let err = v["max_pos_err_m"].as_f64().or(v["max_tracking_error_m"].as_f64());
-        assert!(err.unwrap() < 0.05, "{}: {v}", path.display());
+        let bound = if path.to_string_lossy().contains("wind") {
+            0.1
+        } else {
+            0.05
+        };
+        assert!(err.unwrap() < bound, "{}: {v}", path.display());
         count += 1;
     }
     assert!(count >= 6);

@@ -66,7 +66,7 @@ fn bad_input_gets_one_clear_message_each() {
             vec!["simulate".into(), scenario.to_str().unwrap().into()],
             2,
             format!(
-                "rotorpilot: {}: airframe: unknown airframe `nosuch`: {known}\n",
+                "rotorpilot: {}:3:12: airframe: unknown airframe `nosuch`: {known}\n",
                 scenario.display()
             ),
         ),
@@ -102,8 +102,8 @@ fn bad_input_gets_one_clear_message_each() {
     assert_eq!(
         stdout,
         format!(
-            "0 {}: ERROR: airframe: unknown airframe `nosuch`: {known}\n\
-             1 {}: ERROR: airframe: unknown airframe `nosuch`: {known}\n",
+            "0 {}: ERROR: 3:12: airframe: unknown airframe `nosuch`: {known}\n\
+             1 {}: ERROR: 3:12: airframe: unknown airframe `nosuch`: {known}\n",
             scenario.display(),
             other.display()
         )

@@ -325,8 +325,14 @@ fn run(args: &SimulateArgs) -> anyhow::Result<u8> {
             let values: String = values.iter().map(|(k, v)| format!(" {k}={}", short(v))).collect();
             let what = match done {
                 Ok(outcome) => outcome.to_line(),
-                // the message names its file already when it starts with the label
-                Err(msg) => format!("ERROR: {}", msg.strip_prefix(&format!("{label}: ")).unwrap_or(msg)),
+                // the line names the file: a message that starts with it keeps
+                // only what follows (its line:column, when it has one)
+                Err(msg) => format!(
+                    "ERROR: {}",
+                    msg.strip_prefix(&format!("{label}: "))
+                        .or_else(|| msg.strip_prefix(&format!("{label}:")))
+                        .unwrap_or(msg)
+                ),
             };
             writeln!(out, "{:>width$} {label}{values}: {what}", e.index)
         }

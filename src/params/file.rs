@@ -4,7 +4,7 @@
 //! # rotorpilot parameters
 //! MIS_TAKEOFF_ALT = 5.0
 //! EST_ORDER = 4
-//! # RTL_RETURN_ALT = 60.0    (default)
+//! # RTL_RETURN_ALT = 30.0    (default)
 //! ```
 //!
 //! INT32 values are written as integers and REAL32 values with a decimal
@@ -352,7 +352,7 @@ mod tests {
         assert_eq!(table["MIS_TAKEOFF_ALT"].as_float(), Some(5.0));
         assert_eq!(table["EST_ORDER"].as_integer(), Some(7));
         assert!(!table.contains_key("RTL_RETURN_ALT"), "defaults are commented out");
-        assert!(text.contains("# RTL_RETURN_ALT = 60.0"));
+        assert!(text.contains("# RTL_RETURN_ALT = 30.0"));
         // no temporary file is left behind
         assert_eq!(fs::read_dir(&dir).unwrap().count(), 1);
         fs::remove_dir_all(&dir).unwrap();
@@ -388,7 +388,7 @@ mod tests {
         // refused lines kept their defaults
         assert_eq!(s.get("CTRL_TYPE").unwrap().1, ParamValue::Int32(1));
         assert_eq!(s.get("EST_ORDER").unwrap().1, ParamValue::Int32(3));
-        assert_eq!(s.get("RTL_RETURN_ALT").unwrap().1, ParamValue::Real32(60.0));
+        assert_eq!(s.get("RTL_RETURN_ALT").unwrap().1, ParamValue::Real32(30.0));
         assert_eq!(s.get("MPC_XY_CRUISE").unwrap().1, ParamValue::Real32(5.0));
         assert_eq!(warnings.len(), 8, "{warnings:#?}");
         assert!(warnings[0].contains(":2:") && warnings[0].contains("NOT_A_PARAM"));

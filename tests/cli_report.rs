@@ -1,7 +1,8 @@
-//! `rotorpilot report` and `simulate --report`: a mission flown headless
-//! gets a page with its verdict, items, failure and plots' data, and flies
-//! the same with or without the page (the collector only watches); bad
-//! input gets one clear error naming the file, never a panic.
+//! `rotorpilot report` and `simulate --report`: every headless flight (a
+//! mission, a plain scenario, each vehicle of a fleet) gets a page with its
+//! verdict and plots' data, and flies the same with or without the page
+//! (the collector only watches); bad input gets one clear error naming the
+//! file, never a panic.
 
 mod common;
 
@@ -42,6 +43,100 @@ fn simulate_report_writes_a_mission_page_and_the_flight_is_the_same() {
     // nothing to fetch: every script and style is inline
     assert!(!page.contains("src=\"http") && !page.contains("href=\"http"));
     assert!(!page.contains("<script src") && !page.contains("<link"));
+}
+
+/// A page that stands alone: under 5 MB, nothing fetched, every section
+/// there, its data embedded, the flown track and the reference drawn.
+fn assert_self_contained(page: &str) {
+    assert!(page.len() < 5_000_000, "{} bytes", page.len());
+    assert!(!page.contains("src=\"http") && !page.contains("href=\"http"));
+    assert!(!page.contains("<script src") && !page.contains("<link"));
+    for id in ["verdict", "path", "timeline", "plots", "events"] {
+        assert!(page.contains(&format!("id=\"{id}\"")), "section {id}");
+    }
+    assert!(page.contains("id=\"report-data\""));
+    let drawn = |id: &str| {
+        let at = page
+            .find(&format!("id=\"{id}\""))
+            .unwrap_or_else(|| panic!("no {id} on the path"));
+        let n: usize = page[at..]
+            .split("data-points=\"")
+            .nth(1)
+            .and_then(|r| r.split('"').next())
+            .and_then(|n| n.parse().ok())
+            .unwrap();
+        assert!(n > 100, "{id}: {n} points");
+    };
+    drawn("track");
+    drawn("reference");
+}
+
+#[test]
+fn simulate_report_writes_a_plain_scenario_page_and_the_flight_is_the_same() {
+    let dir = common::scratch_dir("sim-report-plain");
+    let scenario = "tools/scenarios/figure-eight-geometric.toml";
+    let plain = run(&["simulate", scenario, "--json"]);
+    assert!(plain.ok(), "{}", plain.stderr);
+    let with = run(&["simulate", scenario, "--json", "--report", dir.to_str().unwrap()]);
+    assert!(with.ok(), "{}", with.stderr);
+    assert_eq!(
+        summary(&plain.stdout),
+        summary(&with.stdout),
+        "the page changed the flight"
+    );
+    let page = std::fs::read_to_string(dir.join("figure-eight-geometric.html")).unwrap();
+    assert_self_contained(&page);
+    assert!(page.contains("<h1>tools/scenarios/figure-eight-geometric.toml</h1>"));
+    assert!(page.contains("largest tracking error"), "the verdict's tracking error");
+    assert!(!page.contains("class=\"items\""), "no mission, no items");
+    assert!(page.contains("mode geometric"), "the controller in force");
+}
+
+#[test]
+fn simulate_report_writes_a_page_per_fleet_vehicle_and_the_fleet_is_the_same() {
+    let dir = common::scratch_dir("sim-report-fleet");
+    let fleet = "tools/fleets/fleet-collision.toml";
+    let plain = run(&["simulate", fleet, "--json"]);
+    assert!(plain.ok(), "{}", plain.stderr);
+    let with = run(&["simulate", fleet, "--json", "--report", dir.to_str().unwrap()]);
+    assert!(with.ok(), "{}", with.stderr);
+    let fleet_summary = |s: &str| {
+        let mut v = summary(s);
+        let o = v.as_object_mut().unwrap();
+        for k in ["vehicle_steps_per_s", "real_time_factor"] {
+            o.remove(k);
+        }
+        for r in o["results"].as_array_mut().unwrap() {
+            r.as_object_mut().unwrap().remove("wall_time_s");
+        }
+        v
+    };
+    assert_eq!(
+        fleet_summary(&plain.stdout),
+        fleet_summary(&with.stdout),
+        "the pages changed the flight"
+    );
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["0-figure-eight-4m.html", "1-hover-2m.html"]);
+    for (name, vehicle) in [
+        (
+            "0-figure-eight-4m.html",
+            "vehicle 0 of tools/fleets/fleet-collision.toml: tools/fleets/vehicles/figure-eight-4m.toml",
+        ),
+        (
+            "1-hover-2m.html",
+            "vehicle 1 of tools/fleets/fleet-collision.toml: tools/fleets/vehicles/hover-2m.toml",
+        ),
+    ] {
+        let page = std::fs::read_to_string(dir.join(name)).unwrap();
+        assert_self_contained(&page);
+        assert!(page.contains(&format!("<h1>{vehicle}</h1>")), "{name}: its vehicle");
+        assert!(page.contains("collision"), "{name}: the collision is an event");
+    }
 }
 
 #[test]

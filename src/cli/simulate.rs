@@ -55,10 +55,9 @@ pub struct SimulateArgs {
     /// NNNN-NAME.csv per entry.
     #[arg(long, value_name = "PATH")]
     pub csv: Option<PathBuf>,
-    /// Write each mission flight's report page (one offline HTML file,
-    /// `rotorpilot report`'s) into this directory (made if missing): STEM.html
-    /// for one file, NNNN-STEM.html per campaign entry. Plain scenarios (a
-    /// controller flying a reference, no flight stack) get none.
+    /// Write each flight's report page (one offline HTML file, `rotorpilot
+    /// report`'s) into this directory (made if missing): STEM.html for one
+    /// file, NNNN-STEM.html per campaign entry or fleet vehicle.
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
     /// Scenarios flown at once (default: the cores available).
@@ -467,12 +466,9 @@ fn csv_name(index: u64, width: usize, path: &Path, variant: Option<u64>) -> Stri
 /// one `NNNN-STEM.csv` per vehicle into DIR (made if missing), each the
 /// bytes its file flown alone writes. Exit status as for a campaign: 2 for
 /// a fleet that cannot be read or flown, 1 when a mission vehicle failed.
+/// `--report DIR` writes one page per vehicle, named as its CSV
+/// (`NNNN-STEM.html`).
 fn run_fleet(args: &SimulateArgs, path: &Path) -> anyhow::Result<u8> {
-    anyhow::ensure!(
-        args.report.is_none(),
-        "--report: a fleet's vehicles get no report page yet (fly them as missions, or run the daemon and use \
-         `rotorpilot report` on each vehicle's flight.record)"
-    );
     let threads = args.threads.map_or(1, |t| t as usize);
     anyhow::ensure!(
         args.jobs.is_none(),
@@ -488,8 +484,18 @@ fn run_fleet(args: &SimulateArgs, path: &Path) -> anyhow::Result<u8> {
     if let Some(dir) = &args.csv {
         std::fs::create_dir_all(dir).with_context(|| format!("--csv {}: cannot make the directory", dir.display()))?;
     }
+    if let Some(dir) = &args.report {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("--report {}: cannot make the directory", dir.display()))?;
+    }
+    let meta = args.report.as_ref().map(|_| crate::logs::report::ReportMeta {
+        method: "rotorpilot simulate (headless fleet)".into(),
+        rotorpilot: crate::logs::record::ROTORPILOT_VERSION.into(),
+        reproduce: Some(format!("rotorpilot simulate {}", path.display())),
+        ..Default::default()
+    });
     let start = Instant::now();
-    let mut summary = match fleet::fly(&fleet, threads, args.csv.as_deref()) {
+    let (mut summary, pages) = match fleet::fly_with(&fleet, threads, args.csv.as_deref(), meta.as_ref()) {
         Ok(s) => s,
         Err(e) => {
             eprintln!("rotorpilot: {}", error_chain(&e));
@@ -497,6 +503,15 @@ fn run_fleet(args: &SimulateArgs, path: &Path) -> anyhow::Result<u8> {
         }
     };
     summary.set_wall_time_s(start.elapsed().as_secs_f64());
+    if let Some(dir) = &args.report {
+        let n = fleet.len();
+        for ((i, mut page), result) in pages.into_iter().enumerate().zip(&summary.results) {
+            page.meta.airframe = outcome_airframe(&result.outcome);
+            let p = dir.join(fleet::csv_name(i, n, fleet.source_of(i)).replace(".csv", ".html"));
+            std::fs::write(&p, crate::logs::report::html::page(&page))
+                .with_context(|| format!("--report {}: cannot write the page", p.display()))?;
+        }
+    }
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     if args.json {

@@ -330,6 +330,23 @@ impl<P: Pilot> Lockstep<P> {
         self.world_texts[i].drain(..).map(|(_, s)| s).collect()
     }
 
+    /// Vehicle `i`'s status texts since the last call: its pilot's, then
+    /// the world's (accepted failure injections).
+    pub fn drain_status_texts(&mut self, i: usize) -> Vec<StatusText> {
+        self.drain_stamped_status_texts(i).into_iter().map(|(_, s)| s).collect()
+    }
+
+    /// [`Self::drain_status_texts`], each with the simulated time [s] it was
+    /// raised at: a text the autopilot raises in a step carries the time
+    /// after that step, one raised by an input between steps (or the world's
+    /// failure injection) the time of the input.
+    pub fn drain_stamped_status_texts(&mut self, i: usize) -> Vec<(f64, StatusText)> {
+        self.stamp_pilot_texts(i);
+        let mut texts: Vec<_> = self.pilot_texts[i].drain(..).collect();
+        texts.append(&mut self.world_texts[i]);
+        texts
+    }
+
     /// Move vehicle `i`'s pilot's queued status texts to `pilot_texts`,
     /// stamped with the current simulated time.
     fn stamp_pilot_texts(&mut self, i: usize) {
@@ -615,23 +632,6 @@ impl Lockstep<Autopilot> {
     /// Vehicle `i`'s mission items reached or run since the last call, oldest first.
     pub fn drain_mission_done(&mut self, i: usize) -> Vec<crate::autopilot::ItemDone> {
         self.pilots[i].drain_mission_done()
-    }
-
-    /// Vehicle `i`'s status texts since the last call: its autopilot's, then
-    /// the world's (accepted failure injections).
-    pub fn drain_status_texts(&mut self, i: usize) -> Vec<StatusText> {
-        self.drain_stamped_status_texts(i).into_iter().map(|(_, s)| s).collect()
-    }
-
-    /// [`Self::drain_status_texts`], each with the simulated time [s] it was
-    /// raised at: a text the autopilot raises in a step carries the time
-    /// after that step, one raised by an input between steps (or the world's
-    /// failure injection) the time of the input.
-    pub fn drain_stamped_status_texts(&mut self, i: usize) -> Vec<(f64, StatusText)> {
-        self.stamp_pilot_texts(i);
-        let mut texts: Vec<_> = self.pilot_texts[i].drain(..).collect();
-        texts.append(&mut self.world_texts[i]);
-        texts
     }
 }
 

@@ -594,9 +594,8 @@ impl Flight {
         self.fly_with(csv, None).map(|(o, _)| o)
     }
 
-    /// [`Self::fly`], also collecting a mission's report page when `report`
-    /// gives its meta ([`super::run_mission_with`]); a plain scenario (a
-    /// controller flying a reference, no flight stack) has none.
+    /// [`Self::fly`], also collecting the flight's report page when `report`
+    /// gives its meta ([`super::run_with`], [`super::run_mission_with`]).
     ///
     /// # Errors
     /// As [`Self::fly`].
@@ -606,7 +605,10 @@ impl Flight {
         report: Option<crate::logs::report::ReportMeta>,
     ) -> anyhow::Result<(Outcome, Option<crate::logs::report::FlightReport>)> {
         Ok(match self {
-            Flight::Scenario(s) => (Outcome::Scenario(Box::new(super::run(s, csv)?)), None),
+            Flight::Scenario(s) => {
+                let (summary, page) = super::run_with(s, csv, report)?;
+                (Outcome::Scenario(Box::new(summary)), page)
+            }
             Flight::Mission(m) => {
                 let (summary, page) = super::run_mission_with(m, csv, report)?;
                 (Outcome::Mission(Box::new(summary)), page)

@@ -53,6 +53,7 @@ use super::{MissionFlight, Scenario, is_mission, mission};
 use crate::autopilot::Autopilot;
 use crate::lockstep::{FleetVehicle, Lockstep, Pilot};
 use crate::logs::csv::CsvLog;
+use crate::logs::report::{Collector, FlightReport, ReportMeta, Watched};
 use crate::sim::World;
 use crate::sim::proximity::{ProximityEvent, ProximityKind};
 use crate::tomlfile::{self, FileError};
@@ -485,16 +486,25 @@ impl Track<Autopilot> for MissionFlown<'_> {
     }
 }
 
+/// A vehicle's report page as it is collected, and the meta it will carry.
+type Watch = Option<(Collector, ReportMeta)>;
+
+/// What [`fly_tracks`] gives: the outcomes, the events, the steps, the pages.
+type FleetFlown = (Vec<Outcome>, Vec<FleetEvent>, u64, Vec<FlightReport>);
+
 /// Step `core` until every track is over; each vehicle judged when its
-/// flight ends, its log closed then. The outcomes, the events, the steps.
-fn fly_tracks<P: Pilot, T: Track<P>>(
+/// flight ends, its log closed and its page (when watched) finished then.
+/// The outcomes, the events, the steps, the pages (in vehicle order).
+fn fly_tracks<P: Watched, T: Track<P>>(
     mut core: Lockstep<P>,
     tracks: Vec<T>,
     mut logs: Vec<Option<CsvLog<BufWriter<FsFile>>>>,
-) -> anyhow::Result<(Vec<Outcome>, Vec<FleetEvent>, u64)> {
+    mut watches: Vec<Watch>,
+) -> anyhow::Result<FleetFlown> {
     let n = tracks.len();
     let mut tracks: Vec<Option<T>> = tracks.into_iter().map(Some).collect();
     let mut outcomes: Vec<Option<Outcome>> = vec![None; n];
+    let mut pages: Vec<Option<FlightReport>> = vec![None; n];
     let mut events = Vec::new();
     // the events whose encounter goes on (the pair not apart yet)
     let mut open: Vec<usize> = Vec::new();
@@ -503,6 +513,7 @@ fn fly_tracks<P: Pilot, T: Track<P>>(
     for i in 0..n {
         if tracks[i].as_ref().is_some_and(Track::is_over) {
             finish(&mut core, i, &mut tracks, &mut outcomes, &mut logs)?;
+            pages[i] = page(&mut core, &mut watches[i], outcomes[i].as_ref());
             running -= 1;
         }
     }
@@ -516,8 +527,12 @@ fn fly_tracks<P: Pilot, T: Track<P>>(
         for i in 0..n {
             let Some(t) = &mut tracks[i] else { continue };
             t.after_step(&mut core, i, logs[i].as_mut())?;
-            if t.is_over() {
+            if let Some((c, _)) = &mut watches[i] {
+                run::watch_step(c, &mut core, i);
+            }
+            if tracks[i].as_ref().is_some_and(Track::is_over) {
                 finish(&mut core, i, &mut tracks, &mut outcomes, &mut logs)?;
+                pages[i] = page(&mut core, &mut watches[i], outcomes[i].as_ref());
                 running -= 1;
             }
         }
@@ -526,7 +541,22 @@ fn fly_tracks<P: Pilot, T: Track<P>>(
         events.extend(new.into_iter().map(FleetEvent::from));
         follow_encounters(&core, &mut events, &mut open);
     }
-    Ok((outcomes.into_iter().flatten().collect(), events, core.steps()))
+    Ok((
+        outcomes.into_iter().flatten().collect(),
+        events,
+        core.steps(),
+        pages.into_iter().flatten().collect(),
+    ))
+}
+
+/// Vehicle `i`'s page, now that its flight is judged (`outcome`): a
+/// mission's with its verdict.
+fn page<P: Watched>(core: &mut Lockstep<P>, watch: &mut Watch, outcome: Option<&Outcome>) -> Option<FlightReport> {
+    let (c, meta) = watch.take()?;
+    Some(match outcome {
+        Some(Outcome::Mission(m)) => mission::judged_page(c, core, meta, m),
+        _ => c.finish(core, meta),
+    })
 }
 
 /// After a step: each open encounter's closest approach so far
@@ -582,7 +612,30 @@ fn finish<P: Pilot, T: Track<P>>(
 /// A vehicle that cannot start (its file named), a log that cannot be
 /// written, the threads that cannot start.
 pub fn fly(fleet: &Fleet, threads: usize, csv_dir: Option<&Path>) -> anyhow::Result<FleetSummary> {
+    fly_with(fleet, threads, csv_dir, None).map(|(summary, _)| summary)
+}
+
+/// [`fly`], also collecting every vehicle's report page when `report`
+/// gives the meta they share: each page titled with its vehicle's number
+/// and file, in vehicle order. The collectors only watch: every vehicle
+/// flies the same to the bit.
+///
+/// # Errors
+/// As [`fly`].
+pub fn fly_with(
+    fleet: &Fleet,
+    threads: usize,
+    csv_dir: Option<&Path>,
+    report: Option<&ReportMeta>,
+) -> anyhow::Result<(FleetSummary, Vec<FlightReport>)> {
     let n = fleet.len();
+    let meta_of = |i: usize| {
+        report.map(|m| ReportMeta {
+            title: format!("vehicle {i} of {}: {}", fleet.source, fleet.source_of(i)),
+            source: fleet.source_of(i).to_string(),
+            ..m.clone()
+        })
+    };
     let mut logs = Vec::with_capacity(n);
     for i in 0..n {
         logs.push(match csv_dir {
@@ -611,7 +664,7 @@ pub fn fly(fleet: &Fleet, threads: usize, csv_dir: Option<&Path>) -> anyhow::Res
             world.set_origin_ned(i, nalgebra::Vector3::new(o[0], o[1], 0.0));
         }
     };
-    let (outcomes, events, steps, dt) = match &fleet.flights {
+    let (outcomes, events, steps, dt, pages) = match &fleet.flights {
         FleetFlights::Plain(list) => {
             let s0 = &list[0];
             let mut world = World::new(s0.step_s, s0.world);
@@ -628,8 +681,15 @@ pub fn fly(fleet: &Fleet, threads: usize, csv_dir: Option<&Path>) -> anyhow::Res
             prepare(&mut core, fleet.proximity_m, threads)?;
             let tracks = list.iter().map(Flown::new).collect();
             let dt = core.dt_s();
-            let (o, e, s) = fly_tracks(core, tracks, logs)?;
-            (o, e, s, dt)
+            let watches = list
+                .iter()
+                .enumerate()
+                .map(|(i, s)| {
+                    let steps = (s.duration_s / s.step_s).round() as u64;
+                    meta_of(i).map(|m| (Collector::new(&core, i, steps), m))
+                })
+                .collect();
+            fly_tracks(core, tracks, logs, watches).map(|(o, e, s, p)| (o, e, s, dt, p))?
         }
         FleetFlights::Mission(list) => {
             let vehicles: Vec<FleetVehicle<'_>> = list
@@ -651,11 +711,18 @@ pub fn fly(fleet: &Fleet, threads: usize, csv_dir: Option<&Path>) -> anyhow::Res
             prepare(&mut core, fleet.proximity_m, threads)?;
             let dt = core.dt_s();
             let tracks = list.iter().map(|f| MissionFlown::new(f, dt)).collect();
-            let (o, e, s) = fly_tracks(core, tracks, logs)?;
-            (o, e, s, dt)
+            let watches = list
+                .iter()
+                .enumerate()
+                .map(|(i, f)| {
+                    let steps = (f.duration_s / dt).round() as u64;
+                    meta_of(i).map(|m| (Collector::new(&core, i, steps), m))
+                })
+                .collect();
+            fly_tracks(core, tracks, logs, watches).map(|(o, e, s, p)| (o, e, s, dt, p))?
         }
     };
-    Ok(FleetSummary {
+    let summary = FleetSummary {
         fleet: fleet.source.clone(),
         vehicles: n,
         threads: threads.max(1),
@@ -676,7 +743,8 @@ pub fn fly(fleet: &Fleet, threads: usize, csv_dir: Option<&Path>) -> anyhow::Res
                 outcome,
             })
             .collect(),
-    })
+    };
+    Ok((summary, pages))
 }
 
 /// Watch proximity and set the threads.

@@ -485,32 +485,37 @@ pub fn run_mission_with(
         core.step();
         flight.after_step(&mut core, 0, log.as_mut())?;
         if let Some(c) = &mut collector {
-            c.after_step(&mut core);
-            // the texts are output only: draining them steers nothing
-            let texts = core.drain_stamped_status_texts(0);
-            c.texts(&texts);
+            super::run::watch_step(c, &mut core, 0);
         }
     }
     if let Some(l) = log {
         l.finish()?;
     }
     let summary = flight.summary(&mut core, 0);
-    let page = match (collector, report) {
-        (Some(mut c), Some(meta)) => {
-            // the runner drained the items reached: its findings, first reach of each
-            for r in &summary.items {
-                if let Some(t) = r.reached_s {
-                    c.reached_at(r.seq, t, r.distance_m);
-                }
-            }
-            let mut page = c.finish(&mut core, meta);
-            page.verdict.outcome = Some(summary.verdict.to_string());
-            page.verdict.reasons.clone_from(&summary.reasons);
-            Some(page)
-        }
-        _ => None,
-    };
+    let page = collector
+        .zip(report)
+        .map(|(c, meta)| judged_page(c, &mut core, meta, &summary));
     Ok((summary, page))
+}
+
+/// The page `c` collected of a mission vehicle, with `summary`'s verdict:
+/// PASS/FAIL, its reasons, and the items reached (the runner drained them:
+/// its findings, first reach of each).
+pub(super) fn judged_page<P: crate::logs::report::Watched>(
+    mut c: Collector,
+    core: &mut Lockstep<P>,
+    meta: ReportMeta,
+    summary: &MissionSummary,
+) -> FlightReport {
+    for r in &summary.items {
+        if let Some(t) = r.reached_s {
+            c.reached_at(r.seq, t, r.distance_m);
+        }
+    }
+    let mut page = c.finish(core, meta);
+    page.verdict.outcome = Some(summary.verdict.to_string());
+    page.verdict.reasons.clone_from(&summary.reasons);
+    page
 }
 
 /// A mission vehicle's flight as it goes, step by step: its `[[fault]]`s

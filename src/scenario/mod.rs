@@ -27,7 +27,7 @@ pub use mission::{
     ItemResult, MissionFlight, MissionSummary, is_mission, mission_lockstep, mission_meta, run_mission,
     run_mission_with,
 };
-pub use run::{ScenarioPilot, Summary, lockstep, run, scenario_meta};
+pub use run::{ScenarioPilot, Summary, lockstep, run, run_with, scenario_meta};
 pub use trajectory::Trajectory;
 
 use nalgebra::Vector3;

@@ -1,6 +1,7 @@
 //! Fly a [`Scenario`] flat out in lockstep and summarise it; optionally write
 //! the full time series as the flight CSV ([`crate::logs::csv`]: the log
-//! format `rotorpilot estimate` reads).
+//! format `rotorpilot estimate` reads) and collect its report page
+//! ([`crate::logs::report`]).
 
 use std::io::Write;
 
@@ -11,10 +12,13 @@ use super::fault::{self, AppliedFault};
 use super::{ReferencePlan, Scenario};
 use crate::autopilot::{ControlLoop, ControlOutput, Demand};
 use crate::control::{Reference, Setpoint, Shaper, ShaperLimits, TranslationSetpoint, feedforward_attitude};
+use crate::geo::GeoPoint;
 use crate::lockstep::{Lockstep, Pilot};
 use crate::logs::csv::CsvLog;
 use crate::logs::meta::LogMeta;
+use crate::logs::report::{Collector, FlightReport, PilotState, ReportMeta, Watched};
 use crate::math::{euler_zyx, from_euler_zyx};
+use crate::mission::Plans;
 use crate::signals::{ControlWrench, GRAVITY, SensorReadings};
 use crate::sim::{DisturbanceSource, RigidBodyState, SensorConfig, SimFault, World};
 
@@ -120,6 +124,33 @@ impl Pilot for ScenarioPilot<'_> {
 
     fn rotors_stopped(&mut self, _why: &SimFault) {
         self.control.rotors_stopped();
+    }
+}
+
+/// A bare control law as its report page shows it: always armed and in the
+/// air (it starts in flight and flies its reference to the end), its mode
+/// the controller flying now (the scenario's switches on the timeline); no
+/// plans, no battery estimate.
+impl Watched for ScenarioPilot<'_> {
+    fn rotor_count(&self) -> usize {
+        self.scenario.airframe.rotor_count()
+    }
+
+    fn pilot_state(&self) -> PilotState {
+        PilotState {
+            armed: true,
+            mode: self.control.controller().kind().name().to_string(),
+            in_air: true,
+            landed: "in the air (a control law, no flight stack)".into(),
+        }
+    }
+
+    fn plans_at(&self) -> Option<(&Plans, GeoPoint)> {
+        None
+    }
+
+    fn battery_remaining(_core: &mut Lockstep<Self>, _i: usize) -> f64 {
+        f64::NAN
     }
 }
 
@@ -232,18 +263,45 @@ pub(super) fn place(core: &mut Lockstep<ScenarioPilot<'_>>, i: usize) {
 /// # Errors
 /// Invalid gains or estimator settings, or a failed write to `csv`.
 pub fn run(s: &Scenario, csv: Option<&mut dyn Write>) -> anyhow::Result<Summary> {
+    run_with(s, csv, None).map(|(summary, _)| summary)
+}
+
+/// [`run`], also collecting the flight's report page when `report` gives
+/// its meta (no items: the path shows the reference and the flown track).
+/// The collector only watches: the flight is the same to the bit.
+///
+/// # Errors
+/// As [`run`].
+pub fn run_with(
+    s: &Scenario,
+    csv: Option<&mut dyn Write>,
+    report: Option<ReportMeta>,
+) -> anyhow::Result<(Summary, Option<FlightReport>)> {
     let mut core = lockstep(s)?;
     let mut log = csv.map(|w| CsvLog::new(w, s.airframe.rotor_count())).transpose()?;
     let mut flight = Flown::new(s);
+    let mut collector = report.as_ref().map(|_| Collector::new(&core, 0, flight.steps));
     while !flight.is_over() {
         flight.before_step(&mut core, 0);
         core.step();
         flight.after_step(&core, 0, log.as_mut())?;
+        if let Some(c) = &mut collector {
+            watch_step(c, &mut core, 0);
+        }
     }
     if let Some(l) = log {
         l.finish()?;
     }
-    Ok(flight.summary(&core, 0))
+    let page = collector.zip(report).map(|(c, meta)| c.finish(&mut core, meta));
+    Ok((flight.summary(&core, 0), page))
+}
+
+/// After a step: `c` watches vehicle `i` (the texts drained are output
+/// only: draining them steers nothing).
+pub(super) fn watch_step<P: Watched>(c: &mut Collector, core: &mut Lockstep<P>, i: usize) {
+    c.after_step(core);
+    let texts = core.drain_stamped_status_texts(i);
+    c.texts(&texts);
 }
 
 /// A scenario vehicle's flight as it goes, step by step: its `[[fault]]`s

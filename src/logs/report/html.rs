@@ -219,6 +219,9 @@ fn bounds(r: &FlightReport) -> (f64, f64, f64, f64) {
     for (n, e) in s.column("n").iter().zip(s.column("e")) {
         add(*n, *e);
     }
+    for (n, e) in s.column("ref_n").iter().zip(s.column("ref_e")) {
+        add(*n, *e);
+    }
     for p in &r.plans.mission {
         add(p.n, p.e);
     }
@@ -298,13 +301,25 @@ fn path(h: &mut String, r: &FlightReport) {
         let _ = write!(h, "<polyline class=\"plan\" points=\"{}\"/>", pts.join(" "));
     }
     let s = &r.series;
-    let track: Vec<String> = s
-        .column("n")
-        .iter()
-        .zip(s.column("e"))
-        .filter(|(n, e)| n.is_finite() && e.is_finite())
-        .map(|(n, e)| format!("{:.2},{:.2}", e, -n))
-        .collect();
+    let points = |n: &str, e: &str| -> Vec<String> {
+        s.column(n)
+            .iter()
+            .zip(s.column(e))
+            .filter(|(n, e)| n.is_finite() && e.is_finite())
+            .map(|(n, e)| format!("{:.2},{:.2}", e, -n))
+            .collect()
+    };
+    // the reference tracked, where there was one (a plain scenario's curve, a mission's legs)
+    let reference = points("ref_n", "ref_e");
+    if !reference.is_empty() {
+        let _ = write!(
+            h,
+            "<polyline id=\"reference\" class=\"reference\" data-points=\"{}\" points=\"{}\"/>",
+            reference.len(),
+            reference.join(" ")
+        );
+    }
+    let track = points("n", "e");
     let _ = write!(
         h,
         "<polyline id=\"track\" class=\"track\" data-points=\"{}\" points=\"{}\"/>",
@@ -365,7 +380,8 @@ fn path(h: &mut String, r: &FlightReport) {
     h.push_str("</svg>");
     let _ = writeln!(
         h,
-        "<p class=\"legend\"><span class=\"k track\"></span> flown &middot; <span class=\"k plan\"></span> mission \
+        "<p class=\"legend\"><span class=\"k track\"></span> flown &middot; <span class=\"k reference\"></span> \
+         reference &middot; <span class=\"k plan\"></span> mission \
          ({} items; green reached, red not) &middot; <span class=\"k fence-in\"></span> fence (inclusion) \
          <span class=\"k fence-out\"></span> (exclusion): {} &middot; R rally points: {} &middot; H home \
          &middot; grid {step} m</p></section>",

@@ -9,7 +9,9 @@
 //! Two halves, both pure: a [`Collector`] watches a lockstep core step by
 //! step (an exact replay of a flight record,
 //! `replay_report` of the replay module, or a headless
-//! `simulate` flight) and gives a [`FlightReport`], the page's data; a
+//! `simulate` flight: a mission's flight stack or a plain scenario's bare
+//! control law, any pilot that is [`Watched`]) and gives a [`FlightReport`],
+//! the page's data; a
 //! ULog gives the same data from its topics ([`from_ulog`]); [`html::page`]
 //! renders it into a `String` with its JavaScript and CSS inlined (uPlot, at
 //! the version `tools/vendor_report_assets.sh` pins), so the page opens
@@ -30,7 +32,7 @@ use serde::Serialize;
 use crate::autopilot::{Autopilot, LandedState, Severity, StatusText};
 use crate::control::Reference;
 use crate::geo::GeoPoint;
-use crate::lockstep::Lockstep;
+use crate::lockstep::{Lockstep, Pilot};
 use crate::mission::{MissionItem, MissionType, Plans, cmd};
 use crate::signals::ActuatorCommand;
 
@@ -405,6 +407,57 @@ fn euler_deg(q: &nalgebra::UnitQuaternion<f64>) -> [f64; 3] {
     [r.to_degrees(), p.to_degrees(), y.to_degrees()]
 }
 
+/// A pilot's state as the page shows it (timeline, verdict).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PilotState {
+    /// The rotors may run.
+    pub armed: bool,
+    /// The flight mode's name (a bare control law: its controller's).
+    pub mode: String,
+    /// Flying (the tracking error counts only then).
+    pub in_air: bool,
+    /// On the ground or in the air, as the page words it at the end.
+    pub landed: String,
+}
+
+/// What a [`Collector`] reads of a pilot beyond its step record. A pilot
+/// without a flight stack (a plain scenario's control law) has no plans and
+/// no battery estimate: its page shows no items and no charge.
+pub trait Watched: Pilot + Sized {
+    /// Its airframe's rotor count.
+    fn rotor_count(&self) -> usize;
+    /// Its state now.
+    fn pilot_state(&self) -> PilotState;
+    /// Its stored plans and the origin of its local NED frame, if it has plans.
+    fn plans_at(&self) -> Option<(&Plans, GeoPoint)>;
+    /// Vehicle `i`'s remaining charge 0..1 now (NaN: none estimated).
+    fn battery_remaining(core: &mut Lockstep<Self>, i: usize) -> f64;
+}
+
+impl Watched for Autopilot {
+    fn rotor_count(&self) -> usize {
+        self.airframe().rotor_count()
+    }
+
+    fn pilot_state(&self) -> PilotState {
+        let landed = self.landed_state();
+        PilotState {
+            armed: self.armed(),
+            mode: format!("{:?}", self.mode()),
+            in_air: landed == LandedState::InAir,
+            landed: format!("{landed:?}"),
+        }
+    }
+
+    fn plans_at(&self) -> Option<(&Plans, GeoPoint)> {
+        Some((self.plans(), self.origin()))
+    }
+
+    fn battery_remaining(core: &mut Lockstep<Self>, i: usize) -> f64 {
+        core.telemetry(i).battery_remaining
+    }
+}
+
 /// Watches one vehicle of a lockstep core, step by step, and gives its
 /// [`FlightReport`]. Call [`Self::after_step`] after every step, hand it
 /// the status texts and reached items as the runtime drains them
@@ -414,7 +467,6 @@ fn euler_deg(q: &nalgebra::UnitQuaternion<f64>) -> [f64; 3] {
 pub struct Collector {
     vehicle: usize,
     stride: u64,
-    origin: GeoPoint,
     series: Series,
     modes: Timeline,
     arming: Timeline,
@@ -430,13 +482,11 @@ impl Collector {
     /// Watch vehicle `vehicle` of `core` (at its start) over a flight of
     /// about `steps` steps (the stride of the series follows from it).
     #[must_use]
-    pub fn new(core: &Lockstep<Autopilot>, vehicle: usize, steps: u64) -> Self {
-        let ap = core.pilot(vehicle);
-        let rotors = ap.airframe().rotor_count();
+    pub fn new<P: Watched>(core: &Lockstep<P>, vehicle: usize, steps: u64) -> Self {
+        let rotors = core.pilot(vehicle).rotor_count();
         let mut c = Self {
             vehicle,
             stride: steps.div_ceil(MAX_SAMPLES).max(MIN_STRIDE_STEPS),
-            origin: ap.origin(),
             series: Series::new(rotors, "rad/s"),
             modes: Timeline::default(),
             arming: Timeline::default(),
@@ -453,13 +503,15 @@ impl Collector {
 
     /// Take the vehicle's plans when they changed (kept: the last non-empty
     /// mission, geofence and rally points; a test often clears them at its end).
-    pub fn watch_plans(&mut self, core: &Lockstep<Autopilot>) {
-        let plans = core.pilot(self.vehicle).plans();
+    pub fn watch_plans<P: Watched>(&mut self, core: &Lockstep<P>) {
+        let Some((plans, origin)) = core.pilot(self.vehicle).plans_at() else {
+            return;
+        };
         if self.plans_seen.as_ref() == Some(plans) {
             return;
         }
         self.plans_seen = Some(plans.clone());
-        let view = PlanView::new(plans, self.origin);
+        let view = PlanView::new(plans, origin);
         if view.is_empty() {
             return;
         }
@@ -491,18 +543,19 @@ impl Collector {
 
     /// After a step: the timeline and tracking error every step, a sample
     /// of the series every stride.
-    pub fn after_step(&mut self, core: &mut Lockstep<Autopilot>) {
+    pub fn after_step<P: Watched>(&mut self, core: &mut Lockstep<P>) {
         let t = core.time_s();
         let i = self.vehicle;
-        let ap = core.pilot(i);
-        let (armed, mode, landed) = (ap.armed(), ap.mode(), ap.landed_state());
+        let PilotState {
+            armed, mode, in_air, ..
+        } = core.pilot(i).pilot_state();
         self.arming.at(t, if armed { "armed" } else { "disarmed" });
-        self.modes.at(t, &format!("{mode:?}"));
+        self.modes.at(t, &mode);
         let rec = core.last_step(i);
         let truth = rec.world.truth;
         let reference = &rec.control.reference;
         let tracking = *reference != Reference::default();
-        if tracking && landed == LandedState::InAir {
+        if tracking && in_air {
             let e = (truth.position_ned - reference.position_ned).norm();
             if self.max_err.is_none_or(|(m, _)| e > m) {
                 self.max_err = Some((e, t));
@@ -511,7 +564,7 @@ impl Collector {
         if !core.steps().is_multiple_of(self.stride) {
             return;
         }
-        let battery = core.telemetry(i).battery_remaining;
+        let battery = P::battery_remaining(core, i);
         let rec = core.last_step(i);
         let (truth, reference) = (rec.world.truth, &rec.control.reference);
         let c = rec.control;
@@ -574,7 +627,7 @@ impl Collector {
 
     /// Mission items reached at the core's current instant (as drained):
     /// when, and how far the true position was from each item's point.
-    pub fn reached(&mut self, core: &Lockstep<Autopilot>, seqs: &[u16]) {
+    pub fn reached<P: Pilot>(&mut self, core: &Lockstep<P>, seqs: &[u16]) {
         let t = core.time_s();
         let p = core.last_step(self.vehicle).world.truth.position_ned;
         for &seq in seqs {
@@ -609,7 +662,7 @@ impl Collector {
 
     /// The report, at the end of the flight.
     #[must_use]
-    pub fn finish(mut self, core: &mut Lockstep<Autopilot>, meta: ReportMeta) -> FlightReport {
+    pub fn finish<P: Watched>(mut self, core: &mut Lockstep<P>, meta: ReportMeta) -> FlightReport {
         let t = core.time_s();
         if self.series.t.last().is_none_or(|last| *last < t) {
             // the last instant, whatever the stride
@@ -618,12 +671,12 @@ impl Collector {
             self.after_step(core);
             self.stride = stride;
         }
-        let ap = core.pilot(self.vehicle);
+        let end = core.pilot(self.vehicle).pilot_state();
         let final_state = format!(
-            "{}, mode {:?}, {:?}",
-            if ap.armed() { "armed" } else { "disarmed" },
-            ap.mode(),
-            ap.landed_state()
+            "{}, mode {}, {}",
+            if end.armed { "armed" } else { "disarmed" },
+            end.mode,
+            end.landed
         );
         let mut events = self.events;
         events.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));

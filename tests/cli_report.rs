@@ -8,26 +8,45 @@ mod common;
 
 use common::bin::run;
 
-/// The summary's JSON without its wall time (the only field that varies).
+/// The summary's JSON without what wall time decides (the only fields that
+/// vary between two runs), its fleet results' included.
 fn summary(stdout: &str) -> serde_json::Value {
     let mut v: serde_json::Value = serde_json::from_str(stdout).unwrap();
-    v.as_object_mut().unwrap().remove("wall_time_s");
+    let o = v.as_object_mut().unwrap();
+    for k in ["wall_time_s", "vehicle_steps_per_s", "real_time_factor"] {
+        o.remove(k);
+    }
+    for r in o
+        .get_mut("results")
+        .and_then(|r| r.as_array_mut())
+        .into_iter()
+        .flatten()
+    {
+        r.as_object_mut().unwrap().remove("wall_time_s");
+    }
     v
 }
 
-#[test]
-fn simulate_report_writes_a_mission_page_and_the_flight_is_the_same() {
-    let dir = common::scratch_dir("sim-report");
-    let scenario = "tools/scenarios/octo-mission-rotor-loss.toml";
-    let plain = run(&["simulate", scenario, "--json"]);
+/// Fly `file` with `simulate --json`, then again with `--report` into a
+/// fresh directory named for `tag`: the summaries must be equal (the page
+/// only watches). The directory the pages went to.
+fn flown_with_and_without_report(file: &str, tag: &str) -> std::path::PathBuf {
+    let dir = common::scratch_dir(tag);
+    let plain = run(&["simulate", file, "--json"]);
     assert!(plain.ok(), "{}", plain.stderr);
-    let with = run(&["simulate", scenario, "--json", "--report", dir.to_str().unwrap()]);
+    let with = run(&["simulate", file, "--json", "--report", dir.to_str().unwrap()]);
     assert!(with.ok(), "{}", with.stderr);
     assert_eq!(
         summary(&plain.stdout),
         summary(&with.stdout),
         "the page changed the flight"
     );
+    dir
+}
+
+#[test]
+fn simulate_report_writes_a_mission_page_and_the_flight_is_the_same() {
+    let dir = flown_with_and_without_report("tools/scenarios/octo-mission-rotor-loss.toml", "sim-report");
     let page = std::fs::read_to_string(dir.join("octo-mission-rotor-loss.html")).unwrap();
     assert!(page.len() < 5_000_000, "{} bytes", page.len());
     assert!(page.contains("<span class=\"badge pass\">PASS</span>"));
@@ -73,17 +92,7 @@ fn assert_self_contained(page: &str) {
 
 #[test]
 fn simulate_report_writes_a_plain_scenario_page_and_the_flight_is_the_same() {
-    let dir = common::scratch_dir("sim-report-plain");
-    let scenario = "tools/scenarios/figure-eight-geometric.toml";
-    let plain = run(&["simulate", scenario, "--json"]);
-    assert!(plain.ok(), "{}", plain.stderr);
-    let with = run(&["simulate", scenario, "--json", "--report", dir.to_str().unwrap()]);
-    assert!(with.ok(), "{}", with.stderr);
-    assert_eq!(
-        summary(&plain.stdout),
-        summary(&with.stdout),
-        "the page changed the flight"
-    );
+    let dir = flown_with_and_without_report("tools/scenarios/figure-eight-geometric.toml", "sim-report-plain");
     let page = std::fs::read_to_string(dir.join("figure-eight-geometric.html")).unwrap();
     assert_self_contained(&page);
     assert!(page.contains("<h1>tools/scenarios/figure-eight-geometric.toml</h1>"));
@@ -94,28 +103,7 @@ fn simulate_report_writes_a_plain_scenario_page_and_the_flight_is_the_same() {
 
 #[test]
 fn simulate_report_writes_a_page_per_fleet_vehicle_and_the_fleet_is_the_same() {
-    let dir = common::scratch_dir("sim-report-fleet");
-    let fleet = "tools/fleets/fleet-collision.toml";
-    let plain = run(&["simulate", fleet, "--json"]);
-    assert!(plain.ok(), "{}", plain.stderr);
-    let with = run(&["simulate", fleet, "--json", "--report", dir.to_str().unwrap()]);
-    assert!(with.ok(), "{}", with.stderr);
-    let fleet_summary = |s: &str| {
-        let mut v = summary(s);
-        let o = v.as_object_mut().unwrap();
-        for k in ["vehicle_steps_per_s", "real_time_factor"] {
-            o.remove(k);
-        }
-        for r in o["results"].as_array_mut().unwrap() {
-            r.as_object_mut().unwrap().remove("wall_time_s");
-        }
-        v
-    };
-    assert_eq!(
-        fleet_summary(&plain.stdout),
-        fleet_summary(&with.stdout),
-        "the pages changed the flight"
-    );
+    let dir = flown_with_and_without_report("tools/fleets/fleet-collision.toml", "sim-report-fleet");
     let mut names: Vec<String> = std::fs::read_dir(&dir)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())

@@ -8,7 +8,8 @@ use std::path::Path;
 
 use rotorpilot::scenario::{Scenario, lockstep, run};
 
-const FIXTURES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/airframes");
+/// Where the quad with drag lives (`tools/airframes/quad-aero.toml`, which the wind scenarios fly too).
+const AIRFRAMES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tools/airframes");
 
 fn hover(wind: &str) -> Scenario {
     let text = format!(
@@ -16,7 +17,7 @@ fn hover(wind: &str) -> Scenario {
          [reference]\nkind = \"hover\"\nposition_ned = [0.0, 0.0, -5.0]\n\
          [world]\nground_effect = false\n{wind}"
     );
-    Scenario::from_toml(&text, "hover-wind.toml", Some(Path::new(FIXTURES))).unwrap()
+    Scenario::from_toml(&text, "hover-wind.toml", Some(Path::new(AIRFRAMES))).unwrap()
 }
 
 const WEST_5: &str = "[wind]\nspeed_m_s = 5.0\nfrom_deg = 270.0\n";

@@ -125,6 +125,10 @@ pub struct RotorMonitor {
     status: [RotorStatus; MAX_ROTORS],
     /// The first reading of an unbroken run contradicting the verdict [s].
     since_s: [Option<f64>; MAX_ROTORS],
+    /// The last interval between readings (its bits) and its decay
+    /// `e^{-h/tau_m}`: readings come at a fixed step, so `exp` runs once per
+    /// change of the interval, not once per reading.
+    last_decay: Option<(u64, f64)>,
 }
 
 impl RotorMonitor {
@@ -142,6 +146,7 @@ impl RotorMonitor {
             target: RotorVector::zeros(),
             last_time_s: None,
             status: [RotorStatus::Healthy; MAX_ROTORS],
+            last_decay: None,
             since_s: [None; MAX_ROTORS],
         }
     }
@@ -207,7 +212,14 @@ impl RotorMonitor {
             return Vec::new();
         }
         self.last_time_s = Some(time_s);
-        let decay = (-h / self.tau_s).exp();
+        let decay = match self.last_decay {
+            Some((bits, decay)) if bits == h.to_bits() => decay,
+            _ => {
+                let decay = (-h / self.tau_s).exp();
+                self.last_decay = Some((h.to_bits(), decay));
+                decay
+            }
+        };
         let mut events = Vec::new();
         for i in 0..self.n {
             let c = self.target[i];

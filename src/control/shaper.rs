@@ -232,6 +232,9 @@ pub struct Shaper {
     limits: ShaperLimits,
     k: [f64; 4],
     k_yaw: f64,
+    /// Horizontal acceleration limit `min(a_xy, g tan(max_tilt))` [m/s^2],
+    /// set with the gains when the limits change (no `tan` per step).
+    a_xy_max: f64,
     p: Vector3<f64>,
     v: Vector3<f64>,
     a: Vector3<f64>,
@@ -275,6 +278,7 @@ impl Shaper {
             limits,
             k: [0.0; 4],
             k_yaw: 0.0,
+            a_xy_max: 0.0,
             p: Vector3::zeros(),
             v: Vector3::zeros(),
             a: Vector3::zeros(),
@@ -288,15 +292,11 @@ impl Shaper {
         Ok(s)
     }
 
-    fn a_xy_max(&self) -> f64 {
-        self.limits
-            .max_accel_xy_m_s2
-            .min(GRAVITY * self.limits.max_tilt_rad.tan())
-    }
-
+    /// Gains and the horizontal acceleration limit for the limits in force.
     fn set_gains(&mut self) {
         let l = &self.limits;
-        let a_xy = self.a_xy_max();
+        let a_xy = l.max_accel_xy_m_s2.min(GRAVITY * l.max_tilt_rad.tan());
+        self.a_xy_max = a_xy;
         let a_z = l.max_accel_z_m_s2;
         let v_z = l.max_climb_m_s.max(l.max_descent_m_s);
         let lambda = (l.max_jerk_m_s3 / (1.5 * a_xy.max(a_z)))
@@ -388,7 +388,7 @@ impl Shaper {
     }
 
     fn step(&mut self, setpoint: &Setpoint, h: f64) {
-        let l = self.limits;
+        let l = &self.limits;
         let fin = |v: &Vector3<f64>| v.iter().all(|x| x.is_finite());
         let [k1, k2, k3, k4] = self.k;
         let v_cmd = match setpoint.translation {
@@ -398,7 +398,7 @@ impl Shaper {
         };
         let v_cmd = sat_box(&v_cmd, l.max_speed_xy_m_s, l.max_climb_m_s, l.max_descent_m_s);
         let a_z = l.max_accel_z_m_s2;
-        let a_cmd = sat_box(&((v_cmd - self.v) * k2), self.a_xy_max(), a_z, a_z);
+        let a_cmd = sat_box(&((v_cmd - self.v) * k2), self.a_xy_max, a_z, a_z);
         let j_cmd = sat_norm(&((a_cmd - self.a) * k3), l.max_jerk_m_s3);
         let s = (j_cmd - self.j) * k4;
         let (h2, h3, h4) = (h * h, h * h * h, h * h * h * h);

@@ -69,6 +69,64 @@ pub(in crate::autopilot) struct MissionRun {
     pub(super) done: Vec<ItemDone>,
     /// A DO_SET_HOME the autopilot must apply.
     pub(super) new_home: Option<SetHome>,
+    /// The points and heading of the leg flown, already computed.
+    memo: LegMemo,
+}
+
+/// What a leg asks for every step and changes only with the leg, kept with
+/// the exact bits of its inputs (the same values, computed once per change):
+/// the last two item points converted from latitude and longitude (the
+/// current and the next item's; each costs a cosine), keyed on the item, the
+/// origin and home's altitude, and the leg's heading (an `atan2`).
+#[derive(Clone, Debug, Default)]
+struct LegMemo {
+    points: [Option<(MissionItem, [u64; 4], Vector3<f64>)>; 2],
+    /// The entry of `points` replaced next.
+    next: usize,
+    /// `(d_x, d_y)` bits and `atan2(d_y, d_x)`.
+    heading: Option<(u64, u64, f64)>,
+}
+
+/// A memo holds no state of the mission: two runs are equal whatever it holds.
+impl PartialEq for LegMemo {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
+impl LegMemo {
+    /// [`item_point_ned`] of `item`; an item without a point of its own
+    /// (`here`'s position) is not kept.
+    fn point(&mut self, item: &MissionItem, origin: &GeoPoint, home: &GeoPoint, here: &Vector3<f64>) -> Vector3<f64> {
+        let key = [
+            origin.lat_deg.to_bits(),
+            origin.lon_deg.to_bits(),
+            origin.alt_amsl_m.to_bits(),
+            home.alt_amsl_m.to_bits(),
+        ];
+        let hit = self.points.iter().flatten().find(|(it, k, _)| it == item && *k == key);
+        if let Some((_, _, p)) = hit {
+            return *p;
+        }
+        let p = item_point_ned(item, origin, home, here);
+        if item.geo_point(home.alt_amsl_m).is_some() {
+            self.points[self.next] = Some((*item, key, p));
+            self.next = 1 - self.next;
+        }
+        p
+    }
+
+    /// The heading [rad] of the horizontal direction `(d_x, d_y)`, `atan2(d_y, d_x)`.
+    fn heading(&mut self, d_x: f64, d_y: f64) -> f64 {
+        match self.heading {
+            Some((x, y, psi)) if x == d_x.to_bits() && y == d_y.to_bits() => psi,
+            _ => {
+                let psi = d_y.atan2(d_x);
+                self.heading = Some((d_x.to_bits(), d_y.to_bits(), psi));
+                psi
+            }
+        }
+    }
 }
 
 /// A mission item done, by MAVLink seq: a navigation item whose point (or
@@ -351,7 +409,7 @@ impl Navigator {
             return self.mode_demand(cx, say);
         }
         let here_ref = self.current_position(cx.meas);
-        let point = item_point_ned(&it, cx.origin, cx.home, &here_ref);
+        let point = self.mission.memo.point(&it, cx.origin, cx.home, &here_ref);
         if it.command == cmd::NAV_DELAY && self.mission.phase == Phase::Begin {
             let until = now + f64::from(it.params[0]).max(0.0);
             self.mission.phase = Phase::Wait {
@@ -419,7 +477,7 @@ impl Navigator {
                 let path = if next.is_some() { &through[..] } else { &through[..2] };
                 let heading = if (target.xy() - from.xy()).norm() > YAW_MIN_LEG_M {
                     let d = target - from;
-                    Some(d.y.atan2(d.x))
+                    Some(self.mission.memo.heading(d.x, d.y))
                 } else {
                     None
                 };
@@ -495,7 +553,7 @@ impl Navigator {
 
     /// The point of the next positional item after `from_seq` (skipping items
     /// done at once), if the path continues through it.
-    fn next_point(&self, cx: &Situation<'_>, from_seq: usize, here: &Vector3<f64>) -> Option<Vector3<f64>> {
+    fn next_point(&mut self, cx: &Situation<'_>, from_seq: usize, here: &Vector3<f64>) -> Option<Vector3<f64>> {
         let items = cx.mission;
         let mut k = from_seq;
         while k < items.len() {
@@ -509,7 +567,7 @@ impl Navigator {
                     if it.x.is_nan() {
                         return None;
                     }
-                    return Some(item_point_ned(it, cx.origin, cx.home, here));
+                    return Some(self.mission.memo.point(it, cx.origin, cx.home, here));
                 }
                 cmd::DO_CHANGE_SPEED | cmd::DO_SET_HOME => k += 1,
                 c if cmd::NO_OPS.contains(&c) => k += 1,

@@ -89,7 +89,10 @@ pub fn rpy_coriolis(inertia_frd: &Matrix3<f64>, eta: &Vector3<f64>, eta_dot: &Ve
 #[must_use]
 pub fn wrap_pi(a: f64) -> f64 {
     use std::f64::consts::{PI, TAU};
-    let w = (a + PI).rem_euclid(TAU) - PI;
+    let s = a + PI;
+    // `rem_euclid` (a software `fmod`) returns an `s` already in `[0, 2 pi)`
+    // unchanged: skip it then, as for every angle that is already wrapped
+    let w = if (0.0..TAU).contains(&s) { s } else { s.rem_euclid(TAU) } - PI;
     if w <= -PI { w + TAU } else { w }
 }
 
@@ -164,5 +167,29 @@ mod tests {
         assert!((wrap_pi(3.0 * std::f64::consts::PI) - std::f64::consts::PI).abs() < 1e-12);
         assert!((wrap_pi(-0.5) + 0.5).abs() < 1e-15);
         assert!(wrap_pi(-std::f64::consts::PI) > 0.0);
+    }
+
+    /// GIVEN angles inside and outside `(-pi, pi]`, the edges and zeros WHEN
+    /// wrapped THEN the result is `rem_euclid`'s for every one, to the bit.
+    #[test]
+    fn wrap_pi_equals_the_rem_euclid_formula_bit_for_bit() {
+        use std::f64::consts::{PI, TAU};
+        let formula = |a: f64| {
+            let w = (a + PI).rem_euclid(TAU) - PI;
+            if w <= -PI { w + TAU } else { w }
+        };
+        let mut angles = vec![0.0, -0.0, PI, -PI, TAU, -TAU, f64::NAN, f64::INFINITY, 1e-300, -1e-300];
+        angles.extend((-20_000..20_000).map(|k| f64::from(k) * 1.37e-3));
+        angles.extend((0..64).flat_map(|k| {
+            let edge = f64::from(k - 32) * PI;
+            [
+                edge,
+                f64::from_bits(edge.to_bits() + 1),
+                f64::from_bits(edge.to_bits().wrapping_sub(1)),
+            ]
+        }));
+        for a in angles {
+            assert_eq!(wrap_pi(a).to_bits(), formula(a).to_bits(), "{a:e}");
+        }
     }
 }

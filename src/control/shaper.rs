@@ -235,6 +235,9 @@ pub struct Shaper {
     /// Horizontal acceleration limit `min(a_xy, g tan(max_tilt))` [m/s^2],
     /// set with the gains when the limits change (no `tan` per step).
     a_xy_max: f64,
+    /// The last step `dt` (its bits) and its split into `n` substeps of `h`
+    /// [s] (below): `dt` rarely changes, so neither does the split.
+    substeps: Option<(u64, u32, f64)>,
     p: Vector3<f64>,
     v: Vector3<f64>,
     a: Vector3<f64>,
@@ -279,6 +282,7 @@ impl Shaper {
             k: [0.0; 4],
             k_yaw: 0.0,
             a_xy_max: 0.0,
+            substeps: None,
             p: Vector3::zeros(),
             v: Vector3::zeros(),
             a: Vector3::zeros(),
@@ -297,6 +301,7 @@ impl Shaper {
         let l = &self.limits;
         let a_xy = l.max_accel_xy_m_s2.min(GRAVITY * l.max_tilt_rad.tan());
         self.a_xy_max = a_xy;
+        self.substeps = None;
         let a_z = l.max_accel_z_m_s2;
         let v_z = l.max_climb_m_s.max(l.max_descent_m_s);
         let lambda = (l.max_jerk_m_s3 / (1.5 * a_xy.max(a_z)))
@@ -378,10 +383,17 @@ impl Shaper {
         if !(dt.is_finite() && dt > 0.0) {
             return self.reference();
         }
-        let h_max = 0.25 / self.k[3];
-        let n = (dt / h_max).ceil().clamp(1.0, 10_000.0);
-        let h = dt / n;
-        for _ in 0..n as u32 {
+        let (n, h) = match self.substeps {
+            Some((bits, n, h)) if bits == dt.to_bits() => (n, h),
+            _ => {
+                let h_max = 0.25 / self.k[3];
+                let n = (dt / h_max).ceil().clamp(1.0, 10_000.0);
+                let h = dt / n;
+                self.substeps = Some((dt.to_bits(), n as u32, h));
+                (n as u32, h)
+            }
+        };
+        for _ in 0..n {
             self.step(setpoint, h);
         }
         self.reference()

@@ -241,7 +241,9 @@ impl Allocator {
         let (t, tau) = (req.thrust_n, &req.torque_frd);
         let p = &self.b_pinv;
         let mut full = RotorVector::zeros();
-        for i in 0..self.n {
+        // n <= MAX_ROTORS, said to the compiler: no bounds checks in the loops
+        let n = self.n.min(MAX_ROTORS);
+        for i in 0..n {
             full[i] = p[(i, 0)] * t + (p[(i, 1)] * tau.x + p[(i, 2)] * tau.y) + p[(i, 3)] * tau.z;
         }
         let (sigma, delta, lambda, saturated, w) = if self.in_bounds(&full) {
@@ -297,7 +299,7 @@ impl Allocator {
         };
         let mut speed_sq = RotorVector::zeros();
         let mut speed_cmd = RotorVector::zeros();
-        for i in 0..self.n {
+        for i in 0..n {
             // a dropped rotor idles: its column of `B` is zero, so it adds nothing
             speed_sq[i] = if self.active[i] {
                 w[i].clamp(self.w_min, self.w_max)

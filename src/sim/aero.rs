@@ -129,21 +129,23 @@ impl AeroEffects {
         let mut out = RotorVector::from_element(1.0);
         let rho2 = self.radius_m * self.radius_m;
         let zmin = 0.5 * self.radius_m;
+        // n <= MAX_ROTORS, said to the compiler: no bounds checks in the loops
+        let n = self.n.min(MAX_ROTORS);
         let mut z = [0.0; MAX_ROTORS];
-        for i in 0..self.n {
+        for i in 0..n {
             z[i] = heights_m[i].max(zmin);
         }
         // P_i: the images of the other rotors
         let mut others = [0.0; MAX_ROTORS];
-        for i in 0..self.n {
-            for j in i + 1..self.n {
+        for i in 0..n {
+            for j in i + 1..n {
                 let s = z[i] + z[j];
                 let term = 0.25 * rho2 * s / pow_1_5(self.d2[i][j] + s * s);
                 others[i] += term;
                 others[j] += term;
             }
         }
-        for i in 0..self.n {
+        for i in 0..n {
             let z2 = z[i] * z[i];
             let y = pow_1_5(self.b2[i] + 4.0 * z2);
             let num = rho2 * (y + 32.0 * self.k_b * z2 * z[i]);

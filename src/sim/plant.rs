@@ -713,7 +713,8 @@ impl Plant {
         let mut acc = [[0.0; 4]; 3];
         let mut spin = [0.0; 3];
         let mut end = RotorVector::zeros();
-        for i in 0..self.n {
+        // n <= MAX_ROTORS, said to the compiler: no bounds checks in the loop
+        for i in 0..self.n.min(MAX_ROTORS) {
             let (bar, om0) = (target[i], self.rotor_speed[i]);
             let speeds = [om0, bar + (om0 - bar) * decay_half, bar + (om0 - bar) * decay_full];
             end[i] = speeds[2];
@@ -847,7 +848,7 @@ impl Plant {
         };
         let (decay_half, decay_full) = self.decay;
         let mut out = [RotorVector::zeros(); 3];
-        for i in 0..self.n {
+        for i in 0..self.n.min(MAX_ROTORS) {
             let (b, om0) = (bar[i], self.rotor_speed[i]);
             out[0][i] = om0;
             out[1][i] = b + (om0 - b) * decay_half;
@@ -859,7 +860,7 @@ impl Plant {
     /// Clamp the vehicle's rotor commands to `[omega_min, omega_max]`; unused slots stay 0.
     fn clamp_speeds(&self, w: &RotorVector) -> RotorVector {
         let mut out = RotorVector::zeros();
-        for i in 0..self.n {
+        for i in 0..self.n.min(MAX_ROTORS) {
             out[i] = w[i].clamp(self.speed_min, self.speed_max);
         }
         out

@@ -40,6 +40,12 @@ ROTORPILOT_FUZZ_SECONDS=20 cargo test --release --quiet --test fuzz -- --nocaptu
 echo "== benches compile"
 cargo bench --no-run --quiet
 
+echo "== instructions per step under their ceilings (tools/bench_steps.sh --check: callgrind, bare step and mission-square)"
+if ! command -v valgrind >/dev/null; then
+    apt-get install -y -qq valgrind >/dev/null 2>&1 || { apt-get update -qq && apt-get install -y -qq valgrind; }
+fi
+bash tools/bench_steps.sh --check
+
 echo "== MAVLink client tests (pymavlink, MAVSDK 3 gRPC, MAVSDK 4 native, MAVProxy)"
 # Real clients against the release binary on loopback. Each client set lives
 # in its own venv under .venv/ (gitignored): `mavsdk<4` and `mavsdk` 4.x are

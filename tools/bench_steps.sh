@@ -1,0 +1,73 @@
+#!/usr/bin/env bash
+# bench_steps.sh [--check]: instructions per simulated step, counted by
+# valgrind's callgrind (a count does not move with the machine's load, a
+# wall time does), for two workloads:
+#   bare     one lockstep step of the quad flying the figure-eight at 2 m with
+#            the geometric law and the estimate fed back (examples/steps.rs):
+#            (I(12000 steps) - I(2000 steps)) / 10000, start-up cancelled out;
+#   mission  `rotorpilot simulate tools/scenarios/mission-square.toml`, the
+#            whole flight stack headless: all instructions of the run over its
+#            steps (start-up included, under 0.5 % of it).
+# --check (tools/test-all.sh): shorter bare runs (6000 and 1000 steps) and a
+# failure when either figure is above its ceiling below, a little above what
+# the step costs today, so that a change that makes every step dearer shows
+# up as a number. docs/performance.md gives the figures and their history.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+# Ceilings [instructions per step] for --check: 5 % above the figures of
+# docs/performance.md (5,364 and 6,536 on an AVX2 machine with glibc's FMA
+# libm), room for a CPU without AVX2, where the estimator's baseline code
+# runs (about 190 more), and for the small shifts of code generation.
+BARE_CEILING=5630
+MISSION_CEILING=6860
+
+check=false
+case "${1:-}" in
+    --check) check=true ;;
+    "") ;;
+    *) echo "usage: tools/bench_steps.sh [--check]" >&2; exit 2 ;;
+esac
+command -v valgrind >/dev/null || { echo "bench_steps.sh: valgrind is not installed (apt-get install valgrind)" >&2; exit 2; }
+
+cargo build --release --quiet --example steps --bin rotorpilot
+bin="${CARGO_TARGET_DIR:-$PWD/target}/release"
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+
+# instructions N of one run under callgrind ("I refs: N" on stderr); the
+# program's own output goes to $tmp/out
+refs() {
+    valgrind --tool=callgrind --callgrind-out-file="$tmp/callgrind.out" "$@" >"$tmp/out" 2>"$tmp/err" \
+        || { cat "$tmp/err" >&2; exit 1; }
+    sed -n 's/.*I *refs: *//p' "$tmp/err" | tr -d ,
+}
+
+if $check; then long=6000 short=1000; else long=12000 short=2000; fi
+bare_long=$(refs "$bin/examples/steps" quad geometric "$long")
+bare_short=$(refs "$bin/examples/steps" quad geometric "$short")
+bare=$(( (bare_long - bare_short) / (long - short) ))
+
+mission_total=$(refs "$bin/rotorpilot" simulate tools/scenarios/mission-square.toml --json)
+# the scenario's 1 kHz step: sim_time_s / 0.001 steps
+steps=$(python3 -c 'import json,sys; print(round(json.load(open(sys.argv[1]))["sim_time_s"] * 1000))' "$tmp/out")
+mission=$(( mission_total / steps ))
+
+printf 'bare step (quad, geometric, estimator on): %d instructions/step ((%d - %d) / %d)\n' \
+    "$bare" "$bare_long" "$bare_short" "$(( long - short ))"
+printf 'mission-square step (whole flight stack):   %d instructions/step (%d / %d steps)\n' \
+    "$mission" "$mission_total" "$steps"
+
+if $check; then
+    fail=0
+    if (( bare > BARE_CEILING )); then
+        echo "bare step costs $bare instructions, above its ceiling $BARE_CEILING" >&2
+        fail=1
+    fi
+    if (( mission > MISSION_CEILING )); then
+        echo "mission-square step costs $mission instructions, above its ceiling $MISSION_CEILING" >&2
+        fail=1
+    fi
+    (( fail == 0 )) && echo "both under their ceilings ($BARE_CEILING, $MISSION_CEILING)"
+    exit "$fail"
+fi

@@ -4,6 +4,8 @@
 1. COMMAND_ACK round trip, p50/p99/max over N commands, for a command the
    link answers itself (unknown id -> UNSUPPORTED) and one that goes through
    the autopilot task (DO_SET_MODE Hold -> ACCEPTED);
+   and a PARAM_SET's echo (PARAM_SET MIS_TAKEOFF_ALT, alternating two
+   valid values -> the PARAM_VALUE that answers it);
 2. full parameter list download with pymavlink (request to last index);
 3. CPU use of one idle real-time vehicle (disarmed on the ground, streaming
    to its default remotes), from /proc/PID/stat over a window.
@@ -105,6 +107,33 @@ def ack_rtt(gcs_bind, n, command, params):
     return rtts
 
 
+def param_set_rtt(gcs_bind, n, name="MIS_TAKEOFF_ALT", values=(2.5, 3.0)):
+    """Round trips [ms] of PARAM_SET -> its echo (the PARAM_VALUE naming it
+    with the value set), alternating `values`."""
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(("127.0.0.1", 0))
+    sock.settimeout(1.0)
+    mav = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    frames = [mavlink.MAVLink_param_set_message(1, 1, name.encode(), v, mavlink.MAV_PARAM_TYPE_REAL32).pack(mav)
+              for v in values]
+    dest = ("127.0.0.1", gcs_bind)
+    want = name.encode().ljust(16, b"\0")
+    rtts = []
+    for k in range(n + 10):
+        t0 = time.perf_counter_ns()
+        sock.sendto(frames[k % 2], dest)
+        while True:
+            data = sock.recv(65536)
+            # MAVLink 2 frame: message id at bytes 7..9; PARAM_VALUE = 22, param_id at payload bytes 8..24
+            if len(data) > 12 and data[0] == 0xFD and data[7] == 22 and data[8] == 0 \
+                    and data[18:34].ljust(16, b"\0")[:len(name)] == want[:len(name)]:
+                break
+        if k >= 10:  # the first ones teach the vehicle its peer
+            rtts.append((time.perf_counter_ns() - t0) / 1e6)
+    sock.close()
+    return rtts
+
+
 def param_download(gcs_remote_port, repeats):
     m = mavutil.mavlink_connection(f"udpin:127.0.0.1:{gcs_remote_port}", source_system=255)
     assert m.wait_heartbeat(timeout=5) is not None
@@ -164,6 +193,8 @@ def main():
         ]:
             p50, p99, mx = percentiles(ack_rtt(gcs_bind, a.n, cmd, params))
             rows.append((label, p50, p99, mx))
+        p50, p99, mx = percentiles(param_set_rtt(gcs_bind, a.n // 4))
+        rows.append(("PARAM_SET -> PARAM_VALUE echo (autopilot task)", p50, p99, mx))
         times, count = param_download(gcs_port, a.param_repeats)
     finally:
         stop(proc)
@@ -176,7 +207,8 @@ def main():
     finally:
         stop(proc)
 
-    print(f"| COMMAND_ACK round trip (loopback, n = {a.n}) | p50 ms | p99 ms | max ms |")
+    print(f"load average at the end: {os.getloadavg()[0]:.2f}")
+    print(f"| round trip (loopback; n = {a.n}, PARAM_SET n = {a.n // 4}) | p50 ms | p99 ms | max ms |")
     print("|---|---|---|---|")
     for label, p50, p99, mx in rows:
         print(f"| {label} | {p50:.3f} | {p99:.3f} | {mx:.3f} |")

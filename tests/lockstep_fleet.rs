@@ -371,3 +371,56 @@ fn bad_fleets_are_answered_clearly() {
     assert!(o.stderr.contains("--threads"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The work a fleet does after each vehicle's step on the thread that
+/// stepped it (`Lockstep::step_each`: the tally and the log row) sees that
+/// vehicle's own record, the one `last_step` gives once the step is done,
+/// the same on 1 and 2 threads.
+#[test]
+fn the_work_after_each_vehicles_step_sees_its_own_record_on_any_threads() {
+    use rotorpilot::airframe::Airframe;
+    use rotorpilot::geo::GeoPoint;
+    use rotorpilot::lockstep::{FleetVehicle, Lockstep};
+    use rotorpilot::params::ParamStore;
+    use rotorpilot::sim::{SensorConfig, SensorNoise};
+
+    let airframe = Airframe::load("quad").unwrap();
+    let params = ParamStore::new(&airframe);
+    let noise = SensorNoise {
+        position_m: 0.1,
+        velocity_m_s: 0.1,
+        attitude_rad: 0.01,
+        rate_rad_s: 0.01,
+    };
+    // more vehicles than one parallel task takes, each with its own noise
+    let vehicles: Vec<FleetVehicle<'_>> = (0..24)
+        .map(|seed| FleetVehicle {
+            airframe: &airframe,
+            home: GeoPoint::PX4_SITL_HOME,
+            params: &params,
+            sensors: SensorConfig { noise, seed },
+        })
+        .collect();
+    let fly = |threads: usize| {
+        let mut core = Lockstep::fleet(GeoPoint::PX4_SITL_HOME, &vehicles).unwrap();
+        core.set_threads(threads).unwrap();
+        let mut seen: Vec<Vec<String>> = vec![Vec::new(); vehicles.len()];
+        for _ in 0..20 {
+            core.step_each(&mut seen, |s, _, rec| {
+                s.push(format!("{:?} {:?}", rec.measurement, rec.world.truth));
+            });
+            for (i, s) in seen.iter().enumerate() {
+                let rec = core.last_step(i);
+                assert_eq!(
+                    s.last().unwrap(),
+                    &format!("{:?} {:?}", rec.measurement, rec.world.truth),
+                    "vehicle {i} on {threads} threads"
+                );
+            }
+        }
+        seen
+    };
+    let one = fly(1);
+    assert_ne!(one[0], one[1], "each vehicle reads its own noise");
+    assert_eq!(one, fly(2));
+}

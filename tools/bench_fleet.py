@@ -31,13 +31,23 @@ to the first vehicle's GCS port (18570+i), which then streams to it alone
 (about 270 datagrams/s, one vehicle of the fleet); every vehicle is on one
 clock, so its time is the fleet's.
 
+5. The tracked goals (`--only goals`): `rotorpilot simulate
+   tools/fleets/fleet-1024.toml --json --threads 1` and `--threads 2` (the
+   real-time factor its summary gives, the speed-up from 1 to 2 threads, and
+   the CPU seconds each run took: user + system of the child, which a busy
+   machine does not inflate as it does wall time), and the daemon's 250
+   vehicles streaming to the listener flat out (section 1's figure). With
+   `--compare OTHER_BINARY` each configuration runs with both binaries in
+   turn, side by side in one run.
+
 Each configuration runs --repeat times (default 2), configurations
 alternating, and the tables give medians and [min, max] ranges. The
 machine's load average at each start is shown: other work on the machine
 lowers the figures.
 
     cargo build --release
-    .venv/pymavlink/bin/python tools/bench_fleet.py [--quick] [--only rt,mem,cpu,side]
+    .venv/pymavlink/bin/python tools/bench_fleet.py [--quick] [--only rt,mem,cpu,side,goals]
+    .venv/pymavlink/bin/python tools/bench_fleet.py --only goals --compare OLD_BINARY
 
 stdlib + pymavlink; Linux (/proc). Fleets of 64 start at instance 100
 (ports 14680+, 18670+), away from PX4's instances 0..9 that client tests
@@ -46,9 +56,11 @@ is taken.
 """
 
 import argparse
+import json
 import os
 import shlex
 import shutil
+import resource
 import signal
 import socket
 import statistics
@@ -351,6 +363,54 @@ def measure(config, window_s, warmup_s):
         shutil.rmtree(tmp, ignore_errors=True)
 
 
+FLEET_1024 = REPO / "tools" / "fleets" / "fleet-1024.toml"
+
+
+def headless(threads):
+    """One `simulate fleet-1024.toml --json --threads N`: the real-time
+    factor of its summary, its wall time and the CPU seconds it took."""
+    load = load_avg()
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    out = subprocess.run([binary(), "simulate", str(FLEET_1024), "--json", "--threads", str(threads)],
+                         capture_output=True, text=True, check=True)
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    d = json.loads(out.stdout)
+    cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
+    return {"load": load, "factor": d["real_time_factor"], "wall": d["wall_time_s"], "cpu": cpu}
+
+
+def goals(binaries, repeat, window, warmup):
+    """Section 5: each binary's fleet-1024 factors and its 250-vehicle daemon rate, alternating."""
+    rows = {b: {"h1": [], "h2": [], "daemon": []} for b in binaries}
+    daemon = {"n": 250, "first": 0, "speed": 1000.0, "links": "listener", "lone": False}
+    for r in range(repeat):
+        for b in binaries:
+            os.environ["ROTORPILOT_BIN"] = b
+            for t in (1, 2):
+                res = headless(t)
+                rows[b][f"h{t}"].append(res)
+                print(f"# run {r + 1}: {b} simulate {FLEET_1024.name} --threads {t}\n#   -> {res}", file=sys.stderr, flush=True)
+            res = measure(dict(daemon), window, warmup)
+            rows[b]["daemon"].append(res)
+            print(f"# run {r + 1}: {b} --count 250 --speed 1000 (API -> listener)\n#   -> {res}", file=sys.stderr, flush=True)
+    print("\n### Tracked goals (fleet-1024 headless; 250 vehicles in the daemon, API links to a listener, flat out)\n")
+    cols = ["binary", "fleet-1024, 1 thread (x real time)", "2 threads", "speed-up 1 -> 2 (wall)",
+            "CPU s, 1 thread", "CPU s, 2 threads", "daemon, 250 vehicles (x real time)", "load avg"]
+    print("| " + " | ".join(cols) + " |")
+    print("|" + "---|" * len(cols))
+    for b in binaries:
+        h1, h2, d = rows[b]["h1"], rows[b]["h2"], [x for x in rows[b]["daemon"] if "error" not in x]
+        speedup = [x["wall"] / y["wall"] for x, y in zip(h1, h2)]
+        loads = [x["load"] for x in h1 + h2] + [x["load"] for x in rows[b]["daemon"]]
+        print("| " + " | ".join([
+            b, fmt([x["factor"] for x in h1], 3), fmt([x["factor"] for x in h2], 3), fmt(speedup, 2),
+            fmt([x["cpu"] for x in h1], 2), fmt([x["cpu"] for x in h2], 2), fmt([x["factor"] for x in d], 2),
+            fmt(loads, 2),
+        ]) + " |")
+    print(f"\nCommands: `rotorpilot simulate tools/fleets/fleet-1024.toml --json --threads 1|2`; "
+          f"`{shown(fleet_cmd(250, 0, 1000.0, 'listener', 'STATE', 1, 2), 1, 2, 'STATE')}`")
+
+
 def fmt(xs, digits):
     xs = [x for x in xs if x is not None and x == x]
     if not xs:
@@ -392,7 +452,8 @@ def main():
     ap.add_argument("--repeat", type=int, default=2, help="runs of each configuration (alternating)")
     ap.add_argument("--window", type=float, default=10.0, help="measuring window [s] of wall time")
     ap.add_argument("--warmup", type=float, default=3.0, help="wall seconds after start before measuring")
-    ap.add_argument("--only", default="rt,mem,cpu,side", help="sections: rt, mem, cpu, side")
+    ap.add_argument("--only", default="rt,mem,cpu,side", help="sections: rt, mem, cpu, side, goals")
+    ap.add_argument("--compare", metavar="BINARY", help="goals: also run this binary, side by side")
     ap.add_argument("--quick", action="store_true", help="one run, 4 s windows, smaller fleets (a smoke test)")
     a = ap.parse_args()
     if a.quick:
@@ -405,6 +466,12 @@ def main():
         if first is None:
             first = 100 if n <= 100 else 0
         return {"n": n, "first": first, "speed": speed, "links": links, "lone": lone, "section": section}
+
+    if "goals" in only:
+        goals([binary()] + ([a.compare] if a.compare else []), a.repeat, a.window, a.warmup)
+        only.discard("goals")
+        if not only:
+            return
 
     big = [8] if a.quick else [64, 250]
     configs = []

@@ -4,6 +4,8 @@
 1. COMMAND_ACK round trip, p50/p99/max over N commands, for a command the
    link answers itself (unknown id -> UNSUPPORTED) and one that goes through
    the autopilot task (DO_SET_MODE Hold -> ACCEPTED);
+   and a PARAM_SET's echo (PARAM_SET MIS_TAKEOFF_ALT, alternating two
+   valid values -> the PARAM_VALUE that answers it);
 2. full parameter list download with pymavlink (request to last index);
 3. CPU use of one idle real-time vehicle (disarmed on the ground, streaming
    to its default remotes), from /proc/PID/stat over a window.
@@ -66,6 +68,17 @@ def percentiles(xs):
     return q(0.5), q(0.99), xs[-1]
 
 
+def frames(data):
+    """The MAVLink 2 frames of one datagram (the vehicle packs several into
+    one): (message id, payload) each."""
+    k = 0
+    while k + 12 <= len(data) and data[k] == 0xFD:
+        length = data[k + 1]
+        msgid = data[k + 7] | (data[k + 8] << 8) | (data[k + 9] << 16)
+        yield msgid, data[k + 10:k + 10 + length]
+        k += 12 + length + (13 if data[k + 2] & 1 else 0)
+
+
 def ack_rtt(gcs_bind, n, command, params):
     """Round trips [ms] of COMMAND_LONG -> COMMAND_ACK from a udpout-style socket."""
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -95,12 +108,36 @@ def ack_rtt(gcs_bind, n, command, params):
         sock.sendto(frame, dest)
         while True:
             data = sock.recv(65536)
-            # MAVLink 2 frame: message id at bytes 7..9; COMMAND_ACK = 77
-            if len(data) > 12 and data[0] == 0xFD and data[7] == 77 and data[8] == 0:
-                cmd = data[10] | (data[11] << 8)
-                if cmd == command:
-                    break
+            # COMMAND_ACK = 77: its command in payload bytes 0..2
+            if any(m == 77 and len(p) >= 2 and p[0] | (p[1] << 8) == command for m, p in frames(data)):
+                break
         rtts.append((time.perf_counter_ns() - t0) / 1e6)
+    sock.close()
+    return rtts
+
+
+def param_set_rtt(gcs_bind, n, name="MIS_TAKEOFF_ALT", values=(2.5, 3.0)):
+    """Round trips [ms] of PARAM_SET -> its echo (the PARAM_VALUE naming it
+    with the value set), alternating `values`."""
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(("127.0.0.1", 0))
+    sock.settimeout(1.0)
+    mav = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    sets = [mavlink.MAVLink_param_set_message(1, 1, name.encode(), v, mavlink.MAV_PARAM_TYPE_REAL32).pack(mav)
+            for v in values]
+    dest = ("127.0.0.1", gcs_bind)
+    want = name.encode().ljust(16, b"\0")
+    rtts = []
+    for k in range(n + 10):
+        t0 = time.perf_counter_ns()
+        sock.sendto(sets[k % 2], dest)
+        while True:
+            data = sock.recv(65536)
+            # PARAM_VALUE = 22: its param_id in payload bytes 8..24
+            if any(m == 22 and p[8:24].ljust(16, b"\0") == want for m, p in frames(data)):
+                break
+        if k >= 10:  # the first ones teach the vehicle its peer
+            rtts.append((time.perf_counter_ns() - t0) / 1e6)
     sock.close()
     return rtts
 
@@ -164,6 +201,8 @@ def main():
         ]:
             p50, p99, mx = percentiles(ack_rtt(gcs_bind, a.n, cmd, params))
             rows.append((label, p50, p99, mx))
+        p50, p99, mx = percentiles(param_set_rtt(gcs_bind, a.n // 4))
+        rows.append(("PARAM_SET -> PARAM_VALUE echo (autopilot task)", p50, p99, mx))
         times, count = param_download(gcs_port, a.param_repeats)
     finally:
         stop(proc)
@@ -176,7 +215,8 @@ def main():
     finally:
         stop(proc)
 
-    print(f"| COMMAND_ACK round trip (loopback, n = {a.n}) | p50 ms | p99 ms | max ms |")
+    print(f"load average at the end: {os.getloadavg()[0]:.2f}")
+    print(f"| round trip (loopback; n = {a.n}, PARAM_SET n = {a.n // 4}) | p50 ms | p99 ms | max ms |")
     print("|---|---|---|---|")
     for label, p50, p99, mx in rows:
         print(f"| {label} | {p50:.3f} | {p99:.3f} | {mx:.3f} |")

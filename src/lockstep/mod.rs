@@ -144,7 +144,8 @@ pub struct Lockstep<P> {
     /// after the step that raised it (every one: the runtimes drain them
     /// after each batch of steps; a pair is told once per rise).
     proximity_events: VecDeque<(f64, ProximityEvent)>,
-    /// Scratch: the vehicles' world positions and radii for the proximity check.
+    /// The vehicles' world positions [m, NED] and body radii [m] after the
+    /// last step, noted by each vehicle's step for the proximity check.
     positions: Vec<Vector3<f64>>,
     radii: Vec<f64>,
     /// Threads stepping the vehicles (none: on the caller's thread).
@@ -154,16 +155,31 @@ pub struct Lockstep<P> {
 /// Pilot status texts kept per vehicle until drained (the autopilot's own queue's size).
 const PILOT_TEXTS_KEPT: usize = 64;
 
+/// One vehicle's share of a step: its slot in the world, its pilot and
+/// what the core keeps for it.
+struct Lane<'a, P> {
+    slot: VehicleSlot<'a>,
+    pilot: &'a mut P,
+    measurement: &'a mut Measurement,
+    fault: &'a mut Option<SimFault>,
+    texts: &'a mut VecDeque<(f64, StatusText)>,
+    /// Its world position [m, NED] and body radius [m] after the step
+    /// (for the proximity check).
+    place: (&'a mut Vector3<f64>, &'a mut f64),
+}
+
 /// One vehicle's step at `t_s`: its pilot's texts stamped, sense, decide,
-/// integrate; a fault that stopped the rotors told to the pilot and kept.
-fn step_vehicle<P: Pilot>(
-    mut slot: VehicleSlot<'_>,
-    pilot: &mut P,
-    measurement: &mut Measurement,
-    fault: &mut Option<SimFault>,
-    texts: &mut VecDeque<(f64, StatusText)>,
-    t_s: f64,
-) {
+/// integrate; a fault that stopped the rotors told to the pilot and kept;
+/// its place noted; then `after` given its record.
+fn step_vehicle<P: Pilot, T>(lane: Lane<'_, P>, t_s: f64, extra: &mut T, after: &impl Fn(&mut T, &P, StepRecord<'_>)) {
+    let Lane {
+        mut slot,
+        pilot,
+        measurement,
+        fault,
+        texts,
+        place,
+    } = lane;
     stamp_texts(texts, pilot, t_s);
     let readings = slot.sense();
     *measurement = readings.measurement;
@@ -173,6 +189,14 @@ fn step_vehicle<P: Pilot>(
         pilot.rotors_stopped(&f);
         *fault = Some(f);
     }
+    *place.0 = slot.position_ned();
+    *place.1 = slot.body_radius_m();
+    let record = StepRecord {
+        measurement,
+        control: pilot.output(),
+        world: slot.report(),
+    };
+    after(extra, pilot, record);
 }
 
 /// What a vehicle is told when `other` (its label) came `kind` at `distance_m`:
@@ -302,16 +326,10 @@ impl<P: Pilot> Lockstep<P> {
         let Some(prox) = &mut self.proximity else {
             return;
         };
-        let n = self.world.len();
-        if n < 2 {
+        if self.world.len() < 2 {
             return;
         }
-        self.positions.clear();
-        self.radii.clear();
-        for i in 0..n {
-            self.positions.push(self.world.position_ned(i));
-            self.radii.push(self.world.body_radius_m(i));
-        }
+        // the positions and radii were noted by each vehicle's step
         let mut events = Vec::new();
         prox.check(&self.positions, &self.radii, &mut events);
         let t = self.world.time_s();
@@ -359,28 +377,53 @@ impl<P: Pilot> Lockstep<P> {
     /// threads of [`Self::set_threads`] when set), then the clock ticks and
     /// proximity is checked.
     pub fn step(&mut self) {
-        let t = self.time_s();
-        let per_vehicle = |(((slot, pilot), measurement), (fault, texts))| {
-            step_vehicle(slot, pilot, measurement, fault, texts, t);
-        };
+        let mut none = vec![(); self.pilots.len()];
+        self.step_each(&mut none, |(), _, _| {});
+    }
+
+    /// [`Self::step`], with `after(&mut extras[i], pilot, record)` run for
+    /// each vehicle `i` as soon as its own step is done, on the thread that
+    /// stepped it (work that needs only the vehicle's own record, such as
+    /// tallying it or writing its log row, shares the stepping threads).
+    /// `after` sees the vehicle alone, so the flight is the same to the bit
+    /// whatever it does and however many threads run.
+    ///
+    /// # Panics
+    /// When `extras` is not one per vehicle.
+    pub fn step_each<T: Send>(&mut self, extras: &mut [T], after: impl Fn(&mut T, &P, StepRecord<'_>) + Sync) {
         let n = self.pilots.len();
-        let vehicles = self
+        assert_eq!(extras.len(), n, "one extra per vehicle");
+        let t = self.time_s();
+        self.positions.resize(n, Vector3::zeros());
+        self.radii.resize(n, 0.0);
+        let per_vehicle = |(lane, extra): (Lane<'_, P>, &mut T)| step_vehicle(lane, t, extra, &after);
+        let lanes = self
             .world
             .slots()
             .zip(self.pilots.iter_mut())
             .zip(self.measurements.iter_mut())
-            .zip(self.last_fault.iter_mut().zip(self.pilot_texts.iter_mut()));
+            .zip(self.last_fault.iter_mut().zip(self.pilot_texts.iter_mut()))
+            .zip(self.positions.iter_mut().zip(self.radii.iter_mut()))
+            .map(|((((slot, pilot), measurement), (fault, texts)), place)| Lane {
+                slot,
+                pilot,
+                measurement,
+                fault,
+                texts,
+                place,
+            })
+            .zip(extras.iter_mut());
         match &self.pool {
             Some(pool) if n >= 2 * VEHICLES_PER_TASK => {
                 use rayon::iter::{IndexedParallelIterator as _, IntoParallelIterator as _, ParallelIterator as _};
-                let all: Vec<_> = vehicles.collect();
+                let all: Vec<_> = lanes.collect();
                 pool.install(|| {
                     all.into_par_iter()
                         .with_min_len(VEHICLES_PER_TASK)
                         .for_each(per_vehicle);
                 });
             }
-            _ => vehicles.for_each(per_vehicle),
+            _ => lanes.for_each(per_vehicle),
         }
         self.world.tick();
         self.check_proximity();

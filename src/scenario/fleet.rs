@@ -51,7 +51,7 @@ use super::placement::{MAX_VEHICLES, Placement};
 use super::run::{self, Flown};
 use super::{MissionFlight, Scenario, is_mission, mission};
 use crate::autopilot::Autopilot;
-use crate::lockstep::{FleetVehicle, Lockstep, Pilot};
+use crate::lockstep::{FleetVehicle, Lockstep, Pilot, StepRecord};
 use crate::logs::csv::CsvLog;
 use crate::logs::report::{Collector, FlightReport, ReportMeta, Watched};
 use crate::sim::World;
@@ -433,19 +433,23 @@ pub fn csv_name(i: usize, n: usize, source: &str) -> String {
     format!("{i:0width$}-{stem}.csv")
 }
 
+/// A vehicle's CSV log in a fleet.
+type Log = CsvLog<BufWriter<FsFile>>;
+
 /// A vehicle's flight as it goes ([`Flown`], [`MissionFlown`]).
-trait Track<P: Pilot> {
+trait Track<P: Pilot>: Send {
     fn is_over(&self) -> bool;
     fn before_step(&mut self, core: &mut Lockstep<P>, i: usize);
-    fn after_step(
-        &mut self,
-        core: &mut Lockstep<P>,
-        i: usize,
-        log: Option<&mut CsvLog<BufWriter<FsFile>>>,
-    ) -> anyhow::Result<()>;
+    /// After the vehicle's step, with its own record alone: run on the
+    /// thread that stepped it, beside the other vehicles' steps.
+    fn after_own_step(&mut self, pilot: &P, rec: &StepRecord<'_>, log: Option<&mut Log>) -> anyhow::Result<()>;
+    /// After the step of every vehicle, with the whole core (in vehicle order).
+    fn after_step(&mut self, core: &mut Lockstep<P>, i: usize, log: Option<&mut Log>) -> anyhow::Result<()>;
     fn outcome(self, core: &mut Lockstep<P>, i: usize) -> Outcome;
 }
 
+/// A plain scenario's flight is judged from its own record alone: all of
+/// it on the stepping threads.
 impl<'a> Track<run::ScenarioPilot<'a>> for Flown {
     fn is_over(&self) -> bool {
         Flown::is_over(self)
@@ -453,19 +457,29 @@ impl<'a> Track<run::ScenarioPilot<'a>> for Flown {
     fn before_step(&mut self, core: &mut Lockstep<run::ScenarioPilot<'a>>, i: usize) {
         Flown::before_step(self, core, i);
     }
+    fn after_own_step(
+        &mut self,
+        pilot: &run::ScenarioPilot<'a>,
+        rec: &StepRecord<'_>,
+        log: Option<&mut Log>,
+    ) -> anyhow::Result<()> {
+        Ok(Flown::after_step(self, pilot.step_s(), rec, log)?)
+    }
     fn after_step(
         &mut self,
-        core: &mut Lockstep<run::ScenarioPilot<'a>>,
-        i: usize,
-        log: Option<&mut CsvLog<BufWriter<FsFile>>>,
+        _core: &mut Lockstep<run::ScenarioPilot<'a>>,
+        _i: usize,
+        _log: Option<&mut Log>,
     ) -> anyhow::Result<()> {
-        Ok(Flown::after_step(self, core, i, log)?)
+        Ok(())
     }
     fn outcome(self, core: &mut Lockstep<run::ScenarioPilot<'a>>, i: usize) -> Outcome {
         Outcome::Scenario(Box::new(self.summary(core, i)))
     }
 }
 
+/// A mission's flight asks its autopilot and starts its mission: all of it
+/// with the whole core.
 impl Track<Autopilot> for MissionFlown<'_> {
     fn is_over(&self) -> bool {
         MissionFlown::is_over(self)
@@ -473,17 +487,28 @@ impl Track<Autopilot> for MissionFlown<'_> {
     fn before_step(&mut self, core: &mut Lockstep<Autopilot>, i: usize) {
         MissionFlown::before_step(self, core, i);
     }
-    fn after_step(
+    fn after_own_step(
         &mut self,
-        core: &mut Lockstep<Autopilot>,
-        i: usize,
-        log: Option<&mut CsvLog<BufWriter<FsFile>>>,
+        _pilot: &Autopilot,
+        _rec: &StepRecord<'_>,
+        _log: Option<&mut Log>,
     ) -> anyhow::Result<()> {
+        Ok(())
+    }
+    fn after_step(&mut self, core: &mut Lockstep<Autopilot>, i: usize, log: Option<&mut Log>) -> anyhow::Result<()> {
         MissionFlown::after_step(self, core, i, log)
     }
     fn outcome(self, core: &mut Lockstep<Autopilot>, i: usize) -> Outcome {
         Outcome::Mission(Box::new(self.summary(core, i)))
     }
+}
+
+/// One vehicle's flight in a fleet: its track until it is judged, its log
+/// until closed, and the error its own step's work met (if any).
+struct Lane<T> {
+    track: Option<T>,
+    log: Option<Log>,
+    failed: Option<anyhow::Error>,
 }
 
 /// A vehicle's report page as it is collected, and the meta it will carry.
@@ -498,11 +523,19 @@ type FleetFlown = (Vec<Outcome>, Vec<FleetEvent>, u64, Vec<FlightReport>);
 fn fly_tracks<P: Watched, T: Track<P>>(
     mut core: Lockstep<P>,
     tracks: Vec<T>,
-    mut logs: Vec<Option<CsvLog<BufWriter<FsFile>>>>,
+    logs: Vec<Option<Log>>,
     mut watches: Vec<Watch>,
 ) -> anyhow::Result<FleetFlown> {
     let n = tracks.len();
-    let mut tracks: Vec<Option<T>> = tracks.into_iter().map(Some).collect();
+    let mut lanes: Vec<Lane<T>> = tracks
+        .into_iter()
+        .zip(logs)
+        .map(|(t, log)| Lane {
+            track: Some(t),
+            log,
+            failed: None,
+        })
+        .collect();
     let mut outcomes: Vec<Option<Outcome>> = vec![None; n];
     let mut pages: Vec<Option<FlightReport>> = vec![None; n];
     let mut events = Vec::new();
@@ -511,27 +544,37 @@ fn fly_tracks<P: Watched, T: Track<P>>(
     let mut running = n;
     // a flight over before its first step (a zero duration) is judged at once
     for i in 0..n {
-        if tracks[i].as_ref().is_some_and(Track::is_over) {
-            finish(&mut core, i, &mut tracks, &mut outcomes, &mut logs)?;
+        if lanes[i].track.as_ref().is_some_and(Track::is_over) {
+            finish(&mut core, i, &mut lanes[i], &mut outcomes)?;
             pages[i] = page(&mut core, &mut watches[i], outcomes[i].as_ref());
             running -= 1;
         }
     }
     while running > 0 {
-        for (i, t) in tracks.iter_mut().enumerate() {
-            if let Some(t) = t {
+        for (i, lane) in lanes.iter_mut().enumerate() {
+            if let Some(t) = &mut lane.track {
                 t.before_step(&mut core, i);
             }
         }
-        core.step();
+        core.step_each(&mut lanes, |lane, pilot, rec| {
+            if let Some(t) = &mut lane.track
+                && let Err(e) = t.after_own_step(pilot, &rec, lane.log.as_mut())
+            {
+                lane.failed = Some(e);
+            }
+        });
         for i in 0..n {
-            let Some(t) = &mut tracks[i] else { continue };
-            t.after_step(&mut core, i, logs[i].as_mut())?;
+            let lane = &mut lanes[i];
+            if let Some(e) = lane.failed.take() {
+                return Err(e);
+            }
+            let Some(t) = &mut lane.track else { continue };
+            t.after_step(&mut core, i, lane.log.as_mut())?;
             if let Some((c, _)) = &mut watches[i] {
                 run::watch_step(c, &mut core, i);
             }
-            if tracks[i].as_ref().is_some_and(Track::is_over) {
-                finish(&mut core, i, &mut tracks, &mut outcomes, &mut logs)?;
+            if lanes[i].track.as_ref().is_some_and(Track::is_over) {
+                finish(&mut core, i, &mut lanes[i], &mut outcomes)?;
                 pages[i] = page(&mut core, &mut watches[i], outcomes[i].as_ref());
                 running -= 1;
             }
@@ -586,18 +629,17 @@ pub fn count(n: usize, one: &str, many: &str) -> String {
     format!("{n} {}", if n == 1 { one } else { many })
 }
 
-/// Judge vehicle `i` now and close its log.
+/// Judge vehicle `i` (its `lane`) now and close its log.
 fn finish<P: Pilot, T: Track<P>>(
     core: &mut Lockstep<P>,
     i: usize,
-    tracks: &mut [Option<T>],
+    lane: &mut Lane<T>,
     outcomes: &mut [Option<Outcome>],
-    logs: &mut [Option<CsvLog<BufWriter<FsFile>>>],
 ) -> anyhow::Result<()> {
-    if let Some(t) = tracks[i].take() {
+    if let Some(t) = lane.track.take() {
         outcomes[i] = Some(t.outcome(core, i));
     }
-    if let Some(l) = logs[i].take() {
+    if let Some(l) = lane.log.take() {
         l.finish()?;
     }
     Ok(())

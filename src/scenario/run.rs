@@ -13,7 +13,7 @@ use super::{ReferencePlan, Scenario};
 use crate::autopilot::{ControlLoop, ControlOutput, Demand};
 use crate::control::{Reference, Setpoint, Shaper, ShaperLimits, TranslationSetpoint, feedforward_attitude};
 use crate::geo::GeoPoint;
-use crate::lockstep::{Lockstep, Pilot};
+use crate::lockstep::{Lockstep, Pilot, StepRecord};
 use crate::logs::csv::CsvLog;
 use crate::logs::meta::LogMeta;
 use crate::logs::report::{Collector, FlightReport, PilotState, ReportMeta, Watched};
@@ -86,6 +86,11 @@ pub struct ScenarioPilot<'a> {
 }
 
 impl ScenarioPilot<'_> {
+    /// Its scenario's step [s].
+    pub(super) fn step_s(&self) -> f64 {
+        self.scenario.step_s
+    }
+
     /// The reference at `t` [s] (the shaper advances one step).
     fn reference_at(&mut self, t: f64) -> Reference {
         match &self.scenario.reference {
@@ -284,7 +289,7 @@ pub fn run_with(
     while !flight.is_over() {
         flight.before_step(&mut core, 0);
         core.step();
-        flight.after_step(&core, 0, log.as_mut())?;
+        flight.after_step(s.step_s, &core.last_step(0), log.as_mut())?;
         if let Some(c) = &mut collector {
             watch_step(c, &mut core, 0);
         }
@@ -328,6 +333,9 @@ pub(super) struct Flown {
     flown: u64,
     applied: Vec<AppliedFault>,
     next_fault: usize,
+    /// How many `[[fault]]`s the scenario has (none left to apply: the
+    /// step before needs nothing of the core).
+    faults: usize,
 }
 
 impl Flown {
@@ -351,6 +359,7 @@ impl Flown {
             flown: 0,
             applied: Vec::new(),
             next_fault: 0,
+            faults: s.faults.len(),
         }
     }
 
@@ -361,6 +370,9 @@ impl Flown {
 
     /// Before step `k` of vehicle `i`: the faults due at `t_k = k dt`.
     pub(super) fn before_step(&mut self, core: &mut Lockstep<ScenarioPilot<'_>>, i: usize) {
+        if self.next_fault == self.faults {
+            return;
+        }
         let s = core.pilot(i).scenario;
         let t = self.k as f64 * s.step_s;
         for f in &s.faults[fault::due(&s.faults, &mut self.next_fault, t)] {
@@ -370,20 +382,20 @@ impl Flown {
         }
     }
 
-    /// After step `k` of vehicle `i`: tally it and log it.
+    /// After step `k` (of `step_s` [s]) of its vehicle, whose record is
+    /// `rec`: tally it and log it.
     ///
     /// # Errors
     /// A failed write to `log`.
     pub(super) fn after_step<W: Write>(
         &mut self,
-        core: &Lockstep<ScenarioPilot<'_>>,
-        i: usize,
+        step_s: f64,
+        rec: &StepRecord<'_>,
         log: Option<&mut CsvLog<W>>,
     ) -> std::io::Result<()> {
-        let t = self.k as f64 * core.pilot(i).scenario.step_s;
+        let t = self.k as f64 * step_s;
         let k = self.k;
         self.k += 1;
-        let rec = core.last_step(i);
         if let Some(e) = rec.world.fault {
             self.fault = Some(format!("t = {t:.3} s: {e}"));
             self.finite = false;
@@ -409,7 +421,7 @@ impl Flown {
             && control.command.thrust_n.is_finite()
             && control.command.torque_frd.as_slice().iter().all(|x| x.is_finite());
         if let Some(l) = log {
-            l.row(&rec)?;
+            l.row(rec)?;
         }
         Ok(())
     }

@@ -346,6 +346,25 @@ impl VehicleSlot<'_> {
         self.body.step(command, self.report);
         self.report
     }
+
+    /// What the latest step did (as [`World::last_report`]).
+    #[must_use]
+    pub fn report(&self) -> &StepReport {
+        self.report
+    }
+
+    /// The vehicle's position in the world's NED frame [m] (as
+    /// [`World::position_ned`]: its origin plus its own NED position).
+    #[must_use]
+    pub fn position_ned(&self) -> Vector3<f64> {
+        self.body.origin_ned + self.body.plant.state().position_ned
+    }
+
+    /// The vehicle's body radius [m] (as [`World::body_radius_m`]).
+    #[must_use]
+    pub fn body_radius_m(&self) -> f64 {
+        self.body.radius_m
+    }
 }
 
 /// A body's radius [m]: `max_i |r_i| + rotor radius`, the rotor hubs `r_i`

@@ -520,9 +520,9 @@ impl NavFilter {
         let r = [sd * sd, sd * sd, sd * sd * 2.25];
         let gate = self.cfg.gps_v_gate;
         let mut worst: f64 = 0.0;
-        for k in 0..3 {
+        for (k, &rk) in r.iter().enumerate() {
             let innov = fix.velocity_ned_m_s[k] - self.vel_ned[k];
-            worst = worst.max(Self::ratio(innov, self.var_of(idx::VEL + k, r[k]), gate));
+            worst = worst.max(Self::ratio(innov, self.var_of(idx::VEL + k, rk), gate));
         }
         self.gnss.vel_ratio = Some(worst.sqrt());
         if self.gnss.vel_active {
@@ -542,10 +542,10 @@ impl NavFilter {
     }
 
     fn fuse_velocity(&mut self, fix: &GnssFix, r: &[f64; 3]) {
-        for k in 0..3 {
+        for (k, &rk) in r.iter().enumerate() {
             let i = idx::VEL + k;
             let innov = fix.velocity_ned_m_s[k] - self.vel_ned[k];
-            let s = self.var_of(i, r[k]);
+            let s = self.var_of(i, rk);
             self.fuse_direct(i, innov, s);
         }
         self.gnss.last_vel_fuse_s = self.time_s;

@@ -18,6 +18,7 @@
 //!   as in the report plus a body-frame angular variant.
 //! * [`metrics`]: 2 % settling time, overshoot and RMS error of a time series.
 //! * [`wind`]: the wind that explains the estimated force through the nominal drag model.
+//! * [`nav`]: the navigation filter, an error-state EKF after PX4's EKF2 (`docs/navigation.md`).
 //!
 //! Pure and deterministic: no clock, no I/O, no allocation per update.
 
@@ -25,6 +26,7 @@ pub mod chain;
 pub mod gains;
 pub mod metrics;
 pub mod momentum;
+pub mod nav;
 pub mod sweep;
 pub mod wind;
 

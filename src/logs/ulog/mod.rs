@@ -193,6 +193,20 @@ impl Sample {
         self
     }
 
+    /// Append a `uint32_t`.
+    #[must_use]
+    pub fn u32(mut self, v: u32) -> Self {
+        self.bytes.extend_from_slice(&v.to_le_bytes());
+        self
+    }
+
+    /// Append an `int32_t`.
+    #[must_use]
+    pub fn i32(mut self, v: i32) -> Self {
+        self.bytes.extend_from_slice(&v.to_le_bytes());
+        self
+    }
+
     /// Append a `uint16_t`.
     #[must_use]
     pub fn u16(mut self, v: u16) -> Self {

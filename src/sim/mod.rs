@@ -840,6 +840,46 @@ mod tests {
     }
 
     #[test]
+    fn raw_sensors_are_seeded_apart_and_leave_the_navigation_solution_alone() {
+        let noisy = SensorConfig {
+            noise: SensorNoise {
+                position_m: 0.1,
+                velocity_m_s: 0.05,
+                attitude_rad: 0.01,
+                rate_rad_s: 0.01,
+            },
+            seed: 42,
+        };
+        let world = |raw: bool, seed: u64| {
+            let mut w = World::new(crate::signals::DEFAULT_STEP_S, Environment::default());
+            w.add_vehicle(&Airframe::load("quad").unwrap(), SensorConfig { seed, ..noisy });
+            if raw {
+                w.enable_raw_sensors(0, GeoPoint::PX4_SITL_HOME);
+            }
+            w
+        };
+        let (mut plain, mut with, mut again, mut other) =
+            (world(false, 42), world(true, 42), world(true, 42), world(true, 43));
+        for _ in 0..300 {
+            let p = *plain.sense(0);
+            let r = *with.sense(0);
+            assert_eq!(
+                p.measurement, r.measurement,
+                "the navigation solution's stream is untouched"
+            );
+            assert_eq!(p.raw, RawSensorReadings::default());
+            assert_eq!(*again.sense(0), r, "same seed, same samples");
+            other.sense(0);
+            for w in [&mut plain, &mut with, &mut again, &mut other] {
+                w.step(|_| &ActuatorCommand::Stop);
+            }
+        }
+        let (a, b) = (with.sense(0).raw, other.sense(0).raw);
+        assert!(a.accel.is_some() && a.baro.is_some() && a.mag.is_some() && a.gnss.is_some());
+        assert_ne!(a.accel.unwrap().frd, b.accel.unwrap().frd, "another seed, other noise");
+    }
+
+    #[test]
     fn gps_loss_and_noise_show_only_in_the_readings() {
         let mut w = quad_world();
         assert_eq!(w.sense(0).gps.fix, GpsFix::Fix3d);

@@ -385,3 +385,163 @@ fn apply<S: Stamped>(mode: SensorMode, last: &mut Option<S>, fresh: S) -> Option
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn at_rest(t: f64) -> Measurement {
+        Measurement {
+            time_s: t,
+            ..Measurement::default()
+        }
+    }
+
+    /// Sample a level vehicle at rest for `seconds`, every `dt`; the samples
+    /// each sensor gave (a new one when its time moved on).
+    fn run(
+        raw: &mut RawSensors,
+        faults: SensorFaults,
+        seconds: f64,
+        truth: impl Fn(f64) -> Measurement,
+    ) -> Vec<RawSensorReadings> {
+        let mut out = RawSensorReadings::default();
+        let mut all = Vec::new();
+        let gnss = GnssState {
+            available: true,
+            offset_ned: None,
+            satellites: 12,
+        };
+        for k in 0..(seconds / raw.dt_s).round() as u64 {
+            raw.sample(&truth(k as f64 * raw.dt_s), &Vector3::zeros(), &faults, gnss, &mut out);
+            all.push(out);
+        }
+        all
+    }
+
+    #[test]
+    fn isa_pressure_and_temperature_at_known_altitudes() {
+        // the ISA table: 101 325 Pa and 15 degC at sea level, 89 875 Pa at
+        // 1000 m, 22 632 Pa at 11 km (PX4's 288 K and 5.256 differ by a few Pa)
+        let (p0, t0) = isa(0.0);
+        assert_eq!(p0, 101_325.0);
+        assert!((t0 - 14.85).abs() < 1e-9, "{t0}");
+        assert!((isa(1000.0).0 - 89_875.0).abs() < 10.0, "{}", isa(1000.0).0);
+        assert!((isa(11_000.0).0 - 22_632.0).abs() < 30.0, "{}", isa(11_000.0).0);
+        // PX4's pressure altitude reads it back within 0.06 % (288 K vs 288.15 K)
+        let h = crate::geo::pressure_altitude_m(isa(488.0).0);
+        assert!((h - 488.0).abs() < 0.3, "{h}");
+    }
+
+    #[test]
+    fn imu_noise_has_the_gazebo_density_at_250_hz() {
+        let mut raw = RawSensors::new(GeoPoint::PX4_SITL_HOME, 1e-3, 7);
+        let b0 = raw.accel_bias;
+        let all = run(&mut raw, SensorFaults::default(), 20.0, at_rest);
+        let mut acc: Vec<AxesSample> = all.iter().filter_map(|r| r.accel).collect();
+        acc.dedup_by(|a, b| a.time_s == b.time_s);
+        let mut gyr: Vec<AxesSample> = all.iter().filter_map(|r| r.gyro).collect();
+        gyr.dedup_by(|a, b| a.time_s == b.time_s);
+        assert_eq!(acc.len(), 5000, "250 Hz for 20 s");
+        // consecutive differences: var = 2 sigma^2 (the bias moves far less)
+        let sigma = |s: &[AxesSample], axis: usize| {
+            let d: Vec<f64> = s.windows(2).map(|w| w[1].frd[axis] - w[0].frd[axis]).collect();
+            (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64 / 2.0).sqrt()
+        };
+        let sa = ACCEL_NOISE_DENSITY * 250f64.sqrt();
+        let sg = GYRO_NOISE_DENSITY * 250f64.sqrt();
+        for axis in 0..3 {
+            assert!(
+                (sigma(&acc, axis) / sa - 1.0).abs() < 0.05,
+                "{} vs {sa}",
+                sigma(&acc, axis)
+            );
+            assert!(
+                (sigma(&gyr, axis) / sg - 1.0).abs() < 0.05,
+                "{} vs {sg}",
+                sigma(&gyr, axis)
+            );
+        }
+        // at rest the specific force is -g on z plus the turn-on bias
+        let mean_z = acc.iter().map(|s| s.frd.z).sum::<f64>() / acc.len() as f64;
+        assert!((mean_z - (-GRAVITY + b0.z)).abs() < 0.01, "{mean_z} {b0}");
+    }
+
+    #[test]
+    fn rates_latency_and_the_field_rotated_by_the_attitude() {
+        let mut raw = RawSensors::new(GeoPoint::PX4_SITL_HOME, 1e-3, 3);
+        // yawed 90 degrees east: north in the world is -y in the body
+        let yawed = |t: f64| Measurement {
+            time_s: t,
+            attitude: UnitQuaternion::from_euler_angles(0.0, 0.0, std::f64::consts::FRAC_PI_2),
+            ..Measurement::default()
+        };
+        let all = run(&mut raw, SensorFaults::default(), 2.0, yawed);
+        let count = |f: &dyn Fn(&RawSensorReadings) -> Option<f64>| {
+            let mut t: Vec<f64> = all.iter().filter_map(f).collect();
+            t.dedup();
+            t.len()
+        };
+        assert_eq!(count(&|r| r.baro.map(|b| b.time_s)), 40);
+        assert_eq!(count(&|r| r.mag.map(|b| b.time_s)), 100);
+        // the first GNSS epoch only takes a fix: 15 delivered in 2 s
+        assert_eq!(count(&|r| r.gnss.map(|b| b.delivered_s)), 15);
+        let last = all.last().unwrap();
+        let g = last.gnss.unwrap();
+        assert!((g.delivered_s - g.time_s - 0.125).abs() < 1e-9, "{g:?}");
+        assert!((g.lat_deg - GeoPoint::PX4_SITL_HOME.lat_deg).abs() < 1e-6);
+        assert_eq!((g.fix, g.eph_m, g.epv_m), (GpsFix::Fix3d, 0.9, 1.78));
+        let b = earth_field_ned_gauss(&GeoPoint::PX4_SITL_HOME);
+        let mean = all.iter().filter_map(|r| r.mag).map(|m| m.frd).sum::<Vector3<f64>>() / all.len() as f64;
+        let expect = Vector3::new(b.y, -b.x, b.z);
+        assert!((mean - expect).norm() < 0.01, "{mean} vs {expect}");
+        // pressure at home's altitude
+        let p = last.baro.unwrap().pressure_pa;
+        assert!((p - isa(488.0).0).abs() < 5.0, "{p}");
+    }
+
+    #[test]
+    fn faults_off_stuck_and_gnss_state() {
+        let mut raw = RawSensors::new(GeoPoint::PX4_SITL_HOME, 1e-3, 5);
+        let mut out = RawSensorReadings::default();
+        let mut gnss = GnssState {
+            available: true,
+            offset_ned: None,
+            satellites: 12,
+        };
+        let mut faults = SensorFaults::default();
+        let step = |raw: &mut RawSensors, k: u64, f: &SensorFaults, g: GnssState, out: &mut RawSensorReadings| {
+            raw.sample(&at_rest(k as f64 * 1e-3), &Vector3::zeros(), f, g, out);
+        };
+        for k in 0..500 {
+            step(&mut raw, k, &faults, gnss, &mut out);
+        }
+        let before = out;
+        faults.baro = SensorMode::Stuck;
+        faults.mag = SensorMode::Off;
+        faults.gnss_stuck = true;
+        for k in 500..1000 {
+            step(&mut raw, k, &faults, gnss, &mut out);
+        }
+        assert_eq!(out.mag, None);
+        let (b0, b1) = (before.baro.unwrap(), out.baro.unwrap());
+        assert_eq!(b1.pressure_pa, b0.pressure_pa);
+        assert!(b1.time_s > b0.time_s);
+        assert_eq!(out.gnss.unwrap().lat_deg, before.gnss.unwrap().lat_deg);
+        // the world's GNSS state: a wrong position shifts the fix, no fix gives none
+        faults = SensorFaults::default();
+        gnss.offset_ned = Some(Vector3::new(30.0, 0.0, 0.0));
+        for k in 1000..1300 {
+            step(&mut raw, k, &faults, gnss, &mut out);
+        }
+        let north =
+            (out.gnss.unwrap().lat_deg - GeoPoint::PX4_SITL_HOME.lat_deg).to_radians() * crate::geo::EARTH_RADIUS_M;
+        assert!((north - 30.0).abs() < 0.5, "{north}");
+        assert!(out.mag.is_some() && out.baro.unwrap().pressure_pa != b0.pressure_pa);
+        gnss.available = false;
+        for k in 1300..1500 {
+            step(&mut raw, k, &faults, gnss, &mut out);
+        }
+        assert_eq!(out.gnss, None);
+    }
+}

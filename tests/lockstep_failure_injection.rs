@@ -442,7 +442,7 @@ fn scenario_fault_errors_name_file_field_and_line() {
         }
         other => panic!("{other:?}"),
     }
-    match scenario("\n[[fault]]\nat_s = 1.0\nunit = \"gps\"\ntype = \"stuck\"\n") {
+    match scenario("\n[[fault]]\nat_s = 1.0\nunit = \"gps\"\ntype = \"drift\"\n") {
         Err(ScenarioError::File(FileError::Syntax { line, .. })) => assert_eq!(line, 12),
         other => panic!("{other:?}"),
     }

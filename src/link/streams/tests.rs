@@ -240,7 +240,7 @@ fn raw_sensor_messages_in_px4_units_and_an_off_sensor_unflagged() {
     assert_eq!((h.xacc, h.yacc, h.zacc), (0.0, 0.0, -9.81));
     assert_eq!(
         h.fields_updated.bits(),
-        0x1dff,
+        0x1bff,
         "acc, gyro, mag, pressure, altitude, temperature"
     );
     assert!((h.abs_pressure - 954.6).abs() < 1e-3, "hPa");

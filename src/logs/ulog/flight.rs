@@ -735,6 +735,45 @@ mod tests {
         // on the ground: no wind estimate
         assert_eq!(counts[usize::from(id::WIND)], 0);
         assert_eq!(counts[usize::from(id::SIM_WIND)], 10);
+        // the raw sensors are not simulated: none of their topics
+        for raw in [id::SENSOR_COMBINED, id::AIR_DATA, id::MAGNETOMETER, id::SENSOR_GPS] {
+            assert_eq!(counts[usize::from(raw)], 0);
+        }
+    }
+
+    #[test]
+    fn the_raw_sensor_topics_at_their_rates_and_an_off_barometer_silent() {
+        let (mut core, params) = crate::lockstep::test_quad();
+        core.enable_raw_sensors();
+        let mut log = FlightUlog::new(Vec::new(), &params, &core, 0).unwrap();
+        for _ in 0..1000 {
+            core.step();
+            log.on_step(&mut core, 0).unwrap();
+        }
+        let counts = data_counts(&log.finish().unwrap());
+        // samples of the instants 0 .. 1.000 s: the IMU's every 20 ms, the
+        // barometer's and the magnetometer's every 200 ms, every GNSS fix
+        // delivered from 125 ms (the one taken at 0 s)
+        assert_eq!(counts[usize::from(id::SENSOR_COMBINED)], 51);
+        assert_eq!(counts[usize::from(id::AIR_DATA)], 6);
+        assert_eq!(counts[usize::from(id::MAGNETOMETER)], 6);
+        assert_eq!(counts[usize::from(id::SENSOR_GPS)], 8);
+        let (mut core, params) = crate::lockstep::test_quad();
+        core.enable_raw_sensors();
+        let off = crate::lockstep::failure::FailureInjection {
+            unit: crate::lockstep::failure::UNIT_BARO,
+            kind: crate::lockstep::failure::TYPE_OFF,
+            instance: 0,
+        };
+        assert_eq!(core.inject_failure(0, off), crate::autopilot::CommandOutcome::Accepted);
+        let mut log = FlightUlog::new(Vec::new(), &params, &core, 0).unwrap();
+        for _ in 0..1000 {
+            core.step();
+            log.on_step(&mut core, 0).unwrap();
+        }
+        let counts = data_counts(&log.finish().unwrap());
+        assert_eq!(counts[usize::from(id::AIR_DATA)], 0);
+        assert_eq!(counts[usize::from(id::SENSOR_COMBINED)], 51);
     }
 
     #[test]
@@ -769,6 +808,10 @@ mod tests {
             (id::SIM_TRUTH, "rotorpilot_sim_truth"),
             (id::WIND, "wind"),
             (id::SIM_WIND, "rotorpilot_sim_wind"),
+            (id::SENSOR_COMBINED, "sensor_combined"),
+            (id::AIR_DATA, "vehicle_air_data"),
+            (id::MAGNETOMETER, "vehicle_magnetometer"),
+            (id::SENSOR_GPS, "sensor_gps"),
         ];
         for (i, name) in names {
             assert_eq!(TOPICS[usize::from(i)].format.name, name);

@@ -183,6 +183,78 @@ pub mod lipo_cell {
     }
 }
 
+/// One sample of a three-axis body sensor (accelerometer, gyroscope,
+/// magnetometer), body FRD, in the unit its field names.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct AxesSample {
+    /// The instant the sample describes [s] (simulated time).
+    pub time_s: f64,
+    /// The reading, body FRD: specific force [m/s^2] (accelerometer,
+    /// `f = R^T (a - g e3)`, -g on z at rest), angular rate [rad/s]
+    /// (gyroscope) or magnetic field [gauss] (magnetometer).
+    pub frd: Vector3<f64>,
+}
+
+/// One barometer sample.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct BaroSample {
+    /// The instant the sample describes [s] (simulated time).
+    pub time_s: f64,
+    /// Static pressure [Pa].
+    pub pressure_pa: f64,
+    /// Air temperature at the sensor [degC].
+    pub temperature_c: f64,
+}
+
+/// One GNSS receiver solution, as PX4's `sensor_gps` carries it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct GnssSample {
+    /// The instant the fix describes [s] (simulated time); the receiver's
+    /// latency is `delivered_s - time_s`.
+    pub time_s: f64,
+    /// When the receiver delivered it [s] (simulated time).
+    pub delivered_s: f64,
+    /// Latitude [deg] (WGS-84).
+    pub lat_deg: f64,
+    /// Longitude [deg] (WGS-84).
+    pub lon_deg: f64,
+    /// Altitude above mean sea level [m].
+    pub alt_amsl_m: f64,
+    /// Velocity [m/s], NED.
+    pub velocity_ned: Vector3<f64>,
+    /// Horizontal position accuracy (1 sigma) [m].
+    pub eph_m: f64,
+    /// Vertical position accuracy (1 sigma) [m].
+    pub epv_m: f64,
+    /// Speed accuracy (1 sigma) [m/s].
+    pub speed_accuracy_m_s: f64,
+    /// Horizontal and vertical dilution of precision.
+    pub hdop: f64,
+    /// Vertical dilution of precision.
+    pub vdop: f64,
+    /// Fix type.
+    pub fix: GpsFix,
+    /// Satellites used.
+    pub satellites: u8,
+}
+
+/// The raw sensors' latest samples (each `None` until its first sample, and
+/// while the sensor is off): what a navigation filter fuses. A sample is new
+/// when its time is later than the one seen before.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct RawSensorReadings {
+    /// Accelerometer: specific force [m/s^2], body FRD.
+    pub accel: Option<AxesSample>,
+    /// Gyroscope: angular rate [rad/s], body FRD.
+    pub gyro: Option<AxesSample>,
+    /// Magnetometer: magnetic field [gauss], body FRD.
+    pub mag: Option<AxesSample>,
+    /// Barometer.
+    pub baro: Option<BaroSample>,
+    /// GNSS receiver.
+    pub gnss: Option<GnssSample>,
+}
+
 /// Everything the flight stack's sensors report at one instant `t_k`: all a
 /// real autopilot knows of its vehicle.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -199,4 +271,7 @@ pub struct SensorReadings {
     pub battery: BatteryReading,
     /// GNSS receiver status.
     pub gps: GpsReading,
+    /// The raw sensors (IMU, barometer, magnetometer, GNSS), when the world
+    /// simulates them (`sim::World::enable_raw_sensors`); all `None` otherwise.
+    pub raw: RawSensorReadings,
 }

@@ -16,12 +16,17 @@ use rotorpilot::signals::GpsFix;
 use rotorpilot::sim::{ActiveFaults, DEAD_RECKONING_BIAS_M_S2, RotorHealth};
 use rotorpilot::tomlfile::FileError;
 
+const GYRO: u8 = 0;
+const ACCEL: u8 = 1;
+const MAG: u8 = 2;
+const BARO: u8 = 3;
 const GPS: u8 = 4;
 const BATTERY: u8 = 100;
 const MOTOR: u8 = 101;
 const MAVLINK_SIGNAL: u8 = 105;
 const OK: u8 = 0;
 const OFF: u8 = 1;
+const STUCK: u8 = 2;
 const WRONG: u8 = 4;
 
 /// `airframe` with failure injection allowed (SYS_FAILURE_EN = 1) and
@@ -221,8 +226,10 @@ fn unsupported_and_missing_parts_change_nothing() {
     let state = |c: &Sitl| (c.pilot().armed(), c.pilot().mode());
     let s0 = state(&v);
     for (unit, kind) in [
-        (0, OFF),
-        (GPS, 2),
+        (GYRO, WRONG),
+        (BARO, WRONG),
+        (MAG, 3),
+        (GPS, 3),
         (BATTERY, WRONG),
         (MAVLINK_SIGNAL, WRONG),
         (104, OFF),
@@ -234,7 +241,14 @@ fn unsupported_and_missing_parts_change_nothing() {
             "{unit}/{kind}"
         );
     }
-    for (unit, kind, instance) in [(MOTOR, OFF, 9), (MOTOR, OK, 5), (GPS, OFF, 2), (BATTERY, OK, 3)] {
+    for (unit, kind, instance) in [
+        (MOTOR, OFF, 9),
+        (MOTOR, OK, 5),
+        (GPS, OFF, 2),
+        (BATTERY, OK, 3),
+        (BARO, STUCK, 2),
+        (MAG, OFF, 2),
+    ] {
         assert!(
             matches!(inject(&mut v, unit, kind, instance), CommandOutcome::Denied(_)),
             "{unit}/{kind}/{instance}"
@@ -243,6 +257,87 @@ fn unsupported_and_missing_parts_change_nothing() {
     assert_eq!(faults(&v), before);
     assert_eq!(state(&v), s0);
     assert!(v.texts().is_empty());
+}
+
+/// GIVEN a hovering quad whose raw sensors are simulated (as the daemon's are)
+/// WHEN the barometer is STUCK, then OFF, then OK; the magnetometer OFF then
+/// OK; the gyroscope and accelerometer STUCK; the GPS STUCK, each as PX4's
+/// unit numbers with instance 0 or 1
+/// THEN each is ACCEPTED and announced, and over the following second the
+/// samples show it: a stuck sensor repeats one value with new times, an off
+/// one gives nothing, an OK one fresh noisy values again; the navigation
+/// solution the vehicle flies on is untouched.
+#[test]
+fn raw_sensor_faults_show_in_the_samples_over_time() {
+    let mut v = vehicle("quad", &[]);
+    v.core_mut().enable_raw_sensors();
+    airborne(&mut v);
+    let raw = |v: &mut Sitl| v.core_mut().world_mut().sense(0).raw;
+    // healthy: every sensor gives fresh values
+    let r0 = raw(&mut v);
+    v.run(0.2);
+    let r1 = raw(&mut v);
+    let (b0, b1) = (r0.baro.unwrap(), r1.baro.unwrap());
+    assert!(
+        b1.time_s > b0.time_s && b1.pressure_pa != b0.pressure_pa,
+        "{b0:?} {b1:?}"
+    );
+    v.texts();
+    // baro stuck: one pressure, new times
+    assert_eq!(inject(&mut v, BARO, STUCK, 0), CommandOutcome::Accepted);
+    v.run(0.1);
+    let stuck = raw(&mut v).baro.unwrap();
+    for _ in 0..10 {
+        v.run(0.1);
+        let b = raw(&mut v).baro.unwrap();
+        assert_eq!(b.pressure_pa.to_bits(), stuck.pressure_pa.to_bits());
+        assert!(b.time_s > stuck.time_s);
+    }
+    // baro off: nothing
+    assert_eq!(inject(&mut v, BARO, OFF, 1), CommandOutcome::Accepted);
+    v.run(0.1);
+    assert_eq!(raw(&mut v).baro, None);
+    // baro ok: fresh values at the vehicle's height (ISA: about 12 Pa per metre)
+    assert_eq!(inject(&mut v, BARO, OK, 0), CommandOutcome::Accepted);
+    v.run(0.1);
+    let live = raw(&mut v).baro.unwrap();
+    v.run(0.1);
+    assert_ne!(raw(&mut v).baro.unwrap().pressure_pa, live.pressure_pa);
+    // mag off, then ok
+    assert_eq!(inject(&mut v, MAG, OFF, 0), CommandOutcome::Accepted);
+    v.run(0.1);
+    assert_eq!(raw(&mut v).mag, None);
+    assert_eq!(inject(&mut v, MAG, OK, 0), CommandOutcome::Accepted);
+    v.run(0.1);
+    assert!(raw(&mut v).mag.is_some());
+    // gyro and accel stuck; gps stuck
+    for unit in [GYRO, ACCEL, GPS] {
+        assert_eq!(inject(&mut v, unit, STUCK, 0), CommandOutcome::Accepted);
+    }
+    v.run(0.3);
+    let a = raw(&mut v);
+    v.run(0.3);
+    let b = raw(&mut v);
+    assert_eq!(a.gyro.unwrap().frd, b.gyro.unwrap().frd);
+    assert_eq!(a.accel.unwrap().frd, b.accel.unwrap().frd);
+    assert_eq!(a.gnss.unwrap().lat_deg, b.gnss.unwrap().lat_deg);
+    assert!(b.gnss.unwrap().delivered_s > a.gnss.unwrap().delivered_s);
+    let texts: Vec<String> = v.texts().into_iter().map(|s| s.text).collect();
+    for said in [
+        "baro stuck",
+        "baro off",
+        "baro ok",
+        "mag off",
+        "mag ok",
+        "gyro stuck",
+        "accel stuck",
+        "GPS stuck",
+    ] {
+        assert!(texts.iter().any(|t| t.contains(said)), "{said}: {texts:?}");
+    }
+    // the vehicle still hovers on its navigation solution
+    assert_eq!(v.mode(), FlightMode::Hold);
+    assert!(faults(&v).any());
 }
 
 /// An airframe whose thrust and torque act directly has no motor to fail: DENIED.
@@ -265,7 +360,16 @@ fn off_then_ok_at_one_instant_leaves_the_flight_as_it_was() {
     let mut b = vehicle("quad", &[]);
     airborne(&mut a);
     airborne(&mut b);
-    for (unit, instance) in [(MOTOR, 0), (GPS, 0), (BATTERY, 0), (MAVLINK_SIGNAL, 0)] {
+    for (unit, instance) in [
+        (MOTOR, 0),
+        (GPS, 0),
+        (BATTERY, 0),
+        (MAVLINK_SIGNAL, 0),
+        (GYRO, 0),
+        (ACCEL, 1),
+        (MAG, 0),
+        (BARO, 1),
+    ] {
         assert_eq!(inject(&mut b, unit, OFF, instance), CommandOutcome::Accepted);
         assert_eq!(inject(&mut b, unit, OK, instance), CommandOutcome::Accepted);
     }
@@ -338,7 +442,7 @@ fn scenario_fault_errors_name_file_field_and_line() {
         }
         other => panic!("{other:?}"),
     }
-    match scenario("\n[[fault]]\nat_s = 1.0\nunit = \"gps\"\ntype = \"stuck\"\n") {
+    match scenario("\n[[fault]]\nat_s = 1.0\nunit = \"gps\"\ntype = \"drift\"\n") {
         Err(ScenarioError::File(FileError::Syntax { line, .. })) => assert_eq!(line, 12),
         other => panic!("{other:?}"),
     }

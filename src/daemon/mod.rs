@@ -281,6 +281,8 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
         )
     })?;
     drop(list);
+    // the links stream the raw sensors and the ULog logs them
+    core.enable_raw_sensors();
     if !lone {
         core.watch_proximity(proximity_m);
         core.set_labels(configs.iter().map(|c| format!("system {}", c.system_id())).collect());

@@ -18,17 +18,18 @@ use std::time::{Duration, Instant};
 use mavlink::MessageData;
 use mavlink::dialects::common::{
     ALTITUDE_DATA, ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, DEBUG_VECT_DATA,
-    EXTENDED_SYS_STATE_DATA, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA,
-    HIL_STATE_QUATERNION_DATA, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA, MISSION_CURRENT_DATA, MavAutopilot,
-    MavBatteryFunction, MavBatteryType, MavFrame, MavLandedState, MavMessage, MavModeFlag, MavState,
-    MavSysStatusSensor, MavType, MavVtolState, MissionState as MavMissionState, NAMED_VALUE_FLOAT_DATA,
-    ORBIT_EXECUTION_STATUS_DATA, SYS_STATUS_DATA, SYSTEM_TIME_DATA, VFR_HUD_DATA, WIND_COV_DATA,
+    EXTENDED_SYS_STATE_DATA, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA, HIGHRES_IMU_DATA,
+    HIL_STATE_QUATERNION_DATA, HOME_POSITION_DATA, HighresImuUpdatedFlags, LOCAL_POSITION_NED_DATA,
+    MISSION_CURRENT_DATA, MavAutopilot, MavBatteryFunction, MavBatteryType, MavFrame, MavLandedState, MavMessage,
+    MavModeFlag, MavState, MavSysStatusSensor, MavType, MavVtolState, MissionState as MavMissionState,
+    NAMED_VALUE_FLOAT_DATA, ORBIT_EXECUTION_STATUS_DATA, SCALED_IMU_DATA, SCALED_PRESSURE_DATA, SYS_STATUS_DATA,
+    SYSTEM_TIME_DATA, VFR_HUD_DATA, WIND_COV_DATA,
 };
 
 use super::convert;
 use crate::autopilot::{BatteryWarning, FlightMode, LandedState, MissionState, Telemetry, VehicleType};
 use crate::lockstep::Snapshot;
-use crate::signals::GpsFix;
+use crate::signals::{GnssSample, GpsFix, RawSensorReadings};
 
 /// A message the vehicle streams.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -39,8 +40,14 @@ pub enum Stream {
     SysStatus,
     /// SYSTEM_TIME (2).
     SystemTime,
-    /// GPS_RAW_INT (24).
+    /// GPS_RAW_INT (24): the receiver's own solution and accuracies.
     GpsRawInt,
+    /// SCALED_IMU (26): the raw IMU and magnetometer in PX4's integer units.
+    ScaledImu,
+    /// SCALED_PRESSURE (29): the barometer.
+    ScaledPressure,
+    /// HIGHRES_IMU (105): the raw IMU, magnetometer and barometer (SI units).
+    HighresImu,
     /// ATTITUDE (30).
     Attitude,
     /// ATTITUDE_QUATERNION (31).
@@ -77,11 +84,14 @@ pub enum Stream {
 
 impl Stream {
     /// Every stream.
-    pub const ALL: [Stream; 19] = [
+    pub const ALL: [Stream; 22] = [
         Stream::Heartbeat,
         Stream::SysStatus,
         Stream::SystemTime,
         Stream::GpsRawInt,
+        Stream::ScaledImu,
+        Stream::ScaledPressure,
+        Stream::HighresImu,
         Stream::Attitude,
         Stream::AttitudeQuaternion,
         Stream::LocalPositionNed,
@@ -107,6 +117,9 @@ impl Stream {
             Stream::SysStatus => SYS_STATUS_DATA::ID,
             Stream::SystemTime => SYSTEM_TIME_DATA::ID,
             Stream::GpsRawInt => GPS_RAW_INT_DATA::ID,
+            Stream::ScaledImu => SCALED_IMU_DATA::ID,
+            Stream::ScaledPressure => SCALED_PRESSURE_DATA::ID,
+            Stream::HighresImu => HIGHRES_IMU_DATA::ID,
             Stream::Attitude => ATTITUDE_DATA::ID,
             Stream::AttitudeQuaternion => ATTITUDE_QUATERNION_DATA::ID,
             Stream::LocalPositionNed => LOCAL_POSITION_NED_DATA::ID,
@@ -161,8 +174,10 @@ pub fn gcs_rates() -> Rates {
     ]
 }
 
-/// PX4's API link (onboard mode; WIND_COV at PX4's 10 Hz), plus the
-/// estimator streams at 10 Hz.
+/// PX4's API link (onboard mode; WIND_COV at PX4's 10 Hz, HIGHRES_IMU at
+/// PX4's 50 Hz), plus the estimator streams at 10 Hz. SCALED_IMU and
+/// SCALED_PRESSURE are off on both links, as in PX4's normal and onboard
+/// modes, until a client asks.
 #[must_use]
 pub fn api_rates() -> Rates {
     vec![
@@ -170,6 +185,7 @@ pub fn api_rates() -> Rates {
         (Stream::SysStatus, 5.0),
         (Stream::SystemTime, 1.0),
         (Stream::GpsRawInt, 5.0),
+        (Stream::HighresImu, 50.0),
         (Stream::Attitude, 100.0),
         (Stream::AttitudeQuaternion, 50.0),
         (Stream::LocalPositionNed, 30.0),
@@ -386,27 +402,49 @@ pub fn build(stream: Stream, snapshot: &Snapshot, unix_time_us: u64) -> Vec<MavM
             time_unix_usec: unix_time_us,
             time_boot_ms: ms,
         }),
-        Stream::GpsRawInt => MavMessage::GPS_RAW_INT(GPS_RAW_INT_DATA {
-            time_usec: us,
-            lat: convert::deg_e7(t.global.lat_deg),
-            lon: convert::deg_e7(t.global.lon_deg),
-            alt: convert::sat_i32(t.global.alt_amsl_m * 1e3),
-            eph: 90,
-            epv: 120,
-            vel: convert::sat_u16(ground_speed * 100.0),
-            cog: if ground_speed > 0.1 {
-                convert::heading_cdeg(t.velocity_ned.y.atan2(t.velocity_ned.x))
-            } else {
-                convert::heading_cdeg(yaw)
+        Stream::GpsRawInt => MavMessage::GPS_RAW_INT(match &snapshot.raw.gnss {
+            Some(g) => gps_raw_int(g),
+            None => GPS_RAW_INT_DATA {
+                time_usec: us,
+                lat: convert::deg_e7(t.global.lat_deg),
+                lon: convert::deg_e7(t.global.lon_deg),
+                alt: convert::sat_i32(t.global.alt_amsl_m * 1e3),
+                eph: 90,
+                epv: 120,
+                vel: convert::sat_u16(ground_speed * 100.0),
+                cog: if ground_speed > 0.1 {
+                    convert::heading_cdeg(t.velocity_ned.y.atan2(t.velocity_ned.x))
+                } else {
+                    convert::heading_cdeg(yaw)
+                },
+                fix_type: match t.gps_fix {
+                    GpsFix::None => GpsFixType::GPS_FIX_TYPE_NO_FIX,
+                    GpsFix::Fix3d => GpsFixType::GPS_FIX_TYPE_3D_FIX,
+                },
+                satellites_visible: t.gps_satellites,
+                // MAVLink 2 extensions: not reported (zero, cut off the wire)
+                ..Default::default()
             },
-            fix_type: match t.gps_fix {
-                GpsFix::None => GpsFixType::GPS_FIX_TYPE_NO_FIX,
-                GpsFix::Fix3d => GpsFixType::GPS_FIX_TYPE_3D_FIX,
-            },
-            satellites_visible: t.gps_satellites,
-            // MAVLink 2 extensions: not reported (zero, cut off the wire)
-            ..Default::default()
         }),
+        Stream::HighresImu => match highres_imu(&snapshot.raw) {
+            Some(m) => MavMessage::HIGHRES_IMU(m),
+            None => return Vec::new(),
+        },
+        Stream::ScaledImu => match scaled_imu(&snapshot.raw) {
+            Some(m) => MavMessage::SCALED_IMU(m),
+            None => return Vec::new(),
+        },
+        Stream::ScaledPressure => match &snapshot.raw.baro {
+            Some(b) => MavMessage::SCALED_PRESSURE(SCALED_PRESSURE_DATA {
+                time_boot_ms: (b.time_s * 1e3) as u32,
+                press_abs: (b.pressure_pa / 100.0) as f32,
+                press_diff: 0.0,
+                temperature: convert::sat_i16(b.temperature_c * 100.0),
+                // MAVLink 2 extension: not reported (zero, cut off the wire)
+                ..Default::default()
+            }),
+            None => return Vec::new(),
+        },
         Stream::Attitude => MavMessage::ATTITUDE(ATTITUDE_DATA {
             time_boot_ms: ms,
             roll: roll as f32,
@@ -529,6 +567,129 @@ pub fn build(stream: Stream, snapshot: &Snapshot, unix_time_us: u64) -> Vec<MavM
         Stream::WindCov => return wind_cov(t).map(MavMessage::WIND_COV).into_iter().collect(),
     };
     vec![m]
+}
+
+/// GPS_RAW_INT from the receiver's solution as PX4 fills it
+/// (`GPS_RAW_INT.hpp`): `eph`/`epv` are the HDOP/VDOP times 100, the
+/// accuracies `h_acc`/`v_acc` [mm] and `vel_acc` [mm/s] the receiver's own,
+/// the course over ground from the NED velocity.
+#[must_use]
+pub fn gps_raw_int(g: &GnssSample) -> GPS_RAW_INT_DATA {
+    let v = &g.velocity_ned;
+    let speed = v.xy().norm();
+    GPS_RAW_INT_DATA {
+        time_usec: (g.time_s * 1e6) as u64,
+        lat: convert::deg_e7(g.lat_deg),
+        lon: convert::deg_e7(g.lon_deg),
+        alt: convert::sat_i32(g.alt_amsl_m * 1e3),
+        eph: convert::sat_u16(g.hdop * 100.0),
+        epv: convert::sat_u16(g.vdop * 100.0),
+        vel: convert::sat_u16(speed * 100.0),
+        cog: convert::heading_cdeg(v.y.atan2(v.x)),
+        fix_type: match g.fix {
+            GpsFix::None => GpsFixType::GPS_FIX_TYPE_NO_FIX,
+            GpsFix::Fix3d => GpsFixType::GPS_FIX_TYPE_3D_FIX,
+        },
+        satellites_visible: g.satellites,
+        alt_ellipsoid: convert::sat_i32(g.alt_amsl_m * 1e3),
+        h_acc: (g.eph_m * 1e3).round() as u32,
+        v_acc: (g.epv_m * 1e3).round() as u32,
+        vel_acc: (g.speed_accuracy_m_s * 1e3).round() as u32,
+        hdg_acc: 0,
+        yaw: 0,
+    }
+}
+
+/// HIGHRES_IMU as PX4 fills it (`HIGHRES_IMU.hpp`): accelerometer [m/s^2],
+/// gyroscope [rad/s] and magnetometer [gauss] in FRD, absolute pressure
+/// [hPa], pressure altitude [m] and temperature [degC]; `fields_updated`
+/// names the fields a sensor filled (an OFF sensor's are 0 and unflagged).
+/// Stamped with the IMU's sample time; nothing before any sample.
+#[must_use]
+pub fn highres_imu(raw: &RawSensorReadings) -> Option<HIGHRES_IMU_DATA> {
+    if raw.accel.is_none() && raw.gyro.is_none() && raw.mag.is_none() && raw.baro.is_none() {
+        return None;
+    }
+    let time_s = [raw.accel.map(|s| s.time_s), raw.gyro.map(|s| s.time_s)]
+        .into_iter()
+        .flatten()
+        .chain(raw.baro.map(|b| b.time_s))
+        .chain(raw.mag.map(|m| m.time_s))
+        .fold(0.0, f64::max);
+    let mut flags = 0u16;
+    let mut xyz = |s: Option<crate::signals::AxesSample>, bits: u16| {
+        s.map_or([0.0f32; 3], |s| {
+            flags |= bits;
+            [s.frd.x as f32, s.frd.y as f32, s.frd.z as f32]
+        })
+    };
+    let a = xyz(raw.accel, 0b111);
+    let w = xyz(raw.gyro, 0b111 << 3);
+    let m = xyz(raw.mag, 0b111 << 6);
+    let (p, alt, temp) = match raw.baro {
+        Some(b) => {
+            // abs pressure, pressure altitude, temperature
+            flags |= 512 | 2048 | 4096;
+            (
+                (b.pressure_pa / 100.0) as f32,
+                crate::geo::pressure_altitude_m(b.pressure_pa) as f32,
+                b.temperature_c as f32,
+            )
+        }
+        None => (0.0, 0.0, 0.0),
+    };
+    Some(HIGHRES_IMU_DATA {
+        time_usec: (time_s * 1e6) as u64,
+        xacc: a[0],
+        yacc: a[1],
+        zacc: a[2],
+        xgyro: w[0],
+        ygyro: w[1],
+        zgyro: w[2],
+        xmag: m[0],
+        ymag: m[1],
+        zmag: m[2],
+        abs_pressure: p,
+        diff_pressure: 0.0,
+        pressure_alt: alt,
+        temperature: temp,
+        fields_updated: HighresImuUpdatedFlags::from_bits_retain(flags),
+        id: 0,
+    })
+}
+
+/// SCALED_IMU as PX4 fills it (`SCALED_IMU.hpp`): acceleration [mG]
+/// (`f / 9.80665 * 1000`), rates [mrad/s], field [mgauss], FRD,
+/// temperature [cdegC] (the barometer's); nothing while the accelerometer
+/// and gyroscope give nothing.
+#[must_use]
+pub fn scaled_imu(raw: &RawSensorReadings) -> Option<SCALED_IMU_DATA> {
+    let t = raw.accel.or(raw.gyro)?.time_s;
+    let scale = |s: Option<crate::signals::AxesSample>, k: f64| {
+        s.map_or([0i16; 3], |s| {
+            [
+                convert::sat_i16(s.frd.x * k),
+                convert::sat_i16(s.frd.y * k),
+                convert::sat_i16(s.frd.z * k),
+            ]
+        })
+    };
+    let a = scale(raw.accel, 1000.0 / 9.806_65);
+    let w = scale(raw.gyro, 1000.0);
+    let m = scale(raw.mag, 1000.0);
+    Some(SCALED_IMU_DATA {
+        time_boot_ms: (t * 1e3) as u32,
+        xacc: a[0],
+        yacc: a[1],
+        zacc: a[2],
+        xgyro: w[0],
+        ygyro: w[1],
+        zgyro: w[2],
+        xmag: m[0],
+        ymag: m[1],
+        zmag: m[2],
+        temperature: raw.baro.map_or(0, |b| convert::sat_i16(b.temperature_c * 100.0)),
+    })
 }
 
 /// HEARTBEAT as PX4 sends it: the multirotor's type, autopilot PX4, custom mode.

@@ -17,7 +17,7 @@ use crate::geo::GeoPoint;
 use crate::lockstep::Snapshot;
 use crate::mission::Plans;
 use crate::params::ParamValue;
-use crate::signals::{GpsFix, WrenchEstimate};
+use crate::signals::{AxesSample, BaroSample, GnssSample, GpsFix, RawSensorReadings, WrenchEstimate};
 
 /// A loopback address.
 pub(crate) fn addr(port: u16) -> SocketAddr {
@@ -103,6 +103,7 @@ pub(crate) fn snapshot() -> Snapshot {
         truth: Default::default(),
         ground_truth: Default::default(),
         plans: Plans::default(),
+        raw: resting_raw(&home, 12.5),
     };
     // the injected wrench the estimate above has found (the world's truth
     // reaches a link only inside a snapshot)
@@ -110,6 +111,45 @@ pub(crate) fn snapshot() -> Snapshot {
     snapshot.truth.torque_frd = Vector3::new(0.0, 0.0, 0.2);
     snapshot.truth.true_mass_kg = 1.8;
     snapshot
+}
+
+/// Noise-free raw samples of a level vehicle at rest at `home` at `t` [s]
+/// (the link sees the world only in a snapshot).
+pub(crate) fn resting_raw(home: &GeoPoint, t: f64) -> RawSensorReadings {
+    RawSensorReadings {
+        accel: Some(AxesSample {
+            time_s: t,
+            frd: Vector3::new(0.0, 0.0, -9.81),
+        }),
+        gyro: Some(AxesSample {
+            time_s: t,
+            frd: Vector3::zeros(),
+        }),
+        mag: Some(AxesSample {
+            time_s: t,
+            frd: Vector3::new(0.2, -0.05, 0.44),
+        }),
+        baro: Some(BaroSample {
+            time_s: t,
+            pressure_pa: 95_460.0,
+            temperature_c: 11.7,
+        }),
+        gnss: Some(GnssSample {
+            time_s: t - 0.125,
+            delivered_s: t,
+            lat_deg: home.lat_deg,
+            lon_deg: home.lon_deg,
+            alt_amsl_m: home.alt_amsl_m,
+            velocity_ned: Vector3::zeros(),
+            eph_m: 0.9,
+            epv_m: 1.78,
+            speed_accuracy_m_s: 0.4,
+            hdop: 0.7,
+            vdop: 1.1,
+            fix: GpsFix::Fix3d,
+            satellites: 12,
+        }),
+    }
 }
 
 /// A small parameter table: name, value, min, max per entry.

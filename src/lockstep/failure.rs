@@ -2,24 +2,38 @@
 //! FAILURE_TYPE; instance from 1, 0 = all) turned into the world's
 //! [`Fault`]s and the announcement, and carried out on a vehicle of the core.
 //!
-//! | unit | OFF (1) | WRONG (4) | OK (0) |
-//! |---|---|---|---|
-//! | GPS (4) | no fix; the navigation solution dead-reckons and drifts | position `SIM_GPS_WRONG_M` north | fix and right position back |
-//! | BATTERY (100) | one cell fails: one cell's voltage less | — | whole pack |
-//! | MOTOR (101) | the rotor stops | `SIM_MOT_WRONG_FR` of its thrust | healthy |
-//! | MAVLINK_SIGNAL (105) | the vehicle stops sending on its links | — | sends again |
+//! | unit | OFF (1) | STUCK (2) | WRONG (4) | OK (0) |
+//! |---|---|---|---|---|
+//! | SENSOR_GYRO (0), SENSOR_ACCEL (1), SENSOR_MAG (2), SENSOR_BARO (3) | the raw sensor delivers nothing | it repeats its last value | — | works |
+//! | GPS (4) | no fix; the navigation solution dead-reckons and drifts | the receiver repeats its last solution | position `SIM_GPS_WRONG_M` north | fix, right position, live solutions |
+//! | BATTERY (100) | one cell fails: one cell's voltage less | — | — | whole pack |
+//! | MOTOR (101) | the rotor stops | — | `SIM_MOT_WRONG_FR` of its thrust | healthy |
+//! | MAVLINK_SIGNAL (105) | the vehicle stops sending on its links | — | — | sends again |
 //!
+//! The sensor rows are PX4's simulated sensors' (`failure_injection`,
+//! `sensor_baro_sim`, `sensor_mag_sim`, `sensor_gps_sim`): they honour OFF,
+//! STUCK and OK, and only the GNSS receiver WRONG. A raw sensor's fault
+//! shows in the raw samples and the messages built from them; the
+//! navigation solution the flight stack flies on today does not read them.
 //! Any other pair is UNSUPPORTED; an instance that does not exist (a motor
 //! beyond the rotor count, any motor of an ideal-actuation airframe, a second
-//! GPS, battery or radio) is DENIED. Nothing changes then.
+//! sensor, GPS, battery or radio) is DENIED. Nothing changes then.
 
 use nalgebra::Vector3;
 
 use super::{Lockstep, Pilot};
 use crate::autopilot::{CommandOutcome, Severity, StatusText};
-use crate::sim::{ActiveFaults, Fault, FaultSettings, RotorHealth};
+use crate::sim::{ActiveFaults, Fault, FaultSettings, RawSensor, RotorHealth, SensorMode};
 
 // MAVLink FAILURE_UNIT and FAILURE_TYPE numbers (PX4's `vehicle_command`).
+/// FAILURE_UNIT_SENSOR_GYRO.
+pub const UNIT_GYRO: u8 = 0;
+/// FAILURE_UNIT_SENSOR_ACCEL.
+pub const UNIT_ACCEL: u8 = 1;
+/// FAILURE_UNIT_SENSOR_MAG.
+pub const UNIT_MAG: u8 = 2;
+/// FAILURE_UNIT_SENSOR_BARO.
+pub const UNIT_BARO: u8 = 3;
 /// FAILURE_UNIT_SENSOR_GPS.
 pub const UNIT_GPS: u8 = 4;
 /// FAILURE_UNIT_SYSTEM_BATTERY.
@@ -32,6 +46,8 @@ pub const UNIT_MAVLINK_SIGNAL: u8 = 105;
 pub const TYPE_OK: u8 = 0;
 /// FAILURE_TYPE_OFF.
 pub const TYPE_OFF: u8 = 1;
+/// FAILURE_TYPE_STUCK.
+pub const TYPE_STUCK: u8 = 2;
 /// FAILURE_TYPE_WRONG.
 pub const TYPE_WRONG: u8 = 4;
 
@@ -56,7 +72,10 @@ pub fn failure_faults(
     active: &ActiveFaults,
     settings: FaultSettings,
 ) -> Result<(Vec<Fault>, StatusText), CommandOutcome> {
-    use self::{TYPE_OFF, TYPE_OK, TYPE_WRONG, UNIT_BATTERY, UNIT_GPS, UNIT_MAVLINK_SIGNAL, UNIT_MOTOR};
+    use self::{
+        TYPE_OFF, TYPE_OK, TYPE_STUCK, TYPE_WRONG, UNIT_ACCEL, UNIT_BARO, UNIT_BATTERY, UNIT_GPS, UNIT_GYRO, UNIT_MAG,
+        UNIT_MAVLINK_SIGNAL, UNIT_MOTOR,
+    };
     let say = |severity, text: String| StatusText { severity, text };
     let warn = |what: &str| say(Severity::Warning, format!("CMD_INJECT_FAILURE, {what}"));
     let ok = |what: &str| say(Severity::Info, format!("CMD_INJECT_FAILURE, {what} ok"));
@@ -98,11 +117,39 @@ pub fn failure_faults(
             let faults = rotors.iter().map(|&rotor| Fault::Rotor { rotor, health }).collect();
             Ok((faults, say(severity, format!("CMD_INJECT_FAILURE, {which} {what}"))))
         }
-        (UNIT_GPS, TYPE_OK | TYPE_OFF | TYPE_WRONG) => {
+        (UNIT_GYRO | UNIT_ACCEL | UNIT_MAG | UNIT_BARO, TYPE_OK | TYPE_OFF | TYPE_STUCK) => {
+            let (sensor, name) = match inj.unit {
+                UNIT_GYRO => (RawSensor::Gyro, "gyro"),
+                UNIT_ACCEL => (RawSensor::Accel, "accel"),
+                UNIT_MAG => (RawSensor::Mag, "mag"),
+                _ => (RawSensor::Baro, "baro"),
+            };
+            single(match sensor {
+                RawSensor::Gyro => "no such gyro",
+                RawSensor::Accel => "no such accel",
+                RawSensor::Mag => "no such mag",
+                RawSensor::Baro => "no such baro",
+            })?;
+            let (mode, text) = match inj.kind {
+                TYPE_OK => (SensorMode::Ok, ok(name)),
+                TYPE_OFF => (SensorMode::Off, warn(&format!("{name} off"))),
+                _ => (SensorMode::Stuck, warn(&format!("{name} stuck"))),
+            };
+            Ok((vec![Fault::Sensor { sensor, mode }], text))
+        }
+        (UNIT_GPS, TYPE_OK | TYPE_OFF | TYPE_STUCK | TYPE_WRONG) => {
             single("no such GPS")?;
             Ok(match inj.kind {
-                TYPE_OK => (vec![Fault::Gps { available: true }, Fault::GpsOffset(None)], ok("GPS")),
+                TYPE_OK => (
+                    vec![
+                        Fault::Gps { available: true },
+                        Fault::GpsOffset(None),
+                        Fault::GpsStuck(false),
+                    ],
+                    ok("GPS"),
+                ),
                 TYPE_OFF => (vec![Fault::Gps { available: false }], warn("GPS off")),
+                TYPE_STUCK => (vec![Fault::GpsStuck(true)], warn("GPS stuck")),
                 _ => (
                     vec![Fault::GpsOffset(Some(Vector3::new(
                         settings.gps_offset_north_m,
@@ -175,6 +222,23 @@ impl<P: Pilot> Lockstep<P> {
                 failed: faults.battery_cell_failed,
             },
             Fault::LinkLost(faults.link_lost),
+            Fault::GpsStuck(faults.sensors.gnss_stuck),
+            Fault::Sensor {
+                sensor: RawSensor::Accel,
+                mode: faults.sensors.accel,
+            },
+            Fault::Sensor {
+                sensor: RawSensor::Gyro,
+                mode: faults.sensors.gyro,
+            },
+            Fault::Sensor {
+                sensor: RawSensor::Mag,
+                mode: faults.sensors.mag,
+            },
+            Fault::Sensor {
+                sensor: RawSensor::Baro,
+                mode: faults.sensors.baro,
+            },
         ]);
         for f in back {
             let _ = self.world.inject(i, f);

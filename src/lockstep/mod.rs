@@ -37,7 +37,7 @@ use crate::autopilot::{
 use crate::geo::GeoPoint;
 use crate::mission::{MissionResult, PlanChange, Plans};
 use crate::params::{ParamStore, ParamValue};
-use crate::signals::{DEFAULT_STEP_S, Measurement, SensorReadings};
+use crate::signals::{DEFAULT_STEP_S, Measurement, RawSensorReadings, SensorReadings};
 use crate::sim::{
     Environment, Proximity, ProximityEvent, ProximityKind, SensorConfig, SimFault, StepReport, Truth, VehicleSlot,
     World, WorldSettings,
@@ -104,6 +104,9 @@ pub struct Snapshot {
     pub ground_truth: GroundTruth,
     /// The stored mission, geofence and rally points (shared, not copied).
     pub plans: Plans,
+    /// The raw sensors' latest samples (all `None` unless the world
+    /// simulates them, [`Lockstep::enable_raw_sensors`]).
+    pub raw: RawSensorReadings,
 }
 
 /// The vehicle's true motion, what PX4 SITL calls its ground truth (the
@@ -639,11 +642,23 @@ impl Lockstep<Autopilot> {
             state: plant.truth(),
             acceleration_ned: plant.acceleration_ned(),
         };
+        let telemetry = self.telemetry(i);
         Snapshot {
-            telemetry: self.telemetry(i),
+            telemetry,
             truth: self.world.truth(i),
             ground_truth,
             plans: self.pilots[i].plans().clone(),
+            raw: self.world.sense(i).raw,
+        }
+    }
+
+    /// Simulate every vehicle's raw sensors from now on (IMU, barometer,
+    /// magnetometer, GNSS: [`crate::sim::raw_sensors`]), each around its
+    /// autopilot's home: for the runtimes that stream or log them. They
+    /// change no other number of the flight.
+    pub fn enable_raw_sensors(&mut self) {
+        for (i, pilot) in self.pilots.iter().enumerate() {
+            self.world.enable_raw_sensors(i, pilot.origin());
         }
     }
 

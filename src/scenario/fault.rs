@@ -5,15 +5,17 @@
 //! ```toml
 //! [[fault]]
 //! at_s = 12.0             # when [s], within the duration
-//! unit = "motor"          # motor | gps | battery | mavlink_signal
-//! type = "off"            # off | wrong | ok (ok undoes)
+//! unit = "motor"          # motor | gps | battery | mavlink_signal | gyro | accel | mag | baro
+//! type = "off"            # off | stuck | wrong | ok (ok undoes)
 //! instance = 3            # from 1; 0 (the default) = all
 //! thrust_fraction = 0.3   # motor wrong only: the thrust it gives (default SIM_MOT_WRONG_FR)
 //! offset_m = 25.0         # gps wrong only: position reported this far north (default SIM_GPS_WRONG_M)
 //! ```
 //!
-//! Supported: motor off/wrong/ok, gps off/wrong/ok, battery off/ok,
-//! mavlink_signal off/ok (headless, no link: it changes nothing else). Any
+//! Supported: motor off/wrong/ok, gps off/stuck/wrong/ok, battery off/ok,
+//! mavlink_signal off/ok (headless, no link: it changes nothing else),
+//! gyro, accel, mag and baro off/stuck/ok (the raw sensors: they show in the
+//! raw samples, which a headless run without a ULog does not simulate). Any
 //! other name, pair, or a motor the airframe lacks is an error naming the
 //! file, the field (and for a name, the line).
 
@@ -37,6 +39,14 @@ pub enum FaultUnit {
     Motor,
     /// FAILURE_UNIT_SYSTEM_MAVLINK_SIGNAL (105).
     MavlinkSignal,
+    /// FAILURE_UNIT_SENSOR_GYRO (0).
+    Gyro,
+    /// FAILURE_UNIT_SENSOR_ACCEL (1).
+    Accel,
+    /// FAILURE_UNIT_SENSOR_MAG (2).
+    Mag,
+    /// FAILURE_UNIT_SENSOR_BARO (3).
+    Baro,
 }
 
 impl FaultUnit {
@@ -48,6 +58,10 @@ impl FaultUnit {
             FaultUnit::Battery => failure::UNIT_BATTERY,
             FaultUnit::Motor => failure::UNIT_MOTOR,
             FaultUnit::MavlinkSignal => failure::UNIT_MAVLINK_SIGNAL,
+            FaultUnit::Gyro => failure::UNIT_GYRO,
+            FaultUnit::Accel => failure::UNIT_ACCEL,
+            FaultUnit::Mag => failure::UNIT_MAG,
+            FaultUnit::Baro => failure::UNIT_BARO,
         }
     }
 
@@ -59,6 +73,10 @@ impl FaultUnit {
             FaultUnit::Battery => "battery",
             FaultUnit::Motor => "motor",
             FaultUnit::MavlinkSignal => "mavlink_signal",
+            FaultUnit::Gyro => "gyro",
+            FaultUnit::Accel => "accel",
+            FaultUnit::Mag => "mag",
+            FaultUnit::Baro => "baro",
         }
     }
 }
@@ -71,6 +89,8 @@ pub enum FaultType {
     Ok,
     /// FAILURE_TYPE_OFF (1).
     Off,
+    /// FAILURE_TYPE_STUCK (2).
+    Stuck,
     /// FAILURE_TYPE_WRONG (4).
     Wrong,
 }
@@ -82,6 +102,7 @@ impl FaultType {
         match self {
             FaultType::Ok => failure::TYPE_OK,
             FaultType::Off => failure::TYPE_OFF,
+            FaultType::Stuck => failure::TYPE_STUCK,
             FaultType::Wrong => failure::TYPE_WRONG,
         }
     }
@@ -92,6 +113,7 @@ impl FaultType {
         match self {
             FaultType::Ok => "ok",
             FaultType::Off => "off",
+            FaultType::Stuck => "stuck",
             FaultType::Wrong => "wrong",
         }
     }
@@ -238,11 +260,27 @@ pub(super) fn validate(
                 format!("must be within [0, duration_s = {duration_s}] s, got {}", f.at_s),
             ));
         }
+        let sensor = matches!(
+            f.unit,
+            FaultUnit::Gyro | FaultUnit::Accel | FaultUnit::Mag | FaultUnit::Baro
+        );
         match (f.unit, f.kind) {
             (FaultUnit::Battery | FaultUnit::MavlinkSignal, FaultType::Wrong) => {
                 return Err((
                     at("type"),
                     "\"wrong\" is for a motor or the gps; this unit takes \"off\" or \"ok\"".into(),
+                ));
+            }
+            (FaultUnit::Battery | FaultUnit::MavlinkSignal | FaultUnit::Motor, FaultType::Stuck) => {
+                return Err((
+                    at("type"),
+                    "\"stuck\" is for a sensor (gyro, accel, mag, baro, gps)".into(),
+                ));
+            }
+            (_, FaultType::Wrong) if sensor => {
+                return Err((
+                    at("type"),
+                    "\"wrong\" is for a motor or the gps; this sensor takes \"off\", \"stuck\" or \"ok\"".into(),
                 ));
             }
             (FaultUnit::Motor, _) => {
@@ -260,7 +298,7 @@ pub(super) fn validate(
                     ));
                 }
             }
-            (FaultUnit::Gps | FaultUnit::Battery | FaultUnit::MavlinkSignal, _) if f.instance > 1 => {
+            (_, _) if f.instance > 1 => {
                 return Err((
                     at("instance"),
                     format!("there is one (1, or 0 for all), got {}", f.instance),

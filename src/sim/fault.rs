@@ -35,6 +35,21 @@ impl RotorHealth {
 use nalgebra::Vector3;
 
 use super::SensorNoise;
+use super::raw_sensors::{SensorFaults, SensorMode};
+
+/// A raw sensor that can fail on its own (the GNSS receiver's faults are
+/// [`Fault::Gps`], [`Fault::GpsOffset`] and [`Fault::GpsStuck`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RawSensor {
+    /// The accelerometer.
+    Accel,
+    /// The gyroscope.
+    Gyro,
+    /// The magnetometer.
+    Mag,
+    /// The barometer.
+    Baro,
+}
 
 /// One fault (or its repair) injected into one vehicle.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -67,6 +82,16 @@ pub enum Fault {
     /// The vehicle's telemetry radio goes silent (`true`) or works again
     /// (`false`): the runtime stops sending on every link meanwhile.
     LinkLost(bool),
+    /// A raw sensor works, delivers nothing or repeats its last value.
+    Sensor {
+        /// Which sensor.
+        sensor: RawSensor,
+        /// Its new state.
+        mode: SensorMode,
+    },
+    /// The GNSS receiver repeats its last solution (`true`) or works again
+    /// (`false`); the navigation solution does not notice.
+    GpsStuck(bool),
 }
 
 /// Why a fault cannot be injected.
@@ -106,6 +131,8 @@ pub struct ActiveFaults {
     pub battery_cell_failed: bool,
     /// Whether the telemetry radio is silent.
     pub link_lost: bool,
+    /// The raw sensors' own faults.
+    pub sensors: SensorFaults,
 }
 
 impl ActiveFaults {
@@ -119,6 +146,7 @@ impl ActiveFaults {
             gps_offset_ned: None,
             battery_cell_failed: false,
             link_lost: false,
+            sensors: SensorFaults::default(),
         }
     }
 
@@ -130,6 +158,7 @@ impl ActiveFaults {
             || self.gps_offset_ned.is_some()
             || self.battery_cell_failed
             || self.link_lost
+            || self.sensors.any()
             || self.rotors.iter().any(|r| *r != RotorHealth::Healthy)
     }
 }

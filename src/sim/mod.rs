@@ -22,6 +22,7 @@
 //! | [`plant`] | the 6-DoF rigid body, rotors with lag and limits, contact |
 //! | [`aero`] | ground and ceiling effect |
 //! | `sensors` | the navigation solution's seeded noise |
+//! | [`raw_sensors`] | IMU, barometer, magnetometer and GNSS samples, on when something reads them |
 //! | `battery` | the pack: discharge with the power drawn |
 //! | `fault` | faults and their effect on the plant and sensors |
 //! | `settings` | the `SIM_*` parameters |
@@ -41,15 +42,17 @@ mod battery;
 mod fault;
 pub mod plant;
 pub mod proximity;
+pub mod raw_sensors;
 mod sensors;
 mod settings;
 pub mod wind;
 
-pub use fault::{ActiveFaults, Fault, FaultError, RotorHealth};
+pub use fault::{ActiveFaults, Fault, FaultError, RawSensor, RotorHealth};
 pub use plant::{
     Contact, Disturbance, Environment, ExternalWrench, Plant, PlantConfig, RigidBodyState, SimFault, StepEvent,
 };
 pub use proximity::{Proximity, ProximityEvent, ProximityKind};
+pub use raw_sensors::{SensorFaults, SensorMode};
 pub use sensors::{DEAD_RECKONING_BIAS_M_S2, SensorNoise, Sensors};
 pub use settings::{FaultSettings, WorldSettings};
 pub use wind::{Gust, Wind, WindSettings};
@@ -57,10 +60,13 @@ pub use wind::{Gust, Wind, WindSettings};
 use nalgebra::Vector3;
 
 use crate::airframe::{Actuation, Airframe};
+use crate::geo::GeoPoint;
 use crate::signals::{
-    ActuatorCommand, BatteryReading, ControlWrench, GpsFix, GpsReading, Measurement, RotorVector, SensorReadings,
+    ActuatorCommand, BatteryReading, ControlWrench, GpsFix, GpsReading, Measurement, RawSensorReadings, RotorVector,
+    SensorReadings,
 };
 use battery::Battery;
+use raw_sensors::{GnssState, RawSensors};
 
 /// Satellites a healthy receiver reports (PX4 SITL's GPS sends about as many).
 const SATELLITES: u8 = 12;
@@ -239,6 +245,10 @@ struct Body {
     origin_ned: Vector3<f64>,
     /// The body's radius [m]: the farthest rotor hub plus a rotor radius.
     radius_m: f64,
+    /// Its seed (the raw sensors derive their own stream from it).
+    seed: u64,
+    /// The raw sensors, once something reads them ([`World::enable_raw_sensors`]).
+    raw: Option<Box<RawSensors>>,
 }
 
 impl Body {
@@ -258,6 +268,15 @@ impl Body {
             let truth = self.plant.truth();
             self.nav = self.sensors.measure(&truth);
             self.measured = true;
+            if let Some(raw) = &mut self.raw {
+                let gnss = GnssState {
+                    available: self.faults.gps_available,
+                    offset_ned: self.faults.gps_offset_ned,
+                    satellites: SATELLITES,
+                };
+                let accel = self.plant.acceleration_ned();
+                raw.sample(&truth, &accel, &self.faults.sensors, gnss, &mut self.reading.raw);
+            }
         }
         let r = &mut self.reading;
         r.measurement = if self.sensors.degraded() {
@@ -440,10 +459,13 @@ impl World {
                     fix: GpsFix::None,
                     satellites: 0,
                 },
+                raw: RawSensorReadings::default(),
             },
             measured: false,
             origin_ned: Vector3::zeros(),
             radius_m,
+            seed: sensors.seed,
+            raw: None,
         });
         self.reports.push(StepReport::default());
         self.bodies.len() - 1
@@ -470,6 +492,24 @@ impl World {
         b.disturbance = DisturbanceSource::Constant(ExternalWrench::default());
         b.faults = ActiveFaults::none(b.faults.rotors.len());
         b.measured = false;
+    }
+
+    /// Simulate vehicle `i`'s raw sensors ([`raw_sensors`]) from now on, its
+    /// home (where its NED origin lies on the globe) at `home`; they then
+    /// appear in its [`SensorReadings::raw`]. Off by default: a flight that
+    /// nothing reads them from (a headless run) does not pay for them, and
+    /// they change no other number of a flight. Enabling them again restarts
+    /// them (a new home).
+    pub fn enable_raw_sensors(&mut self, i: usize, home: GeoPoint) {
+        let b = &mut self.bodies[i];
+        b.raw = Some(Box::new(RawSensors::new(home, self.dt_s, b.seed)));
+        b.reading.raw = RawSensorReadings::default();
+    }
+
+    /// Whether vehicle `i`'s raw sensors are simulated.
+    #[must_use]
+    pub fn raw_sensors_enabled(&self, i: usize) -> bool {
+        self.bodies[i].raw.is_some()
     }
 
     /// Number of vehicles.
@@ -675,6 +715,16 @@ impl World {
                 b.faults.battery_cell_failed = failed;
             }
             Fault::LinkLost(lost) => b.faults.link_lost = lost,
+            Fault::Sensor { sensor, mode } => {
+                let f = &mut b.faults.sensors;
+                match sensor {
+                    RawSensor::Accel => f.accel = mode,
+                    RawSensor::Gyro => f.gyro = mode,
+                    RawSensor::Mag => f.mag = mode,
+                    RawSensor::Baro => f.baro = mode,
+                }
+            }
+            Fault::GpsStuck(stuck) => b.faults.sensors.gnss_stuck = stuck,
             Fault::SensorNoise(noise) => {
                 if let Some(n) = noise
                     && !n.is_valid()
@@ -806,6 +856,46 @@ mod tests {
             ),
             Err(FaultError::NoRotors)
         );
+    }
+
+    #[test]
+    fn raw_sensors_are_seeded_apart_and_leave_the_navigation_solution_alone() {
+        let noisy = SensorConfig {
+            noise: SensorNoise {
+                position_m: 0.1,
+                velocity_m_s: 0.05,
+                attitude_rad: 0.01,
+                rate_rad_s: 0.01,
+            },
+            seed: 42,
+        };
+        let world = |raw: bool, seed: u64| {
+            let mut w = World::new(crate::signals::DEFAULT_STEP_S, Environment::default());
+            w.add_vehicle(&Airframe::load("quad").unwrap(), SensorConfig { seed, ..noisy });
+            if raw {
+                w.enable_raw_sensors(0, GeoPoint::PX4_SITL_HOME);
+            }
+            w
+        };
+        let (mut plain, mut with, mut again, mut other) =
+            (world(false, 42), world(true, 42), world(true, 42), world(true, 43));
+        for _ in 0..300 {
+            let p = *plain.sense(0);
+            let r = *with.sense(0);
+            assert_eq!(
+                p.measurement, r.measurement,
+                "the navigation solution's stream is untouched"
+            );
+            assert_eq!(p.raw, RawSensorReadings::default());
+            assert_eq!(*again.sense(0), r, "same seed, same samples");
+            other.sense(0);
+            for w in [&mut plain, &mut with, &mut again, &mut other] {
+                w.step(|_| &ActuatorCommand::Stop);
+            }
+        }
+        let (a, b) = (with.sense(0).raw, other.sense(0).raw);
+        assert!(a.accel.is_some() && a.baro.is_some() && a.mag.is_some() && a.gnss.is_some());
+        assert_ne!(a.accel.unwrap().frd, b.accel.unwrap().frd, "another seed, other noise");
     }
 
     #[test]

@@ -351,7 +351,7 @@ def test_the_vehicle_decides_and_names_its_airframe():
         assert result == mavlink.MAV_RESULT_DENIED and "SYS_FAILURE_EN" in text
         p = param_set(m, "SYS_FAILURE_EN", 1, mavlink.MAV_PARAM_TYPE_INT32)
         assert float_as_int32(p.param_value) == 1
-        assert command(m, mavlink.MAV_CMD_INJECT_FAILURE, 0, 1, 1) == mavlink.MAV_RESULT_UNSUPPORTED
+        assert command(m, mavlink.MAV_CMD_INJECT_FAILURE, 0, 4, 1) == mavlink.MAV_RESULT_UNSUPPORTED
         result, text = refused(mavlink.MAV_CMD_MISSION_START, 0, 0)
         assert result == mavlink.MAV_RESULT_DENIED and "No valid mission" in text
 

@@ -61,7 +61,7 @@ def test_denied_while_disabled_unsupported_and_missing_motor(vehicle):
     assert g is not None and g.fix_type == 3 and g.satellites_visible > 0
     pv = param_set(m, "SYS_FAILURE_EN", 1, mavlink.MAV_PARAM_TYPE_INT32)
     assert pv is not None
-    for unit, kind in [(0, OFF), (GPS, STUCK), (BATTERY, WRONG), (MAVLINK_SIGNAL, WRONG), (104, OFF)]:
+    for unit, kind in [(0, WRONG), (3, WRONG), (GPS, 3), (BATTERY, WRONG), (MAVLINK_SIGNAL, WRONG), (104, OFF)]:
         assert inject(m, unit, kind) == mavlink.MAV_RESULT_UNSUPPORTED, (unit, kind)
     # the default airframe is a quad: motor 9 does not exist
     assert inject(m, MOTOR, OFF, 9) == mavlink.MAV_RESULT_DENIED

@@ -281,3 +281,33 @@ def test_pyulog_commands_read_the_ulog(flight, tool):
     else:
         assert "MIS_TAKEOFF_ALT" in out.stdout
 
+
+
+# the raw sensor topics: rate [Hz] (docs/logs.md)
+RAW_RATES = {"sensor_combined": 50, "vehicle_air_data": 5, "vehicle_magnetometer": 5, "sensor_gps": 8}
+
+
+def test_ulog_has_the_raw_sensor_topics_with_px4_fields(ulog):
+    start = ulog.start_timestamp
+    end = topic(ulog, "vehicle_attitude")["timestamp"][-1]
+    duration = (end - start) / 1e6
+    for name, hz in RAW_RATES.items():
+        t = topic(ulog, name)["timestamp"].astype(np.int64)
+        assert np.all(np.diff(t) > 0), f"{name}: timestamps increase"
+        assert abs(len(t) - duration * hz) <= 3, (name, len(t), duration * hz)
+    sc = topic(ulog, "sensor_combined")
+    # at rest on the ground before takeoff: -g on z (FRD), no rotation
+    assert sc["accelerometer_m_s2[2]"][0] == pytest.approx(-9.81, abs=0.5)
+    assert abs(sc["gyro_rad[0]"][0]) < 0.05
+    air = topic(ulog, "vehicle_air_data")
+    # ISA at PX4's home, 488 m AMSL: about 95.6 kPa; the barometric altitude follows the climb
+    assert air["baro_pressure_pa"][0] == pytest.approx(95_595, abs=60)
+    assert air["baro_alt_meter"].max() - air["baro_alt_meter"][0] == pytest.approx(TAKEOFF_ALT, abs=0.5)
+    mag = topic(ulog, "vehicle_magnetometer")
+    norm = np.sqrt(sum(mag[f"magnetometer_ga[{i}]"] ** 2 for i in range(3)))
+    assert np.median(norm) == pytest.approx(0.486, abs=0.02)
+    gps = topic(ulog, "sensor_gps")
+    assert gps["latitude_deg"][0] == pytest.approx(47.397742, abs=1e-5)
+    assert set(gps["fix_type"]) == {3} and gps["eph"][0] == pytest.approx(0.9)
+    # each fix is delivered one 125 ms epoch after it was taken
+    assert np.all(gps["timestamp"].astype(np.int64) - gps["timestamp_sample"].astype(np.int64) == 125_000)

@@ -27,6 +27,16 @@ fn gps_fix_and_health_follow_the_receiver() {
     };
     assert_eq!(gps_raw(&s), (3, 12));
     assert!(gps_healthy(&s));
+    // the receiver's own accuracies (PX4 `sensor_gps_sim`): HDOP/VDOP x 100, mm
+    match build(Stream::GpsRawInt, &s, 0).pop() {
+        Some(MavMessage::GPS_RAW_INT(g)) => {
+            assert_eq!((g.eph, g.epv, g.h_acc, g.v_acc, g.vel_acc), (70, 110, 900, 1780, 400));
+            assert_eq!(g.time_usec, 12_375_000, "the fix's own time, one epoch before delivery");
+        }
+        _ => panic!(),
+    }
+    // a lost fix: no solution from the receiver, the autopilot's status says so
+    s.raw.gnss = None;
     s.telemetry.gps_fix = GpsFix::None;
     s.telemetry.gps_satellites = 0;
     assert_eq!(gps_raw(&s), (1, 0), "GPS_FIX_TYPE_NO_FIX");
@@ -61,9 +71,18 @@ fn default_rates_and_deadlines() {
     let mut s = Scheduler::new(t0, &gcs_rates());
     let mut due = Vec::new();
     s.due(t0, &mut due);
-    // every stream but the ground truth, which waits to be asked for (as in PX4 SITL)
-    assert_eq!(due.len(), Stream::ALL.len() - 1);
-    assert!(!due.contains(&Stream::HilStateQuaternion));
+    // every stream but the ground truth, which waits to be asked for (as in
+    // PX4 SITL), and the raw sensor streams PX4's normal mode does not send
+    assert_eq!(due.len(), Stream::ALL.len() - 4);
+    for off in [
+        Stream::HilStateQuaternion,
+        Stream::HighresImu,
+        Stream::ScaledImu,
+        Stream::ScaledPressure,
+    ] {
+        assert!(!due.contains(&off), "{off:?}");
+    }
+    assert!(api_rates().contains(&(Stream::HighresImu, 50.0)), "PX4's onboard mode");
     assert_eq!(due.len(), gcs_rates().len());
     due.clear();
     // 20 ms later only the 50 Hz streams are due
@@ -210,4 +229,43 @@ fn wind_cov_as_px4_fills_it_and_only_once_estimated() {
     let api = Scheduler::new(t0, &api_rates());
     assert_eq!(gcs.interval(Stream::WindCov), Some(Duration::from_secs(2)));
     assert_eq!(api.interval(Stream::WindCov), Some(Duration::from_millis(100)));
+}
+
+#[test]
+fn raw_sensor_messages_in_px4_units_and_an_off_sensor_unflagged() {
+    let mut s = snapshot();
+    let Some(MavMessage::HIGHRES_IMU(h)) = build(Stream::HighresImu, &s, 0).pop() else {
+        panic!()
+    };
+    assert_eq!((h.xacc, h.yacc, h.zacc), (0.0, 0.0, -9.81));
+    assert_eq!(
+        h.fields_updated.bits(),
+        0x1bff,
+        "acc, gyro, mag, pressure, altitude, temperature"
+    );
+    assert!((h.abs_pressure - 954.6).abs() < 1e-3, "hPa");
+    assert!((f64::from(h.pressure_alt) - crate::geo::pressure_altitude_m(95_460.0)).abs() < 1e-3);
+    assert_eq!(h.time_usec, 12_500_000);
+    let Some(MavMessage::SCALED_IMU(i)) = build(Stream::ScaledImu, &s, 0).pop() else {
+        panic!()
+    };
+    // -9.81 m/s^2 is -1000.3 mG; 0.44 G is 440 mG
+    assert_eq!((i.zacc, i.zmag, i.temperature), (-1000, 440, 1170));
+    let Some(MavMessage::SCALED_PRESSURE(p)) = build(Stream::ScaledPressure, &s, 0).pop() else {
+        panic!()
+    };
+    assert_eq!((p.press_abs, p.temperature), (954.6, 1170));
+    // the barometer and magnetometer off: no SCALED_PRESSURE, their HIGHRES_IMU fields unflagged
+    s.raw.baro = None;
+    s.raw.mag = None;
+    assert!(build(Stream::ScaledPressure, &s, 0).is_empty());
+    let Some(MavMessage::HIGHRES_IMU(h)) = build(Stream::HighresImu, &s, 0).pop() else {
+        panic!()
+    };
+    assert_eq!((h.fields_updated.bits(), h.abs_pressure, h.xmag), (0x3f, 0.0, 0.0));
+    // no raw sensors simulated: nothing at all
+    s.raw = Default::default();
+    for stream in [Stream::HighresImu, Stream::ScaledImu, Stream::ScaledPressure] {
+        assert!(build(stream, &s, 0).is_empty(), "{stream:?}");
+    }
 }

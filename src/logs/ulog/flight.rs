@@ -25,6 +25,15 @@
 //! | `rotorpilot_control_wrench` | 50 Hz | the controller's wrench |
 //! | `rotorpilot_sim_truth` | 50 Hz | the simulated world (truth) |
 //! | `rotorpilot_sim_wind` | 10 Hz | the air at the vehicle and its aerodynamic wrench (truth) |
+//! | `sensor_combined` | 50 Hz | the raw accelerometer and gyroscope (FRD) |
+//! | `vehicle_air_data` | 5 Hz | the raw barometer |
+//! | `vehicle_magnetometer` | 5 Hz | the raw magnetometer (FRD, gauss) |
+//! | `sensor_gps` | every fix (8 Hz) | the raw GNSS receiver |
+//!
+//! The raw sensor topics are logged when the world simulates the raw
+//! sensors (the daemon and `replay --ulog` turn them on), from each sensor's
+//! latest sample, stamped with its sample time, at most at the rate above;
+//! an OFF sensor logs nothing, a STUCK one its repeated value.
 //!
 //! The rates are the intervals of PX4's default logger profile
 //! (`logged_topics.cpp`); status and land detection are logged on change, as
@@ -39,7 +48,11 @@ use crate::autopilot::{Autopilot, FlightMode, LandedState, Severity, StatusText}
 use crate::control::Reference;
 use crate::lockstep::Lockstep;
 use crate::params::{Param, ParamStore, ParamValue};
-use crate::signals::{ActuatorCommand, GpsFix};
+use crate::signals::{ActuatorCommand, GpsFix, RawSensorReadings};
+
+/// The device id the raw sensor topics carry: 0, no device (a simulated
+/// sensor here has no bus address).
+const DEVICE_ID: u32 = 0;
 
 /// PX4's `actuator_motors.control` length.
 const MOTORS: usize = 12;
@@ -146,8 +159,36 @@ const SIM_WIND: Topic = topic(
     "uint64_t timestamp;float[3] wind_ned;float[3] aero_force_ned;float[3] aero_torque_frd;",
 );
 
+const SENSOR_COMBINED: Topic = topic(
+    "sensor_combined",
+    20,
+    "uint64_t timestamp;float[3] gyro_rad;uint32_t gyro_integral_dt;\
+     int32_t accelerometer_timestamp_relative;float[3] accelerometer_m_s2;\
+     uint32_t accelerometer_integral_dt;uint8_t accelerometer_clipping;uint8_t gyro_clipping;",
+);
+const AIR_DATA: Topic = topic(
+    "vehicle_air_data",
+    200,
+    "uint64_t timestamp;uint64_t timestamp_sample;uint32_t baro_device_id;\
+     float baro_alt_meter;float baro_temp_celcius;float baro_pressure_pa;float rho;",
+);
+const MAGNETOMETER: Topic = topic(
+    "vehicle_magnetometer",
+    200,
+    "uint64_t timestamp;uint64_t timestamp_sample;uint32_t device_id;float[3] magnetometer_ga;",
+);
+const SENSOR_GPS: Topic = topic(
+    "sensor_gps",
+    125,
+    "uint64_t timestamp;uint64_t timestamp_sample;uint32_t device_id;double latitude_deg;\
+     double longitude_deg;double altitude_msl_m;double altitude_ellipsoid_m;\
+     float s_variance_m_s;float c_variance_rad;float eph;float epv;float hdop;float vdop;\
+     float vel_m_s;float vel_n_m_s;float vel_e_m_s;float vel_d_m_s;float cog_rad;\
+     bool vel_ned_valid;uint8_t fix_type;uint8_t satellites_used;",
+);
+
 /// Every topic, in subscription order (message id = index).
-const TOPICS: [&Topic; 15] = [
+const TOPICS: [&Topic; 19] = [
     &ATTITUDE,
     &ANGULAR_VELOCITY,
     &LOCAL_POSITION,
@@ -163,6 +204,10 @@ const TOPICS: [&Topic; 15] = [
     &SIM_TRUTH,
     &WIND,
     &SIM_WIND,
+    &SENSOR_COMBINED,
+    &AIR_DATA,
+    &MAGNETOMETER,
+    &SENSOR_GPS,
 ];
 
 /// Message ids (indices into [`TOPICS`]).
@@ -182,6 +227,16 @@ mod id {
     pub(super) const SIM_TRUTH: u16 = 12;
     pub(super) const WIND: u16 = 13;
     pub(super) const SIM_WIND: u16 = 14;
+    pub(super) const SENSOR_COMBINED: u16 = 15;
+    pub(super) const AIR_DATA: u16 = 16;
+    pub(super) const MAGNETOMETER: u16 = 17;
+    pub(super) const SENSOR_GPS: u16 = 18;
+}
+
+/// Air density [kg/m^3] from pressure [Pa] and temperature [degC]:
+/// `rho = p / (R T)`, `R` = 287.1 J/(kg K) (PX4's `vehicle_air_data`).
+fn air_density(pressure_pa: f64, temperature_c: f64) -> f64 {
+    pressure_pa / (287.1 * (temperature_c + 273.15))
 }
 
 /// PX4's `vehicle_status.nav_state` for a mode (`NAVIGATION_STATE_*`).
@@ -266,6 +321,9 @@ pub struct FlightUlog<W: Write> {
     params: Vec<ParamValue>,
     /// The estimator's order `r` (`EST_ORDER` in force).
     order: u8,
+    /// The sample time [s] each raw sensor topic last logged (IMU,
+    /// barometer, magnetometer, GNSS).
+    raw_logged: [f64; 4],
 }
 
 impl<W: Write> FlightUlog<W> {
@@ -310,6 +368,7 @@ impl<W: Write> FlightUlog<W> {
             last: None,
             params: params.iter().map(|(_, v)| v).collect(),
             order: est_order(params),
+            raw_logged: [f64::NEG_INFINITY; 4],
         })
     }
 
@@ -336,6 +395,83 @@ impl<W: Write> FlightUlog<W> {
     fn due(&self, topic: u16, k: u64) -> bool {
         let e = self.every[usize::from(topic)];
         e > 0 && k.is_multiple_of(e)
+    }
+
+    /// Log the raw sensors' samples that are new and due (module doc).
+    fn raw_sensors(&mut self, raw: &RawSensorReadings) -> io::Result<()> {
+        // a sample is due when at least its topic's interval after the last logged
+        let mut due = |slot: usize, topic: &Topic, time_s: f64| {
+            let due = time_s - self.raw_logged[slot] >= f64::from(topic.interval_ms) * 1e-3 - 1e-9;
+            if due {
+                self.raw_logged[slot] = time_s;
+            }
+            due
+        };
+        if let (Some(a), Some(g)) = (raw.accel, raw.gyro)
+            && due(0, &SENSOR_COMBINED, g.time_s)
+        {
+            let dt_us = (1e6 / crate::sim::raw_sensors::IMU_RATE_HZ) as u32;
+            let s = Sample::new(us(g.time_s))
+                .f32s(&v3(&g.frd))
+                .u32(dt_us)
+                .i32((us(a.time_s) as i64 - us(g.time_s) as i64) as i32)
+                .f32s(&v3(&a.frd))
+                .u32(dt_us)
+                .u8(0)
+                .u8(0);
+            self.ulog.data(id::SENSOR_COMBINED, &s)?;
+        }
+        if let Some(b) = raw.baro
+            && due(1, &AIR_DATA, b.time_s)
+        {
+            let t = us(b.time_s);
+            let s = Sample::new(t)
+                .u64(t)
+                .u32(DEVICE_ID)
+                .f32(crate::geo::pressure_altitude_m(b.pressure_pa))
+                .f32(b.temperature_c)
+                .f32(b.pressure_pa)
+                .f32(air_density(b.pressure_pa, b.temperature_c));
+            self.ulog.data(id::AIR_DATA, &s)?;
+        }
+        if let Some(m) = raw.mag
+            && due(2, &MAGNETOMETER, m.time_s)
+        {
+            let t = us(m.time_s);
+            let s = Sample::new(t).u64(t).u32(DEVICE_ID).f32s(&v3(&m.frd));
+            self.ulog.data(id::MAGNETOMETER, &s)?;
+        }
+        if let Some(g) = raw.gnss
+            && due(3, &SENSOR_GPS, g.delivered_s)
+        {
+            let v = &g.velocity_ned;
+            let s = Sample::new(us(g.delivered_s))
+                .u64(us(g.time_s))
+                .u32(DEVICE_ID)
+                .f64(g.lat_deg)
+                .f64(g.lon_deg)
+                .f64(g.alt_amsl_m)
+                .f64(g.alt_amsl_m)
+                .f32(g.speed_accuracy_m_s)
+                .f32(0.1)
+                .f32(g.eph_m)
+                .f32(g.epv_m)
+                .f32(g.hdop)
+                .f32(g.vdop)
+                .f32(v.xy().norm())
+                .f32(v.x)
+                .f32(v.y)
+                .f32(v.z)
+                .f32(v.y.atan2(v.x))
+                .bool(true)
+                .u8(match g.fix {
+                    GpsFix::None => 0,
+                    GpsFix::Fix3d => 3,
+                })
+                .u8(g.satellites);
+            self.ulog.data(id::SENSOR_GPS, &s)?;
+        }
+        Ok(())
     }
 
     /// Log what is due after a step of the core (decimated by the step
@@ -432,6 +568,10 @@ impl<W: Write> FlightUlog<W> {
                 .f32s(&v3(&w.aero.force_ned))
                 .f32s(&v3(&w.aero.torque_frd));
             self.ulog.data(id::SIM_WIND, &s)?;
+        }
+        if core.world().raw_sensors_enabled(vehicle) {
+            let raw = core.world_mut().sense(vehicle).raw;
+            self.raw_sensors(&raw)?;
         }
         let pilot = core.pilot(vehicle);
         if self.due(id::WIND, k)
@@ -595,6 +735,45 @@ mod tests {
         // on the ground: no wind estimate
         assert_eq!(counts[usize::from(id::WIND)], 0);
         assert_eq!(counts[usize::from(id::SIM_WIND)], 10);
+        // the raw sensors are not simulated: none of their topics
+        for raw in [id::SENSOR_COMBINED, id::AIR_DATA, id::MAGNETOMETER, id::SENSOR_GPS] {
+            assert_eq!(counts[usize::from(raw)], 0);
+        }
+    }
+
+    #[test]
+    fn the_raw_sensor_topics_at_their_rates_and_an_off_barometer_silent() {
+        let (mut core, params) = crate::lockstep::test_quad();
+        core.enable_raw_sensors();
+        let mut log = FlightUlog::new(Vec::new(), &params, &core, 0).unwrap();
+        for _ in 0..1000 {
+            core.step();
+            log.on_step(&mut core, 0).unwrap();
+        }
+        let counts = data_counts(&log.finish().unwrap());
+        // samples of the instants 0 .. 1.000 s: the IMU's every 20 ms, the
+        // barometer's and the magnetometer's every 200 ms, every GNSS fix
+        // delivered from 125 ms (the one taken at 0 s)
+        assert_eq!(counts[usize::from(id::SENSOR_COMBINED)], 51);
+        assert_eq!(counts[usize::from(id::AIR_DATA)], 6);
+        assert_eq!(counts[usize::from(id::MAGNETOMETER)], 6);
+        assert_eq!(counts[usize::from(id::SENSOR_GPS)], 8);
+        let (mut core, params) = crate::lockstep::test_quad();
+        core.enable_raw_sensors();
+        let off = crate::lockstep::failure::FailureInjection {
+            unit: crate::lockstep::failure::UNIT_BARO,
+            kind: crate::lockstep::failure::TYPE_OFF,
+            instance: 0,
+        };
+        assert_eq!(core.inject_failure(0, off), crate::autopilot::CommandOutcome::Accepted);
+        let mut log = FlightUlog::new(Vec::new(), &params, &core, 0).unwrap();
+        for _ in 0..1000 {
+            core.step();
+            log.on_step(&mut core, 0).unwrap();
+        }
+        let counts = data_counts(&log.finish().unwrap());
+        assert_eq!(counts[usize::from(id::AIR_DATA)], 0);
+        assert_eq!(counts[usize::from(id::SENSOR_COMBINED)], 51);
     }
 
     #[test]
@@ -629,6 +808,10 @@ mod tests {
             (id::SIM_TRUTH, "rotorpilot_sim_truth"),
             (id::WIND, "wind"),
             (id::SIM_WIND, "rotorpilot_sim_wind"),
+            (id::SENSOR_COMBINED, "sensor_combined"),
+            (id::AIR_DATA, "vehicle_air_data"),
+            (id::MAGNETOMETER, "vehicle_magnetometer"),
+            (id::SENSOR_GPS, "sensor_gps"),
         ];
         for (i, name) in names {
             assert_eq!(TOPICS[usize::from(i)].format.name, name);

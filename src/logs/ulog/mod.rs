@@ -38,6 +38,8 @@ pub enum FieldType {
     U8,
     /// `uint16_t`
     U16,
+    /// `uint32_t`
+    U32,
     /// `int32_t`
     I32,
     /// `uint64_t`
@@ -52,9 +54,10 @@ pub enum FieldType {
 
 impl FieldType {
     /// Every type.
-    pub const ALL: [FieldType; 7] = [
+    pub const ALL: [FieldType; 8] = [
         FieldType::U8,
         FieldType::U16,
+        FieldType::U32,
         FieldType::I32,
         FieldType::U64,
         FieldType::F32,
@@ -74,6 +77,7 @@ impl FieldType {
         match self {
             FieldType::U8 => "uint8_t",
             FieldType::U16 => "uint16_t",
+            FieldType::U32 => "uint32_t",
             FieldType::I32 => "int32_t",
             FieldType::U64 => "uint64_t",
             FieldType::F32 => "float",
@@ -88,7 +92,7 @@ impl FieldType {
         match self {
             FieldType::U8 | FieldType::Bool => 1,
             FieldType::U16 => 2,
-            FieldType::I32 | FieldType::F32 => 4,
+            FieldType::U32 | FieldType::I32 | FieldType::F32 => 4,
             FieldType::U64 | FieldType::F64 => 8,
         }
     }
@@ -189,6 +193,20 @@ impl Sample {
     /// Append a `uint64_t`.
     #[must_use]
     pub fn u64(mut self, v: u64) -> Self {
+        self.bytes.extend_from_slice(&v.to_le_bytes());
+        self
+    }
+
+    /// Append a `uint32_t`.
+    #[must_use]
+    pub fn u32(mut self, v: u32) -> Self {
+        self.bytes.extend_from_slice(&v.to_le_bytes());
+        self
+    }
+
+    /// Append an `int32_t`.
+    #[must_use]
+    pub fn i32(mut self, v: i32) -> Self {
         self.bytes.extend_from_slice(&v.to_le_bytes());
         self
     }

@@ -5,8 +5,8 @@ ftp_download_file.py and logfile_download.py, plus PX4's packed parameter
 file (@PARAM/param.pck) downloaded, decoded, compared and uploaded.
 
 A first run with --log-dir writes a ULog and stops (the log is complete);
-a second run of the same instance with the same --log-dir serves both
-logs, and the scripts download the first and compare it byte for byte with
+each later run of the same instance with the same --log-dir serves every
+run's log, its own included, and the scripts download the first and compare it byte for byte with
 the file on disk. Run in the mavsdk<4 venv (with pyulog):
 `python -m pytest tests/clients/test_mavsdk3_files.py`.
 """
@@ -48,8 +48,11 @@ def two_runs():
 def test_files_and_logs(two_runs, script, monkeypatch):
     instance, logs, first = two_runs
     monkeypatch.setenv("ROTORPILOT_LOG_FILE", first)
-    monkeypatch.setenv("ROTORPILOT_EXPECT_LOGS", "2")
     with Vehicle(instance=instance, speed=SPEED, extra=["--log-dir", logs]) as v:
+        # every run so far, this one's log (being written) included
+        runs = glob.glob(os.path.join(logs, f"*-i{instance}"))
+        assert len(runs) >= 2, runs
+        monkeypatch.setenv("ROTORPILOT_EXPECT_LOGS", str(len(runs)))
         run_script(script, v)
 
 

@@ -555,10 +555,12 @@ async fn timesync_ping_and_ftp_are_answered() {
         (p.time_usec, p.seq, p.target_system, p.target_component),
         (42, 7, 245, 190)
     );
-    // FTP OpenFileRO gets NAK FileNotFound at once
+    // FTP OpenFileRO of a file that is not there gets NAK FileNotFound at once
     let mut payload = [0u8; 251];
     payload[0] = 3;
     payload[3] = 4;
+    payload[4] = 9;
+    payload[12..21].copy_from_slice(b"/nope.txt");
     c.send(
         v.gcs,
         &MavMessage::FILE_TRANSFER_PROTOCOL(FILE_TRANSFER_PROTOCOL_DATA {

@@ -13,6 +13,7 @@ add seeds.
 """
 import math
 import pathlib
+import struct
 
 from pymavlink.dialects.v10 import common as mavlink1
 from pymavlink.dialects.v20 import common as mavlink2
@@ -51,6 +52,20 @@ def cmd_int(command, frame, p1, p2, p3, p4, x, y, z):
 def item(seq, command, x, y, z, frame=3, mission_type=0, p1=0.0):
     return M.MAVLink_mission_item_int_message(1, 1, seq, frame, command, 0, 1, p1, 0.0, 0.0, NAN, x, y, z, mission_type)
 
+
+def ftp(seq, opcode, data=b"", session=0, offset=0):
+    """A FILE_TRANSFER_PROTOCOL request as MAVSDK's FTP plugin sends it."""
+    head = bytes([seq & 0xFF, seq >> 8, session, opcode, len(data), 0, 0, 0]) + offset.to_bytes(4, "little")
+    return M.MAVLink_file_transfer_protocol_message(0, 1, 1, list((head + data).ljust(251, b"\0")))
+
+
+def log_list():
+    return M.MAVLink_log_request_list_message(1, 1, 0, 0xFFFF)
+
+
+# @PARAM/param.pck setting MIS_TAKEOFF_ALT to 3.0: header (magic, 1 entry,
+# 27 bytes), then float, no common prefix, a 15-character name, the value
+PCK = bytes.fromhex("1b6701001b00") + bytes([4, 14 << 4]) + b"MIS_TAKEOFF_ALT" + struct.pack("<f", 3.0)
 
 SEEDS = {
     "heartbeat-gcs": v2(M.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3)),
@@ -120,6 +135,29 @@ SEEDS = {
     "ping": v2(M.MAVLink_ping_message(1000, 1, 0, 0)),
     "ftp-list": v2(M.MAVLink_file_transfer_protocol_message(0, 1, 1, list(bytes([1, 0, 0, 3, 0, 1, 0, 0, 0, 0, 0, 0]) + b"/\x00" + bytes(237)))),
     "ftp-open": v2(M.MAVLink_file_transfer_protocol_message(0, 1, 1, list(bytes([2, 0, 0, 4, 0, 18, 0, 0, 0, 0, 0, 0]) + b"@PARAM/param.pck\x00\x00" + bytes(233)))),
+    # MAVSDK's FTP plugin: a listing, a burst download, an upload to
+    # @PARAM/param.pck, a CRC, a rename and a remove; QGroundControl's and
+    # MAVSDK's log download (list, data, end, erase)
+    "ftp-list-session": v2(ftp(1, 3, b"/"), ftp(2, 3, b"/", offset=3), ftp(3, 3, b"/log"), ftp(4, 3, b"/fs/microsd/log")),
+    "ftp-burst-download": v2(ftp(5, 4, b"@PARAM/param.pck"), ftp(6, 15), ftp(7, 5, offset=239), ftp(8, 1)),
+    "ftp-read-file": v2(ftp(9, 4, b"/params.toml"), ftp(10, 5), ftp(11, 5, offset=4096), ftp(12, 2)),
+    "ftp-param-upload": v2(
+        ftp(13, 6, b"@PARAM/param.pck"),
+        ftp(14, 7, PCK[:10]),
+        ftp(15, 7, PCK[10:], offset=10),
+        ftp(16, 1),
+    ),
+    "ftp-write-ops": v2(
+        ftp(17, 6, b"/a.txt"), ftp(18, 7, b"hello"), ftp(19, 1), ftp(20, 14, b"/a.txt"),
+        ftp(21, 13, b"/a.txt\0/b.txt"), ftp(22, 12, b"/b.txt", offset=2), ftp(23, 9, b"/d"),
+        ftp(24, 10, b"/d"), ftp(25, 8, b"/b.txt"), ftp(26, 11, b"/../escape"),
+    ),
+    "log-download": v2(
+        log_list(),
+        M.MAVLink_log_request_data_message(1, 1, 0, 0, 0xFFFFFFFF),
+        M.MAVLink_log_request_end_message(1, 1),
+    ),
+    "log-erase": v2(log_list(), M.MAVLink_log_erase_message(1, 1), log_list()),
     "request-data-stream": v2(M.MAVLink_request_data_stream_message(1, 1, 0, 10, 1)),
     "setup-signing": v2(M.MAVLink_setup_signing_message(1, 1, bytes(range(32)), 1000)),
     "all-in-one": v2(

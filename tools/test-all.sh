@@ -81,7 +81,8 @@ PATH="$VENV/ci-recipe/bin:$PATH" actionlint docs/ci/mission-tests.yml
 timeout 300 "$VENV/ci-recipe/bin/python" -m pytest -q -p no:cacheprovider tests/tools/test_ci_recipe.py
 # pyulog reads the daemon's flight.ulg (tests/clients/test_pymavlink_logs.py)
 client_venv pymavlink "pymavlink==2.4.50" "pytest==9.2.0" "pyulog==1.3.0"
-client_venv mavsdk3 "mavsdk==3.17.4" "pymavlink==2.4.50" "pytest==9.2.0"
+# pyulog reads the log MAVSDK downloads (tests/clients/test_mavsdk3_files.py)
+client_venv mavsdk3 "mavsdk==3.17.4" "pymavlink==2.4.50" "pytest==9.2.0" "pyulog==1.3.0"
 client_venv mavsdk4 "mavsdk==4.1.0" "pytest==9.2.0"
 # MAVProxy 1.8.74: the newest without vtk/opencv/matplotlib as dependencies
 # (1.8.75), and it answers MISSION_REQUEST_INT (1.8.71 answers only
@@ -101,12 +102,14 @@ timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/
 timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_startup.py
 timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_wind.py
 timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_sensors.py
+timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_ftp.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_mission.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_failsafe.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_failure.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_replay.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_wind.py
+timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_files.py
 # a fleet in one process on PX4's ports: needs UDP 14550, 14540..14543 and the instances' ports free
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_fleet.py
 timeout 900 "$VENV/mavsdk4/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk4.py

@@ -53,6 +53,7 @@
 //! ACK, shutdown after it.
 
 mod config;
+mod files;
 mod fleet;
 mod inbox;
 mod link_task;
@@ -602,6 +603,11 @@ impl Daemon {
                     Instant::now().into_std(),
                 );
                 link.set_signing(v.signing.shared.clone(), u8::try_from(index).unwrap_or(u8::MAX));
+                link.set_files(Box::new(files::VehicleFiles::new(
+                    config.state_dir.clone(),
+                    config.log_dir.clone().map(|base| (base, config.instance)),
+                    v.log_dir.clone(),
+                )));
                 link_names.push(format!("{}{} link", vehicle_prefix(lone, config.instance), spec.name));
                 links.push(LinkTask {
                     link,

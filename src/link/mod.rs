@@ -28,6 +28,8 @@
 //! | [`peers`] | default remote plus learned peers with a timeout; proven and unproven peers |
 //! | [`budget`] | byte budgets: token buckets and an unproven peer's credit (no amplification) |
 //! | [`signing`] | MAVLink 2 signing: the key, the gate on input, signatures on output |
+//! | [`ftp`] | MAVLink FTP: sessions, bursts, `@PARAM/param.pck`, over a [`ftp::FileStore`] |
+//! | [`log_download`] | LOG_REQUEST_* / LOG_ENTRY / LOG_DATA over the store's ULogs |
 
 // PX4 and its clients still speak messages the XML marks deprecated
 // (SET_MODE, PING, ...): we must too.
@@ -36,6 +38,8 @@
 pub mod budget;
 pub mod command;
 pub mod convert;
+pub mod ftp;
+pub mod log_download;
 pub mod manual;
 pub mod mission;
 pub mod offboard;
@@ -52,8 +56,8 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::common::{
-    AUTOPILOT_VERSION_DATA, FILE_TRANSFER_PROTOCOL_DATA, HEARTBEAT_DATA, MavMessage, MavProtocolCapability,
-    MavSeverity, PING_DATA, STATUSTEXT_DATA, TIMESYNC_DATA,
+    AUTOPILOT_VERSION_DATA, HEARTBEAT_DATA, MavMessage, MavProtocolCapability, MavSeverity, PING_DATA, STATUSTEXT_DATA,
+    TIMESYNC_DATA,
 };
 use mission::{ItemMode, Missions, Partner, PlanTicket};
 
@@ -193,6 +197,10 @@ pub struct Link {
     param_lists: Vec<ParamList>,
     /// The link's streams to all peers together.
     stream_budget: budget::TokenBucket,
+    /// MAVLink FTP: the session, a burst, the files served.
+    ftp: ftp::Server,
+    /// Log download: the list and the transfer.
+    logs: log_download::Server,
 }
 
 /// A PARAM_REQUEST_LIST being answered: PX4 sends one parameter per
@@ -259,7 +267,16 @@ impl Link {
             clock: now,
             param_lists: Vec::new(),
             stream_budget: budget::TokenBucket::new(now, budget::LINK_STREAM_RATE, 2.0 * budget::LINK_STREAM_RATE),
+            ftp: ftp::Server::new(Box::new(ftp::NoFiles), now),
+            logs: log_download::Server::default(),
         }
+    }
+
+    /// Serve `files` by MAVLink FTP and log download (a new link serves
+    /// [`ftp::NoFiles`]).
+    pub fn set_files(&mut self, files: Box<dyn ftp::FileStore>) {
+        self.ftp = ftp::Server::new(files, self.clock);
+        self.logs = log_download::Server::default();
     }
 
     /// The link's configuration.
@@ -352,8 +369,8 @@ impl Link {
     }
 
     /// Queue a frame; a direct answer only if the peer's budget allows it
-    /// ([`peers::Peers::charge`]), else it is dropped and counted.
-    fn queue(&mut self, to: To, bytes: Vec<u8>) {
+    /// ([`peers::Peers::charge`]), else it is dropped and counted (false).
+    fn queue(&mut self, to: To, bytes: Vec<u8>) -> bool {
         // signed in `drain`: the signature's bytes count against the budget too
         let signature = if signing::lock(&self.signing.0).is_keyed() {
             wire::SIGNATURE_LEN
@@ -364,9 +381,10 @@ impl Link {
             && !self.peers.charge(self.clock, a, bytes.len() + signature)
         {
             self.stats.held_back += 1;
-            return;
+            return false;
         }
         self.outbox.push(Outgoing { to, bytes });
+        true
     }
 
     /// Move the link's clock forward to `now` (never back).
@@ -435,6 +453,8 @@ impl Link {
             delayed,
             self.missions.next_deadline(),
             lists,
+            self.ftp.next_deadline(),
+            self.logs.next_deadline(),
         ]
         .into_iter()
         .flatten()
@@ -473,6 +493,8 @@ impl Link {
         }
         self.due = due;
         self.send_param_lists(now);
+        self.ftp_burst(now);
+        self.log_send(now);
         let out = self.missions.poll(now, t);
         self.mission_frames(out);
     }
@@ -811,10 +833,18 @@ impl Link {
                 effects.push(Effect::GcsHeartbeat);
             }
             MavMessage::FILE_TRANSFER_PROTOCOL(m) if self.for_me(m.target_system, m.target_component) => {
-                if let Some(answer) = ftp_answer(&m, requester) {
-                    self.send(reply, &answer);
-                }
+                self.on_ftp(now, from, requester, &m, params, effects);
             }
+            MavMessage::LOG_REQUEST_LIST(m) if self.for_me(m.target_system, m.target_component) => {
+                self.on_log_request_list(now, from, m.start, m.end);
+            }
+            MavMessage::LOG_REQUEST_DATA(m) if self.for_me(m.target_system, m.target_component) => {
+                self.on_log_request_data(now, from, m.id, m.ofs, m.count);
+            }
+            MavMessage::LOG_REQUEST_END(m) if self.for_me(m.target_system, m.target_component) => {
+                self.on_log_request_end();
+            }
+            MavMessage::LOG_ERASE(m) if self.for_me(m.target_system, m.target_component) => self.on_log_erase(),
             _ => {}
         }
     }
@@ -1002,47 +1032,6 @@ pub fn requested(id: u32, t: &Snapshot, identity: Identity) -> Option<Vec<MavMes
     Stream::from_message_id(id)
         .map(|s| streams::build(s, t, 0))
         .filter(|m| !m.is_empty())
-}
-
-/// MAVLink FTP opcodes and errors used here.
-mod ftp {
-    pub(super) const TERMINATE_SESSION: u8 = 1;
-    pub(super) const RESET_SESSIONS: u8 = 2;
-    pub(super) const ACK: u8 = 128;
-    pub(super) const NAK: u8 = 129;
-    pub(super) const ERR_FILE_NOT_FOUND: u8 = 10;
-}
-
-/// The answer to an FTP request: rotorpilot serves no files, so every request
-/// gets a NAK FileNotFound (MAVProxy's `param fetch` then falls back to
-/// PARAM_REQUEST_LIST at once, `docs/mavlink.md` section 11); session resets get an
-/// ACK. Replies (ACK/NAK opcodes) get nothing.
-fn ftp_answer(m: &FILE_TRANSFER_PROTOCOL_DATA, requester: (u8, u8)) -> Option<MavMessage> {
-    let p = &m.payload;
-    let seq = u16::from_le_bytes([p[0], p[1]]);
-    let session = p[2];
-    let opcode = p[3];
-    if opcode == ftp::ACK || opcode == ftp::NAK || opcode == 0 {
-        return None;
-    }
-    let mut out = [0u8; 251];
-    out[0..2].copy_from_slice(&seq.wrapping_add(1).to_le_bytes());
-    out[2] = session;
-    out[5] = opcode;
-    if opcode == ftp::TERMINATE_SESSION || opcode == ftp::RESET_SESSIONS {
-        out[3] = ftp::ACK;
-        out[4] = 0;
-    } else {
-        out[3] = ftp::NAK;
-        out[4] = 1;
-        out[12] = ftp::ERR_FILE_NOT_FOUND;
-    }
-    Some(MavMessage::FILE_TRANSFER_PROTOCOL(FILE_TRANSFER_PROTOCOL_DATA {
-        target_network: 0,
-        target_system: requester.0,
-        target_component: requester.1,
-        payload: out,
-    }))
 }
 
 #[cfg(test)]

@@ -23,6 +23,11 @@ pub trait ParamAccess {
     /// # Errors
     /// Unknown name, wrong type, out of range or not finite.
     fn set(&mut self, name: &str, value: ParamValue) -> Result<ParamValue, String>;
+    /// The default of parameter `index` (`None`: not known; PX4's
+    /// `param.pck?withdefaults=1` then names none).
+    fn default_of(&self, _index: usize) -> Option<ParamValue> {
+        None
+    }
 }
 
 impl ParamAccess for crate::params::ParamStore {
@@ -40,6 +45,10 @@ impl ParamAccess for crate::params::ParamStore {
 
     fn set(&mut self, name: &str, value: ParamValue) -> Result<ParamValue, String> {
         crate::params::ParamStore::set(self, name, value).map_err(|e| e.to_string())
+    }
+
+    fn default_of(&self, index: usize) -> Option<ParamValue> {
+        self.default_value(index)
     }
 }
 

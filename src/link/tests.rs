@@ -338,32 +338,6 @@ fn mavlink1_and_timesync_and_ping() {
 }
 
 #[test]
-fn ftp_is_refused_at_once() {
-    let t0 = Instant::now();
-    let mut l = link(t0);
-    let p = FakeParams::standard();
-    let mut payload = [0u8; 251];
-    payload[0] = 7; // seq
-    payload[3] = 4; // OpenFileRO
-    let req = v2(&MavMessage::FILE_TRANSFER_PROTOCOL(
-        mavlink::dialects::common::FILE_TRANSFER_PROTOCOL_DATA {
-            target_network: 0,
-            target_system: 1,
-            target_component: 1,
-            payload,
-        },
-    ));
-    l.on_datagram(t0, addr(50000), &req, &snapshot(), &p);
-    let d = decoded(&l.drain());
-    let f = &d[0].2;
-    // payload offset 3 (target_network, target_system, target_component first)
-    assert_eq!(&f[3..5], &[8, 0]);
-    assert_eq!(f[3 + 3], 129);
-    assert_eq!(f[3 + 5], 4);
-    assert_eq!(f[3 + 12], 10);
-}
-
-#[test]
 fn a_gcs_heartbeat_tells_the_autopilot_the_data_link_is_alive() {
     let t0 = Instant::now();
     let mut l = link(t0);

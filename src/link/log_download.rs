@@ -1,0 +1,181 @@
+//! Log download as PX4's `mavlink_log_handler` answers it, sans I/O:
+//! LOG_REQUEST_LIST gets one LOG_ENTRY per ULog in the range (id, num_logs,
+//! last_log_num, time_utc, size), or one LOG_ENTRY with num_logs 0 when
+//! there is none; LOG_REQUEST_DATA streams LOG_DATA of 90 bytes from `ofs`
+//! for `count` bytes (a shorter one ends the file); LOG_REQUEST_END stops;
+//! LOG_ERASE removes the logs. The list is taken at the first request (the
+//! flight being written is in it, at its size then, as PX4 lists it) and kept
+//! until LOG_REQUEST_END or LOG_ERASE. Everything sent is paced by the
+//! requester's budget ([`super::budget`]).
+
+use std::net::SocketAddr;
+use std::time::{Duration, Instant};
+
+use mavlink::dialects::common::{LOG_DATA_DATA, LOG_ENTRY_DATA, MavMessage};
+
+use super::ftp::LogFile;
+use super::{Link, To};
+
+/// Bytes of log a LOG_DATA carries.
+pub const CHUNK: usize = 90;
+/// Messages per turn...
+const PER_TURN: usize = 32;
+/// ...one turn this often.
+const TURN: Duration = Duration::from_millis(5);
+/// A transfer held back by the budget this long is dropped.
+const STALL: Duration = Duration::from_secs(3);
+
+/// What is being sent.
+#[derive(Debug)]
+enum Sending {
+    /// LOG_ENTRY `next` to `last` (inclusive).
+    Listing { next: u16, last: u16 },
+    /// LOG_DATA of log `id` from `ofs`, `remaining` bytes.
+    Data { id: u16, ofs: u32, remaining: u32 },
+}
+
+#[derive(Debug)]
+struct Transfer {
+    to: SocketAddr,
+    sending: Sending,
+    due: Instant,
+    held_since: Option<Instant>,
+}
+
+/// One link's log-download state.
+#[derive(Debug, Default)]
+pub struct Server {
+    /// The logs as listed at the first request (`None`: not listed).
+    logs: Option<Vec<LogFile>>,
+    transfer: Option<Transfer>,
+}
+
+impl Server {
+    /// When [`Link::poll`] has log messages to send.
+    #[must_use]
+    pub fn next_deadline(&self) -> Option<Instant> {
+        self.transfer.as_ref().map(|t| t.due)
+    }
+}
+
+impl Link {
+    /// LOG_REQUEST_LIST for us: list `start..=end` (clamped).
+    pub(super) fn on_log_request_list(&mut self, now: Instant, from: SocketAddr, start: u16, end: u16) {
+        let logs = self.logs.logs.get_or_insert_with(|| self.ftp.files().logs());
+        let count = logs.len().min(usize::from(u16::MAX)) as u16;
+        let (next, last) = if count == 0 {
+            (0, 0)
+        } else {
+            (start.min(count - 1), end.min(count - 1))
+        };
+        self.logs.transfer = Some(Transfer {
+            to: from,
+            sending: Sending::Listing { next, last },
+            due: now,
+            held_since: None,
+        });
+        self.log_send(now);
+    }
+
+    /// LOG_REQUEST_DATA for us: stream `count` bytes of log `id` from `ofs`
+    /// (PX4 ignores a request for a log it has not listed).
+    pub(super) fn on_log_request_data(&mut self, now: Instant, from: SocketAddr, id: u16, ofs: u32, count: u32) {
+        let Some(log) = self.logs.logs.as_ref().and_then(|l| l.get(usize::from(id))) else {
+            return;
+        };
+        // the size now: the flight being written grows
+        let size = self.ftp.files().size(&log.path).unwrap_or(log.size);
+        let remaining = size.saturating_sub(ofs).min(count);
+        self.logs.transfer = Some(Transfer {
+            to: from,
+            sending: Sending::Data { id, ofs, remaining },
+            due: now,
+            held_since: None,
+        });
+        self.log_send(now);
+    }
+
+    /// LOG_REQUEST_END: stop and forget the list.
+    pub(super) fn on_log_request_end(&mut self) {
+        self.logs = Server::default();
+    }
+
+    /// LOG_ERASE: remove the logs and forget the list.
+    pub(super) fn on_log_erase(&mut self) {
+        self.logs = Server::default();
+        self.ftp.files().erase_logs();
+    }
+
+    /// Send what the transfer has due, as the budget allows.
+    pub(super) fn log_send(&mut self, now: Instant) {
+        let Some(mut t) = self.logs.transfer.take() else { return };
+        if t.due > now {
+            self.logs.transfer = Some(t);
+            return;
+        }
+        for _ in 0..PER_TURN {
+            let (msg, next) = match &t.sending {
+                Sending::Listing { next, last } => {
+                    let logs = self.logs.logs.as_deref().unwrap_or_default();
+                    let entry = logs.get(usize::from(*next));
+                    let msg = MavMessage::LOG_ENTRY(LOG_ENTRY_DATA {
+                        time_utc: entry.map_or(0, |e| e.time_utc),
+                        size: entry.map_or(0, |e| e.size),
+                        id: *next,
+                        num_logs: logs.len().min(usize::from(u16::MAX)) as u16,
+                        last_log_num: *last,
+                    });
+                    let more = (*next < *last).then_some(Sending::Listing {
+                        next: *next + 1,
+                        last: *last,
+                    });
+                    (msg, more)
+                }
+                Sending::Data { id, ofs, remaining } => {
+                    let path = self
+                        .logs
+                        .logs
+                        .as_ref()
+                        .and_then(|l| l.get(usize::from(*id)))
+                        .map(|l| l.path.clone())
+                        .unwrap_or_default();
+                    let mut data = [0u8; CHUNK];
+                    let want = (*remaining as usize).min(CHUNK);
+                    let n = self.ftp.files().read_at(&path, *ofs, &mut data[..want]).unwrap_or(0);
+                    let msg = MavMessage::LOG_DATA(LOG_DATA_DATA {
+                        ofs: *ofs,
+                        id: *id,
+                        count: n as u8,
+                        data,
+                    });
+                    let left = remaining.saturating_sub(n as u32);
+                    let more = (n == CHUNK && left > 0).then_some(Sending::Data {
+                        id: *id,
+                        ofs: ofs + n as u32,
+                        remaining: left,
+                    });
+                    (msg, more)
+                }
+            };
+            let bytes = self.encoder.message(&msg);
+            if !self.queue(To::Peer(t.to), bytes) {
+                let since = *t.held_since.get_or_insert(now);
+                if now.saturating_duration_since(since) <= STALL {
+                    t.due = now + TURN;
+                    self.logs.transfer = Some(t);
+                }
+                return;
+            }
+            t.held_since = None;
+            match next {
+                Some(s) => t.sending = s,
+                None => return,
+            }
+        }
+        t.due = now + TURN;
+        self.logs.transfer = Some(t);
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,213 @@
+//! Log download exchanges against a link serving an in-memory store.
+
+use std::time::{Duration, Instant};
+
+use mavlink::dialects::common::{
+    LOG_ERASE_DATA, LOG_REQUEST_DATA_DATA, LOG_REQUEST_END_DATA, LOG_REQUEST_LIST_DATA, MavMessage,
+};
+
+use crate::link::ftp::{DirEntry, FileStore, FsError, LogFile};
+use crate::link::testing::{FakeParams, addr, link, snapshot};
+use crate::link::wire::{self, Inbound};
+use crate::link::{Link, Outgoing};
+
+/// Logs by name.
+#[derive(Debug, Default)]
+struct Logs(Vec<(String, Vec<u8>)>);
+
+impl FileStore for Logs {
+    fn list(&self, _: &str) -> Result<Vec<DirEntry>, FsError> {
+        Err(FsError::NotFound)
+    }
+    fn size(&self, path: &str) -> Result<u32, FsError> {
+        self.0
+            .iter()
+            .find(|l| l.0 == path)
+            .map(|l| l.1.len() as u32)
+            .ok_or(FsError::NotFound)
+    }
+    fn read_at(&self, path: &str, offset: u32, buf: &mut [u8]) -> Result<usize, FsError> {
+        let v = &self.0.iter().find(|l| l.0 == path).ok_or(FsError::NotFound)?.1;
+        let s = (offset as usize).min(v.len());
+        let n = buf.len().min(v.len() - s);
+        buf[..n].copy_from_slice(&v[s..s + n]);
+        Ok(n)
+    }
+    fn create(&mut self, _: &str, _: bool) -> Result<u32, FsError> {
+        Err(FsError::Protected)
+    }
+    fn write_at(&mut self, _: &str, _: u32, _: &[u8]) -> Result<usize, FsError> {
+        Err(FsError::Protected)
+    }
+    fn remove_file(&mut self, _: &str) -> Result<(), FsError> {
+        Err(FsError::Protected)
+    }
+    fn create_dir(&mut self, _: &str) -> Result<(), FsError> {
+        Err(FsError::Protected)
+    }
+    fn remove_dir(&mut self, _: &str) -> Result<(), FsError> {
+        Err(FsError::Protected)
+    }
+    fn rename(&mut self, _: &str, _: &str) -> Result<(), FsError> {
+        Err(FsError::Protected)
+    }
+    fn truncate(&mut self, _: &str, _: u32) -> Result<(), FsError> {
+        Err(FsError::Protected)
+    }
+    fn logs(&self) -> Vec<LogFile> {
+        self.0
+            .iter()
+            .map(|(p, v)| LogFile {
+                path: p.clone(),
+                size: v.len() as u32,
+                time_utc: 1_700_000_000,
+            })
+            .collect()
+    }
+    fn erase_logs(&mut self) {
+        self.0.clear();
+    }
+}
+
+fn send(l: &mut Link, t: Instant, m: &MavMessage) {
+    let mut enc = wire::Encoder::new(245, 190);
+    let p = FakeParams::standard();
+    let e = l.on_datagram(t, addr(14540), &enc.message(m), &snapshot(), &p);
+    assert!(e.is_empty());
+}
+
+fn messages(out: &[Outgoing]) -> Vec<MavMessage> {
+    out.iter()
+        .flat_map(|o| {
+            wire::frames(&o.bytes)
+                .filter_map(|f| wire::decode(&f))
+                .collect::<Vec<_>>()
+        })
+        .filter_map(|m| match m {
+            Inbound::Other(m) => Some(*m),
+            _ => None,
+        })
+        .filter(|m| matches!(m, MavMessage::LOG_ENTRY(_) | MavMessage::LOG_DATA(_)))
+        .collect()
+}
+
+/// Everything the link sends until it falls silent.
+fn run(l: &mut Link, mut t: Instant) -> Vec<MavMessage> {
+    let mut all = messages(&l.drain());
+    for _ in 0..2000 {
+        t += Duration::from_millis(5);
+        l.poll(t, &snapshot(), 0);
+        let m = messages(&l.drain());
+        if m.is_empty() && l.logs.transfer.is_none() {
+            break;
+        }
+        all.extend(m);
+    }
+    all
+}
+
+fn list(start: u16, end: u16) -> MavMessage {
+    MavMessage::LOG_REQUEST_LIST(LOG_REQUEST_LIST_DATA {
+        start,
+        end,
+        target_system: 1,
+        target_component: 1,
+    })
+}
+
+#[test]
+fn with_no_logs_the_list_is_one_entry_saying_none() {
+    let t = Instant::now();
+    let mut l = link(t);
+    send(&mut l, t, &list(0, u16::MAX));
+    let out = run(&mut l, t);
+    assert_eq!(out.len(), 1);
+    let MavMessage::LOG_ENTRY(e) = &out[0] else { panic!() };
+    assert_eq!((e.id, e.num_logs, e.last_log_num, e.size, e.time_utc), (0, 0, 0, 0, 0));
+}
+
+#[test]
+fn logs_are_listed_then_sent_in_90_byte_chunks_then_erased() {
+    let t = Instant::now();
+    let mut l = link(t);
+    let big: Vec<u8> = (0..1000u32).map(|i| (i * 7) as u8).collect();
+    l.set_files(Box::new(Logs(vec![
+        ("/log/a.ulg".into(), vec![1; 5]),
+        ("/log/b.ulg".into(), big.clone()),
+    ])));
+    send(&mut l, t, &list(0, u16::MAX));
+    let out = run(&mut l, t);
+    let entries: Vec<_> = out
+        .iter()
+        .map(|m| match m {
+            MavMessage::LOG_ENTRY(e) => (e.id, e.num_logs, e.last_log_num, e.size),
+            other => panic!("{other:?}"),
+        })
+        .collect();
+    assert_eq!(entries, vec![(0, 2, 1, 5), (1, 2, 1, 1000)]);
+    send(
+        &mut l,
+        t,
+        &MavMessage::LOG_REQUEST_DATA(LOG_REQUEST_DATA_DATA {
+            ofs: 0,
+            count: u32::MAX,
+            id: 1,
+            target_system: 1,
+            target_component: 1,
+        }),
+    );
+    let mut got = Vec::new();
+    for m in run(&mut l, t) {
+        let MavMessage::LOG_DATA(d) = m else { panic!() };
+        assert_eq!((d.id, d.ofs as usize), (1, got.len()));
+        got.extend_from_slice(&d.data[..usize::from(d.count)]);
+    }
+    assert_eq!(got, big);
+    // a part: 100 bytes from 950 is 50 bytes, one short message
+    send(
+        &mut l,
+        t,
+        &MavMessage::LOG_REQUEST_DATA(LOG_REQUEST_DATA_DATA {
+            ofs: 950,
+            count: 100,
+            id: 1,
+            target_system: 1,
+            target_component: 1,
+        }),
+    );
+    let out = run(&mut l, t);
+    assert_eq!(out.len(), 1);
+    // a log that was not listed gets nothing, as PX4
+    send(
+        &mut l,
+        t,
+        &MavMessage::LOG_REQUEST_DATA(LOG_REQUEST_DATA_DATA {
+            ofs: 0,
+            count: 90,
+            id: 7,
+            target_system: 1,
+            target_component: 1,
+        }),
+    );
+    assert!(run(&mut l, t).is_empty());
+    send(
+        &mut l,
+        t,
+        &MavMessage::LOG_REQUEST_END(LOG_REQUEST_END_DATA {
+            target_system: 1,
+            target_component: 1,
+        }),
+    );
+    send(
+        &mut l,
+        t,
+        &MavMessage::LOG_ERASE(LOG_ERASE_DATA {
+            target_system: 1,
+            target_component: 1,
+        }),
+    );
+    send(&mut l, t, &list(0, u16::MAX));
+    let out = run(&mut l, t);
+    let MavMessage::LOG_ENTRY(e) = &out[0] else { panic!() };
+    assert_eq!(e.num_logs, 0);
+}

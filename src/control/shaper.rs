@@ -184,7 +184,7 @@ pub enum TranslationSetpoint {
     /// setpoint: `v_cmd = v_ff + k1 (p_sp - p)`, `a_cmd = a_ff + k2 (v_cmd - v)`
     /// (then saturated as any command), so that a path moving at `v_ff` is
     /// tracked without the lag `v_ff / k1` a bare position gives. A
-    /// non-finite feed-forward counts as zero.
+    /// non-finite feed-forward component counts as zero.
     Track {
         /// Position [m], NED.
         position: Vector3<f64>,
@@ -405,7 +405,7 @@ impl Shaper {
         let l = self.limits;
         let fin = |v: &Vector3<f64>| v.iter().all(|x| x.is_finite());
         let [k1, k2, k3, k4] = self.k;
-        let or_zero = |v: &Vector3<f64>| if fin(v) { *v } else { Vector3::zeros() };
+        let or_zero = |v: &Vector3<f64>| v.map(|x| if x.is_finite() { x } else { 0.0 });
         let (v_cmd, a_ff) = match setpoint.translation {
             TranslationSetpoint::Position(p) if fin(&p) => ((p - self.p) * k1, None),
             TranslationSetpoint::Velocity(v) if fin(&v) => (v, None),

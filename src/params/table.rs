@@ -209,8 +209,8 @@ parameters! {
         "Follow target: angle from the target's course, clockwise (0 in front, 90 right, 180 behind)",
     ),
     FLW_TGT_ALT_M: choice(
-        0, 0, 2,
-        "Follow target: altitude mode",
+        0, i32::MIN, i32::MAX,
+        "Follow target: altitude mode (PX4 bounds it not; another value is 0)",
         &[(0, "2D: constant height above home"), (1, "2D + terrain (flat ground here: as 0)"), (2, "3D: track the target's altitude")],
     ),
     FLW_TGT_MAX_VEL: real(

@@ -57,7 +57,7 @@ FLIGHTS = ["takeoff_and_land.py", "goto.py", "offboard_position_ned.py", "offboa
 
 @pytest.mark.parametrize(
     "speed,script",
-    [(SPEED, s) for s in FLIGHTS + ["all_params.py", "ground_truth.py", "orbit.py"]] + [(FAST, s) for s in FLIGHTS],
+    [(SPEED, s) for s in FLIGHTS + ["all_params.py", "ground_truth.py", "orbit.py", "follow_me.py", "offboard_from_csv.py"]] + [(FAST, s) for s in FLIGHTS],
     ids=lambda x: f"x{x:g}" if isinstance(x, float) else x,
 )
 def test_script(speed, script):

@@ -281,7 +281,8 @@ mod tests {
             let t = k as f64 * dt;
             s = filter_step(s, &(v * t), &v, dt);
         }
-        assert!((s.0 - v * 10.0).norm() < 1e-6, "{}", s.0);
+        // no lag (a bare second-order filter would trail by 2 zeta v / w = 4.2 m): one step's v dt at most
+        assert!((s.0 - v * 10.0).norm() < 1e-2, "{}", s.0);
         // a quarter turn at 0.5 rad/s takes pi/2 / 0.5 s
         let mut theta = 0.0;
         let mut steps = 0;

@@ -43,7 +43,9 @@ use crate::math::wrap_pi;
 pub const TARGET_STALE_S: f64 = 3.0;
 /// Natural frequency of the target filter [rad/s] (PX4's `TARGET_POSE_FILTER_NATURAL_FREQUENCY`).
 const FILTER_OMEGA_RAD_S: f64 = 1.0;
-/// Damping of the target filter (PX4's `TARGET_POSE_FILTER_DAMPING_RATIO`).
+/// Damping of the target filter (PX4's `TARGET_POSE_FILTER_DAMPING_RATIO`,
+/// written as PX4 writes it).
+#[allow(clippy::approx_constant)]
 const FILTER_ZETA: f64 = 0.7071;
 /// After a gap this long the target filter restarts at the target [s] (PX4's `TARGET_ESTIMATOR_TIMEOUT_US`).
 const FILTER_RESET_S: f64 = 1.5;

@@ -34,6 +34,7 @@ SPEED = 1.5  # m/s, the target walking east
 TOL_DISTANCE = 1.5  # m
 TOL_HEIGHT = 0.7  # m
 TOL_BEHIND = 20.0  # deg off due west of the target
+LATENCY_S = 0.5  # s of vehicle time a position sample may be older than the clock read before it
 
 
 async def main():
@@ -78,10 +79,21 @@ async def main():
         lat, lon = target_at(t)
         await uav.follow_me.set_target_location(TargetLocation(lat, lon, home.absolute_altitude_m, 0.0, SPEED, 0.0))
         if t - t0 > 30.0 and checks < 5 and t - t0 > 30.0 + 2.0 * checks:
+            # the sample's instant is known only between two readings of the
+            # vehicle clock (the streams run on wall time): the target is
+            # taken where it was at the instant in [t_a - LATENCY_S, t_b]
+            # that fits the sample best
+            t_a = await vehicle_time_s(uav)
             p = await sample(uav.telemetry.position(), "position")
+            t_b = await vehicle_time_s(uav)
             h = await sample(uav.telemetry.heading(), "heading")
-            t_now = await vehicle_time_s(uav)
-            lat, lon = target_at(t_now)
+            span = t_b - t_a + LATENCY_S
+            instants = [t_a - LATENCY_S + span * k / 50 for k in range(51)]
+            t_fit = min(
+                instants,
+                key=lambda ti: abs(ground_gap_m(p.latitude_deg, p.longitude_deg, *target_at(ti)) - DISTANCE),
+            )
+            lat, lon = target_at(t_fit)
             d = ground_gap_m(p.latitude_deg, p.longitude_deg, lat, lon)
             north = (p.latitude_deg - lat) * M_PER_DEG_LAT
             east = (p.longitude_deg - lon) * m_per_deg_lon

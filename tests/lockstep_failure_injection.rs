@@ -542,3 +542,37 @@ fn every_motor_off_at_once_drops_the_vehicle_without_a_panic() {
     assert!(t.position_ned.z > z0 + 1.0, "it fell: z {z0} -> {}", t.position_ned.z);
     assert!(t.position_ned.iter().all(|x| x.is_finite()));
 }
+
+/// GIVEN an octo whose motor 3 was switched off in a hover, which then
+/// landed (COM_ACT_FAIL_ACT Land) and disarmed, arming refused ("ESC failure")
+/// WHEN motor 3 is made OK again (FAILURE_TYPE_OK)
+/// THEN "Motor 3 recovered" is said and arming is allowed, as PX4 arms once
+/// its ESC reports healthy (its failure injector cleared).
+#[test]
+fn motor_off_then_ok_arms_again() {
+    let mut v = vehicle("octo", &[("COM_ACT_FAIL_ACT", int(2))]);
+    airborne(&mut v);
+    assert_eq!(inject(&mut v, MOTOR, OFF, 3), CommandOutcome::Accepted);
+    for _ in 0..v.steps(60.0) {
+        v.step();
+        if !v.pilot().armed() {
+            break;
+        }
+    }
+    assert!(!v.pilot().armed(), "landed and disarmed");
+    v.run(1.0);
+    assert_eq!(
+        v.command(AutopilotCommand::Arm { force: false }),
+        CommandOutcome::TemporarilyRejected("ESC failure")
+    );
+    v.texts();
+    assert_eq!(inject(&mut v, MOTOR, OK, 3), CommandOutcome::Accepted);
+    let said = v.texts();
+    assert!(said.iter().any(|s| s.text == "Motor 3 recovered"), "{said:?}");
+    v.run(0.5);
+    assert_eq!(
+        v.command(AutopilotCommand::Arm { force: false }),
+        CommandOutcome::Accepted
+    );
+    assert!(v.pilot().armed());
+}

@@ -3,7 +3,7 @@
 //! ([`CommandOutcome`], mapped to MAV_RESULT by the link).
 
 use super::FlightMode;
-use super::navigator::{ManualControl, OffboardSetpoint, OrbitYaw};
+use super::navigator::{ManualControl, OffboardSetpoint, OrbitYaw, TargetFix};
 use crate::geo::GeoPoint;
 
 /// What MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN asks for.
@@ -89,6 +89,8 @@ pub enum AutopilotCommand {
     SetHome(Option<GeoPoint>),
     /// A new offboard setpoint.
     Offboard(OffboardSetpoint),
+    /// Where the target of follow-me is (FOLLOW_TARGET), kept with its arrival time.
+    FollowTarget(TargetFix),
     /// The pilot's sticks (MANUAL_CONTROL), kept with their arrival time.
     ManualControl(ManualControl),
     /// Reboot or shut down: accepted only disarmed; the runtime carries it out.

@@ -20,7 +20,7 @@ use super::land_detector::LandEvent;
 use super::navigator::{HoldTarget, ManualMode, Nav, OrbitChange};
 use super::settings::FailsafeAction;
 use super::status::{Announcements, Severity};
-use super::{Autopilot, FlightMode, ManualControl, OffboardSetpoint};
+use super::{Autopilot, FlightMode, ManualControl, OffboardSetpoint, TargetFix};
 use super::{BatteryWarning, RotorStatus, TIME_EPS};
 use crate::geo::GeoPoint;
 use crate::mission::MissionType;
@@ -285,6 +285,8 @@ impl Autopilot {
     /// | `SetHome` | Denied for an invalid point |
     /// | `Offboard` | Denied when a given part is not finite, or nothing is given; a position above `GF_MAX_VER_DIST` is clamped to it (announced once) |
     /// | `ManualControl` | Denied when a stick is not finite or beyond `[-1, 1]` |
+    /// | `FollowTarget` | Denied when not finite or off the globe; kept in any mode |
+    /// | `SetMode` FollowTarget | TemporarilyRejected without a GPS fix; accepted disarmed (not armable) |
     /// | `SetMode` to a manual mode | TemporarilyRejected without fresh sticks (`COM_RC_LOSS_T`, client clock), Position also without a GPS fix |
     /// | anything that needs a position (Hold, Takeoff, RTL, Mission, Reposition) | TemporarilyRejected without a GPS fix; Land then descends without position |
     /// | `Power` | Denied when armed |
@@ -323,6 +325,7 @@ impl Autopilot {
             AutopilotCommand::SetHome(point) => self.set_home_to(point, m),
             AutopilotCommand::Offboard(sp) => self.offboard_setpoint(&sp, m),
             AutopilotCommand::ManualControl(sticks) => self.manual_control(sticks, m),
+            AutopilotCommand::FollowTarget(fix) => self.follow_target(&fix, m),
             AutopilotCommand::Power(action) => self.commander.power(action, &mut self.say).outcome(),
             AutopilotCommand::InjectFailure { .. } => {
                 Commander::failure_injection(self.settings.failure_injection, &mut self.say)
@@ -386,9 +389,12 @@ impl Autopilot {
             Nav::Offboard if !self.offboard_fresh(m.time_s) => Some("no offboard signal"),
             Nav::Mission if self.plans.get(MissionType::Mission).is_empty() => Some("no valid mission"),
             Nav::Hold { .. } | Nav::Offboard | Nav::Mission => None,
-            Nav::Takeoff { .. } | Nav::Land { .. } | Nav::Rtl { .. } | Nav::Orbit(_) | Nav::Descend { .. } => {
-                Some("flight mode not armable")
-            }
+            Nav::Takeoff { .. }
+            | Nav::Land { .. }
+            | Nav::Rtl { .. }
+            | Nav::Orbit(_)
+            | Nav::Follow(_)
+            | Nav::Descend { .. } => Some("flight mode not armable"),
         };
         Prearm {
             landed: self.land.landed(),
@@ -526,6 +532,14 @@ impl Autopilot {
                 }
                 let cx = situation!(self, m);
                 self.navigator.enter_orbit(&cx);
+                CommandOutcome::Accepted
+            }
+            FlightMode::FollowTarget => {
+                if let Some(refused) = self.refuse_without_position("Switching to Follow Target") {
+                    return refused;
+                }
+                let cx = situation!(self, m);
+                self.navigator.enter_follow(&cx);
                 CommandOutcome::Accepted
             }
             FlightMode::Position => self.enter_manual_mode(ManualMode::Position, m),
@@ -727,6 +741,21 @@ impl Autopilot {
             self.offboard_clamped(clamped);
         }
         self.navigator.set_offboard(local, m.time_s);
+        CommandOutcome::Accepted
+    }
+
+    /// A FOLLOW_TARGET fix at the instant of `m`, resolved to NED.
+    fn follow_target(&mut self, fix: &TargetFix, m: &Measurement) -> CommandOutcome {
+        if !fix.is_valid() {
+            return CommandOutcome::Denied("invalid follow target");
+        }
+        let point = GeoPoint {
+            lat_deg: fix.lat_deg,
+            lon_deg: fix.lon_deg,
+            alt_amsl_m: fix.alt_amsl_m,
+        };
+        let ned = point.ned_from(&self.origin);
+        self.navigator.set_follow_target(ned, fix.velocity_ned, m.time_s);
         CommandOutcome::Accepted
     }
 

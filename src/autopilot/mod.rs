@@ -40,6 +40,10 @@
 //!   `RTL_DESCEND_ALT`, lands. Reposition is Hold with a target.
 //! * Orbit (DO_ORBIT, `navigator/orbit.rs`): flies to the circle, then
 //!   round it at the commanded radius, speed and heading behaviour; not armable.
+//! * Follow target (`navigator/follow.rs`): FOLLOW_TARGET fixes kept in any
+//!   mode; AUTO.FOLLOW_TARGET flies behind (`FLW_TGT_FA`) the target at
+//!   `FLW_TGT_DST` and `FLW_TGT_HT`, holding while no fix is younger than
+//!   3 s; not armable.
 //! * Offboard: accepted with a setpoint younger than `COM_OF_LOSS_T`; left
 //!   for `COM_OBL_RC_ACT`'s action (Hold by default) when they stop. Landed,
 //!   the rotors idle until a setpoint asks to climb (a position 0.2 m above,
@@ -118,7 +122,7 @@ pub use error::AutopilotError;
 pub use failsafe::{ClientClock, ClientTimer, PendingTimer};
 pub use navigator::ItemDone;
 pub use navigator::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};
-pub use navigator::{ManualControl, OrbitYaw};
+pub use navigator::{ManualControl, OrbitYaw, TARGET_STALE_S, TargetFix};
 pub use rotor_monitor::{FAILED_SPEED_RATIO, RotorEvent, RotorMonitor, RotorStatus};
 pub use stack::Autopilot;
 pub use status::{STATUS_TEXT_LEN, Severity, StatusText, cut_status_text, status_text_lines};
@@ -155,6 +159,10 @@ pub enum FlightMode {
     Manual,
     /// POSCTL.ORBIT: circle a centre (MAV_CMD_DO_ORBIT), as PX4's Orbit task.
     Orbit,
+    /// AUTO.FOLLOW_TARGET: fly at `FLW_TGT_DST`, `FLW_TGT_HT` and
+    /// `FLW_TGT_FA` from a target a client reports (FOLLOW_TARGET), as PX4's
+    /// follow-target task.
+    FollowTarget,
     /// PX4's Descend (shown as AUTO.LAND): land without a position estimate —
     /// level, no horizontal control, sinking at MPC_LAND_SPEED (GPS loss).
     Descend,

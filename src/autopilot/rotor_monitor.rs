@@ -199,6 +199,29 @@ impl RotorMonitor {
         };
     }
 
+    /// The ESCs of `rotors` (indices from 0) report healthy again while the
+    /// rotors are stopped (PX4's failure injector cleared, FAILURE_TYPE_OK):
+    /// with no speed to judge, their verdicts go back to healthy, as PX4's
+    /// failure detector forgets a motor failure once disarmed. Returns the
+    /// verdicts that changed (stamped `time_s`).
+    pub fn reported_healthy(&mut self, rotors: &[usize], time_s: f64) -> Vec<RotorEvent> {
+        let mut events = Vec::new();
+        for &i in rotors.iter().filter(|&&i| i < self.n) {
+            let from = self.status[i];
+            self.since_s[i] = None;
+            if from != RotorStatus::Healthy {
+                self.status[i] = RotorStatus::Healthy;
+                events.push(RotorEvent {
+                    index: i,
+                    from,
+                    to: RotorStatus::Healthy,
+                    evidence_since_s: time_s,
+                });
+            }
+        }
+        events
+    }
+
     /// The ESC readings `measured` [rad/s] at `time_s`: advance the
     /// prediction over the held command, compare, and return the verdicts that changed.
     pub fn update(&mut self, time_s: f64, measured: &RotorVector) -> Vec<RotorEvent> {

@@ -227,6 +227,33 @@ impl ManualSettings {
     }
 }
 
+/// The follow-target parameters (`FLW_TGT_*`), SI units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct FollowSettings {
+    /// `FLW_TGT_HT` [m].
+    pub(super) height_m: f64,
+    /// `FLW_TGT_DST` [m].
+    pub(super) distance_m: f64,
+    /// `FLW_TGT_FA` [rad], clockwise from the target's course.
+    pub(super) angle_rad: f64,
+    /// `FLW_TGT_ALT_M` = 2: track the target's altitude (else a height above home).
+    pub(super) track_altitude: bool,
+    /// `FLW_TGT_MAX_VEL` [m/s].
+    pub(super) max_tangential_m_s: f64,
+}
+
+impl FollowSettings {
+    fn from_store(p: &ParamStore) -> Self {
+        Self {
+            height_m: p.real(Param::FLW_TGT_HT),
+            distance_m: p.real(Param::FLW_TGT_DST),
+            angle_rad: p.real(Param::FLW_TGT_FA).to_radians(),
+            track_altitude: p.int(Param::FLW_TGT_ALT_M) == 2,
+            max_tangential_m_s: p.real(Param::FLW_TGT_MAX_VEL),
+        }
+    }
+}
+
 /// The flight stack's view of the parameter store.
 #[derive(Clone, Debug, PartialEq)]
 pub(super) struct Settings {
@@ -264,6 +291,8 @@ pub(super) struct Settings {
     pub(super) actuator_failure_action: FailsafeAction,
     /// Manual control and its loss.
     pub(super) manual: ManualSettings,
+    /// Follow target.
+    pub(super) follow: FollowSettings,
 }
 
 impl Settings {
@@ -315,6 +344,7 @@ impl Settings {
             failsafe: FailsafeSettings::from_store(p),
             actuator_failure_action,
             manual: ManualSettings::from_store(p),
+            follow: FollowSettings::from_store(p),
         };
         // the return altitude stays inside GF_MAX_VER_DIST (PX4's RTL)
         s.rtl_return_alt_m = s.failsafe.cap_height(s.rtl_return_alt_m);

@@ -383,6 +383,22 @@ impl Autopilot {
         self.control.output()
     }
 
+    /// The ESCs of `rotors` (indices from 0) report healthy again (a
+    /// MAV_CMD_INJECT_FAILURE motor OK): while disarmed, with the rotors
+    /// stopped and nothing to judge them by, the monitor takes them back
+    /// (announced "Motor N recovered", the allocation whole again), so the
+    /// vehicle arms as PX4 arms once its ESCs report healthy. Armed, the
+    /// monitor's own evidence takes a rotor back once it follows its command.
+    pub fn esc_reports_healthy(&mut self, rotors: &[usize], m: &crate::signals::Measurement) {
+        if self.commander.armed() {
+            return;
+        }
+        let events = self.rotors.reported_healthy(rotors, m.time_s);
+        if !events.is_empty() {
+            self.rotors_changed(&events, m);
+        }
+    }
+
     /// The actuators refused the last command (not finite) and the world
     /// stopped the rotors: announce it, disarm, start the loop over.
     pub fn rotors_stopped(&mut self, why: &str) {

@@ -59,6 +59,7 @@ pub fn px4_mode(mode: FlightMode) -> (u8, u8) {
         FlightMode::ReturnToLaunch => (main_mode::AUTO, auto_sub::RTL),
         FlightMode::Offboard => (main_mode::OFFBOARD, 0),
         FlightMode::Mission => (main_mode::AUTO, auto_sub::MISSION),
+        FlightMode::FollowTarget => (main_mode::AUTO, auto_sub::FOLLOW_TARGET),
         FlightMode::Altitude => (main_mode::ALTCTL, 0),
         FlightMode::Stabilized => (main_mode::STABILIZED, 0),
         FlightMode::Acro => (main_mode::ACRO, 0),
@@ -80,8 +81,8 @@ pub fn custom_mode(mode: FlightMode) -> u32 {
 pub enum ModeRequest {
     /// A mode rotorpilot flies.
     Mode(FlightMode),
-    /// A PX4 mode that exists but that we cannot fly (follow-me, precision
-    /// land, ...): PX4 answers TEMPORARILY_REJECTED when a mode is not available.
+    /// A PX4 mode that exists but that we cannot fly (precision land,
+    /// ...): PX4 answers TEMPORARILY_REJECTED when a mode is not available.
     NotAvailable,
     /// Not a PX4 mode at all.
     Unknown,
@@ -105,7 +106,8 @@ pub fn mode_from_px4(main: u8, sub: u8) -> ModeRequest {
         (main_mode::AUTO, auto_sub::LAND) => ModeRequest::Mode(FlightMode::Land),
         (main_mode::AUTO, auto_sub::RTL) => ModeRequest::Mode(FlightMode::ReturnToLaunch),
         (main_mode::AUTO, 0 | auto_sub::MISSION) => ModeRequest::Mode(FlightMode::Mission),
-        (main_mode::AUTO, auto_sub::READY | auto_sub::FOLLOW_TARGET | 7 | 9..=18) => ModeRequest::NotAvailable,
+        (main_mode::AUTO, auto_sub::FOLLOW_TARGET) => ModeRequest::Mode(FlightMode::FollowTarget),
+        (main_mode::AUTO, auto_sub::READY | 7 | 9..=18) => ModeRequest::NotAvailable,
         (8..=11, _) => ModeRequest::NotAvailable,
         _ => ModeRequest::Unknown,
     }
@@ -166,6 +168,7 @@ pub fn base_mode(mode: FlightMode, armed: bool) -> u8 {
         | FlightMode::ReturnToLaunch
         | FlightMode::Mission
         | FlightMode::Orbit
+        | FlightMode::FollowTarget
         | FlightMode::Offboard => mode_flag::AUTO | mode_flag::GUIDED | mode_flag::STABILIZE,
     };
     if armed {

@@ -766,6 +766,13 @@ impl Link {
                     });
                 }
             }
+            // FOLLOW_TARGET has no target: PX4 takes it from any client
+            MavMessage::FOLLOW_TARGET(m) => {
+                effects.push(Effect::Autopilot {
+                    command: AutopilotCommand::FollowTarget(offboard::follow_target(&m)),
+                    ack: None,
+                });
+            }
             // PX4 takes MANUAL_CONTROL aimed at it or at everyone (target 0)
             MavMessage::MANUAL_CONTROL(m) if m.target == 0 || m.target == self.config.identity.system_id => {
                 effects.push(Effect::Autopilot {

@@ -17,13 +17,20 @@
 //! targets with their altitude reference: GLOBAL_INT (5) and GLOBAL (0) AMSL,
 //! RELATIVE_ALT (6, 3) above home, TERRAIN_ALT (11, 10) above the ground.
 //! Other frames are ignored, as PX4 ignores them.
+//!
+//! FOLLOW_TARGET (144), the target of follow-me, is read here too: its
+//! position (latitude, longitude, altitude AMSL) and, when its
+//! `est_capabilities` has the velocity bit, its NED velocity.
 
 use mavlink::dialects::common::{
-    SET_ATTITUDE_TARGET_DATA, SET_POSITION_TARGET_GLOBAL_INT_DATA, SET_POSITION_TARGET_LOCAL_NED_DATA,
+    FOLLOW_TARGET_DATA, SET_ATTITUDE_TARGET_DATA, SET_POSITION_TARGET_GLOBAL_INT_DATA,
+    SET_POSITION_TARGET_LOCAL_NED_DATA,
 };
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
-use crate::autopilot::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};
+use crate::autopilot::{
+    AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, TargetFix, Targets,
+};
 
 /// Position-target mask bits.
 mod bit {
@@ -167,6 +174,22 @@ pub fn attitude(m: &SET_ATTITUDE_TARGET_DATA) -> Option<OffboardSetpoint> {
         rate_frd,
         thrust_normalised: thrust,
     }))
+}
+
+/// FOLLOW_TARGET's `est_capabilities` bit: the velocity is given.
+const FOLLOW_VEL: u8 = 2;
+
+/// FOLLOW_TARGET to a target fix (the autopilot refuses one that is not
+/// finite or off the globe).
+#[must_use]
+pub fn follow_target(m: &FOLLOW_TARGET_DATA) -> TargetFix {
+    let v = Vector3::new(f64::from(m.vel[0]), f64::from(m.vel[1]), f64::from(m.vel[2]));
+    TargetFix {
+        lat_deg: f64::from(m.lat) * 1e-7,
+        lon_deg: f64::from(m.lon) * 1e-7,
+        alt_amsl_m: f64::from(m.alt),
+        velocity_ned: (m.est_capabilities & FOLLOW_VEL != 0 && v.iter().all(|x| x.is_finite())).then_some(v),
+    }
 }
 
 #[cfg(test)]

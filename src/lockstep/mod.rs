@@ -557,9 +557,19 @@ impl Lockstep<Autopilot> {
         }
         let readings = self.world.sense(i);
         let outcome = self.pilots[i].command(command, readings);
+        let m = readings.measurement;
         match (command, outcome) {
             (AutopilotCommand::InjectFailure { unit, kind, instance }, CommandOutcome::Accepted) => {
-                self.inject_failure(i, failure::FailureInjection { unit, kind, instance })
+                let outcome = self.inject_failure(i, failure::FailureInjection { unit, kind, instance });
+                if (unit, kind, outcome) == (failure::UNIT_MOTOR, failure::TYPE_OK, CommandOutcome::Accepted) {
+                    // the ESCs report healthy again (PX4's injector cleared)
+                    let rotors: Vec<usize> = match usize::from(instance) {
+                        0 => (0..crate::signals::MAX_ROTORS).collect(),
+                        k => vec![k - 1],
+                    };
+                    self.pilots[i].esc_reports_healthy(&rotors, &m);
+                }
+                outcome
             }
             _ => outcome,
         }

@@ -201,6 +201,22 @@ parameters! {
     MC_ACRO_EXPO_Y: real(0.69, 0.0, 1.0, "", "Acro: yaw expo (0 linear, 1 cubic)"),
     MC_ACRO_SUPEXPO: real(0.7, 0.0, 0.95, "", "Acro: roll and pitch super-expo"),
     MC_ACRO_SUPEXPOY: real(0.7, 0.0, 0.95, "", "Acro: yaw super-expo"),
+    // --- PX4: follow target (AUTO.FOLLOW_TARGET, FOLLOW_TARGET messages) -----------------------
+    FLW_TGT_HT: real(8.0, 8.0, f32::MAX as f64, "m", "Follow target: height above home (above the target with FLW_TGT_ALT_M 2)"),
+    FLW_TGT_DST: real(8.0, 1.0, f32::MAX as f64, "m", "Follow target: horizontal distance to the target"),
+    FLW_TGT_FA: real(
+        180.0, -180.0, 180.0, "deg",
+        "Follow target: angle from the target's course, clockwise (0 in front, 90 right, 180 behind)",
+    ),
+    FLW_TGT_ALT_M: choice(
+        0, i32::MIN, i32::MAX,
+        "Follow target: altitude mode (PX4 bounds it not; another value is 0)",
+        &[(0, "2D: constant height above home"), (1, "2D + terrain (flat ground here: as 0)"), (2, "3D: track the target's altitude")],
+    ),
+    FLW_TGT_MAX_VEL: real(
+        5.0, 0.0, 20.0, "m/s",
+        "Follow target: largest tangential speed when the follow angle moves round the target",
+    ),
     // --- PX4: system, MAVLink, battery ---------------------------------------------------------
     SYS_FAILURE_EN: switch(0, "Allow failure injection (MAV_CMD_INJECT_FAILURE)"),
     MAV_SYS_ID: int(1, 1, 250, "MAVLink system id: --instance + 1, as PX4 SITL sets it at every start (a set to another value is refused)"),

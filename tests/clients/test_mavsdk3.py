@@ -24,6 +24,7 @@ from harness import Vehicle, free_tcp_port  # noqa: E402
 SPEED = 5.0
 # a script written for real time also runs unchanged with the vehicle at 20x
 FAST = 20.0
+REAL_TIME = 1.0
 SCRIPTS = HERE / "mavsdk_examples"
 
 
@@ -57,8 +58,11 @@ FLIGHTS = ["takeoff_and_land.py", "goto.py", "offboard_position_ned.py", "offboa
 
 @pytest.mark.parametrize(
     "speed,script",
-    [(SPEED, s) for s in FLIGHTS + ["all_params.py", "ground_truth.py", "orbit.py", "highres_imu.py"]]
-    + [(FAST, s) for s in FLIGHTS],
+    [(SPEED, s) for s in FLIGHTS + ["all_params.py", "ground_truth.py", "orbit.py", "highres_imu.py", "follow_me.py"]]
+    + [(FAST, s) for s in FLIGHTS]
+    # a timed path streamed at 10 Hz, as the example streams it: in real time
+    # (sped up, the client's own latency stales every setpoint)
+    + [(REAL_TIME, "offboard_from_csv.py")],
     ids=lambda x: f"x{x:g}" if isinstance(x, float) else x,
 )
 def test_script(speed, script):

@@ -140,6 +140,7 @@ impl Navigator {
             Nav::Mission => self.mission_demand(cx, say),
             Nav::Manual(mode) => self.manual_demand(cx, mode),
             Nav::Orbit(orbit) => self.orbit_demand(cx, orbit),
+            Nav::Follow(f) => self.follow_demand(cx, f),
             Nav::Descend { .. } => self.descend_demand(cx),
         }
     }

@@ -55,7 +55,8 @@ impl Navigator {
             | Nav::Land { .. }
             | Nav::Rtl { .. }
             | Nav::Mission
-            | Nav::Orbit(_) => true,
+            | Nav::Orbit(_)
+            | Nav::Follow(_) => true,
             Nav::Manual(mode) => mode == ManualMode::Position,
             Nav::Offboard => !matches!(self.offboard, Some((LocalSetpoint::Attitude(_), _))),
             Nav::Descend { .. } => false,

@@ -1,6 +1,7 @@
 //! Guidance: the active mode turned into this step's [`Demand`] (a shaped
 //! reference, an attitude setpoint, idle or stopped rotors), one file per
 //! mode family — `auto` (hold, takeoff, land, return to launch), `orbit`,
+//! `follow` (follow target),
 //! `offboard` (external setpoints), `mission` (the stored mission),
 //! `manual` (the pilot's sticks) and `blind` (Descend without a GPS fix). The
 //! [`Navigator`] owns what guidance remembers between steps: the mode and its
@@ -9,6 +10,7 @@
 
 mod auto;
 mod blind;
+mod follow;
 mod manual;
 mod mission;
 mod offboard;
@@ -21,6 +23,9 @@ pub(super) use manual::ManualMode;
 
 pub(super) use mission::{MissionRun, SetHome, item_point_ned};
 
+pub(super) use follow::Follow;
+use follow::Target;
+pub use follow::{TARGET_STALE_S, TargetFix};
 pub use orbit::OrbitYaw;
 pub(super) use orbit::{Orbit, OrbitChange};
 
@@ -137,6 +142,8 @@ pub(super) enum Nav {
     Manual(ManualMode),
     /// Circle a centre.
     Orbit(Orbit),
+    /// Follow a moving target (FOLLOW_TARGET fixes).
+    Follow(Follow),
     /// Descend without a position (GPS loss).
     Descend {
         /// What to fly when the fix returns before touchdown.
@@ -179,6 +186,8 @@ pub(super) struct Navigator {
     rate_target: Option<UnitQuaternion<f64>>,
     /// Where the mission stands (kept while other modes fly: pause and resume).
     mission: MissionRun,
+    /// Latest FOLLOW_TARGET fix, resolved to NED, and its arrival time.
+    follow_target: Option<Target>,
     /// Latest sticks and their arrival time [s].
     manual: Option<(ManualControl, f64)>,
     /// The sticks were declared lost (simulated or wall-clock timing).
@@ -209,6 +218,7 @@ impl Navigator {
             offboard_lost: false,
             rate_target: None,
             mission: MissionRun::default(),
+            follow_target: None,
             manual: None,
             manual_lost: false,
             vertical: None,
@@ -229,6 +239,7 @@ impl Navigator {
             Nav::Mission => FlightMode::Mission,
             Nav::Manual(mode) => mode.flight_mode(),
             Nav::Orbit(_) => FlightMode::Orbit,
+            Nav::Follow(_) => FlightMode::FollowTarget,
             Nav::Descend { .. } => FlightMode::Descend,
         }
     }

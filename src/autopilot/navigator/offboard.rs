@@ -7,6 +7,12 @@
 //! take position as a turned offset; global targets are converted around the
 //! NED origin, their altitude AMSL, above home, or above the ground at the
 //! origin. A NaN component is PX4's "unset" and stays NaN.
+//!
+//! A position given with a velocity or an acceleration is PX4's trajectory
+//! setpoint: the velocity and acceleration are feed-forward to the position
+//! (`v_cmd = v_sp + k1 (p_sp - p)`, the shaper's `Track`), horizontal speed
+//! up to `MPC_XY_VEL_MAX`, so a time-stamped path is flown in time; a
+//! position alone is flown to at the cruise speed.
 
 use nalgebra::{Rotation3, UnitQuaternion, Vector3};
 
@@ -324,7 +330,25 @@ impl Navigator {
                 yaw_rate_rad_s,
             }) => {
                 let yaw = yaw_setpoint(yaw_rad, yaw_rate_rad_s);
-                if let Some(p) = position {
+                let feed_forward = velocity.is_some() || acceleration.is_some();
+                if let Some(p) = position.filter(|p| feed_forward && finite3(p)) {
+                    // PX4's trajectory setpoint: the velocity and acceleration
+                    // given with the position are its feed-forward
+                    let limits = ShaperLimits {
+                        max_speed_xy_m_s: s.xy_vel_max_m_s,
+                        ..normal
+                    };
+                    let nan = Vector3::repeat(f64::NAN);
+                    let sp = Setpoint {
+                        translation: TranslationSetpoint::Track {
+                            position: p,
+                            velocity: velocity.unwrap_or(nan),
+                            acceleration: acceleration.unwrap_or(nan),
+                        },
+                        yaw,
+                    };
+                    Demand::Track(self.shape(meas, sp, limits, dt))
+                } else if let Some(p) = position {
                     Demand::Track(self.go_to(meas, p, yaw, normal, dt))
                 } else if let Some(v) = velocity {
                     let limits = ShaperLimits {

@@ -146,8 +146,13 @@ fn set_mode_and_refusals() {
     // manual modes go to the autopilot, which refuses them without manual control
     let a = classify(&long(176, [81.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]));
     assert_eq!(a, Action::Autopilot(AutopilotCommand::SetMode(FlightMode::Manual)));
-    // AUTO.FOLLOW_TARGET exists in PX4 but is not flown here
+    // AUTO.FOLLOW_TARGET goes to the autopilot; AUTO.PRECLAND exists in PX4 but is not flown here
     let a = classify(&long(176, [1.0, 4.0, 8.0, 0.0, 0.0, 0.0, 0.0]));
+    assert_eq!(
+        a,
+        Action::Autopilot(AutopilotCommand::SetMode(FlightMode::FollowTarget))
+    );
+    let a = classify(&long(176, [1.0, 4.0, 9.0, 0.0, 0.0, 0.0, 0.0]));
     assert!(matches!(a, Action::Answer(result::TEMPORARILY_REJECTED, _)));
     // Mission goes to the autopilot, which refuses it without a mission
     let a = classify(&long(176, [1.0, 4.0, 4.0, N, N, N, N]));

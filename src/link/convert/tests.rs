@@ -20,6 +20,8 @@ fn custom_modes_match_px4_numbers() {
     assert_eq!(custom_mode(FlightMode::Descend), 100_925_440);
     // POSCTL.ORBIT: main 3, sub 1
     assert_eq!(custom_mode(FlightMode::Orbit), 16_973_824);
+    // AUTO.FOLLOW_TARGET: main 4, sub 8
+    assert_eq!(custom_mode(FlightMode::FollowTarget), 134_479_872);
 }
 
 #[test]
@@ -37,6 +39,7 @@ fn every_mode_round_trips() {
         FlightMode::Acro,
         FlightMode::Manual,
         FlightMode::Orbit,
+        FlightMode::FollowTarget,
     ] {
         let (main, sub) = px4_mode(m);
         assert_eq!(mode_from_px4(main, sub), ModeRequest::Mode(m));

@@ -256,6 +256,7 @@ pub fn nav_state(mode: FlightMode) -> u8 {
         FlightMode::Takeoff => 17,
         FlightMode::Land => 18,
         FlightMode::Orbit => 21,
+        FlightMode::FollowTarget => 19,
     }
 }
 

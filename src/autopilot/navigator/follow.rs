@@ -1,0 +1,325 @@
+//! Follow target (AUTO.FOLLOW_TARGET): fly at a distance, height and angle
+//! from a moving target whose positions a client sends (MAVLink
+//! FOLLOW_TARGET), as PX4's follow-target flight task flies it.
+//!
+//! * The target: the latest fix (position, velocity when the client gives
+//!   one, else the difference of the last two fixes), predicted to now at
+//!   constant velocity, `p_t = p_fix + v_fix (t - t_fix)`. A fix older than
+//!   [`TARGET_STALE_S`] (PX4's `GPS_MESSAGE_STALE_TIMEOUT_MS`) is lost: the
+//!   vehicle holds where it is until fixes come again (PX4's task keeps the
+//!   position then).
+//! * PX4's second-order target filter (natural frequency
+//!   [`FILTER_OMEGA_RAD_S`], damping [`FILTER_ZETA`], the prediction's
+//!   velocity as rate feed-forward) smooths it:
+//!   `x'' = w^2 (p_t - x) + 2 zeta w (v_t - x')`; it restarts at the target
+//!   after a gap longer than [`FILTER_RESET_S`].
+//! * The target's course is the direction of its filtered velocity, kept
+//!   while it moves slower than [`COURSE_DEADZONE_M_S`]. The follow angle
+//!   `FLW_TGT_FA` is measured from the course, clockwise (180 deg: behind);
+//!   the orbit angle `theta` moves to `course + FLW_TGT_FA` at most at
+//!   `FLW_TGT_MAX_VEL / FLW_TGT_DST` rad/s. On entry `theta` is where the
+//!   vehicle already is, seen from the target, and the course the one that
+//!   puts the follow angle there.
+//! * Desired position `p_d = x + FLW_TGT_DST [cos theta, sin theta, 0]`
+//!   (NED), its height `FLW_TGT_HT` above home (`FLW_TGT_ALT_M` 0, and 1
+//!   over this flat ground), never lower than where the mode started, or
+//!   `FLW_TGT_HT` above the filtered target (`FLW_TGT_ALT_M` 2).
+//! * More than [`ALT_ACCEPTANCE_M`] off that height the vehicle first climbs
+//!   or descends where it is; within it, it flies `p_d` with the filtered
+//!   target velocity and acceleration as feed-forward
+//!   ([`TranslationSetpoint::Track`]), the nose to the target once more
+//!   than [`YAW_MIN_DISTANCE_M`] away, horizontal speed under `MPC_XY_VEL_MAX`.
+//!
+//! Nothing here runs unless the mode is flown; a fix costs one conversion.
+
+use nalgebra::{Vector2, Vector3};
+
+use super::{Nav, Navigator, Situation};
+use crate::autopilot::control_loop::Demand;
+use crate::control::{Setpoint, TranslationSetpoint, YawSetpoint};
+use crate::math::wrap_pi;
+
+/// A fix older than this is lost [s] (PX4's `GPS_MESSAGE_STALE_TIMEOUT_MS`).
+pub const TARGET_STALE_S: f64 = 3.0;
+/// Natural frequency of the target filter [rad/s] (PX4's `TARGET_POSE_FILTER_NATURAL_FREQUENCY`).
+const FILTER_OMEGA_RAD_S: f64 = 1.0;
+/// Damping of the target filter (PX4's `TARGET_POSE_FILTER_DAMPING_RATIO`,
+/// written as PX4 writes it).
+#[allow(clippy::approx_constant)]
+const FILTER_ZETA: f64 = 0.7071;
+/// After a gap this long the target filter restarts at the target [s] (PX4's `TARGET_ESTIMATOR_TIMEOUT_US`).
+const FILTER_RESET_S: f64 = 1.5;
+/// Below this speed the target's course is kept [m/s] (PX4's deadzone).
+const COURSE_DEADZONE_M_S: f64 = 1.0;
+/// Further than this off the follow height, climb first [m] (PX4's `ALT_ACCEPTANCE_THRESHOLD`).
+const ALT_ACCEPTANCE_M: f64 = 3.0;
+/// Closer than this the heading is kept [m] (PX4's `MINIMUM_DISTANCE_TO_TARGET_FOR_YAW_CONTROL`).
+const YAW_MIN_DISTANCE_M: f64 = 1.0;
+
+/// One FOLLOW_TARGET report, as the client sends it.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TargetFix {
+    /// Latitude [deg].
+    pub lat_deg: f64,
+    /// Longitude [deg].
+    pub lon_deg: f64,
+    /// Altitude AMSL [m].
+    pub alt_amsl_m: f64,
+    /// Velocity [m/s], NED, when the client gives one.
+    pub velocity_ned: Option<Vector3<f64>>,
+}
+
+impl TargetFix {
+    /// Whether it can be used: finite, latitude and longitude in range.
+    #[must_use]
+    pub fn is_valid(&self) -> bool {
+        self.lat_deg.is_finite()
+            && self.lon_deg.is_finite()
+            && self.alt_amsl_m.is_finite()
+            && self.lat_deg.abs() <= 90.0
+            && self.lon_deg.abs() <= 180.0
+            && self.velocity_ned.is_none_or(|v| v.iter().all(|x| x.is_finite()))
+    }
+}
+
+/// The latest fix, resolved to NED, and its arrival time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Target {
+    position_ned: Vector3<f64>,
+    velocity_ned: Vector3<f64>,
+    time_s: f64,
+}
+
+impl Target {
+    /// A fix at `position_ned` [m] arriving at `time_s`, after `previous`:
+    /// its own velocity, else the difference of the two positions.
+    pub(super) fn new(
+        position_ned: Vector3<f64>,
+        velocity_ned: Option<Vector3<f64>>,
+        time_s: f64,
+        previous: Option<&Target>,
+    ) -> Self {
+        let velocity_ned = velocity_ned.unwrap_or_else(|| match previous {
+            Some(p) if time_s - p.time_s > 1e-3 && time_s - p.time_s < TARGET_STALE_S => {
+                (position_ned - p.position_ned) / (time_s - p.time_s)
+            }
+            _ => Vector3::zeros(),
+        });
+        Self {
+            position_ned,
+            velocity_ned,
+            time_s,
+        }
+    }
+
+    /// Predicted position and velocity at `t` [s], or `None` when stale.
+    fn at(&self, t: f64) -> Option<(Vector3<f64>, Vector3<f64>)> {
+        let age = t - self.time_s;
+        (age <= TARGET_STALE_S).then(|| (self.position_ned + self.velocity_ned * age.max(0.0), self.velocity_ned))
+    }
+}
+
+/// What Follow remembers between steps.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(in crate::autopilot) struct Follow {
+    /// The filtered target: position [m], velocity [m/s], acceleration [m/s^2], NED; `None` until a fix.
+    filter: Option<(Vector3<f64>, Vector3<f64>, Vector3<f64>)>,
+    /// When the filter was last fed [s].
+    fed_s: f64,
+    /// The target's course [rad] (from north, clockwise).
+    course_rad: f64,
+    /// The orbit angle `theta` [rad]; `None` until the first fix places it.
+    theta_rad: Option<f64>,
+    /// The follow height's NED z floor: where the mode started [m].
+    start_z: f64,
+}
+
+/// One step of the second-order target filter (module doc), `dt` [s].
+fn filter_step(
+    (x, v, _): (Vector3<f64>, Vector3<f64>, Vector3<f64>),
+    target: &Vector3<f64>,
+    target_v: &Vector3<f64>,
+    dt: f64,
+) -> (Vector3<f64>, Vector3<f64>, Vector3<f64>) {
+    let w = FILTER_OMEGA_RAD_S;
+    let a = (target - x) * (w * w) + (target_v - v) * (2.0 * FILTER_ZETA * w);
+    let v_next = v + a * dt;
+    (x + (v + v_next) * (0.5 * dt), v_next, a)
+}
+
+/// Move `theta` towards `goal` [rad] by at most `max_step` [rad], the short way.
+fn orbit_step(theta: f64, goal: f64, max_step: f64) -> f64 {
+    let e = wrap_pi(goal - theta);
+    if e.abs() <= max_step {
+        wrap_pi(goal)
+    } else {
+        wrap_pi(theta + e.signum() * max_step)
+    }
+}
+
+impl Navigator {
+    /// A FOLLOW_TARGET fix resolved to NED at `now` [s]: kept whatever the mode.
+    pub(in crate::autopilot) fn set_follow_target(
+        &mut self,
+        position_ned: Vector3<f64>,
+        velocity_ned: Option<Vector3<f64>>,
+        now: f64,
+    ) {
+        self.follow_target = Some(Target::new(
+            position_ned,
+            velocity_ned,
+            now,
+            self.follow_target.as_ref(),
+        ));
+    }
+
+    /// Follow entered: no filter yet, the height floor where the vehicle is meant to be.
+    pub(in crate::autopilot) fn enter_follow(&mut self, cx: &Situation<'_>) {
+        let p = self.current_position(cx.meas);
+        self.nav = Nav::Follow(Follow {
+            filter: None,
+            fed_s: f64::NEG_INFINITY,
+            course_rad: 0.0,
+            theta_rad: None,
+            start_z: p.z,
+        });
+    }
+
+    /// The demand of Follow (module doc).
+    pub(super) fn follow_demand(&mut self, cx: &Situation<'_>, mut f: Follow) -> Demand {
+        if cx.resting {
+            return Demand::Idle;
+        }
+        let (meas, s, dt) = (cx.meas, cx.settings, cx.dt);
+        let fs = &s.follow;
+        let t = meas.time_s;
+        let p = meas.position_ned;
+        let limits = self.limits(s.xy_vel_max_m_s, s.climb_m_s, s.descent_m_s);
+        let Some((target_p, target_v)) = self.follow_target.and_then(|tg| tg.at(t)) else {
+            // no target (never, or lost): hold where it is
+            self.nav = Nav::Follow(f);
+            let hold = Setpoint {
+                translation: TranslationSetpoint::Hold,
+                yaw: YawSetpoint::Hold,
+            };
+            return Demand::Track(self.shape(meas, hold, limits, dt));
+        };
+        let filter = match f.filter {
+            Some(state) if t - f.fed_s <= FILTER_RESET_S => filter_step(state, &target_p, &target_v, dt),
+            _ => (target_p, target_v, Vector3::zeros()),
+        };
+        f.filter = Some(filter);
+        f.fed_s = t;
+        let (x, v, a) = filter;
+        let speed_xy = v.xy().norm();
+        let theta = match f.theta_rad {
+            None => {
+                // start where the vehicle is, seen from the target
+                let out = p.xy() - x.xy();
+                let theta = if out.norm() > 1e-6 { out.y.atan2(out.x) } else { 0.0 };
+                f.course_rad = wrap_pi(theta - fs.angle_rad);
+                theta
+            }
+            Some(theta) => theta,
+        };
+        if speed_xy >= COURSE_DEADZONE_M_S {
+            f.course_rad = v.y.atan2(v.x);
+        }
+        let max_step = fs.max_tangential_m_s / fs.distance_m * dt;
+        let theta = orbit_step(theta, f.course_rad + fs.angle_rad, max_step);
+        f.theta_rad = Some(theta);
+        let xy = x.xy() + Vector2::new(theta.cos(), theta.sin()) * fs.distance_m;
+        let z = if fs.track_altitude {
+            x.z - fs.height_m
+        } else {
+            f.start_z.min(cx.home_ned.z - fs.height_m)
+        };
+        let to_target = x.xy() - p.xy();
+        let yaw = if to_target.norm() > YAW_MIN_DISTANCE_M {
+            YawSetpoint::Angle(to_target.y.atan2(to_target.x))
+        } else {
+            YawSetpoint::Hold
+        };
+        let translation = if (z - p.z).abs() < ALT_ACCEPTANCE_M {
+            let vertical = if fs.track_altitude { 1.0 } else { 0.0 };
+            TranslationSetpoint::Track {
+                position: Vector3::new(xy.x, xy.y, z),
+                velocity: Vector3::new(v.x, v.y, v.z * vertical),
+                acceleration: Vector3::new(a.x, a.y, a.z * vertical),
+            }
+        } else {
+            // the height first, where the reference is
+            let here = self.current_position(meas);
+            TranslationSetpoint::Position(Vector3::new(here.x, here.y, z))
+        };
+        self.nav = Nav::Follow(f);
+        Demand::Track(self.shape(meas, Setpoint { translation, yaw }, limits, dt))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_fix_without_velocity_takes_the_difference_and_goes_stale() {
+        let a = Target::new(Vector3::new(0.0, 0.0, 0.0), None, 10.0, None);
+        assert_eq!(a.velocity_ned, Vector3::zeros());
+        let b = Target::new(Vector3::new(2.0, 1.0, 0.0), None, 11.0, Some(&a));
+        assert_eq!(b.velocity_ned, Vector3::new(2.0, 1.0, 0.0));
+        let (p, _) = b.at(12.5).unwrap();
+        assert!((p - Vector3::new(5.0, 2.5, 0.0)).norm() < 1e-12);
+        assert!(b.at(11.0 + TARGET_STALE_S + 0.01).is_none());
+        let given = Target::new(Vector3::zeros(), Some(Vector3::new(0.0, -1.0, 0.0)), 12.0, Some(&b));
+        assert_eq!(given.velocity_ned, Vector3::new(0.0, -1.0, 0.0));
+    }
+
+    #[test]
+    fn the_filter_follows_a_ramp_without_lag_and_the_orbit_angle_is_rate_limited() {
+        let v = Vector3::new(3.0, 0.0, 0.0);
+        let mut s = (Vector3::zeros(), v, Vector3::zeros());
+        let dt = 1e-3;
+        for k in 1..=10_000 {
+            let t = k as f64 * dt;
+            s = filter_step(s, &(v * t), &v, dt);
+        }
+        // no lag (a bare second-order filter would trail by 2 zeta v / w = 4.2 m): one step's v dt at most
+        assert!((s.0 - v * 10.0).norm() < 1e-2, "{}", s.0);
+        // a quarter turn at 0.5 rad/s takes pi/2 / 0.5 s
+        let mut theta = 0.0;
+        let mut steps = 0;
+        while (theta - std::f64::consts::FRAC_PI_2).abs() > 1e-12 {
+            theta = orbit_step(theta, std::f64::consts::FRAC_PI_2, 0.5 * dt);
+            steps += 1;
+        }
+        assert!((steps as f64 * dt - std::f64::consts::PI).abs() < 2e-3, "{steps}");
+        // the short way across +-pi
+        assert!(orbit_step(3.0, -3.0, 0.01) > 3.0 - 1e-12 || orbit_step(3.0, -3.0, 0.01) < -3.0);
+    }
+
+    #[test]
+    fn a_fix_must_be_finite_and_on_the_globe() {
+        let ok = TargetFix {
+            lat_deg: 47.0,
+            lon_deg: 8.0,
+            alt_amsl_m: 500.0,
+            velocity_ned: None,
+        };
+        assert!(ok.is_valid());
+        assert!(!TargetFix { lat_deg: 91.0, ..ok }.is_valid());
+        assert!(
+            !TargetFix {
+                alt_amsl_m: f64::NAN,
+                ..ok
+            }
+            .is_valid()
+        );
+        assert!(
+            !TargetFix {
+                velocity_ned: Some(Vector3::new(f64::INFINITY, 0.0, 0.0)),
+                ..ok
+            }
+            .is_valid()
+        );
+    }
+}

@@ -1,0 +1,210 @@
+//! Lockstep tests of follow-me (AUTO.FOLLOW_TARGET with FOLLOW_TARGET fixes)
+//! as PX4's follow-target task flies it: the vehicle climbs to `FLW_TGT_HT`,
+//! then flies `FLW_TGT_DST` from a moving target at `FLW_TGT_FA` from its
+//! course (behind by default), its nose to the target; with the fixes gone
+//! for 3 s it holds where it is; the mode cannot be armed in. One vehicle in
+//! the lockstep core, simulated time only; fixes come at 5 Hz, as a phone's
+//! GPS would give them.
+
+mod common;
+
+use common::sitl::{Sitl, int, point, real};
+use nalgebra::{Vector2, Vector3};
+use rotorpilot::autopilot::{AutopilotCommand, CommandOutcome, FlightMode, TargetFix, Telemetry};
+use rotorpilot::math::{euler_zyx, wrap_pi};
+use rotorpilot::params::ParamValue;
+
+/// A fix of a target at `north`, `east` [m] from home on the ground, moving at `v` [m/s] NED.
+fn fix(north: f64, east: f64, v: Option<Vector3<f64>>) -> AutopilotCommand {
+    let p = point(north, east, 0.0);
+    AutopilotCommand::FollowTarget(TargetFix {
+        lat_deg: p.lat_deg,
+        lon_deg: p.lon_deg,
+        alt_amsl_m: p.alt_amsl_m,
+        velocity_ned: v,
+    })
+}
+
+fn airborne(params: &[(&str, ParamValue)]) -> Sitl {
+    let mut ap = Sitl::quad().params(params).build();
+    ap.step();
+    ap.take_off_to(None);
+    ap
+}
+
+/// Fly `seconds` with the target at `start` + `v t` (t from `t0`), a fix
+/// every 0.2 s (`with_velocity`: the fix carries it); the target's position now.
+fn chase(
+    ap: &mut Sitl,
+    seconds: f64,
+    t0: f64,
+    start: Vector2<f64>,
+    v: Vector2<f64>,
+    with_velocity: bool,
+) -> Vector2<f64> {
+    let every = (0.2 / ap.dt_s()).round() as usize;
+    let n = ap.steps(seconds);
+    for k in 0..n {
+        if k % every == 0 {
+            let at = start + v * (ap.time_s() - t0);
+            let vel = with_velocity.then(|| Vector3::new(v.x, v.y, 0.0));
+            assert_eq!(ap.command(fix(at.x, at.y, vel)), CommandOutcome::Accepted);
+        }
+        ap.step();
+    }
+    start + v * (ap.time_s() - t0)
+}
+
+fn height(t: &Telemetry) -> f64 {
+    t.home_ned.z - t.position_ned.z
+}
+
+/// Bearing [rad] of the vehicle seen from the target, from north towards east.
+fn bearing_from(target: Vector2<f64>, t: &Telemetry) -> f64 {
+    let d = t.position_ned.xy() - target;
+    d.y.atan2(d.x)
+}
+
+/// GIVEN a hovering quad with PX4's defaults (8 m behind, 8 m high)
+/// WHEN it is switched to AUTO.FOLLOW_TARGET and a target 10 m north walks
+/// east at 2 m/s, its fixes carrying its velocity
+/// THEN after the climb and the catch-up it flies 8 m behind it (west),
+/// 8 m above home, its nose on the target, and keeps pace.
+#[test]
+fn follows_a_moving_target_from_behind_at_distance_and_height() {
+    let mut ap = airborne(&[]);
+    let t0 = ap.time_s();
+    let start = Vector2::new(10.0, 0.0);
+    let v = Vector2::new(0.0, 2.0);
+    assert_eq!(
+        ap.command(fix(start.x, start.y, Some(Vector3::zeros()))),
+        CommandOutcome::Accepted
+    );
+    assert_eq!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::FollowTarget)),
+        CommandOutcome::Accepted
+    );
+    assert_eq!(ap.mode(), FlightMode::FollowTarget);
+    chase(&mut ap, 30.0, t0, start, v, true);
+    let mut worst: f64 = 0.0;
+    for _ in 0..10 {
+        let target = chase(&mut ap, 1.0, t0, start, v, true);
+        let t = ap.telemetry();
+        let d = (t.position_ned.xy() - target).norm();
+        worst = worst.max((d - 8.0).abs());
+        assert!((height(&t) - 8.0).abs() < 0.3, "height {}", height(&t));
+        // behind: the course is east, so the vehicle is west of the target
+        let behind = wrap_pi(bearing_from(target, &t) - (-std::f64::consts::FRAC_PI_2));
+        assert!(
+            behind.abs() < 10f64.to_radians(),
+            "bearing off by {} deg",
+            behind.to_degrees()
+        );
+        let yaw = euler_zyx(&t.attitude).z;
+        assert!(
+            wrap_pi(yaw - std::f64::consts::FRAC_PI_2).abs() < 10f64.to_radians(),
+            "yaw {yaw}"
+        );
+        assert!((t.velocity_ned.xy() - v).norm() < 0.3, "speed {}", t.velocity_ned);
+    }
+    assert!(worst < 1.0, "distance off by {worst} m");
+    assert_eq!(ap.mode(), FlightMode::FollowTarget);
+}
+
+/// GIVEN FLW_TGT_FA 90 (the target's right), FLW_TGT_DST 5, FLW_TGT_HT 12
+/// WHEN the target walks north at 1.5 m/s with position-only fixes
+/// THEN the vehicle flies 5 m east of it (its right), 12 m up.
+#[test]
+fn angle_distance_and_height_are_the_parameters() {
+    let mut ap = airborne(&[
+        ("FLW_TGT_FA", real(90.0)),
+        ("FLW_TGT_DST", real(5.0)),
+        ("FLW_TGT_HT", real(12.0)),
+    ]);
+    let t0 = ap.time_s();
+    let start = Vector2::new(0.0, -6.0);
+    let v = Vector2::new(1.5, 0.0);
+    chase(&mut ap, 0.5, t0, start, v, false);
+    assert_eq!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::FollowTarget)),
+        CommandOutcome::Accepted
+    );
+    let target = chase(&mut ap, 40.0, t0, start, v, false);
+    let t = ap.telemetry();
+    let d = t.position_ned.xy() - target;
+    assert!((d.norm() - 5.0).abs() < 1.0, "distance {}", d.norm());
+    assert!(d.y > 4.0 && d.x.abs() < 1.5, "not on the right: {d}");
+    assert!((height(&t) - 12.0).abs() < 0.3, "height {}", height(&t));
+}
+
+/// GIVEN a vehicle following a walking target
+/// WHEN the fixes stop
+/// THEN it flies on the prediction for up to 3 s, then holds where it is
+/// (still in AUTO.FOLLOW_TARGET), and picks the target up again when fixes
+/// return.
+#[test]
+fn holds_when_the_target_is_lost_and_resumes_when_it_returns() {
+    let mut ap = airborne(&[]);
+    let t0 = ap.time_s();
+    let start = Vector2::new(10.0, 0.0);
+    let v = Vector2::new(0.0, 2.0);
+    chase(&mut ap, 0.2, t0, start, v, true);
+    assert_eq!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::FollowTarget)),
+        CommandOutcome::Accepted
+    );
+    chase(&mut ap, 30.0, t0, start, v, true);
+    // fixes stop: after the prediction runs out (3 s) and a brake, it holds
+    ap.run(8.0);
+    let here = ap.telemetry().position_ned;
+    ap.run(5.0);
+    let t = ap.telemetry();
+    assert!(
+        (t.position_ned - here).norm() < 0.2,
+        "drifted {}",
+        (t.position_ned - here).norm()
+    );
+    assert!(t.velocity_ned.norm() < 0.1);
+    assert_eq!(t.mode, FlightMode::FollowTarget);
+    // fixes again: it catches up behind the target
+    let target = chase(&mut ap, 40.0, t0, start, v, true);
+    let t = ap.telemetry();
+    assert!(((t.position_ned.xy() - target).norm() - 8.0).abs() < 1.0);
+}
+
+/// GIVEN a quad on the ground
+/// WHEN AUTO.FOLLOW_TARGET is selected
+/// THEN it is accepted but arming in it is refused (PX4: not armable), and
+/// a fix that is not finite or off the globe is DENIED.
+#[test]
+fn the_mode_is_not_armable_and_bad_fixes_are_denied() {
+    let mut ap = Sitl::quad().params(&[("FLW_TGT_ALT_M", int(0))]).build();
+    ap.run(3.0);
+    assert_eq!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::FollowTarget)),
+        CommandOutcome::Accepted
+    );
+    assert_eq!(
+        ap.command(AutopilotCommand::Arm { force: false }),
+        CommandOutcome::TemporarilyRejected("flight mode not armable")
+    );
+    for bad in [
+        TargetFix {
+            lat_deg: f64::NAN,
+            lon_deg: 8.0,
+            alt_amsl_m: 500.0,
+            velocity_ned: None,
+        },
+        TargetFix {
+            lat_deg: 47.0,
+            lon_deg: 181.0,
+            alt_amsl_m: 500.0,
+            velocity_ned: None,
+        },
+    ] {
+        assert!(matches!(
+            ap.command(AutopilotCommand::FollowTarget(bad)),
+            CommandOutcome::Denied(_)
+        ));
+    }
+}

@@ -11,6 +11,9 @@ prints one JSON line per thing a test may check, until SIGTERM or SIGINT:
 - `{"ned": [x, y, z]}` its LOCAL_POSITION_NED (metres, NED from its
   origin), twice a second.
 
+A line `arm` or `disarm` on its stdin sends the vehicle
+MAV_CMD_COMPONENT_ARM_DISARM, as a ground station's button does.
+
 Used by test_mavsdk_python_examples.py, inside the test's network namespace,
 so that an example script's effect on the vehicle (landed and disarmed, the
 mode it flew in, what reached the GCS link) is judged from outside the script.
@@ -20,6 +23,7 @@ import argparse
 import json
 import signal
 import sys
+import threading
 import time
 
 from pymavlink import mavutil
@@ -39,6 +43,14 @@ def main():
         sys.stdout.write(json.dumps(obj) + "\n")
         sys.stdout.flush()
 
+    def commands():
+        for line in sys.stdin:
+            arm = {"arm": 1.0, "disarm": 0.0}.get(line.strip())
+            if arm is not None:
+                # MAV_CMD_COMPONENT_ARM_DISARM to the autopilot
+                m.mav.command_long_send(args.sysid, 1, 400, 0, arm, 0, 0, 0, 0, 0, 0)
+
+    threading.Thread(target=commands, daemon=True).start()
     seen = set()
     state = None
     landed = None

@@ -87,6 +87,9 @@ class Example:
     gcs_msgs: tuple = ()
     # the vehicle within 1 m of this NED point (m) when this line is printed
     at: tuple = ()
+    # what the GCS (gcs_probe.py) does once the script is connected: "arm",
+    # "disarm", a second apart
+    gcs_does: tuple = ()
     # a rotorpilot feature the script needs and that is missing: xfail(strict)
     missing: str = ""
     # the daemon writes ULogs (--log-dir), as PX4 SITL always does
@@ -137,14 +140,16 @@ EXAMPLES = [
         "mavlink_direct_send.py", True, 40, lines=(r"Sending airspeed 19",), gcs_msgs=(("AIRSPEED", 245),),
         missing="forwarding: a message from a client on the API link reaches the GCS link (PX4 SITL's mavlink -f)",
     ),
-    Example("mission.py", True, 150, lines=(r"Mission progress: 4/4",), lands=True, modes=(MISSION, RTL)),
+    Example("mission.py", True, 150, lines=(r"Mission progress: 3/3",), lands=True, modes=(MISSION, RTL)),
     Example("mission_import.py", True, 30, lines=(r"Mission uploaded",)),
     Example("mission_raw.py", True, 30, lines=(r"-- Done",)),
     Example("offboard_attitude.py", True, 60, lines=(r"-- Stopping offboard",), modes=(OFFBOARD,)),
     Example("offboard_position_ned.py", True, 90, lines=(r"-- Stopping offboard",), modes=(OFFBOARD,)),
+    # it lands, then stops offboard, which (MAVSDK's Offboard.stop) switches
+    # to Hold: the vehicle stays in the air, on PX4 too
     Example(
-        "offboard_position_velocity_ned.py", True, 90, lines=(r"-- Stopping offboard",), lands=True,
-        modes=(OFFBOARD,),
+        "offboard_position_velocity_ned.py", True, 90, lines=(r"-- Stopping offboard",), modes=(OFFBOARD,),
+        at=("-- Stopping offboard", (50.0, 0.0, -10.0)),
     ),
     Example("offboard_velocity_body.py", True, 90, lines=(r"-- Stopping offboard",), modes=(OFFBOARD,)),
     Example("offboard_velocity_ned.py", True, 90, lines=(r"-- Stopping offboard",), modes=(OFFBOARD,)),
@@ -159,12 +164,15 @@ EXAMPLES = [
     ),
     Example("takeoff_and_land.py", True, 60, lines=(r"-- Landing",), lands=True, modes=(LAND,)),
     Example(
-        "telemetry.py", False, 30, lines=(r"Battery: \d", r"GPS info: \[num_satellites: \d+, fix_type: FIX_3D\]",
+        "telemetry.py", False, 30, lines=(r"Battery: \d", r"GPS info: GpsInfo: \[num_satellites: \d+, fix_type: FIX_3D\]",
                                           r"In air: False", r"Position: \[latitude_deg: 47\.39"),
     ),
     Example("telemetry_flight_mode.py", False, 30, lines=(r"FlightMode: HOLD",)),
     Example("telemetry_is_armed_is_in_air.py", False, 30, lines=(r"Is_armed: False", r"Is_in_air: False")),
-    Example("telemetry_status_text.py", False, 30, lines=(r"Statustext: \[type: \w+, text: .+\]",)),
+    Example(
+        "telemetry_status_text.py", False, 30, lines=(r"Statustext: StatusText: \[type: INFO, text: Armed by external command\]",),
+        gcs_does=("arm", "disarm"),
+    ),
     Example(
         "telemetry_takeoff_and_land.py", True, 90, lines=(r"Altitude: \d", r"Flight mode: TAKEOFF"), lands=True,
     ),
@@ -325,7 +333,7 @@ def test_example(ex, tmp_path):
         vehicle.start()
         probe_proc = subprocess.Popen(
             ns.wrap() + [sys.executable, str(HERE / "gcs_probe.py")],
-            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
         )
         probe = Lines(probe_proc.stdout, json.loads)
         assert probe.wait(lambda ev: "ready" in ev, 10), "the GCS probe did not start"
@@ -339,6 +347,12 @@ def test_example(ex, tmp_path):
         )
         out = Lines(script.stdout)
         t0 = time.monotonic()
+        if ex.gcs_does:
+            assert out.wait(lambda x: "Connected to drone" in x, ex.bound), f"{ex.path} did not connect"
+            for what in ex.gcs_does:
+                probe_proc.stdin.write(what + "\n")
+                probe_proc.stdin.flush()
+                time.sleep(1)
         if ex.ends:
             try:
                 rc = script.wait(ex.bound)
@@ -351,6 +365,10 @@ def test_example(ex, tmp_path):
             got = out.wait(lambda x, p=pattern: re.search(p, x), left)
             assert got, f"{ex.path} printed no line matching {pattern!r}\n{text_of(out)[-3000:]}"
         if not ex.ends:
+            for mode in ex.modes:
+                left = max(0.5, ex.bound - (time.monotonic() - t0))
+                assert probe.wait(lambda ev, m=mode: (ev.get("main"), ev.get("sub")) == m, left), \
+                    f"the vehicle was not in PX4 mode {mode} within {ex.bound} s"
             # Ctrl-C, as its user ends it (the KeyboardInterrupt it does not
             # catch is its way out). Twice: MAVSDK-Python 3 reads
             # mavsdk_server's output on a non-daemon thread and kills the
@@ -394,7 +412,12 @@ def test_example(ex, tmp_path):
     finally:
         if script is not None and script.poll() is None:
             script.kill()
+        if script is not None:
+            print(f"{ex.path}'s output:\n{text_of(out)[-4000:]}")
+        if probe is not None:
+            print("the GCS link saw:", [ev for _, ev in probe.all() if "ned" not in ev and "msg" not in ev])
         vehicle.stop()
+        print("rotorpilot's log:\n" + vehicle.logs()[-2000:])
         left = ns.close()
         vehicle.cleanup()
         assert not left, f"processes left in the test's namespace: {left}"

@@ -92,6 +92,9 @@ class Example:
     gcs_does: tuple = ()
     # a rotorpilot feature the script needs and that is missing: xfail(strict)
     missing: str = ""
+    # parameters (name, value) the vehicle holds afterwards, as saved in its
+    # state directory's params.toml
+    saved: tuple = ()
     # the daemon writes ULogs (--log-dir), as PX4 SITL always does
     logs: bool = False
 
@@ -178,7 +181,7 @@ EXAMPLES = [
     ),
     Example(
         "upload_params.py", True, 60, lines=(r"Params uploaded!",),
-        args=("udpin://0.0.0.0:14540", "{params_file}"),
+        args=("udpin://0.0.0.0:14540", "{params_file}"), saved=(("MIS_TAKEOFF_ALT", 3.5), ("COM_DISARM_LAND", 3.0)),
     ),
 ]
 
@@ -310,6 +313,19 @@ def raised(lines, quiet=3.0):
             and time.monotonic() - items[-1][0] > quiet)
 
 
+def saved_param(state_dir, name):
+    """The value of `name` in the vehicle's params.toml (None if absent)."""
+    try:
+        text = Path(state_dir, "params.toml").read_text()
+    except OSError:
+        return None
+    for line in text.splitlines():
+        key, _, value = line.partition("#")[0].partition("=")
+        if key.strip() == name:
+            return float(value.strip())
+    return None
+
+
 def text_of(lines):
     return "\n".join(x for _, x in lines.all())
 
@@ -414,6 +430,11 @@ def test_example(ex, tmp_path):
                 time.sleep(0.2)
             assert vehicle_state(probe) == (False, 1), \
                 f"the vehicle is not landed and disarmed: (armed, landed state) = {vehicle_state(probe)}"
+        for name, value in ex.saved:
+            deadline = time.monotonic() + 10
+            while (held := saved_param(vehicle.state_dir, name)) != value and time.monotonic() < deadline:
+                time.sleep(0.2)
+            assert held == value, f"{name} is {held} in the vehicle's saved parameters, not {value}"
         flown = {(ev["main"], ev["sub"]) for _, ev in probe.all() if "main" in ev}
         for mode in ex.modes:
             assert mode in flown, f"the vehicle never flew in PX4 mode {mode}; it flew in {sorted(flown)}"

@@ -81,8 +81,12 @@ PATH="$VENV/ci-recipe/bin:$PATH" actionlint docs/ci/mission-tests.yml
 timeout 300 "$VENV/ci-recipe/bin/python" -m pytest -q -p no:cacheprovider tests/tools/test_ci_recipe.py
 # pyulog reads the daemon's flight.ulg (tests/clients/test_pymavlink_logs.py)
 client_venv pymavlink "pymavlink==2.4.50" "pytest==9.2.0" "pyulog==1.3.0"
-# pyulog reads the log MAVSDK downloads (tests/clients/test_mavsdk3_files.py)
-client_venv mavsdk3 "mavsdk==3.17.4" "pymavlink==2.4.50" "pytest==9.2.0" "pyulog==1.3.0"
+# pyulog reads the log MAVSDK downloads (tests/clients/test_mavsdk3_files.py);
+# anyio and tqdm: MAVSDK-Python's own examples import them (upload_params.py,
+# offboard_from_csv.py); pytest-xdist runs those examples four at a time
+# (tests/clients/test_mavsdk_python_examples.py)
+client_venv mavsdk3 "mavsdk==3.17.4" "pymavlink==2.4.50" "pytest==9.2.0" "pyulog==1.3.0" "anyio==4.16.0" \
+    "tqdm==4.70.1" "pytest-xdist==3.8.0"
 client_venv mavsdk4 "mavsdk==4.1.0" "pytest==9.2.0"
 # MAVProxy 1.8.74: the newest without vtk/opencv/matplotlib as dependencies
 # (1.8.75), and it answers MISSION_REQUEST_INT (1.8.71 answers only
@@ -110,6 +114,13 @@ timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/cl
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_replay.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_wind.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_files.py
+# MAVSDK-Python's own examples, unmodified, from the checkout that
+# $MAVSDK_PYTHON_EXAMPLES names (tests/clients/mavsdk_python_examples/README.md:
+# the pinned tag, every file checked by SHA-256); each test in a network and
+# PID namespace of its own (unshare, as root) on PX4's fixed ports, so four
+# run at once (the scripts mostly sleep on the wall clock): ~5 min. Without the
+# variable every test skips and says why.
+timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -rs -n 4 -p no:cacheprovider tests/clients/test_mavsdk_python_examples.py
 # a fleet in one process on PX4's ports: needs UDP 14550, 14540..14543 and the instances' ports free
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_fleet.py
 timeout 900 "$VENV/mavsdk4/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk4.py

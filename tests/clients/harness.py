@@ -60,9 +60,14 @@ def free_instance():
 class Vehicle:
     """A rotorpilot process. `instance` sets the PX4 ports (API link 14580+N
     sending to 127.0.0.1:14540+N); the GCS link sends to `gcs_port` (a free
-    port by default, not 14550, so tests never talk to a real GCS)."""
+    port by default, not 14550, so tests never talk to a real GCS). `wrap`
+    is a command prefix the binary runs under (`nsenter ... --` into a
+    network namespace); signals then go to the vehicle, the prefix's child,
+    since the prefix forwards none."""
 
-    def __init__(self, instance=None, speed=5.0, gcs_port=None, extra=(), params=None):
+    wrap = ()
+
+    def __init__(self, instance=None, speed=5.0, gcs_port=None, extra=(), params=None, wrap=()):
         self.instance = free_instance() if instance is None else instance
         self.gcs_port = gcs_port or free_udp_port()
         self.api_port = 14540 + self.instance
@@ -81,11 +86,12 @@ class Vehicle:
                 for name, value in params.items():
                     f.write(f"{name} = {value}\n")
         self.extra = list(extra)
+        self.wrap = list(wrap)
         self.proc = None
         self.banner = []
 
     def start(self, timeout=15.0):
-        args = [
+        args = list(self.wrap) + [
             binary(),
             "--instance", str(self.instance),
             "--speed", str(self.speed),
@@ -123,7 +129,7 @@ class Vehicle:
             return 0.0
         t0 = time.monotonic()
         if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGTERM)
+            os.kill(wrapped_pid(self.proc.pid) if self.wrap else self.proc.pid, signal.SIGTERM)
             try:
                 self.proc.wait(timeout)
             except subprocess.TimeoutExpired:
@@ -147,6 +153,23 @@ class Vehicle:
             self.cleanup()
         else:
             print("rotorpilot log:\n" + self.logs())
+
+
+def wrapped_pid(pid, timeout=5.0):
+    """The child that a wrapper process `pid` (such as `nsenter`, which runs
+    its command as its one child and forwards no signal) runs: the process to
+    signal. `pid` itself when it has none within `timeout` s (it has ended)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            with open(f"/proc/{pid}/task/{pid}/children") as f:
+                kids = f.read().split()
+        except OSError:
+            return pid
+        if kids:
+            return int(kids[0])
+        time.sleep(0.02)
+    return pid
 
 
 def busy_udp_ports(ports, host="0.0.0.0"):

@@ -81,6 +81,10 @@ impl Recorder {
         let (mut rebuilt, rebuilt_params) = header
             .build()
             .map_err(|e| anyhow::anyhow!("the flight record's header does not rebuild the vehicle: {e}"))?;
+        if core.world().raw_sensors_enabled(vehicle) {
+            // as replay rebuilds it for a ULog
+            rebuilt.enable_raw_sensors();
+        }
         anyhow::ensure!(
             core.steps() == 0
                 // as Debug text: a NaN in the telemetry equals itself there

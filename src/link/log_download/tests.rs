@@ -14,10 +14,13 @@ use crate::link::{Link, Outgoing};
 
 /// Logs by name (shared: a test adds one while the link holds the store).
 #[derive(Debug, Default, Clone)]
-struct Logs(Arc<Mutex<Vec<(String, Vec<u8>)>>>);
+struct Logs(Arc<Mutex<Vec<Named>>>);
+
+/// A log's path and bytes.
+type Named = (String, Vec<u8>);
 
 impl Logs {
-    fn of(logs: Vec<(String, Vec<u8>)>) -> Self {
+    fn of(logs: Vec<Named>) -> Self {
         Self(Arc::new(Mutex::new(logs)))
     }
 }
@@ -28,6 +31,8 @@ impl FileStore for Logs {
     }
     fn size(&self, path: &str) -> Result<u32, FsError> {
         self.0
+            .lock()
+            .unwrap()
             .iter()
             .find(|l| l.0 == path)
             .map(|l| l.1.len() as u32)
@@ -141,7 +146,7 @@ fn logs_are_listed_then_sent_in_90_byte_chunks_then_erased() {
     let t = Instant::now();
     let mut l = link(t);
     let big: Vec<u8> = (0..1000u32).map(|i| (i * 7) as u8).collect();
-    l.set_files(Box::new(Logs(vec![
+    l.set_files(Box::new(Logs::of(vec![
         ("/log/a.ulg".into(), vec![1; 5]),
         ("/log/b.ulg".into(), big.clone()),
     ])));

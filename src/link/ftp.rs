@@ -653,6 +653,8 @@ impl Link {
                 return;
             }
             b.held_since = None;
+            // a long burst is activity: the session stays open through it
+            self.ftp.last_request = now;
             if last {
                 return;
             }

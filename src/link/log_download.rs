@@ -3,9 +3,10 @@
 //! last_log_num, time_utc, size), or one LOG_ENTRY with num_logs 0 when
 //! there is none; LOG_REQUEST_DATA streams LOG_DATA of 90 bytes from `ofs`
 //! for `count` bytes (a shorter one ends the file); LOG_REQUEST_END stops;
-//! LOG_ERASE removes the logs. The list is taken at the first request (the
-//! flight being written is in it, at its size then, as PX4 lists it) and kept
-//! until LOG_REQUEST_END or LOG_ERASE. Everything sent is paced by the
+//! LOG_ERASE removes the logs. The list is taken afresh when a request's
+//! range is wider than the list held (the flight being written is in it, at
+//! its size then, as PX4 lists it) and kept for LOG_REQUEST_DATA until
+//! LOG_REQUEST_END or LOG_ERASE. Everything sent is paced by the
 //! requester's budget ([`super::budget`]).
 
 use std::net::SocketAddr;
@@ -61,7 +62,17 @@ impl Server {
 impl Link {
     /// LOG_REQUEST_LIST for us: list `start..=end` (clamped).
     pub(super) fn on_log_request_list(&mut self, now: Instant, from: SocketAddr, start: u16, end: u16) {
-        let logs = self.logs.logs.get_or_insert_with(|| self.ftp.files().logs());
+        // PX4 lists afresh when the range asked for is wider than the list
+        // it holds (MAVSDK and QGroundControl ask for 0..0xFFFF)
+        if self
+            .logs
+            .logs
+            .as_ref()
+            .is_none_or(|l| usize::from(end.saturating_sub(start)) > l.len())
+        {
+            self.logs.logs = Some(self.ftp.files().logs());
+        }
+        let logs = self.logs.logs.get_or_insert_with(Vec::new);
         let count = logs.len().min(usize::from(u16::MAX)) as u16;
         let (next, last) = if count == 0 {
             (0, 0)

@@ -80,12 +80,16 @@ pub(in crate::autopilot) struct MissionRun {
 /// origin and home's altitude, and the leg's heading (an `atan2`).
 #[derive(Clone, Debug, Default)]
 struct LegMemo {
-    points: [Option<(MissionItem, [u64; 4], Vector3<f64>)>; 2],
+    points: [Option<PointEntry>; 2],
     /// The entry of `points` replaced next.
     next: usize,
     /// `(d_x, d_y)` bits and `atan2(d_y, d_x)`.
     heading: Option<(u64, u64, f64)>,
 }
+
+/// An item, the bits of the origin's latitude, longitude, altitude and of
+/// home's altitude, and the item's point [m], NED.
+type PointEntry = (MissionItem, [u64; 4], Vector3<f64>);
 
 /// A memo holds no state of the mission: two runs are equal whatever it holds.
 impl PartialEq for LegMemo {

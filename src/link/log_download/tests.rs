@@ -1,5 +1,6 @@
 //! Log download exchanges against a link serving an in-memory store.
 
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::common::{
@@ -11,9 +12,18 @@ use crate::link::testing::{FakeParams, addr, link, snapshot};
 use crate::link::wire::{self, Inbound};
 use crate::link::{Link, Outgoing};
 
-/// Logs by name.
-#[derive(Debug, Default)]
-struct Logs(Vec<(String, Vec<u8>)>);
+/// Logs by name (shared: a test adds one while the link holds the store).
+#[derive(Debug, Default, Clone)]
+struct Logs(Arc<Mutex<Vec<Named>>>);
+
+/// A log's path and bytes.
+type Named = (String, Vec<u8>);
+
+impl Logs {
+    fn of(logs: Vec<Named>) -> Self {
+        Self(Arc::new(Mutex::new(logs)))
+    }
+}
 
 impl FileStore for Logs {
     fn list(&self, _: &str) -> Result<Vec<DirEntry>, FsError> {
@@ -21,13 +31,16 @@ impl FileStore for Logs {
     }
     fn size(&self, path: &str) -> Result<u32, FsError> {
         self.0
+            .lock()
+            .unwrap()
             .iter()
             .find(|l| l.0 == path)
             .map(|l| l.1.len() as u32)
             .ok_or(FsError::NotFound)
     }
     fn read_at(&self, path: &str, offset: u32, buf: &mut [u8]) -> Result<usize, FsError> {
-        let v = &self.0.iter().find(|l| l.0 == path).ok_or(FsError::NotFound)?.1;
+        let all = self.0.lock().unwrap();
+        let v = &all.iter().find(|l| l.0 == path).ok_or(FsError::NotFound)?.1;
         let s = (offset as usize).min(v.len());
         let n = buf.len().min(v.len() - s);
         buf[..n].copy_from_slice(&v[s..s + n]);
@@ -56,6 +69,8 @@ impl FileStore for Logs {
     }
     fn logs(&self) -> Vec<LogFile> {
         self.0
+            .lock()
+            .unwrap()
             .iter()
             .map(|(p, v)| LogFile {
                 path: p.clone(),
@@ -65,7 +80,7 @@ impl FileStore for Logs {
             .collect()
     }
     fn erase_logs(&mut self) {
-        self.0.clear();
+        self.0.lock().unwrap().clear();
     }
 }
 
@@ -131,7 +146,7 @@ fn logs_are_listed_then_sent_in_90_byte_chunks_then_erased() {
     let t = Instant::now();
     let mut l = link(t);
     let big: Vec<u8> = (0..1000u32).map(|i| (i * 7) as u8).collect();
-    l.set_files(Box::new(Logs(vec![
+    l.set_files(Box::new(Logs::of(vec![
         ("/log/a.ulg".into(), vec![1; 5]),
         ("/log/b.ulg".into(), big.clone()),
     ])));
@@ -210,4 +225,32 @@ fn logs_are_listed_then_sent_in_90_byte_chunks_then_erased() {
     let out = run(&mut l, t);
     let MavMessage::LOG_ENTRY(e) = &out[0] else { panic!() };
     assert_eq!(e.num_logs, 0);
+}
+
+#[test]
+fn a_full_range_request_lists_afresh_as_px4_does() {
+    let t = Instant::now();
+    let mut l = link(t);
+    let store = Logs::of(vec![("/log/a.ulg".into(), vec![1; 5])]);
+    l.set_files(Box::new(store.clone()));
+    send(&mut l, t, &list(0, u16::MAX));
+    assert_eq!(run(&mut l, t).len(), 1);
+    // a new flight's log appears: MAVSDK's next list (0..0xFFFF) sees it
+    store.0.lock().unwrap().push(("/log/b.ulg".into(), vec![2; 7]));
+    send(&mut l, t, &list(0, u16::MAX));
+    let out = run(&mut l, t);
+    let sizes: Vec<_> = out
+        .iter()
+        .map(|m| match m {
+            MavMessage::LOG_ENTRY(e) => (e.id, e.num_logs, e.size),
+            other => panic!("{other:?}"),
+        })
+        .collect();
+    assert_eq!(sizes, vec![(0, 2, 5), (1, 2, 7)]);
+    // a narrow re-request (lost entries) keeps the list it has
+    store.0.lock().unwrap().push(("/log/c.ulg".into(), vec![3; 9]));
+    send(&mut l, t, &list(1, 1));
+    let out = run(&mut l, t);
+    let MavMessage::LOG_ENTRY(e) = &out[0] else { panic!() };
+    assert_eq!((out.len(), e.id, e.num_logs), (1, 1, 2));
 }

@@ -329,11 +329,20 @@ async fn a_client_flooding_one_vehicle_does_not_stall_another() {
         sim > 0.9 * wall - 0.2,
         "system 2's clock kept pace: {sim:.2} s in {wall:.2} s"
     );
-    // and the flooded vehicle still answers afterwards
+    // and the flooded vehicle still answers afterwards, once the datagrams
+    // queued in its socket are read: a client retries as MAVSDK does (on a
+    // loaded machine the backlog can take longer than one timeout)
     let mut c0 = Client::new().await;
-    c0.command_long(api0, 176, [1.0, 4.0, 3.0, 0.0, 0.0, 0.0, 0.0], (1, 1))
-        .await;
-    assert!(c0.ack_of(176, Duration::from_secs(2)).await.is_some());
+    let mut answered = false;
+    for _ in 0..5 {
+        c0.command_long(api0, 176, [1.0, 4.0, 3.0, 0.0, 0.0, 0.0, 0.0], (1, 1))
+            .await;
+        if c0.ack_of(176, Duration::from_secs(2)).await.is_some() {
+            answered = true;
+            break;
+        }
+    }
+    assert!(answered, "system 1 answers after the flood");
     fleet.stop().await;
 }
 

@@ -1147,7 +1147,7 @@ fn touchdown_to_landed_takes_about_the_detection_time() {
 
 /// What the link used to decide is the autopilot's now, at the instant the
 /// command is applied: reboot and shutdown only disarmed, failure injection
-/// only with SYS_FAILURE_EN (then the world's: none is wired yet), no mission
+/// only with SYS_FAILURE_EN (then the world's: it has no optical-flow sensor), no mission
 /// to start, an invalid home refused, a body-frame setpoint turned by the
 /// heading the vehicle has when it arrives.
 #[test]
@@ -1156,8 +1156,9 @@ fn the_autopilot_decides_what_the_link_only_translates() {
     let mut ap = Sitl::quad().build();
     ap.step();
     let reboot = AutopilotCommand::Power(PowerAction::Reboot);
+    // FAILURE_UNIT_SENSOR_OPTICAL_FLOW, FAILURE_TYPE_OFF
     let inject = AutopilotCommand::InjectFailure {
-        unit: 0,
+        unit: 5,
         kind: 1,
         instance: 1,
     };

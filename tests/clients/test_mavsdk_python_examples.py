@@ -119,7 +119,6 @@ EXAMPLES = [
     Example("firmware_version.py", True, 30, lines=(r"flight_sw_major",)),
     Example(
         "follow_me_example.py", True, 120, lines=(r"-- Following Target",), lands=True, modes=(FOLLOW,),
-        missing="follow-me: FOLLOW_TARGET, the FLW_TGT_* parameters and AUTO.FOLLOW_TARGET",
     ),
     Example("geofence.py", True, 30, lines=(r"Geofence uploaded!",)),
     Example(
@@ -127,11 +126,9 @@ EXAMPLES = [
     ),
     Example(
         "highres_imu.py", False, 30, lines=(r"HIGHRES_IMU \(105\)", r"X Acceleration \(m/s\^2\): -?\d"),
-        missing="HIGHRES_IMU (105) on request (SET_MESSAGE_INTERVAL): the simulated IMU",
     ),
     Example(
         "logfile_download.py", True, 60, lines=(r"Log \d+ from", r"100 %"), logs=True,
-        missing="log download: LOG_REQUEST_LIST / LOG_ENTRY / LOG_REQUEST_DATA over the ULogs --log-dir writes",
     ),
     Example(
         "manual_control.py", False, 40, lines=(r"-- Starting manual control",), modes=(POSCTL,),
@@ -159,7 +156,6 @@ EXAMPLES = [
     Example(
         "offboard_from_csv/offboard_from_csv.py", True, 240, lines=(r"-- Shape completed",), speed=1.0,
         lands=True, modes=(OFFBOARD,), at=("-- Shape completed", (0.0, 0.206, -15.0)),
-        missing="offboard position + velocity: the velocity as feed-forward, so the time-stamped path is tracked",
     ),
     Example(
         "send_status_message.py", True, 30, lines=(r"-- Connected to drone!",), gcs_texts=("Hello world!",),

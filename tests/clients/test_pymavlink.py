@@ -369,7 +369,10 @@ def test_the_vehicle_decides_and_names_its_airframe():
         assert wait(m, "HEARTBEAT", lambda h: h.type == mavlink.MAV_TYPE_OCTOROTOR, 3.0) is not None
 
 
-def test_mavproxy_style_ftp_falls_back_at_once(vehicle):
+def test_param_pck_opens_as_px4_serves_it(vehicle):
+    """MAVProxy's and QGroundControl's first FTP request: OpenFileRO of
+    @PARAM/param.pck is ACKed with the file's size (4 bytes, little endian)
+    in a session, as PX4 answers it."""
     m = connect(vehicle)
     payload = bytearray(251)
     payload[3] = 4  # OpenFileRO
@@ -380,7 +383,9 @@ def test_mavproxy_style_ftp_falls_back_at_once(vehicle):
     r = wait(m, "FILE_TRANSFER_PROTOCOL", timeout=2.0)
     assert r is not None
     data = bytes(r.payload)
-    assert data[3] == 129 and data[12] == 10  # NAK, FileNotFound
+    assert data[3] == 128, f"ACK, not opcode {data[3]} (error {data[12]})"
+    assert data[5] == 4 and data[4] == 4  # req_opcode OpenFileRO, size 4
+    assert int.from_bytes(data[12:16], "little") > 0, "param.pck has a size"
 
 
 def test_clean_shutdown_saves_parameters():

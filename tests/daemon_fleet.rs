@@ -477,3 +477,42 @@ fn ulog_records(b: &[u8]) -> Vec<(u8, Vec<u8>)> {
     assert_eq!(at, b.len(), "a record cut short");
     out
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn each_vehicle_forwards_among_its_own_links_only() {
+    use mavlink::dialects::common::{MavSeverity, STATUSTEXT_DATA};
+    // one GCS on both vehicles' GCS links, a companion on vehicle 0's API link
+    let mut gcs = Client::with_ids(255, 190).await;
+    let fleet = Fleet::start(2, 3.0, 1.0, gcs.addr()).await;
+    for (g, _) in &fleet.links {
+        gcs.heartbeat(*g).await;
+    }
+    let mut api = Client::with_ids(245, 191).await;
+    let (_, api0) = fleet.links[0];
+    api.heartbeat(api0).await;
+    api.wait_for(Duration::from_secs(3), |r| (r.sysid == 1).then_some(()))
+        .await
+        .expect("vehicle 0 answers on its API link");
+    gcs.drain().await;
+    let text = MavMessage::STATUSTEXT(STATUSTEXT_DATA {
+        severity: MavSeverity::MAV_SEVERITY_INFO,
+        text: "from the companion of system 1".into(),
+        id: 0,
+        chunk_seq: 0,
+    });
+    api.send(api0, &text).await;
+    let mut from = Vec::new();
+    let deadline = Instant::now() + Duration::from_secs(1);
+    while let Some(left) = deadline.checked_duration_since(Instant::now()) {
+        let Some(r) = gcs.recv(left).await else { break };
+        if (r.sysid, r.compid, r.msgid) == (245, 191, 253) {
+            from.push(r.from);
+        }
+    }
+    assert_eq!(
+        from,
+        vec![fleet.links[0].0],
+        "once, from vehicle 0's GCS link; vehicle 1 never heard the companion"
+    );
+    fleet.stop().await;
+}

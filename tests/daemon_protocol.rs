@@ -764,3 +764,91 @@ async fn reposition_as_command_int_from_both_mavsdk_generations() {
     assert!(seen > 10, "{seen} positions in 2 s");
     v.stop().await;
 }
+
+/// Every frame from `(sysid, compid)` with message id `msgid` that `c`
+/// hears within `wait`.
+async fn heard_from(c: &mut Client, wait: Duration, sysid: u8, compid: u8, msgid: u32) -> Vec<common::daemon::Rx> {
+    let mut got = Vec::new();
+    let deadline = tokio::time::Instant::now() + wait;
+    while let Some(left) = deadline.checked_duration_since(tokio::time::Instant::now()) {
+        let Some(r) = c.recv(left).await else { break };
+        if (r.sysid, r.compid, r.msgid) == (sysid, compid, msgid) {
+            got.push(r);
+        }
+    }
+    got
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn messages_are_forwarded_between_the_links_as_px4_sitl_does() {
+    // a GCS (255/190) on the GCS link and a companion (245/190) on the API link
+    let mut gcs = Client::with_ids(255, 190).await;
+    let mut api = Client::with_ids(245, 190).await;
+    let v = vehicle_for(&gcs).await;
+    gcs.heartbeat(v.gcs).await;
+    api.heartbeat(v.api).await;
+    heartbeat(&mut api, S3).await;
+    gcs.drain().await;
+    // GIVEN the companion's STATUSTEXT WHEN sent on the API link THEN the
+    // GCS gets it with the companion's ids, payload as sent
+    let text = MavMessage::STATUSTEXT(STATUSTEXT_DATA {
+        severity: MavSeverity::MAV_SEVERITY_INFO,
+        text: "Hello world!".into(),
+        id: 0,
+        chunk_seq: 0,
+    });
+    api.send(v.api, &text).await;
+    let got = heard_from(&mut gcs, S1, 245, 190, 253).await;
+    assert_eq!(got.len(), 1, "one STATUSTEXT from 245/190 on the GCS link");
+    assert_eq!(got[0].msg, Some(text));
+    assert_eq!(got[0].from, v.gcs, "sent from the GCS link");
+    // a COMMAND_LONG for the autopilot (1/1) is answered, not forwarded
+    api.command_long(v.api, 512, [242.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], (1, 1))
+        .await;
+    assert!(api.ack_of(512, S3).await.is_some(), "the vehicle answers it");
+    assert!(heard_from(&mut gcs, S1, 245, 190, 76).await.is_empty(), "not forwarded");
+    // one for the GCS's component (seen only on the GCS link) is passed there,
+    // and the vehicle does not answer it
+    api.command_long(v.api, 512, [242.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], (255, 190))
+        .await;
+    let got = heard_from(&mut gcs, S1, 245, 190, 76).await;
+    assert_eq!(got.len(), 1, "forwarded to the component it is aimed at");
+    assert!(api.ack_of(512, Duration::from_millis(300)).await.is_none());
+    // one for a component heard nowhere is dropped
+    api.command_long(v.api, 512, [242.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], (77, 1))
+        .await;
+    assert!(heard_from(&mut gcs, S1, 245, 190, 76).await.is_empty());
+    // the companion's heartbeat reaches the GCS (MAV_HB_FORW_EN 1, PX4's default) ...
+    api.heartbeat(v.api).await;
+    assert_eq!(heard_from(&mut gcs, S1, 245, 190, 0).await.len(), 1);
+    // ... and not once MAV_HB_FORW_EN is 0
+    gcs.param_set(
+        v.gcs,
+        "MAV_HB_FORW_EN",
+        f32::from_bits(0),
+        MavParamType::MAV_PARAM_TYPE_INT32,
+    )
+    .await;
+    gcs.wait_for(S3, |r| match &r.msg {
+        Some(MavMessage::PARAM_VALUE(p)) if p.param_id.to_str().ok() == Some("MAV_HB_FORW_EN") => Some(()),
+        _ => None,
+    })
+    .await
+    .expect("MAV_HB_FORW_EN set");
+    gcs.drain().await;
+    api.heartbeat(v.api).await;
+    assert!(heard_from(&mut gcs, S1, 245, 190, 0).await.is_empty());
+    // the other way: the GCS's NAMED_VALUE_FLOAT reaches the companion
+    let nvf = MavMessage::NAMED_VALUE_FLOAT(NAMED_VALUE_FLOAT_DATA {
+        time_boot_ms: 5,
+        name: "GCS".into(),
+        value: 1.5,
+    });
+    // (the API link's streams unread so far could fill the socket's buffer)
+    api.drain().await;
+    gcs.send(v.gcs, &nvf).await;
+    let got = heard_from(&mut api, S1, 255, 190, 251).await;
+    assert_eq!(got.len(), 1);
+    assert_eq!(got[0].msg, Some(nvf));
+    v.stop().await;
+}

@@ -183,6 +183,7 @@ const SHARED_WITH_PX4: &[&str] = &[
     "SYS_FAILURE_EN",
     "MAV_SYS_ID",
     "MAV_COMP_ID",
+    "MAV_HB_FORW_EN",
     "BAT1_N_CELLS",
     "BAT1_CAPACITY",
     "SIM_BAT_MIN_PCT",

@@ -106,6 +106,7 @@ timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/
 timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_startup.py
 timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_wind.py
 timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_sensors.py
+timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_forward.py
 timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_ftp.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_mission.py

@@ -4,7 +4,9 @@
 //! forwards commands, parameter sets and plan changes to the simulation
 //! thread and sends the answers. While the vehicle's radio is silent (an
 //! injected MAVLINK_SIGNAL failure) it sends nothing, bar the ACK of the
-//! command that silenced it, and keeps receiving.
+//! command that silenced it, and keeps receiving. The tasks of one vehicle's
+//! links hand each other the frames PX4 forwards between links
+//! ([`crate::link::forward`]), over bounded queues ([`Forwards`]).
 
 use std::net::SocketAddr;
 use std::sync::mpsc::TrySendError;
@@ -12,12 +14,13 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use tokio::net::UdpSocket;
-use tokio::sync::{Notify, broadcast, watch};
+use tokio::sync::{Notify, broadcast, mpsc, watch};
 use tokio::time::Instant;
 use tracing::{debug, warn};
 
 use super::messages::{Answer, Event, SimRequest, lock, reply};
 use crate::autopilot::{AutopilotCommand, CommandOutcome};
+use crate::link::forward::{Fellows, Forwarded};
 use crate::link::{Effect, Link, Outgoing, To};
 use crate::lockstep::Snapshot;
 use crate::mission::MissionResult;
@@ -43,6 +46,67 @@ pub(super) struct LinkTask {
     pub(super) tlog: super::tlog::Tlog,
     /// Notified when SETUP_SIGNING changed the vehicle's key (`signing.rs` stores it).
     pub(super) signing_changed: Arc<Notify>,
+    /// Frames to and from the vehicle's other links.
+    pub(super) forwards: Forwards,
+}
+
+/// Frames forwarded between the links of one vehicle: what a link task
+/// receives from the others, and the queues of the others. A frame that
+/// finds a queue full is dropped (PX4 holds two per link and drops the rest).
+#[derive(Debug, Default)]
+pub(super) struct Forwards {
+    inbox: Option<mpsc::Receiver<Forwarded>>,
+    others: Vec<mpsc::Sender<Forwarded>>,
+}
+
+/// Frames a link task holds for it from the other links before dropping more.
+const FORWARD_QUEUE: usize = 64;
+
+impl Forwards {
+    /// The queues of a vehicle's `n` links, and each link's share of the
+    /// vehicle's forwarding state; nothing for a lone link (it forwards nothing).
+    pub(super) fn for_links(n: usize) -> Vec<(Self, Option<Fellows>)> {
+        if n < 2 {
+            return (0..n).map(|_| (Self::default(), None)).collect();
+        }
+        let (txs, rxs): (Vec<_>, Vec<_>) = (0..n).map(|_| mpsc::channel(FORWARD_QUEUE)).unzip();
+        rxs.into_iter()
+            .zip(Fellows::for_links(n))
+            .enumerate()
+            .map(|(i, (rx, fellows))| {
+                let others = txs
+                    .iter()
+                    .enumerate()
+                    .filter(|(j, _)| *j != i)
+                    .map(|(_, t)| t.clone())
+                    .collect();
+                (
+                    Self {
+                        inbox: Some(rx),
+                        others,
+                    },
+                    Some(fellows),
+                )
+            })
+            .collect()
+    }
+
+    /// The next frame from another link (pending for ever without any).
+    async fn recv(&mut self) -> Option<Forwarded> {
+        match self.inbox.as_mut() {
+            Some(rx) => rx.recv().await,
+            None => std::future::pending().await,
+        }
+    }
+
+    /// Hand `frames` to every other link, dropping what finds a queue full.
+    fn send(&self, frames: Vec<Forwarded>) {
+        for f in frames {
+            for tx in &self.others {
+                let _ = tx.try_send(f.clone());
+            }
+        }
+    }
 }
 
 /// How long a link waits for the simulation thread to take a request up
@@ -152,6 +216,7 @@ impl LinkTask {
                             let p = lock(&self.params);
                             self.link.on_datagram(Instant::now().into_std(), from, &buf[..n], &t, &*p)
                         };
+                        self.forwards.send(self.link.take_forwarded());
                         self.flush().await;
                         for e in effects {
                             if !self.effect(e).await {
@@ -168,6 +233,14 @@ impl LinkTask {
                         tokio::time::sleep(Duration::from_millis(10)).await;
                     }
                 },
+                // after the socket: this link's own clients come first
+                f = self.forwards.recv() => match f {
+                    Some(f) => {
+                        self.link.pass(Instant::now().into_std(), &f);
+                        self.flush().await;
+                    }
+                    None => self.forwards.inbox = None,
+                },
             }
         }
         let s = self.link.stats();
@@ -177,6 +250,8 @@ impl LinkTask {
             ignored = s.ignored,
             held_back = s.held_back,
             streams_shed = s.streams_shed,
+            forwarded = s.forwarded,
+            forward_shed = s.forward_shed,
             "link stopped"
         );
     }
@@ -449,6 +524,7 @@ mod tests {
             dests: Vec::new(),
             send_errors: 0,
             tlog: super::super::tlog::Tlog::default(),
+            forwards: Forwards::default(),
         };
         (task, inbox)
     }

@@ -591,7 +591,8 @@ impl Daemon {
                 system_id: config.system_id(),
                 component_id: 1,
             };
-            for (index, (spec, socket)) in v.sockets.into_iter().enumerate() {
+            let forwards = link_task::Forwards::for_links(v.sockets.len());
+            for (index, ((spec, socket), (forwards, fellows))) in v.sockets.into_iter().zip(forwards).enumerate() {
                 let mut link = Link::new(
                     LinkConfig {
                         name: spec.name.clone(),
@@ -603,6 +604,10 @@ impl Daemon {
                     Instant::now().into_std(),
                 );
                 link.set_signing(v.signing.shared.clone(), u8::try_from(index).unwrap_or(u8::MAX));
+                // PX4 SITL starts every link with `-f`: each forwards to the vehicle's others
+                if let Some(fellows) = fellows {
+                    link.set_forwarding(fellows);
+                }
                 link.set_files(Box::new(files::VehicleFiles::new(
                     config.state_dir.clone(),
                     config.log_dir.clone().map(|base| (base, config.instance)),
@@ -628,6 +633,7 @@ impl Daemon {
                         .map(|d| tlog::Tlog::create(d, &tlog::file_name(index, &spec.name)))
                         .unwrap_or_default(),
                     signing_changed: v.signing.changed.clone(),
+                    forwards,
                 });
             }
             // the links are subscribed: they send it once they run

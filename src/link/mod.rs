@@ -30,6 +30,7 @@
 //! | [`signing`] | MAVLink 2 signing: the key, the gate on input, signatures on output |
 //! | [`ftp`] | MAVLink FTP: sessions, bursts, `@PARAM/param.pck`, over a [`ftp::FileStore`] |
 //! | [`log_download`] | LOG_REQUEST_* / LOG_ENTRY / LOG_DATA over the store's ULogs |
+//! | [`forward`] | forwarding between a vehicle's links, by PX4's rule (`mavlink start -f`) |
 
 // PX4 and its clients still speak messages the XML marks deprecated
 // (SET_MODE, PING, ...): we must too.
@@ -38,6 +39,7 @@
 pub mod budget;
 pub mod command;
 pub mod convert;
+pub mod forward;
 pub mod ftp;
 pub mod log_download;
 pub mod manual;
@@ -201,6 +203,8 @@ pub struct Link {
     ftp: ftp::Server,
     /// Log download: the list and the transfer.
     logs: log_download::Server,
+    /// Forwarding to and from the vehicle's other links (`None`: it has none).
+    forwarding: Option<forward::Forwarding>,
 }
 
 /// A PARAM_REQUEST_LIST being answered: PX4 sends one parameter per
@@ -244,6 +248,11 @@ pub struct LinkStats {
     pub held_back: u64,
     /// Stream messages skipped because the link's stream budget was spent.
     pub streams_shed: u64,
+    /// Frames from the vehicle's other links sent on this one ([`forward`]).
+    pub forwarded: u64,
+    /// Frames from the other links dropped because this link's forwarding
+    /// budget was spent.
+    pub forward_shed: u64,
 }
 
 impl Link {
@@ -269,7 +278,41 @@ impl Link {
             stream_budget: budget::TokenBucket::new(now, budget::LINK_STREAM_RATE, 2.0 * budget::LINK_STREAM_RATE),
             ftp: ftp::Server::new(Box::new(ftp::NoFiles), now),
             logs: log_download::Server::default(),
+            forwarding: None,
         }
+    }
+
+    /// Forward to and from the vehicle's other links ([`forward`]); `fellows`
+    /// is this link's handle of the vehicle's shared state. A new link
+    /// forwards nothing (its vehicle has no other link).
+    pub fn set_forwarding(&mut self, fellows: forward::Fellows) {
+        self.forwarding = Some(forward::Forwarding::new(fellows, self.clock));
+    }
+
+    /// The frames received since the last call that go to the vehicle's
+    /// other links (each link then decides with [`Link::pass`]).
+    pub fn take_forwarded(&mut self) -> Vec<forward::Forwarded> {
+        self.forwarding
+            .as_mut()
+            .map(forward::Forwarding::take)
+            .unwrap_or_default()
+    }
+
+    /// A frame received on another link of the vehicle: queued, as it is,
+    /// for this link's peers if PX4 would pass it here ([`forward`]).
+    pub fn pass(&mut self, now: Instant, f: &forward::Forwarded) -> forward::Passed {
+        self.tick(now);
+        let Some(fwd) = self.forwarding.as_mut() else {
+            return forward::Passed::NotSeen;
+        };
+        let fanout = self.peers.active_count(now);
+        let passed = fwd.pass(now, f, fanout);
+        match passed {
+            forward::Passed::Sent => self.stats.forwarded += 1,
+            forward::Passed::OverBudget => self.stats.forward_shed += 1,
+            _ => {}
+        }
+        passed
     }
 
     /// Serve `files` by MAVLink FTP and log download (a new link serves
@@ -308,10 +351,19 @@ impl Link {
         self.peers.active(now, out);
     }
 
-    /// Take the frames queued so far (signed, in order, when the vehicle has a key).
+    /// Take the frames queued so far (signed, in order, when the vehicle
+    /// has a key), then the frames forwarded from the vehicle's other links
+    /// (as they came: never signed again).
     pub fn drain(&mut self) -> Vec<Outgoing> {
         let mut out = std::mem::take(&mut self.outbox);
         self.sign_all(&mut out);
+        if let Some(fwd) = self.forwarding.as_mut() {
+            out.extend(
+                fwd.drain_passed()
+                    .into_iter()
+                    .map(|bytes| Outgoing { to: To::All, bytes }),
+            );
+        }
         out
     }
 
@@ -613,12 +665,35 @@ impl Link {
                 // a HEARTBEAT: every GCS, MAVSDK and MAVProxy sends one at 1 Hz
                 self.prove(now, from);
             }
+            if let Some(fwd) = self.forwarding.as_mut() {
+                fwd.heard(frame.system_id, frame.component_id);
+            }
             match wire::decode(&frame) {
-                Some(msg) => self.on_message(now, from, &frame, msg, t, params, &mut effects),
+                Some(msg) => {
+                    self.offer_forward(&frame, &msg, params);
+                    self.on_message(now, from, &frame, msg, t, params, &mut effects);
+                }
                 None => self.stats.ignored += 1,
             }
         }
         effects
+    }
+
+    /// Keep `frame` for the vehicle's other links if PX4 would forward it
+    /// ([`forward`]); the link handles it as well.
+    fn offer_forward<P: ParamAccess + ?Sized>(&mut self, frame: &Frame<'_>, msg: &Inbound, params: &P) {
+        let me = self.config.identity;
+        let Some(fwd) = self.forwarding.as_mut() else {
+            return;
+        };
+        let heartbeats = || {
+            // PX4's default (1) when the table has no such parameter
+            params
+                .by_name(forward::HEARTBEAT_PARAM)
+                .is_none_or(|(_, v)| v != ParamValue::Int32(0))
+        };
+        let source = (frame.system_id, frame.component_id);
+        fwd.offer(frame.bytes, source, frame.message_id, msg, me, heartbeats);
     }
 
     /// `from` has shown it listens: it gets the streams from now on.

@@ -221,6 +221,7 @@ parameters! {
     SYS_FAILURE_EN: switch(0, "Allow failure injection (MAV_CMD_INJECT_FAILURE)"),
     MAV_SYS_ID: int(1, 1, 250, "MAVLink system id: --instance + 1, as PX4 SITL sets it at every start (a set to another value is refused)"),
     MAV_COMP_ID: int(1, 1, 250, "MAVLink component id: 1, the autopilot's (a set to another value is refused)"),
+    MAV_HB_FORW_EN: switch(1, "Forward clients' HEARTBEATs between the vehicle's links, as its other messages are (PX4: 1)"),
     BAT1_N_CELLS: int(4, 1, 14, "Battery cells in series (the monitor reads them; the simulated pack has them)"),
     BAT1_CAPACITY: real(5000.0, 100.0, 100_000.0, "mAh", "Battery capacity (of the simulated pack)"),
     SIM_BAT_MIN_PCT: real(50.0, 0.0, 100.0, "%", "Simulated battery: charge never drops below this (PX4 SITL's floor)"),

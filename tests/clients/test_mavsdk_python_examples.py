@@ -88,7 +88,8 @@ class Example:
     # the vehicle within 1 m of this NED point (m) when this line is printed
     at: tuple = ()
     # what the GCS (gcs_probe.py) does once the script is connected: "arm",
-    # "disarm", a second apart
+    # "disarm", each a second after the last (the first a second after the
+    # script says it is connected, so that it has subscribed)
     gcs_does: tuple = ()
     # a rotorpilot feature the script needs and that is missing: xfail(strict)
     missing: str = ""
@@ -376,9 +377,10 @@ def test_example(ex, tmp_path):
         if ex.gcs_does:
             assert out.wait(lambda x: "Connected to drone" in x, ex.bound), f"{ex.path} did not connect"
             for what in ex.gcs_does:
+                # a second first: the script subscribes after it prints that it is connected
+                time.sleep(1)
                 probe_proc.stdin.write(what + "\n")
                 probe_proc.stdin.flush()
-                time.sleep(1)
         if ex.ends:
             while (rc := script.poll()) is None:
                 if time.monotonic() - t0 > ex.bound:

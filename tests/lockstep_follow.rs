@@ -208,3 +208,45 @@ fn the_mode_is_not_armable_and_bad_fixes_are_denied() {
         ));
     }
 }
+
+/// GIVEN a hovering quad in FLW_TGT_ALT_M 2 (track the target's altitude),
+/// FLW_TGT_HT 8, and a still target 8 m below home (MAVSDK's
+/// `follow_me_example.py` sends 480 m AMSL over a 488 m home)
+/// WHEN it follows: the height it is asked for is the ground
+/// THEN it comes down only to PX4's safety altitude (1 m above the ground,
+/// `MINIMUM_SAFETY_ALTITUDE`), climbs back at 0.5 m/s whenever below it,
+/// and so never lands: still armed, still in AUTO.FOLLOW_TARGET.
+#[test]
+fn a_target_below_the_ground_brings_it_down_to_the_safety_altitude_not_to_land() {
+    let mut ap = airborne(&[("FLW_TGT_ALT_M", int(2)), ("FLW_TGT_HT", real(8.0))]);
+    let below = point(10.0, 0.0, -8.0);
+    let send = |ap: &mut Sitl| {
+        let f = AutopilotCommand::FollowTarget(TargetFix {
+            lat_deg: below.lat_deg,
+            lon_deg: below.lon_deg,
+            alt_amsl_m: below.alt_amsl_m,
+            velocity_ned: Some(Vector3::zeros()),
+        });
+        assert_eq!(ap.command(f), CommandOutcome::Accepted);
+    };
+    send(&mut ap);
+    assert_eq!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::FollowTarget)),
+        CommandOutcome::Accepted
+    );
+    let mut lowest = f64::INFINITY;
+    for _ in 0..150 {
+        send(&mut ap);
+        let every = ap.steps(0.2);
+        for _ in 0..every {
+            ap.step();
+            let t = ap.telemetry();
+            lowest = lowest.min(height(&t));
+        }
+    }
+    let t = ap.telemetry();
+    assert!(ap.armed(), "landed and disarmed");
+    assert_eq!(ap.mode(), FlightMode::FollowTarget);
+    assert!(lowest > 0.5, "came down to {lowest} m");
+    assert!((height(&t) - 1.0).abs() < 0.5, "height {}", height(&t));
+}

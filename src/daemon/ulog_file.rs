@@ -1,13 +1,17 @@
 //! The run's `flight.ulg`: [`crate::logs::ulog::flight::FlightUlog`] on a
 //! buffered file, fed by the simulation thread after every step and with
-//! every status text. The buffer reaches the file when full and when the
-//! simulation thread ends (drop). A write error stops the log with one
-//! warning; the flight goes on.
+//! every status text. The buffer reaches the file when full, at least every
+//! [`FLUSH_EVERY`] of wall time while the simulation steps (as PX4's logger
+//! writes continuously, so a log being written is listed by LOG_ENTRY and
+//! MAVLink FTP with the size it has on disk, and that much downloads), and
+//! when the simulation thread ends (drop). A write error stops the log with
+//! one warning; the flight goes on.
 
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 use tracing::warn;
 
@@ -20,6 +24,11 @@ use crate::params::ParamStore;
 /// The file name in the run directory.
 pub(super) const FILE_NAME: &str = "flight.ulg";
 
+/// The longest wall time the buffer keeps what it was given.
+const FLUSH_EVERY: Duration = Duration::from_secs(1);
+/// Steps between two looks at the wall clock for [`FLUSH_EVERY`].
+const FLUSH_CHECK_EVERY: u64 = 50;
+
 /// The ULog of vehicle `vehicle`, written to `flight.ulg`.
 #[derive(Debug)]
 pub(super) struct UlogFile {
@@ -31,6 +40,8 @@ pub(super) struct UlogFile {
     params: Arc<Mutex<ParamStore>>,
     generation: u64,
     steps: u64,
+    /// When the buffer last went to the file (wall clock).
+    flushed: Instant,
 }
 
 /// Steps between two looks at the parameters' generation (0.1 s): the
@@ -58,6 +69,7 @@ impl UlogFile {
                 params: params.clone(),
                 generation: store.generation(),
                 steps: 0,
+                flushed: Instant::now(),
             }),
             Err(e) => {
                 warn!(path = %path.display(), error = %e, "cannot write the ULog; flying without it");
@@ -87,6 +99,11 @@ impl UlogFile {
         }
         if let Some(log) = &mut self.log {
             let r = log.on_step(core, self.vehicle);
+            self.check(r);
+        }
+        if self.steps.is_multiple_of(FLUSH_CHECK_EVERY) && self.flushed.elapsed() >= FLUSH_EVERY {
+            self.flushed = Instant::now();
+            let r = self.log.as_mut().map_or(Ok(()), FlightUlog::flush);
             self.check(r);
         }
     }

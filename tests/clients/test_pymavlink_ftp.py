@@ -2,8 +2,9 @@
 rotorpilot binary: what a careless or hostile client sends gets PX4's NAK
 and no crash (a path out of the state directory, the signing key, an
 unknown session, a second session, a write past the size cap, unknown
-opcodes, a flood of garbage), and with no --log-dir the log list is PX4's
-answer for no logs (one LOG_ENTRY, num_logs 0).
+opcodes, a flood of garbage), with no --log-dir the log list is PX4's
+answer for no logs (one LOG_ENTRY, num_logs 0), and the flight being
+logged is listed with the size it has on disk, and that much downloads.
 
 Run in the pymavlink venv: `python -m pytest tests/clients/test_pymavlink_ftp.py`.
 """
@@ -11,6 +12,8 @@ Run in the pymavlink venv: `python -m pytest tests/clients/test_pymavlink_ftp.py
 import random
 import struct
 import sys
+import tempfile
+import time
 from pathlib import Path
 
 from pymavlink import mavutil
@@ -101,3 +104,38 @@ def test_no_logs_is_one_entry_saying_none():
         # data for a log that does not exist: nothing, as PX4
         m.mav.log_request_data_send(v.sysid, 1, 0, 0, 90)
         assert m.recv_match(type="LOG_DATA", blocking=True, timeout=1) is None
+
+
+def test_the_log_being_written_is_listed_with_its_size_on_disk_and_downloads():
+    """PX4's logger writes continuously: the running flight's ULog is listed
+    with the bytes already on disk (not 0 while a buffer holds them), and a
+    download of that size is those bytes, a ULog from its header on."""
+    with tempfile.TemporaryDirectory() as logs, Vehicle(speed=1.0, extra=("--log-dir", logs)) as v:
+        m = mavutil.mavlink_connection(f"udpin:127.0.0.1:{v.api_port}", source_system=245)
+        assert m.wait_heartbeat(timeout=10) is not None
+        # at 1x the flight logs some 17 kB/s: 2.5 s is far less than a
+        # write buffer holds, so only a writer that flushes has it on disk
+        time.sleep(2.5)
+        while m.recv_match(blocking=False) is not None:
+            pass  # the telemetry of those seconds, read before the answer
+        m.mav.log_request_list_send(v.sysid, 1, 0, 0xFFFF)
+        entries = []
+        while (e := m.recv_match(type="LOG_ENTRY", blocking=True, timeout=2)) is not None:
+            entries.append(e)
+            if len(entries) == e.num_logs:
+                break
+        assert entries and entries[0].num_logs == 1, f"{entries}"
+        e = entries[0]
+        assert e.size > 0, "the running flight's log is listed with size 0"
+        m.mav.log_request_data_send(v.sysid, 1, e.id, 0, e.size)
+        got = {}
+        deadline = time.monotonic() + 20
+        while sum(len(b) for b in got.values()) < e.size and time.monotonic() < deadline:
+            d = m.recv_match(type="LOG_DATA", blocking=True, timeout=1)
+            if d is not None and d.id == e.id:
+                got[d.ofs] = bytes(d.data[: d.count])
+        data = b"".join(got[k] for k in sorted(got))
+        assert len(data) == e.size, f"downloaded {len(data)} of {e.size} bytes"
+        assert data.startswith(b"ULog\x01\x12\x35"), data[:8]
+        ulg = next(Path(logs).rglob("*.ulg")).read_bytes()
+        assert ulg[: e.size] == data, "the download is not the file's bytes"

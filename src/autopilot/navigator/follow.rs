@@ -29,6 +29,11 @@
 //!   target velocity and acceleration as feed-forward
 //!   ([`TranslationSetpoint::Track`]), the nose to the target once more
 //!   than [`YAW_MIN_DISTANCE_M`] away, horizontal speed under `MPC_XY_VEL_MAX`.
+//! * Below [`MIN_SAFETY_ALTITUDE_M`] above the ground (`h = z_rest - z`, NED)
+//!   it stops moving horizontally and climbs at [`EMERGENCY_ASCENT_M_S`]
+//!   (PX4's emergency ascent): a follow height that asks for the ground (a
+//!   target reported below it, `FLW_TGT_ALT_M` 2) keeps the vehicle about
+//!   1 m up, in the mode, rather than landing it.
 //!
 //! Nothing here runs unless the mode is flown; a fix costs one conversion.
 
@@ -55,6 +60,10 @@ const COURSE_DEADZONE_M_S: f64 = 1.0;
 const ALT_ACCEPTANCE_M: f64 = 3.0;
 /// Closer than this the heading is kept [m] (PX4's `MINIMUM_DISTANCE_TO_TARGET_FOR_YAW_CONTROL`).
 const YAW_MIN_DISTANCE_M: f64 = 1.0;
+/// Below this height above the ground the vehicle climbs [m] (PX4's `MINIMUM_SAFETY_ALTITUDE`).
+const MIN_SAFETY_ALTITUDE_M: f64 = 1.0;
+/// The climb rate of that ascent [m/s] (PX4's `EMERGENCY_ASCENT_SPEED`).
+const EMERGENCY_ASCENT_M_S: f64 = 0.5;
 
 /// One FOLLOW_TARGET report, as the client sends it.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -240,7 +249,10 @@ impl Navigator {
         } else {
             YawSetpoint::Hold
         };
-        let translation = if (z - p.z).abs() < ALT_ACCEPTANCE_M {
+        let translation = if cx.rest_z - p.z < MIN_SAFETY_ALTITUDE_M {
+            // too close to the ground: no horizontal motion, climb slowly
+            TranslationSetpoint::Velocity(Vector3::new(0.0, 0.0, -EMERGENCY_ASCENT_M_S))
+        } else if (z - p.z).abs() < ALT_ACCEPTANCE_M {
             let vertical = if fs.track_altitude { 1.0 } else { 0.0 };
             TranslationSetpoint::Track {
                 position: Vector3::new(xy.x, xy.y, z),

@@ -705,24 +705,10 @@ fn crc32(files: &dyn FileStore, path: &str) -> Result<u32, Vec<u8>> {
         if n == 0 {
             break;
         }
-        crc = crc32_part(&buf[..n], crc);
+        crc = crate::mission::crc::crc32part(&buf[..n], crc);
         offset += n as u32;
     }
     Ok(crc)
-}
-
-/// PX4's `crc32part`: `crc = table[(crc ^ b) & 0xff] ^ (crc >> 8)` per byte,
-/// table of the reflected polynomial 0xEDB88320.
-#[must_use]
-pub fn crc32_part(data: &[u8], mut crc: u32) -> u32 {
-    for &b in data {
-        let mut c = (crc ^ u32::from(b)) & 0xFF;
-        for _ in 0..8 {
-            c = if c & 1 == 1 { 0xEDB8_8320 ^ (c >> 1) } else { c >> 1 };
-        }
-        crc = c ^ (crc >> 8);
-    }
-    crc
 }
 
 #[cfg(test)]

@@ -233,12 +233,12 @@ fn a_file_is_read_by_offset_and_by_burst_and_its_crc_is_px4s() {
     // zlib's CRC-32 complements in and out; PX4's crc32part does neither
     let zlib_of_complemented = {
         let mut c = 0xFFFF_FFFFu32 ^ 0xFFFF_FFFF;
-        c = crc32_part(&bytes, c);
+        c = crate::mission::crc::crc32part(&bytes, c);
         c
     };
     assert_eq!(data, zlib_of_complemented.to_le_bytes().to_vec());
     assert_eq!(
-        crc32_part(b"123456789", 0xFFFF_FFFF) ^ 0xFFFF_FFFF,
+        crate::mission::crc::crc32part(b"123456789", 0xFFFF_FFFF) ^ 0xFFFF_FFFF,
         0xCBF4_3926,
         "the CRC-32 check value"
     );

@@ -591,6 +591,12 @@ impl Daemon {
                 system_id: config.system_id(),
                 component_id: 1,
             };
+            // one store for the vehicle's links: they share the count of the clients' files
+            let files = files::VehicleFiles::new(
+                config.state_dir.clone(),
+                config.log_dir.clone().map(|base| (base, config.instance)),
+                v.log_dir.clone(),
+            );
             for (index, (spec, socket)) in v.sockets.into_iter().enumerate() {
                 let mut link = Link::new(
                     LinkConfig {
@@ -603,11 +609,7 @@ impl Daemon {
                     Instant::now().into_std(),
                 );
                 link.set_signing(v.signing.shared.clone(), u8::try_from(index).unwrap_or(u8::MAX));
-                link.set_files(Box::new(files::VehicleFiles::new(
-                    config.state_dir.clone(),
-                    config.log_dir.clone().map(|base| (base, config.instance)),
-                    v.log_dir.clone(),
-                )));
+                link.set_files(Box::new(files.clone()));
                 link_names.push(format!("{}{} link", vehicle_prefix(lone, config.instance), spec.name));
                 links.push(LinkTask {
                     link,

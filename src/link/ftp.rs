@@ -2,8 +2,9 @@
 //! sans I/O: the request header, one session per link, ListDirectory,
 //! OpenFileRO, ReadFile, BurstReadFile (paced by the requester's budget),
 //! CreateFile, OpenFileWO, WriteFile, RemoveFile, Create/RemoveDirectory,
-//! Rename, TruncateFile, CalcFileCRC32, TerminateSession, ResetSessions, the
-//! resent-request cache, and PX4's error codes. Files are reached through a
+//! Rename, TruncateFile, CalcFileCRC32 (summed over turns), TerminateSession,
+//! ResetSessions, the resent-request cache (as PX4, answers of at most 4
+//! data bytes, matched by sequence number and opcode), and PX4's error codes. Files are reached through a
 //! [`FileStore`] the daemon gives the link (real files, confined to the
 //! vehicle's state and log directories); `@PARAM/param.pck` (PX4's packed
 //! parameter file, [`param_pck`]) is served here from the parameter table.

@@ -591,6 +591,12 @@ impl Daemon {
                 system_id: config.system_id(),
                 component_id: 1,
             };
+            // one store for the vehicle's links: they share the count of the clients' files
+            let files = files::VehicleFiles::new(
+                config.state_dir.clone(),
+                config.log_dir.clone().map(|base| (base, config.instance)),
+                v.log_dir.clone(),
+            );
             let forwards = link_task::Forwards::for_links(v.sockets.len());
             for (index, ((spec, socket), (forwards, fellows))) in v.sockets.into_iter().zip(forwards).enumerate() {
                 let mut link = Link::new(
@@ -608,11 +614,7 @@ impl Daemon {
                 if let Some(fellows) = fellows {
                     link.set_forwarding(fellows);
                 }
-                link.set_files(Box::new(files::VehicleFiles::new(
-                    config.state_dir.clone(),
-                    config.log_dir.clone().map(|base| (base, config.instance)),
-                    v.log_dir.clone(),
-                )));
+                link.set_files(Box::new(files.clone()));
                 link_names.push(format!("{}{} link", vehicle_prefix(lone, config.instance), spec.name));
                 links.push(LinkTask {
                     link,

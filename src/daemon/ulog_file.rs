@@ -59,8 +59,14 @@ impl UlogFile {
     ) -> Option<Self> {
         let path = dir.join(FILE_NAME);
         let store = lock(params).clone();
-        let started = File::create(&path)
-            .and_then(|f| FlightUlog::new(BufWriter::with_capacity(256 * 1024, f), &store, core, vehicle));
+        let started = File::create(&path).and_then(|f| {
+            // held while the ULog is written: LOG_ERASE (of any daemon
+            // sharing the --log-dir) leaves a locked ULog alone
+            if let Err(e) = f.try_lock() {
+                warn!(path = %path.display(), error = %e, "cannot lock the ULog against LOG_ERASE");
+            }
+            FlightUlog::new(BufWriter::with_capacity(256 * 1024, f), &store, core, vehicle)
+        });
         match started {
             Ok(log) => Some(Self {
                 log: Some(log),

@@ -2,8 +2,9 @@
 //! sans I/O: the request header, one session per link, ListDirectory,
 //! OpenFileRO, ReadFile, BurstReadFile (paced by the requester's budget),
 //! CreateFile, OpenFileWO, WriteFile, RemoveFile, Create/RemoveDirectory,
-//! Rename, TruncateFile, CalcFileCRC32, TerminateSession, ResetSessions, the
-//! resent-request cache, and PX4's error codes. Files are reached through a
+//! Rename, TruncateFile, CalcFileCRC32 (summed over turns), TerminateSession,
+//! ResetSessions, the resent-request cache (as PX4, answers of at most 4
+//! data bytes, matched by sequence number and opcode), and PX4's error codes. Files are reached through a
 //! [`FileStore`] the daemon gives the link (real files, confined to the
 //! vehicle's state and log directories); `@PARAM/param.pck` (PX4's packed
 //! parameter file, [`param_pck`]) is served here from the parameter table.
@@ -97,6 +98,11 @@ const BURST_PER_TURN: usize = 16;
 const BURST_TURN: Duration = Duration::from_millis(5);
 /// A burst held back by the requester's budget this long is dropped.
 const BURST_STALL: Duration = Duration::from_secs(3);
+/// A CalcFileCRC32 sums at most this many bytes per turn (a long log is
+/// summed over many turns, the link serving its other traffic between)...
+const CRC_PER_TURN: u64 = 1 << 20;
+/// ...one turn this often.
+const CRC_TURN: Duration = Duration::from_millis(2);
 /// errno values PX4 sends with [`err::FAIL_ERRNO`].
 pub mod errno {
     /// Is a directory.
@@ -169,16 +175,12 @@ pub trait FileStore: Send + Sync + std::fmt::Debug {
     /// # Errors
     /// No such directory, or not a directory.
     fn list(&self, path: &str) -> Result<Vec<DirEntry>, FsError>;
-    /// The size of a file.
+    /// Open a file for reading: the path is resolved once, and a read
+    /// session, a burst, a CRC32 or a log download reads through the handle.
     ///
     /// # Errors
-    /// No such file, or a directory.
-    fn size(&self, path: &str) -> Result<u32, FsError>;
-    /// Read up to `buf.len()` bytes at `offset` (0 at the end).
-    ///
-    /// # Errors
-    /// No such file, or it cannot be read.
-    fn read_at(&self, path: &str, offset: u32, buf: &mut [u8]) -> Result<usize, FsError>;
+    /// No such file, a directory, or it cannot be opened.
+    fn open(&self, path: &str) -> Result<Box<dyn ReadFile>, FsError>;
     /// Create the file if missing (`truncate`: empty it too); its size.
     ///
     /// # Errors
@@ -220,6 +222,20 @@ pub trait FileStore: Send + Sync + std::fmt::Debug {
     fn erase_logs(&mut self);
 }
 
+/// A file open for reading.
+pub trait ReadFile: Send + Sync + std::fmt::Debug {
+    /// Its size now, in bytes (a log being written grows).
+    ///
+    /// # Errors
+    /// It cannot be looked at.
+    fn size(&self) -> Result<u64, FsError>;
+    /// Read up to `buf.len()` bytes at `offset` (0 at the end).
+    ///
+    /// # Errors
+    /// It cannot be read.
+    fn read_at(&self, offset: u64, buf: &mut [u8]) -> Result<usize, FsError>;
+}
+
 /// The files of a link nobody gave a store: PX4 SITL's root with an empty
 /// `log` directory; nothing can be written.
 #[derive(Debug, Default)]
@@ -233,12 +249,9 @@ impl FileStore for NoFiles {
             _ => Err(FsError::NotFound),
         }
     }
-    fn size(&self, path: &str) -> Result<u32, FsError> {
+    fn open(&self, path: &str) -> Result<Box<dyn ReadFile>, FsError> {
         self.list(path)
             .map_or(Err(FsError::NotFound), |_| Err(FsError::Errno(errno::EISDIR)))
-    }
-    fn read_at(&self, path: &str, _: u32, _: &mut [u8]) -> Result<usize, FsError> {
-        self.size(path).map(|_| 0)
     }
     fn create(&mut self, _: &str, _: bool) -> Result<u32, FsError> {
         Err(FsError::Protected)
@@ -288,8 +301,11 @@ fn header(p: &[u8; 251]) -> Header {
 }
 
 /// A reply payload: `seq + 1`, the request's session and offset unless
-/// given, ACK or NAK with `data`.
-fn payload(req: &Header, opcode: u8, session: u8, offset: u32, data: &[u8], burst_complete: bool) -> [u8; 251] {
+/// given, ACK or NAK with `data`. `burst_complete` stays 0: PX4 sets it when
+/// it pauses a burst for a full transmit buffer and the client asks for the
+/// rest; a burst here is held back by the budget and resumed, and always
+/// ends in NAK EOF.
+fn payload(req: &Header, opcode: u8, session: u8, offset: u32, data: &[u8]) -> [u8; 251] {
     let mut out = [0u8; 251];
     out[0..2].copy_from_slice(&req.seq.wrapping_add(1).to_le_bytes());
     out[2] = session;
@@ -297,7 +313,6 @@ fn payload(req: &Header, opcode: u8, session: u8, offset: u32, data: &[u8], burs
     let n = data.len().min(MAX_DATA);
     out[4] = n as u8;
     out[5] = req.opcode;
-    out[6] = u8::from(burst_complete);
     out[8..12].copy_from_slice(&offset.to_le_bytes());
     out[HEADER..HEADER + n].copy_from_slice(&data[..n]);
     out
@@ -315,7 +330,7 @@ fn path_of(p: &[u8; 251], size: u8) -> String {
 #[derive(Debug)]
 enum Session {
     /// A file open for reading, its size at open.
-    Read { path: String, size: u32 },
+    Read { file: Box<dyn ReadFile>, size: u32 },
     /// A file open for writing.
     Write { path: String },
     /// `@PARAM/param.pck` as it was at open.
@@ -336,12 +351,49 @@ struct Burst {
     held_since: Option<Instant>,
 }
 
+/// A CalcFileCRC32 being summed, PX4's `crc32part` from 0 over the whole
+/// file (to its end when the sum reaches it), a bounded part per turn.
+#[derive(Debug)]
+struct Crc {
+    to: SocketAddr,
+    requester: (u8, u8),
+    req: Header,
+    file: Box<dyn ReadFile>,
+    /// Bytes summed so far (64 bits: a log may pass 4 GiB).
+    offset: u64,
+    crc: u32,
+    due: Instant,
+}
+
+impl Crc {
+    /// Sum up to `budget` more bytes (in 64 KiB reads); the CRC once the
+    /// end of the file is reached, the error if a read fails, `None` while
+    /// there is more.
+    fn step(&mut self, budget: u64) -> Option<Result<u32, FsError>> {
+        let mut buf = vec![0u8; 64 * 1024];
+        let mut summed = 0u64;
+        while summed < budget {
+            match self.file.read_at(self.offset, &mut buf) {
+                Ok(0) => return Some(Ok(self.crc)),
+                Ok(n) => {
+                    self.crc = crate::mission::crc::crc32part(&buf[..n], self.crc);
+                    self.offset += n as u64;
+                    summed += n as u64;
+                }
+                Err(e) => return Some(Err(e)),
+            }
+        }
+        None
+    }
+}
+
 /// One link's FTP server state: PX4 keeps one session per MAVLink instance.
 #[derive(Debug)]
 pub struct Server {
     session: Option<Session>,
     last_request: Instant,
     burst: Option<Burst>,
+    crc: Option<Crc>,
     /// The last small reply and to whom: a resent request gets it again.
     last_reply: Option<(SocketAddr, [u8; 251])>,
     files: Box<dyn FileStore>,
@@ -355,6 +407,7 @@ impl Server {
             session: None,
             last_request: now,
             burst: None,
+            crc: None,
             last_reply: None,
             files,
         }
@@ -365,13 +418,14 @@ impl Server {
         &mut *self.files
     }
 
-    /// When [`Link::poll`] has FTP work: the next burst turn or the idle
-    /// session's close.
+    /// When [`Link::poll`] has FTP work: the next burst or CRC32 turn or
+    /// the idle session's close.
     #[must_use]
     pub fn next_deadline(&self) -> Option<Instant> {
         let burst = self.burst.as_ref().map(|b| b.due);
+        let crc = self.crc.as_ref().map(|c| c.due);
         let idle = self.session.as_ref().map(|_| self.last_request + SESSION_IDLE);
-        burst.into_iter().chain(idle).min()
+        burst.into_iter().chain(crc).chain(idle).min()
     }
 
     fn close(&mut self) {
@@ -382,9 +436,9 @@ impl Server {
     /// Bytes `len` from `offset` of the session's file (`None`: no read session).
     fn read_session(&self, offset: u32, len: usize) -> Option<Result<(u32, Vec<u8>), FsError>> {
         match self.session.as_ref()? {
-            Session::Read { path, size } => {
+            Session::Read { file, size } => {
                 let mut buf = vec![0u8; len];
-                Some(self.files.read_at(path, offset, &mut buf).map(|n| {
+                Some(file.read_at(u64::from(offset), &mut buf).map(|n| {
                     buf.truncate(n);
                     (*size, buf)
                 }))
@@ -420,15 +474,27 @@ impl Link {
         if req.opcode == op::ACK || req.opcode == op::NAK {
             return;
         }
+        if let Some(c) = &self.ftp.crc
+            && c.to == from
+            && c.req.seq == req.seq
+            && c.req.opcode == req.opcode
+        {
+            // resent while the CRC32 is summed: answered when it is done
+            return;
+        }
         if let Some((to, last)) = &self.ftp.last_reply
             && *to == from
             && req.seq.wrapping_add(1) == u16::from_le_bytes([last[0], last[1]])
+            && last[5] == req.opcode
         {
-            // the answer was lost and the request resent (PX4 keeps small answers)
+            // the answer was lost and the request resent (PX4 keeps small
+            // answers); a request of another opcode with that seq is new
             let last = *last;
             self.ftp_send(from, requester, last);
             return;
         }
+        // a new request: the client gave up on a CRC32 still being summed
+        self.ftp.crc = None;
         self.ftp.last_request = now;
         let answer = if usize::from(req.size) > MAX_DATA {
             Some(Err(vec![err::INVALID_DATA_SIZE]))
@@ -437,8 +503,8 @@ impl Link {
         };
         let Some(answer) = answer else { return };
         let out = match answer {
-            Ok((session, data)) => payload(&req, op::ACK, session, req.offset, &data, false),
-            Err(data) => payload(&req, op::NAK, req.session, req.offset, &data, false),
+            Ok((session, data)) => payload(&req, op::ACK, session, req.offset, &data),
+            Err(data) => payload(&req, op::NAK, req.session, req.offset, &data),
         };
         self.ftp.last_reply = (out[4] <= 4).then_some((from, out));
         self.ftp_send(from, requester, out);
@@ -495,25 +561,32 @@ impl Link {
                 let opened = if param_pck::is_param_path(&path) {
                     match req.opcode {
                         op::OPEN_FILE_RO => param_pck::download(&path, params, MAX_DATA)
-                            .map(|bytes| Session::ParamRead { bytes })
+                            .map(|bytes| {
+                                let size = bytes.len() as u32;
+                                (Session::ParamRead { bytes }, size)
+                            })
                             .map_err(|param_pck::Refused| FsError::Errno(errno::EINVAL)),
-                        _ => Ok(Session::ParamWrite(param_pck::Upload::default())),
+                        _ => Ok((Session::ParamWrite(param_pck::Upload::default()), 0)),
                     }
                 } else {
                     match req.opcode {
-                        op::OPEN_FILE_RO => ftp.files.size(&path).map(|size| Session::Read { path, size }),
-                        op::CREATE_FILE => ftp.files.create(&path, true).map(|_| Session::Write { path }),
-                        _ => ftp.files.create(&path, false).map(|_| Session::Write { path }),
+                        op::OPEN_FILE_RO => ftp.files.open(&path).and_then(|file| {
+                            // PX4 sends st_size as a u32
+                            let size = u32::try_from(file.size()?).unwrap_or(u32::MAX);
+                            Ok((Session::Read { file, size }, size))
+                        }),
+                        op::CREATE_FILE => ftp
+                            .files
+                            .create(&path, true)
+                            .map(|size| (Session::Write { path }, size)),
+                        _ => ftp
+                            .files
+                            .create(&path, false)
+                            .map(|size| (Session::Write { path }, size)),
                     }
                 };
                 Some(match opened {
-                    Ok(s) => {
-                        let size = match &s {
-                            Session::Read { size, .. } => *size,
-                            Session::ParamRead { bytes } => bytes.len() as u32,
-                            Session::Write { path } => ftp.files.size(path).unwrap_or(0),
-                            Session::ParamWrite(_) => 0,
-                        };
+                    Ok((s, size)) => {
                         ftp.session = Some(s);
                         Ok((0, size.to_le_bytes().to_vec()))
                     }
@@ -578,7 +651,22 @@ impl Link {
                 let to_path = String::from_utf8_lossy(&rest[..end]).into_owned();
                 done(ftp.files.rename(&from_path, &to_path))
             }
-            op::CALC_FILE_CRC32 => Some(crc32(&*ftp.files, &path()).map(|c| (req.session, c.to_le_bytes().to_vec()))),
+            op::CALC_FILE_CRC32 => match ftp.files.open(&path()) {
+                Err(e) => Some(Err(e.nak())),
+                Ok(file) => {
+                    ftp.crc = Some(Crc {
+                        to: from,
+                        requester,
+                        req: *req,
+                        file,
+                        offset: 0,
+                        crc: 0,
+                        due: now,
+                    });
+                    self.ftp_crc(now);
+                    None
+                }
+            },
             _ => Some(Err(vec![err::UNKNOWN_COMMAND])),
         }
     }
@@ -615,14 +703,41 @@ impl Link {
         Ok((0, Vec::new()))
     }
 
-    /// Send the burst's next messages the requester's budget allows; the
-    /// last is a NAK EOF (PX4).
-    pub(super) fn ftp_burst(&mut self, now: Instant) {
+    /// FTP's timed work: close an idle session, sum a CRC32 on, send a burst on.
+    pub(super) fn ftp_poll(&mut self, now: Instant) {
         if self.ftp.session.is_some() && now.saturating_duration_since(self.ftp.last_request) > SESSION_IDLE {
             tracing::debug!(link = %self.config.name, "FTP session closed without activity");
             self.ftp.close();
             self.ftp.last_reply = None;
         }
+        self.ftp_crc(now);
+        self.ftp_burst(now);
+    }
+
+    /// Sum the CRC32 on for a turn; answer once it is done (the answer is
+    /// kept for a resent request, as any small answer).
+    fn ftp_crc(&mut self, now: Instant) {
+        let Some(mut c) = self.ftp.crc.take() else { return };
+        if c.due > now {
+            self.ftp.crc = Some(c);
+            return;
+        }
+        let out = match c.step(CRC_PER_TURN) {
+            None => {
+                c.due = now + CRC_TURN;
+                self.ftp.crc = Some(c);
+                return;
+            }
+            Some(Ok(crc)) => payload(&c.req, op::ACK, c.req.session, c.req.offset, &crc.to_le_bytes()),
+            Some(Err(e)) => payload(&c.req, op::NAK, c.req.session, c.req.offset, &e.nak()),
+        };
+        self.ftp.last_reply = Some((c.to, out));
+        self.ftp_send(c.to, c.requester, out);
+    }
+
+    /// Send the burst's next messages the requester's budget allows; the
+    /// last is a NAK EOF (PX4).
+    fn ftp_burst(&mut self, now: Instant) {
         let Some(mut b) = self.ftp.burst.take() else { return };
         if b.due > now {
             self.ftp.burst = Some(b);
@@ -638,10 +753,10 @@ impl Link {
             };
             let (out, last) = match self.ftp.read_session(b.offset, MAX_DATA) {
                 Some(Ok((size, data))) if b.offset < size && !data.is_empty() => {
-                    (payload(&req, op::ACK, 0, b.offset, &data, false), false)
+                    (payload(&req, op::ACK, 0, b.offset, &data), false)
                 }
-                Some(Ok(_)) => (payload(&req, op::NAK, 0, b.offset, &[err::EOF], false), true),
-                Some(Err(e)) => (payload(&req, op::NAK, 0, b.offset, &e.nak(), false), true),
+                Some(Ok(_)) => (payload(&req, op::NAK, 0, b.offset, &[err::EOF]), true),
+                Some(Err(e)) => (payload(&req, op::NAK, 0, b.offset, &e.nak()), true),
                 None => return,
             };
             if !self.ftp_send(b.to, b.requester, out) {
@@ -691,38 +806,6 @@ fn list(files: &dyn FileStore, path: &str, offset: u32) -> Result<(u8, Vec<u8>),
         return Err(vec![err::EOF]);
     }
     Ok((0, data))
-}
-
-/// CRC32 of a whole file, PX4's `crc32part` (the reflected 0xEDB88320
-/// polynomial, initial value 0, no final XOR).
-fn crc32(files: &dyn FileStore, path: &str) -> Result<u32, Vec<u8>> {
-    let size = files.size(path).map_err(FsError::nak)?;
-    let mut crc = 0u32;
-    let mut buf = vec![0u8; 4096];
-    let mut offset = 0u32;
-    while offset < size {
-        let n = files.read_at(path, offset, &mut buf).map_err(FsError::nak)?;
-        if n == 0 {
-            break;
-        }
-        crc = crc32_part(&buf[..n], crc);
-        offset += n as u32;
-    }
-    Ok(crc)
-}
-
-/// PX4's `crc32part`: `crc = table[(crc ^ b) & 0xff] ^ (crc >> 8)` per byte,
-/// table of the reflected polynomial 0xEDB88320.
-#[must_use]
-pub fn crc32_part(data: &[u8], mut crc: u32) -> u32 {
-    for &b in data {
-        let mut c = (crc ^ u32::from(b)) & 0xFF;
-        for _ in 0..8 {
-            c = if c & 1 == 1 { 0xEDB8_8320 ^ (c >> 1) } else { c >> 1 };
-        }
-        crc = c ^ (crc >> 8);
-    }
-    crc
 }
 
 #[cfg(test)]

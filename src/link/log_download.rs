@@ -1,8 +1,11 @@
 //! Log download as PX4's `mavlink_log_handler` answers it, sans I/O:
 //! LOG_REQUEST_LIST gets one LOG_ENTRY per ULog in the range (id, num_logs,
-//! last_log_num, time_utc, size), or one LOG_ENTRY with num_logs 0 when
-//! there is none; LOG_REQUEST_DATA streams LOG_DATA of 90 bytes from `ofs`
-//! for `count` bytes (a shorter one ends the file); LOG_REQUEST_END stops;
+//! last_log_num, time_utc, size), none when the range starts past the last
+//! log (as PX4's handler since its 2024 rewrite), or one LOG_ENTRY with
+//! num_logs 0 when there is no log at all; LOG_REQUEST_DATA opens the log
+//! once and streams LOG_DATA of 90 bytes from `ofs` for `count` bytes (a
+//! shorter one ends the file; a read error stops the transfer with a
+//! warning rather than end the file short); LOG_REQUEST_END stops;
 //! LOG_ERASE removes the logs. The list is taken afresh when a request's
 //! range is wider than the list held (the flight being written is in it, at
 //! its size then, as PX4 lists it) and kept for LOG_REQUEST_DATA until
@@ -14,7 +17,7 @@ use std::time::{Duration, Instant};
 
 use mavlink::dialects::common::{LOG_DATA_DATA, LOG_ENTRY_DATA, MavMessage};
 
-use super::ftp::LogFile;
+use super::ftp::{LogFile, ReadFile};
 use super::{Link, To};
 
 /// Bytes of log a LOG_DATA carries.
@@ -31,8 +34,13 @@ const STALL: Duration = Duration::from_secs(3);
 enum Sending {
     /// LOG_ENTRY `next` to `last` (inclusive).
     Listing { next: u16, last: u16 },
-    /// LOG_DATA of log `id` from `ofs`, `remaining` bytes.
-    Data { id: u16, ofs: u32, remaining: u32 },
+    /// LOG_DATA of log `id` (open as `file`) from `ofs`, `remaining` bytes.
+    Data {
+        id: u16,
+        file: Box<dyn ReadFile>,
+        ofs: u32,
+        remaining: u32,
+    },
 }
 
 #[derive(Debug)]
@@ -76,8 +84,11 @@ impl Link {
         let count = logs.len().min(usize::from(u16::MAX)) as u16;
         let (next, last) = if count == 0 {
             (0, 0)
+        } else if start >= count {
+            // PX4 skips the ids below `start` and sends none past its last
+            return;
         } else {
-            (start.min(count - 1), end.min(count - 1))
+            (start, end.min(count - 1))
         };
         self.logs.transfer = Some(Transfer {
             to: from,
@@ -94,12 +105,24 @@ impl Link {
         let Some(log) = self.logs.logs.as_ref().and_then(|l| l.get(usize::from(id))) else {
             return;
         };
+        let file = match self.ftp.files().open(&log.path) {
+            Ok(f) => f,
+            Err(e) => {
+                tracing::warn!(link = %self.config.name, log = %log.path, error = ?e, "log download: cannot open the log");
+                return;
+            }
+        };
         // the size now: the flight being written grows
-        let size = self.ftp.files().size(&log.path).unwrap_or(log.size);
+        let size = file.size().map_or(log.size, |s| u32::try_from(s).unwrap_or(u32::MAX));
         let remaining = size.saturating_sub(ofs).min(count);
         self.logs.transfer = Some(Transfer {
             to: from,
-            sending: Sending::Data { id, ofs, remaining },
+            sending: Sending::Data {
+                id,
+                file,
+                ofs,
+                remaining,
+            },
             due: now,
             held_since: None,
         });
@@ -125,7 +148,9 @@ impl Link {
             return;
         }
         for _ in 0..PER_TURN {
-            let (msg, next) = match &t.sending {
+            // the message, the bytes of log it carries, whether the
+            // transfer goes on after it (the state moves on once it is queued)
+            let (msg, n, more) = match &t.sending {
                 Sending::Listing { next, last } => {
                     let logs = self.logs.logs.as_deref().unwrap_or_default();
                     let entry = logs.get(usize::from(*next));
@@ -136,36 +161,35 @@ impl Link {
                         num_logs: logs.len().min(usize::from(u16::MAX)) as u16,
                         last_log_num: *last,
                     });
-                    let more = (*next < *last).then_some(Sending::Listing {
-                        next: *next + 1,
-                        last: *last,
-                    });
-                    (msg, more)
+                    (msg, 0, *next < *last)
                 }
-                Sending::Data { id, ofs, remaining } => {
-                    let path = self
-                        .logs
-                        .logs
-                        .as_ref()
-                        .and_then(|l| l.get(usize::from(*id)))
-                        .map(|l| l.path.clone())
-                        .unwrap_or_default();
+                Sending::Data {
+                    id,
+                    file,
+                    ofs,
+                    remaining,
+                } => {
                     let mut data = [0u8; CHUNK];
                     let want = (*remaining as usize).min(CHUNK);
-                    let n = self.ftp.files().read_at(&path, *ofs, &mut data[..want]).unwrap_or(0);
+                    let n = match file.read_at(u64::from(*ofs), &mut data[..want]) {
+                        Ok(n) => n,
+                        Err(e) => {
+                            // a short LOG_DATA would tell the client the log ends here
+                            tracing::warn!(
+                                link = %self.config.name, id = *id, ofs = *ofs, error = ?e,
+                                "log download: cannot read the log; the transfer stops"
+                            );
+                            return;
+                        }
+                    };
                     let msg = MavMessage::LOG_DATA(LOG_DATA_DATA {
                         ofs: *ofs,
                         id: *id,
                         count: n as u8,
                         data,
                     });
-                    let left = remaining.saturating_sub(n as u32);
-                    let more = (n == CHUNK && left > 0).then_some(Sending::Data {
-                        id: *id,
-                        ofs: ofs + n as u32,
-                        remaining: left,
-                    });
-                    (msg, more)
+                    let n = n as u32;
+                    (msg, n, n as usize == CHUNK && *remaining > n)
                 }
             };
             let bytes = self.encoder.message(&msg);
@@ -178,9 +202,15 @@ impl Link {
                 return;
             }
             t.held_since = None;
-            match next {
-                Some(s) => t.sending = s,
-                None => return,
+            if !more {
+                return;
+            }
+            match &mut t.sending {
+                Sending::Listing { next, .. } => *next += 1,
+                Sending::Data { ofs, remaining, .. } => {
+                    *ofs += n;
+                    *remaining -= n;
+                }
             }
         }
         t.due = now + TURN;

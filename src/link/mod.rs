@@ -545,7 +545,7 @@ impl Link {
         }
         self.due = due;
         self.send_param_lists(now);
-        self.ftp_burst(now);
+        self.ftp_poll(now);
         self.log_send(now);
         let out = self.missions.poll(now, t);
         self.mission_frames(out);

@@ -191,3 +191,26 @@ impl ParamAccess for FakeParams {
         Ok(value)
     }
 }
+
+/// A file's bytes as a store's [`super::ftp::FileStore::open`] hands them
+/// out; `fail_from`: reads at or past this offset fail (a disk error).
+#[derive(Debug, Default)]
+pub(crate) struct MemFile {
+    pub(crate) bytes: Vec<u8>,
+    pub(crate) fail_from: Option<u64>,
+}
+
+impl super::ftp::ReadFile for MemFile {
+    fn size(&self) -> Result<u64, super::ftp::FsError> {
+        Ok(self.bytes.len() as u64)
+    }
+    fn read_at(&self, offset: u64, buf: &mut [u8]) -> Result<usize, super::ftp::FsError> {
+        if self.fail_from.is_some_and(|f| offset >= f) {
+            return Err(super::ftp::FsError::Errno(super::ftp::errno::EIO));
+        }
+        let s = usize::try_from(offset).unwrap_or(usize::MAX).min(self.bytes.len());
+        let n = buf.len().min(self.bytes.len() - s);
+        buf[..n].copy_from_slice(&self.bytes[s..s + n]);
+        Ok(n)
+    }
+}

@@ -7,7 +7,7 @@ use mavlink::dialects::common::{FILE_TRANSFER_PROTOCOL_DATA, MavMessage};
 
 use super::param_pck;
 use super::*;
-use crate::link::testing::{FakeParams, addr, link, snapshot};
+use crate::link::testing::{FakeParams, MemFile, addr, link, snapshot};
 use crate::link::wire::{self, Inbound};
 use crate::params::ParamValue;
 
@@ -25,18 +25,12 @@ impl FileStore for MemStore {
             _ => Err(FsError::NotFound),
         }
     }
-    fn size(&self, path: &str) -> Result<u32, FsError> {
-        self.0
-            .get(path.trim_start_matches('/'))
-            .map(|v| v.len() as u32)
-            .ok_or(FsError::NotFound)
-    }
-    fn read_at(&self, path: &str, offset: u32, buf: &mut [u8]) -> Result<usize, FsError> {
+    fn open(&self, path: &str) -> Result<Box<dyn ReadFile>, FsError> {
         let v = self.0.get(path.trim_start_matches('/')).ok_or(FsError::NotFound)?;
-        let s = (offset as usize).min(v.len());
-        let n = buf.len().min(v.len() - s);
-        buf[..n].copy_from_slice(&v[s..s + n]);
-        Ok(n)
+        Ok(Box::new(MemFile {
+            bytes: v.clone(),
+            fail_from: None,
+        }))
     }
     fn create(&mut self, path: &str, truncate: bool) -> Result<u32, FsError> {
         if path.contains("..") {
@@ -233,12 +227,12 @@ fn a_file_is_read_by_offset_and_by_burst_and_its_crc_is_px4s() {
     // zlib's CRC-32 complements in and out; PX4's crc32part does neither
     let zlib_of_complemented = {
         let mut c = 0xFFFF_FFFFu32 ^ 0xFFFF_FFFF;
-        c = crc32_part(&bytes, c);
+        c = crate::mission::crc::crc32part(&bytes, c);
         c
     };
     assert_eq!(data, zlib_of_complemented.to_le_bytes().to_vec());
     assert_eq!(
-        crc32_part(b"123456789", 0xFFFF_FFFF) ^ 0xFFFF_FFFF,
+        crate::mission::crc::crc32part(b"123456789", 0xFFFF_FFFF) ^ 0xFFFF_FFFF,
         0xCBF4_3926,
         "the CRC-32 check value"
     );
@@ -500,4 +494,91 @@ fn a_broken_param_pck_upload_sets_nothing_and_is_nakked() {
         r.one(0, op::WRITE_FILE, 65_530, b"0123456789"),
         (op::NAK, vec![err::FAIL])
     );
+}
+
+#[test]
+fn a_request_reusing_the_last_seq_with_another_opcode_is_answered_anew() {
+    let mut r = Rig::new(files());
+    let open = request(10, 0, op::OPEN_FILE_RO, 0, b"/notes.txt");
+    r.l.on_datagram(r.t, addr(14540), &open, &snapshot(), &r.p);
+    assert_eq!(replies(&mut r.l)[0][5], op::OPEN_FILE_RO);
+    // same seq, another opcode: a new request (a restarted client), not a resend
+    let list = request(10, 0, op::LIST_DIRECTORY, 0, b"/");
+    r.l.on_datagram(r.t, addr(14540), &list, &snapshot(), &r.p);
+    let out = replies(&mut r.l);
+    assert_eq!((out[0][3], out[0][5]), (op::ACK, op::LIST_DIRECTORY));
+}
+
+#[test]
+fn a_long_crc32_is_summed_over_turns_and_a_resend_does_not_restart_it() {
+    let mut store = MemStore::default();
+    let big: Vec<u8> = (0..3_500_000u32).map(|i| (i * 31 + i / 7) as u8).collect();
+    store.0.insert("big.bin".into(), big.clone());
+    let mut r = Rig::new(store);
+    let raw = request(20, 0, op::CALC_FILE_CRC32, 0, b"/big.bin");
+    r.l.on_datagram(r.t, addr(14540), &raw, &snapshot(), &r.p);
+    assert!(replies(&mut r.l).is_empty(), "not all of it in one turn");
+    let mut answer = None;
+    for turn in 1..10 {
+        // the client resends while the vehicle sums: ignored, not restarted
+        r.l.on_datagram(r.t, addr(14540), &raw, &snapshot(), &r.p);
+        r.t += Duration::from_millis(2);
+        r.l.poll(r.t, &snapshot(), 0);
+        if let Some(p) = replies(&mut r.l).pop() {
+            answer = Some((turn, p));
+            break;
+        }
+    }
+    let (turns, p) = answer.expect("answered");
+    assert_eq!(turns, 3, "1 MiB a turn: 3.5 MB in four turns, the first at the request");
+    assert_eq!(
+        (p[3], p[5], u16::from_le_bytes([p[0], p[1]])),
+        (op::ACK, op::CALC_FILE_CRC32, 21)
+    );
+    let want = crate::mission::crc::crc32part(&big, 0);
+    assert_eq!(p[12..16], want.to_le_bytes());
+    // a resend after the answer gets the answer kept
+    r.l.on_datagram(r.t, addr(14540), &raw, &snapshot(), &r.p);
+    assert_eq!(replies(&mut r.l), vec![p]);
+}
+
+/// A file of `size` bytes whose byte at `i` is `i as u8`.
+#[derive(Debug)]
+struct Pattern {
+    size: u64,
+}
+
+impl ReadFile for Pattern {
+    fn size(&self) -> Result<u64, FsError> {
+        Ok(self.size)
+    }
+    fn read_at(&self, offset: u64, buf: &mut [u8]) -> Result<usize, FsError> {
+        let n = usize::try_from(self.size.saturating_sub(offset))
+            .unwrap_or(usize::MAX)
+            .min(buf.len());
+        for (k, b) in buf[..n].iter_mut().enumerate() {
+            *b = (offset + k as u64) as u8;
+        }
+        Ok(n)
+    }
+}
+
+#[test]
+fn a_crc32_goes_on_past_four_gib() {
+    // the sum started just below 2^32 (as after 4 GiB of turns) ends at the
+    // file's end past 2^32 instead of wrapping round for ever
+    let start = u64::from(u32::MAX) - 10;
+    let size = u64::from(u32::MAX) + 100;
+    let mut c = Crc {
+        to: addr(14540),
+        requester: (245, 190),
+        req: header(&[0u8; 251]),
+        file: Box::new(Pattern { size }),
+        offset: start,
+        crc: 0,
+        due: Instant::now(),
+    };
+    let tail: Vec<u8> = (start..size).map(|i| i as u8).collect();
+    assert_eq!(c.step(CRC_PER_TURN), Some(Ok(crate::mission::crc::crc32part(&tail, 0))));
+    assert_eq!(c.offset, size);
 }

@@ -7,8 +7,8 @@ use mavlink::dialects::common::{
     LOG_ERASE_DATA, LOG_REQUEST_DATA_DATA, LOG_REQUEST_END_DATA, LOG_REQUEST_LIST_DATA, MavMessage,
 };
 
-use crate::link::ftp::{DirEntry, FileStore, FsError, LogFile};
-use crate::link::testing::{FakeParams, addr, link, snapshot};
+use crate::link::ftp::{DirEntry, FileStore, FsError, LogFile, ReadFile};
+use crate::link::testing::{FakeParams, MemFile, addr, link, snapshot};
 use crate::link::wire::{self, Inbound};
 use crate::link::{Link, Outgoing};
 
@@ -29,22 +29,14 @@ impl FileStore for Logs {
     fn list(&self, _: &str) -> Result<Vec<DirEntry>, FsError> {
         Err(FsError::NotFound)
     }
-    fn size(&self, path: &str) -> Result<u32, FsError> {
-        self.0
-            .lock()
-            .unwrap()
-            .iter()
-            .find(|l| l.0 == path)
-            .map(|l| l.1.len() as u32)
-            .ok_or(FsError::NotFound)
-    }
-    fn read_at(&self, path: &str, offset: u32, buf: &mut [u8]) -> Result<usize, FsError> {
+    fn open(&self, path: &str) -> Result<Box<dyn ReadFile>, FsError> {
         let all = self.0.lock().unwrap();
         let v = &all.iter().find(|l| l.0 == path).ok_or(FsError::NotFound)?.1;
-        let s = (offset as usize).min(v.len());
-        let n = buf.len().min(v.len() - s);
-        buf[..n].copy_from_slice(&v[s..s + n]);
-        Ok(n)
+        // a log named `bad` fails to be read from byte 100 on
+        Ok(Box::new(MemFile {
+            bytes: v.clone(),
+            fail_from: path.contains("bad").then_some(100),
+        }))
     }
     fn create(&mut self, _: &str, _: bool) -> Result<u32, FsError> {
         Err(FsError::Protected)
@@ -253,4 +245,74 @@ fn a_full_range_request_lists_afresh_as_px4_does() {
     let out = run(&mut l, t);
     let MavMessage::LOG_ENTRY(e) = &out[0] else { panic!() };
     assert_eq!((out.len(), e.id, e.num_logs), (1, 1, 2));
+}
+
+fn data(id: u16, ofs: u32, count: u32) -> MavMessage {
+    MavMessage::LOG_REQUEST_DATA(LOG_REQUEST_DATA_DATA {
+        ofs,
+        count,
+        id,
+        target_system: 1,
+        target_component: 1,
+    })
+}
+
+#[test]
+fn a_list_starting_past_the_last_log_gets_no_entry_as_px4() {
+    let t = Instant::now();
+    let mut l = link(t);
+    l.set_files(Box::new(Logs::of(vec![
+        ("/log/a.ulg".into(), vec![1; 5]),
+        ("/log/b.ulg".into(), vec![2; 7]),
+    ])));
+    send(&mut l, t, &list(5, 5));
+    assert!(run(&mut l, t).is_empty(), "not log 1 for a request of log 5");
+    send(&mut l, t, &list(1, 9));
+    let ids: Vec<_> = run(&mut l, t)
+        .iter()
+        .map(|m| match m {
+            MavMessage::LOG_ENTRY(e) => (e.id, e.num_logs, e.last_log_num),
+            other => panic!("{other:?}"),
+        })
+        .collect();
+    assert_eq!(ids, vec![(1, 2, 1)]);
+}
+
+#[test]
+fn a_read_error_stops_the_transfer_instead_of_ending_the_log_short() {
+    let t = Instant::now();
+    let mut l = link(t);
+    l.set_files(Box::new(Logs::of(vec![("/log/bad.ulg".into(), vec![7; 1000])])));
+    send(&mut l, t, &list(0, u16::MAX));
+    assert_eq!(run(&mut l, t).len(), 1);
+    send(&mut l, t, &data(0, 0, u32::MAX));
+    let sent: Vec<_> = run(&mut l, t)
+        .iter()
+        .map(|m| match m {
+            MavMessage::LOG_DATA(d) => (d.ofs, d.count),
+            other => panic!("{other:?}"),
+        })
+        .collect();
+    // bytes 0..90 and 90..180 read; the read at 180 fails: nothing more, no
+    // short LOG_DATA that a client takes for the end of the log
+    assert_eq!(sent, vec![(0, 90), (90, 90)]);
+    assert!(l.logs.transfer.is_none());
+}
+
+#[test]
+fn a_transfer_held_back_by_the_budget_loses_no_chunk() {
+    let t = Instant::now();
+    let mut l = link(t);
+    let big: Vec<u8> = (0..20_000u32).map(|i| (i * 13) as u8).collect();
+    l.set_files(Box::new(Logs::of(vec![("/log/a.ulg".into(), big.clone())])));
+    send(&mut l, t, &list(0, u16::MAX));
+    run(&mut l, t);
+    send(&mut l, t, &data(0, 0, u32::MAX));
+    let mut got = Vec::new();
+    for m in run(&mut l, t) {
+        let MavMessage::LOG_DATA(d) = m else { panic!() };
+        assert_eq!(d.ofs as usize, got.len(), "no gap");
+        got.extend_from_slice(&d.data[..usize::from(d.count)]);
+    }
+    assert_eq!(got, big);
 }

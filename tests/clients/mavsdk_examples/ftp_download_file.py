@@ -13,6 +13,11 @@ from common import bail, bring_up, launch
 EXPECTED = os.environ["ROTORPILOT_LOG_FILE"]
 
 
+def crc32part(data):
+    """PX4's crc32part from 0: zlib's CRC-32 without its inversions."""
+    return zlib.crc32(data, 0xFFFFFFFF) ^ 0xFFFFFFFF
+
+
 async def run():
     uav = await bring_up(need_position=False)
     days = await uav.ftp.list_directory("/log")
@@ -32,10 +37,11 @@ async def run():
     if got != want:
         bail(f"{remote}: {len(got)} bytes downloaded, {len(want)} on disk, not equal")
     print(f"{remote}: {len(got)} bytes, equal to the file on disk")
-    # MAVSDK compares its own CRC32 (zlib's) with the vehicle's answer
+    # MAVSDK sums the local file with PX4's crc32part (not zlib's CRC-32:
+    # no inversion in or out) and compares it with the vehicle's CalcFileCRC32
     if not await uav.ftp.are_files_identical(EXPECTED, remote):
         bail("CalcFileCRC32 does not match the file")
-    print(f"CRC32 matches ({zlib.crc32(want):#010x})")
+    print(f"CRC32 matches: {crc32part(want):#010x} (PX4's crc32part, the vehicle's answer)")
 
 
 if __name__ == "__main__":

@@ -363,4 +363,37 @@ mod tests {
         );
         assert!(r.plans.mission.is_empty() && !r.meta.notes.is_empty());
     }
+
+    #[test]
+    fn a_ulog_gives_the_failsafes_its_vehicle_status_flag_turned_on() {
+        use crate::autopilot::AutopilotCommand;
+        use crate::logs::report::EventKind;
+        use crate::logs::ulog::flight::FlightUlog;
+        use crate::sim::Fault;
+        let (mut core, params) = crate::lockstep::test_quad();
+        let mut log = FlightUlog::new(Vec::new(), &params, &core, 0).unwrap();
+        for k in 0..12_000 {
+            match k {
+                2000 => {
+                    let _ = core.command(0, AutopilotCommand::Arm { force: false });
+                }
+                2001 => {
+                    let _ = core.command(0, AutopilotCommand::Takeoff { altitude_amsl_m: None });
+                }
+                8000 => core.world_mut().inject(0, Fault::Gps { available: false }).unwrap(),
+                _ => {}
+            }
+            core.step();
+            log.on_step(&mut core, 0).unwrap();
+            for (t, s) in core.drain_stamped_status_texts(0) {
+                log.status_text(t, &s).unwrap();
+            }
+        }
+        let r = from_ulog(&log.finish().unwrap(), "flight.ulg", None).unwrap();
+        let failsafes: Vec<_> = r.events.iter().filter(|e| e.kind == EventKind::Failsafe).collect();
+        assert_eq!(failsafes.len(), 1, "{:?}", r.events);
+        let f = failsafes[0];
+        assert_eq!(f.text, "No GPS fix: descending without position (Descend)");
+        assert!((f.t_s - 8.0).abs() < 0.05, "{}", f.t_s);
+    }
 }

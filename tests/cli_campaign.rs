@@ -144,6 +144,12 @@ fn a_directory_campaign_gives_one_line_per_file_in_input_order_whatever_the_jobs
         "{}",
         two.stderr
     );
+    // one job is said in the singular, as one scenario is
+    assert!(
+        one.stderr.contains("4 scenarios") && one.stderr.contains(" on 1 job (") && !one.stderr.contains("1 jobs"),
+        "{}",
+        one.stderr
+    );
     // text: one line per scenario, in order
     let text = run(&["simulate", &extra, ds]).stdout;
     let lines: Vec<&str> = text.lines().collect();

@@ -165,3 +165,46 @@ fn bad_input_gets_one_clear_error_naming_the_file() {
     assert_eq!(r.code, Some(2));
     assert!(r.stderr.contains("--report /dev/null/x"), "{}", r.stderr);
 }
+
+/// The header's failsafe line of a page (`failsafes: ...`).
+fn failsafe_line(page: &str) -> &str {
+    let at = page.find("failsafes: ").expect("a failsafe line in the header");
+    let rest = &page[at..];
+    &rest[..rest.find("</li>").unwrap()]
+}
+
+/// The header lists the failsafes the flight stack put in force, whatever
+/// its status texts say: the square losing its GPS fix in flight descends
+/// blind ("No GPS fix: descending without position"), and its page names
+/// that failsafe with its instant and cause; the same square without the
+/// loss has none.
+#[test]
+fn the_header_lists_the_failsafes_the_flight_stack_put_in_force() {
+    let square = std::fs::read_to_string("tools/scenarios/mission-square.toml")
+        .unwrap()
+        .replace("duration_s = 300", "duration_s = 40");
+    let dir = common::scratch_dir("report-failsafes");
+    let lost = dir.join("gps-lost.toml");
+    let kept = dir.join("gps-kept.toml");
+    std::fs::write(
+        &lost,
+        format!("{square}\n[[fault]]\nat_s = 25.0\nunit = \"gps\"\ntype = \"off\"\n"),
+    )
+    .unwrap();
+    std::fs::write(&kept, &square).unwrap();
+    let pages = dir.join("pages");
+    for file in [&lost, &kept] {
+        let out = run(&["simulate", file.to_str().unwrap(), "--report", pages.to_str().unwrap()]);
+        assert!(!out.stderr.contains("panicked"), "{}", out.stderr);
+    }
+    let page = std::fs::read_to_string(pages.join("gps-lost.html")).unwrap();
+    assert!(
+        page.contains("No GPS fix: descending without position"),
+        "the announcement is an event"
+    );
+    let line = failsafe_line(&page);
+    assert!(line.contains("no GPS fix") && line.contains("at 25.0"), "{line}");
+    let page = std::fs::read_to_string(pages.join("gps-kept.html")).unwrap();
+    assert_eq!(failsafe_line(&page), "failsafes: none");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -372,12 +372,10 @@ async fn an_unusable_log_dir_is_refused_at_start_with_its_path() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// `rotorpilot replay` prints the per-item summary `simulate` gives: a
-/// record of the shipped square (the mission stored at start, started as
-/// `simulate` starts it) replays to the same item lines and tracking error
-/// as `rotorpilot simulate` prints for that scenario.
-#[test]
-fn replay_prints_the_per_item_summary_simulate_gives() {
+/// A record of the shipped square (the mission stored at start, started as
+/// `simulate` starts it), written into a scratch directory named for `tag`:
+/// the directory and the record's path.
+fn square_record(tag: &str) -> (PathBuf, PathBuf) {
     use rotorpilot::autopilot::{AutopilotCommand, ClientClock};
     use rotorpilot::lockstep::input::{Input, apply};
     use rotorpilot::logs::record::{Header, end_line, header_line, input_line};
@@ -409,10 +407,21 @@ fn replay_prints_the_per_item_summary_simulate_gives() {
         input_line(core.steps(), &start, &outcome).unwrap(),
         end_line(90_000)
     );
-    let dir = scratch_path("replay-items");
+    let dir = scratch_path(tag);
     std::fs::create_dir_all(&dir).unwrap();
     let record = dir.join("flight.record");
     std::fs::write(&record, text).unwrap();
+    (dir, record)
+}
+
+/// `rotorpilot replay` prints the per-item summary `simulate` gives: a
+/// record of the shipped square (the mission stored at start, started as
+/// `simulate` starts it) replays to the same item lines and tracking error
+/// as `rotorpilot simulate` prints for that scenario.
+#[test]
+fn replay_prints_the_per_item_summary_simulate_gives() {
+    let scenario = "tools/scenarios/mission-square.toml";
+    let (dir, record) = square_record("replay-items");
 
     let replayed = common::bin::run(&["replay", record.to_str().unwrap()]);
     assert!(replayed.ok(), "{}", replayed.stderr);
@@ -442,5 +451,47 @@ fn replay_prints_the_per_item_summary_simulate_gives() {
     let v: serde_json::Value = serde_json::from_str(&json.stdout).unwrap();
     assert_eq!(v["items"][3]["outcome"], "ran");
     assert_eq!(v["items"][6]["outcome"], "reached");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The report page gives one distance per reach of an item, the one the
+/// text summaries print ("N m off": from the true position to the item's
+/// point, a relative altitude taken above home): the verdict's column for
+/// the first reach, and the event of that reach, say the same number as
+/// `rotorpilot replay` does.
+#[test]
+fn the_page_and_the_summary_give_an_item_the_same_distance() {
+    let (dir, record) = square_record("replay-item-distance");
+    let r = read_record(&std::fs::read_to_string(&record).unwrap(), "flight.record").unwrap();
+    let summary = replay(&r, "flight.record", None).unwrap();
+    let page = rotorpilot::logs::replay::replay_report(&r, "flight.record", Default::default()).unwrap();
+    let mut checked = 0;
+    for (row, item) in page.verdict.items.iter().zip(&summary.items) {
+        assert_eq!(row.seq, item.seq);
+        let Some(d) = item.distance_m else {
+            assert_eq!(row.distance_m, None, "item {}", row.seq);
+            continue;
+        };
+        let shown = format!("{d:.2}");
+        assert_eq!(
+            row.distance_m.map(|x| format!("{x:.2}")),
+            Some(shown.clone()),
+            "item {}",
+            row.seq
+        );
+        let event = page
+            .events
+            .iter()
+            .find(|e| e.text.starts_with(&format!("Reached item {} ", row.seq)))
+            .unwrap_or_else(|| panic!("no event for item {}", row.seq));
+        assert!(
+            event.text.contains(&format!("{shown} m")),
+            "item {}: {} vs {shown}",
+            row.seq,
+            event.text
+        );
+        checked += 1;
+    }
+    assert!(checked >= 5, "{checked} items with a distance");
     let _ = std::fs::remove_dir_all(&dir);
 }

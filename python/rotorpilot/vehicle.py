@@ -384,6 +384,9 @@ class Vehicle:
             return ""
 
     def _fail(self, why):
+        # pytest shows a frame's arguments in its traceback: this frame's
+        # `why` would repeat the message its E lines give, so it is hidden
+        __tracebackhide__ = True
         try:
             self.stop()
         except VehicleError as e:

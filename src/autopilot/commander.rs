@@ -294,7 +294,21 @@ impl Autopilot {
     ///
     /// Disarmed, Hold is accepted with a GPS fix. Selecting the active
     /// mode again is accepted and changes nothing.
+    ///
+    /// A mode the pilot selects ends the failsafe in force (PX4's user
+    /// takeover), unless the command itself started a failsafe (Land without a fix).
     pub fn command(&mut self, cmd: AutopilotCommand, readings: &SensorReadings) -> CommandOutcome {
+        let mode = self.navigator.mode();
+        let held = self.in_failsafe.take();
+        let outcome = self.dispatch(cmd, readings);
+        let took_over = outcome == CommandOutcome::Accepted && self.navigator.mode() != mode;
+        if self.in_failsafe.is_none() && !took_over {
+            self.in_failsafe = held;
+        }
+        outcome
+    }
+
+    fn dispatch(&mut self, cmd: AutopilotCommand, readings: &SensorReadings) -> CommandOutcome {
         let m = &readings.measurement;
         self.now_s = m.time_s;
         match cmd {
@@ -484,6 +498,7 @@ impl Autopilot {
             if !matches!(self.navigator.nav(), Nav::Descend { .. }) {
                 // a landing asked for: the fix back keeps landing
                 self.navigator.enter_descend(super::navigator::DescendThen::Land);
+                self.enter_failsafe(super::stack::GPS_LOST);
                 self.say
                     .announce(Severity::Critical, "No GPS fix: descending without position");
             }

@@ -578,6 +578,9 @@ impl Autopilot {
             self.navigator.landing(),
             &mut self.say,
         );
+        if response.is_some() {
+            self.enter_failsafe(cause);
+        }
         match response {
             Some(Response::Hold) => self.navigator.enter_hold(),
             Some(Response::Return) => {

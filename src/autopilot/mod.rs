@@ -124,7 +124,7 @@ pub use navigator::ItemDone;
 pub use navigator::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};
 pub use navigator::{ManualControl, OrbitYaw, TARGET_STALE_S, TargetFix};
 pub use rotor_monitor::{FAILED_SPEED_RATIO, RotorEvent, RotorMonitor, RotorStatus};
-pub use stack::Autopilot;
+pub use stack::{Autopilot, FailsafeInForce};
 pub use status::{STATUS_TEXT_LEN, Severity, StatusText, cut_status_text, status_text_lines};
 pub use telemetry::{LandedState, MissionState, MissionStatus, OrbitStatus, Telemetry, VehicleType};
 

@@ -102,6 +102,24 @@ pub struct Autopilot {
     pub(super) failsafe: Failsafe,
     /// The wind estimate (the estimated force through the nominal drag).
     wind: WindMonitor,
+    /// The failsafe in force, if any (PX4's `vehicle_status.failsafe`).
+    pub(super) in_failsafe: Option<FailsafeInForce>,
+}
+
+/// The cause of the failsafe that replaces a mode needing a position when the GNSS fix is lost.
+pub(super) const GPS_LOST: &str = "no GPS fix";
+
+/// A failsafe in force: an action the pilot did not command, taken by the
+/// flight stack (PX4's failsafe framework: `vehicle_status.failsafe` is
+/// true while its selected action is not `None`). It starts when a failsafe
+/// acts (the one runner, or the flight stack replacing a mode it cannot fly
+/// without a GNSS fix) and ends when the vehicle disarms, when the pilot
+/// selects a mode (PX4's user takeover), or when a lost fix returns and the
+/// mode the pilot meant is flown again.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FailsafeInForce {
+    /// Why: the failsafe's cause (`no GPS fix`, `GCS connection lost`, `battery critical`, ...).
+    pub cause: String,
 }
 
 impl Autopilot {
@@ -158,6 +176,7 @@ impl Autopilot {
             plans: Plans::default(),
             failsafe: Failsafe::default(),
             wind: WindMonitor::new(airframe),
+            in_failsafe: None,
         };
         ap.home_ned = ap.home.ned_from(&ap.origin);
         ap.apply_params(params)?;
@@ -228,6 +247,10 @@ impl Autopilot {
         let m = &readings.measurement;
         let now = m.time_s;
         self.now_s = now;
+        if !self.commander.armed() {
+            // disarmed (a failsafe's disarm shows for the step it acted)
+            self.in_failsafe = None;
+        }
         let weight = self.control.nominal().mass_kg * GRAVITY;
         let event = self.land.update(m, self.control.last_applied().thrust_n, weight);
         self.commander.land_event(event, now, &mut self.say);
@@ -259,7 +282,17 @@ impl Autopilot {
         let gps_lost = readings.gps.fix == GpsFix::None;
         let armed = self.commander.armed();
         let cx = situation!(self, m);
+        let mode = self.navigator.mode();
         self.navigator.supervise_gps(gps_lost, armed, &cx, &mut self.say);
+        if self.navigator.mode() != mode {
+            if gps_lost {
+                // a mode it cannot fly without a position, replaced
+                self.enter_failsafe(GPS_LOST);
+            } else if self.in_failsafe.as_ref().is_some_and(|f| f.cause == GPS_LOST) {
+                // the fix is back and what was meant is flown again
+                self.in_failsafe = None;
+            }
+        }
         let cx = situation!(self, m);
         let demand = self.navigator.guidance(self.commander.armed(), &cx, &mut self.say);
         if let Some(h) = self.navigator.take_mission_home() {
@@ -423,6 +456,7 @@ impl Autopilot {
             vehicle_type: VehicleType::from_rotor_count(self.airframe.rotor_count()),
             armed: self.commander.armed(),
             mode: self.navigator.mode(),
+            failsafe: self.in_failsafe.is_some(),
             landed: self.navigator.landed_state(self.commander.armed(), self.land.landed()),
             position_ned: m.position_ned,
             velocity_ned: m.velocity_ned,
@@ -541,6 +575,19 @@ impl Autopilot {
     #[must_use]
     pub fn mode(&self) -> super::FlightMode {
         self.navigator.mode()
+    }
+
+    /// The failsafe in force now, if any ([`FailsafeInForce`]).
+    #[must_use]
+    pub fn failsafe_in_force(&self) -> Option<&FailsafeInForce> {
+        self.in_failsafe.as_ref()
+    }
+
+    /// A failsafe acts for `cause`: in force from now (a new cause is a new failsafe).
+    pub(super) fn enter_failsafe(&mut self, cause: &str) {
+        if self.in_failsafe.as_ref().is_none_or(|f| f.cause != cause) {
+            self.in_failsafe = Some(FailsafeInForce { cause: cause.into() });
+        }
     }
 
     /// The NED origin (where the vehicle booted).

@@ -65,6 +65,9 @@ pub struct Telemetry {
     pub armed: bool,
     /// Mode.
     pub mode: FlightMode,
+    /// A failsafe is in force (PX4's `vehicle_status.failsafe`: an action
+    /// the pilot did not command; [`super::Autopilot::failsafe_in_force`]).
+    pub failsafe: bool,
     /// Landed state.
     pub landed: LandedState,
     /// Position [m], NED from home's origin.

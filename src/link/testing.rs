@@ -62,6 +62,7 @@ pub(crate) fn snapshot() -> Snapshot {
             vehicle_type: VehicleType::Quadrotor,
             armed: false,
             mode: FlightMode::Hold,
+            failsafe: false,
             landed: LandedState::OnGround,
             position_ned: Vector3::zeros(),
             velocity_ned: Vector3::zeros(),

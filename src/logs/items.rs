@@ -138,21 +138,34 @@ impl ItemTally {
                     continue;
                 }
             };
+            let first = self
+                .results
+                .get(usize::from(seq))
+                .is_some_and(|r| r.reached_s.is_none());
+            let distance_m = if first { self.distance_m(core, i, seq) } else { None };
             if let Some(r) = self.results.get_mut(usize::from(seq)) {
                 r.times_reached += 1;
                 r.outcome = ItemOutcome::Reached;
-                if r.reached_s.is_none() {
+                if first {
                     r.reached_s = Some(time_s);
-                    let it = &self.items[usize::from(seq)];
-                    // relative altitudes are above the vehicle's home (where it rested)
-                    let home_alt_amsl_m = core.telemetry(i).home.alt_amsl_m;
-                    r.distance_m = it
-                        .geo_point(home_alt_amsl_m)
-                        .map(|g| (core.world().plant(i).state().position_ned - g.ned_from(&self.origin)).norm());
+                    r.distance_m = distance_m;
                 }
             }
         }
         events
+    }
+
+    /// How far vehicle `i` is now from item `seq`'s point [m]: `|p - p_item|`,
+    /// `p` its true position, NED, and a relative altitude taken above the
+    /// vehicle's home (where it rested), as the flight stack takes it. The
+    /// one distance an item is said to be "off" by, in the summaries and on
+    /// the report page; `None` for an item without a point.
+    #[must_use]
+    pub fn distance_m(&self, core: &mut Lockstep<Autopilot>, i: usize, seq: u16) -> Option<f64> {
+        let it = self.items.get(usize::from(seq))?;
+        let home_alt_amsl_m = core.telemetry(i).home.alt_amsl_m;
+        it.geo_point(home_alt_amsl_m)
+            .map(|g| (core.world().plant(i).state().position_ned - g.ned_from(&self.origin)).norm())
     }
 
     /// The items reached among `events` (seq numbers, in order).

@@ -106,7 +106,10 @@ impl ReplayLogs<'_> {
         let texts = core.drain_stamped_status_texts(0);
         if let Some(r) = &mut self.report {
             r.texts(&texts);
-            r.reached(core, &ItemTally::reached_seqs(&done));
+            let t = core.time_s();
+            for seq in ItemTally::reached_seqs(&done) {
+                r.reached_at(seq, t, self.items.distance_m(core, 0, seq));
+            }
         }
         if let Some(u) = &mut self.ulog {
             if self.steps.is_multiple_of(PARAM_CHECK_EVERY) && params.generation() != self.generation {

@@ -188,7 +188,7 @@ fn verdict(h: &mut String, r: &FlightReport) {
     if !v.items.is_empty() {
         h.push_str(
             "<table class=\"items\"><thead><tr><th>item</th><th>command</th><th>reached at</th>\
-             <th>off by</th><th>times</th></tr></thead><tbody>",
+             <th title=\"distance from the true position to the item's point at the first reach, as the summaries' m off\">off at first reach</th><th>times</th></tr></thead><tbody>",
         );
         for i in &v.items {
             let _ = write!(

@@ -139,7 +139,8 @@ pub struct Span {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum EventKind {
-    /// A failsafe acted or warned (`Failsafe...`).
+    /// A failsafe came in force: the flight stack's failsafe state (PX4's
+    /// `vehicle_status.failsafe`) turned on, or its cause changed; the text is the cause.
     Failsafe,
     /// A failure was injected (`CMD_INJECT_FAILURE...`).
     Failure,
@@ -163,13 +164,12 @@ pub struct Event {
 }
 
 impl Event {
-    /// A status text at `t_s`, sorted into its kind by its words (PX4's
-    /// `Failsafe` prefix, the injection's `CMD_INJECT_FAILURE`).
+    /// A status text at `t_s`: a failure injected (the injection's
+    /// `CMD_INJECT_FAILURE`) or a text. A failsafe is never known from
+    /// words: [`Self::failsafe`] takes it from the flight stack's state.
     #[must_use]
     pub fn from_text(t_s: f64, severity: Severity, text: &str) -> Self {
-        let kind = if text.starts_with("Failsafe") {
-            EventKind::Failsafe
-        } else if text.starts_with("CMD_INJECT_FAILURE") {
+        let kind = if text.starts_with("CMD_INJECT_FAILURE") {
             EventKind::Failure
         } else {
             EventKind::Text
@@ -179,6 +179,19 @@ impl Event {
             kind,
             severity: format!("{severity:?}"),
             text: text.into(),
+        }
+    }
+}
+
+impl Event {
+    /// A failsafe in force from `t_s` for `cause`, the vehicle then in `mode`.
+    #[must_use]
+    pub fn failsafe(t_s: f64, cause: &str, mode: &str) -> Self {
+        Self {
+            t_s,
+            kind: EventKind::Failsafe,
+            severity: "Critical".into(),
+            text: format!("{cause} ({mode})"),
         }
     }
 }
@@ -313,7 +326,8 @@ pub struct ItemRow {
     pub reached_s: Option<f64>,
     /// How often it was reached (DO_JUMP loops).
     pub times: u32,
-    /// Distance [m] from the true position to the item's point when first reached.
+    /// Distance [m] from the true position to the item's point when first
+    /// reached (relative altitudes above home: the summaries' "m off").
     pub distance_m: Option<f64>,
 }
 
@@ -416,6 +430,8 @@ pub struct PilotState {
     pub mode: String,
     /// Flying (the tracking error counts only then).
     pub in_air: bool,
+    /// The cause of the failsafe in force, if any (PX4's `vehicle_status.failsafe`).
+    pub failsafe: Option<String>,
     /// On the ground or in the air, as the page words it at the end.
     pub landed: String,
 }
@@ -445,6 +461,7 @@ impl Watched for Autopilot {
             armed: self.armed(),
             mode: format!("{:?}", self.mode()),
             in_air: landed == LandedState::InAir,
+            failsafe: self.failsafe_in_force().map(|f| f.cause.clone()),
             landed: format!("{landed:?}"),
         }
     }
@@ -475,6 +492,8 @@ pub struct Collector {
     plans: PlanView,
     plans_seen: Option<Plans>,
     max_err: Option<(f64, f64)>,
+    /// The cause of the failsafe in force after the last step.
+    failsafe: Option<String>,
     row: Vec<f64>,
 }
 
@@ -495,6 +514,7 @@ impl Collector {
             plans: PlanView::default(),
             plans_seen: None,
             max_err: None,
+            failsafe: None,
             row: vec![f64::NAN; COLUMNS.len() + rotors],
         };
         c.watch_plans(core);
@@ -547,8 +567,18 @@ impl Collector {
         let t = core.time_s();
         let i = self.vehicle;
         let PilotState {
-            armed, mode, in_air, ..
+            armed,
+            mode,
+            in_air,
+            failsafe,
+            ..
         } = core.pilot(i).pilot_state();
+        if failsafe != self.failsafe {
+            if let Some(cause) = &failsafe {
+                self.events.push(Event::failsafe(t, cause, &mode));
+            }
+            self.failsafe = failsafe;
+        }
         self.arming.at(t, if armed { "armed" } else { "disarmed" });
         self.modes.at(t, &mode);
         let rec = core.last_step(i);
@@ -625,20 +655,9 @@ impl Collector {
         }
     }
 
-    /// Mission items reached at the core's current instant (as drained):
-    /// when, and how far the true position was from each item's point.
-    pub fn reached<P: Pilot>(&mut self, core: &Lockstep<P>, seqs: &[u16]) {
-        let t = core.time_s();
-        let p = core.last_step(self.vehicle).world.truth.position_ned;
-        for &seq in seqs {
-            let point = self.plans.mission.iter().find(|pt| pt.seq == seq);
-            let distance_m = point.map(|pt| (Vector3::new(pt.n, pt.e, -pt.alt_m) - p).norm());
-            self.reached_at(seq, t, distance_m);
-        }
-    }
-
-    /// Mission item `seq` reached at `t_s`, `distance_m` off (a runner that
-    /// drains the queue itself tells its findings here).
+    /// Mission item `seq` reached at `t_s`, `distance_m` from its point (the
+    /// one distance of [`crate::logs::items::ItemTally::distance_m`]; the
+    /// runner drains the queue and tells its findings here).
     pub fn reached_at(&mut self, seq: u16, t_s: f64, distance_m: Option<f64>) {
         if let Some(r) = self.items.get_mut(usize::from(seq)) {
             r.times += 1;

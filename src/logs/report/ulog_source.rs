@@ -126,6 +126,40 @@ fn tracking_error(
     (out, max)
 }
 
+/// A failsafe's announcement is logged within this time [us] of `vehicle_status.failsafe` turning on.
+const FAILSAFE_TEXT_US: u64 = 1_000_000;
+
+/// The failsafes of a ULog: each instant `vehicle_status.failsafe` turns
+/// on (PX4's flag; a log without it has none), with its cause as the
+/// vehicle said it (the first critical or worse message logged within
+/// [`FAILSAFE_TEXT_US`]) and the mode then.
+fn failsafes(u: &UlogFile) -> Vec<Event> {
+    let Some(status) = u.topic("vehicle_status") else {
+        return Vec::new();
+    };
+    let (Some(flag), nav) = (status.field("failsafe"), status.field("nav_state")) else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    let mut was = false;
+    for (k, (&t, &on)) in status.timestamp_us.iter().zip(flag).enumerate() {
+        let on = on != 0.0;
+        if on && !was {
+            let cause = u
+                .logged
+                .iter()
+                .find(|(at, level, _)| {
+                    *at >= t.saturating_sub(FAILSAFE_TEXT_US) && *at <= t + FAILSAFE_TEXT_US && *level <= 2
+                })
+                .map_or("failsafe", |(_, _, text)| text.as_str());
+            let mode = nav.and_then(|n| n.get(k)).map_or(String::new(), |n| mode_name(*n));
+            out.push(Event::failsafe(t as f64 * 1e-6, cause, &mode));
+        }
+        was = on;
+    }
+    out
+}
+
 /// The report of a ULog file's bytes; `file` labels it, `test` names the test.
 ///
 /// # Errors
@@ -244,6 +278,7 @@ fn report(u: &UlogFile, file: &str, test: Option<&str>) -> Result<FlightReport, 
         .iter()
         .map(|(t, level, text)| Event::from_text(*t as f64 * 1e-6, severity(*level), text))
         .collect();
+    events.extend(failsafes(u));
     events.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
     let mut notes = vec![
         "from a ULog: it holds no mission, geofence or rally items and no item-reached events, so the path shows \
@@ -327,5 +362,38 @@ mod tests {
             ["disarmed", "armed"]
         );
         assert!(r.plans.mission.is_empty() && !r.meta.notes.is_empty());
+    }
+
+    #[test]
+    fn a_ulog_gives_the_failsafes_its_vehicle_status_flag_turned_on() {
+        use crate::autopilot::AutopilotCommand;
+        use crate::logs::report::EventKind;
+        use crate::logs::ulog::flight::FlightUlog;
+        use crate::sim::Fault;
+        let (mut core, params) = crate::lockstep::test_quad();
+        let mut log = FlightUlog::new(Vec::new(), &params, &core, 0).unwrap();
+        for k in 0..12_000 {
+            match k {
+                2000 => {
+                    let _ = core.command(0, AutopilotCommand::Arm { force: false });
+                }
+                2001 => {
+                    let _ = core.command(0, AutopilotCommand::Takeoff { altitude_amsl_m: None });
+                }
+                8000 => core.world_mut().inject(0, Fault::Gps { available: false }).unwrap(),
+                _ => {}
+            }
+            core.step();
+            log.on_step(&mut core, 0).unwrap();
+            for (t, s) in core.drain_stamped_status_texts(0) {
+                log.status_text(t, &s).unwrap();
+            }
+        }
+        let r = from_ulog(&log.finish().unwrap(), "flight.ulg", None).unwrap();
+        let failsafes: Vec<_> = r.events.iter().filter(|e| e.kind == EventKind::Failsafe).collect();
+        assert_eq!(failsafes.len(), 1, "{:?}", r.events);
+        let f = failsafes[0];
+        assert_eq!(f.text, "No GPS fix: descending without position (Descend)");
+        assert!((f.t_s - 8.0).abs() < 0.05, "{}", f.t_s);
     }
 }

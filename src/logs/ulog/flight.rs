@@ -18,7 +18,7 @@
 //! | `trajectory_setpoint` | 5 Hz | the reference tracked (only while one is) |
 //! | `actuator_motors` | 10 Hz | rotor commands |
 //! | `battery_status` | 5 Hz | battery |
-//! | `vehicle_status` | 1 Hz and on change | commander |
+//! | `vehicle_status` | 1 Hz and on change (arming, mode, `failsafe`) | commander |
 //! | `vehicle_land_detected` | 1 Hz and on change | land detector |
 //! | `wind` | 1 Hz, once estimated | the wind estimate (PX4's fields; no airspeed or sideslip fusion: innovations 0) |
 //! | `rotorpilot_wrench_estimate` | 50 Hz | the momentum-based estimator (and its order) |
@@ -123,7 +123,7 @@ const VEHICLE_STATUS: Topic = topic(
     "vehicle_status",
     0,
     "uint64_t timestamp;uint8_t arming_state;uint8_t nav_state;uint8_t vehicle_type;\
-     bool pre_flight_checks_pass;",
+     bool pre_flight_checks_pass;bool failsafe;",
 );
 const LAND_DETECTED: Topic = topic("vehicle_land_detected", 0, "uint64_t timestamp;bool landed;");
 const WIND: Topic = topic(
@@ -304,6 +304,7 @@ fn v3(v: &Vector3<f64>) -> [f64; 3] {
 struct Status {
     armed: bool,
     mode: FlightMode,
+    failsafe: bool,
     landed: bool,
 }
 
@@ -591,10 +592,14 @@ impl<W: Write> FlightUlog<W> {
         let now = Status {
             armed: pilot.armed(),
             mode: pilot.mode(),
+            failsafe: pilot.failsafe_in_force().is_some(),
             landed: pilot.landed_state() == LandedState::OnGround,
         };
         let second = k.is_multiple_of(((1.0 / dt).round() as u64).max(1));
-        let status_due = second || self.last.is_none_or(|l| l.armed != now.armed || l.mode != now.mode);
+        let status_due = second
+            || self
+                .last
+                .is_none_or(|l| l.armed != now.armed || l.mode != now.mode || l.failsafe != now.failsafe);
         let land_due = second || self.last.is_none_or(|l| l.landed != now.landed);
         let tel_due = status_due
             || self.due(id::LOCAL_POSITION, k)
@@ -657,7 +662,8 @@ impl<W: Write> FlightUlog<W> {
                 .u8(nav_state(tel.mode))
                 // VEHICLE_TYPE_ROTARY_WING
                 .u8(1)
-                .bool(tel.prearm_ok);
+                .bool(tel.prearm_ok)
+                .bool(tel.failsafe);
             self.ulog.data(id::VEHICLE_STATUS, &s)?;
         }
         if land_due {
@@ -667,6 +673,7 @@ impl<W: Write> FlightUlog<W> {
         self.last = Some(Status {
             armed: tel.armed,
             mode: tel.mode,
+            failsafe: tel.failsafe,
             landed: tel.landed == LandedState::OnGround,
         });
         Ok(())

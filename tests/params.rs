@@ -196,6 +196,15 @@ const SHARED_WITH_PX4: &[&str] = &[
     "GF_ACTION",
     "GF_MAX_HOR_DIST",
     "GF_MAX_VER_DIST",
+    "EKF2_HGT_REF",
+    "EKF2_BARO_CTRL",
+    "EKF2_GPS_CTRL",
+    "EKF2_REQ_GPS_H",
+    "EKF2_BARO_NOISE",
+    "EKF2_BARO_GATE",
+    "EKF2_GPS_P_NOISE",
+    "EKF2_GPS_V_NOISE",
+    "EKF2_NOAID_TOUT",
 ];
 
 /// Shared parameters whose default here differs from PX4 SITL's boot value,

@@ -36,6 +36,9 @@ const ALTITUDE_TOLERANCE_M: f64 = 1e-3;
 pub(super) struct Prearm {
     /// The land detector says landed.
     pub(super) landed: bool,
+    /// The navigation solution may be flown on (always with the ideal
+    /// source; the filter aligned with its position valid).
+    pub(super) position_valid: bool,
     /// The estimator has had its first sample.
     pub(super) estimator_initialised: bool,
     /// Home is a valid point.
@@ -58,6 +61,9 @@ impl Prearm {
     pub(super) fn failure(&self) -> Option<&'static str> {
         if !self.landed {
             return Some("vehicle not landed");
+        }
+        if !self.position_valid {
+            return Some("no valid position estimate");
         }
         if !self.estimator_initialised {
             return Some("estimator not initialised");
@@ -309,6 +315,8 @@ impl Autopilot {
     }
 
     fn dispatch(&mut self, cmd: AutopilotCommand, readings: &SensorReadings) -> CommandOutcome {
+        let readings = self.navigated(readings);
+        let readings = &*readings;
         let m = &readings.measurement;
         self.now_s = m.time_s;
         match cmd {
@@ -412,6 +420,7 @@ impl Autopilot {
         };
         Prearm {
             landed: self.land.landed(),
+            position_valid: self.navigation().is_none_or(super::navigation::FilterNavigation::ready),
             estimator_initialised: self.control_initialised(),
             home_valid: self.home.is_valid(),
             position_needed_without_fix: self.navigator.gps_lost() && self.navigator.needs_position(),
@@ -831,6 +840,7 @@ mod tests {
     fn ready() -> Prearm {
         Prearm {
             landed: true,
+            position_valid: true,
             estimator_initialised: true,
             home_valid: true,
             position_needed_without_fix: false,
@@ -846,6 +856,7 @@ mod tests {
         assert_eq!(ready().failure(), None);
         let all_bad = Prearm {
             landed: false,
+            position_valid: false,
             estimator_initialised: false,
             home_valid: false,
             position_needed_without_fix: true,
@@ -856,6 +867,13 @@ mod tests {
         };
         assert_eq!(all_bad.failure(), Some("vehicle not landed"));
         let cases = [
+            (
+                Prearm {
+                    position_valid: false,
+                    ..ready()
+                },
+                "no valid position estimate",
+            ),
             (
                 Prearm {
                     estimator_initialised: false,

@@ -411,6 +411,7 @@ impl Autopilot {
     /// is still running (a timer since restarted or stopped is ignored).
     /// True when it was acted on.
     pub fn client_timeout(&mut self, timer: ClientTimer, started_s: f64, readings: &SensorReadings) -> bool {
+        let readings = self.navigated(readings);
         let m = &readings.measurement;
         self.now_s = m.time_s;
         let running = self

@@ -19,6 +19,7 @@
 //! | `land_detector` | landed or flying, from the measurements and the commanded thrust |
 //! | `estimate` | the wrench estimate fed back: held on the ground, cross-faded after a rebuild |
 //! | `control_loop` | estimator update, control law, allocation (around a lost rotor; relaxed hover for a quad): the loop every pilot shares |
+//! | `navigation` | the navigation solution flown on (`RP_NAV_SRC`): the readings' own, or the navigation filter fed by the raw sensors |
 //! | `wind` | the wind estimate reported (WIND_COV): the estimated force through the nominal drag model, filtered |
 //! | `battery` | the battery monitor: charge used and remaining from voltage and current |
 //! | `telemetry` | the snapshot clients are told |
@@ -106,6 +107,7 @@ mod failsafe;
 mod geofence;
 mod land_detector;
 mod mission;
+mod navigation;
 mod navigator;
 mod rotor_monitor;
 mod settings;
@@ -120,6 +122,7 @@ pub use control_loop::RotorAllocation;
 pub use control_loop::{ControlLoop, ControlLoopError, ControlOutput, Demand};
 pub use error::AutopilotError;
 pub use failsafe::{ClientClock, ClientTimer, PendingTimer};
+pub use navigation::{FilterNavigation, NavSource, nav_config};
 pub use navigator::ItemDone;
 pub use navigator::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};
 pub use navigator::{ManualControl, OrbitYaw, TARGET_STALE_S, TargetFix};

@@ -2,6 +2,8 @@
 //! parameters, and one step in order — detect landing, hold or run the
 //! estimator, supervise, guide, control.
 
+use std::borrow::Cow;
+
 use nalgebra::Vector3;
 
 use super::battery::BatteryMonitor;
@@ -11,6 +13,7 @@ use super::error::AutopilotError;
 use super::estimate::EstimateFeedback;
 use super::failsafe::Failsafe;
 use super::land_detector::LandDetector;
+use super::navigation::{FilterNavigation, NavSource, nav_config};
 use super::navigator::Navigator;
 use super::rotor_monitor::{RotorEvent, RotorMonitor, RotorStatus};
 use super::settings::FailsafeAction;
@@ -104,6 +107,9 @@ pub struct Autopilot {
     wind: WindMonitor,
     /// The failsafe in force, if any (PX4's `vehicle_status.failsafe`).
     pub(super) in_failsafe: Option<FailsafeInForce>,
+    /// The navigation filter flown on (`RP_NAV_SRC` = 1, read at boot);
+    /// `None`: the readings' own navigation solution.
+    navigation: Option<Box<FilterNavigation>>,
 }
 
 /// The cause of the failsafe that replaces a mode needing a position when the GNSS fix is lost.
@@ -177,6 +183,10 @@ impl Autopilot {
             failsafe: Failsafe::default(),
             wind: WindMonitor::new(airframe),
             in_failsafe: None,
+            navigation: match NavSource::from_params(params) {
+                NavSource::Ideal => None,
+                NavSource::Filter => Some(Box::new(FilterNavigation::new(nav_config(params), home))),
+            },
         };
         ap.home_ned = ap.home.ned_from(&ap.origin);
         ap.apply_params(params)?;
@@ -244,6 +254,11 @@ impl Autopilot {
     /// resting on the ground, else updated; offboard-loss and auto-disarm
     /// supervision; guidance for the mode; the controller and allocation.
     pub fn step(&mut self, readings: &SensorReadings) -> &ControlOutput {
+        if let Some(nav) = self.navigation.as_deref_mut() {
+            nav.update(readings);
+        }
+        let readings = self.navigated(readings);
+        let readings = &*readings;
         let m = &readings.measurement;
         let now = m.time_s;
         self.now_s = now;
@@ -252,10 +267,13 @@ impl Autopilot {
             self.in_failsafe = None;
         }
         let weight = self.control.nominal().mass_kg * GRAVITY;
-        let event = self.land.update(m, self.control.last_applied().thrust_n, weight);
-        self.commander.land_event(event, now, &mut self.say);
-        if self.home_altitude == HomeAltitude::Assumed {
-            self.home_at_rest(m);
+        // a filter still aligning gives no solution to learn the resting height from
+        if self.navigation.as_deref().is_none_or(FilterNavigation::ready) {
+            let event = self.land.update(m, self.control.last_applied().thrust_n, weight);
+            self.commander.land_event(event, now, &mut self.say);
+            if self.home_altitude == HomeAltitude::Assumed {
+                self.home_at_rest(m);
+            }
         }
         if self.land.landed() || self.land.ground_contact() {
             // The ground's reaction is no external wrench worth estimating:
@@ -398,6 +416,42 @@ impl Autopilot {
         }
     }
 
+    /// `readings` as the flight stack flies on them: as read with the ideal
+    /// navigation source, else with the filter's solution in place of the
+    /// readings' own ([`FilterNavigation::readings`]; the filter is fed in
+    /// [`Self::step`] only, so a reading between steps sees the latest estimate).
+    pub(super) fn navigated<'a>(&self, readings: &'a SensorReadings) -> Cow<'a, SensorReadings> {
+        match self.navigation.as_deref() {
+            None => Cow::Borrowed(readings),
+            Some(nav) => Cow::Owned(nav.readings(readings)),
+        }
+    }
+
+    /// Where the navigation solution comes from (`RP_NAV_SRC` at boot).
+    #[must_use]
+    pub fn nav_source(&self) -> NavSource {
+        if self.navigation.is_some() {
+            NavSource::Filter
+        } else {
+            NavSource::Ideal
+        }
+    }
+
+    /// The navigation filter, when the stack flies on it.
+    #[must_use]
+    pub fn navigation(&self) -> Option<&FilterNavigation> {
+        self.navigation.as_deref()
+    }
+
+    /// The navigation solution the stack flies on at the instant of `readings`.
+    #[must_use]
+    pub fn solution(&self, readings: &SensorReadings) -> crate::signals::Measurement {
+        match self.navigation.as_deref() {
+            None => readings.measurement,
+            Some(nav) => nav.measurement(readings.measurement.time_s),
+        }
+    }
+
     /// The rotor monitor's verdict per rotor (rotor 1 first).
     #[must_use]
     pub fn rotor_status(&self) -> &[RotorStatus] {
@@ -448,6 +502,8 @@ impl Autopilot {
     /// A snapshot for telemetry (SI units, NED/FRD) at the instant of `readings`.
     #[must_use]
     pub fn telemetry(&self, readings: &SensorReadings) -> Telemetry {
+        let readings = self.navigated(readings);
+        let readings = &*readings;
         let m = &readings.measurement;
         let max_thrust = self.max_thrust_n();
         let thrust = self.control.last_applied().thrust_n;

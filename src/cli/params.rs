@@ -266,7 +266,7 @@ mod tests {
         let t = text();
         assert!(t.contains("MPC_XY_CRUISE (REAL32)\n  Cruise ground speed"));
         assert!(t.contains(&format!(
-            "EKF2_HGT_REF (INT32)\n  Determines the reference source of height data used by the EKF\n  {NO_EFFECT}\n"
+            "EKF2_MAG_TYPE (INT32)\n  Type of magnetometer fusion\n  {NO_EFFECT}\n"
         )));
         assert!(t.contains("  Default 5 m/s, range 0.5 .. 20 m/s\n"));
         assert!(t.contains("GF_ACTION (INT32)\n  Geofence breach action\n  Values: 0: none, 1: warning, 2: Hold"));

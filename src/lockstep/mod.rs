@@ -60,6 +60,11 @@ pub trait Pilot: Send {
     fn take_status_texts(&mut self) -> Vec<StatusText> {
         Vec::new()
     }
+    /// The navigation solution the latest [`Self::decide`] flew on, given
+    /// the readings it was given (their own, unless the pilot runs a filter).
+    fn solution(&self, readings: &SensorReadings) -> Measurement {
+        readings.measurement
+    }
 }
 
 impl Pilot for Autopilot {
@@ -77,6 +82,10 @@ impl Pilot for Autopilot {
 
     fn take_status_texts(&mut self) -> Vec<StatusText> {
         Autopilot::drain_status_texts(self)
+    }
+
+    fn solution(&self, readings: &SensorReadings) -> Measurement {
+        Autopilot::solution(self, readings)
     }
 }
 
@@ -185,8 +194,8 @@ fn step_vehicle<P: Pilot, T>(lane: Lane<'_, P>, t_s: f64, extra: &mut T, after: 
     } = lane;
     stamp_texts(texts, pilot, t_s);
     let readings = slot.sense();
-    *measurement = readings.measurement;
     pilot.decide(readings);
+    *measurement = pilot.solution(readings);
     let report = slot.integrate(&pilot.output().actuator);
     if let Some(f) = report.fault {
         pilot.rotors_stopped(&f);
@@ -542,7 +551,12 @@ impl Lockstep<Autopilot> {
             if i > 0 || v.home != origin {
                 world.set_origin_ned(i, v.home.ned_from(&origin));
             }
-            pilots.push(Autopilot::new(v.airframe, v.home, v.params, DEFAULT_STEP_S).map_err(|e| (i, e))?);
+            let pilot = Autopilot::new(v.airframe, v.home, v.params, DEFAULT_STEP_S).map_err(|e| (i, e))?;
+            if pilot.navigation().is_some() {
+                // the filter is fed by the raw sensors
+                world.enable_raw_sensors(i, v.home);
+            }
+            pilots.push(pilot);
         }
         Ok(Self::new(world, pilots))
     }
@@ -627,6 +641,10 @@ impl Lockstep<Autopilot> {
         autopilot.set_client_clock(old.client_clock());
         self.world.restart_vehicle(i, old.airframe());
         self.world.configure(i, &WorldSettings::from_store(params));
+        if autopilot.navigation().is_some() && !self.world.raw_sensors_enabled(i) {
+            // the filter is fed by the raw sensors
+            self.world.enable_raw_sensors(i, autopilot.origin());
+        }
         self.pilots[i] = autopilot;
         self.last_fault[i] = None;
         self.world_texts[i].clear();

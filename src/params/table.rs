@@ -71,6 +71,48 @@ const fn switch(name: &'static str, default: i32, description: &'static str) -> 
     choice(name, default, 0, 1, description, &[(0, "disabled"), (1, "enabled")])
 }
 
+/// `spec`, used only from the next start (PX4's `reboot_required`).
+const fn at_boot(spec: ParamSpec) -> ParamSpec {
+    ParamSpec {
+        reboot_required: true,
+        ..spec
+    }
+}
+
+/// A REAL32 parameter read at boot.
+const fn boot_real(
+    name: &'static str,
+    default: f64,
+    min: f64,
+    max: f64,
+    unit: &'static str,
+    description: &'static str,
+) -> ParamSpec {
+    at_boot(real(name, default, min, max, unit, description))
+}
+
+/// An INT32 parameter read at boot.
+const fn boot_int(name: &'static str, default: i32, min: i32, max: i32, description: &'static str) -> ParamSpec {
+    at_boot(int(name, default, min, max, description))
+}
+
+/// A choice read at boot.
+const fn boot_choice(
+    name: &'static str,
+    default: i32,
+    min: i32,
+    max: i32,
+    description: &'static str,
+    values: &'static [(i32, &'static str)],
+) -> ParamSpec {
+    at_boot(choice(name, default, min, max, description, values))
+}
+
+/// A switch read at boot.
+const fn boot_switch(name: &'static str, default: i32, description: &'static str) -> ParamSpec {
+    at_boot(switch(name, default, description))
+}
+
 /// Declares the table once: the [`Param`] enum (one variant per parameter,
 /// named as the parameter, in index order) and [`PARAMS`], each entry built
 /// by `real`, `int`, `choice` or `switch` with the name filled in from the variant.
@@ -315,6 +357,32 @@ parameters! {
     RP_ALT_MAX_AMSL: real(
         9_000.0, 0.0, 20_000.0, "m",
         "Highest altitude AMSL a takeoff or reposition may ask for; higher is refused (DENIED)",
+    ),
+    // --- rotorpilot: navigation source (read at boot) -------------------------------------------
+    RP_NAV_SRC: boot_choice(
+        0, 0, 1,
+        "Navigation solution the flight stack flies on",
+        &[
+            (0, "ideal: the world's solution (true state plus seeded noise)"),
+            (1, "filter: the EKF fed by the raw IMU, barometer, magnetometer and GNSS"),
+        ],
+    ),
+    // --- PX4: the navigation filter (EKF2; read at boot, used with RP_NAV_SRC = 1) ---------------
+    EKF2_HGT_REF: boot_choice(
+        1, 0, 1,
+        "Height reference of the navigation filter (PX4's 2 range and 3 vision are not modelled)",
+        &[(0, "barometric pressure"), (1, "GNSS")],
+    ),
+    EKF2_BARO_CTRL: boot_switch(1, "Barometric height aiding"),
+    EKF2_GPS_CTRL: boot_int(7, 0, 15, "GNSS aiding bitmask: 1 position, 2 altitude, 4 3D velocity (8 heading: not modelled)"),
+    EKF2_REQ_GPS_H: boot_real(0.5, 0.1, 100.0, "s", "GNSS checks must pass this long before GNSS is fused (PX4 SITL's 0.5 s)"),
+    EKF2_BARO_NOISE: boot_real(3.5, 0.01, 15.0, "m", "Measurement noise for barometric altitude"),
+    EKF2_BARO_GATE: boot_real(5.0, 1.0, 100.0, "SD", "Gate size for barometric and GNSS height fusion"),
+    EKF2_GPS_P_NOISE: boot_real(0.5, 0.01, 10.0, "m", "Minimum GNSS position measurement noise"),
+    EKF2_GPS_V_NOISE: boot_real(0.3, 0.01, 5.0, "m/s", "Minimum GNSS velocity measurement noise"),
+    EKF2_NOAID_TOUT: boot_int(
+        5_000_000, 500_000, 10_000_000,
+        "Maximum inertial dead-reckoning time [us]: the horizontal position is invalid after it",
     ),
 }
 

@@ -87,6 +87,8 @@ struct File {
     wind: Option<crate::sim::WindSettings>,
     #[serde(default, rename = "fault")]
     faults: Vec<FileFault>,
+    #[serde(default)]
+    navigation: super::FileNavigation,
     mission: FileMission,
 }
 
@@ -230,6 +232,7 @@ impl MissionFlight {
             return Err(fail("home", format!("{:?} is not a valid position", raw.home)).into());
         }
         let mut params = ParamStore::new(&airframe);
+        raw.navigation.apply(&mut params);
         for (spanned, v) in &raw.params {
             let (name, at) = (spanned.get_ref(), spanned.span().start);
             let fail = |field: &str, problem: String| fail_at(at, field, problem);

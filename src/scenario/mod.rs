@@ -34,8 +34,11 @@ use nalgebra::Vector3;
 use serde::Deserialize;
 
 use crate::airframe::{Airframe, AirframeError};
+use crate::autopilot::{NavSource, nav_config};
 use crate::control::{ControlGains, ControllerKind, GainError, GainOverrides, Setpoint};
+use crate::estimation::nav::NavConfig;
 use crate::estimation::{Discretization, EstimatorConfig, Polynomial};
+use crate::params::ParamStore;
 use crate::sim::{DisturbanceChange, Environment, SensorNoise, WindSettings};
 use crate::tomlfile::{self, FileError};
 
@@ -102,6 +105,47 @@ struct File {
     switches: Vec<FileSwitch>,
     #[serde(default, rename = "fault")]
     faults: Vec<fault::FileFault>,
+    #[serde(default)]
+    navigation: FileNavigation,
+}
+
+/// A scenario's `[navigation]` table: the navigation solution flown on
+/// (`source`, as `RP_NAV_SRC`) and the filter's height reference
+/// (`height_ref`, as `EKF2_HGT_REF`). Absent: the ideal solution.
+#[derive(Clone, Copy, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub(crate) struct FileNavigation {
+    source: FileNavSource,
+    height_ref: Option<FileHeightRef>,
+}
+
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+enum FileNavSource {
+    #[default]
+    Ideal,
+    Filter,
+}
+
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+enum FileHeightRef {
+    Baro,
+    Gnss,
+}
+
+impl FileNavigation {
+    /// Sets `RP_NAV_SRC` and `EKF2_HGT_REF` in `params` as the table says
+    /// (nothing when it is absent: the parameters keep their values).
+    pub(crate) fn apply(self, params: &mut ParamStore) {
+        use crate::params::ParamValue::Int32;
+        if self.source == FileNavSource::Filter {
+            let _ = params.set("RP_NAV_SRC", Int32(1));
+        }
+        if let Some(h) = self.height_ref {
+            let _ = params.set("EKF2_HGT_REF", Int32(i32::from(h == FileHeightRef::Gnss)));
+        }
+    }
 }
 
 fn default_controller() -> ControllerKind {
@@ -232,6 +276,9 @@ pub struct Scenario {
     pub switches: Vec<(f64, ControllerKind)>,
     /// Failures injected, sorted by time.
     pub faults: Vec<ScheduledFault>,
+    /// The navigation filter's settings when the control law flies on it
+    /// (`[navigation] source = "filter"`); `None`: the ideal solution.
+    pub navigation: Option<NavConfig>,
 }
 
 impl Scenario {
@@ -398,6 +445,9 @@ impl Scenario {
         }
         switches.sort_by(|a, b| a.0.total_cmp(&b.0));
         let faults = fault::validate(&raw.faults, raw.duration_s, &airframe).map_err(|(f, p)| fail(&f, p))?;
+        let mut params = ParamStore::new(&airframe);
+        raw.navigation.apply(&mut params);
+        let navigation = (NavSource::from_params(&params) == NavSource::Filter).then(|| nav_config(&params));
         Ok(Self {
             source: file.to_string(),
             airframe,
@@ -416,6 +466,7 @@ impl Scenario {
             disturbances,
             switches,
             faults,
+            navigation,
         })
     }
 }

@@ -10,7 +10,7 @@ use serde::Serialize;
 
 use super::fault::{self, AppliedFault};
 use super::{ReferencePlan, Scenario};
-use crate::autopilot::{ControlLoop, ControlOutput, Demand};
+use crate::autopilot::{ControlLoop, ControlOutput, Demand, FilterNavigation};
 use crate::control::{Reference, Setpoint, Shaper, ShaperLimits, TranslationSetpoint, feedforward_attitude};
 use crate::geo::GeoPoint;
 use crate::lockstep::{Lockstep, Pilot, StepRecord};
@@ -19,8 +19,12 @@ use crate::logs::meta::LogMeta;
 use crate::logs::report::{Collector, FlightReport, PilotState, ReportMeta, Watched};
 use crate::math::{euler_zyx, from_euler_zyx};
 use crate::mission::Plans;
-use crate::signals::{ControlWrench, GRAVITY, SensorReadings};
+use crate::signals::{ControlWrench, GRAVITY, Measurement, SensorReadings};
 use crate::sim::{DisturbanceSource, RigidBodyState, SensorConfig, SimFault, World};
+
+/// Where a scenario's vehicle lies on the globe, for its raw sensors and
+/// navigation filter (a scenario names no home: PX4 SITL's).
+const NAV_HOME: GeoPoint = GeoPoint::PX4_SITL_HOME;
 
 /// What `rotorpilot simulate` prints.
 #[derive(Clone, Debug, Serialize)]
@@ -83,6 +87,9 @@ pub struct ScenarioPilot<'a> {
     control: ControlLoop,
     shaper: Shaper,
     next_switch: usize,
+    /// The navigation filter flown on (`[navigation] source = "filter"`),
+    /// started at the initial state; `None`: the readings' own solution.
+    navigation: Option<Box<FilterNavigation>>,
 }
 
 impl ScenarioPilot<'_> {
@@ -115,6 +122,15 @@ impl Pilot for ScenarioPilot<'_> {
 
     fn decide(&mut self, readings: &SensorReadings) {
         let s = self.scenario;
+        let filtered;
+        let readings = match self.navigation.as_deref_mut() {
+            None => readings,
+            Some(nav) => {
+                nav.update(readings);
+                filtered = nav.readings(readings);
+                &filtered
+            }
+        };
         let m = &readings.measurement;
         let t = m.time_s;
         while self.next_switch < s.switches.len() && s.switches[self.next_switch].0 <= t {
@@ -129,6 +145,13 @@ impl Pilot for ScenarioPilot<'_> {
 
     fn rotors_stopped(&mut self, _why: &SimFault) {
         self.control.rotors_stopped();
+    }
+
+    fn solution(&self, readings: &SensorReadings) -> Measurement {
+        match self.navigation.as_deref() {
+            None => readings.measurement,
+            Some(nav) => nav.measurement(readings.measurement.time_s),
+        }
     }
 }
 
@@ -211,6 +234,7 @@ pub(super) fn pilot(s: &Scenario) -> anyhow::Result<ScenarioPilot<'_>> {
         control,
         shaper: Shaper::new(ShaperLimits::for_airframe(&s.airframe))?,
         next_switch: 0,
+        navigation: None,
     })
 }
 
@@ -257,7 +281,21 @@ pub(super) fn place(core: &mut Lockstep<ScenarioPilot<'_>>, i: usize) {
     let world = core.world_mut();
     world.set_disturbance(i, DisturbanceSource::Schedule(s.disturbances.clone()));
     world.start_in_flight(i, state, &hover);
+    if s.navigation.is_some() {
+        // the filter is fed by the raw sensors, around PX4 SITL's home
+        world.enable_raw_sensors(i, NAV_HOME);
+    }
     let pilot = core.pilot_mut(i);
+    pilot.navigation = s.navigation.clone().map(|cfg| {
+        let at = Measurement {
+            time_s: 0.0,
+            position_ned: state.position_ned,
+            velocity_ned: state.velocity_ned,
+            attitude: state.attitude,
+            rate_frd: state.rate_frd,
+        };
+        Box::new(FilterNavigation::started_at(cfg, NAV_HOME, &at))
+    });
     pilot.control.restart();
     pilot
         .shaper

@@ -104,6 +104,8 @@ struct GnssAid {
     last_check_fail_s: f64,
     last_check_pass_s: f64,
     origin_set: bool,
+    /// Started in the air ([`NavFilter::start_at`]): the checks count as passed before the first fix.
+    checks_waived: bool,
     pos_ratio: Option<f64>,
     vel_ratio: Option<f64>,
     position_resets: u32,
@@ -198,6 +200,7 @@ impl NavFilter {
                 last_check_fail_s: 0.0,
                 last_check_pass_s: 0.0,
                 origin_set: false,
+                checks_waived: false,
                 pos_ratio: None,
                 vel_ratio: None,
                 position_resets: 0,
@@ -359,6 +362,28 @@ impl NavFilter {
         self.acc = Accumulated::default();
     }
 
+    /// Starts aligned at a known state, as the filter stands after a ground
+    /// alignment (for a flight that starts in the air): position, velocity
+    /// and attitude set, the biases zero, the covariance as after tilt
+    /// alignment, and the GNSS checks counted as passed `EKF2_REQ_GPS_H`
+    /// before (the first fix then resets the horizontal position to it).
+    pub fn start_at(
+        &mut self,
+        position_ned_m: Vector3<f64>,
+        velocity_ned_m_s: Vector3<f64>,
+        attitude: UnitQuaternion<f64>,
+    ) {
+        self.pos_ned = position_ned_m;
+        self.vel_ned = velocity_ned_m_s;
+        self.att = attitude;
+        self.rot = attitude.to_rotation_matrix().into_inner();
+        self.tilt_aligned = true;
+        self.yaw_aligned = true;
+        self.init_covariance();
+        self.gnss.last_check_fail_s = self.time_s - self.cfg.req_gps_h;
+        self.gnss.checks_waived = true;
+    }
+
     /// Tilt from the mean specific force (at rest `f_frd = -R^T g e3`), yaw
     /// from the magnetometer when a sample has come; the covariance from
     /// `EKF2_ANGERR_INIT`, `EKF2_GBIAS_INIT`, `EKF2_ABIAS_INIT` and the sensor noises.
@@ -369,6 +394,14 @@ impl NavFilter {
         self.att = UnitQuaternion::from_euler_angles(roll, pitch, 0.0);
         self.rot = self.att.to_rotation_matrix().into_inner();
         self.tilt_aligned = true;
+        self.init_covariance();
+        if let Some(m) = self.last_mag_frd {
+            self.reset_yaw(self.mag_heading(&m));
+        }
+    }
+
+    /// The covariance after alignment.
+    fn init_covariance(&mut self) {
         let c = &self.cfg;
         let diag = [
             (idx::POS, c.noaid_noise * c.noaid_noise),
@@ -391,9 +424,6 @@ impl NavFilter {
             }
         }
         self.cov[(idx::ANG + 2, idx::ANG + 2)] = c.head_noise * c.head_noise;
-        if let Some(m) = self.last_mag_frd {
-            self.reset_yaw(self.mag_heading(&m));
-        }
     }
 
     /// Heading of the field: the sample levelled with the estimated tilt,
@@ -479,7 +509,7 @@ impl NavFilter {
         finite(fix.velocity_ned_m_s.as_slice(), "GNSS")?;
         finite(&[fix.time_s, fix.eph_m, fix.epv_m, fix.speed_accuracy_m_s], "GNSS")?;
         let now = self.time_s;
-        if self.gnss.last_sample_s.is_none() {
+        if self.gnss.last_sample_s.is_none() && !self.gnss.checks_waived {
             self.gnss.last_check_fail_s = now;
         }
         self.gnss.last_sample_s = Some(now);
@@ -697,12 +727,24 @@ impl NavFilter {
                 if configured {
                     self.height_ref = Some(source);
                 }
+            } else if configured {
+                // PX4 ("starting height fusion, resetting height"): the
+                // configured reference sets the height, and the other
+                // sources' biases follow the jump (`b = z + p_d`)
+                aid.bias_m = 0.0;
+                aid.bias_var = 0.0;
+                self.reset_states(idx::POS + 2, &[-z], r);
+                let jump = self.pos_ned.z - pos_d;
+                let other = match source {
+                    HeightSource::Baro => &mut self.gnss_hgt,
+                    HeightSource::Gnss => &mut self.baro,
+                };
+                other.bias_m += jump;
+                self.last_height_fuse_s = Some(now);
+                self.height_ref = Some(source);
             } else {
                 aid.bias_m = z + pos_d;
                 aid.bias_var = r;
-                if configured && self.height_ref != Some(source) {
-                    self.height_ref = Some(source);
-                }
             }
         }
         self.height_ref_fallback();

@@ -1,0 +1,211 @@
+//! Lockstep tests of the navigation source (`RP_NAV_SRC`, `[navigation]`):
+//! the quad flying on the navigation filter fed by the raw sensors. Arming
+//! waits for the filter; the filter's error against the world's truth in
+//! hover and along the figure-eight is measured and bounded; a stuck
+//! barometer with `EKF2_HGT_REF` = barometer or GNSS is dropped and the
+//! flight goes on (PX4's "Continue on baro stuck" cases); a scenario that
+//! does not name the source flies the ideal solution.
+//! `cargo test --release --test lockstep_navigation -- --nocapture` prints the figures.
+
+mod common;
+
+use common::sitl::{Sitl, int};
+use rotorpilot::autopilot::{AutopilotCommand, CommandOutcome, FlightMode};
+use rotorpilot::estimation::nav::HeightSource;
+use rotorpilot::lockstep::{Lockstep, Pilot, failure};
+use rotorpilot::scenario::{self, Scenario};
+use rotorpilot::signals::Measurement;
+
+/// The largest errors of a navigation solution against the truth.
+#[derive(Clone, Copy, Debug, Default)]
+struct Errors {
+    horizontal_m: f64,
+    vertical_m: f64,
+    velocity_m_s: f64,
+    attitude_deg: f64,
+}
+
+impl Errors {
+    fn add(&mut self, m: &Measurement, truth: &Measurement) {
+        let dp = m.position_ned - truth.position_ned;
+        self.horizontal_m = self.horizontal_m.max(dp.xy().norm());
+        self.vertical_m = self.vertical_m.max(dp.z.abs());
+        self.velocity_m_s = self.velocity_m_s.max((m.velocity_ned - truth.velocity_ned).norm());
+        self.attitude_deg = self.attitude_deg.max(m.attitude.angle_to(&truth.attitude).to_degrees());
+    }
+}
+
+/// One step of `core`'s vehicle 0: the solution it flew on against the
+/// truth at the same instant (taken before the step).
+fn step_and_compare<P: Pilot>(core: &mut Lockstep<P>, errors: &mut Errors) {
+    let truth = core.world().plant(0).truth();
+    core.step();
+    errors.add(core.last_step(0).measurement, &truth);
+}
+
+/// The quad on the filter, on the ground at home, failures allowed.
+fn quad_on_filter(height_ref: i32) -> Sitl {
+    Sitl::quad()
+        .params(&[
+            ("RP_NAV_SRC", int(1)),
+            ("EKF2_HGT_REF", int(height_ref)),
+            ("SYS_FAILURE_EN", int(1)),
+        ])
+        .build()
+}
+
+/// Arm once the filter allows it (PX4: no valid position estimate before),
+/// take off to `up` m; the time the filter took [s].
+fn wait_and_take_off(v: &mut Sitl, up: f64) -> f64 {
+    v.run(0.1);
+    assert_eq!(
+        v.command(AutopilotCommand::Arm { force: false }),
+        CommandOutcome::TemporarilyRejected("no valid position estimate")
+    );
+    assert!(v.count("no valid position estimate") > 0, "{:?}", v.said());
+    let ready = v.run_until(20.0, |t| t.prearm_ok).expect("the filter becomes valid");
+    v.take_off_to(Some(up));
+    ready
+}
+
+/// GIVEN the quad with `RP_NAV_SRC` = 1 on the ground
+/// WHEN it is asked to arm at once, then once the filter is valid, and takes off to 10 m and hovers 60 s
+/// THEN arming is refused first ("no valid position estimate"), then accepted;
+/// the raw sensors are simulated; in hover the filter's solution stays within
+/// 0.5 m horizontally, 0.5 m vertically, 0.2 m/s and 6 deg (the heading,
+/// from a magnetometer with 0.02 gauss of noise) of the truth, and
+/// the vehicle within 0.6 m of its hold point.
+#[test]
+fn the_quad_waits_for_the_filter_then_hovers_on_it() {
+    let mut v = quad_on_filter(1);
+    assert!(v.core().world().raw_sensors_enabled(0));
+    let ready = wait_and_take_off(&mut v, 10.0);
+    v.run(20.0);
+    let mut e = Errors::default();
+    let mut drift: f64 = 0.0;
+    let hold = v.core().world().plant(0).truth().position_ned;
+    for _ in 0..v.steps(60.0) {
+        step_and_compare(v.core_mut(), &mut e);
+        drift = drift.max((v.core().world().plant(0).truth().position_ned - hold).norm());
+    }
+    println!(
+        "hover on the filter: ready after {ready:.2} s; largest errors after settling {e:?}; off the hold point {drift:.3} m"
+    );
+    assert!(e.horizontal_m < 0.5 && e.vertical_m < 0.5, "{e:?}");
+    assert!(e.velocity_m_s < 0.2 && e.attitude_deg < 6.0, "{e:?}");
+    assert!(drift < 0.6, "{drift}");
+}
+
+/// The figure-eight of `tools/scenarios/figure-eight-geometric.toml`, 90 s, on `source`.
+fn figure_eight(source: &str) -> Scenario {
+    let text = format!(
+        "airframe = \"quad\"\ncontroller = \"geometric\"\nduration_s = 90.0\n\
+         [navigation]\nsource = \"{source}\"\n\
+         [reference]\nkind = \"figure_eight\"\nhalf_width_m = 2.0\nrate_rad_s = 0.5\naltitude_m = 2.0\n"
+    );
+    Scenario::from_toml(&text, "figure-eight.toml", None).expect("a valid scenario")
+}
+
+/// GIVEN the figure-eight scenario with `[navigation] source = "filter"` (and "ideal")
+/// WHEN it is flown 90 s
+/// THEN on the filter the solution stays, after 20 s, within 0.5 m
+/// horizontally and vertically, 0.3 m/s and 6 deg (the heading: the
+/// magnetometer's 0.02 gauss noise on a 0.2 gauss horizontal field) of the truth, and the
+/// vehicle tracks the eight within 0.8 m; on the ideal source nothing of
+/// the raw sensors runs.
+#[test]
+fn the_figure_eight_flies_on_the_filter() {
+    let s = figure_eight("filter");
+    assert!(s.navigation.is_some());
+    let mut core = scenario::lockstep(&s).unwrap();
+    assert!(core.world().raw_sensors_enabled(0));
+    let settle = (20.0 / s.step_s).round() as usize;
+    let steps = (s.duration_s / s.step_s).round() as usize;
+    let mut e = Errors::default();
+    let mut track: f64 = 0.0;
+    for k in 0..steps {
+        if k < settle {
+            core.step();
+            continue;
+        }
+        step_and_compare(&mut core, &mut e);
+        let rec = core.last_step(0);
+        let truth = core.world().plant(0).truth();
+        let reference = rec.control.reference.position_ned;
+        track = track.max((truth.position_ned - reference).norm());
+    }
+    println!("figure-eight on the filter, after 20 s: largest errors {e:?}; tracking {track:.3} m");
+    assert!(e.horizontal_m < 0.5 && e.vertical_m < 0.5, "{e:?}");
+    assert!(e.velocity_m_s < 0.3 && e.attitude_deg < 6.0, "{e:?}");
+    assert!(track < 0.8, "{track}");
+    let ideal = figure_eight("ideal");
+    assert!(ideal.navigation.is_none());
+    assert!(!scenario::lockstep(&ideal).unwrap().world().raw_sensors_enabled(0));
+}
+
+/// GIVEN the quad hovering at 10 m on the filter with `EKF2_HGT_REF` = `height_ref`
+/// WHEN the barometer sticks (MAV_CMD_INJECT_FAILURE SENSOR_BARO STUCK) and
+/// the vehicle then returns (RTL: climb to 30 m, fly home, land)
+/// THEN the filter drops the barometer (stale after PX4's 100 equal
+/// samples) and flies on GNSS height, the return completes and the vehicle
+/// disarms within 90 s (PX4's "Continue on baro stuck during mission"), its
+/// height estimate within 1 m of the truth throughout.
+fn baro_stuck(height_ref: i32) {
+    let mut v = quad_on_filter(height_ref);
+    wait_and_take_off(&mut v, 10.0);
+    v.run(10.0);
+    let status = v.pilot().navigation().unwrap().filter().status();
+    let configured = if height_ref == 0 {
+        HeightSource::Baro
+    } else {
+        HeightSource::Gnss
+    };
+    assert_eq!(status.height_ref, Some(configured), "{status:?}");
+    assert!(status.baro_hgt, "{status:?}");
+    let stuck = AutopilotCommand::InjectFailure {
+        unit: failure::UNIT_BARO,
+        kind: failure::TYPE_STUCK,
+        instance: 0,
+    };
+    assert_eq!(v.command(stuck), CommandOutcome::Accepted);
+    let t0 = v.time_s();
+    let dropped = loop {
+        v.step();
+        let s = v.pilot().navigation().unwrap().filter().status();
+        if s.baro_stale && !s.baro_hgt {
+            break v.time_s() - t0;
+        }
+        assert!(v.time_s() - t0 < 10.0, "the stuck barometer is never dropped: {s:?}");
+    };
+    let status = v.pilot().navigation().unwrap().filter().status();
+    assert_eq!(status.height_ref, Some(HeightSource::Gnss), "{status:?}");
+    assert_eq!(
+        v.command(AutopilotCommand::SetMode(FlightMode::ReturnToLaunch)),
+        CommandOutcome::Accepted
+    );
+    let mut e = Errors::default();
+    let mut top: f64 = 0.0;
+    let t1 = v.time_s();
+    while v.armed() {
+        step_and_compare(v.core_mut(), &mut e);
+        top = top.max(-v.core().world().plant(0).truth().position_ned.z);
+        assert!(v.time_s() - t1 < 90.0, "still armed 90 s after the return began: {e:?}");
+    }
+    println!(
+        "baro stuck, EKF2_HGT_REF {height_ref}: dropped {dropped:.2} s after it stuck; returned and disarmed {:.1} s later; \
+         highest {top:.1} m; largest errors {e:?}",
+        v.time_s() - t1
+    );
+    assert!(e.vertical_m < 1.0, "{e:?}");
+    assert!(top < 32.0, "{top}");
+}
+
+#[test]
+fn a_stuck_barometer_as_height_reference_is_dropped_and_the_return_completes() {
+    baro_stuck(0);
+}
+
+#[test]
+fn a_stuck_barometer_beside_gnss_height_is_dropped_and_the_return_completes() {
+    baro_stuck(1);
+}

@@ -104,8 +104,9 @@ pub struct Snapshot {
     pub ground_truth: GroundTruth,
     /// The stored mission, geofence and rally points (shared, not copied).
     pub plans: Plans,
-    /// The raw sensors' latest samples (all `None` unless the world
-    /// simulates them, [`Lockstep::enable_raw_sensors`]).
+    /// The raw sensors' latest samples, as the steps drew them (all `None`
+    /// unless the world simulates them, [`Lockstep::enable_raw_sensors`]);
+    /// taking a snapshot never draws one.
     pub raw: RawSensorReadings,
 }
 
@@ -658,7 +659,7 @@ impl Lockstep<Autopilot> {
             truth: self.world.truth(i),
             ground_truth,
             plans: self.pilots[i].plans().clone(),
-            raw: self.world.sense(i).raw,
+            raw: *self.world.raw_readings(i),
         }
     }
 

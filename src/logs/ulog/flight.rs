@@ -571,7 +571,7 @@ impl<W: Write> FlightUlog<W> {
             self.ulog.data(id::SIM_WIND, &s)?;
         }
         if core.world().raw_sensors_enabled(vehicle) {
-            let raw = core.world_mut().sense(vehicle).raw;
+            let raw = *core.world().raw_readings(vehicle);
             self.raw_sensors(&raw)?;
         }
         let pilot = core.pilot(vehicle);

@@ -190,4 +190,8 @@ impl ParamAccess for FakeParams {
         p.1 = value;
         Ok(value)
     }
+    /// The fixture keeps no defaults beside its values.
+    fn default_of(&self, _index: usize) -> Option<ParamValue> {
+        None
+    }
 }

@@ -271,7 +271,7 @@ fn unsupported_and_missing_parts_change_nothing() {
 #[test]
 fn raw_sensor_faults_show_in_the_samples_over_time() {
     let mut v = vehicle("quad", &[]);
-    v.core_mut().enable_raw_sensors();
+    v.core_mut().enable_raw_sensors(0);
     airborne(&mut v);
     let raw = |v: &mut Sitl| *v.core().world().raw_readings(0);
     // healthy: every sensor gives fresh values
@@ -366,7 +366,7 @@ fn observers_between_steps_change_no_raw_sample() {
     ];
     let fly = |watched: bool| {
         let mut v = vehicle("quad", &[]);
-        v.core_mut().enable_raw_sensors();
+        v.core_mut().enable_raw_sensors(0);
         let mut ulog = watched.then(|| FlightUlog::new(Vec::new(), v.params(), v.core(), 0).unwrap());
         let mut samples = Vec::new();
         while v.core().steps() < 2000 {

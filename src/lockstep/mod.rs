@@ -663,13 +663,14 @@ impl Lockstep<Autopilot> {
         }
     }
 
-    /// Simulate every vehicle's raw sensors from now on (IMU, barometer,
-    /// magnetometer, GNSS: [`crate::sim::raw_sensors`]), each around its
+    /// Simulate vehicle `i`'s raw sensors from now on (IMU, barometer,
+    /// magnetometer, GNSS: [`crate::sim::raw_sensors`]), around its
     /// autopilot's home: for the runtimes that stream or log them. They
-    /// change no other number of the flight.
-    pub fn enable_raw_sensors(&mut self) {
-        for (i, pilot) in self.pilots.iter().enumerate() {
-            self.world.enable_raw_sensors(i, pilot.origin());
+    /// change no other number of the flight. Nothing changes when they are
+    /// already simulated.
+    pub fn enable_raw_sensors(&mut self, i: usize) {
+        if !self.world.raw_sensors_enabled(i) {
+            self.world.enable_raw_sensors(i, self.pilots[i].origin());
         }
     }
 

@@ -53,6 +53,9 @@ use crate::signals::{ActuatorCommand, GpsFix, RawSensorReadings};
 /// The device id the raw sensor topics carry: 0, no device (a simulated
 /// sensor here has no bus address).
 const DEVICE_ID: u32 = 0;
+/// `sensor_gps.c_variance_rad` [rad], the course accuracy PX4's simulated
+/// receiver reports with a fix (`sensor_gps_sim`).
+const GPS_COURSE_VARIANCE_RAD: f64 = 0.1;
 
 /// PX4's `actuator_motors.control` length.
 const MOTORS: usize = 12;
@@ -454,7 +457,7 @@ impl<W: Write> FlightUlog<W> {
                 .f64(g.alt_amsl_m)
                 .f64(g.alt_amsl_m)
                 .f32(g.speed_accuracy_m_s)
-                .f32(0.1)
+                .f32(GPS_COURSE_VARIANCE_RAD)
                 .f32(g.eph_m)
                 .f32(g.epv_m)
                 .f32(g.hdop)
@@ -745,7 +748,7 @@ mod tests {
     #[test]
     fn the_raw_sensor_topics_at_their_rates_and_an_off_barometer_silent() {
         let (mut core, params) = crate::lockstep::test_quad();
-        core.enable_raw_sensors();
+        core.enable_raw_sensors(0);
         let mut log = FlightUlog::new(Vec::new(), &params, &core, 0).unwrap();
         for _ in 0..1000 {
             core.step();
@@ -760,7 +763,7 @@ mod tests {
         assert_eq!(counts[usize::from(id::MAGNETOMETER)], 6);
         assert_eq!(counts[usize::from(id::SENSOR_GPS)], 8);
         let (mut core, params) = crate::lockstep::test_quad();
-        core.enable_raw_sensors();
+        core.enable_raw_sensors(0);
         let off = crate::lockstep::failure::FailureInjection {
             unit: crate::lockstep::failure::UNIT_BARO,
             kind: crate::lockstep::failure::TYPE_OFF,

@@ -372,7 +372,11 @@ fn observers_between_steps_change_no_raw_sample() {
         while v.core().steps() < 2000 {
             for &(at, unit, kind) in &faults {
                 if at == v.core().steps() {
-                    let inj = FailureInjection { unit, kind, instance: 0 };
+                    let inj = FailureInjection {
+                        unit,
+                        kind,
+                        instance: 0,
+                    };
                     assert_eq!(v.core_mut().inject_failure(0, inj), CommandOutcome::Accepted);
                 }
             }

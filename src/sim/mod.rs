@@ -283,7 +283,13 @@ impl Body {
                 satellites: SATELLITES,
             };
             let accel = self.plant.acceleration_ned();
-            raw.sample(&self.plant.truth(), &accel, &self.faults.sensors, gnss, &mut self.reading.raw);
+            raw.sample(
+                &self.plant.truth(),
+                &accel,
+                &self.faults.sensors,
+                gnss,
+                &mut self.reading.raw,
+            );
         }
     }
 

@@ -519,7 +519,10 @@ mod tests {
         assert_eq!(g1.lat_deg, g0.lat_deg);
         // a stuck receiver's solution is stamped anew, as every stuck sensor's:
         // the fix time one epoch before its delivery, as a fresh fix's
-        assert!(g1.delivered_s > g0.delivered_s && g1.time_s > g0.time_s, "{g0:?} {g1:?}");
+        assert!(
+            g1.delivered_s > g0.delivered_s && g1.time_s > g0.time_s,
+            "{g0:?} {g1:?}"
+        );
         assert!((g1.delivered_s - g1.time_s - 1.0 / GNSS_RATE_HZ).abs() < 1e-9);
         // the world's GNSS state: a wrong position shifts the fix, no fix gives none
         faults = SensorFaults::default();

@@ -8,6 +8,10 @@
 //! Also the Earth's magnetic field at a point ([`earth_field_ned_gauss`]): one
 //! model for the simulated magnetometer and for any flight-stack code that
 //! needs the declination, so the two never disagree.
+//!
+//! And the ISA atmosphere: the pressure PX4's simulated barometer makes
+//! ([`isa`]) and the pressure altitude PX4 reads back ([`pressure_altitude_m`]),
+//! side by side with their deliberately different sea-level temperatures.
 
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
@@ -103,13 +107,40 @@ pub fn earth_field_ned_gauss(at: &GeoPoint) -> Vector3<f64> {
     Vector3::new(-b_theta, b_phi, -b_r) * 1e-5
 }
 
+/// ISA sea-level pressure [Pa].
+pub const ISA_P0_PA: f64 = 101_325.0;
+/// ISA temperature lapse rate in the troposphere [K/m].
+pub const ISA_LAPSE_K_M: f64 = 0.0065;
+/// ISA pressure exponent `g / (R L)` as PX4 rounds it.
+pub const ISA_EXPONENT: f64 = 5.256;
+/// Sea-level temperature [K] of PX4's simulated barometer (`sensor_baro_sim`).
+pub const ISA_T0_SIM_K: f64 = 288.0;
+/// Sea-level temperature [K] of PX4's pressure altitude (`vehicle_air_data`:
+/// 15 degC), the ISA's own.
+pub const ISA_T0_K: f64 = 288.15;
+
+/// The ISA troposphere at `alt_amsl_m` [m], as PX4's simulated barometer
+/// computes it: pressure [Pa] and temperature [degC],
+/// `T = T0 - L h`, `p = p0 (T / T0)^5.256`, with PX4's `T0` = 288 K
+/// ([`ISA_T0_SIM_K`]).
+///
+/// PX4 is not symmetric here, and neither are we: its simulator makes the
+/// pressure with 288 K, its flight stack reads the altitude back with
+/// 288.15 K ([`pressure_altitude_m`]), so a barometer's pressure altitude
+/// reads 0.05 % high (0.25 m at 488 m), as on a PX4 SITL vehicle.
+#[must_use]
+pub fn isa(alt_amsl_m: f64) -> (f64, f64) {
+    let t = ISA_T0_SIM_K - ISA_LAPSE_K_M * alt_amsl_m;
+    (ISA_P0_PA * (t / ISA_T0_SIM_K).powf(ISA_EXPONENT), t - 273.15)
+}
+
 /// The pressure altitude [m] of a static pressure `pressure_pa` [Pa] in
 /// the ISA troposphere, as PX4 derives its barometric altitude:
-/// `h = T0 / L (1 - (p / p0)^(1 / 5.256))`, `T0` = 288.15 K, `L` = 0.0065 K/m,
-/// `p0` = 101 325 Pa.
+/// `h = T0 / L (1 - (p / p0)^(1 / 5.256))` with `T0` = 288.15 K
+/// ([`ISA_T0_K`]; the inverse of [`isa`] but for its 288 K).
 #[must_use]
 pub fn pressure_altitude_m(pressure_pa: f64) -> f64 {
-    288.15 / 0.0065 * (1.0 - (pressure_pa / 101_325.0).powf(1.0 / 5.256))
+    ISA_T0_K / ISA_LAPSE_K_M * (1.0 - (pressure_pa / ISA_P0_PA).powf(1.0 / ISA_EXPONENT))
 }
 
 #[cfg(test)]

@@ -228,7 +228,7 @@ pub struct GnssSample {
     pub epv_m: f64,
     /// Speed accuracy (1 sigma) [m/s].
     pub speed_accuracy_m_s: f64,
-    /// Horizontal and vertical dilution of precision.
+    /// Horizontal dilution of precision.
     pub hdop: f64,
     /// Vertical dilution of precision.
     pub vdop: f64,

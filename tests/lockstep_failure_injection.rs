@@ -10,6 +10,7 @@ mod common;
 use common::sitl::{Sitl, int};
 use rotorpilot::autopilot::{AutopilotCommand, CommandOutcome, FlightMode, Severity, StatusText};
 use rotorpilot::lockstep::failure::FailureInjection;
+use rotorpilot::logs::ulog::flight::FlightUlog;
 use rotorpilot::params::ParamValue;
 use rotorpilot::scenario::{MissionFlight, Scenario, ScenarioError, run, run_mission};
 use rotorpilot::signals::GpsFix;
@@ -270,9 +271,9 @@ fn unsupported_and_missing_parts_change_nothing() {
 #[test]
 fn raw_sensor_faults_show_in_the_samples_over_time() {
     let mut v = vehicle("quad", &[]);
-    v.core_mut().enable_raw_sensors();
+    v.core_mut().enable_raw_sensors(0);
     airborne(&mut v);
-    let raw = |v: &mut Sitl| v.core_mut().world_mut().sense(0).raw;
+    let raw = |v: &mut Sitl| *v.core().world().raw_readings(0);
     // healthy: every sensor gives fresh values
     let r0 = raw(&mut v);
     v.run(0.2);
@@ -338,6 +339,61 @@ fn raw_sensor_faults_show_in_the_samples_over_time() {
     // the vehicle still hovers on its navigation solution
     assert_eq!(v.mode(), FlightMode::Hold);
     assert!(faults(&v).any());
+}
+
+/// GIVEN two flights of one quad at rest whose raw sensors are simulated,
+/// with the same inputs
+/// WHEN one is watched between every pair of steps (a link's snapshot and
+/// the ULog writer read it) and both get raw-sensor faults injected between
+/// steps, right before instants at which every sensor is due (as a
+/// scenario's `[[fault]]` injects them: nothing reads the sensors first)
+/// THEN the raw samples the steps drew are the same bit for bit: what an
+/// observer reads, and when, changes no number of the flight (a live flight's
+/// raw topics are its replay's).
+#[test]
+fn observers_between_steps_change_no_raw_sample() {
+    // every sensor is due at the instants that are multiples of 0.5 s
+    let faults = [
+        (500, BARO, STUCK),
+        (500, ACCEL, OFF),
+        (1000, BARO, OFF),
+        (1000, MAG, OFF),
+        (1000, GPS, STUCK),
+        (1500, BARO, OK),
+        (1500, ACCEL, OK),
+        (1500, MAG, OK),
+        (1500, GPS, OK),
+    ];
+    let fly = |watched: bool| {
+        let mut v = vehicle("quad", &[]);
+        v.core_mut().enable_raw_sensors(0);
+        let mut ulog = watched.then(|| FlightUlog::new(Vec::new(), v.params(), v.core(), 0).unwrap());
+        let mut samples = Vec::new();
+        while v.core().steps() < 2000 {
+            for &(at, unit, kind) in &faults {
+                if at == v.core().steps() {
+                    let inj = FailureInjection {
+                        unit,
+                        kind,
+                        instance: 0,
+                    };
+                    assert_eq!(v.core_mut().inject_failure(0, inj), CommandOutcome::Accepted);
+                }
+            }
+            v.step();
+            samples.push(*v.core().world().raw_readings(0));
+            if let Some(log) = &mut ulog {
+                log.on_step(v.core_mut(), 0).unwrap();
+                let _ = v.core_mut().snapshot(0);
+            }
+        }
+        samples
+    };
+    let (quiet, watched) = (fly(false), fly(true));
+    assert!(quiet.iter().any(|r| r.baro.is_none()) && quiet.iter().any(|r| r.accel.is_none()));
+    for (k, (a, b)) in quiet.iter().zip(&watched).enumerate() {
+        assert_eq!(format!("{a:?}"), format!("{b:?}"), "after step {k}");
+    }
 }
 
 /// An airframe whose thrust and torque act directly has no motor to fail: DENIED.

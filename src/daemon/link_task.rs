@@ -263,6 +263,10 @@ impl LinkTask {
             let t = self.tel.borrow();
             self.link.poll(Instant::now().into_std(), &t, unix_time_us());
         }
+        if self.link.take_raw_sensors_request() {
+            // lost only if the simulation is stuck (its queue full)
+            let _ = self.to_sim(SimRequest::RawSensors);
+        }
         self.tlog.flush_if_due();
         self.flush().await;
     }

@@ -58,6 +58,11 @@ pub(super) enum SimRequest {
     },
     /// A ground station's HEARTBEAT arrived (data-link loss supervision; no answer).
     GcsHeartbeat,
+    /// A link streams a raw sensor message: simulate the vehicle's raw
+    /// sensors from now on (no answer; nothing when they already are).
+    /// Not recorded: they change no other number of the flight, and a run
+    /// that keeps a flight record simulates them from its first step.
+    RawSensors,
 }
 
 impl SimRequest {

@@ -282,8 +282,6 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
         )
     })?;
     drop(list);
-    // the links stream the raw sensors and the ULog logs them
-    core.enable_raw_sensors();
     if !lone {
         core.watch_proximity(proximity_m);
         core.set_labels(configs.iter().map(|c| format!("system {}", c.system_id())).collect());
@@ -328,6 +326,12 @@ pub async fn bind_fleet(fleet: FleetConfig) -> anyhow::Result<Daemon> {
             Some(base) => Some(logs::create_run_dir(base, config.instance)?),
             None => None,
         };
+        if log_dir.is_some() {
+            // the ULog logs the raw sensors from the first step (as the
+            // replay's ULog does); otherwise they start when a link first
+            // streams one of their messages (`SimRequest::RawSensors`)
+            core.enable_raw_sensors(i);
+        }
         let recorder = match &log_dir {
             Some(dir) => Some(recorder::Recorder::create(
                 dir, &config, &params, sensors, &mut core, i,

@@ -83,7 +83,7 @@ impl Recorder {
             .map_err(|e| anyhow::anyhow!("the flight record's header does not rebuild the vehicle: {e}"))?;
         if core.world().raw_sensors_enabled(vehicle) {
             // as replay rebuilds it for a ULog
-            rebuilt.enable_raw_sensors();
+            rebuilt.enable_raw_sensors(VEHICLE);
         }
         anyhow::ensure!(
             core.steps() == 0

@@ -278,6 +278,7 @@ impl Sim {
                 let _ = reply.send(outcome);
             }
             SimRequest::GcsHeartbeat => self.gcs_heartbeat(v),
+            SimRequest::RawSensors => self.core.enable_raw_sensors(v),
         }
     }
 

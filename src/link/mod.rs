@@ -205,6 +205,20 @@ pub struct Link {
     logs: log_download::Server,
     /// Forwarding to and from the vehicle's other links (`None`: it has none).
     forwarding: Option<forward::Forwarding>,
+    /// The raw sensors' simulation: not asked for, to ask for (a raw
+    /// sensor stream came due), asked for.
+    raw_sensors: RawDemand,
+}
+
+/// Whether a link needs the vehicle's raw sensors simulated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum RawDemand {
+    /// No raw sensor stream came due yet.
+    None,
+    /// One came due: the runtime is to start the raw sensors.
+    Wanted,
+    /// The runtime was told.
+    Asked,
 }
 
 /// A PARAM_REQUEST_LIST being answered: PX4 sends one parameter per
@@ -279,7 +293,19 @@ impl Link {
             ftp: ftp::Server::new(Box::new(ftp::NoFiles), now),
             logs: log_download::Server::default(),
             forwarding: None,
+            raw_sensors: RawDemand::None,
         }
+    }
+
+    /// True once, after a stream of raw sensor messages first came due
+    /// ([`Stream::needs_raw_sensors`]): the runtime then starts the
+    /// vehicle's raw sensors (they are off until something reads them).
+    pub fn take_raw_sensors_request(&mut self) -> bool {
+        let wanted = self.raw_sensors == RawDemand::Wanted;
+        if wanted {
+            self.raw_sensors = RawDemand::Asked;
+        }
+        wanted
     }
 
     /// Forward to and from the vehicle's other links ([`forward`]); `fellows`
@@ -529,6 +555,9 @@ impl Link {
         due.clear();
         self.streams.due(now, &mut due);
         let fanout = self.peers.active_count(now);
+        if self.raw_sensors == RawDemand::None && fanout > 0 && due.iter().any(|s| s.needs_raw_sensors()) {
+            self.raw_sensors = RawDemand::Wanted;
+        }
         for s in &due {
             for m in streams::build(*s, t, unix_time_us) {
                 if let MavMessage::MISSION_CURRENT(c) = &m {

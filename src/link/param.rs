@@ -25,9 +25,7 @@ pub trait ParamAccess {
     fn set(&mut self, name: &str, value: ParamValue) -> Result<ParamValue, String>;
     /// The default of parameter `index` (`None`: not known; PX4's
     /// `param.pck?withdefaults=1` then names none).
-    fn default_of(&self, _index: usize) -> Option<ParamValue> {
-        None
-    }
+    fn default_of(&self, index: usize) -> Option<ParamValue>;
 }
 
 impl ParamAccess for crate::params::ParamStore {

@@ -138,6 +138,16 @@ impl Stream {
         }
     }
 
+    /// Whether its message is built from the raw sensors (which run only
+    /// once something reads them).
+    #[must_use]
+    pub fn needs_raw_sensors(self) -> bool {
+        matches!(
+            self,
+            Stream::GpsRawInt | Stream::HighresImu | Stream::ScaledImu | Stream::ScaledPressure
+        )
+    }
+
     /// The stream sending this message id, if any.
     #[must_use]
     pub fn from_message_id(id: u32) -> Option<Stream> {
@@ -402,30 +412,13 @@ pub fn build(stream: Stream, snapshot: &Snapshot, unix_time_us: u64) -> Vec<MavM
             time_unix_usec: unix_time_us,
             time_boot_ms: ms,
         }),
-        Stream::GpsRawInt => MavMessage::GPS_RAW_INT(match &snapshot.raw.gnss {
-            Some(g) => gps_raw_int(g),
-            None => GPS_RAW_INT_DATA {
-                time_usec: us,
-                lat: convert::deg_e7(t.global.lat_deg),
-                lon: convert::deg_e7(t.global.lon_deg),
-                alt: convert::sat_i32(t.global.alt_amsl_m * 1e3),
-                eph: 90,
-                epv: 120,
-                vel: convert::sat_u16(ground_speed * 100.0),
-                cog: if ground_speed > 0.1 {
-                    convert::heading_cdeg(t.velocity_ned.y.atan2(t.velocity_ned.x))
-                } else {
-                    convert::heading_cdeg(yaw)
-                },
-                fix_type: match t.gps_fix {
-                    GpsFix::None => GpsFixType::GPS_FIX_TYPE_NO_FIX,
-                    GpsFix::Fix3d => GpsFixType::GPS_FIX_TYPE_3D_FIX,
-                },
-                satellites_visible: t.gps_satellites,
-                // MAVLink 2 extensions: not reported (zero, cut off the wire)
-                ..Default::default()
-            },
-        }),
+        Stream::GpsRawInt => match (&snapshot.raw.gnss, t.gps_fix) {
+            (Some(g), _) => MavMessage::GPS_RAW_INT(gps_raw_int(g)),
+            (None, GpsFix::None) => MavMessage::GPS_RAW_INT(gps_raw_int_no_gps()),
+            // a receiver with a fix whose first solution is not out yet: PX4
+            // sends nothing before its first sample
+            (None, GpsFix::Fix3d) => return Vec::new(),
+        },
         Stream::HighresImu => match highres_imu(&snapshot.raw) {
             Some(m) => MavMessage::HIGHRES_IMU(m),
             None => return Vec::new(),
@@ -591,12 +584,31 @@ pub fn gps_raw_int(g: &GnssSample) -> GPS_RAW_INT_DATA {
             GpsFix::Fix3d => GpsFixType::GPS_FIX_TYPE_3D_FIX,
         },
         satellites_visible: g.satellites,
+        // PX4's `sensor_gps_sim` reports its AMSL altitude as the ellipsoid's too
         alt_ellipsoid: convert::sat_i32(g.alt_amsl_m * 1e3),
         h_acc: (g.eph_m * 1e3).round() as u32,
         v_acc: (g.epv_m * 1e3).round() as u32,
         vel_acc: (g.speed_accuracy_m_s * 1e3).round() as u32,
         hdg_acc: 0,
         yaw: 0,
+    }
+}
+
+/// GPS_RAW_INT with no receiver solution (the GPS OFF), as PX4's
+/// `GPS_RAW_INT.hpp` sends it once its receiver fell silent: NO_GPS,
+/// position 0, `eph`, `epv`, `vel` and `cog` unknown (`u16::MAX`),
+/// satellites unknown (255), no accuracies. (PX4 sends it at most once a
+/// second; here at the stream's rate.)
+#[must_use]
+pub fn gps_raw_int_no_gps() -> GPS_RAW_INT_DATA {
+    GPS_RAW_INT_DATA {
+        fix_type: GpsFixType::GPS_FIX_TYPE_NO_GPS,
+        eph: u16::MAX,
+        epv: u16::MAX,
+        vel: u16::MAX,
+        cog: u16::MAX,
+        satellites_visible: u8::MAX,
+        ..Default::default()
     }
 }
 
@@ -616,20 +628,31 @@ pub fn highres_imu(raw: &RawSensorReadings) -> Option<HIGHRES_IMU_DATA> {
         .chain(raw.baro.map(|b| b.time_s))
         .chain(raw.mag.map(|m| m.time_s))
         .fold(0.0, f64::max);
-    let mut flags = 0u16;
-    let mut xyz = |s: Option<crate::signals::AxesSample>, bits: u16| {
+    type F = HighresImuUpdatedFlags;
+    let mut flags = F::empty();
+    let mut xyz = |s: Option<crate::signals::AxesSample>, bits: F| {
         s.map_or([0.0f32; 3], |s| {
             flags |= bits;
             [s.frd.x as f32, s.frd.y as f32, s.frd.z as f32]
         })
     };
-    let a = xyz(raw.accel, 0b111);
-    let w = xyz(raw.gyro, 0b111 << 3);
-    let m = xyz(raw.mag, 0b111 << 6);
+    let a = xyz(
+        raw.accel,
+        F::HIGHRES_IMU_UPDATED_XACC | F::HIGHRES_IMU_UPDATED_YACC | F::HIGHRES_IMU_UPDATED_ZACC,
+    );
+    let w = xyz(
+        raw.gyro,
+        F::HIGHRES_IMU_UPDATED_XGYRO | F::HIGHRES_IMU_UPDATED_YGYRO | F::HIGHRES_IMU_UPDATED_ZGYRO,
+    );
+    let m = xyz(
+        raw.mag,
+        F::HIGHRES_IMU_UPDATED_XMAG | F::HIGHRES_IMU_UPDATED_YMAG | F::HIGHRES_IMU_UPDATED_ZMAG,
+    );
     let (p, alt, temp) = match raw.baro {
         Some(b) => {
-            // abs pressure, pressure altitude, temperature
-            flags |= 512 | 2048 | 4096;
+            flags |= F::HIGHRES_IMU_UPDATED_ABS_PRESSURE
+                | F::HIGHRES_IMU_UPDATED_PRESSURE_ALT
+                | F::HIGHRES_IMU_UPDATED_TEMPERATURE;
             (
                 (b.pressure_pa / 100.0) as f32,
                 crate::geo::pressure_altitude_m(b.pressure_pa) as f32,
@@ -653,7 +676,7 @@ pub fn highres_imu(raw: &RawSensorReadings) -> Option<HIGHRES_IMU_DATA> {
         diff_pressure: 0.0,
         pressure_alt: alt,
         temperature: temp,
-        fields_updated: HighresImuUpdatedFlags::from_bits_retain(flags),
+        fields_updated: flags,
         id: 0,
     })
 }

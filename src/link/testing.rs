@@ -191,6 +191,10 @@ impl ParamAccess for FakeParams {
         p.1 = value;
         Ok(value)
     }
+    /// The fixture keeps no defaults beside its values.
+    fn default_of(&self, _index: usize) -> Option<ParamValue> {
+        None
+    }
 }
 
 /// A file's bytes as a store's [`super::ftp::FileStore::open`] hands them

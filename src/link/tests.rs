@@ -90,6 +90,32 @@ fn speaks_first_with_a_px4_heartbeat() {
     assert_eq!(d, vec![addr(14540)]);
 }
 
+/// The raw sensors run only once something reads them: a link asks for
+/// them once, when a raw sensor stream first comes due with a peer to send
+/// it to; a link with no peer (and a stream set without raw messages) never.
+#[test]
+fn a_link_asks_for_the_raw_sensors_once_when_it_streams_them_to_a_peer() {
+    let t0 = Instant::now();
+    let mut l = link(t0);
+    assert!(!l.take_raw_sensors_request(), "nothing polled yet");
+    l.poll(t0, &snapshot(), 0);
+    assert!(l.take_raw_sensors_request(), "GPS_RAW_INT and HIGHRES_IMU came due");
+    l.poll(t0 + Duration::from_secs(1), &snapshot(), 0);
+    assert!(!l.take_raw_sensors_request(), "asked once");
+    let mut config = l.config.clone();
+    config.default_remote = None;
+    let mut lonely = Link::new(config.clone(), t0);
+    for k in 0..3 {
+        lonely.poll(t0 + Duration::from_secs(k), &snapshot(), 0);
+    }
+    assert!(!lonely.take_raw_sensors_request(), "no peer: nobody reads them");
+    config.default_remote = Some(addr(14540));
+    config.rates.retain(|(s, _)| !s.needs_raw_sensors());
+    let mut plain = Link::new(config, t0);
+    plain.poll(t0, &snapshot(), 0);
+    assert!(!plain.take_raw_sensors_request(), "no raw sensor stream");
+}
+
 #[test]
 fn unknown_command_is_unsupported_with_target_requester() {
     let t0 = Instant::now();

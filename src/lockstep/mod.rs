@@ -113,8 +113,9 @@ pub struct Snapshot {
     pub ground_truth: GroundTruth,
     /// The stored mission, geofence and rally points (shared, not copied).
     pub plans: Plans,
-    /// The raw sensors' latest samples (all `None` unless the world
-    /// simulates them, [`Lockstep::enable_raw_sensors`]).
+    /// The raw sensors' latest samples, as the steps drew them (all `None`
+    /// unless the world simulates them, [`Lockstep::enable_raw_sensors`]);
+    /// taking a snapshot never draws one.
     pub raw: RawSensorReadings,
 }
 
@@ -676,17 +677,18 @@ impl Lockstep<Autopilot> {
             truth: self.world.truth(i),
             ground_truth,
             plans: self.pilots[i].plans().clone(),
-            raw: self.world.sense(i).raw,
+            raw: *self.world.raw_readings(i),
         }
     }
 
-    /// Simulate every vehicle's raw sensors from now on (IMU, barometer,
-    /// magnetometer, GNSS: [`crate::sim::raw_sensors`]), each around its
+    /// Simulate vehicle `i`'s raw sensors from now on (IMU, barometer,
+    /// magnetometer, GNSS: [`crate::sim::raw_sensors`]), around its
     /// autopilot's home: for the runtimes that stream or log them. They
-    /// change no other number of the flight.
-    pub fn enable_raw_sensors(&mut self) {
-        for (i, pilot) in self.pilots.iter().enumerate() {
-            self.world.enable_raw_sensors(i, pilot.origin());
+    /// change no other number of the flight. Nothing changes when they are
+    /// already simulated.
+    pub fn enable_raw_sensors(&mut self, i: usize) {
+        if !self.world.raw_sensors_enabled(i) {
+            self.world.enable_raw_sensors(i, self.pilots[i].origin());
         }
     }
 

@@ -170,7 +170,7 @@ fn replay_into<'a>(
     let (mut core, mut params) = record.header.build().map_err(|e| format!("{file}:1: header: {e}"))?;
     if ulog.is_some() {
         // the ULog logs the raw sensors, as the daemon's did
-        core.enable_raw_sensors();
+        core.enable_raw_sensors(0);
     }
     let n = core.pilot(0).airframe().rotor_count();
     let mut logs = ReplayLogs {

@@ -15,7 +15,11 @@
 //! vehicle's sensors at `t_k` (the navigation solution's noise is drawn once
 //! per instant: reading telemetry between steps never draws noise the flight
 //! would not, so the same inputs give the same flight however often a client
-//! looks).
+//! looks). The raw sensors of an instant are drawn in its step only (the
+//! flight's read, [`VehicleSlot::sense`], or the integration), under the
+//! faults in force then: an observer reads their latest samples
+//! ([`World::raw_readings`]) and never draws one, so what observers read,
+//! and when, changes no raw sample.
 //!
 //! | file | job |
 //! |---|---|
@@ -249,6 +253,8 @@ struct Body {
     seed: u64,
     /// The raw sensors, once something reads them ([`World::enable_raw_sensors`]).
     raw: Option<Box<RawSensors>>,
+    /// Whether the raw sensors of the current instant were drawn.
+    raw_sampled: bool,
 }
 
 impl Body {
@@ -260,23 +266,42 @@ impl Body {
         }
     }
 
+    /// Draw the raw sensors due at the current instant into
+    /// `self.reading.raw`, once per instant, under the faults in force now.
+    /// Only the step calls this (the flight's own read, or the integration
+    /// when the flight did not read): what an observer reads between steps,
+    /// and when, never changes a raw sample.
+    fn sample_raw(&mut self) {
+        if self.raw_sampled {
+            return;
+        }
+        self.raw_sampled = true;
+        if let Some(raw) = &mut self.raw {
+            let gnss = GnssState {
+                available: self.faults.gps_available,
+                offset_ned: self.faults.gps_offset_ned,
+                satellites: SATELLITES,
+            };
+            let accel = self.plant.acceleration_ned();
+            raw.sample(
+                &self.plant.truth(),
+                &accel,
+                &self.faults.sensors,
+                gnss,
+                &mut self.reading.raw,
+            );
+        }
+    }
+
     /// Read the sensors at the current instant into `self.reading`: the
     /// navigation solution once per instant, the others every time (they
-    /// follow a fault or a new pack at once).
+    /// follow a fault or a new pack at once). The raw sensors are not read
+    /// here: they are drawn in the step ([`Self::sample_raw`]), and this
+    /// leaves their latest samples as they are.
     fn read(&mut self) {
         if !self.measured {
-            let truth = self.plant.truth();
-            self.nav = self.sensors.measure(&truth);
+            self.nav = self.sensors.measure(&self.plant.truth());
             self.measured = true;
-            if let Some(raw) = &mut self.raw {
-                let gnss = GnssState {
-                    available: self.faults.gps_available,
-                    offset_ned: self.faults.gps_offset_ned,
-                    satellites: SATELLITES,
-                };
-                let accel = self.plant.acceleration_ned();
-                raw.sample(&truth, &accel, &self.faults.sensors, gnss, &mut self.reading.raw);
-            }
         }
         let r = &mut self.reading;
         r.measurement = if self.sensors.degraded() {
@@ -297,6 +322,8 @@ impl Body {
     /// failed integration stops the rotors for the step instead (what ESCs do
     /// with garbage). What happened goes to `report`.
     fn step(&mut self, command: &ActuatorCommand, report: &mut StepReport) {
+        // the raw sensors of the instant left, if the flight did not read them
+        self.sample_raw();
         let t = self.plant.time_s();
         // the wrench in force now, and until when
         let (current, until_s) = match &self.disturbance {
@@ -336,6 +363,7 @@ impl Body {
         self.battery
             .update(self.plant.last_wrench().thrust_n, self.plant.dt_s());
         self.measured = false;
+        self.raw_sampled = false;
         report.external = self.plant.last_external_wrench();
         report.true_mass_kg = self.plant.true_mass_kg();
         report.wind_ned = self.plant.wind_ned();
@@ -353,9 +381,11 @@ pub struct VehicleSlot<'w> {
 }
 
 impl VehicleSlot<'_> {
-    /// The vehicle's sensors at the current instant (as [`World::sense`]).
+    /// The vehicle's sensors at the current instant, read by its flight in
+    /// the step: as [`World::sense`], and the raw sensors due now drawn.
     pub fn sense(&mut self) -> &SensorReadings {
         self.body.read();
+        self.body.sample_raw();
         &self.body.reading
     }
 
@@ -466,6 +496,7 @@ impl World {
             radius_m,
             seed: sensors.seed,
             raw: None,
+            raw_sampled: false,
         });
         self.reports.push(StepReport::default());
         self.bodies.len() - 1
@@ -542,11 +573,22 @@ impl World {
         self.steps
     }
 
-    /// Vehicle `i`'s sensors at the current instant (read once per instant).
+    /// Vehicle `i`'s sensors at the current instant (the navigation
+    /// solution drawn once per instant), with the raw sensors' latest
+    /// samples as the steps drew them (an instant's raw samples are drawn
+    /// in its step, [`VehicleSlot::sense`]: reading here never draws one).
     pub fn sense(&mut self, i: usize) -> &SensorReadings {
         let b = &mut self.bodies[i];
         b.read();
         &b.reading
+    }
+
+    /// Vehicle `i`'s raw sensors' latest samples, as the steps drew them
+    /// (all `None` unless [`Self::enable_raw_sensors`]): for observers
+    /// (telemetry, logs), which read them without changing the world.
+    #[must_use]
+    pub fn raw_readings(&self, i: usize) -> &RawSensorReadings {
+        &self.bodies[i].reading.raw
     }
 
     /// One tick of the clock: integrate every vehicle `i` over `[t, t + dt)`

@@ -22,9 +22,10 @@
 //! b_{k+1} = exp(-dt/tau) b_k + sqrt(sigma_b^2 tau / 2 (1 - exp(-2 dt/tau))) N(0, 1)
 //! ```
 //!
-//! **Barometer** (PX4's `sensor_baro_sim`): `T = 288 K - 0.0065 K/m h`,
-//! `p = 101325 Pa (T / 288 K)^5.256`, temperature `T - 273.15` [degC];
-//! white noise of 1 Pa; PX4's drift rate is 0 Pa/s and so is ours.
+//! **Barometer** (PX4's `sensor_baro_sim`): the ISA troposphere's pressure
+//! and temperature at the true altitude ([`crate::geo::isa`]: 288 K at sea
+//! level, as PX4's simulator takes it); white noise of 1 Pa; PX4's drift
+//! rate is 0 Pa/s and so is ours.
 //!
 //! **Magnetometer** (PX4's `sensor_mag_sim`): the Earth's field at home
 //! ([`crate::geo::earth_field_ned_gauss`]) rotated into the body by the true
@@ -54,7 +55,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
 use super::sensors::splitmix64;
-use crate::geo::{GeoPoint, earth_field_ned_gauss};
+use crate::geo::{GeoPoint, earth_field_ned_gauss, isa};
 use crate::signals::{AxesSample, BaroSample, GRAVITY, GnssSample, GpsFix, Measurement, RawSensorReadings};
 
 /// IMU sample rate [Hz] (the IMU `update_rate` of PX4's Gazebo x500).
@@ -86,14 +87,6 @@ pub const GYRO_TURN_ON_BIAS: f64 = 0.5 / 180.0 * PI;
 pub const MAG_NOISE_GAUSS: [f64; 3] = [0.02, 0.02, 0.03];
 /// Barometer white noise [Pa] (PX4 `sensor_baro_sim`: 1 Pa RMS).
 pub const BARO_NOISE_PA: f64 = 1.0;
-/// ISA sea-level temperature [K] as PX4's `sensor_baro_sim` takes it.
-pub const ISA_T0_K: f64 = 288.0;
-/// ISA temperature lapse rate [K/m].
-pub const ISA_LAPSE_K_M: f64 = 0.0065;
-/// ISA sea-level pressure [Pa].
-pub const ISA_P0_PA: f64 = 101_325.0;
-/// ISA pressure exponent `g / (R L)` as PX4 rounds it.
-pub const ISA_EXPONENT: f64 = 5.256;
 
 /// GNSS position error: Markov coefficient per epoch (PX4 `sensor_gps_sim`).
 const GNSS_POS_MARKOV: f64 = 0.76;
@@ -163,13 +156,6 @@ struct PendingFix {
     time_s: f64,
     position_ned: Vector3<f64>,
     velocity_ned: Vector3<f64>,
-}
-
-/// ISA pressure [Pa] and temperature [degC] at `alt_amsl_m` [m] (module doc).
-#[must_use]
-pub fn isa(alt_amsl_m: f64) -> (f64, f64) {
-    let t = ISA_T0_K - ISA_LAPSE_K_M * alt_amsl_m;
-    (ISA_P0_PA * (t / ISA_T0_K).powf(ISA_EXPONENT), t - 273.15)
 }
 
 /// `(phi, sigma_d)` of a first-order Gauss-Markov bias sampled every `dt`
@@ -316,7 +302,9 @@ impl RawSensors {
         let delivered = self.pending.replace(taken);
         out.gnss = match delivered {
             _ if !gnss.available => None,
+            // stuck: the last solution again, stamped as a fresh one would be
             _ if stuck && self.last.gnss.is_some() => self.last.gnss.map(|g| GnssSample {
+                time_s: delivered.map_or(truth.time_s, |f| f.time_s),
                 delivered_s: truth.time_s,
                 ..g
             }),
@@ -527,7 +515,15 @@ mod tests {
         let (b0, b1) = (before.baro.unwrap(), out.baro.unwrap());
         assert_eq!(b1.pressure_pa, b0.pressure_pa);
         assert!(b1.time_s > b0.time_s);
-        assert_eq!(out.gnss.unwrap().lat_deg, before.gnss.unwrap().lat_deg);
+        let (g0, g1) = (before.gnss.unwrap(), out.gnss.unwrap());
+        assert_eq!(g1.lat_deg, g0.lat_deg);
+        // a stuck receiver's solution is stamped anew, as every stuck sensor's:
+        // the fix time one epoch before its delivery, as a fresh fix's
+        assert!(
+            g1.delivered_s > g0.delivered_s && g1.time_s > g0.time_s,
+            "{g0:?} {g1:?}"
+        );
+        assert!((g1.delivered_s - g1.time_s - 1.0 / GNSS_RATE_HZ).abs() < 1e-9);
         // the world's GNSS state: a wrong position shifts the fix, no fix gives none
         faults = SensorFaults::default();
         gnss.offset_ned = Some(Vector3::new(30.0, 0.0, 0.0));

@@ -76,7 +76,9 @@ def test_gps_off_shows_on_the_wire_and_ok_restores_it(vehicle):
     status_text(m, "CMD_INJECT_FAILURE, GPS off")
     g = wait(m, "GPS_RAW_INT", lambda g: g.fix_type <= 1, timeout=3.0)
     assert g is not None, "GPS_RAW_INT never lost its fix"
-    assert g.satellites_visible == 0
+    # PX4's silent receiver (GPS_RAW_INT.hpp): NO_GPS, nothing known
+    assert (g.fix_type, g.satellites_visible, g.lat, g.lon) == (0, 255, 0, 0)
+    assert (g.eph, g.epv, g.vel, g.cog) == (65535, 65535, 65535, 65535)
     s = wait(m, "SYS_STATUS", timeout=3.0)
     assert s is not None and not s.onboard_control_sensors_health & GPS_HEALTH
     assert inject(m, GPS, OK) == mavlink.MAV_RESULT_ACCEPTED

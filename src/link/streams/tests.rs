@@ -35,11 +35,22 @@ fn gps_fix_and_health_follow_the_receiver() {
         }
         _ => panic!(),
     }
-    // a lost fix: no solution from the receiver, the autopilot's status says so
+    // a receiver with a fix whose first solution is not out yet: nothing (PX4)
     s.raw.gnss = None;
+    assert!(build(Stream::GpsRawInt, &s, 0).is_empty());
+    // the GPS off: no solution from the receiver; PX4's silent-receiver
+    // message (GPS_RAW_INT.hpp), never the navigation solution's position
     s.telemetry.gps_fix = GpsFix::None;
     s.telemetry.gps_satellites = 0;
-    assert_eq!(gps_raw(&s), (1, 0), "GPS_FIX_TYPE_NO_FIX");
+    assert_eq!(gps_raw(&s), (0, 255), "GPS_FIX_TYPE_NO_GPS, satellites unknown");
+    match build(Stream::GpsRawInt, &s, 0).pop() {
+        Some(MavMessage::GPS_RAW_INT(g)) => {
+            assert_eq!((g.lat, g.lon, g.alt, g.time_usec), (0, 0, 0, 0));
+            assert_eq!((g.eph, g.epv, g.vel, g.cog), (u16::MAX, u16::MAX, u16::MAX, u16::MAX));
+            assert_eq!((g.h_acc, g.v_acc, g.vel_acc), (0, 0, 0));
+        }
+        _ => panic!(),
+    }
     assert!(!gps_healthy(&s));
 }
 

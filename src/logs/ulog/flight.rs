@@ -53,6 +53,9 @@ use crate::signals::{ActuatorCommand, GpsFix, RawSensorReadings};
 /// The device id the raw sensor topics carry: 0, no device (a simulated
 /// sensor here has no bus address).
 const DEVICE_ID: u32 = 0;
+/// `sensor_gps.c_variance_rad` [rad], the course accuracy PX4's simulated
+/// receiver reports with a fix (`sensor_gps_sim`).
+const GPS_COURSE_VARIANCE_RAD: f64 = 0.1;
 
 /// PX4's `actuator_motors.control` length.
 const MOTORS: usize = 12;
@@ -455,7 +458,7 @@ impl<W: Write> FlightUlog<W> {
                 .f64(g.alt_amsl_m)
                 .f64(g.alt_amsl_m)
                 .f32(g.speed_accuracy_m_s)
-                .f32(0.1)
+                .f32(GPS_COURSE_VARIANCE_RAD)
                 .f32(g.eph_m)
                 .f32(g.epv_m)
                 .f32(g.hdop)
@@ -572,7 +575,7 @@ impl<W: Write> FlightUlog<W> {
             self.ulog.data(id::SIM_WIND, &s)?;
         }
         if core.world().raw_sensors_enabled(vehicle) {
-            let raw = core.world_mut().sense(vehicle).raw;
+            let raw = *core.world().raw_readings(vehicle);
             self.raw_sensors(&raw)?;
         }
         let pilot = core.pilot(vehicle);
@@ -752,22 +755,23 @@ mod tests {
     #[test]
     fn the_raw_sensor_topics_at_their_rates_and_an_off_barometer_silent() {
         let (mut core, params) = crate::lockstep::test_quad();
-        core.enable_raw_sensors();
+        core.enable_raw_sensors(0);
         let mut log = FlightUlog::new(Vec::new(), &params, &core, 0).unwrap();
         for _ in 0..1000 {
             core.step();
             log.on_step(&mut core, 0).unwrap();
         }
         let counts = data_counts(&log.finish().unwrap());
-        // samples of the instants 0 .. 1.000 s: the IMU's every 20 ms, the
-        // barometer's and the magnetometer's every 200 ms, every GNSS fix
-        // delivered from 125 ms (the one taken at 0 s)
-        assert_eq!(counts[usize::from(id::SENSOR_COMBINED)], 51);
-        assert_eq!(counts[usize::from(id::AIR_DATA)], 6);
-        assert_eq!(counts[usize::from(id::MAGNETOMETER)], 6);
-        assert_eq!(counts[usize::from(id::SENSOR_GPS)], 8);
+        // samples of the instants the 1000 steps drew, 0 .. 0.999 s (an
+        // instant's are drawn in its step, never by the log): the IMU's
+        // every 20 ms, the barometer's and the magnetometer's every 200 ms,
+        // every GNSS fix delivered from 125 ms (the one taken at 0 s)
+        assert_eq!(counts[usize::from(id::SENSOR_COMBINED)], 50);
+        assert_eq!(counts[usize::from(id::AIR_DATA)], 5);
+        assert_eq!(counts[usize::from(id::MAGNETOMETER)], 5);
+        assert_eq!(counts[usize::from(id::SENSOR_GPS)], 7);
         let (mut core, params) = crate::lockstep::test_quad();
-        core.enable_raw_sensors();
+        core.enable_raw_sensors(0);
         let off = crate::lockstep::failure::FailureInjection {
             unit: crate::lockstep::failure::UNIT_BARO,
             kind: crate::lockstep::failure::TYPE_OFF,
@@ -781,7 +785,7 @@ mod tests {
         }
         let counts = data_counts(&log.finish().unwrap());
         assert_eq!(counts[usize::from(id::AIR_DATA)], 0);
-        assert_eq!(counts[usize::from(id::SENSOR_COMBINED)], 51);
+        assert_eq!(counts[usize::from(id::SENSOR_COMBINED)], 50);
     }
 
     #[test]

@@ -507,7 +507,7 @@ impl Autopilot {
             if !matches!(self.navigator.nav(), Nav::Descend { .. }) {
                 // a landing asked for: the fix back keeps landing
                 self.navigator.enter_descend(super::navigator::DescendThen::Land);
-                self.enter_failsafe(super::stack::GPS_LOST);
+                self.enter_gps_lost_failsafe();
                 self.say
                     .announce(Severity::Critical, "No GPS fix: descending without position");
             }

@@ -113,7 +113,7 @@ pub struct Autopilot {
 }
 
 /// The cause of the failsafe that replaces a mode needing a position when the GNSS fix is lost.
-pub(super) const GPS_LOST: &str = "no GPS fix";
+const GPS_LOST: &str = "no GPS fix";
 
 /// A failsafe in force: an action the pilot did not command, taken by the
 /// flight stack (PX4's failsafe framework: `vehicle_status.failsafe` is
@@ -637,6 +637,11 @@ impl Autopilot {
     #[must_use]
     pub fn failsafe_in_force(&self) -> Option<&FailsafeInForce> {
         self.in_failsafe.as_ref()
+    }
+
+    /// The failsafe of a lost GNSS fix acts (a mode needing a position replaced, or Land without one).
+    pub(super) fn enter_gps_lost_failsafe(&mut self) {
+        self.enter_failsafe(GPS_LOST);
     }
 
     /// A failsafe acts for `cause`: in force from now (a new cause is a new failsafe).

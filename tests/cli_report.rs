@@ -29,8 +29,8 @@ fn summary(stdout: &str) -> serde_json::Value {
 
 /// Fly `file` with `simulate --json`, then again with `--report` into a
 /// fresh directory named for `tag`: the summaries must be equal (the page
-/// only watches). The directory the pages went to.
-fn flown_with_and_without_report(file: &str, tag: &str) -> std::path::PathBuf {
+/// only watches). The directory the pages went to, and the summary.
+fn flown_with_and_without_report(file: &str, tag: &str) -> (std::path::PathBuf, serde_json::Value) {
     let dir = common::scratch_dir(tag);
     let plain = run(&["simulate", file, "--json"]);
     assert!(plain.ok(), "{}", plain.stderr);
@@ -41,13 +41,18 @@ fn flown_with_and_without_report(file: &str, tag: &str) -> std::path::PathBuf {
         summary(&with.stdout),
         "the page changed the flight"
     );
-    dir
+    (dir, summary(&plain.stdout))
 }
 
 #[test]
 fn simulate_report_writes_a_mission_page_and_the_flight_is_the_same() {
-    let dir = flown_with_and_without_report("tools/scenarios/octo-mission-rotor-loss.toml", "sim-report");
+    let (dir, flown) = flown_with_and_without_report("tools/scenarios/octo-mission-rotor-loss.toml", "sim-report");
     let page = std::fs::read_to_string(dir.join("octo-mission-rotor-loss.html")).unwrap();
+    // the header's largest tracking error is the summary's, counted alike
+    let e = flown["max_tracking_error_m"].as_f64().unwrap();
+    let said = format!("largest tracking error {e:.3} m at ");
+    assert!(page.contains(&said), "{said}");
+    assert!(page.contains("takeoff and landing excluded, as the mission summary counts it"));
     assert!(page.len() < 5_000_000, "{} bytes", page.len());
     assert!(page.contains("<span class=\"badge pass\">PASS</span>"));
     assert!(
@@ -92,7 +97,7 @@ fn assert_self_contained(page: &str) {
 
 #[test]
 fn simulate_report_writes_a_plain_scenario_page_and_the_flight_is_the_same() {
-    let dir = flown_with_and_without_report("tools/scenarios/figure-eight-geometric.toml", "sim-report-plain");
+    let (dir, _) = flown_with_and_without_report("tools/scenarios/figure-eight-geometric.toml", "sim-report-plain");
     let page = std::fs::read_to_string(dir.join("figure-eight-geometric.html")).unwrap();
     assert_self_contained(&page);
     assert!(page.contains("<h1>tools/scenarios/figure-eight-geometric.toml</h1>"));
@@ -103,7 +108,7 @@ fn simulate_report_writes_a_plain_scenario_page_and_the_flight_is_the_same() {
 
 #[test]
 fn simulate_report_writes_a_page_per_fleet_vehicle_and_the_fleet_is_the_same() {
-    let dir = flown_with_and_without_report("tools/fleets/fleet-collision.toml", "sim-report-fleet");
+    let (dir, _) = flown_with_and_without_report("tools/fleets/fleet-collision.toml", "sim-report-fleet");
     let mut names: Vec<String> = std::fs::read_dir(&dir)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())

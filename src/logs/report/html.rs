@@ -147,8 +147,9 @@ fn verdict(h: &mut String, r: &FlightReport) {
         Some((e, t)) => {
             let _ = write!(
                 h,
-                "<li>largest tracking error {e:.3} m at {} (distance from the reference, in the air)</li>",
-                fmt_s(t)
+                "<li>largest tracking error {e:.3} m at {} (distance from the reference {})</li>",
+                fmt_s(t),
+                v.tracking_counted
             );
         }
         None => h.push_str("<li>no reference tracked in the air</li>"),

@@ -342,6 +342,10 @@ pub struct Verdict {
     pub items: Vec<ItemRow>,
     /// The largest distance [m] from the tracked reference in the air, and when [s].
     pub max_tracking_error: Option<(f64, f64)>,
+    /// Which part of the flight that maximum counts, as the header words it
+    /// (a flight record: flying, takeoff and landing excluded, as the
+    /// mission summary counts it; a ULog: not landed).
+    pub tracking_counted: &'static str,
     /// Armed, mode and landed state at the end.
     pub final_state: String,
 }
@@ -428,7 +432,9 @@ pub struct PilotState {
     pub armed: bool,
     /// The flight mode's name (a bare control law: its controller's).
     pub mode: String,
-    /// Flying (the tracking error counts only then).
+    /// Flying, neither taking off nor landing (the header's tracking error
+    /// counts only then, as the mission summary's does; the plot shows it
+    /// whenever a reference is tracked).
     pub in_air: bool,
     /// The cause of the failsafe in force, if any (PX4's `vehicle_status.failsafe`).
     pub failsafe: Option<String>,
@@ -707,6 +713,7 @@ impl Collector {
                 reasons: Vec::new(),
                 items: self.items,
                 max_tracking_error: self.max_err,
+                tracking_counted: "while flying: takeoff and landing excluded, as the mission summary counts it",
                 final_state,
             },
             plans: self.plans,

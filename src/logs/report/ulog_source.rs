@@ -310,6 +310,7 @@ fn report(u: &UlogFile, file: &str, test: Option<&str>) -> Result<FlightReport, 
         duration_s,
         verdict: Verdict {
             max_tracking_error: max_err,
+            tracking_counted: "while not landed",
             final_state,
             ..Verdict::default()
         },

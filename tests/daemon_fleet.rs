@@ -1,7 +1,9 @@
 //! A fleet in one process, in-process on loopback (`daemon::bind_fleet`):
 //! each vehicle answers with its own system id on its own links, a command
 //! moves only the vehicle it was sent to, proximity and collisions reach both
-//! vehicles' links, and a client flooding one vehicle does not stall another.
+//! vehicles' links, so does each encounter's end with its closest approach
+//! (recorded, replayed), and a client flooding one vehicle does not stall
+//! another.
 
 mod common;
 
@@ -535,8 +537,8 @@ fn true_positions(csv: &str) -> Vec<[f64; 3]> {
 async fn an_encounter_ends_with_its_closest_approach_told_to_both_and_replayed() {
     let logs = scratch_path("fleet-encounter");
     let mut gcs = Client::with_ids(255, 190).await;
-    // 3 m apart: not near; system 2 climbs to 1 m, then flies south over
-    // system 1 to 3.3 m beyond it
+    // 3 m apart: not near; system 2 takes off (1 m asked), then flies south
+    // over system 1 to 3.3 m beyond it
     let fleet = Fleet::start_logged(2, 3.0, 5.0, gcs.addr(), Some(&logs)).await;
     let (_, api1) = fleet.links[1];
     let mut c = Client::new().await;
@@ -648,6 +650,55 @@ async fn an_encounter_ends_with_its_closest_approach_told_to_both_and_replayed()
         assert!(
             texts(&ulg) == live_texts,
             "vehicle {i}: the replay's ULog messages (text and instant) are the live ones"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&logs);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_encounter_still_open_at_shutdown_ends_there_in_both_records() {
+    let logs = scratch_path("fleet-encounter-stop");
+    let gcs = Client::with_ids(255, 190).await;
+    // 1.5 m apart on the ground: near from the first step until the end
+    let fleet = Fleet::start_logged(2, 1.5, 5.0, gcs.addr(), Some(&logs)).await;
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    fleet.stop().await;
+    let mut runs: Vec<_> = std::fs::read_dir(&logs).unwrap().map(|e| e.unwrap().path()).collect();
+    runs.sort();
+    for (i, run) in runs.iter().enumerate() {
+        let text = std::fs::read_to_string(run.join("flight.record")).unwrap();
+        let r = rotorpilot::logs::record::read_record(&text, "flight.record").unwrap();
+        let last = r.inputs.last().expect("inputs");
+        let closest_m = match &last.input {
+            rotorpilot::lockstep::input::Input::EncounterEnded { other, closest_m, .. } => {
+                assert_eq!(other, &format!("system {}", 2 - i));
+                *closest_m
+            }
+            other => panic!("vehicle {i}'s last input is the encounter's end, not {other:?}"),
+        };
+        assert_eq!(Some(last.step), r.end, "at the last step");
+        assert!(closest_m <= 1.5 + 1e-6, "{closest_m}");
+        // the live flight.ulg logs it as the daemon stops; the replay's too
+        let mut ulg = Vec::new();
+        rotorpilot::logs::replay::replay_logs(&r, "flight.record", None, Some(&mut ulg)).unwrap();
+        let texts = |b: &[u8]| -> Vec<Vec<u8>> {
+            ulog_records(b)
+                .into_iter()
+                .filter(|(t, _)| *t == b'L')
+                .map(|(_, p)| p)
+                .collect()
+        };
+        let live_texts = texts(&std::fs::read(run.join("flight.ulg")).unwrap());
+        let passed = format!("Passed system {}: closest approach {closest_m:.2} m", 2 - i);
+        assert!(
+            live_texts
+                .iter()
+                .any(|p| p.windows(passed.len()).any(|w| w == passed.as_bytes())),
+            "vehicle {i}'s flight.ulg logs {passed:?}"
+        );
+        assert!(
+            texts(&ulg) == live_texts,
+            "vehicle {i}: the replay's ULog messages are the live ones"
         );
     }
     let _ = std::fs::remove_dir_all(&logs);

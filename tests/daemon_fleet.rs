@@ -1,7 +1,9 @@
 //! A fleet in one process, in-process on loopback (`daemon::bind_fleet`):
 //! each vehicle answers with its own system id on its own links, a command
 //! moves only the vehicle it was sent to, proximity and collisions reach both
-//! vehicles' links, and a client flooding one vehicle does not stall another.
+//! vehicles' links, so does each encounter's end with its closest approach
+//! (recorded, replayed), and a client flooding one vehicle does not stall
+//! another.
 
 mod common;
 
@@ -515,4 +517,189 @@ async fn each_vehicle_forwards_among_its_own_links_only() {
         "once, from vehicle 0's GCS link; vehicle 1 never heard the companion"
     );
     fleet.stop().await;
+}
+
+/// Each row's true position (NED [m], the vehicle's own frame) of a flight CSV.
+fn true_positions(csv: &str) -> Vec<[f64; 3]> {
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().expect("a header").split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).expect(name);
+    let cols = [col("true_pos_n"), col("true_pos_e"), col("true_pos_d")];
+    lines
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            cols.map(|c| f[c].parse().unwrap())
+        })
+        .collect()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_encounter_ends_with_its_closest_approach_told_to_both_and_replayed() {
+    let logs = scratch_path("fleet-encounter");
+    let mut gcs = Client::with_ids(255, 190).await;
+    // 3 m apart: not near; system 2 takes off (1 m asked), then flies south
+    // over system 1 to 3.3 m beyond it
+    let fleet = Fleet::start_logged(2, 3.0, 5.0, gcs.addr(), Some(&logs)).await;
+    let (_, api1) = fleet.links[1];
+    let mut c = Client::new().await;
+    c.heartbeat(api1).await;
+    wait_armable(&mut c).await;
+    let home = rotorpilot::geo::GeoPoint::PX4_SITL_HOME;
+    let low = (home.alt_amsl_m + 1.0) as f32;
+    c.command_long(api1, 400, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], (2, 1))
+        .await;
+    assert_eq!(c.ack_of(400, Duration::from_secs(3)).await.expect("arm").1.result, 0);
+    c.command_long(api1, 22, [NAN, 0.0, 0.0, NAN, NAN, NAN, low], (2, 1))
+        .await;
+    assert_eq!(c.ack_of(22, Duration::from_secs(3)).await.expect("takeoff").1.result, 0);
+    tokio::time::sleep(Duration::from_millis(1500)).await;
+    let south = [
+        -1.0,
+        1.0,
+        0.0,
+        NAN,
+        (home.lat_deg - 3e-5) as f32,
+        home.lon_deg as f32,
+        low,
+    ];
+    c.command_long(api1, 192, south, (2, 1)).await;
+    assert_eq!(
+        c.ack_of(192, Duration::from_secs(3))
+            .await
+            .expect("reposition")
+            .1
+            .result,
+        0
+    );
+    // both are told, each naming the other
+    let mut passed: Vec<(u8, String)> = Vec::new();
+    let deadline = Instant::now() + Duration::from_secs(15);
+    while passed.len() < 2 {
+        let rx = gcs
+            .recv(deadline.saturating_duration_since(Instant::now()))
+            .await
+            .unwrap_or_else(|| panic!("both told of the encounter's end in time: {passed:?}"));
+        if let Some(MavMessage::STATUSTEXT(s)) = &rx.msg {
+            let text: Vec<u8> = s.text.iter().copied().take_while(|&b| b != 0).collect();
+            let text = String::from_utf8_lossy(&text).into_owned();
+            if text.starts_with("Passed") {
+                assert_eq!(s.severity, mavlink::dialects::common::MavSeverity::MAV_SEVERITY_INFO);
+                passed.push((rx.sysid, text));
+            }
+        }
+    }
+    fleet.stop().await;
+    passed.sort();
+    let closest = |other: u8| -> String {
+        let prefix = format!("Passed system {other}: closest approach ");
+        let (_, t) = passed
+            .iter()
+            .find(|(_, t)| t.starts_with(&prefix))
+            .unwrap_or_else(|| panic!("{passed:?}"));
+        t[prefix.len()..].strip_suffix(" m").expect("in metres").to_string()
+    };
+    assert_eq!((passed[0].0, passed[1].0), (1, 2), "{passed:?}");
+    let told = closest(2);
+    assert_eq!(closest(1), told, "both told the same closest approach");
+    // the least distance between the two over the flight (the CSVs: each
+    // in its own frame, system 2's spawned 3 m north of system 1's)
+    let mut runs: Vec<_> = std::fs::read_dir(&logs).unwrap().map(|e| e.unwrap().path()).collect();
+    runs.sort();
+    let p: Vec<_> = runs
+        .iter()
+        .map(|r| true_positions(&std::fs::read_to_string(r.join("flight.csv")).unwrap()))
+        .collect();
+    let d_min = p[0]
+        .iter()
+        .zip(&p[1])
+        .map(|(a, b)| ((b[0] + 3.0 - a[0]).powi(2) + (b[1] - a[1]).powi(2) + (b[2] - a[2]).powi(2)).sqrt())
+        .fold(f64::INFINITY, f64::min);
+    assert!(d_min < 2.0, "they crossed closer than the 2 m reported: {d_min}");
+    assert_eq!(
+        told,
+        format!("{d_min:.2}"),
+        "the closest approach told is the least distance"
+    );
+    // each record holds it, and its replay announces it at the same step
+    for (i, run) in runs.iter().enumerate() {
+        let text = std::fs::read_to_string(run.join("flight.record")).unwrap();
+        let other = 2 - i;
+        assert!(
+            text.lines()
+                .any(|l| l.contains("\"encounter_ended\":") && l.contains(&format!("\"other\":\"system {other}\""))),
+            "vehicle {i}'s record holds the encounter's end"
+        );
+        let r = rotorpilot::logs::record::read_record(&text, "flight.record").unwrap();
+        let mut ulg = Vec::new();
+        rotorpilot::logs::replay::replay_logs(&r, "flight.record", None, Some(&mut ulg)).unwrap();
+        let texts = |b: &[u8]| -> Vec<Vec<u8>> {
+            ulog_records(b)
+                .into_iter()
+                .filter(|(t, _)| *t == b'L')
+                .map(|(_, p)| p)
+                .collect()
+        };
+        let live_texts = texts(&std::fs::read(run.join("flight.ulg")).unwrap());
+        let passed = format!("Passed system {other}: closest approach {told} m");
+        assert!(
+            live_texts
+                .iter()
+                .any(|p| p.windows(passed.len()).any(|w| w == passed.as_bytes())),
+            "vehicle {i}'s flight.ulg logs {passed:?}"
+        );
+        assert!(
+            texts(&ulg) == live_texts,
+            "vehicle {i}: the replay's ULog messages (text and instant) are the live ones"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&logs);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_encounter_still_open_at_shutdown_ends_there_in_both_records() {
+    let logs = scratch_path("fleet-encounter-stop");
+    let gcs = Client::with_ids(255, 190).await;
+    // 1.5 m apart on the ground: near from the first step until the end
+    let fleet = Fleet::start_logged(2, 1.5, 5.0, gcs.addr(), Some(&logs)).await;
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    fleet.stop().await;
+    let mut runs: Vec<_> = std::fs::read_dir(&logs).unwrap().map(|e| e.unwrap().path()).collect();
+    runs.sort();
+    for (i, run) in runs.iter().enumerate() {
+        let text = std::fs::read_to_string(run.join("flight.record")).unwrap();
+        let r = rotorpilot::logs::record::read_record(&text, "flight.record").unwrap();
+        let last = r.inputs.last().expect("inputs");
+        let closest_m = match &last.input {
+            rotorpilot::lockstep::input::Input::EncounterEnded { other, closest_m, .. } => {
+                assert_eq!(other, &format!("system {}", 2 - i));
+                *closest_m
+            }
+            other => panic!("vehicle {i}'s last input is the encounter's end, not {other:?}"),
+        };
+        assert_eq!(Some(last.step), r.end, "at the last step");
+        assert!(closest_m <= 1.5 + 1e-6, "{closest_m}");
+        // the live flight.ulg logs it as the daemon stops; the replay's too
+        let mut ulg = Vec::new();
+        rotorpilot::logs::replay::replay_logs(&r, "flight.record", None, Some(&mut ulg)).unwrap();
+        let texts = |b: &[u8]| -> Vec<Vec<u8>> {
+            ulog_records(b)
+                .into_iter()
+                .filter(|(t, _)| *t == b'L')
+                .map(|(_, p)| p)
+                .collect()
+        };
+        let live_texts = texts(&std::fs::read(run.join("flight.ulg")).unwrap());
+        let passed = format!("Passed system {}: closest approach {closest_m:.2} m", 2 - i);
+        assert!(
+            live_texts
+                .iter()
+                .any(|p| p.windows(passed.len()).any(|w| w == passed.as_bytes())),
+            "vehicle {i}'s flight.ulg logs {passed:?}"
+        );
+        assert!(
+            texts(&ulg) == live_texts,
+            "vehicle {i}: the replay's ULog messages are the live ones"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&logs);
 }

@@ -654,6 +654,7 @@ impl Daemon {
             tick,
             vehicles: ios,
             exit: exit_tx,
+            encounters: Default::default(),
         };
         let (sim_done_tx, sim_done_rx) = oneshot::channel::<()>();
         let sim_thread = std::thread::Builder::new()

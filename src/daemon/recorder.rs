@@ -130,8 +130,6 @@ impl Recorder {
 
     /// One input line, written out at once.
     pub(super) fn input(&mut self, step: u64, input: &Input, applied: &Applied) {
-        // a proximity event is recorded after its chunk, at the older step
-        // that raised it: the end line counts the steps flown, not that
         self.steps = self.steps.max(step);
         let Some(f) = &mut self.record else { return };
         let line = input_line(step, input, &applied.text());

@@ -28,6 +28,8 @@ use crate::lockstep::input::{Applied, Input};
 use crate::lockstep::{Lockstep, Snapshot};
 use crate::mission::{MissionResult, PlanChange};
 use crate::params::{ParamStore, ParamValue};
+use crate::scenario::fleet::FleetEvent;
+use crate::scenario::fleet::encounters::Encounters;
 
 /// Vehicle-steps run between two looks at the requests (50 steps of a lone
 /// vehicle; one step of a fleet of 50 or more).
@@ -53,6 +55,9 @@ pub(super) struct Sim {
     pub(super) vehicles: Vec<VehicleIo>,
     /// Stops the daemon: a client's accepted shutdown ([`Self::power`]).
     pub(super) exit: mpsc::Sender<()>,
+    /// The fleet's open encounters, followed to their closest approach
+    /// ([`Self::proximity`]).
+    pub(super) encounters: Encounters,
 }
 
 /// What the simulation thread holds for one vehicle.
@@ -85,6 +90,12 @@ impl Sim {
         let wall = Instant::now();
         let steps = self.core.steps();
         self.run_loop(rx);
+        // the encounters still open end with the flight
+        let open = std::mem::take(&mut self.encounters).finish();
+        self.end_encounters(open);
+        for v in 0..self.vehicles.len() {
+            self.publish(v);
+        }
         // how fast it went, for the log (a fleet's user wants its real-time factor)
         let simulated_s = (self.core.steps() - steps) as f64 * self.core.dt_s();
         let wall_s = wall.elapsed().as_secs_f64();
@@ -143,10 +154,10 @@ impl Sim {
                 for _ in 0..n {
                     self.core.step();
                     self.after_step();
+                    self.proximity();
                 }
                 steps += n;
                 due -= n;
-                self.record_proximity();
                 // the requests waiting now, round robin (what comes in
                 // meanwhile waits for the next look)
                 for _ in 0..rx.len() {
@@ -383,17 +394,14 @@ impl Sim {
         }
     }
 
-    /// Record the proximity events the core raised since the last call in
+    /// After each step: record the proximity events the step raised in
     /// both vehicles' records (the core announced them itself: recorded,
-    /// not applied; a replay applies them). Called after every chunk of
-    /// steps, before the requests waiting are served, so that the record's
-    /// lines stay in step order.
-    pub(super) fn record_proximity(&mut self) {
-        let events = self.core.drain_proximity_events();
-        let dt = self.core.dt_s();
-        for (t, e) in events {
-            // raised after the step that ended at t: before step t/dt runs
-            let step = (t / dt).round() as u64;
+    /// not applied; a replay applies them), open an encounter with each,
+    /// follow the open ones, and tell both vehicles of each that ended
+    /// ([`Self::end_encounters`]). Nothing to do when no pair is near.
+    pub(super) fn proximity(&mut self) {
+        let step = self.core.steps();
+        for (t, e) in self.core.drain_proximity_events() {
             for (me, other) in [(e.a, e.b), (e.b, e.a)] {
                 let (instance, sysid) = self.who(me);
                 info!(instance, sysid, other = %self.core.label(other), kind = e.kind.name(), distance_m = e.distance_m, "proximity");
@@ -405,6 +413,37 @@ impl Sim {
                     };
                     r.input(step, &input, &Applied::Announced);
                 }
+            }
+            self.encounters.open(t, e);
+        }
+        let ended = self.encounters.follow(&self.core);
+        if !ended.is_empty() {
+            self.end_encounters(ended);
+        }
+    }
+
+    /// Tell both vehicles of each encounter in `ended` its closest approach
+    /// (applied and recorded as [`Input::EncounterEnded`], logged). A pair
+    /// that rose twice (near, then touching) ends both encounters at once:
+    /// it is told once, of the first (which followed it longest: its
+    /// closest approach is the least).
+    fn end_encounters(&mut self, mut ended: Vec<FleetEvent>) {
+        // stable: each pair's first-opened encounter stays first
+        ended.sort_by_key(|e| (e.a, e.b));
+        ended.dedup_by_key(|e| (e.a, e.b));
+        for e in ended {
+            for (me, other) in [(e.a, e.b), (e.b, e.a)] {
+                let (instance, sysid) = self.who(me);
+                let label = self.core.label(other).to_string();
+                info!(instance, sysid, other = %label, closest_m = e.closest_m, closest_s = e.closest_s, "encounter ended");
+                self.apply(
+                    me,
+                    Input::EncounterEnded {
+                        other: label,
+                        closest_m: e.closest_m,
+                        closest_s: e.closest_s,
+                    },
+                );
             }
         }
     }

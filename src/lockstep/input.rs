@@ -49,6 +49,19 @@ pub enum Input {
         /// Their distance [m].
         distance_m: f64,
     },
+    /// An encounter with another vehicle of the fleet is over (the pair
+    /// apart again, or the flight ended): the text
+    /// [`super::encounter_text`] announced ([`Lockstep::announce`]). As
+    /// [`Input::Proximity`], the live fleet followed it itself and the
+    /// record keeps it for a replay of this one vehicle.
+    EncounterEnded {
+        /// The other vehicle's label (`system 3`).
+        other: String,
+        /// The encounter's closest approach [m], centre to centre.
+        closest_m: f64,
+        /// When it came [s, simulated].
+        closest_s: f64,
+    },
 }
 
 /// What the core answered to an [`Input`].
@@ -66,7 +79,7 @@ pub enum Applied {
     ClientTimeout(bool),
     /// To a reboot.
     Reboot(Result<(), AutopilotError>),
-    /// To a proximity event (announced).
+    /// To a proximity event or an encounter's end (announced).
     Announced,
 }
 
@@ -109,6 +122,10 @@ pub fn apply(core: &mut Lockstep<Autopilot>, i: usize, params: &mut ParamStore, 
             distance_m,
         } => {
             core.announce(i, super::proximity_text(*kind, other, *distance_m));
+            Applied::Announced
+        }
+        Input::EncounterEnded { other, closest_m, .. } => {
+            core.announce(i, super::encounter_text(other, *closest_m));
             Applied::Announced
         }
     }

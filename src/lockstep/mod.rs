@@ -228,6 +228,17 @@ pub fn proximity_text(kind: ProximityKind, other: &str, distance_m: f64) -> Stat
     }
 }
 
+/// What a vehicle is told when its encounter with `other` (its label) is
+/// over (the pair apart again, or the flight ended): the encounter's
+/// closest approach `closest_m` [m] (centre to centre), for information.
+#[must_use]
+pub fn encounter_text(other: &str, closest_m: f64) -> StatusText {
+    StatusText {
+        severity: Severity::Info,
+        text: format!("Passed {other}: closest approach {closest_m:.2} m"),
+    }
+}
+
 /// Move `pilot`'s queued status texts to `q`, stamped with `t_s`, keeping
 /// the latest [`PILOT_TEXTS_KEPT`].
 fn stamp_texts<P: Pilot>(q: &mut VecDeque<(f64, StatusText)>, pilot: &mut P, t_s: f64) {

@@ -123,6 +123,25 @@ impl ReplayLogs<'_> {
         }
         Ok(())
     }
+
+    /// At the last step: the status texts its inputs announced (the
+    /// daemon publishes them as it stops; no step follows to log them).
+    fn last_texts(&mut self, core: &mut Lockstep<Autopilot>) -> Result<(), String> {
+        if self.ulog.is_none() && self.report.is_none() {
+            return Ok(());
+        }
+        let texts = core.drain_stamped_status_texts(0);
+        if let Some(r) = &mut self.report {
+            r.texts(&texts);
+        }
+        if let Some(u) = &mut self.ulog {
+            for (time_s, t) in &texts {
+                u.status_text(*time_s, t)
+                    .map_err(|e| format!("writing the ULog: {e}"))?;
+            }
+        }
+        Ok(())
+    }
 }
 
 /// [`replay`], also writing the flight's PX4 ULog to `ulog`
@@ -211,6 +230,7 @@ fn replay_into<'a>(
         }
     }
     step_to(&mut core, &params, end, &mut logs)?;
+    logs.last_texts(&mut core)?;
     if let Some(l) = logs.csv {
         l.finish().map_err(|e| format!("writing the CSV: {e}"))?;
     }

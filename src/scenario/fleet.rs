@@ -58,6 +58,10 @@ use crate::sim::World;
 use crate::sim::proximity::{ProximityEvent, ProximityKind};
 use crate::tomlfile::{self, FileError};
 
+pub mod encounters;
+
+use encounters::Encounters;
+
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct FileFleetTable {
@@ -539,8 +543,7 @@ fn fly_tracks<P: Watched, T: Track<P>>(
     let mut outcomes: Vec<Option<Outcome>> = vec![None; n];
     let mut pages: Vec<Option<FlightReport>> = vec![None; n];
     let mut events = Vec::new();
-    // the events whose encounter goes on (the pair not apart yet)
-    let mut open: Vec<usize> = Vec::new();
+    let mut encounters = Encounters::default();
     let mut running = n;
     // a flight over before its first step (a zero duration) is judged at once
     for i in 0..n {
@@ -579,11 +582,15 @@ fn fly_tracks<P: Watched, T: Track<P>>(
                 running -= 1;
             }
         }
-        let new = core.drain_proximity_events();
-        open.extend(events.len()..events.len() + new.len());
-        events.extend(new.into_iter().map(FleetEvent::from));
-        follow_encounters(&core, &mut events, &mut open);
+        for (t, e) in core.drain_proximity_events() {
+            encounters.open(t, e);
+        }
+        events.extend(encounters.follow(&core));
     }
+    events.extend(encounters.finish());
+    // in the order they were raised: by time, then by pair (a pair rises
+    // at most once a step)
+    events.sort_by(|x, y| x.time_s.total_cmp(&y.time_s).then((x.a, x.b).cmp(&(y.a, y.b))));
     Ok((
         outcomes.into_iter().flatten().collect(),
         events,
@@ -600,27 +607,6 @@ fn page<P: Watched>(core: &mut Lockstep<P>, watch: &mut Watch, outcome: Option<&
         Some(Outcome::Mission(m)) => mission::judged_page(c, core, meta, m),
         _ => c.finish(core, meta),
     })
-}
-
-/// After a step: each open encounter's closest approach so far
-/// ([`FleetEvent::closest_m`]); an encounter whose pair is apart again is
-/// closed.
-fn follow_encounters<P: Pilot>(core: &Lockstep<P>, events: &mut [FleetEvent], open: &mut Vec<usize>) {
-    let pairs = core.proximity_pairs();
-    let world = core.world();
-    let t = core.time_s();
-    open.retain(|&k| {
-        let e = &mut events[k];
-        if pairs.binary_search_by(|&(a, b, _)| (a, b).cmp(&(e.a, e.b))).is_err() {
-            return false;
-        }
-        let d = (world.position_ned(e.b) - world.position_ned(e.a)).norm();
-        if d < e.closest_m {
-            e.closest_m = d;
-            e.closest_s = t;
-        }
-        true
-    });
 }
 
 /// `n` and the noun, singular for one: `1 event`, `2 events`.

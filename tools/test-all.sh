@@ -115,12 +115,11 @@ timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/cl
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_replay.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_wind.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_files.py
-# MAVSDK-Python's own examples, unmodified, from the checkout that
-# $MAVSDK_PYTHON_EXAMPLES names (tests/clients/mavsdk_python_examples/README.md:
-# the pinned tag, every file checked by SHA-256); each test in a network and
-# PID namespace of its own (unshare, as root) on PX4's fixed ports, so four
-# run at once (the scripts mostly sleep on the wall clock): ~5 min. Without the
-# variable every test skips and says why.
+# MAVSDK-Python's own examples, unmodified, vendored with their licence
+# (tests/clients/mavsdk_python_examples/README.md: the pinned tag, every file
+# checked by SHA-256); each test in a network and PID namespace of its own
+# (unshare, as root) on PX4's fixed ports, so four run at once (the scripts
+# mostly sleep on the wall clock): ~4 min.
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -rs -n 4 -p no:cacheprovider tests/clients/test_mavsdk_python_examples.py
 # a fleet in one process on PX4's ports: needs UDP 14550, 14540..14543 and the instances' ports free
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_fleet.py

@@ -120,6 +120,10 @@ timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/cl
 # checked by SHA-256); each test in a network and PID namespace of its own
 # (unshare, as root) on PX4's fixed ports, so four run at once (the scripts
 # mostly sleep on the wall clock): ~4 min.
+if ! command -v ip >/dev/null; then
+    # each namespace brings its loopback up with iproute2's `ip`
+    apt-get install -y -qq iproute2 >/dev/null 2>&1 || { apt-get update -qq && apt-get install -y -qq iproute2; }
+fi
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -rs -n 4 -p no:cacheprovider tests/clients/test_mavsdk_python_examples.py
 # a fleet in one process on PX4's ports: needs UDP 14550, 14540..14543 and the instances' ports free
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_fleet.py

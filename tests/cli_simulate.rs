@@ -140,6 +140,37 @@ fn shipped_scenarios_give_the_readme_figures() {
     assert!(v["max_att_err_rad"].as_f64().unwrap() < 0.04, "{v}"); // measured 32.5 mrad
 }
 
+/// figure-eight-wind: the figure-eight in 5 m/s wind with moderate
+/// turbulence, the estimate fed back: "max error 5.6 cm (39.6 cm without
+/// feedback)" (docs/model.md section 8b, docs/scenarios.md); ±1 mm on the
+/// shipped file (measured 55.5 mm), and the same flight without the feedback
+/// (the file with `feedback = false`, measured 395.7 mm) at least five times worse.
+#[test]
+fn the_figure_eight_in_wind_needs_the_estimate_fed_back() {
+    let file = scenario("figure-eight-wind.toml");
+    let with = json_of(&rotorpilot(&["simulate", &file, "--json"]));
+    let text = std::fs::read_to_string(&file).unwrap();
+    let off = text.replace("feedback = true", "feedback = false").replace(
+        "\"../airframes/",
+        concat!("\"", env!("CARGO_MANIFEST_DIR"), "/tools/airframes/"),
+    );
+    assert_ne!(off, text);
+    let copy = common::scratch_dir("figure-eight-wind").join("no-feedback.toml");
+    std::fs::write(&copy, off).unwrap();
+    let without = json_of(&rotorpilot(&["simulate", copy.to_str().unwrap(), "--json"]));
+    let (on_mm, off_mm) = (
+        with["max_pos_err_m"].as_f64().unwrap() * 1e3,
+        without["max_pos_err_m"].as_f64().unwrap() * 1e3,
+    );
+    assert!((on_mm - 55.5).abs() < 1.0, "with feedback: max error {on_mm} mm");
+    assert!((off_mm - 395.7).abs() < 1.0, "without feedback: max error {off_mm} mm");
+    assert!(off_mm > 5.0 * on_mm, "{off_mm} mm without, {on_mm} mm with");
+    for v in [&with, &without] {
+        assert_eq!(v["saturation_time_s"].as_f64(), Some(0.0), "{v}");
+        assert_eq!(v["upright"], true, "{v}");
+    }
+}
+
 /// fsr-exercise5: "error below 0.3 µm after the start transient" (measured
 /// 0.227 µm for t >= 2 s; the transient itself peaks at 0.106 mm), read off
 /// the CSV's true position against the reference at every step.

@@ -224,6 +224,8 @@ pub struct Plant {
     aero_coefficients: AeroCoefficients,
     /// Whether any of them is not 0 (else the aerodynamic terms are skipped).
     aero_on: bool,
+    /// Whether the flapping moment `k_flap` is not 0 (else its terms are skipped).
+    aero_flap: bool,
     /// The air's velocity at the vehicle [m/s], NED, held over a step.
     wind_ned: Vector3<f64>,
     /// The aerodynamic wrench at the start of the last step (force NED, torque FRD).
@@ -365,6 +367,7 @@ impl Plant {
             last_external: ExternalWrench::default(),
             aero_coefficients: airframe.aero,
             aero_on: !airframe.aero.is_zero(),
+            aero_flap: airframe.aero.k_flap != 0.0,
             wind_ned: Vector3::zeros(),
             last_aero: ExternalWrench::default(),
         }
@@ -427,20 +430,34 @@ impl Plant {
         let va = r.transpose() * (state.velocity_ned - self.wind_ned);
         let speed = va.norm();
         let mut force = Vector3::new(-speed * c.c_dx * va.x, -speed * c.c_dy * va.y, -speed * c.c_dz * va.z);
-        let mut torque = Vector3::zeros();
+        let (mut tx, mut ty, mut tz) = (0.0, 0.0, 0.0);
         let om = &state.rate_frd;
+        let (kd, kz, kh) = (-c.k_d, -c.k_z, c.k_h);
         for (p, &wi) in self.rotor_positions_frd[..self.n]
             .iter()
             .zip(&speeds.as_slice()[..self.n])
         {
-            let vi = va + om.cross(p);
-            let lift = c.k_h * (vi.x * vi.x + vi.y * vi.y);
+            // hubs lie in the body's x-y plane (p_z = 0): v_i = v_a + omega x p
+            // and p x f written out without the zero terms
+            let (px, py) = (p.x, p.y);
+            let vx = va.x - om.z * py;
+            let vy = va.y + om.z * px;
+            let vz = va.z + om.x * py - om.y * px;
             // rotor drag H_i and translational lift along -z_b, acting at the hub
-            let f = Vector3::new(-wi * c.k_d * vi.x, -wi * c.k_d * vi.y, -wi * c.k_z * vi.z - lift);
-            force += f;
-            torque += p.cross(&f) + Vector3::new(c.k_flap * wi * vi.y, -c.k_flap * wi * vi.x, 0.0);
+            let (wd, wz) = (wi * kd, wi * kz);
+            let (fx, fy, fz) = (wd * vx, wd * vy, wz * vz - kh * (vx * vx + vy * vy));
+            force.x += fx;
+            force.y += fy;
+            force.z += fz;
+            tx += py * fz;
+            ty -= px * fz;
+            tz += px * fy - py * fx;
+            if self.aero_flap {
+                tx += c.k_flap * wi * vy;
+                ty -= c.k_flap * wi * vx;
+            }
         }
-        (force, torque)
+        (force, Vector3::new(tx, ty, tz))
     }
 
     /// Simulated time [s] (`steps x dt`).

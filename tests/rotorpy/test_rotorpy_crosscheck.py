@@ -339,10 +339,6 @@ AIRFRAMES = {
 # a wind with all three components [m/s], NED (mostly from the west, and rising)
 WIND_NED = (1.5, 4.0, -0.5)
 
-# for a quad file without an [aero] table: RotorPy's hummingbird's
-# coefficients with a flapping moment
-QUAD_AERO = {"c_dx": 0.5e-2, "c_dy": 0.5e-2, "c_dz": 1e-2, "k_d": 1.19e-4, "k_z": 2.32e-4, "k_h": 3.39e-3, "k_flap": 2e-7}
-
 # (airframe, aero, wind): aero None is RotorPy's aero=False and our
 # coefficients all 0; "file" the airframe file's [aero] table; a dict changes
 # some of it (RotorPy's shipped vehicles all have k_flap = 0: one case sets it,
@@ -354,7 +350,7 @@ CASES = {
     "hummingbird, aero on, no wind": ("hummingbird", "file", None),
     "hummingbird, aero on, wind": ("hummingbird", "file", WIND_NED),
     "hummingbird, aero on with k_flap = 2e-7, wind": ("hummingbird", {"k_flap": 2e-7}, WIND_NED),
-    "quad, aero on, wind": ("quad", "file" if "aero" in load_airframe(AIRFRAMES["quad"]) else QUAD_AERO, WIND_NED),
+    "quad, aero on, wind": ("quad", "file", WIND_NED),
 }
 
 

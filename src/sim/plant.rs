@@ -24,7 +24,9 @@
 //! m v' += R f_a,   I w' += tau_a
 //! ```
 //!
-//! evaluated at every RK4 stage with that stage's state and rotor speeds.
+//! evaluated once a step, at its start state and start rotor speeds, and
+//! held over the step with the external wrench (`Drag`, `sim/drag.rs`, writes the rotor
+//! sum in closed form).
 //! With every coefficient 0 the terms are skipped, bit for bit.
 //!
 //! Integration: fixed-step RK4 (1 ms by default) with the command held over the
@@ -403,7 +405,7 @@ impl Plant {
     /// The aerodynamic force and torque on the body, both body FRD [N], [N m],
     /// at `state` (its quaternion of unit norm) with rotor speeds `speeds`
     /// [rad/s] in the wind set by [`Self::set_wind_ned`] (the terms of the
-    /// module doc, [`Drag`]'s closed form).
+    /// module doc, the closed form of `Drag` in `sim/drag.rs`).
     #[must_use]
     pub fn aero_wrench_frd(&self, state: &RigidBodyState, speeds: &RotorVector) -> (Vector3<f64>, Vector3<f64>) {
         let r = rotation_matrix(state);

@@ -29,7 +29,7 @@ fn quad_with(extra: &str) -> Airframe {
         }
         None => text,
     };
-    Airframe::from_toml(&format!("{plain}{extra}"), "quad-aero.toml").unwrap()
+    Airframe::from_toml(&format!("{plain}{extra}"), "quad-with-aero.toml").unwrap()
 }
 
 fn config() -> PlantConfig {

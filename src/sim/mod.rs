@@ -161,7 +161,8 @@ pub struct SensorConfig {
 pub struct StepReport {
     /// The true state at `t_k`.
     pub truth: RigidBodyState,
-    /// The true external wrench at `t_k`.
+    /// The injected external wrench at `t_k` (the whole one on the body is
+    /// this plus [`Self::aero`]).
     pub external: ExternalWrench,
     /// The true mass [kg] over the step.
     pub true_mass_kg: f64,

@@ -594,7 +594,8 @@ impl Plant {
         self.last_wrench
     }
 
-    /// The external wrench at the start of the last step.
+    /// The injected external wrench at the start of the last step (the
+    /// aerodynamic one, which the step adds to it, is [`Self::last_aero_wrench`]).
     #[must_use]
     pub fn last_external_wrench(&self) -> ExternalWrench {
         self.last_external
@@ -876,6 +877,10 @@ impl Plant {
         let mut e1 = disturbance.wrench_at(t + h);
 
         let s = self.state;
+        // the injected wrench alone is the step's external wrench; the
+        // aerodynamic one is reported beside it (`last_aero`), so that
+        // `acceleration_ned` adds it once
+        let injected = e0;
         if self.aero_on {
             // the aerodynamic wrench, held over the step, joins the external one
             let a = self.aero_held(&s, target.as_ref(), &w0);
@@ -941,7 +946,7 @@ impl Plant {
         self.state = next;
         self.rotor_speed = rotor_speed_next;
         self.last_wrench = w0;
-        self.last_external = e0;
+        self.last_external = injected;
         self.steps += 1;
         Ok(event)
     }

@@ -5,7 +5,8 @@
 //! flights show the values; bad shards, bad `[campaign]` tables and bad
 //! variants get clear errors while the rest still runs; `rotorpilot merge`
 //! turns the shards' outputs into the whole campaign's, and refuses shards
-//! that do not make one campaign.
+//! that do not make one campaign. A campaign draws the `[wind]` per variant
+//! and each variant flies the wind its line names.
 
 mod common;
 
@@ -484,6 +485,106 @@ fn the_shipped_monte_carlo_campaign_has_16_reproducible_draws() {
         assert!((f(&l["est_mass_kg"]) - mass).abs() < 0.01, "{l}");
         assert!((f(&l["sim_time_s"]) - 60.0).abs() < 1e-9);
         assert_eq!(l["upright"], true);
+    }
+}
+
+/// The shipped hover in drawn wind (`tools/campaigns/hover-wind-draws.toml`).
+const WIND_DRAWS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tools/campaigns/hover-wind-draws.toml");
+
+#[test]
+fn the_shipped_wind_draws_fly_the_wind_each_line_names_on_any_job_count() {
+    let whole = simulate(&[WIND_DRAWS, "--json", "--jobs", "2"]);
+    assert_eq!(whole.status, Some(0), "{}", whole.stderr);
+    assert_eq!(whole.lines.len(), 12);
+    let mut drawn = BTreeSet::new();
+    let mut by_speed = Vec::new();
+    for l in &whole.lines {
+        let v = &l["values"];
+        let (speed, from) = (f(&v["wind.speed_m_s"]), f(&v["wind.from_deg"]));
+        let turbulence = f(&v["wind.turbulence_m_s"]);
+        assert!((2.0..10.0).contains(&speed) && (0.0..360.0).contains(&from), "{l}");
+        assert!((0.0..0.5).contains(&turbulence), "{l}");
+        drawn.insert(format!("{speed} {from} {turbulence}"));
+        assert_eq!(l["upright"], true, "{l}");
+        // the drag the estimator finds blows where the drawn wind does (to from + 180 deg)
+        let force = [f(&l["est_force_ned"][0]), f(&l["est_force_ned"][1])];
+        let towards = force[1].atan2(force[0]).to_degrees();
+        let off = (towards - (from + 180.0) + 540.0).rem_euclid(360.0) - 180.0;
+        assert!(
+            off.abs() < 10.0,
+            "force {force:?} points {towards} deg, the wind from {from} deg: {l}"
+        );
+        by_speed.push((speed, force[0].hypot(force[1])));
+    }
+    assert_eq!(drawn.len(), 12, "every draw differs");
+    // a stronger wind pushes harder: the strongest draw's drag is over twice the weakest's
+    by_speed.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (weak, strong) = (by_speed[0], by_speed[11]);
+    assert!(strong.1 > 2.0 * weak.1, "{weak:?} vs {strong:?}");
+    // the same draws and flights, bit for bit, on one job and in a shard
+    let one = simulate(&[WIND_DRAWS, "--json", "--jobs", "1"]);
+    assert_eq!(results(&whole.lines), results(&one.lines));
+    let shard = simulate(&[WIND_DRAWS, "--json", "--shard", "2/5"]);
+    let picked: Vec<Value> = [2, 7].iter().map(|&i| whole.lines[i].clone()).collect();
+    assert_eq!(results(&shard.lines), results(&picked));
+}
+
+#[test]
+fn a_bad_wind_draw_is_refused_naming_file_line_and_field() {
+    let d = dir("wind-draws");
+    let shipped = std::fs::read_to_string(WIND_DRAWS).unwrap().replace(
+        "../airframes/",
+        &format!("{}/tools/airframes/", env!("CARGO_MANIFEST_DIR")),
+    );
+    // a spec the table cannot draw from: refused before any flight, at its line
+    for (from, to, key, says) in [
+        (
+            "{ uniform = [2.0, 10.0] }",
+            "{ uniform = [10.0, 2.0] }",
+            "\"wind.speed_m_s\"",
+            "uniform = [a, b] needs two finite numbers a < b",
+        ),
+        (
+            "\"wind.speed_m_s\"",
+            "\"wind.speed\"",
+            "\"wind.speed\"",
+            "`wind` has no `speed`",
+        ),
+        (
+            "{ uniform = [0.0, 0.5] }",
+            "{ choice = [\"moderate\"] }",
+            "\"wind.turbulence_m_s\"",
+            "must be a float as in the file, got a string",
+        ),
+    ] {
+        let text = shipped.replace(from, to);
+        assert_ne!(text, shipped, "{from}");
+        let file = write(&d, "bad.toml", &text);
+        let line = 1 + text.lines().position(|l| l.starts_with(&format!("{key} ="))).unwrap();
+        let run = simulate(&[&file, "--json"]);
+        assert_eq!(run.status, Some(2), "{}", run.stderr);
+        assert_eq!(run.lines.len(), 1, "one error for the file, no flight: {:?}", run.lines);
+        let e = run.lines[0]["error"].as_str().unwrap();
+        let head = format!("{file}:{line}:1: campaign.random.{key}: {says}");
+        assert!(e.starts_with(&head), "{e}\nnot {head}");
+        assert!(run.stderr.contains(&head), "{}", run.stderr);
+    }
+    // a draw the wind refuses (a negative speed) fails its variant only, naming the value
+    let text = shipped.replace("{ uniform = [2.0, 10.0] }", "{ normal = [0.0, 3.0] }");
+    let file = write(&d, "negative.toml", &text);
+    let run = simulate(&[&file, "--json"]);
+    assert_eq!(run.status, Some(2), "{}", run.stderr);
+    let (bad, good): (Vec<&Value>, Vec<&Value>) = run.lines.iter().partition(|l| l["error"].is_string());
+    assert!(!bad.is_empty() && !good.is_empty(), "{:?}", run.lines);
+    for l in bad {
+        let speed = f(&l["values"]["wind.speed_m_s"]);
+        assert!(speed < 0.0, "{l}");
+        let e = l["error"].as_str().unwrap();
+        let says = format!(
+            "{file}#{}: wind.speed_m_s: must be a finite number >= 0, got {speed}",
+            l["variant"]
+        );
+        assert_eq!(e, says);
     }
 }
 

@@ -59,7 +59,7 @@ fn a_quad_log_is_estimated_with_the_quads_model_from_its_sidecar() {
     let line = o.stdout.lines().find(|l| l.starts_with("final position")).unwrap();
     assert_eq!(
         line,
-        "final position [10.0000, -0.0000, -7.0000] m NED, final Euler [0.0000, -0.0000, 1.5708] rad"
+        "final position [10.0000, -0.0000, -7.0000] m NED, final Euler [0.0000, 0.0000, 1.5708] rad"
     );
     let meta = LogMeta::read_beside(&log)
         .unwrap()

@@ -64,7 +64,9 @@ fn fsr_exercise4_summary_matches_the_report() {
 }
 
 /// Every shipped scenario flies upright and finite; the figure-eights stay
-/// within centimetres, the flights in turbulent wind within a decimetre.
+/// within centimetres, the flights in turbulent wind and the 10 m step (whose
+/// error is the lag the quad's drag adds to the shaped dash: 10.6 cm) within
+/// about a decimetre, the 8 m/s missions without feedback within 30 cm.
 #[test]
 fn every_shipped_scenario_flies() {
     let dir = format!("{}/tools/scenarios", env!("CARGO_MANIFEST_DIR"));
@@ -75,8 +77,16 @@ fn every_shipped_scenario_flies() {
         assert_eq!(v["upright"], true, "{}", path.display());
         assert_eq!(v["finite"], true, "{}", path.display());
         let err = v["max_pos_err_m"].as_f64().or(v["max_tracking_error_m"].as_f64());
-        let bound = if path.to_string_lossy().contains("wind") {
+        let name = path.to_string_lossy();
+        let bound = if name.contains("wind") {
             0.1
+        } else if name.contains("quad-step-10m") {
+            0.12
+        } else if name.contains("mission") {
+            // missions at 8 m/s cruise without the estimate fed back: the drag
+            // lags the vehicle behind its reference (square 23.1 cm, the octo's
+            // rotor-loss mission 18.3 cm)
+            0.3
         } else {
             0.05
         };
@@ -97,12 +107,13 @@ fn numbers(v: &serde_json::Value) -> Vec<f64> {
 #[test]
 fn shipped_scenarios_give_the_readme_figures() {
     let run = |name: &str| json_of(&rotorpilot(&["simulate", &scenario(name), "--json"]));
-    // figure-eights: "max error 2.0 mm (geometric), 2.1 mm (hierarchical,
-    // passivity), no rotor saturation"; ±0.05 mm (measured 1.990, 2.090, 2.090 mm)
+    // figure-eights, the quad's own drag untouched by any feedback: "max error
+    // 27.3 mm (geometric), 27.2 mm (hierarchical, passivity), no rotor
+    // saturation"; ±0.05 mm (measured 27.259, 27.162, 27.163 mm)
     for (name, max_mm) in [
-        ("figure-eight-geometric.toml", 2.0),
-        ("figure-eight-hierarchical.toml", 2.1),
-        ("figure-eight-passivity.toml", 2.1),
+        ("figure-eight-geometric.toml", 27.3),
+        ("figure-eight-hierarchical.toml", 27.2),
+        ("figure-eight-passivity.toml", 27.2),
     ] {
         let v = run(name);
         assert_eq!(
@@ -115,15 +126,15 @@ fn shipped_scenarios_give_the_readme_figures() {
             (max - max_mm).abs() < 0.05,
             "{name}: max error {max} mm, docs/scenarios.md {max_mm} mm"
         );
-        // measured 3.5 / 4.0 / 4.0 mrad
+        // measured 1.8 / 2.2 / 2.2 mrad
         assert!(v["max_att_err_rad"].as_f64().unwrap() < 5e-3, "{name}: {v}");
     }
-    // octo, law switched every 2 s: "max error 1.8 mm"; ±0.05 mm (measured 1.770 mm)
+    // octo, law switched every 2 s: "max error 13.3 mm"; ±0.05 mm (measured 13.337 mm)
     let v = run("octo-figure-eight-switching.toml");
     let max = v["max_pos_err_m"].as_f64().unwrap() * 1e3;
-    assert!((max - 1.8).abs() < 0.05, "octo switching: max error {max} mm");
+    assert!((max - 13.3).abs() < 0.05, "octo switching: max error {max} mm");
     assert_eq!(v["saturation_time_s"].as_f64(), Some(0.0), "{v}");
-    assert!(v["max_att_err_rad"].as_f64().unwrap() < 5e-3, "{v}"); // measured 3.96 mrad
+    assert!(v["max_att_err_rad"].as_f64().unwrap() < 5e-3, "{v}"); // measured 3.74 mrad
     // the 10 m step through the shaper: "no rotor saturation", and it arrives
     let v = run("quad-step-10m.toml");
     assert_eq!(v["saturation_time_s"].as_f64(), Some(0.0), "{v}");
@@ -132,12 +143,41 @@ fn shipped_scenarios_give_the_readme_figures() {
         (end[0] - 10.0).abs() < 1e-6 && end[1].abs() < 1e-6 && (end[2] + 7.0).abs() < 1e-6,
         "{end:?}"
     );
-    assert!(v["max_att_err_rad"].as_f64().unwrap() < 0.015, "{v}"); // measured 12.1 mrad
+    // measured 27.8 mrad: the drag of the 10 m dash tilts the quad into it
+    assert!(v["max_att_err_rad"].as_f64().unwrap() < 0.03, "{v}");
     // exercise 4: the steady state and the estimate (checked above) also with
     // no saturation and the tilt of the steady state only
     let v = run("fsr-exercise4.toml");
     assert_eq!(v["saturation_time_s"].as_f64(), Some(0.0), "{v}");
     assert!(v["max_att_err_rad"].as_f64().unwrap() < 0.04, "{v}"); // measured 32.5 mrad
+}
+
+/// figure-eight-wind: the figure-eight in 5 m/s wind with moderate
+/// turbulence, the estimate fed back: "max error 5.1 cm (44.8 cm without
+/// feedback)" (docs/model.md section 8b, docs/scenarios.md); ±1 mm on the
+/// shipped file (measured 50.5 mm), and the same flight without the feedback
+/// (the file with `feedback = false`, measured 448.4 mm) at least five times worse.
+#[test]
+fn the_figure_eight_in_wind_needs_the_estimate_fed_back() {
+    let file = scenario("figure-eight-wind.toml");
+    let with = json_of(&rotorpilot(&["simulate", &file, "--json"]));
+    let text = std::fs::read_to_string(&file).unwrap();
+    let off = text.replace("feedback = true", "feedback = false");
+    assert_ne!(off, text);
+    let copy = common::scratch_dir("figure-eight-wind").join("no-feedback.toml");
+    std::fs::write(&copy, off).unwrap();
+    let without = json_of(&rotorpilot(&["simulate", copy.to_str().unwrap(), "--json"]));
+    let (on_mm, off_mm) = (
+        with["max_pos_err_m"].as_f64().unwrap() * 1e3,
+        without["max_pos_err_m"].as_f64().unwrap() * 1e3,
+    );
+    assert!((on_mm - 50.5).abs() < 1.0, "with feedback: max error {on_mm} mm");
+    assert!((off_mm - 448.4).abs() < 1.0, "without feedback: max error {off_mm} mm");
+    assert!(off_mm > 5.0 * on_mm, "{off_mm} mm without, {on_mm} mm with");
+    for v in [&with, &without] {
+        assert_eq!(v["saturation_time_s"].as_f64(), Some(0.0), "{v}");
+        assert_eq!(v["upright"], true, "{v}");
+    }
 }
 
 /// fsr-exercise5: "error below 0.3 µm after the start transient" (measured

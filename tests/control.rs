@@ -14,6 +14,14 @@ use rotorpilot::signals::{ControlWrench, GRAVITY, RotorVector};
 use rotorpilot::signals::{Measurement, NominalModel, WrenchEstimate};
 use rotorpilot::sim::{Environment, ExternalWrench, Plant, PlantConfig, RigidBodyState};
 
+/// The shipped airframe without its `[aero]` table: these oracles are the
+/// rigid body's and the control laws' in still air, without drag.
+fn drag_free(name: &str) -> Airframe {
+    let mut af = Airframe::load(name).unwrap();
+    af.aero = rotorpilot::airframe::AeroCoefficients::default();
+    af
+}
+
 const H: f64 = 1e-3;
 
 /// A plant without ground or ceiling effect (free air), at `state`, rotors at hover.
@@ -407,7 +415,7 @@ fn tilt(q: &UnitQuaternion<f64>) -> f64 {
 /// 1 cm of its position after 8 s.
 #[test]
 fn geometric_recovers_from_170_degrees_on_quad() {
-    let af = Airframe::load("quad").unwrap();
+    let af = drag_free("quad");
     let model = af.nominal();
     let p0 = Vector3::new(0.0, 0.0, -30.0);
     let axis = nalgebra::Unit::new_normalize(Vector3::new(0.8, 0.6, 0.0));
@@ -453,7 +461,7 @@ fn geometric_recovers_from_170_degrees_on_quad() {
 /// (RPY coordinates are never used near theta = 90 deg), turns upright and returns.
 #[test]
 fn rpy_laws_recover_large_tilts_through_the_so3_loop() {
-    let af = Airframe::load("quad").unwrap();
+    let af = drag_free("quad");
     let model = af.nominal();
     let p0 = Vector3::new(0.0, 0.0, -30.0);
     for kind in [ControllerKind::Hierarchical, ControllerKind::Passivity] {
@@ -497,7 +505,7 @@ fn rpy_laws_recover_large_tilts_through_the_so3_loop() {
 /// near the 40-deg limit.
 #[test]
 fn hierarchical_guards_a_reference_toward_90_degrees_pitch() {
-    let af = Airframe::load("quad").unwrap();
+    let af = drag_free("quad");
     let model = af.nominal();
     let mut plant = plant_at(&af, RigidBodyState::at_rest(Vector3::new(0.0, 0.0, -50.0)), false);
     let gains = ControlGains::for_airframe(&af, af.mass_kg).unwrap();
@@ -549,7 +557,7 @@ fn eight_bound(kind: ControllerKind) -> f64 {
 }
 
 fn fly_eight(airframe: &str, kind: ControllerKind, switch_every: Option<f64>) -> Log {
-    let af = Airframe::load(airframe).unwrap();
+    let af = drag_free(airframe);
     let model = af.nominal();
     let mut plant = plant_at(&af, on_reference(eight), false);
     let mut ctl = Controller::new(kind, ControlGains::for_vehicle(&model)).unwrap();
@@ -642,7 +650,7 @@ fn switching_laws_every_two_seconds_keeps_the_error_bounded() {
 /// rotor, and the vehicle arrives.
 #[test]
 fn shaped_ten_metre_steps_never_saturate_quad() {
-    let af = Airframe::load("quad").unwrap();
+    let af = drag_free("quad");
     let model = af.nominal();
     let allocator = af.allocator();
     let limits = ShaperLimits::for_airframe(&af);
@@ -683,7 +691,7 @@ fn shaped_ten_metre_steps_never_saturate_quad() {
 /// yaw, hover thrust / cos) is held THEN the attitude converges.
 #[test]
 fn attitude_setpoint_mode_converges() {
-    let af = Airframe::load("quad").unwrap();
+    let af = drag_free("quad");
     let model = af.nominal();
     let mut plant = plant_at(&af, RigidBodyState::at_rest(Vector3::new(0.0, 0.0, -20.0)), false);
     let mut ctl = Controller::new(

@@ -103,3 +103,75 @@ fn every_golden_flight_is_bit_identical() {
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// The TOML text without its `[aero]` table (its header to the next header).
+fn without_aero_table(text: &str) -> String {
+    let mut inside = false;
+    let mut out = String::new();
+    for line in text.lines() {
+        if line.trim_start().starts_with('[') {
+            inside = line.trim_start().starts_with("[aero]");
+        }
+        if !inside {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    out
+}
+
+/// GIVEN every shipped airframe with its `[aero]` table removed (every drag
+/// coefficient 0) THEN each golden flight in still air (every one but the
+/// wind scenarios, which fly drag by design) writes, bit for bit, the log of
+/// the build before the airframes had drag: `tests/golden/drag-free.sha256`.
+#[test]
+fn drag_free_airframes_fly_the_logs_of_the_build_before() {
+    let dir = std::env::temp_dir().join(format!("rotorpilot-drag-free-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut stripped = 0;
+    for entry in std::fs::read_dir(root().join("params/airframes")).unwrap() {
+        let path = entry.unwrap().path();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let bare = without_aero_table(&text);
+        stripped += usize::from(text.contains("\n[aero]"));
+        std::fs::write(dir.join(path.file_name().unwrap()), bare).unwrap();
+    }
+    assert!(stripped >= 4, "the quad, hexas and octo carry [aero] tables");
+    let text = std::fs::read_to_string(root().join("tests/golden/drag-free.sha256")).unwrap();
+    let mut failures = Vec::new();
+    for line in text.lines().filter(|l| !l.trim().is_empty() && !l.starts_with('#')) {
+        let (want, path) = line.split_once("  ").expect("`HASH  PATH` lines");
+        let file = root().join(path);
+        let scenario_text = std::fs::read_to_string(&file).unwrap();
+        let name = scenario_text
+            .lines()
+            .find_map(|l| l.strip_prefix("airframe = \""))
+            .and_then(|l| l.split('"').next())
+            .unwrap_or_else(|| panic!("{path}: no airframe line"));
+        let airframe = dir.join(format!("{name}.toml"));
+        assert!(airframe.is_file(), "{path}: airframe {name} is not a shipped one");
+        let scenario_text = scenario_text.replacen(
+            &format!("airframe = \"{name}\""),
+            &format!("airframe = \"{}\"", airframe.display()),
+            1,
+        );
+        let mut hash = HashWriter(Sha256::new());
+        if is_mission(&file) {
+            let flight =
+                MissionFlight::from_toml(&scenario_text, path, file.parent()).unwrap_or_else(|e| panic!("{path}: {e}"));
+            run_mission(&flight, Some(&mut hash)).unwrap_or_else(|e| panic!("{path}: {e}"));
+        } else {
+            let scenario =
+                Scenario::from_toml(&scenario_text, path, file.parent()).unwrap_or_else(|e| panic!("{path}: {e}"));
+            run(&scenario, Some(&mut hash)).unwrap_or_else(|e| panic!("{path}: {e}"));
+        }
+        let got: String = hash.0.finalize().iter().map(|b| format!("{b:02x}")).collect();
+        if got != want {
+            failures.push(format!(
+                "{path} without drag: log SHA-256 {got}, the build before {want}"
+            ));
+        }
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}

@@ -57,9 +57,11 @@ const MAX_TOUCHDOWN_SPEED_M_S: f64 = 2.0;
 const MAX_TOUCHDOWN_TILT_DEG: f64 = 35.0;
 
 /// The shipped x500-class quad (PX4's gz x500: `omega_max` = 1000 rad/s,
-/// thrust/weight 1.74, rotational drag [`GAMMA`]).
+/// thrust/weight 1.74, rotational drag [`GAMMA`]) without its `[aero]`
+/// table: relaxed hover's equilibrium spin is the rotational-drag model's.
 fn quad() -> Airframe {
-    let af = Airframe::load("quad").unwrap();
+    let mut af = Airframe::load("quad").unwrap();
+    af.aero = rotorpilot::airframe::AeroCoefficients::default();
     assert_eq!(af.rotational_drag_n_m_s, GAMMA, "the shipped quad's rotational drag");
     af
 }

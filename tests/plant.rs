@@ -7,6 +7,14 @@ use rotorpilot::airframe::Airframe;
 use rotorpilot::signals::{ActuatorCommand, Measurement};
 use rotorpilot::signals::{ControlWrench, GRAVITY, RotorVector};
 use rotorpilot::sim::aero::{AeroEffects, ceiling_ratio, cheeseman_bennett, multirotor_ground_effect};
+
+/// The shipped airframe without its `[aero]` table: these oracles are the
+/// rigid body's and the control laws' in still air, without drag.
+fn drag_free(name: &str) -> Airframe {
+    let mut af = Airframe::load(name).unwrap();
+    af.aero = rotorpilot::airframe::AeroCoefficients::default();
+    af
+}
 use rotorpilot::sim::{
     Contact, Environment, ExternalWrench, Plant, PlantConfig, RigidBodyState, SensorNoise, Sensors, SimFault, StepEvent,
 };
@@ -23,7 +31,7 @@ fn no_surfaces() -> PlantConfig {
 }
 
 fn airborne(name: &str, altitude_m: f64, config: PlantConfig) -> (Airframe, Plant) {
-    let a = Airframe::load(name).unwrap();
+    let a = drag_free(name);
     let mut p = Plant::new(&a, config);
     p.set_state(RigidBodyState::at_rest(Vector3::new(0.0, 0.0, -altitude_m)));
     (a, p)
@@ -117,7 +125,7 @@ fn pure_yaw_torque_spins_the_body_the_right_way() {
 #[test]
 fn integrator_keeps_unit_quaternion_and_does_not_create_energy() {
     // torque-free: the quad without its rotational drag (body.rotational_drag_n_m_s)
-    let mut a = Airframe::load("quad").unwrap();
+    let mut a = drag_free("quad");
     a.rotational_drag_n_m_s = 0.0;
     let mut p = Plant::new(&a, no_surfaces());
     p.set_state(RigidBodyState::at_rest(Vector3::new(0.0, 0.0, -5000.0))); // falls ~2 km in 20 s, never lands
@@ -145,7 +153,7 @@ fn integrator_keeps_unit_quaternion_and_does_not_create_energy() {
 /// A vehicle resting on the ground stays exactly put, idle rotors or not.
 #[test]
 fn resting_vehicle_stays_put() {
-    let a = Airframe::load("quad").unwrap();
+    let a = drag_free("quad");
     let mut p = Plant::new(&a, PlantConfig::default());
     let start = *p.state();
     assert_eq!(p.contact(), Contact::OnGround);
@@ -168,7 +176,7 @@ fn resting_vehicle_stays_put() {
 /// Dropped from 1 m: touchdown is reported once with the impact speed, then the vehicle rests.
 #[test]
 fn touchdown_and_liftoff_are_detected() {
-    let a = Airframe::load("quad").unwrap();
+    let a = drag_free("quad");
     let mut p = Plant::new(&a, no_surfaces());
     let rest_z = -a.gear_height_m;
     p.set_state(RigidBodyState::at_rest(Vector3::new(0.0, 0.0, rest_z - 1.0)));
@@ -290,7 +298,7 @@ fn tilted_vehicle_near_ground_feels_a_restoring_moment() {
 /// With constant rotor speeds, the closer the ceiling the larger the upward pull.
 #[test]
 fn ceiling_effect_pulls_the_vehicle_up_as_the_gap_closes() {
-    let a = Airframe::load("quad").unwrap();
+    let a = drag_free("quad");
     let w = hover_speeds(&a);
     let mut previous_up = 0.0;
     for gap in [1.0, 0.5, 0.3, 0.15, 0.05] {
@@ -316,7 +324,7 @@ fn ceiling_effect_pulls_the_vehicle_up_as_the_gap_closes() {
 }
 
 fn noisy_run(seed: u64) -> (Vec<RigidBodyState>, Vec<Measurement>) {
-    let a = Airframe::load("octo").unwrap();
+    let a = drag_free("octo");
     let noise = SensorNoise {
         position_m: 0.01,
         velocity_m_s: 0.02,

@@ -29,7 +29,7 @@ fn quad_with(extra: &str) -> Airframe {
         }
         None => text,
     };
-    Airframe::from_toml(&format!("{plain}{extra}"), "quad-aero.toml").unwrap()
+    Airframe::from_toml(&format!("{plain}{extra}"), "quad-with-aero.toml").unwrap()
 }
 
 fn config() -> PlantConfig {
@@ -258,5 +258,56 @@ fn turbulence_is_deterministic_and_on_its_own_stream() {
     let calm = fly(&mut windy_world(11, WindSettings::default(), noise), 2000);
     for (x, y) in a.iter().zip(&calm) {
         assert!((x.2 - y.2).norm() < 1e-9, "{} vs {}", x.2, y.2);
+    }
+}
+
+/// The largest gap [m/s^2] over `steps` steps between the acceleration the
+/// accelerometer is fed (`Plant::acceleration_ned`, NED) and the finite
+/// difference of the true velocity over the same step, `(v_{k+1} - v_k) / h`,
+/// for `a` flying at `velocity_ned` with an injected `external` force (NED)
+/// at hover rotor speeds.
+fn accelerometer_gap(a: &Airframe, velocity_ned: Vector3<f64>, external: &ExternalWrench, steps: usize) -> f64 {
+    let (mut p, cmd) = flying(a, velocity_ned);
+    let h = p.dt_s();
+    let mut gap: f64 = 0.0;
+    for _ in 0..steps {
+        let v0 = p.state().velocity_ned;
+        p.step(&cmd, external).unwrap();
+        let fd = (p.state().velocity_ned - v0) / h;
+        gap = gap.max((p.acceleration_ned() - fd).norm());
+    }
+    gap
+}
+
+/// GIVEN the shipped quad (its `[aero]` table) flying at 3 m/s north, 1 m/s
+/// east and 2 m/s up in still air, with and without an injected force
+/// WHEN it is stepped 200 times at hover rotor speeds
+/// THEN the acceleration the accelerometer is fed matches the finite
+/// difference of the true velocity as closely as without drag (the
+/// aerodynamic force counted once: the plant's external wrench of the step
+/// is the injected one, the aerodynamic one is added beside it), while the
+/// drag itself is far larger than that gap.
+#[test]
+fn the_accelerometer_feels_the_drag_the_body_integrates_once() {
+    let shipped = Airframe::load("quad").unwrap();
+    assert!(!shipped.aero.is_zero());
+    let bare = quad_with("");
+    let v = Vector3::new(3.0, 1.0, -2.0);
+    let pushed = ExternalWrench {
+        force_ned: Vector3::new(0.5, -0.3, 0.2),
+        torque_frd: Vector3::zeros(),
+    };
+    let (mut p, cmd) = flying(&shipped, v);
+    p.step(&cmd, &pushed).unwrap();
+    let drag = p.last_aero_wrench().force_ned.norm() / shipped.mass_kg;
+    assert_eq!(p.last_external_wrench(), pushed, "the injected wrench alone");
+    for external in [NONE, pushed] {
+        let with = accelerometer_gap(&shipped, v, &external, 200);
+        let without = accelerometer_gap(&bare, v, &external, 200);
+        println!(
+            "accelerometer vs finite difference: {with:.3e} m/s^2 with drag ({drag:.3} m/s^2), {without:.3e} without"
+        );
+        assert!(with < 1e-2 && without < 1e-2, "{with} {without}");
+        assert!(drag > 10.0 * with, "{drag} {with}");
     }
 }

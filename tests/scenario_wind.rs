@@ -4,20 +4,15 @@
 //! applies (the true external force is the aerodynamic one), and a bad
 //! `[wind]` value is refused naming the file and field.
 
-use std::path::Path;
-
 use rotorpilot::scenario::{Scenario, lockstep, run};
-
-/// Where the quad with drag lives (`tools/airframes/quad-aero.toml`, which the wind scenarios fly too).
-const AIRFRAMES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tools/airframes");
 
 fn hover(wind: &str) -> Scenario {
     let text = format!(
-        "airframe = \"quad-aero.toml\"\ncontroller = \"geometric\"\nduration_s = 10.0\n\
+        "airframe = \"quad\"\ncontroller = \"geometric\"\nduration_s = 10.0\n\
          [reference]\nkind = \"hover\"\nposition_ned = [0.0, 0.0, -5.0]\n\
          [world]\nground_effect = false\n{wind}"
     );
-    Scenario::from_toml(&text, "hover-wind.toml", Some(Path::new(AIRFRAMES))).unwrap()
+    Scenario::from_toml(&text, "hover-wind.toml", None).unwrap()
 }
 
 const WEST_5: &str = "[wind]\nspeed_m_s = 5.0\nfrom_deg = 270.0\n";

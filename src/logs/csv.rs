@@ -14,7 +14,8 @@
 //! tau_x tau_y tau_z` (the wrench applied over the step: what the estimator is
 //! told), `cmd_thrust_n cmd_tau_x cmd_tau_y cmd_tau_z` (controller output
 //! before allocation), `saturated`, `w1..wn` (rotor speed commands, rad/s),
-//! `fext_n fext_e fext_d`, `text_x text_y text_z` (true external wrench),
+//! `fext_n fext_e fext_d`, `text_x text_y text_z` (the injected external
+//! wrench; the aerodynamic one is not in it),
 //! `true_mass_kg`, `est_fn est_fe est_fd`, `est_tx est_ty est_tz` (body FRD),
 //! `est_mass_kg`. Numbers are printed in the shortest form that reads back to
 //! the same `f64`, so an offline run on the log reproduces the online one.

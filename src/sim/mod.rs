@@ -25,6 +25,7 @@
 //! |---|---|
 //! | [`plant`] | the 6-DoF rigid body, rotors with lag and limits, contact |
 //! | [`aero`] | ground and ceiling effect |
+//! | `drag` | the aerodynamic wrench of body and rotors (parasitic and rotor drag, translational lift, flapping) |
 //! | `sensors` | the navigation solution's seeded noise |
 //! | [`raw_sensors`] | IMU, barometer, magnetometer and GNSS samples, on when something reads them |
 //! | `battery` | the pack: discharge with the power drawn |
@@ -43,6 +44,7 @@
 
 pub mod aero;
 mod battery;
+mod drag;
 mod fault;
 pub mod plant;
 pub mod proximity;
@@ -159,7 +161,8 @@ pub struct SensorConfig {
 pub struct StepReport {
     /// The true state at `t_k`.
     pub truth: RigidBodyState,
-    /// The true external wrench at `t_k`.
+    /// The injected external wrench at `t_k` (the whole one on the body is
+    /// this plus [`Self::aero`]).
     pub external: ExternalWrench,
     /// The true mass [kg] over the step.
     pub true_mass_kg: f64,

@@ -24,7 +24,9 @@
 //! m v' += R f_a,   I w' += tau_a
 //! ```
 //!
-//! evaluated at every RK4 stage with that stage's state and rotor speeds.
+//! evaluated once a step, at its start state and start rotor speeds, and
+//! held over the step with the external wrench (`Drag`, `sim/drag.rs`, writes the rotor
+//! sum in closed form).
 //! With every coefficient 0 the terms are skipped, bit for bit.
 //!
 //! Integration: fixed-step RK4 (1 ms by default) with the command held over the
@@ -44,6 +46,7 @@ use nalgebra::{Matrix3, Quaternion, SMatrix, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::aero::AeroEffects;
+use super::drag::Drag;
 use crate::airframe::{Actuation, AeroCoefficients, Airframe, Allocator};
 use crate::signals::{ActuatorCommand, ControlWrench, DEFAULT_STEP_S, GRAVITY, MAX_ROTORS, Measurement, RotorVector};
 
@@ -220,9 +223,9 @@ pub struct Plant {
     rotor_health: Option<RotorVector>,
     last_wrench: ControlWrench,
     last_external: ExternalWrench,
-    /// Aerodynamic coefficients of body and rotors.
-    aero_coefficients: AeroCoefficients,
-    /// Whether any of them is not 0 (else the aerodynamic terms are skipped).
+    /// The drag model of body and rotors.
+    drag: Drag,
+    /// Whether any of its coefficients is not 0 (else the aerodynamic terms are skipped).
     aero_on: bool,
     /// The air's velocity at the vehicle [m/s], NED, held over a step.
     wind_ned: Vector3<f64>,
@@ -288,21 +291,25 @@ impl BodyInertia {
     }
 }
 
-/// `R(q)` (FRD to NED) of a possibly unnormalised quaternion, `R(q / |q|)`.
+/// `R(q)` (FRD to NED) of the state's unit quaternion (a step-start state:
+/// renormalised by the step before).
 fn rotation_matrix(s: &RigidBodyState) -> Matrix3<f64> {
     let q = s.attitude.quaternion();
     let (w, x, y, z) = (q.w, q.i, q.j, q.k);
-    let k = 1.0 / q.norm_squared();
+    let (x2, y2, z2) = (x + x, y + y, z + z);
+    let (xx, yy, zz) = (x * x2, y * y2, z * z2);
+    let (xy, xz, yz) = (x * y2, x * z2, y * z2);
+    let (wx, wy, wz) = (w * x2, w * y2, w * z2);
     Matrix3::new(
-        (w * w + x * x - y * y - z * z) * k,
-        2.0 * (x * y - w * z) * k,
-        2.0 * (x * z + w * y) * k,
-        2.0 * (x * y + w * z) * k,
-        (w * w - x * x + y * y - z * z) * k,
-        2.0 * (y * z - w * x) * k,
-        2.0 * (x * z - w * y) * k,
-        2.0 * (y * z + w * x) * k,
-        (w * w - x * x - y * y + z * z) * k,
+        1.0 - (yy + zz),
+        xy - wz,
+        xz + wy,
+        xy + wz,
+        1.0 - (xx + zz),
+        yz - wx,
+        xz - wy,
+        yz + wx,
+        1.0 - (xx + yy),
     )
 }
 
@@ -363,7 +370,7 @@ impl Plant {
             rotor_health: None,
             last_wrench: ControlWrench::default(),
             last_external: ExternalWrench::default(),
-            aero_coefficients: airframe.aero,
+            drag: Drag::new(airframe),
             aero_on: !airframe.aero.is_zero(),
             wind_ned: Vector3::zeros(),
             last_aero: ExternalWrench::default(),
@@ -385,7 +392,7 @@ impl Plant {
     /// The aerodynamic coefficients the plant flies with.
     #[must_use]
     pub fn aero_coefficients(&self) -> &AeroCoefficients {
-        &self.aero_coefficients
+        self.drag.coefficients()
     }
 
     /// The aerodynamic wrench at the start of the last step: force [N] world
@@ -396,51 +403,33 @@ impl Plant {
     }
 
     /// The aerodynamic force and torque on the body, both body FRD [N], [N m],
-    /// at `state` with rotor speeds `speeds` [rad/s] in the wind set by
-    /// [`Self::set_wind_ned`] (the terms of the module doc; `R` from the
-    /// possibly unnormalised quaternion of an RK4 stage, divided by `|q|^2`).
+    /// at `state` (its quaternion of unit norm) with rotor speeds `speeds`
+    /// [rad/s] in the wind set by [`Self::set_wind_ned`] (the terms of the
+    /// module doc, the closed form of `Drag` in `sim/drag.rs`).
     #[must_use]
     pub fn aero_wrench_frd(&self, state: &RigidBodyState, speeds: &RotorVector) -> (Vector3<f64>, Vector3<f64>) {
-        self.aero_body(&rotation_matrix(state), state, speeds)
+        let r = rotation_matrix(state);
+        self.drag.wrench_frd(
+            &r.tr_mul(&(state.velocity_ned - self.wind_ned)),
+            &state.rate_frd,
+            speeds,
+        )
     }
 
-    /// The aerodynamic wrench as the derivative adds it: force [N] world
-    /// NED (`R f_a`), torque [N m] body FRD.
+    /// The aerodynamic wrench as the step adds it: force [N] world NED
+    /// (`R f_a`), torque [N m] body FRD.
+    #[inline(always)]
     fn aero_ned(&self, state: &RigidBodyState, speeds: &RotorVector) -> ExternalWrench {
         let r = rotation_matrix(state);
-        let (f, torque_frd) = self.aero_body(&r, state, speeds);
+        let (f, torque_frd) = self.drag.wrench_frd(
+            &r.tr_mul(&(state.velocity_ned - self.wind_ned)),
+            &state.rate_frd,
+            speeds,
+        );
         ExternalWrench {
             force_ned: r * f,
             torque_frd,
         }
-    }
-
-    /// [`Self::aero_wrench_frd`] with `R(q)` given.
-    #[inline(always)]
-    fn aero_body(
-        &self,
-        r: &Matrix3<f64>,
-        state: &RigidBodyState,
-        speeds: &RotorVector,
-    ) -> (Vector3<f64>, Vector3<f64>) {
-        let c = &self.aero_coefficients;
-        let va = r.transpose() * (state.velocity_ned - self.wind_ned);
-        let speed = va.norm();
-        let mut force = Vector3::new(-speed * c.c_dx * va.x, -speed * c.c_dy * va.y, -speed * c.c_dz * va.z);
-        let mut torque = Vector3::zeros();
-        let om = &state.rate_frd;
-        for (p, &wi) in self.rotor_positions_frd[..self.n]
-            .iter()
-            .zip(&speeds.as_slice()[..self.n])
-        {
-            let vi = va + om.cross(p);
-            let lift = c.k_h * (vi.x * vi.x + vi.y * vi.y);
-            // rotor drag H_i and translational lift along -z_b, acting at the hub
-            let f = Vector3::new(-wi * c.k_d * vi.x, -wi * c.k_d * vi.y, -wi * c.k_z * vi.z - lift);
-            force += f;
-            torque += p.cross(&f) + Vector3::new(c.k_flap * wi * vi.y, -c.k_flap * wi * vi.x, 0.0);
-        }
-        (force, torque)
     }
 
     /// Simulated time [s] (`steps x dt`).
@@ -605,7 +594,8 @@ impl Plant {
         self.last_wrench
     }
 
-    /// The external wrench at the start of the last step.
+    /// The injected external wrench at the start of the last step (the
+    /// aerodynamic one, which the step adds to it, is [`Self::last_aero_wrench`]).
     #[must_use]
     pub fn last_external_wrench(&self) -> ExternalWrench {
         self.last_external
@@ -738,14 +728,7 @@ impl Plant {
     }
 
     #[inline(always)]
-    fn deriv(
-        &self,
-        s: &RigidBodyState,
-        w: &ControlWrench,
-        ext: &ExternalWrench,
-        gyro_h: f64,
-        aero: Option<&ExternalWrench>,
-    ) -> Deriv {
+    fn deriv(&self, s: &RigidBodyState, w: &ControlWrench, ext: &ExternalWrench, gyro_h: f64) -> Deriv {
         // thrust along -z_b in NED: -u_T R e3, with R e3 the third column of
         // R(q) = [2(xz + wy), 2(yz - wx), w^2 - x^2 - y^2 + z^2] / |q|^2 (RK4
         // stages carry unnormalised quaternions); one division per evaluation
@@ -753,7 +736,7 @@ impl Plant {
         let (qw, qx, qy, qz) = (q.w, q.i, q.j, q.k);
         let inv_m = self.inv_mass;
         let thrust_per_m = -w.thrust_n * inv_m / q.norm_squared();
-        let mut acc = Vector3::new(
+        let acc = Vector3::new(
             thrust_per_m * (2.0 * (qx * qz + qw * qy)) + ext.force_ned.x * inv_m,
             thrust_per_m * (2.0 * (qy * qz - qw * qx)) + ext.force_ned.y * inv_m,
             thrust_per_m * (qw * qw - qx * qx - qy * qy + qz * qz) + ext.force_ned.z * inv_m + GRAVITY,
@@ -765,11 +748,6 @@ impl Plant {
         if self.rotational_drag != 0.0 {
             // rotational drag tau_d = -gamma w (body FRD)
             torque -= om * self.rotational_drag;
-        }
-        if let Some(a) = aero {
-            // the aerodynamic wrench (force NED, torque FRD) of this stage
-            acc += a.force_ned * inv_m;
-            torque += a.torque_frd;
         }
         let alpha = self.body_inertia.solve(&torque);
         // q' = 1/2 q (x) [0, w], written out (the product with a pure quaternion)
@@ -812,49 +790,21 @@ impl Plant {
         }
     }
 
-    /// One RK4 step with the aerodynamic terms (rotor speeds at the stage
-    /// times, [`Self::stage_speeds`]), and the aerodynamic wrench at the
-    /// step's start (force NED, torque FRD). Out of line: a plant without
+    /// The aerodynamic wrench of the step (force [N] NED, torque [N m] FRD),
+    /// held over it: the terms at the step's start state and start rotor
+    /// speeds (the motor lag's `omega_0`, or with ideal actuation and no
+    /// target the speeds that give the applied wrench `direct`,
+    /// `sqrt(max(B^+ [u_T, tau], 0))`). Out of line: a plant without
     /// coefficients never comes here.
     #[inline(never)]
-    fn rk4_with_aero(
-        &self,
-        s: &RigidBodyState,
-        w: [&ControlWrench; 3],
-        e: [&ExternalWrench; 3],
-        spin_mom: [f64; 3],
-        target: Option<&RotorVector>,
-    ) -> (RigidBodyState, ExternalWrench) {
-        let h = self.dt;
-        let speeds = self.stage_speeds(target, w[0]);
-        let a1 = self.aero_ned(s, &speeds[0]);
-        let k1 = self.deriv(s, w[0], e[0], spin_mom[0], Some(&a1));
-        let s2 = Self::advance(s, &k1, 0.5 * h);
-        let k2 = self.deriv(&s2, w[1], e[1], spin_mom[1], Some(&self.aero_ned(&s2, &speeds[1])));
-        let s3 = Self::advance(s, &k2, 0.5 * h);
-        let k3 = self.deriv(&s3, w[1], e[1], spin_mom[1], Some(&self.aero_ned(&s3, &speeds[1])));
-        let s4 = Self::advance(s, &k3, h);
-        let k4 = self.deriv(&s4, w[2], e[2], spin_mom[2], Some(&self.aero_ned(&s4, &speeds[2])));
-        (Self::rk4_combine(s, &k1, &k2, &k3, &k4, h), a1)
-    }
-
-    /// Rotor speeds [rad/s] at the stage times `t, t + h/2, t + h`: the exact
-    /// motor lag towards `target`, or (ideal actuation, no target) the speeds
-    /// that give the applied wrench `direct`, `sqrt(max(B^+ [u_T, tau], 0))`.
-    fn stage_speeds(&self, target: Option<&RotorVector>, direct: &ControlWrench) -> [RotorVector; 3] {
-        let Some(bar) = target else {
-            let w = self.allocator.inverse(direct).map(|x| x.max(0.0).sqrt());
-            return [w; 3];
-        };
-        let (decay_half, decay_full) = self.decay;
-        let mut out = [RotorVector::zeros(); 3];
-        for i in 0..self.n.min(MAX_ROTORS) {
-            let (b, om0) = (bar[i], self.rotor_speed[i]);
-            out[0][i] = om0;
-            out[1][i] = b + (om0 - b) * decay_half;
-            out[2][i] = b + (om0 - b) * decay_full;
+    fn aero_held(&self, s: &RigidBodyState, target: Option<&RotorVector>, direct: &ControlWrench) -> ExternalWrench {
+        match target {
+            Some(_) => self.aero_ned(s, &self.rotor_speed),
+            None => {
+                let w = self.allocator.inverse(direct).map(|x| x.max(0.0).sqrt());
+                self.aero_ned(s, &w)
+            }
         }
-        out
     }
 
     /// Clamp the vehicle's rotor commands to `[omega_min, omega_max]`; unused slots stay 0.
@@ -922,25 +872,32 @@ impl Plant {
             (direct, direct, direct, [0.0; 3], self.rotor_speed)
         };
 
-        let e0 = disturbance.wrench_at(t);
-        let emid = disturbance.wrench_at(t + 0.5 * h);
-        let e1 = disturbance.wrench_at(t + h);
+        let mut e0 = disturbance.wrench_at(t);
+        let mut emid = disturbance.wrench_at(t + 0.5 * h);
+        let mut e1 = disturbance.wrench_at(t + h);
 
         let s = self.state;
-        let mut next = if self.aero_on {
-            let (next, aero) = self.rk4_with_aero(&s, [&w0, &wmid, &w1], [&e0, &emid, &e1], spin_mom, target.as_ref());
-            self.last_aero = aero;
-            next
-        } else {
-            let k1 = self.deriv(&s, &w0, &e0, spin_mom[0], None);
-            let s2 = Self::advance(&s, &k1, 0.5 * h);
-            let k2 = self.deriv(&s2, &wmid, &emid, spin_mom[1], None);
-            let s3 = Self::advance(&s, &k2, 0.5 * h);
-            let k3 = self.deriv(&s3, &wmid, &emid, spin_mom[1], None);
-            let s4 = Self::advance(&s, &k3, h);
-            let k4 = self.deriv(&s4, &w1, &e1, spin_mom[2], None);
-            Self::rk4_combine(&s, &k1, &k2, &k3, &k4, h)
-        };
+        // the injected wrench alone is the step's external wrench; the
+        // aerodynamic one is reported beside it (`last_aero`), so that
+        // `acceleration_ned` adds it once
+        let injected = e0;
+        if self.aero_on {
+            // the aerodynamic wrench, held over the step, joins the external one
+            let a = self.aero_held(&s, target.as_ref(), &w0);
+            for e in [&mut e0, &mut emid, &mut e1] {
+                e.force_ned += a.force_ned;
+                e.torque_frd += a.torque_frd;
+            }
+            self.last_aero = a;
+        }
+        let k1 = self.deriv(&s, &w0, &e0, spin_mom[0]);
+        let s2 = Self::advance(&s, &k1, 0.5 * h);
+        let k2 = self.deriv(&s2, &wmid, &emid, spin_mom[1]);
+        let s3 = Self::advance(&s, &k2, 0.5 * h);
+        let k3 = self.deriv(&s3, &wmid, &emid, spin_mom[1]);
+        let s4 = Self::advance(&s, &k3, h);
+        let k4 = self.deriv(&s4, &w1, &e1, spin_mom[2]);
+        let mut next = Self::rk4_combine(&s, &k1, &k2, &k3, &k4, h);
         let finite3 = |v: &Vector3<f64>| v.x.is_finite() && v.y.is_finite() && v.z.is_finite();
         let c = &next.attitude.coords;
         let finite = finite3(&next.position_ned)
@@ -989,7 +946,7 @@ impl Plant {
         self.state = next;
         self.rotor_speed = rotor_speed_next;
         self.last_wrench = w0;
-        self.last_external = e0;
+        self.last_external = injected;
         self.steps += 1;
         Ok(event)
     }

@@ -14,8 +14,6 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-# the drag the wind estimate needs (the shipped quad has no [aero] table yet)
-AERO_QUAD = HERE.parents[1] / "tools" / "airframes" / "quad-aero.toml"
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE / "mavsdk_examples"))
 from harness import Vehicle  # noqa: E402
@@ -49,5 +47,5 @@ def test_mavsdk_telemetry_wind_reports_5_m_s_from_the_west():
         await uav.action.land()
         await common.touchdown(uav, 60)
 
-    with Vehicle(speed=5.0, extra=["--airframe", str(AERO_QUAD)]) as v:
+    with Vehicle(speed=5.0) as v:
         asyncio.run(asyncio.wait_for(flight(v), 150))

@@ -17,8 +17,6 @@ from pathlib import Path
 
 import pytest
 
-# the drag the wind estimate needs (the shipped quad has no [aero] table yet)
-AERO_QUAD = Path(__file__).resolve().parents[2] / "tools" / "airframes" / "quad-aero.toml"
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from harness import Vehicle, command, drain  # noqa: E402
@@ -34,7 +32,7 @@ WIND_COV = 231
 @pytest.fixture
 def vehicle():
     logs = tempfile.mkdtemp(prefix="rotorpilot-wind-logs-")
-    with Vehicle(speed=5.0, extra=["--log-dir", logs, "--airframe", str(AERO_QUAD)]) as v:
+    with Vehicle(speed=5.0, extra=["--log-dir", logs]) as v:
         yield v
         print("rotorpilot log (tail):\n" + v.logs())
     shutil.rmtree(logs, ignore_errors=True)

@@ -131,8 +131,8 @@ pub use rotor_monitor::{FAILED_SPEED_RATIO, RotorEvent, RotorMonitor, RotorStatu
 pub use stack::{Autopilot, FailsafeInForce};
 pub use status::{STATUS_TEXT_LEN, Severity, StatusText, cut_status_text, status_text_lines};
 pub use telemetry::{
-    InnovationRatios, LandedState, MissionState, MissionStatus, NavVariances, NavigationReport, OrbitStatus, SolutionStatus,
-    Telemetry, VehicleType,
+    InnovationRatios, LandedState, MissionState, MissionStatus, NavVariances, NavigationReport, OrbitStatus,
+    SolutionStatus, Telemetry, VehicleType,
 };
 pub use vibration::ImuVibration;
 

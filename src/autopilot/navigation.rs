@@ -21,10 +21,10 @@
 
 use nalgebra::{UnitQuaternion, Vector3};
 
+use super::telemetry::{InnovationRatios, NavVariances, NavigationReport, SolutionStatus};
 use crate::estimation::nav::{BaroHeight, GnssCtrl, GnssFix, HeightRef, ImuDelta, MagField, NavConfig, NavFilter};
 use crate::geo::{GeoPoint, earth_field_ned_gauss, pressure_altitude_m};
 use crate::params::{Param, ParamStore};
-use super::telemetry::{InnovationRatios, NavVariances, NavigationReport, SolutionStatus};
 use crate::signals::{GRAVITY, GpsFix, Measurement, RawSensorReadings, SensorReadings};
 
 /// Where the flight stack's navigation solution comes from (`RP_NAV_SRC`).

@@ -18,12 +18,13 @@ use std::time::{Duration, Instant};
 use mavlink::MessageData;
 use mavlink::dialects::common::{
     ALTITUDE_DATA, ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, DEBUG_VECT_DATA,
-    ESTIMATOR_STATUS_DATA, EXTENDED_SYS_STATE_DATA, EstimatorStatusFlags, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA, HIGHRES_IMU_DATA,
-    HIL_STATE_QUATERNION_DATA, HOME_POSITION_DATA, HighresImuUpdatedFlags, LOCAL_POSITION_NED_DATA,
-    MISSION_CURRENT_DATA, MavAutopilot, MavBatteryFunction, MavBatteryType, MavFrame, MavLandedState, MavMessage,
-    MavEstimatorType, MavModeFlag, MavState, MavSysStatusSensor, MavType, MavVtolState,
-    MissionState as MavMissionState, NAMED_VALUE_FLOAT_DATA, ODOMETRY_DATA, ORBIT_EXECUTION_STATUS_DATA, SCALED_IMU_DATA, SCALED_PRESSURE_DATA, SYS_STATUS_DATA,
-    SYSTEM_TIME_DATA, VFR_HUD_DATA, VIBRATION_DATA, WIND_COV_DATA,
+    ESTIMATOR_STATUS_DATA, EXTENDED_SYS_STATE_DATA, EstimatorStatusFlags, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA,
+    GpsFixType, HEARTBEAT_DATA, HIGHRES_IMU_DATA, HIL_STATE_QUATERNION_DATA, HOME_POSITION_DATA,
+    HighresImuUpdatedFlags, LOCAL_POSITION_NED_DATA, MISSION_CURRENT_DATA, MavAutopilot, MavBatteryFunction,
+    MavBatteryType, MavEstimatorType, MavFrame, MavLandedState, MavMessage, MavModeFlag, MavState, MavSysStatusSensor,
+    MavType, MavVtolState, MissionState as MavMissionState, NAMED_VALUE_FLOAT_DATA, ODOMETRY_DATA,
+    ORBIT_EXECUTION_STATUS_DATA, SCALED_IMU_DATA, SCALED_PRESSURE_DATA, SYS_STATUS_DATA, SYSTEM_TIME_DATA,
+    VFR_HUD_DATA, VIBRATION_DATA, WIND_COV_DATA,
 };
 
 use super::convert;
@@ -581,7 +582,13 @@ pub fn build(stream: Stream, snapshot: &Snapshot, unix_time_us: u64) -> Vec<MavM
         }
         Stream::WindCov => return wind_cov(t).map(MavMessage::WIND_COV).into_iter().collect(),
         Stream::EstimatorStatus => MavMessage::ESTIMATOR_STATUS(estimator_status(us, &t.navigation)),
-        Stream::Vibration => return t.vibration.map(|v| MavMessage::VIBRATION(vibration(&v))).into_iter().collect(),
+        Stream::Vibration => {
+            return t
+                .vibration
+                .map(|v| MavMessage::VIBRATION(vibration(&v)))
+                .into_iter()
+                .collect();
+        }
         Stream::Odometry => MavMessage::ODOMETRY(odometry(t)),
     };
     vec![m]

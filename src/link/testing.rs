@@ -13,8 +13,8 @@ use super::wire::CommandLong;
 use super::{Link, LinkConfig};
 
 use crate::autopilot::{
-    FlightMode, ImuVibration, InnovationRatios, LandedState, MissionState, MissionStatus, NavVariances, NavigationReport,
-    SolutionStatus, Telemetry, VehicleType,
+    FlightMode, ImuVibration, InnovationRatios, LandedState, MissionState, MissionStatus, NavVariances,
+    NavigationReport, SolutionStatus, Telemetry, VehicleType,
 };
 use crate::geo::GeoPoint;
 use crate::lockstep::Snapshot;

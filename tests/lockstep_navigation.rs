@@ -209,3 +209,54 @@ fn a_stuck_barometer_as_height_reference_is_dropped_and_the_return_completes() {
 fn a_stuck_barometer_beside_gnss_height_is_dropped_and_the_return_completes() {
     baro_stuck(1);
 }
+
+/// GIVEN the quad hovering 10 m up, on the filter and on the ideal solution
+/// WHEN its telemetry is read once a second for 20 s
+/// THEN on the filter the navigation report (ESTIMATOR_STATUS, ODOMETRY) is a
+/// good GNSS-aided solution, every innovation ratio within its gate, the
+/// solution within three reported standard deviations of the truth
+/// (horizontally `3 sqrt(P_nn + P_ee)`, vertically `3 sqrt(P_dd)`), every
+/// variance positive, and the IMU's vibration metric small and positive;
+/// on the ideal solution the report is a healthy EKF's with no covariance,
+/// and without raw sensors there is no vibration metric.
+#[test]
+fn the_navigation_report_is_the_filters_and_consistent_with_the_truth() {
+    let mut v = quad_on_filter(1);
+    wait_and_take_off(&mut v, 10.0);
+    v.run(20.0);
+    let (mut worst_h, mut worst_v): (f64, f64) = (0.0, 0.0);
+    for _ in 0..20 {
+        v.run(1.0);
+        let t = v.telemetry();
+        let truth = v.core().world().plant(0).truth();
+        let n = t.navigation;
+        let s = n.solution;
+        assert!(
+            s.attitude && s.velocity_horiz && s.velocity_vert && s.pos_horiz_abs && s.pos_vert_abs,
+            "{n:?}"
+        );
+        assert!(!s.const_pos_mode && !s.gps_glitch, "{n:?}");
+        for r in [n.ratios.vel, n.ratios.pos_horiz, n.ratios.pos_vert, n.ratios.mag] {
+            assert!(r.is_some_and(|r| (0.0..1.0).contains(&r)), "{n:?}");
+        }
+        let var = n.variances.expect("the filter's covariance");
+        for x in [var.position_ned_m2, var.velocity_ned_m2_s2, var.attitude_frd_rad2] {
+            assert!(x.iter().all(|&x| x > 0.0 && x.is_finite()), "{var:?}");
+        }
+        let dp = t.position_ned - truth.position_ned;
+        worst_h = worst_h.max(dp.xy().norm() / n.pos_horiz_accuracy_m);
+        worst_v = worst_v.max(dp.z.abs() / n.pos_vert_accuracy_m);
+        let vib = t.vibration.expect("the IMU's vibration metric");
+        assert!(vib.accel_m_s2 > 0.0 && vib.accel_m_s2 < 0.5, "{vib:?}");
+    }
+    println!("position error over the reported accuracy: horizontal {worst_h:.2}, vertical {worst_v:.2} sigma");
+    assert!(worst_h < 3.0 && worst_v < 3.0, "{worst_h} {worst_v}");
+
+    let mut ideal = Sitl::quad().run_for(5.0);
+    ideal.arm_and_take_off(Some(10.0));
+    ideal.run(5.0);
+    let t = ideal.telemetry();
+    assert_eq!(t.navigation.variances, None);
+    assert!(t.navigation.solution.pos_horiz_abs && t.navigation.ratios.vel == Some(0.0));
+    assert_eq!(t.vibration, None, "no raw sensors on the ideal solution");
+}

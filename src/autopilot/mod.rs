@@ -114,6 +114,7 @@ mod settings;
 mod stack;
 mod status;
 mod telemetry;
+mod vibration;
 mod wind;
 
 pub use battery::BatteryWarning;
@@ -129,7 +130,11 @@ pub use navigator::{ManualControl, OrbitYaw, TARGET_STALE_S, TargetFix};
 pub use rotor_monitor::{FAILED_SPEED_RATIO, RotorEvent, RotorMonitor, RotorStatus};
 pub use stack::{Autopilot, FailsafeInForce};
 pub use status::{STATUS_TEXT_LEN, Severity, StatusText, cut_status_text, status_text_lines};
-pub use telemetry::{LandedState, MissionState, MissionStatus, OrbitStatus, Telemetry, VehicleType};
+pub use telemetry::{
+    InnovationRatios, LandedState, MissionState, MissionStatus, NavVariances, NavigationReport, OrbitStatus,
+    SolutionStatus, Telemetry, VehicleType,
+};
+pub use vibration::ImuVibration;
 
 use serde::Serialize;
 

@@ -21,10 +21,11 @@
 
 use nalgebra::{UnitQuaternion, Vector3};
 
+use super::telemetry::{InnovationRatios, NavVariances, NavigationReport, SolutionStatus};
 use crate::estimation::nav::{BaroHeight, GnssCtrl, GnssFix, HeightRef, ImuDelta, MagField, NavConfig, NavFilter};
 use crate::geo::{GeoPoint, earth_field_ned_gauss, pressure_altitude_m};
 use crate::params::{Param, ParamStore};
-use crate::signals::{GRAVITY, Measurement, RawSensorReadings, SensorReadings};
+use crate::signals::{GRAVITY, GpsFix, Measurement, RawSensorReadings, SensorReadings};
 
 /// Where the flight stack's navigation solution comes from (`RP_NAV_SRC`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -305,5 +306,86 @@ impl FilterNavigation {
     pub fn ready(&self) -> bool {
         let s = self.filter.status();
         s.tilt_aligned && s.yaw_aligned && s.horizontal_position_valid && s.vertical_position_valid
+    }
+
+    /// What ESTIMATOR_STATUS and ODOMETRY report of the filter, as PX4's
+    /// EKF2 fills `estimator_status` (`Ekf::get_ekf_soln_status`) and
+    /// `vehicle_odometry`:
+    ///
+    /// ```text
+    /// attitude        tilt aligned
+    /// velocity_horiz  GNSS position or velocity fused    (horizontal aiding)
+    /// velocity_vert   a height fused (baro or GNSS);      pos_vert_abs the same
+    /// pos_horiz_rel   GNSS fused;                         pos_horiz_abs, pred_pos_horiz_* the same
+    /// const_pos_mode  not velocity_horiz
+    /// gps_glitch      (GNSS vel or pos ratio > 1) and mag_innov_good
+    /// ```
+    ///
+    /// with PX4's `mag_innov_good` as written: false when the heading is
+    /// fused and its ratio is *below* 1 (so a GNSS glitch shows only while
+    /// the heading also fails its gate, or is not fused).
+    #[must_use]
+    pub fn report(&self) -> NavigationReport {
+        let f = &self.filter;
+        let s = f.status();
+        let r = f.test_ratios();
+        let horizontal_aiding = s.gnss_pos || s.gnss_vel;
+        let height = s.baro_hgt || s.gnss_hgt;
+        let over = |x: Option<f64>| x.is_some_and(|x| x > 1.0);
+        let mag_innov_good = !(s.mag_hdg && r.mag.is_some_and(|m| m < 1.0));
+        NavigationReport {
+            solution: SolutionStatus {
+                attitude: s.tilt_aligned,
+                velocity_horiz: horizontal_aiding,
+                velocity_vert: height,
+                pos_horiz_rel: s.gnss_pos,
+                pos_horiz_abs: s.gnss_pos,
+                pos_vert_abs: height,
+                const_pos_mode: !horizontal_aiding,
+                pred_pos_horiz_rel: s.gnss_pos,
+                pred_pos_horiz_abs: s.gnss_pos,
+                gps_glitch: (over(r.vel) || over(r.pos_horiz)) && mag_innov_good,
+            },
+            ratios: InnovationRatios {
+                vel: r.vel,
+                pos_horiz: r.pos_horiz,
+                pos_vert: r.pos_vert,
+                mag: r.mag,
+            },
+            pos_horiz_accuracy_m: f.eph_m(),
+            pos_vert_accuracy_m: f.epv_m(),
+            variances: Some(NavVariances {
+                position_ned_m2: f.position_variance_ned_m2(),
+                velocity_ned_m2_s2: f.velocity_variance_ned_m2_s2(),
+                attitude_frd_rad2: f.attitude_variance_frd_rad2(),
+            }),
+            reset_count: s.gnss_position_resets,
+        }
+    }
+}
+
+/// What ESTIMATOR_STATUS and ODOMETRY report of the ideal navigation
+/// solution (the true state plus the world's noise, no filter): what a
+/// healthy EKF reports. The flags of a good solution (831 with a GNSS fix;
+/// without one, attitude and height only and the position held), every
+/// test ratio 0 (no innovation: nothing is rejected) for the sources a
+/// healthy EKF fuses (GNSS velocity and position only with a fix), the
+/// accuracies 0 m and no covariance (ODOMETRY says "unknown"), no resets.
+#[must_use]
+pub(super) fn ideal_navigation_report(fix: GpsFix) -> NavigationReport {
+    let gnss = fix != GpsFix::None;
+    let with_fix = gnss.then_some(0.0);
+    NavigationReport {
+        solution: SolutionStatus::good(gnss),
+        ratios: InnovationRatios {
+            vel: with_fix,
+            pos_horiz: with_fix,
+            pos_vert: Some(0.0),
+            mag: Some(0.0),
+        },
+        pos_horiz_accuracy_m: 0.0,
+        pos_vert_accuracy_m: 0.0,
+        variances: None,
+        reset_count: 0,
     }
 }

@@ -13,13 +13,14 @@ use super::error::AutopilotError;
 use super::estimate::EstimateFeedback;
 use super::failsafe::Failsafe;
 use super::land_detector::LandDetector;
-use super::navigation::{FilterNavigation, NavSource, nav_config};
+use super::navigation::{FilterNavigation, NavSource, ideal_navigation_report, nav_config};
 use super::navigator::Navigator;
 use super::rotor_monitor::{RotorEvent, RotorMonitor, RotorStatus};
 use super::settings::FailsafeAction;
 use super::settings::Settings;
 use super::status::{Announcements, Severity, StatusText};
 use super::telemetry::{OrbitStatus, Telemetry, VehicleType};
+use super::vibration::VibrationMonitor;
 use super::wind::WindMonitor;
 use crate::airframe::{Actuation, Airframe};
 use crate::control::{ControlGains, ControllerKind, GainError, RelaxedHoverError, ShaperLimits};
@@ -110,6 +111,8 @@ pub struct Autopilot {
     /// The navigation filter flown on (`RP_NAV_SRC` = 1, read at boot);
     /// `None`: the readings' own navigation solution.
     navigation: Option<Box<FilterNavigation>>,
+    /// The IMU's vibration metrics (PX4's `vehicle_imu_status`), from the raw samples.
+    vibration: VibrationMonitor,
 }
 
 /// The cause of the failsafe that replaces a mode needing a position when the GNSS fix is lost.
@@ -187,6 +190,7 @@ impl Autopilot {
                 NavSource::Ideal => None,
                 NavSource::Filter => Some(Box::new(FilterNavigation::new(nav_config(params), home))),
             },
+            vibration: VibrationMonitor::default(),
         };
         ap.home_ned = ap.home.ned_from(&ap.origin);
         ap.apply_params(params)?;
@@ -257,6 +261,7 @@ impl Autopilot {
         if let Some(nav) = self.navigation.as_deref_mut() {
             nav.update(readings);
         }
+        self.vibration.update(&readings.raw);
         let readings = self.navigated(readings);
         let readings = &*readings;
         let m = &readings.measurement;
@@ -546,6 +551,11 @@ impl Autopilot {
                 centre: self.origin.offset(&o.centre_ned),
                 yaw: o.yaw,
             }),
+            navigation: match self.navigation.as_deref() {
+                Some(nav) => nav.report(),
+                None => ideal_navigation_report(readings.gps.fix),
+            },
+            vibration: self.vibration.metrics(),
         }
     }
 

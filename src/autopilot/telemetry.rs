@@ -118,6 +118,102 @@ pub struct Telemetry {
     pub degraded_rotors: u16,
     /// The orbit flown, in Orbit (ORBIT_EXECUTION_STATUS).
     pub orbit: Option<OrbitStatus>,
+    /// The navigation solution's health and uncertainty (ESTIMATOR_STATUS, ODOMETRY).
+    pub navigation: NavigationReport,
+    /// The IMU's vibration metrics, once it has given two samples (VIBRATION).
+    pub vibration: Option<super::vibration::ImuVibration>,
+}
+
+/// What PX4's EKF2 says of its solution (`estimator_status` and
+/// `vehicle_odometry`): which parts of it are good, how its latest
+/// innovations compare with their gates, and how uncertain it is.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct NavigationReport {
+    /// Which parts of the solution are good (`solution_status_flags`).
+    pub solution: SolutionStatus,
+    /// The innovation test ratios `|innov| / (gate sqrt(S))` of the sources
+    /// fused (above 1 a sample is rejected); `None` for a source not fused.
+    pub ratios: InnovationRatios,
+    /// Horizontal position accuracy `sqrt(P_nn + P_ee)` [m].
+    pub pos_horiz_accuracy_m: f64,
+    /// Vertical position accuracy `sqrt(P_dd)` [m].
+    pub pos_vert_accuracy_m: f64,
+    /// The covariance's diagonal, when the solution has one (the filter's;
+    /// the ideal solution has none).
+    pub variances: Option<NavVariances>,
+    /// How often the solution was reset (position resets on a new GNSS fix).
+    pub reset_count: u32,
+}
+
+/// PX4's `estimator_status.solution_status_flags`, one field per bit
+/// (`Ekf::get_ekf_soln_status`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct SolutionStatus {
+    /// The attitude is good (tilt aligned).
+    pub attitude: bool,
+    /// The horizontal velocity is good (horizontal aiding active).
+    pub velocity_horiz: bool,
+    /// The vertical velocity is good (a height source fused).
+    pub velocity_vert: bool,
+    /// The relative horizontal position is good.
+    pub pos_horiz_rel: bool,
+    /// The absolute horizontal position is good (GNSS fused).
+    pub pos_horiz_abs: bool,
+    /// The absolute vertical position is good.
+    pub pos_vert_abs: bool,
+    /// No horizontal aiding: the position is held constant.
+    pub const_pos_mode: bool,
+    /// The relative horizontal position would be good once moving.
+    pub pred_pos_horiz_rel: bool,
+    /// The absolute horizontal position would be good once moving.
+    pub pred_pos_horiz_abs: bool,
+    /// GNSS innovations fail their gates while the magnetometer's do not.
+    pub gps_glitch: bool,
+}
+
+impl SolutionStatus {
+    /// A good GNSS-aided solution (PX4 SITL in flight: 831), or with
+    /// `horizontal_aiding` false one without horizontal aiding
+    /// (attitude and height only, position held).
+    #[must_use]
+    pub fn good(horizontal_aiding: bool) -> Self {
+        Self {
+            attitude: true,
+            velocity_horiz: horizontal_aiding,
+            velocity_vert: true,
+            pos_horiz_rel: horizontal_aiding,
+            pos_horiz_abs: horizontal_aiding,
+            pos_vert_abs: true,
+            const_pos_mode: !horizontal_aiding,
+            pred_pos_horiz_rel: horizontal_aiding,
+            pred_pos_horiz_abs: horizontal_aiding,
+            gps_glitch: false,
+        }
+    }
+}
+
+/// ESTIMATOR_STATUS's test ratios (`None`: the source is not fused).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct InnovationRatios {
+    /// `vel_ratio`: the largest GNSS velocity ratio.
+    pub vel: Option<f64>,
+    /// `pos_horiz_ratio`: the largest GNSS horizontal position ratio.
+    pub pos_horiz: Option<f64>,
+    /// `pos_vert_ratio`: the height reference's ratio.
+    pub pos_vert: Option<f64>,
+    /// `mag_ratio`: the magnetic heading ratio.
+    pub mag: Option<f64>,
+}
+
+/// The navigation covariance's diagonal as ODOMETRY carries it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct NavVariances {
+    /// Position, NED [m^2].
+    pub position_ned_m2: Vector3<f64>,
+    /// Velocity, NED [(m/s)^2].
+    pub velocity_ned_m2_s2: Vector3<f64>,
+    /// Attitude about the body axes (roll, pitch, yaw), FRD [rad^2].
+    pub attitude_frd_rad2: Vector3<f64>,
 }
 
 /// An orbit as ORBIT_EXECUTION_STATUS reports it.

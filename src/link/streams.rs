@@ -18,16 +18,19 @@ use std::time::{Duration, Instant};
 use mavlink::MessageData;
 use mavlink::dialects::common::{
     ALTITUDE_DATA, ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, DEBUG_VECT_DATA,
-    EXTENDED_SYS_STATE_DATA, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA, HIGHRES_IMU_DATA,
-    HIL_STATE_QUATERNION_DATA, HOME_POSITION_DATA, HighresImuUpdatedFlags, LOCAL_POSITION_NED_DATA,
-    MISSION_CURRENT_DATA, MavAutopilot, MavBatteryFunction, MavBatteryType, MavFrame, MavLandedState, MavMessage,
-    MavModeFlag, MavState, MavSysStatusSensor, MavType, MavVtolState, MissionState as MavMissionState,
-    NAMED_VALUE_FLOAT_DATA, ORBIT_EXECUTION_STATUS_DATA, SCALED_IMU_DATA, SCALED_PRESSURE_DATA, SYS_STATUS_DATA,
-    SYSTEM_TIME_DATA, VFR_HUD_DATA, WIND_COV_DATA,
+    ESTIMATOR_STATUS_DATA, EXTENDED_SYS_STATE_DATA, EstimatorStatusFlags, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA,
+    GpsFixType, HEARTBEAT_DATA, HIGHRES_IMU_DATA, HIL_STATE_QUATERNION_DATA, HOME_POSITION_DATA,
+    HighresImuUpdatedFlags, LOCAL_POSITION_NED_DATA, MISSION_CURRENT_DATA, MavAutopilot, MavBatteryFunction,
+    MavBatteryType, MavEstimatorType, MavFrame, MavLandedState, MavMessage, MavModeFlag, MavState, MavSysStatusSensor,
+    MavType, MavVtolState, MissionState as MavMissionState, NAMED_VALUE_FLOAT_DATA, ODOMETRY_DATA,
+    ORBIT_EXECUTION_STATUS_DATA, SCALED_IMU_DATA, SCALED_PRESSURE_DATA, SYS_STATUS_DATA, SYSTEM_TIME_DATA,
+    VFR_HUD_DATA, VIBRATION_DATA, WIND_COV_DATA,
 };
 
 use super::convert;
-use crate::autopilot::{BatteryWarning, FlightMode, LandedState, MissionState, Telemetry, VehicleType};
+use crate::autopilot::{
+    BatteryWarning, FlightMode, ImuVibration, LandedState, MissionState, NavigationReport, Telemetry, VehicleType,
+};
 use crate::lockstep::Snapshot;
 use crate::signals::{GnssSample, GpsFix, RawSensorReadings};
 
@@ -80,11 +83,19 @@ pub enum Stream {
     NamedValueFloat,
     /// WIND_COV (231): the wind the vehicle feels, once estimated ([`wind_cov`]).
     WindCov,
+    /// ESTIMATOR_STATUS (230): the navigation solution's flags, test ratios
+    /// and accuracies ([`estimator_status`]).
+    EstimatorStatus,
+    /// VIBRATION (241): the IMU's vibration metrics ([`vibration`]), from
+    /// the raw sensors.
+    Vibration,
+    /// ODOMETRY (331): the navigation solution with its covariance ([`odometry`]).
+    Odometry,
 }
 
 impl Stream {
     /// Every stream.
-    pub const ALL: [Stream; 22] = [
+    pub const ALL: [Stream; 25] = [
         Stream::Heartbeat,
         Stream::SysStatus,
         Stream::SystemTime,
@@ -107,6 +118,9 @@ impl Stream {
         Stream::DebugVect,
         Stream::NamedValueFloat,
         Stream::WindCov,
+        Stream::EstimatorStatus,
+        Stream::Vibration,
+        Stream::Odometry,
     ];
 
     /// MAVLink message id.
@@ -135,6 +149,9 @@ impl Stream {
             Stream::DebugVect => DEBUG_VECT_DATA::ID,
             Stream::NamedValueFloat => NAMED_VALUE_FLOAT_DATA::ID,
             Stream::WindCov => WIND_COV_DATA::ID,
+            Stream::EstimatorStatus => ESTIMATOR_STATUS_DATA::ID,
+            Stream::Vibration => VIBRATION_DATA::ID,
+            Stream::Odometry => ODOMETRY_DATA::ID,
         }
     }
 
@@ -144,7 +161,7 @@ impl Stream {
     pub fn needs_raw_sensors(self) -> bool {
         matches!(
             self,
-            Stream::GpsRawInt | Stream::HighresImu | Stream::ScaledImu | Stream::ScaledPressure
+            Stream::GpsRawInt | Stream::HighresImu | Stream::ScaledImu | Stream::ScaledPressure | Stream::Vibration
         )
     }
 
@@ -159,7 +176,8 @@ impl Stream {
 pub type Rates = Vec<(Stream, f64)>;
 
 /// PX4's GCS link (normal mode, after the SITL overrides; WIND_COV at
-/// PX4's 0.5 Hz), plus the estimator streams at 10 Hz.
+/// PX4's 0.5 Hz, ESTIMATOR_STATUS 0.5 Hz, VIBRATION 0.1 Hz, no ODOMETRY),
+/// plus the estimator streams at 10 Hz.
 #[must_use]
 pub fn gcs_rates() -> Rates {
     vec![
@@ -181,11 +199,13 @@ pub fn gcs_rates() -> Rates {
         (Stream::DebugVect, 10.0),
         (Stream::NamedValueFloat, 10.0),
         (Stream::WindCov, 0.5),
+        (Stream::EstimatorStatus, 0.5),
+        (Stream::Vibration, 0.1),
     ]
 }
 
 /// PX4's API link (onboard mode; WIND_COV at PX4's 10 Hz, HIGHRES_IMU at
-/// PX4's 50 Hz), plus the estimator streams at 10 Hz. SCALED_IMU and
+/// PX4's 50 Hz, ODOMETRY 30 Hz, ESTIMATOR_STATUS 1 Hz, VIBRATION 0.5 Hz), plus the estimator streams at 10 Hz. SCALED_IMU and
 /// SCALED_PRESSURE are off on both links, as in PX4's normal and onboard
 /// modes, until a client asks.
 #[must_use]
@@ -210,6 +230,9 @@ pub fn api_rates() -> Rates {
         (Stream::DebugVect, 10.0),
         (Stream::NamedValueFloat, 10.0),
         (Stream::WindCov, 10.0),
+        (Stream::Odometry, 30.0),
+        (Stream::EstimatorStatus, 1.0),
+        (Stream::Vibration, 0.5),
     ]
 }
 
@@ -558,6 +581,15 @@ pub fn build(stream: Stream, snapshot: &Snapshot, unix_time_us: u64) -> Vec<MavM
             ];
         }
         Stream::WindCov => return wind_cov(t).map(MavMessage::WIND_COV).into_iter().collect(),
+        Stream::EstimatorStatus => MavMessage::ESTIMATOR_STATUS(estimator_status(us, &t.navigation)),
+        Stream::Vibration => {
+            return t
+                .vibration
+                .map(|v| MavMessage::VIBRATION(vibration(&v)))
+                .into_iter()
+                .collect();
+        }
+        Stream::Odometry => MavMessage::ODOMETRY(odometry(t)),
     };
     vec![m]
 }
@@ -821,6 +853,108 @@ pub fn wind_cov(t: &Telemetry) -> Option<WIND_COV_DATA> {
         horiz_accuracy: 0.0,
         vert_accuracy: 0.0,
     })
+}
+
+/// ESTIMATOR_STATUS as PX4 fills it (`ESTIMATOR_STATUS.hpp` from EKF2's
+/// `estimator_status`): `flags` the solution status bits, the test ratios
+/// `|innov| / (gate sqrt(S))` of the sources fused and NaN for a source not
+/// fused (`hagl_ratio` and `tas_ratio` always: no range finder, no
+/// airspeed), the position accuracies [m]; stamped `time_usec`.
+#[must_use]
+pub fn estimator_status(time_usec: u64, n: &NavigationReport) -> ESTIMATOR_STATUS_DATA {
+    type F = EstimatorStatusFlags;
+    let s = &n.solution;
+    let flags = [
+        (s.attitude, F::ESTIMATOR_ATTITUDE),
+        (s.velocity_horiz, F::ESTIMATOR_VELOCITY_HORIZ),
+        (s.velocity_vert, F::ESTIMATOR_VELOCITY_VERT),
+        (s.pos_horiz_rel, F::ESTIMATOR_POS_HORIZ_REL),
+        (s.pos_horiz_abs, F::ESTIMATOR_POS_HORIZ_ABS),
+        (s.pos_vert_abs, F::ESTIMATOR_POS_VERT_ABS),
+        (s.const_pos_mode, F::ESTIMATOR_CONST_POS_MODE),
+        (s.pred_pos_horiz_rel, F::ESTIMATOR_PRED_POS_HORIZ_REL),
+        (s.pred_pos_horiz_abs, F::ESTIMATOR_PRED_POS_HORIZ_ABS),
+        (s.gps_glitch, F::ESTIMATOR_GPS_GLITCH),
+    ]
+    .into_iter()
+    .filter(|(on, _)| *on)
+    .fold(F::empty(), |acc, (_, bit)| acc | bit);
+    let ratio = |r: Option<f64>| r.map_or(f32::NAN, |r| r as f32);
+    ESTIMATOR_STATUS_DATA {
+        time_usec,
+        vel_ratio: ratio(n.ratios.vel),
+        pos_horiz_ratio: ratio(n.ratios.pos_horiz),
+        pos_vert_ratio: ratio(n.ratios.pos_vert),
+        mag_ratio: ratio(n.ratios.mag),
+        hagl_ratio: f32::NAN,
+        tas_ratio: f32::NAN,
+        pos_horiz_accuracy: n.pos_horiz_accuracy_m as f32,
+        pos_vert_accuracy: n.pos_vert_accuracy_m as f32,
+        flags,
+    }
+}
+
+/// VIBRATION as PX4 fills it (`VIBRATION.hpp` from `vehicle_imu_status`):
+/// `vibration_x` the gyro's coning metric, `vibration_y` the gyro's and
+/// `vibration_z` the accelerometer's high-frequency metric
+/// ([`ImuVibration`]); no clipping (the simulated IMU has no range limit);
+/// stamped with the latest IMU sample's time.
+#[must_use]
+pub fn vibration(v: &ImuVibration) -> VIBRATION_DATA {
+    VIBRATION_DATA {
+        time_usec: (v.time_s * 1e6) as u64,
+        vibration_x: v.coning_rad2_s2 as f32,
+        vibration_y: v.gyro_rad_s as f32,
+        vibration_z: v.accel_m_s2 as f32,
+        clipping_0: 0,
+        clipping_1: 0,
+        clipping_2: 0,
+    }
+}
+
+/// ODOMETRY as PX4 v1.14 on fills it (`ODOMETRY.hpp` from EKF2's
+/// `vehicle_odometry`, whose pose and velocity are both NED): `frame_id`
+/// and `child_frame_id` MAV_FRAME_LOCAL_NED, position [m] and velocity
+/// [m/s] NED, attitude quaternion (w, x, y, z; FRD to NED), body rates
+/// [rad/s] FRD; the covariances' upper-right triangles row-major, NaN but
+/// for the diagonal (pose: x, y, z, roll, pitch, yaw at indices 0, 6, 11,
+/// 15, 18, 20; velocity: vx, vy, vz at 0, 6, 11, the rates' NaN), all NaN
+/// without a covariance (the ideal solution: "unknown"); `estimator_type`
+/// AUTOPILOT, `quality` 0 as PX4's EKF2 sets it.
+#[must_use]
+pub fn odometry(t: &Telemetry) -> ODOMETRY_DATA {
+    let mut pose_covariance = [f32::NAN; 21];
+    let mut velocity_covariance = [f32::NAN; 21];
+    if let Some(v) = &t.navigation.variances {
+        for (k, i) in [0, 6, 11].into_iter().enumerate() {
+            pose_covariance[i] = v.position_ned_m2[k] as f32;
+            velocity_covariance[i] = v.velocity_ned_m2_s2[k] as f32;
+        }
+        for (k, i) in [15, 18, 20].into_iter().enumerate() {
+            pose_covariance[i] = v.attitude_frd_rad2[k] as f32;
+        }
+    }
+    let q = &t.attitude;
+    ODOMETRY_DATA {
+        time_usec: time_usec(t),
+        x: t.position_ned.x as f32,
+        y: t.position_ned.y as f32,
+        z: t.position_ned.z as f32,
+        q: [q.w as f32, q.i as f32, q.j as f32, q.k as f32],
+        vx: t.velocity_ned.x as f32,
+        vy: t.velocity_ned.y as f32,
+        vz: t.velocity_ned.z as f32,
+        rollspeed: t.rate_frd.x as f32,
+        pitchspeed: t.rate_frd.y as f32,
+        yawspeed: t.rate_frd.z as f32,
+        pose_covariance,
+        velocity_covariance,
+        frame_id: MavFrame::MAV_FRAME_LOCAL_NED,
+        child_frame_id: MavFrame::MAV_FRAME_LOCAL_NED,
+        reset_counter: (t.navigation.reset_count % 256) as u8,
+        estimator_type: MavEstimatorType::MAV_ESTIMATOR_TYPE_AUTOPILOT,
+        quality: 0,
+    }
 }
 
 /// HOME_POSITION from telemetry.

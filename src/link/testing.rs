@@ -12,7 +12,10 @@ use super::streams::{self, Identity};
 use super::wire::CommandLong;
 use super::{Link, LinkConfig};
 
-use crate::autopilot::{FlightMode, LandedState, MissionState, MissionStatus, Telemetry, VehicleType};
+use crate::autopilot::{
+    FlightMode, ImuVibration, InnovationRatios, LandedState, MissionState, MissionStatus, NavVariances,
+    NavigationReport, SolutionStatus, Telemetry, VehicleType,
+};
 use crate::geo::GeoPoint;
 use crate::lockstep::Snapshot;
 use crate::mission::Plans;
@@ -100,6 +103,30 @@ pub(crate) fn snapshot() -> Snapshot {
             failed_rotors: 0,
             degraded_rotors: 0,
             orbit: None,
+            // a filter's healthy solution at rest, with its covariance
+            navigation: NavigationReport {
+                solution: SolutionStatus::good(true),
+                ratios: InnovationRatios {
+                    vel: Some(0.1),
+                    pos_horiz: Some(0.2),
+                    pos_vert: Some(0.3),
+                    mag: Some(0.4),
+                },
+                pos_horiz_accuracy_m: 0.5,
+                pos_vert_accuracy_m: 0.7,
+                variances: Some(NavVariances {
+                    position_ned_m2: Vector3::new(0.125, 0.125, 0.49),
+                    velocity_ned_m2_s2: Vector3::new(0.01, 0.01, 0.02),
+                    attitude_frd_rad2: Vector3::new(1e-4, 1e-4, 4e-4),
+                }),
+                reset_count: 1,
+            },
+            vibration: Some(ImuVibration {
+                time_s: 12.496,
+                accel_m_s2: 0.05,
+                gyro_rad_s: 0.004,
+                coning_rad2_s2: 1e-6,
+            }),
         },
         truth: Default::default(),
         ground_truth: Default::default(),

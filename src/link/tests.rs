@@ -244,7 +244,7 @@ fn set_message_interval_is_per_link() {
     l.on_datagram(
         t0,
         addr(50000),
-        &cmd(511, [331.0, 50_000.0, nan, nan, nan, nan, nan], 1),
+        &cmd(511, [83.0, 50_000.0, nan, nan, nan, nan, nan], 1),
         &snapshot(),
         &p,
     );

@@ -64,12 +64,13 @@ def param_set(m, name, value, kind=mavlink.MAV_PARAM_TYPE_REAL32, timeout=3.0):
     return wait(m, "PARAM_VALUE", lambda p: p.param_id == name, timeout)
 
 
-def param_answers(m, name, value, kind=mavlink.MAV_PARAM_TYPE_REAL32, window=0.5):
+def param_answers(m, name, value, kind=mavlink.MAV_PARAM_TYPE_REAL32, window=0.5, first=3.0):
     """Send PARAM_SET and return this set's answers: the PARAM_ERROR and
-    PARAM_VALUE messages for `name`, in order, within `window` s. Answers to
-    an earlier set (an accepted set's rebroadcast follows its echo by ~5 ms)
-    are waited out first (100 ms without one), so none can pass for this
-    set's."""
+    PARAM_VALUE messages for `name`, in order, the first within `first` s
+    (a loaded machine may delay it), then any others within `window` s of
+    it. Answers to an earlier set (an accepted set's rebroadcast follows its
+    echo by ~5 ms) are waited out first (100 ms without one), so none can
+    pass for this set's."""
     if kind == mavlink.MAV_PARAM_TYPE_INT32:
         value = int32_as_float(int(value))
     types = ["PARAM_VALUE", "PARAM_ERROR"]
@@ -77,7 +78,10 @@ def param_answers(m, name, value, kind=mavlink.MAV_PARAM_TYPE_REAL32, window=0.5
         pass
     drain(m)
     m.param_set_send(name, value, kind)
-    out = []
+    a = wait(m, types, lambda p: p.param_id == name, first)
+    if a is None:
+        return []
+    out = [a]
     deadline = time.monotonic() + window
     while (a := wait(m, types, lambda p: p.param_id == name, deadline - time.monotonic())) is not None:
         out.append(a)

@@ -6,7 +6,12 @@ accuracies; then MAV_CMD_INJECT_FAILURE with PX4's sensor units: a STUCK
 barometer repeats one pressure, an OFF barometer sends nothing, an OFF
 magnetometer leaves HIGHRES_IMU's magnetometer fields unflagged, and OK
 brings each back; a WRONG barometer (PX4 has none) is UNSUPPORTED and a
-second barometer DENIED.
+second barometer DENIED. Then the navigation messages as PX4 SITL streams
+them (`mavlink_main.cpp`, `configure_streams_to_default`): ESTIMATOR_STATUS
+at 0.5 Hz on the GCS link (normal mode) and 1 Hz on the API link (onboard),
+VIBRATION at 0.1 and 0.5 Hz, ODOMETRY at 30 Hz on the API link only; their
+values against the vehicle's own LOCAL_POSITION_NED in a hover, on the
+ideal solution and on the navigation filter.
 
 Run with the pymavlink venv: `python -m pytest tests/clients/test_pymavlink_sensors.py`.
 """
@@ -19,7 +24,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from harness import Vehicle, command, drain  # noqa: E402
 from harness import wait_message as wait  # noqa: E402
-from test_pymavlink import connect, param_set  # noqa: E402
+from test_pymavlink import connect, param_set, wait_armable  # noqa: E402
 
 from pymavlink import mavutil  # noqa: E402
 
@@ -27,6 +32,11 @@ mavlink = mavutil.mavlink
 INJECT = mavlink.MAV_CMD_INJECT_FAILURE
 MAG, BARO = 2, 3
 OK, OFF, STUCK, WRONG = 0, 1, 2, 4
+# ESTIMATOR_STATUS.flags of a good GNSS-aided solution, as PX4 SITL reports it:
+# attitude, horizontal and vertical velocity, relative and absolute horizontal
+# position, absolute vertical position, predicted relative and absolute position
+GOOD_SOLUTION = 1 | 2 | 4 | 8 | 16 | 32 | 256 | 512
+ODOMETRY_ID = 331  # a MAVLink 2 id: pymavlink's default (v1.0) module names no constant for it
 # HIGHRES_IMU.fields_updated bits
 ACC_GYRO = 0x3F
 MAG_BITS = 0x1C0
@@ -34,8 +44,8 @@ PRESSURE = 0x200
 
 
 @pytest.fixture
-def vehicle():
-    with Vehicle(speed=2.0) as v:
+def vehicle(request):
+    with Vehicle(speed=2.0, params=getattr(request, "param", None)) as v:
         yield v
         print("rotorpilot log (tail):\n" + v.logs())
 
@@ -133,3 +143,130 @@ def test_baro_stuck_and_off_and_mag_off_show_on_the_wire(vehicle):
     assert h and all(x.fields_updated & (MAG_BITS | PRESSURE) == MAG_BITS | PRESSURE for x in h)
     back = collect(m, "SCALED_PRESSURE", 1.0)
     assert len({p.press_abs for p in back}) > 3, "fresh values again"
+
+
+def api_link(v):
+    """The API link (PX4's onboard mode), where PX4 SITL's API clients listen."""
+    a = mavutil.mavlink_connection(f"udpin:127.0.0.1:{v.api_port}", source_system=254)
+    assert a.wait_heartbeat(timeout=5) is not None, "the API link speaks first"
+    return a
+
+
+def counts(m, kinds, seconds):
+    """How many of each of `kinds` arrive within `seconds` wall seconds, and the last of each."""
+    n = {k: 0 for k in kinds}
+    last = {}
+
+    def see(msg):
+        n[msg.get_type()] += 1
+        last[msg.get_type()] = msg
+        return False
+
+    wait(m, list(kinds), see, timeout=seconds)
+    return n, last
+
+
+def hover(m, alt=3.0):
+    assert param_set(m, "MIS_TAKEOFF_ALT", alt).param_value == pytest.approx(alt)
+    wait_armable(m)
+    m.arducopter_arm()
+    assert wait(m, "HEARTBEAT", lambda h: h.base_mode & 128, 3.0) is not None, "armed"
+    assert command(m, mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 10) == 0
+    assert wait(m, "HEARTBEAT", lambda h: mavutil.interpret_px4_mode(h.base_mode, h.custom_mode) == "LOITER", 20)
+
+
+def paired(m, seconds=1.0):
+    """ODOMETRY and LOCAL_POSITION_NED of the same instant (same ms) on one link."""
+    local = {}
+    out = []
+
+    def see(msg):
+        if msg.get_type() == "LOCAL_POSITION_NED":
+            local[msg.time_boot_ms] = msg
+        elif msg.time_usec // 1000 in local:
+            out.append((msg, local[msg.time_usec // 1000]))
+        return False
+
+    wait(m, ["ODOMETRY", "LOCAL_POSITION_NED"], see, timeout=seconds)
+    return out
+
+
+def check_odometry_against_local_position(a):
+    pairs = paired(a)
+    assert len(pairs) >= 5, len(pairs)
+    for o, lp in pairs:
+        assert (o.frame_id, o.child_frame_id) == (mavlink.MAV_FRAME_LOCAL_NED,) * 2, "PX4's EKF2 odometry is NED"
+        assert o.estimator_type == mavlink.MAV_ESTIMATOR_TYPE_AUTOPILOT
+        assert (o.x, o.y, o.z) == pytest.approx((lp.x, lp.y, lp.z), abs=1e-3)
+        assert (o.vx, o.vy, o.vz) == pytest.approx((lp.vx, lp.vy, lp.vz), abs=1e-3)
+        assert sum(c * c for c in o.q) == pytest.approx(1.0, abs=1e-4)
+    return pairs[-1][0]
+
+
+def test_navigation_messages_at_px4_rates_and_true_to_the_hover(vehicle):
+    m = connect(vehicle)
+    a = api_link(vehicle)
+    hover(m)
+    # the API link (onboard mode): ODOMETRY 30 Hz, ESTIMATOR_STATUS 1 Hz, VIBRATION 0.5 Hz
+    drain(a)
+    n, last = counts(a, ["ODOMETRY", "ESTIMATOR_STATUS", "VIBRATION"], 8.0)
+    print("API link in 8 s:", n)
+    assert 30 * 8 * 0.8 <= n["ODOMETRY"] <= 30 * 8 * 1.1, n
+    assert 7 <= n["ESTIMATOR_STATUS"] <= 9, n
+    assert 3 <= n["VIBRATION"] <= 5, n
+    # the ideal solution reports what a healthy EKF does
+    e = last["ESTIMATOR_STATUS"]
+    assert e.flags == GOOD_SOLUTION, e
+    assert (e.vel_ratio, e.pos_horiz_ratio, e.pos_vert_ratio, e.mag_ratio) == (0, 0, 0, 0)
+    assert e.hagl_ratio != e.hagl_ratio and e.tas_ratio != e.tas_ratio, "NaN: no range finder, no airspeed"
+    # vibration in a hover: the accelerometer's noise and the rotors' ripple, small and positive
+    v = last["VIBRATION"]
+    print("VIBRATION in a hover:", v)
+    assert 0.0 < v.vibration_z < 0.5, v
+    assert 0.0 < v.vibration_y < 0.1 and v.vibration_x >= 0.0, v
+    assert (v.clipping_0, v.clipping_1, v.clipping_2) == (0, 0, 0)
+    # ODOMETRY is the solution LOCAL_POSITION_NED carries, 3 m up
+    o = check_odometry_against_local_position(a)
+    assert o.z == pytest.approx(-3.0, abs=0.3)
+    assert o.pose_covariance[0] != o.pose_covariance[0], "the ideal solution has no covariance: unknown"
+
+    # the GCS link (normal mode): ESTIMATOR_STATUS 0.5 Hz, no ODOMETRY until asked
+    drain(m)
+    n, _ = counts(m, ["ODOMETRY", "ESTIMATOR_STATUS"], 6.0)
+    print("GCS link in 6 s:", n)
+    assert n["ODOMETRY"] == 0 and 2 <= n["ESTIMATOR_STATUS"] <= 4, n
+    stream(m, ODOMETRY_ID, 10)
+    drain(m)
+    n, _ = counts(m, ["ODOMETRY"], 2.0)
+    assert 15 <= n["ODOMETRY"] <= 22, n
+    # VIBRATION's 0.1 Hz is slow to count: asked for once, it comes at once
+    drain(m)
+    m.mav.command_long_send(m.target_system, m.target_component, mavlink.MAV_CMD_REQUEST_MESSAGE, 0,
+                            mavlink.MAVLINK_MSG_ID_VIBRATION, 0, 0, 0, 0, 0, 0)
+    got = []
+    wait(m, ["VIBRATION", "COMMAND_ACK"], lambda x: got.append(x) and False, timeout=1.0)
+    assert [x.result for x in got if x.get_type() == "COMMAND_ACK"] == [mavlink.MAV_RESULT_ACCEPTED]
+    assert any(x.get_type() == "VIBRATION" for x in got), got
+
+
+@pytest.mark.parametrize("vehicle", [{"RP_NAV_SRC": 1}], ids=["filter"], indirect=True)
+def test_estimator_status_and_odometry_from_the_navigation_filter(vehicle):
+    m = connect(vehicle)
+    a = api_link(vehicle)
+    hover(m)
+    drain(a)
+    n, last = counts(a, ["ESTIMATOR_STATUS"], 3.0)
+    e = last["ESTIMATOR_STATUS"]
+    print("ESTIMATOR_STATUS on the filter:", e)
+    assert e.flags == GOOD_SOLUTION, e
+    ratios = (e.vel_ratio, e.pos_horiz_ratio, e.pos_vert_ratio, e.mag_ratio)
+    assert all(0.0 <= r < 1.0 for r in ratios), "every innovation within its gate"
+    assert any(r > 0.0 for r in ratios), "the filter's own innovations"
+    assert 0.0 < e.pos_horiz_accuracy < 2.0 and 0.0 < e.pos_vert_accuracy < 3.0, e
+    o = check_odometry_against_local_position(a)
+    pose = [o.pose_covariance[i] for i in (0, 6, 11, 15, 18, 20)]
+    vel = [o.velocity_covariance[i] for i in (0, 6, 11)]
+    assert all(0.0 < c < 10.0 for c in pose + vel), (pose, vel)
+    assert o.pose_covariance[1] != o.pose_covariance[1], "off-diagonal terms unknown (NaN)"
+    # its horizontal accuracy is the covariance's: sqrt(P_nn + P_ee)
+    assert e.pos_horiz_accuracy == pytest.approx((pose[0] + pose[1]) ** 0.5, rel=0.3)

@@ -272,6 +272,34 @@ impl NavFilter {
             .sqrt()
     }
 
+    /// Variances of the position error, NED [m^2] (the covariance's
+    /// diagonal: PX4's `getPositionVariance`, ODOMETRY's pose covariance).
+    pub fn position_variance_ned_m2(&self) -> Vector3<f64> {
+        self.diagonal(idx::POS)
+    }
+
+    /// Variances of the velocity error, NED [(m/s)^2] (PX4's `getVelocityVariance`).
+    pub fn velocity_variance_ned_m2_s2(&self) -> Vector3<f64> {
+        self.diagonal(idx::VEL)
+    }
+
+    /// Variances of the attitude error about the body axes [rad^2], PX4's
+    /// `getRotVarBody`: the NED rotation-vector covariance `P_a` taken into
+    /// FRD, `diag(R^T P_a R)`.
+    pub fn attitude_variance_frd_rad2(&self) -> Vector3<f64> {
+        let r = self.attitude().to_rotation_matrix().into_inner();
+        let p = self.cov.fixed_view::<3, 3>(idx::ANG, idx::ANG);
+        (r.transpose() * p * r).diagonal()
+    }
+
+    fn diagonal(&self, first: usize) -> Vector3<f64> {
+        Vector3::new(
+            self.cov[(first, first)],
+            self.cov[(first + 1, first + 1)],
+            self.cov[(first + 2, first + 2)],
+        )
+    }
+
     /// The innovation test ratios, as ESTIMATOR_STATUS reports them.
     pub fn test_ratios(&self) -> TestRatios {
         let pos_vert = match self.height_ref {

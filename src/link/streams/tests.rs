@@ -83,17 +83,28 @@ fn default_rates_and_deadlines() {
     let mut due = Vec::new();
     s.due(t0, &mut due);
     // every stream but the ground truth, which waits to be asked for (as in
-    // PX4 SITL), and the raw sensor streams PX4's normal mode does not send
-    assert_eq!(due.len(), Stream::ALL.len() - 4);
+    // PX4 SITL), and the raw sensor streams and ODOMETRY PX4's normal mode does not send
+    assert_eq!(due.len(), Stream::ALL.len() - 5);
     for off in [
         Stream::HilStateQuaternion,
         Stream::HighresImu,
         Stream::ScaledImu,
         Stream::ScaledPressure,
+        Stream::Odometry,
     ] {
         assert!(!due.contains(&off), "{off:?}");
     }
     assert!(api_rates().contains(&(Stream::HighresImu, 50.0)), "PX4's onboard mode");
+    // PX4's `configure_streams_to_default`: normal and onboard mode
+    for (stream, gcs, api) in [
+        (Stream::EstimatorStatus, Some(0.5), Some(1.0)),
+        (Stream::Vibration, Some(0.1), Some(0.5)),
+        (Stream::Odometry, None, Some(30.0)),
+    ] {
+        let rate = |rates: Rates| rates.iter().find(|(s, _)| *s == stream).map(|(_, hz)| *hz);
+        assert_eq!(rate(gcs_rates()), gcs, "{stream:?}");
+        assert_eq!(rate(api_rates()), api, "{stream:?}");
+    }
     assert_eq!(due.len(), gcs_rates().len());
     due.clear();
     // 20 ms later only the 50 Hz streams are due
@@ -278,5 +289,128 @@ fn raw_sensor_messages_in_px4_units_and_an_off_sensor_unflagged() {
     s.raw = Default::default();
     for stream in [Stream::HighresImu, Stream::ScaledImu, Stream::ScaledPressure] {
         assert!(build(stream, &s, 0).is_empty(), "{stream:?}");
+    }
+}
+
+#[test]
+fn estimator_status_packs_the_solution_flags_ratios_and_accuracies() {
+    let s = snapshot();
+    let Some(MavMessage::ESTIMATOR_STATUS(e)) = build(Stream::EstimatorStatus, &s, 0).pop() else {
+        panic!("ESTIMATOR_STATUS")
+    };
+    // attitude, velocities, horizontal positions, vertical position, predicted positions
+    assert_eq!(
+        e.flags.bits(),
+        831,
+        "a good GNSS-aided solution, as PX4 SITL reports it"
+    );
+    assert_eq!(e.time_usec, 12_500_000);
+    assert_eq!(
+        [e.vel_ratio, e.pos_horiz_ratio, e.pos_vert_ratio, e.mag_ratio],
+        [0.1, 0.2, 0.3, 0.4]
+    );
+    assert!(
+        e.hagl_ratio.is_nan() && e.tas_ratio.is_nan(),
+        "no range finder, no airspeed"
+    );
+    assert_eq!((e.pos_horiz_accuracy, e.pos_vert_accuracy), (0.5, 0.7));
+    // a source not fused reads NaN; without horizontal aiding the position is held
+    let mut n = s.telemetry.navigation;
+    n.ratios.vel = None;
+    n.solution = crate::autopilot::SolutionStatus::good(false);
+    let e = estimator_status(0, &n);
+    assert!(e.vel_ratio.is_nan());
+    assert_eq!(e.flags.bits(), 1 | 4 | 32 | 128);
+    // the whole message survives the wire
+    let m = MavMessage::ESTIMATOR_STATUS(e);
+    let back = roundtrip(&m);
+    let MavMessage::ESTIMATOR_STATUS(b) = back else {
+        panic!()
+    };
+    assert_eq!(b.flags.bits(), 165);
+}
+
+#[test]
+fn vibration_packs_the_imu_metrics_and_waits_for_them() {
+    let mut s = snapshot();
+    let Some(MavMessage::VIBRATION(v)) = build(Stream::Vibration, &s, 0).pop() else {
+        panic!("VIBRATION")
+    };
+    assert_eq!(
+        (v.vibration_x, v.vibration_y, v.vibration_z),
+        (1e-6, 0.004, 0.05),
+        "x coning, y gyro, z accel, as PX4's VIBRATION.hpp"
+    );
+    assert_eq!(v.time_usec, 12_496_000);
+    assert_eq!((v.clipping_0, v.clipping_1, v.clipping_2), (0, 0, 0));
+    assert!(Stream::Vibration.needs_raw_sensors());
+    s.telemetry.vibration = None;
+    assert!(
+        build(Stream::Vibration, &s, 0).is_empty(),
+        "nothing before the IMU's samples"
+    );
+}
+
+#[test]
+fn odometry_packs_the_solution_in_ned_with_the_covariance_diagonal() {
+    let mut s = snapshot();
+    s.telemetry.position_ned = Vector3::new(1.0, -2.0, -5.0);
+    s.telemetry.velocity_ned = Vector3::new(0.5, 0.25, -0.125);
+    s.telemetry.rate_frd = Vector3::new(0.01, 0.02, 0.03);
+    s.telemetry.attitude = UnitQuaternion::from_euler_angles(0.0, 0.0, std::f64::consts::FRAC_PI_2);
+    let Some(MavMessage::ODOMETRY(o)) = build(Stream::Odometry, &s, 0).pop() else {
+        panic!("ODOMETRY")
+    };
+    assert_eq!(o.frame_id, MavFrame::MAV_FRAME_LOCAL_NED);
+    assert_eq!(
+        o.child_frame_id,
+        MavFrame::MAV_FRAME_LOCAL_NED,
+        "PX4's EKF2 odometry: velocity NED"
+    );
+    assert_eq!((o.x, o.y, o.z), (1.0, -2.0, -5.0));
+    assert_eq!((o.vx, o.vy, o.vz), (0.5, 0.25, -0.125));
+    assert_eq!((o.rollspeed, o.pitchspeed, o.yawspeed), (0.01, 0.02, 0.03));
+    let h = std::f32::consts::FRAC_1_SQRT_2;
+    assert!((o.q[0] - h).abs() < 1e-6 && (o.q[3] - h).abs() < 1e-6 && o.q[1] == 0.0 && o.q[2] == 0.0);
+    let diag = [0, 6, 11, 15, 18, 20];
+    let pose: Vec<f32> = diag.iter().map(|&i| o.pose_covariance[i]).collect();
+    assert_eq!(pose, [0.125, 0.125, 0.49, 1e-4, 1e-4, 4e-4]);
+    assert_eq!(
+        [
+            o.velocity_covariance[0],
+            o.velocity_covariance[6],
+            o.velocity_covariance[11]
+        ],
+        [0.01, 0.01, 0.02]
+    );
+    for (i, c) in o.pose_covariance.iter().enumerate() {
+        assert_eq!(c.is_nan(), !diag.contains(&i), "pose covariance {i}");
+    }
+    assert!(o.velocity_covariance[15].is_nan() && o.velocity_covariance[1].is_nan());
+    assert_eq!(o.estimator_type, MavEstimatorType::MAV_ESTIMATOR_TYPE_AUTOPILOT);
+    assert_eq!((o.quality, o.reset_counter), (0, 1));
+    // the ideal solution has no covariance: "unknown", NaN first
+    s.telemetry.navigation.variances = None;
+    let Some(MavMessage::ODOMETRY(o)) = build(Stream::Odometry, &s, 0).pop() else {
+        panic!("ODOMETRY")
+    };
+    assert!(o.pose_covariance[0].is_nan() && o.velocity_covariance[0].is_nan());
+    let MavMessage::ODOMETRY(b) = roundtrip(&MavMessage::ODOMETRY(o)) else {
+        panic!()
+    };
+    assert_eq!(
+        (b.x, b.y, b.z, b.child_frame_id),
+        (1.0, -2.0, -5.0, MavFrame::MAV_FRAME_LOCAL_NED)
+    );
+}
+
+/// `m` framed by the link's encoder and read back from the bytes.
+fn roundtrip(m: &MavMessage) -> MavMessage {
+    use crate::link::wire::{Encoder, Inbound, decode, frames};
+    let bytes = Encoder::new(1, 1).message(m);
+    let frame = frames(&bytes).next().expect("one frame with a valid CRC");
+    match decode(&frame) {
+        Some(Inbound::Other(m)) => *m,
+        other => panic!("{other:?}"),
     }
 }

@@ -50,6 +50,13 @@ async fn set_param(c: &mut Client, to: std::net::SocketAddr, name: &str, value: 
     assert_eq!(echoed, value, "{name}");
 }
 
+/// How far the daemon's height may be from the truth: it flies on the
+/// navigation filter, whose height reference is GNSS height (0.5 m white
+/// noise at 10 Hz, fused as PX4's EKF2 does); its vertical error in a hover
+/// after settling is within 0.18 m (docs/navigation.md). On the ideal
+/// solution these heights agree within 0.05 m.
+const FILTER_HEIGHT_M: f64 = 0.3;
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn relative_altitude_reads_zero_on_the_ground_and_takeoff_to_5_m_is_5_m_above_it() {
     let rest_height = quad().gear_height_m;
@@ -61,11 +68,18 @@ async fn relative_altitude_reads_zero_on_the_ground_and_takeoff_to_5_m_is_5_m_ab
     let v = Vehicle::start(config(Some(c.addr()), None, 5.0)).await;
     wait_armable(&mut c).await;
     let (rel, z) = altitudes(&mut c).await;
+    eprintln!(
+        "on the ground: relative altitude {rel:.3} m, z {z:.3} m (resting at {:.3} m)",
+        -rest_height
+    );
     assert!(
-        rel.abs() < 0.05,
+        rel.abs() < FILTER_HEIGHT_M,
         "relative altitude on the ground {rel} m (PX4: about 0)"
     );
-    assert!((z + rest_height).abs() < 0.05, "resting at z {z} m (NED, ground at 0)");
+    assert!(
+        (z + rest_height).abs() < FILTER_HEIGHT_M,
+        "resting at z {z} m (NED, ground at 0)"
+    );
     let home = c
         .wait_for(Duration::from_secs(3), |r| match &r.msg {
             Some(MavMessage::HOME_POSITION(h)) => Some(h.z),
@@ -74,7 +88,7 @@ async fn relative_altitude_reads_zero_on_the_ground_and_takeoff_to_5_m_is_5_m_ab
         .await
         .expect("HOME_POSITION");
     assert!(
-        (f64::from(home) - z).abs() < 0.05,
+        (f64::from(home) - z).abs() < FILTER_HEIGHT_M,
         "home z {home} m is where the vehicle rests ({z} m)"
     );
 
@@ -96,13 +110,14 @@ async fn relative_altitude_reads_zero_on_the_ground_and_takeoff_to_5_m_is_5_m_ab
     tokio::time::sleep(Duration::from_millis(300)).await;
     c.drain().await;
     let (rel, z) = altitudes(&mut c).await;
+    eprintln!("after the takeoff: relative altitude {rel:.3} m, z {z:.3} m");
     assert!(
-        (rel - 5.0).abs() < 0.15,
+        (rel - 5.0).abs() < FILTER_HEIGHT_M,
         "relative altitude after takeoff to 5 m: {rel} m"
     );
     let above_rest = -z - rest_height;
     assert!(
-        (above_rest - 5.0).abs() < 0.15,
+        (above_rest - 5.0).abs() < FILTER_HEIGHT_M,
         "{above_rest} m above where it rested (z {z} m)"
     );
     v.stop().await;

@@ -734,12 +734,14 @@ impl Lockstep<Autopilot> {
     }
 }
 
-/// A quad resting at PX4 SITL's home with the default parameters and
-/// sensors, and its parameter store (for tests that need a core to step).
+/// A quad resting at PX4 SITL's home with the default parameters on the
+/// ideal navigation solution (`RP_NAV_SRC` = 0) and the default sensors,
+/// and its parameter store (for tests that need a core to step).
 #[cfg(test)]
 pub(crate) fn test_quad() -> (Lockstep<Autopilot>, ParamStore) {
     let airframe = Airframe::load("quad").expect("the built-in quad");
-    let params = ParamStore::new(&airframe);
+    let mut params = ParamStore::new(&airframe);
+    params.set("RP_NAV_SRC", ParamValue::Int32(0)).expect("RP_NAV_SRC");
     let core = Lockstep::one_vehicle(&airframe, GeoPoint::PX4_SITL_HOME, &params, SensorConfig::default())
         .expect("the default parameters");
     (core, params)

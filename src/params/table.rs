@@ -360,8 +360,8 @@ parameters! {
     ),
     // --- rotorpilot: navigation source (read at boot) -------------------------------------------
     RP_NAV_SRC: boot_choice(
-        0, 0, 1,
-        "Navigation solution the flight stack flies on",
+        1, 0, 1,
+        "Navigation solution the flight stack flies on (the daemon boots on the filter, as a PX4 vehicle flies on EKF2; a scenario or mission file flies the ideal solution unless its [navigation] table names the filter)",
         &[
             (0, "ideal: the world's solution (true state plus seeded noise)"),
             (1, "filter: the EKF fed by the raw IMU, barometer, magnetometer and GNSS"),

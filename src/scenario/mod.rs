@@ -135,13 +135,12 @@ enum FileHeightRef {
 }
 
 impl FileNavigation {
-    /// Sets `RP_NAV_SRC` and `EKF2_HGT_REF` in `params` as the table says
-    /// (nothing when it is absent: the parameters keep their values).
+    /// Sets `RP_NAV_SRC` and `EKF2_HGT_REF` in `params` as the table says:
+    /// the ideal solution when it names no source (unlike the daemon, which
+    /// boots on the filter), `EKF2_HGT_REF` untouched when it names none.
     pub(crate) fn apply(self, params: &mut ParamStore) {
         use crate::params::ParamValue::Int32;
-        if self.source == FileNavSource::Filter {
-            let _ = params.set("RP_NAV_SRC", Int32(1));
-        }
+        let _ = params.set("RP_NAV_SRC", Int32(i32::from(self.source == FileNavSource::Filter)));
         if let Some(h) = self.height_ref {
             let _ = params.set("EKF2_HGT_REF", Int32(i32::from(h == FileHeightRef::Gnss)));
         }

@@ -45,7 +45,8 @@ pub fn point(north: f64, east: f64, up: f64) -> GeoPoint {
 }
 
 /// The vehicle before it exists: airframe, parameters (set in the order
-/// given, over the airframe's defaults) and sensors.
+/// given, over the airframe's defaults and the ideal navigation solution)
+/// and sensors.
 pub struct SitlBuilder {
     airframe: Airframe,
     params: Vec<(String, ParamValue)>,
@@ -66,8 +67,13 @@ impl SitlBuilder {
         self
     }
 
+    /// The store: the airframe's defaults, the ideal navigation solution
+    /// (`RP_NAV_SRC` = 0: these tests fly the flight logic, not the filter,
+    /// which the daemon boots on and `lockstep_navigation` flies), then the
+    /// test's own parameters.
     fn store(&self) -> ParamStore {
         let mut store = ParamStore::new(&self.airframe);
+        store.set("RP_NAV_SRC", int(0)).unwrap();
         for (name, value) in &self.params {
             store.set(name, *value).unwrap();
         }

@@ -6,13 +6,19 @@
 //!
 //! | sensor | rate | model | source of the figures |
 //! |---|---|---|---|
-//! | accelerometer | 250 Hz | `f~ = R^T (a - g e3) + b_a + n_a`, FRD [m/s^2] | Gazebo's IMU plugin defaults (ADIS16448) |
-//! | gyroscope | 250 Hz | `w~ = w + b_w + n_w`, FRD [rad/s] | the same |
+//! | accelerometer | 250 Hz | `f~ = mean over the interval of R^T (a - g e3), + b_a + n_a`, FRD [m/s^2] | Gazebo's IMU plugin defaults (ADIS16448), no turn-on bias (the gz x500's) |
+//! | gyroscope | 250 Hz | `w~ = mean over the interval of w, + b_w + n_w`, FRD [rad/s] | the same |
 //! | barometer | 20 Hz | ISA troposphere at `h = alt_home - p_z`, plus 1 Pa noise | PX4 `sensor_baro_sim` |
 //! | magnetometer | 50 Hz | `m~ = R^T B_ned + n_m`, FRD [gauss] | PX4 `sensor_mag_sim` |
 //! | GNSS | 8 Hz | position, NED velocity plus Gauss-Markov noise, one epoch late | PX4 `sensor_gps_sim` |
 //!
 //! **IMU** (Gazebo's `gazebo_imu_plugin`, the model PX4's Gazebo SITL flew):
+//! each sample is what an IMU driver integrates over its interval (PX4's
+//! `sensor_combined` carries `delta_velocity / dt`, `delta_angle / dt`): the
+//! mean over the simulation steps since the last sample of the specific
+//! force `R_j^T ((v_j - v_{j-1}) / dt - g e3)` (each step's true velocity
+//! change, so a touchdown's stop is felt as the impulse it is) and of the
+//! body rate. On top of the mean,
 //! white noise of density `sigma` [unit/sqrt(Hz)] sampled every `dt` has the
 //! standard deviation `sigma / sqrt(dt)`; the bias starts at a turn-on value
 //! drawn once and then follows a first-order Gauss-Markov process of
@@ -73,8 +79,15 @@ pub const ACCEL_NOISE_DENSITY: f64 = 2.0 * 2.0e-3;
 pub const ACCEL_RANDOM_WALK: f64 = 2.0 * 3.0e-3;
 /// Accelerometer bias correlation time [s] (Gazebo: 300 s).
 pub const ACCEL_BIAS_TAU_S: f64 = 300.0;
-/// Accelerometer turn-on bias, 1 sigma per axis [m/s^2] (Gazebo: 20 mg).
-pub const ACCEL_TURN_ON_BIAS: f64 = 20.0e-3 * 9.8;
+/// Accelerometer turn-on bias, 1 sigma per axis [m/s^2]: none, as on
+/// PX4's default SITL vehicle (the gz x500's IMU has no turn-on bias: a
+/// calibrated sensor). Gazebo classic's plugin drew 20 mg; in a hover a
+/// horizontal bias `b` is one with a tilt `b / g`, which no filter can
+/// tell apart, and the wrench estimator would read `m b` (0.7 N for a 2 kg
+/// quad at 1.8 sigma) as an external force. The turn-on draw is still
+/// made, so that the other draws keep their values; a biased accelerometer
+/// is a fault to inject (`SENSOR_ACCEL` WRONG).
+pub const ACCEL_TURN_ON_BIAS: f64 = 0.0;
 /// Gyroscope noise density [rad/s/sqrt(Hz)] (Gazebo: 2 x 35 deg/h/sqrt(Hz)).
 pub const GYRO_NOISE_DENSITY: f64 = 2.0 * 35.0 / 3600.0 / 180.0 * PI;
 /// Gyroscope bias random walk [rad/s^2/sqrt(Hz)] (Gazebo: 2 x 4 deg/h/sqrt(h)).
@@ -190,6 +203,11 @@ pub(super) struct RawSensors {
     pending: Option<PendingFix>,
     /// The last value each sensor gave (what a stuck one repeats).
     last: RawSensorReadings,
+    /// The true NED velocity at the last step [m/s] (None before the first).
+    last_velocity_ned: Option<Vector3<f64>>,
+    /// Sums over the steps since the last IMU sample: specific force [m/s^2]
+    /// and body rate [rad/s], FRD, and how many steps they hold.
+    imu_sum: (Vector3<f64>, Vector3<f64>, u32),
 }
 
 impl RawSensors {
@@ -224,6 +242,8 @@ impl RawSensors {
             gnss_vel_err: Vector3::zeros(),
             pending: None,
             last: RawSensorReadings::default(),
+            last_velocity_ned: None,
+            imu_sum: (Vector3::zeros(), Vector3::zeros(), 0),
         }
     }
 
@@ -233,9 +253,10 @@ impl RawSensors {
     }
 
     /// Sample the sensors due at the instant of `truth` into `out`, given
-    /// the true NED acceleration `accel_ned` [m/s^2] at that instant, the
-    /// injected faults and the GNSS state. Sensors not due keep their latest
-    /// sample.
+    /// the true NED acceleration `accel_ned` [m/s^2] at that instant (used
+    /// only at the first step seen: after it, the step's velocity change),
+    /// the injected faults and the GNSS state. Called once every step; the
+    /// sensors not due keep their latest sample.
     pub(super) fn sample(
         &mut self,
         truth: &Measurement,
@@ -247,6 +268,14 @@ impl RawSensors {
         let t = truth.time_s;
         let k = (t / self.dt_s).round() as u64;
         let r: &UnitQuaternion<f64> = &truth.attitude;
+        let a = match self.last_velocity_ned {
+            Some(v0) => (truth.velocity_ned - v0) / self.dt_s,
+            None => *accel_ned,
+        };
+        self.last_velocity_ned = Some(truth.velocity_ned);
+        self.imu_sum.0 += r.inverse_transform_vector(&(a - Vector3::new(0.0, 0.0, GRAVITY)));
+        self.imu_sum.1 += truth.rate_frd;
+        self.imu_sum.2 += 1;
         if k.is_multiple_of(self.every[0]) {
             let dt = self.every[0] as f64 * self.dt_s;
             let (phi_a, sd_a) = gauss_markov(ACCEL_RANDOM_WALK, ACCEL_BIAS_TAU_S, dt);
@@ -255,9 +284,10 @@ impl RawSensors {
             let n_w = self.gauss3() * (GYRO_NOISE_DENSITY / dt.sqrt());
             let db_a = self.gauss3() * sd_a;
             let db_w = self.gauss3() * sd_w;
-            let f = r.inverse_transform_vector(&(accel_ned - Vector3::new(0.0, 0.0, GRAVITY)));
-            let accel = f + self.accel_bias + n_a;
-            let gyro = truth.rate_frd + self.gyro_bias + n_w;
+            let (sum_f, sum_w, n) = std::mem::replace(&mut self.imu_sum, (Vector3::zeros(), Vector3::zeros(), 0));
+            let n = f64::from(n);
+            let accel = sum_f / n + self.accel_bias + n_a;
+            let gyro = sum_w / n + self.gyro_bias + n_w;
             self.accel_bias = self.accel_bias * phi_a + db_a;
             self.gyro_bias = self.gyro_bias * phi_w + db_w;
             out.accel = apply(faults.accel, &mut self.last.accel, AxesSample { time_s: t, frd: accel });
@@ -453,6 +483,37 @@ mod tests {
         // at rest the specific force is -g on z plus the turn-on bias
         let mean_z = acc.iter().map(|s| s.frd.z).sum::<f64>() / acc.len() as f64;
         assert!((mean_z - (-GRAVITY + b0.z)).abs() < 0.01, "{mean_z} {b0}");
+    }
+
+    /// GIVEN a level vehicle descending at 1 m/s that stops dead on the ground
+    /// at 10.0005 s (a touchdown: one step's velocity change)
+    /// WHEN the accelerometer's samples are summed over its intervals
+    /// THEN they hold the stop: the specific force's sum times the interval
+    /// changes by the 1 m/s the vehicle lost (an instantaneous sample
+    /// between the steps would never see it), and at rest it reads -g.
+    #[test]
+    fn the_accelerometer_feels_the_touchdown_it_integrates_over() {
+        let mut raw = RawSensors::new(GeoPoint::PX4_SITL_HOME, 1e-3, 5);
+        let falling = |t: f64| Measurement {
+            time_s: t,
+            velocity_ned: Vector3::new(0.0, 0.0, if t < 10.0005 { 1.0 } else { 0.0 }),
+            ..Measurement::default()
+        };
+        let all = run(&mut raw, SensorFaults::default(), 12.0, falling);
+        let mut acc: Vec<AxesSample> = all.iter().filter_map(|r| r.accel).collect();
+        acc.dedup_by(|a, b| a.time_s == b.time_s);
+        let interval = 1.0 / IMU_RATE_HZ;
+        // the specific force's excess over -g along z, integrated [m/s]
+        let dv = |from: f64, to: f64| -> f64 {
+            acc.iter()
+                .filter(|s| s.time_s > from && s.time_s <= to)
+                .map(|s| (s.frd.z + GRAVITY) * interval)
+                .sum()
+        };
+        let stop = dv(9.9, 10.1);
+        assert!((stop + 1.0).abs() < 0.01, "{stop} m/s: the stop, upward");
+        let rest = dv(10.1, 12.0);
+        assert!(rest.abs() < 0.01, "{rest}");
     }
 
     #[test]

@@ -13,6 +13,12 @@
 //!
 //! `z_rest` is the first measurement (the vehicle boots on the ground), then
 //! follows the measurement (through its noise) while landed with low thrust.
+//! A height estimate that wanders (the navigation filter on GNSS height)
+//! can be off it by more than 0.1 m when the vehicle touches down, so the
+//! ground is also found as PX4 finds it (`hit_ground`): still while
+//! commanded down, `v_z,ref >= 1.1 LNDMC_Z_VEL_MAX`, for 1/3 s
+//! (`LNDMC_TRIG_TIME / 3`) means the ground stopped the vehicle, and
+//! `z_rest` becomes the measured height there.
 //! PX4 tells ground contact from a range sensor or from the thrust and its
 //! integrators; this world's ground is flat, so the height at which the
 //! vehicle last rested does that job. PX4 cuts the thrust on ground contact
@@ -40,6 +46,11 @@ pub(super) const LAND_DETECT_S: f64 = 0.25;
 const TAKEOFF_DETECT_S: f64 = 0.05;
 /// Rate [1/sample] at which the resting height follows the measurement while landed.
 const REST_FILTER: f64 = 0.02;
+/// Commanded down at least this fast [m/s] is a descent (PX4's `_in_descend`: 1.1 `LNDMC_Z_VEL_MAX`).
+const IN_DESCEND_M_S: f64 = 1.1 * Z_VEL_MAX_M_S;
+/// Still while descending this long [s] means the ground (PX4's ground-contact
+/// hysteresis, a third of `LNDMC_TRIG_TIME` = 1 s).
+const HIT_GROUND_S: f64 = 1.0 / 3.0;
 
 /// A change of the landed state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -60,6 +71,8 @@ pub(super) struct LandDetector {
     /// NED z [m] of the centre of mass resting on the ground, learned from
     /// the first measurement (the vehicle boots on the ground) and while landed.
     rest_z: Option<f64>,
+    /// Since when the vehicle is still while commanded down, in flight [s].
+    stopped_since_s: Option<f64>,
 }
 
 impl LandDetector {
@@ -70,6 +83,7 @@ impl LandDetector {
             ground_contact: true,
             since_s: None,
             rest_z: None,
+            stopped_since_s: None,
         }
     }
 
@@ -88,17 +102,36 @@ impl LandDetector {
         self.rest_z.unwrap_or(m.position_ned.z)
     }
 
-    /// Update with the measurement at `t_k` and the collective thrust
-    /// commanded over the last step [N]; `weight_n` is the nominal weight.
-    pub(super) fn update(&mut self, m: &Measurement, thrust_n: f64, weight_n: f64) -> Option<LandEvent> {
+    /// Update with the measurement at `t_k`, the collective thrust
+    /// commanded over the last step [N] and the vertical velocity the last
+    /// step's reference asked for `v_z,ref` [m/s, NED: positive down];
+    /// `weight_n` is the nominal weight.
+    pub(super) fn update(
+        &mut self,
+        m: &Measurement,
+        thrust_n: f64,
+        weight_n: f64,
+        commanded_vz_m_s: f64,
+    ) -> Option<LandEvent> {
         let now = m.time_s;
-        let rest_z = *self.rest_z.get_or_insert(m.position_ned.z);
+        let mut rest_z = *self.rest_z.get_or_insert(m.position_ned.z);
         let widen = if self.landed { LANDED_WIDENING } else { 1.0 };
         let v = &m.velocity_ned;
         let still = v.z.abs() < Z_VEL_MAX_M_S * widen
             && v.xy().norm() < XY_VEL_MAX_M_S * widen
             && m.rate_frd.xy().norm() < ROT_MAX_RAD_S * widen;
-        let near_ground = (m.position_ned.z - rest_z).abs() <= NEAR_GROUND_M;
+        let mut near_ground = (m.position_ned.z - rest_z).abs() <= NEAR_GROUND_M;
+        if !self.landed && still && commanded_vz_m_s >= IN_DESCEND_M_S {
+            let since = *self.stopped_since_s.get_or_insert(now);
+            if !near_ground && now - since >= HIT_GROUND_S - TIME_EPS {
+                // the ground stopped the descent: it is here, whatever the height says
+                rest_z = m.position_ned.z;
+                self.rest_z = Some(rest_z);
+                near_ground = true;
+            }
+        } else {
+            self.stopped_since_s = None;
+        }
         self.ground_contact = still && near_ground;
         let resting = self.ground_contact && thrust_n <= LOW_THRUST_FRACTION * weight_n;
         let (change, hold_s) = if self.landed {
@@ -144,31 +177,34 @@ mod tests {
     fn landing_needs_contact_and_low_thrust_for_a_while_flying_needs_neither() {
         let mut d = LandDetector::new();
         let w = 20.0;
-        assert_eq!(d.update(&at(0.0, -0.24, 0.0), 0.0, w), None);
+        assert_eq!(d.update(&at(0.0, -0.24, 0.0), 0.0, w, 0.0), None);
         assert!(d.landed() && d.ground_contact());
         // spooling up on the ground: trying to fly is flying after 0.05 s (PX4),
         // while the ground contact lasts
         let mut t = 0.001;
         let mut event = None;
         while event.is_none() && t < 1.0 {
-            event = d.update(&at(t, -0.24, 0.0), 25.0, w);
+            event = d.update(&at(t, -0.24, 0.0), 25.0, w, 0.0);
             t += 0.001;
         }
         assert_eq!(event, Some(LandEvent::TookOff));
         assert!((t - 0.052).abs() < 0.0015, "{t}");
         assert!(d.ground_contact());
         // rising: no contact
-        d.update(&at(t, -0.5, -1.0), 25.0, w);
+        d.update(&at(t, -0.5, -1.0), 25.0, w, 0.0);
         assert!(!d.ground_contact());
         // back at the resting height, still, but high thrust: not landed
         for k in 0..1000 {
-            assert_eq!(d.update(&at(1.0 + k as f64 * 1e-3, -0.24, 0.0), 19.6, w), None);
+            assert_eq!(d.update(&at(1.0 + k as f64 * 1e-3, -0.24, 0.0), 19.6, w, 0.0), None);
         }
         assert!(d.ground_contact() && !d.landed());
         // low thrust: landed after 0.25 s
         let start = 2.0;
         let mut k = 0;
-        while d.update(&at(start + k as f64 * 1e-3, -0.24, 0.0), 1.0, w).is_none() {
+        while d
+            .update(&at(start + k as f64 * 1e-3, -0.24, 0.0), 1.0, w, 0.0)
+            .is_none()
+        {
             k += 1;
             assert!(k < 1000);
         }
@@ -179,12 +215,12 @@ mod tests {
     #[test]
     fn a_slow_climb_is_a_takeoff_and_the_resting_height_stays_on_the_ground() {
         let mut d = LandDetector::new();
-        d.update(&at(0.0, -0.24, 0.0), 0.0, 20.0);
+        d.update(&at(0.0, -0.24, 0.0), 0.0, 20.0, 0.0);
         // climbing at 0.5 m/s (within the landed stillness limit) on hover thrust
         let mut events = Vec::new();
         for k in 1..4000 {
             let t = k as f64 * 1e-3;
-            events.extend(d.update(&at(t, -0.24 - 0.5 * t, -0.5), 20.0, 20.0));
+            events.extend(d.update(&at(t, -0.24 - 0.5 * t, -0.5), 20.0, 20.0, 0.0));
         }
         assert_eq!(events, vec![LandEvent::TookOff]);
         assert!(!d.ground_contact());
@@ -194,17 +230,57 @@ mod tests {
     #[test]
     fn descending_above_the_ground_with_low_thrust_is_not_landed() {
         let mut d = LandDetector::new();
-        d.update(&at(0.0, -0.24, 0.0), 0.0, 20.0);
-        d.update(&at(0.001, -3.0, -2.0), 20.0, 20.0);
-        assert_eq!(d.update(&at(0.1, -3.0, -2.0), 20.0, 20.0), Some(LandEvent::TookOff));
+        d.update(&at(0.0, -0.24, 0.0), 0.0, 20.0, 0.0);
+        d.update(&at(0.001, -3.0, -2.0), 20.0, 20.0, 0.0);
+        assert_eq!(
+            d.update(&at(0.1, -3.0, -2.0), 20.0, 20.0, 0.0),
+            Some(LandEvent::TookOff)
+        );
         // sinking at 0.5 m/s, 20 cm above the resting height, thrust low: no contact
         for k in 0..2000 {
-            assert_eq!(d.update(&at(0.2 + k as f64 * 1e-3, -0.44, 0.5), 2.0, 20.0), None);
+            assert_eq!(d.update(&at(0.2 + k as f64 * 1e-3, -0.44, 0.5), 2.0, 20.0, 0.0), None);
         }
         // hovering still 20 cm up with low thrust (a light vehicle): not landed either
         for k in 0..2000 {
-            assert_eq!(d.update(&at(3.0 + k as f64 * 1e-3, -0.44, 0.0), 2.0, 20.0), None);
+            assert_eq!(d.update(&at(3.0 + k as f64 * 1e-3, -0.44, 0.0), 2.0, 20.0, 0.0), None);
         }
         assert!(!d.ground_contact() && !d.landed());
+    }
+
+    /// GIVEN a vehicle flying down at land speed whose height estimate
+    /// reads 0.5 m above where it rested at boot when it touches down
+    /// WHEN it stops while still commanded down (0.7 m/s), with low thrust
+    /// THEN it is not near the ground by the height, but after 1/3 s still
+    /// the ground is where it stopped: contact, then landed 0.25 s later;
+    /// a stop of less than 1/3 s (the start of a descent) is no contact.
+    #[test]
+    fn stopped_while_commanded_down_is_the_ground_whatever_the_height_says() {
+        let mut d = LandDetector::new();
+        d.update(&at(0.0, -0.24, 0.0), 0.0, 20.0, 0.0);
+        assert_eq!(d.update(&at(0.1, -3.0, -1.0), 20.0, 20.0, 0.0), None);
+        assert_eq!(
+            d.update(&at(0.2, -3.0, -1.0), 20.0, 20.0, 0.0),
+            Some(LandEvent::TookOff)
+        );
+        // a descent starting from a hover: still for 0.3 s while commanded down
+        for k in 0..300 {
+            assert_eq!(d.update(&at(1.0 + k as f64 * 1e-3, -3.0, 0.1), 20.0, 20.0, 0.7), None);
+            assert!(!d.ground_contact());
+        }
+        assert_eq!(d.update(&at(1.3, -2.9, 0.7), 20.0, 20.0, 0.7), None);
+        // stopped 0.5 m above the boot height, commanded down, thrust low
+        let start = 2.0;
+        let mut k = 0;
+        let landed = loop {
+            let t = start + k as f64 * 1e-3;
+            if let Some(e) = d.update(&at(t, -0.74, 0.0), 2.0, 20.0, 0.7) {
+                break (e, t - start);
+            }
+            k += 1;
+            assert!(k < 2000, "never landed");
+        };
+        assert_eq!(landed.0, LandEvent::Landed);
+        assert!((landed.1 - HIT_GROUND_S - LAND_DETECT_S).abs() < 2e-3, "{landed:?}");
+        assert!((d.rest_z(&at(3.0, 0.0, 0.0)) - -0.74).abs() < 1e-9);
     }
 }

@@ -274,7 +274,10 @@ impl Autopilot {
         let weight = self.control.nominal().mass_kg * GRAVITY;
         // a filter still aligning gives no solution to learn the resting height from
         if self.navigation.as_deref().is_none_or(FilterNavigation::ready) {
-            let event = self.land.update(m, self.control.last_applied().thrust_n, weight);
+            let commanded_vz = self.control.output().reference.velocity_ned.z;
+            let event = self
+                .land
+                .update(m, self.control.last_applied().thrust_n, weight, commanded_vz);
             self.commander.land_event(event, now, &mut self.say);
             if self.home_altitude == HomeAltitude::Assumed {
                 self.home_at_rest(m);

@@ -97,6 +97,11 @@ impl LandDetector {
         self.ground_contact
     }
 
+    /// Whether the resting height has been learned (from a first measurement).
+    pub(super) fn has_rest_height(&self) -> bool {
+        self.rest_z.is_some()
+    }
+
     /// NED z [m] of the centre of mass at rest (the measurement's until one arrives).
     pub(super) fn rest_z(&self, m: &Measurement) -> f64 {
         self.rest_z.unwrap_or(m.position_ned.z)

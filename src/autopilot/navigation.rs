@@ -308,6 +308,15 @@ impl FilterNavigation {
         s.tilt_aligned && s.yaw_aligned && s.horizontal_position_valid && s.vertical_position_valid
     }
 
+    /// Whether the land detector may read the solution: attitude aligned and
+    /// the height valid (PX4's land detector needs `v_z_valid`; without a
+    /// horizontal position, as after a GNSS loss, it still finds the ground).
+    #[must_use]
+    pub fn height_ready(&self) -> bool {
+        let s = self.filter.status();
+        s.tilt_aligned && s.yaw_aligned && s.vertical_position_valid
+    }
+
     /// What ESTIMATOR_STATUS and ODOMETRY report of the filter, as PX4's
     /// EKF2 fills `estimator_status` (`Ekf::get_ekf_soln_status`) and
     /// `vehicle_odometry`:

@@ -272,8 +272,14 @@ impl Autopilot {
             self.in_failsafe = None;
         }
         let weight = self.control.nominal().mass_kg * GRAVITY;
-        // a filter still aligning gives no solution to learn the resting height from
-        if self.navigation.as_deref().is_none_or(FilterNavigation::ready) {
+        // a filter still aligning gives no solution to learn the resting
+        // height from; after that the detector needs only the height
+        let land_reads = match self.navigation.as_deref() {
+            None => true,
+            Some(nav) if self.land.has_rest_height() => nav.height_ready(),
+            Some(nav) => nav.ready(),
+        };
+        if land_reads {
             let commanded_vz = self.control.output().reference.velocity_ned.z;
             let event = self
                 .land

@@ -257,21 +257,7 @@ class StillArmed(AssertionError):
     """On the ground, the vehicle has not disarmed in time."""
 
 
-# What rotorpilot does differently from PX4 after a GPS loss on its navigation filter.
-GPS_LOSS_DIFFERS = pytest.mark.xfail(
-    strict=True,
-    raises=StillArmed,
-    reason="rotorpilot descends blind at once and touches down about 14 s after the GPS loss, but its land "
-    "detector never reports landed, so it does not disarm within PX4's 30 s: it counts as ground contact only an "
-    "estimated height within 0.1 m of the height it rested at before takeoff (PX4's multicopter land detector has "
-    "no such test: a commanded descent with no vertical movement and low thrust), and without GNSS the filter's "
-    "barometric height swings by about 1 m for tens of seconds after touchdown (the simulated IMU does not feel "
-    "the touchdown's deceleration)",
-)
-
-
-@pytest.mark.parametrize("height", [pytest.param(BARO, id="baro", marks=GPS_LOSS_DIFFERS),
-                                    pytest.param(GNSS, id="gps", marks=GPS_LOSS_DIFFERS)])
+@pytest.mark.parametrize("height", [BARO, GNSS], ids=["baro", "gps"])
 def test_land_on_gps_lost_during_mission(height):
     """PX4-Autopilot test/mavsdk_tests/test_multicopter_failsafe.cpp, TEST_CASEs
     "Land on GPS lost during mission (baro height mode)" and "Land on GPS

@@ -40,7 +40,7 @@ ROTORPILOT_FUZZ_SECONDS=20 cargo test --release --quiet --test fuzz -- --nocaptu
 echo "== benches compile"
 cargo bench --no-run --quiet
 
-echo "== instructions per step under their ceilings (tools/bench_steps.sh --check: callgrind, bare step and mission-square)"
+echo "== instructions per step under their ceilings (tools/bench_steps.sh --check: callgrind, bare step, mission-square, mission-square on the filter)"
 if ! command -v valgrind >/dev/null; then
     apt-get install -y -qq valgrind >/dev/null 2>&1 || { apt-get update -qq && apt-get install -y -qq valgrind; }
 fi

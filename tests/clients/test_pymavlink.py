@@ -37,7 +37,9 @@ def float_as_int32(f):
 
 @pytest.fixture(params=[SPEED], ids=lambda s: f"x{s:g}")
 def vehicle(request):
-    with Vehicle(speed=request.param) as v:
+    """`request.param`: the speed, or (speed, preset parameters)."""
+    speed, params = request.param if isinstance(request.param, tuple) else (request.param, None)
+    with Vehicle(speed=speed, params=params) as v:
         yield v
         # shown by pytest only when the test failed
         print("rotorpilot log (tail):\n" + v.logs())
@@ -253,8 +255,24 @@ def test_full_parameter_list_at_1x():
         assert took < 3.0, f"{took:.2f} s"
 
 
-@pytest.mark.parametrize("vehicle", [SPEED, FAST], ids=lambda s: f"x{s:g}", indirect=True)
+IDEAL = {"RP_NAV_SRC": 0}
+FILTER = {"RP_NAV_SRC": 1}
+
+
+@pytest.mark.parametrize("vehicle", [(SPEED, IDEAL), (FAST, IDEAL), (SPEED, FILTER)],
+                         ids=["x5-ideal", "x20-ideal", "x5-filter"], indirect=True)
 def test_flight_with_disturbance_estimation_offboard_and_landing(vehicle):
+    """The seed report's experiment over MAVLink: a wrench and a lighter
+    vehicle injected in a hover, estimated. On the ideal navigation solution
+    (the setting kept for the report's experiments) within the report's
+    tolerances; on the navigation filter (the daemon's default) within what
+    its errors allow, measured: its attitude error (0.1 to 1.6 deg in this
+    hover) tilts the thrust the estimator subtracts by m g sin(error), and
+    its vertical accelerometer bias and GNSS height move the vertical force
+    and so the mass (measured: horizontal force within 0.13 N,
+    vertical within 0.59 N, mass within 3 %, torque as on the ideal
+    solution)."""
+    filtered = vehicle.params.get("RP_NAV_SRC") == 1
     m = connect(vehicle)
     # the injected truth: 0.5 N east and north, 0.2 N m yaw torque, a lighter vehicle
     nominal = param_get(m, "SIM_MASS").param_value
@@ -285,12 +303,13 @@ def test_flight_with_disturbance_estimation_offboard_and_landing(vehicle):
           f"EST_MASS {mass.value:.3f} kg (true {true_mass}, nominal {nominal})")
     assert (truth_f.x, truth_f.y) == pytest.approx((0.5, 0.5), abs=1e-3)
     assert truth_m.value == pytest.approx(true_mass, abs=1e-3)
-    assert f.x == pytest.approx(0.5, abs=0.01) and f.y == pytest.approx(0.5, abs=0.01)
+    force_tol, vertical_tol, mass_rel = (0.25, 0.8, 0.05) if filtered else (0.01, 0.05, 0.005)
+    assert f.x == pytest.approx(0.5, abs=force_tol) and f.y == pytest.approx(0.5, abs=force_tol)
     assert tq.z == pytest.approx(0.2, abs=0.004)
-    # within 0.5 %: what is left is ground effect at 3 m (about 0.05 % of the thrust)
-    assert mass.value == pytest.approx(true_mass, rel=0.005)
+    # ideal: within 0.5 %, what is left is ground effect at 3 m (about 0.05 % of the thrust)
+    assert mass.value == pytest.approx(true_mass, rel=mass_rel)
     # the lighter vehicle shows as an upward (negative NED z) force of (m_true - m_nom) g
-    assert f.z == pytest.approx((true_mass - nominal) * 9.81, abs=0.05)
+    assert f.z == pytest.approx((true_mass - nominal) * 9.81, abs=vertical_tol)
 
     # switch the controller in flight: it keeps holding
     ctrl = float_as_int32(param_get(m, "CTRL_TYPE").param_value)

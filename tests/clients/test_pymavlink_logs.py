@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from harness import Vehicle  # noqa: E402
+from harness import FILTER_HEIGHT_DRIFT_M, Vehicle  # noqa: E402
 from harness import wait_message as wait  # noqa: E402
 
 from pymavlink import mavutil  # noqa: E402
@@ -204,7 +204,7 @@ def test_ulog_values_follow_the_flight(ulog):
     lp = topic(ulog, "vehicle_local_position")
     top = lp["z"][0] - lp["z"].min()
     assert abs(top - TAKEOFF_ALT) < 0.4, top
-    assert abs(lp["z"][-1] - lp["z"][0]) < 0.1, "landed at the end"
+    assert abs(lp["z"][-1] - lp["z"][0]) < FILTER_HEIGHT_DRIFT_M, "landed at the end"
     assert lp["xy_valid"].all() and lp["z_valid"].all()
     assert lp["ref_lat"][0] == pytest.approx(47.397742, abs=1e-5)
     gp = topic(ulog, "vehicle_global_position")
@@ -234,7 +234,7 @@ def test_ulog_values_follow_the_flight(ulog):
     truth = topic(ulog, "rotorpilot_sim_truth")
     est = topic(ulog, "rotorpilot_wrench_estimate")
     tz = truth["position_ned[2]"]
-    assert tz[0] - tz.min() == pytest.approx(top, abs=0.3)
+    assert tz[0] - tz.min() == pytest.approx(top, abs=FILTER_HEIGHT_DRIFT_M)
     assert truth["mass_kg"][0] > 0
     # no disturbance injected: the estimated mass is the true one in hover
     flying = np.nonzero(tz[0] - tz > TAKEOFF_ALT - 0.3)[0]

@@ -203,6 +203,7 @@ def check_odometry_against_local_position(a):
     return pairs[-1][0]
 
 
+@pytest.mark.parametrize("vehicle", [{"RP_NAV_SRC": 0}], ids=["ideal"], indirect=True)
 def test_navigation_messages_at_px4_rates_and_true_to_the_hover(vehicle):
     m = connect(vehicle)
     a = api_link(vehicle)
@@ -249,8 +250,8 @@ def test_navigation_messages_at_px4_rates_and_true_to_the_hover(vehicle):
     assert any(x.get_type() == "VIBRATION" for x in got), got
 
 
-@pytest.mark.parametrize("vehicle", [{"RP_NAV_SRC": 1}], ids=["filter"], indirect=True)
 def test_estimator_status_and_odometry_from_the_navigation_filter(vehicle):
+    """On the daemon's default navigation source, the filter."""
     m = connect(vehicle)
     a = api_link(vehicle)
     hover(m)

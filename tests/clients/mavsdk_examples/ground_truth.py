@@ -10,8 +10,10 @@ home.
 
 from common import bail, bring_up, ground_gap_m, launch, next_matching, sample, touchdown
 
-POS_TOL = 0.5  # m, the navigation solution's noise is centimetres
-ALT_TOL = 0.5  # m
+POS_TOL = 0.5  # m, the navigation filter's horizontal error is decimetres
+# m: its height moves off the truth with GNSS height over a flight (measured
+# up to 0.57 m on the ground after landing)
+ALT_TOL = 1.0
 RATE_HZ = 20.0
 
 

@@ -653,8 +653,10 @@ impl Lockstep<Autopilot> {
         autopilot.set_client_clock(old.client_clock());
         self.world.restart_vehicle(i, old.airframe());
         self.world.configure(i, &WorldSettings::from_store(params));
-        if autopilot.navigation().is_some() && !self.world.raw_sensors_enabled(i) {
-            // the filter is fed by the raw sensors
+        if autopilot.navigation().is_some() || self.world.raw_sensors_enabled(i) {
+            // the raw sensors power-cycle with the vehicle (the filter is fed
+            // by them): a fresh start of their stream and sample instants, so
+            // a flight after a reboot is a fresh vehicle's
             self.world.enable_raw_sensors(i, autopilot.origin());
         }
         self.pilots[i] = autopilot;

@@ -507,7 +507,8 @@ impl World {
 
     /// Restart vehicle `i` (a reboot): resting below the NED origin, rotors
     /// still, a full battery, no disturbance and no fault; the clock and the
-    /// sensors' random stream go on.
+    /// navigation solution's random stream go on (the raw sensors restart
+    /// when enabled again, [`Self::enable_raw_sensors`]).
     pub fn restart_vehicle(&mut self, i: usize, airframe: &Airframe) {
         let steps = self.steps;
         let b = &mut self.bodies[i];
@@ -533,7 +534,8 @@ impl World {
     /// appear in its [`SensorReadings::raw`]. Off by default: a flight that
     /// nothing reads them from (a headless run) does not pay for them, and
     /// they change no other number of a flight. Enabling them again restarts
-    /// them (a new home).
+    /// them (a new home, their stream from its start, their sample instants
+    /// counted from their first sample).
     pub fn enable_raw_sensors(&mut self, i: usize, home: GeoPoint) {
         let b = &mut self.bodies[i];
         b.raw = Some(Box::new(RawSensors::new(home, self.dt_s, b.seed)));

@@ -208,6 +208,9 @@ pub(super) struct RawSensors {
     /// Sums over the steps since the last IMU sample: specific force [m/s^2]
     /// and body rate [rad/s], FRD, and how many steps they hold.
     imu_sum: (Vector3<f64>, Vector3<f64>, u32),
+    /// The step of the first sample (the sensors' power-on): the sample
+    /// instants are counted from it.
+    first_step: Option<u64>,
 }
 
 impl RawSensors {
@@ -244,6 +247,7 @@ impl RawSensors {
             last: RawSensorReadings::default(),
             last_velocity_ned: None,
             imu_sum: (Vector3::zeros(), Vector3::zeros(), 0),
+            first_step: None,
         }
     }
 
@@ -266,7 +270,8 @@ impl RawSensors {
         out: &mut RawSensorReadings,
     ) {
         let t = truth.time_s;
-        let k = (t / self.dt_s).round() as u64;
+        let step = (t / self.dt_s).round() as u64;
+        let k = step.saturating_sub(*self.first_step.get_or_insert(step));
         let r: &UnitQuaternion<f64> = &truth.attitude;
         let a = match self.last_velocity_ned {
             Some(v0) => (truth.velocity_ned - v0) / self.dt_s,

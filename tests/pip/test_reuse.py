@@ -125,7 +125,8 @@ def test_2_sees_a_fresh_vehicle(rotorpilot_mavlink, rotorpilot_vehicle):
     m.mav.command_long_send(m.target_system, 1, mavutil.mavlink.MAV_CMD_REQUEST_MESSAGE, 0, 242, 0, 0, 0, 0, 0, 0)
     home = recv(m, "HOME_POSITION", timeout=5)
     pos = recv(m, "GLOBAL_POSITION_INT")
-    assert abs(pos.lat - home.latitude) <= 1 and abs(pos.lon - home.longitude) <= 1, (pos, home)
+    # at home within the navigation filter's horizontal error on the ground (0.3 m: 27e-7 deg of latitude)
+    assert abs(pos.lat - home.latitude) <= 27 and abs(pos.lon - home.longitude) <= 40, (pos, home)
     assert abs(pos.relative_alt) < 300 and abs(pos.vz) < 5, pos
     # no failure left: it climbs to the default takeoff altitude on all four motors and holds level
     m.arducopter_arm()
@@ -243,7 +244,9 @@ def without_step(inputs):
 
 
 def test_a_flight_after_a_reset_is_a_fresh_vehicles_flight(tmp_path):
-    opts = dict(speed=10, extra_args=["--log-csv"], root=str(tmp_path))
+    # on the ideal navigation solution: to the bit (on the daemon's default,
+    # the navigation filter, within its time stamps' rounding: docs/testing.md)
+    opts = dict(speed=10, params={"RP_NAV_SRC": 0}, extra_args=["--log-csv"], root=str(tmp_path))
     fresh = Vehicle(**opts).start()
     try:
         short_flight(fresh)

@@ -351,7 +351,9 @@ impl NavFilter {
         if !self.tilt_aligned {
             self.align.dt_s += imu.dt_s;
             self.align.dv_ned += imu.delta_velocity_frd_m_s;
-            if self.align.dt_s >= timeouts::ALIGN_S {
+            // half a sample of slack: the intervals are differences of
+            // time stamps, whose rounding must not move the alignment a sample
+            if self.align.dt_s >= timeouts::ALIGN_S - 0.5 * imu.dt_s {
                 self.align_tilt();
             }
             return Ok(());

@@ -34,10 +34,13 @@ async def main():
         bail(f"at rest the accelerometer reads {down:.3f} m/s^2 on z, not about -9.81")
     if any(abs(i.angular_velocity_frd.down_rad_s) > 0.05 for i in seen):
         bail("a vehicle at rest turns, says the gyroscope")
-    m = seen[-1].magnetic_field_frd
-    field = (m.forward_gauss ** 2 + m.right_gauss ** 2 + m.down_gauss ** 2) ** 0.5
-    if abs(field - 0.486) > 0.05 or m.down_gauss < 0.3:
-        bail(f"the magnetic field is {field:.3f} G ({m.down_gauss:.3f} G down)")
+    # the field averaged over the samples: one sample's noise (0.02 to 0.03 G
+    # an axis, PX4's sensor_mag_sim) is 2 sigma off 0.05 G now and then
+    f, r, d = (sum(getattr(i.magnetic_field_frd, k) for i in seen) / len(seen)
+               for k in ("forward_gauss", "right_gauss", "down_gauss"))
+    field = (f ** 2 + r ** 2 + d ** 2) ** 0.5
+    if abs(field - 0.486) > 0.05 or d < 0.3:
+        bail(f"the magnetic field is {field:.3f} G ({d:.3f} G down), averaged over {len(seen)} samples")
     if len({i.acceleration_frd.down_m_s2 for i in seen}) < SAMPLES // 2:
         bail("the accelerometer repeats itself: no noise")
     if not all(b.timestamp_us > a.timestamp_us for a, b in zip(seen, seen[1:]) if b.timestamp_us != a.timestamp_us):

@@ -187,6 +187,17 @@ fn every(rate_hz: f64, dt_s: f64) -> u64 {
 }
 
 /// One vehicle's raw sensors.
+/// Sums over the simulation steps since the IMU's last sample, FRD.
+#[derive(Clone, Copy, Debug, Default)]
+struct ImuSum {
+    /// Specific force [m/s^2].
+    force_frd: Vector3<f64>,
+    /// Body rate [rad/s].
+    rate_frd: Vector3<f64>,
+    /// How many steps the sums hold.
+    steps: u32,
+}
+
 #[derive(Clone, Debug)]
 pub(super) struct RawSensors {
     home: GeoPoint,
@@ -205,9 +216,8 @@ pub(super) struct RawSensors {
     last: RawSensorReadings,
     /// The true NED velocity at the last step [m/s] (None before the first).
     last_velocity_ned: Option<Vector3<f64>>,
-    /// Sums over the steps since the last IMU sample: specific force [m/s^2]
-    /// and body rate [rad/s], FRD, and how many steps they hold.
-    imu_sum: (Vector3<f64>, Vector3<f64>, u32),
+    /// What the IMU has summed since its last sample.
+    imu_sum: ImuSum,
     /// The step of the first sample (the sensors' power-on): the sample
     /// instants are counted from it.
     first_step: Option<u64>,
@@ -246,7 +256,7 @@ impl RawSensors {
             pending: None,
             last: RawSensorReadings::default(),
             last_velocity_ned: None,
-            imu_sum: (Vector3::zeros(), Vector3::zeros(), 0),
+            imu_sum: ImuSum::default(),
             first_step: None,
         }
     }
@@ -278,9 +288,9 @@ impl RawSensors {
             None => *accel_ned,
         };
         self.last_velocity_ned = Some(truth.velocity_ned);
-        self.imu_sum.0 += r.inverse_transform_vector(&(a - Vector3::new(0.0, 0.0, GRAVITY)));
-        self.imu_sum.1 += truth.rate_frd;
-        self.imu_sum.2 += 1;
+        self.imu_sum.force_frd += r.inverse_transform_vector(&(a - Vector3::new(0.0, 0.0, GRAVITY)));
+        self.imu_sum.rate_frd += truth.rate_frd;
+        self.imu_sum.steps += 1;
         if k.is_multiple_of(self.every[0]) {
             let dt = self.every[0] as f64 * self.dt_s;
             let (phi_a, sd_a) = gauss_markov(ACCEL_RANDOM_WALK, ACCEL_BIAS_TAU_S, dt);
@@ -289,10 +299,10 @@ impl RawSensors {
             let n_w = self.gauss3() * (GYRO_NOISE_DENSITY / dt.sqrt());
             let db_a = self.gauss3() * sd_a;
             let db_w = self.gauss3() * sd_w;
-            let (sum_f, sum_w, n) = std::mem::replace(&mut self.imu_sum, (Vector3::zeros(), Vector3::zeros(), 0));
-            let n = f64::from(n);
-            let accel = sum_f / n + self.accel_bias + n_a;
-            let gyro = sum_w / n + self.gyro_bias + n_w;
+            let sum = std::mem::take(&mut self.imu_sum);
+            let n = f64::from(sum.steps);
+            let accel = sum.force_frd / n + self.accel_bias + n_a;
+            let gyro = sum.rate_frd / n + self.gyro_bias + n_w;
             self.accel_bias = self.accel_bias * phi_a + db_a;
             self.gyro_bias = self.gyro_bias * phi_w + db_w;
             out.accel = apply(faults.accel, &mut self.last.accel, AxesSample { time_s: t, frd: accel });

@@ -18,7 +18,10 @@
 //! ground is also found as PX4 finds it (`hit_ground`): still while
 //! commanded down, `v_z,ref >= 1.1 LNDMC_Z_VEL_MAX`, for 1/3 s
 //! (`LNDMC_TRIG_TIME / 3`) means the ground stopped the vehicle, and
-//! `z_rest` becomes the measured height there.
+//! `z_rest` becomes the measured height there — if the thrust is then
+//! below `0.9 m g`: only the ground holds a still vehicle up on less than
+//! its weight. (In the air a correction of the height estimate can stop a
+//! descent for as long, the controller braking with more than its weight.)
 //! PX4 tells ground contact from a range sensor or from the thrust and its
 //! integrators; this world's ground is flat, so the height at which the
 //! vehicle last rested does that job. PX4 cuts the thrust on ground contact
@@ -51,6 +54,8 @@ const IN_DESCEND_M_S: f64 = 1.1 * Z_VEL_MAX_M_S;
 /// Still while descending this long [s] means the ground (PX4's ground-contact
 /// hysteresis, a third of `LNDMC_TRIG_TIME` = 1 s).
 const HIT_GROUND_S: f64 = 1.0 / 3.0;
+/// The ground carries the vehicle when it is still on less thrust than this share of its weight.
+const HIT_GROUND_THRUST_FRACTION: f64 = 0.9;
 
 /// A change of the landed state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -128,7 +133,10 @@ impl LandDetector {
         let mut near_ground = (m.position_ned.z - rest_z).abs() <= NEAR_GROUND_M;
         if !self.landed && still && commanded_vz_m_s >= IN_DESCEND_M_S {
             let since = *self.stopped_since_s.get_or_insert(now);
-            if !near_ground && now - since >= HIT_GROUND_S - TIME_EPS {
+            if !near_ground
+                && now - since >= HIT_GROUND_S - TIME_EPS
+                && thrust_n <= HIT_GROUND_THRUST_FRACTION * weight_n
+            {
                 // the ground stopped the descent: it is here, whatever the height says
                 rest_z = m.position_ned.z;
                 self.rest_z = Some(rest_z);
@@ -204,7 +212,7 @@ mod tests {
         }
         assert!(d.ground_contact() && !d.landed());
         // low thrust: landed after 0.25 s
-        let start = 2.0;
+        let start = 3.0;
         let mut k = 0;
         while d
             .update(&at(start + k as f64 * 1e-3, -0.24, 0.0), 1.0, w, 0.0)
@@ -257,7 +265,8 @@ mod tests {
     /// WHEN it stops while still commanded down (0.7 m/s), with low thrust
     /// THEN it is not near the ground by the height, but after 1/3 s still
     /// the ground is where it stopped: contact, then landed 0.25 s later;
-    /// a stop of less than 1/3 s (the start of a descent) is no contact.
+    /// a stop of less than 1/3 s (the start of a descent) is no contact, nor
+    /// a longer one on more thrust than the weight (braking in the air).
     #[test]
     fn stopped_while_commanded_down_is_the_ground_whatever_the_height_says() {
         let mut d = LandDetector::new();
@@ -273,6 +282,14 @@ mod tests {
             assert!(!d.ground_contact());
         }
         assert_eq!(d.update(&at(1.3, -2.9, 0.7), 20.0, 20.0, 0.7), None);
+        // a descent the controller brakes (its height estimate corrected
+        // upwards): still for a second while commanded down, on more than
+        // the weight: the air, not the ground
+        for k in 0..1000 {
+            assert_eq!(d.update(&at(1.4 + k as f64 * 1e-3, -2.8, 0.0), 20.5, 20.0, 0.7), None);
+            assert!(!d.ground_contact());
+        }
+        assert_eq!(d.update(&at(2.5, -2.7, 0.7), 20.0, 20.0, 0.7), None);
         // stopped 0.5 m above the boot height, commanded down, thrust low
         let start = 2.0;
         let mut k = 0;
@@ -286,6 +303,6 @@ mod tests {
         };
         assert_eq!(landed.0, LandEvent::Landed);
         assert!((landed.1 - HIT_GROUND_S - LAND_DETECT_S).abs() < 2e-3, "{landed:?}");
-        assert!((d.rest_z(&at(3.0, 0.0, 0.0)) - -0.74).abs() < 1e-9);
+        assert!((d.rest_z(&at(4.0, 0.0, 0.0)) - -0.74).abs() < 1e-9);
     }
 }

@@ -275,6 +275,8 @@ async fn every_command_is_acked_from_1_1_to_the_requester() {
 async fn offboard_needs_a_fresh_setpoint_stream() {
     let mut c = Client::new().await;
     let v = vehicle_for(&c).await;
+    // (a position setpoint needs a valid position: the filter's, as in PX4)
+    wait_armable(&mut c).await;
     // WHEN offboard is asked without setpoints THEN TEMPORARILY_REJECTED
     let a = c.command(v.gcs, 176, [1.0, 6.0, 0.0, NAN, NAN, NAN, NAN]).await;
     assert_eq!(a.result, 1);

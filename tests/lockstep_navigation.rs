@@ -4,12 +4,13 @@
 //! hover and along the figure-eight is measured and bounded; a stuck
 //! barometer with `EKF2_HGT_REF` = barometer or GNSS is dropped and the
 //! flight goes on (PX4's "Continue on baro stuck" cases); a scenario that
-//! does not name the source flies the ideal solution.
+//! does not name the source flies the ideal solution; a GNSS loss is flown
+//! through on dead reckoning until the filter or `COM_POS_FS_EPH` ends it.
 //! `cargo test --release --test lockstep_navigation -- --nocapture` prints the figures.
 
 mod common;
 
-use common::sitl::{Sitl, int};
+use common::sitl::{Sitl, int, real};
 use rotorpilot::autopilot::{AutopilotCommand, CommandOutcome, FlightMode};
 use rotorpilot::estimation::nav::HeightSource;
 use rotorpilot::lockstep::{Lockstep, Pilot, failure};
@@ -284,7 +285,8 @@ fn record(v: &mut Sitl, seconds: f64) -> Vec<(Measurement, Measurement)> {
 #[test]
 fn a_flight_after_a_reboot_on_the_filter_is_a_fresh_vehicles() {
     let fly = |v: &mut Sitl| {
-        let mut steps = record(v, 1.0);
+        // the filter valid, then a second of probation before arming (PX4's commander)
+        let mut steps = record(v, 2.5);
         assert_eq!(
             v.command(AutopilotCommand::Arm { force: false }),
             CommandOutcome::Accepted
@@ -325,4 +327,109 @@ fn a_flight_after_a_reboot_on_the_filter_is_a_fresh_vehicles() {
         }
     }
     println!("a flight after a reboot on the filter: at most {largest:.1e} off a fresh vehicle's");
+}
+
+/// Take `v` (on the filter) to `up` m, hover 5 s, turn its GNSS receiver
+/// off; the time of the loss [s].
+fn gnss_off_in_hover(v: &mut Sitl, up: f64) -> f64 {
+    wait_and_take_off(v, up);
+    v.run(5.0);
+    let off = AutopilotCommand::InjectFailure {
+        unit: failure::UNIT_GPS,
+        kind: failure::TYPE_OFF,
+        instance: 0,
+    };
+    assert_eq!(v.command(off), CommandOutcome::Accepted);
+    v.time_s()
+}
+
+/// The time after `t0` [s] at which the mode is first `mode` (within `max_s`),
+/// with the filter's `eph` [m] and horizontal validity at that step.
+fn until_mode(v: &mut Sitl, t0: f64, mode: FlightMode, max_s: f64) -> (f64, f64, bool) {
+    while v.mode() != mode {
+        assert!(v.time_s() - t0 < max_s, "not {mode:?} within {max_s} s: {:?}", v.mode());
+        v.step();
+    }
+    let f = v.pilot().navigation().unwrap().filter();
+    (v.time_s() - t0, f.eph_m(), f.status().horizontal_position_valid)
+}
+
+/// GIVEN the quad on the filter hovering 20 m up in Hold (PX4's defaults:
+/// `COM_POS_FS_EPH` 5 m, `EKF2_NOAID_TOUT` 5 s)
+/// WHEN its GNSS receiver is turned off, and back on 12 s later
+/// THEN it holds on the filter's dead reckoning until the filter declares
+/// its horizontal position invalid (5 s: PX4's `xy_valid`), drifting less
+/// than 1 m meanwhile, and only then descends without a position ("No GPS
+/// fix: descending without position"), a failsafe in force; once the fix is
+/// back the filter is aided again at once but the commander waits a second
+/// of probation before it holds again ("GPS fix regained: holding
+/// position") and the failsafe ends; a landing then ends on the ground
+/// and disarms.
+#[test]
+fn a_gnss_loss_is_flown_through_on_dead_reckoning_until_the_filter_gives_up() {
+    let mut v = quad_on_filter(1);
+    let t0 = gnss_off_in_hover(&mut v, 20.0);
+    let p0 = v.core().world().plant(0).truth().position_ned;
+    let (lost_s, eph, valid) = until_mode(&mut v, t0, FlightMode::Descend, 10.0);
+    let drift = (v.core().world().plant(0).truth().position_ned - p0).xy().norm();
+    println!(
+        "GNSS off in hover: Hold on dead reckoning for {lost_s:.2} s (eph {eph:.2} m, drift {drift:.2} m), then Descend"
+    );
+    assert!((4.5..5.5).contains(&lost_s) && !valid, "{lost_s} {valid}");
+    assert!(drift < 1.0, "{drift}");
+    assert_eq!(v.count("No GPS fix: descending without position"), 1, "{:?}", v.said());
+    assert!(v.pilot().failsafe_in_force().is_some_and(|f| f.cause == "no GPS fix"));
+    v.run(12.0 - lost_s);
+    let ok = AutopilotCommand::InjectFailure {
+        unit: failure::UNIT_GPS,
+        kind: failure::TYPE_OK,
+        instance: 0,
+    };
+    assert_eq!(v.command(ok), CommandOutcome::Accepted);
+    let t1 = v.time_s();
+    let (back_s, _, valid) = until_mode(&mut v, t1, FlightMode::Hold, 5.0);
+    println!("GNSS back: Hold again {back_s:.2} s later");
+    assert!(valid && (1.0..3.0).contains(&back_s), "{back_s}");
+    assert_eq!(v.count("GPS fix regained: holding position"), 1, "{:?}", v.said());
+    assert!(v.pilot().failsafe_in_force().is_none());
+    // the height estimate jumped when GNSS height came back mid-descent:
+    // that stop in the air is no ground; the landing ends on the ground
+    assert_eq!(
+        v.command(AutopilotCommand::SetMode(FlightMode::Land)),
+        CommandOutcome::Accepted
+    );
+    let (t2, mut fastest): (f64, f64) = (v.time_s(), 0.0);
+    while v.armed() {
+        v.step();
+        fastest = fastest.max(v.core().world().plant(0).truth().velocity_ned.z);
+        assert!(v.time_s() - t2 < 60.0, "still armed 60 s after Land");
+    }
+    let up = -v.core().world().plant(0).truth().position_ned.z;
+    assert!(
+        up < 0.5 && fastest < 2.0,
+        "disarmed {up} m up, fastest descent {fastest} m/s"
+    );
+}
+
+/// GIVEN the quad on the filter hovering 10 m up in Hold with
+/// `COM_POS_FS_EPH` = 0.5 m (its `eph` in hover about 0.3 m)
+/// WHEN its GNSS receiver is turned off
+/// THEN the autonomous mode gives up as soon as the filter's `eph` passes
+/// 2.5 times the threshold (PX4's hysteresis for a valid solution), while
+/// the filter still calls its position valid: before its 5 s dead-reckoning
+/// limit. Arming waited for the accuracy as well.
+#[test]
+fn com_pos_fs_eph_ends_the_dead_reckoning_when_the_filter_grows_unsure() {
+    let mut v = Sitl::quad()
+        .params(&[
+            ("RP_NAV_SRC", int(1)),
+            ("SYS_FAILURE_EN", int(1)),
+            ("COM_POS_FS_EPH", real(0.5)),
+        ])
+        .build();
+    let t0 = gnss_off_in_hover(&mut v, 10.0);
+    let (lost_s, eph, valid) = until_mode(&mut v, t0, FlightMode::Descend, 10.0);
+    println!("GNSS off, COM_POS_FS_EPH 0.5 m: Descend after {lost_s:.2} s at eph {eph:.2} m");
+    assert!(valid && lost_s < 4.8, "{lost_s} {valid}");
+    assert!((1.25..1.4).contains(&eph), "{eph}");
 }

@@ -187,6 +187,8 @@ const SHARED_WITH_PX4: &[&str] = &[
     "BAT1_N_CELLS",
     "BAT1_CAPACITY",
     "SIM_BAT_MIN_PCT",
+    "COM_POS_FS_EPH",
+    "COM_VEL_FS_EVH",
     "COM_DL_LOSS_T",
     "NAV_DLL_ACT",
     "BAT_LOW_THR",

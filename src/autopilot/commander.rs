@@ -18,6 +18,7 @@ use super::command::{AutopilotCommand, CommandOutcome, PowerAction};
 use super::failsafe::{ClientTimer, PendingTimer};
 use super::land_detector::LandEvent;
 use super::navigator::{HoldTarget, ManualMode, Nav, OrbitChange};
+use super::position_checks::PositionNeed;
 use super::settings::FailsafeAction;
 use super::status::{Announcements, Severity};
 use super::{Autopilot, FlightMode, ManualControl, OffboardSetpoint, TargetFix};
@@ -43,8 +44,8 @@ pub(super) struct Prearm {
     pub(super) estimator_initialised: bool,
     /// Home is a valid point.
     pub(super) home_valid: bool,
-    /// The GNSS fix is lost and the mode steers by position.
-    pub(super) position_needed_without_fix: bool,
+    /// The mode steers by a position that is lost: why (`no GPS fix`, ...).
+    pub(super) mode_without_position: Option<&'static str>,
     /// Every rotor is healthy (the rotor monitor).
     pub(super) rotors_healthy: bool,
     /// The battery warning level in force.
@@ -71,8 +72,8 @@ impl Prearm {
         if !self.home_valid {
             return Some("home position invalid");
         }
-        if self.position_needed_without_fix {
-            return Some("no GPS fix");
+        if let Some(why) = self.mode_without_position {
+            return Some(why);
         }
         if !self.rotors_healthy {
             return Some("ESC failure");
@@ -423,7 +424,10 @@ impl Autopilot {
             position_valid: self.navigation().is_none_or(super::navigation::FilterNavigation::ready),
             estimator_initialised: self.control_initialised(),
             home_valid: self.home.is_valid(),
-            position_needed_without_fix: self.navigator.gps_lost() && self.navigator.needs_position(),
+            mode_without_position: {
+                let position = self.navigator.position();
+                (!position.serves(self.navigator.position_need())).then(|| position.loss.cause())
+            },
             rotors_healthy: self.rotor_status().iter().all(|r| *r == RotorStatus::Healthy),
             battery: self.battery_warning(),
             data_link_lost_with_action: self.failsafe.data_link_is_lost()
@@ -503,13 +507,16 @@ impl Autopilot {
         if let Some(refused) = self.commander.refuse_unless_armed("Land", &mut self.say) {
             return refused;
         }
-        if self.navigator.gps_lost() {
+        let position = self.navigator.position();
+        if !position.serves(PositionNeed::Relaxed) {
             if !matches!(self.navigator.nav(), Nav::Descend { .. }) {
-                // a landing asked for: the fix back keeps landing
+                // a landing asked for: the position back keeps landing
                 self.navigator.enter_descend(super::navigator::DescendThen::Land);
-                self.enter_gps_lost_failsafe();
-                self.say
-                    .announce(Severity::Critical, "No GPS fix: descending without position");
+                self.enter_failsafe(position.loss.cause());
+                self.say.announce(
+                    Severity::Critical,
+                    format!("{}: descending without position", position.loss.lost()),
+                );
             }
             return CommandOutcome::Accepted;
         }
@@ -576,8 +583,7 @@ impl Autopilot {
             FlightMode::ReturnToLaunch => self.return_to_launch(m),
             FlightMode::Offboard => {
                 if self.offboard_fresh(m.time_s) {
-                    if self.navigator.offboard_needs_position()
-                        && let Some(refused) = self.refuse_without_position("Switching to Offboard")
+                    if let Some(refused) = self.refuse_without(self.navigator.offboard_need(), "Switching to Offboard")
                     {
                         return refused;
                     }
@@ -806,23 +812,27 @@ impl Autopilot {
                 CommandOutcome::TemporarilyRejected("no manual control input"),
             );
         }
-        if mode == ManualMode::Position && self.navigator.gps_lost() {
-            return self.refuse(
-                Severity::Critical,
-                "Switching to Position denied: no GPS fix",
-                CommandOutcome::TemporarilyRejected("no position estimate"),
-            );
+        if mode == ManualMode::Position
+            && let Some(refused) = self.refuse_without(PositionNeed::Relaxed, "Switching to Position")
+        {
+            return refused;
         }
         self.navigator.enter_manual(mode);
         CommandOutcome::Accepted
     }
 
-    /// Refuse `what` while the GNSS fix is lost (it needs a position).
+    /// Refuse `what` (an autonomous mode) while the position is lost.
     pub(super) fn refuse_without_position(&mut self, what: &str) -> Option<CommandOutcome> {
-        self.navigator.gps_lost().then(|| {
+        self.refuse_without(PositionNeed::Accurate, what)
+    }
+
+    /// Refuse `what`, which needs `need` of the position, while that is not valid.
+    fn refuse_without(&mut self, need: PositionNeed, what: &str) -> Option<CommandOutcome> {
+        let position = self.navigator.position();
+        (!position.serves(need)).then(|| {
             self.refuse(
                 Severity::Critical,
-                &format!("{what} denied: no GPS fix"),
+                &format!("{what} denied: {}", position.loss.cause()),
                 CommandOutcome::TemporarilyRejected("no position estimate"),
             )
         })
@@ -843,7 +853,7 @@ mod tests {
             position_valid: true,
             estimator_initialised: true,
             home_valid: true,
-            position_needed_without_fix: false,
+            mode_without_position: None,
             rotors_healthy: true,
             battery: BatteryWarning::None,
             data_link_lost_with_action: false,
@@ -859,7 +869,7 @@ mod tests {
             position_valid: false,
             estimator_initialised: false,
             home_valid: false,
-            position_needed_without_fix: true,
+            mode_without_position: Some("no GPS fix"),
             rotors_healthy: false,
             battery: BatteryWarning::Emergency,
             data_link_lost_with_action: true,
@@ -890,7 +900,7 @@ mod tests {
             ),
             (
                 Prearm {
-                    position_needed_without_fix: true,
+                    mode_without_position: Some("no GPS fix"),
                     ..ready()
                 },
                 "no GPS fix",

@@ -46,6 +46,7 @@ use nalgebra::Vector3;
 use super::battery::BatteryWarning;
 use super::geofence::{self, Breach, Fence};
 use super::navigator::{DescendThen, Nav};
+use super::position_checks::PositionValidity;
 use super::settings::{FailsafeAction, FailsafeSettings};
 use super::status::{Announcements, Severity};
 use super::{Autopilot, TIME_EPS};
@@ -301,16 +302,16 @@ pub(super) enum Response {
 /// as PX4 does ("Failsafe activated due to {cause}, triggering {action}",
 /// shortened to fit a STATUSTEXT: "Failsafe: {cause}, triggering
 /// {action}"); `None` when nothing is to be done. Disarmed, nothing
-/// happens; a warning is only said. While the GNSS fix is lost
-/// (`gps_lost`), Hold, Return and Land become Descend (remembering which,
-/// for when the fix returns). A mode already in force (`nav`) is not entered
+/// happens; a warning is only said. While the position does not serve
+/// Hold, Return or Land (`position`), each becomes Descend (remembering
+/// which, for when the position returns). A mode already in force (`nav`) is not entered
 /// again, and a landing (`landing`: Land, Descend, a return's or a mission's
 /// landing) is not interrupted by Hold, Return or Land (PX4).
 pub(super) fn respond(
     cause: &str,
     action: FailsafeAction,
     armed: bool,
-    gps_lost: bool,
+    position: PositionValidity,
     nav: Nav,
     landing: bool,
     say: &mut Announcements,
@@ -332,7 +333,7 @@ pub(super) fn respond(
         _ => None,
     };
     let action = match then {
-        Some(_) if gps_lost => FailsafeAction::Descend,
+        Some(then) if !position.serves(then.need()) => FailsafeAction::Descend,
         _ => action,
     };
     let already = match action {
@@ -526,7 +527,7 @@ impl Autopilot {
     }
 
     /// The geofence on the current position, armed and in the air
-    /// ([`Failsafe::geofence`]). Not checked while the GNSS fix is lost (PX4
+    /// ([`Failsafe::geofence`]). Not checked while the position is lost (PX4
     /// checks the fence only with a valid global position; the drifting
     /// solution would breach it).
     fn supervise_geofence(&mut self, m: &Measurement) {
@@ -534,7 +535,7 @@ impl Autopilot {
             self.failsafe.geofence_at_rest();
             return;
         }
-        if self.navigator.gps_lost() {
+        if self.navigator.position_lost() {
             return;
         }
         let breach = self.geofence_breach(&m.position_ned);
@@ -574,7 +575,7 @@ impl Autopilot {
             cause,
             action,
             self.commander.armed(),
-            self.navigator.gps_lost(),
+            self.navigator.position(),
             self.navigator.nav(),
             self.navigator.landing(),
             &mut self.say,
@@ -693,8 +694,9 @@ mod tests {
     fn the_runner_chooses_the_response() {
         let mut say = Announcements::default();
         let hold = Nav::Hold { target: None };
-        let run = |action, armed, gps_lost, nav, landing, say: &mut Announcements| {
-            respond("GCS connection lost", action, armed, gps_lost, nav, landing, say)
+        let run = |action, armed, lost: bool, nav, landing, say: &mut Announcements| {
+            let position = PositionValidity::all(!lost);
+            respond("GCS connection lost", action, armed, position, nav, landing, say)
         };
         // disarmed or none: nothing, not even a message
         assert_eq!(run(FailsafeAction::Return, false, false, hold, false, &mut say), None);

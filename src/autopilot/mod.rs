@@ -11,7 +11,7 @@
 //! | `stack` | [`Autopilot`]: the state, parameters, and one step in order (sense, detect, supervise, guide, act) |
 //! | `command` | the commands a client gives ([`AutopilotCommand`]) and the answers ([`CommandOutcome`]) |
 //! | `commander` | commands: the `Commander` (arming state, prearm checks, disarm, auto-disarm timers, reboot and failure-injection gates) and the wiring of each command (the mode state machine, home) |
-//! | `navigator/` | guidance per mode family: `auto` (hold, takeoff, land, return), `offboard` (setpoints and their frames), `mission` (the stored mission flown as paths), `manual` (sticks and the manual modes), `blind` (the descent without a GPS fix), `orbit` (circling a centre) |
+//! | `navigator/` | guidance per mode family: `auto` (hold, takeoff, land, return), `offboard` (setpoints and their frames), `mission` (the stored mission flown as paths), `manual` (sticks and the manual modes), `blind` (the descent without a position), `orbit` (circling a centre) |
 //! | `mission` | the mission as the commander sees it: start, set current, what a new upload does, MISSION_CURRENT's state |
 //! | `failsafe` | supervision: the `Failsafe` (data link, battery level, geofence breach, clamp notice, client clock) and the one runner's choice; offboard, data-link, manual-control loss, battery, geofence, auto-disarm wired through it; which clock the timers that wait for a client run on |
 //! | `geofence` | the stored fence's zones and PX4's distance limits, as pure geometry |
@@ -20,6 +20,7 @@
 //! | `estimate` | the wrench estimate fed back: held on the ground, cross-faded after a rebuild |
 //! | `control_loop` | estimator update, control law, allocation (around a lost rotor; relaxed hover for a quad): the loop every pilot shares |
 //! | `navigation` | the navigation solution flown on (`RP_NAV_SRC`): the readings' own, or the navigation filter fed by the raw sensors |
+//! | `position_checks` | whether the horizontal solution may be flown on (PX4's `COM_POS_FS_EPH`, `COM_VEL_FS_EVH` with their hysteresis), and what each mode needs of it |
 //! | `wind` | the wind estimate reported (WIND_COV): the estimated force through the nominal drag model, filtered |
 //! | `battery` | the battery monitor: charge used and remaining from voltage and current |
 //! | `telemetry` | the snapshot clients are told |
@@ -64,9 +65,12 @@
 //!   most centred where it is a climb rate). Sticks older than
 //!   `COM_RC_LOSS_T` in a manual mode: "Manual control lost", then
 //!   `NAV_RCL_ACT` (Return by default); not in the automatic modes.
-//! * GPS loss (`navigator/blind`): a mode that steers by position descends
-//!   without it (PX4's Descend, AUTO.LAND in the heartbeat), Position falls
-//!   back to Altitude; the fix back before touchdown gives Hold (Position).
+//! * Position loss (`navigator/blind`, `position_checks`): a mode that
+//!   steers by position descends without it (PX4's Descend, AUTO.LAND in
+//!   the heartbeat), Position falls back to Altitude; the position back
+//!   before touchdown gives Hold (Position). On the ideal solution the
+//!   position is lost with the GNSS fix; on the filter when the filter's
+//!   own accuracy says so (it dead-reckons through a short GNSS loss).
 //! * References come from the jerk-limited shaper ([`crate::control::shaper`])
 //!   with the mode's speed limits; offboard attitude and rates go to
 //!   [`crate::control::Controller::update_attitude`].
@@ -109,6 +113,7 @@ mod land_detector;
 mod mission;
 mod navigation;
 mod navigator;
+mod position_checks;
 mod rotor_monitor;
 mod settings;
 mod stack;

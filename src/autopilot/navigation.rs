@@ -21,6 +21,7 @@
 
 use nalgebra::{UnitQuaternion, Vector3};
 
+use super::position_checks::HorizontalAccuracy;
 use super::telemetry::{InnovationRatios, NavVariances, NavigationReport, SolutionStatus};
 use crate::estimation::nav::{BaroHeight, GnssCtrl, GnssFix, HeightRef, ImuDelta, MagField, NavConfig, NavFilter};
 use crate::geo::{GeoPoint, earth_field_ned_gauss, pressure_altitude_m};
@@ -306,6 +307,22 @@ impl FilterNavigation {
     pub fn ready(&self) -> bool {
         let s = self.filter.status();
         s.tilt_aligned && s.yaw_aligned && s.horizontal_position_valid && s.vertical_position_valid
+    }
+
+    /// What the commander reads of the horizontal solution (PX4's
+    /// `vehicle_local_position`): valid while aligned and aided within
+    /// `EKF2_NOAID_TOUT` (`xy_valid`, `v_xy_valid`), with `eph` and `evh`;
+    /// `fix`: the receiver's, to say why a position is lost.
+    #[must_use]
+    pub(super) fn horizontal_accuracy(&self, fix: bool) -> HorizontalAccuracy {
+        let f = &self.filter;
+        let s = f.status();
+        HorizontalAccuracy {
+            valid: s.tilt_aligned && s.yaw_aligned && s.horizontal_position_valid,
+            eph_m: f.eph_m(),
+            evh_m_s: f.evh_m_s(),
+            fix,
+        }
     }
 
     /// Whether the land detector may read the solution: attitude aligned and

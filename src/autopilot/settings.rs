@@ -150,6 +150,10 @@ pub(super) struct FailsafeSettings {
     pub(super) geofence_action: FailsafeAction,
     /// `GF_MAX_HOR_DIST`, `GF_MAX_VER_DIST`.
     pub(super) geofence_limits: DistanceLimits,
+    /// `COM_POS_FS_EPH` [m] (negative: no limit).
+    pub(super) position_eph_max_m: f64,
+    /// `COM_VEL_FS_EVH` [m/s].
+    pub(super) velocity_evh_max_m_s: f64,
 }
 
 impl FailsafeSettings {
@@ -169,6 +173,8 @@ impl FailsafeSettings {
                 max_horizontal_m: p.real(Param::GF_MAX_HOR_DIST),
                 max_vertical_m: p.real(Param::GF_MAX_VER_DIST),
             },
+            position_eph_max_m: p.real(Param::COM_POS_FS_EPH),
+            velocity_evh_max_m_s: p.real(Param::COM_VEL_FS_EVH),
         }
     }
 

@@ -15,6 +15,7 @@ use super::failsafe::Failsafe;
 use super::land_detector::LandDetector;
 use super::navigation::{FilterNavigation, NavSource, ideal_navigation_report, nav_config};
 use super::navigator::Navigator;
+use super::position_checks::{PositionChecks, PositionLoss, PositionValidity};
 use super::rotor_monitor::{RotorEvent, RotorMonitor, RotorStatus};
 use super::settings::FailsafeAction;
 use super::settings::Settings;
@@ -111,12 +112,11 @@ pub struct Autopilot {
     /// The navigation filter flown on (`RP_NAV_SRC` = 1, read at boot);
     /// `None`: the readings' own navigation solution.
     navigation: Option<Box<FilterNavigation>>,
+    /// The commander's checks of the filter's horizontal accuracy (unused on the ideal solution).
+    position_checks: PositionChecks,
     /// The IMU's vibration metrics (PX4's `vehicle_imu_status`), from the raw samples.
     vibration: VibrationMonitor,
 }
-
-/// The cause of the failsafe that replaces a mode needing a position when the GNSS fix is lost.
-const GPS_LOST: &str = "no GPS fix";
 
 /// A failsafe in force: an action the pilot did not command, taken by the
 /// flight stack (PX4's failsafe framework: `vehicle_status.failsafe` is
@@ -190,6 +190,7 @@ impl Autopilot {
                 NavSource::Ideal => None,
                 NavSource::Filter => Some(Box::new(FilterNavigation::new(nav_config(params), home))),
             },
+            position_checks: PositionChecks::default(),
             vibration: VibrationMonitor::default(),
         };
         ap.home_ned = ap.home.ned_from(&ap.origin);
@@ -310,18 +311,22 @@ impl Autopilot {
             self.control.cut_relaxed_hover();
         }
         self.supervise(m);
-        // the GNSS fix; the sticks' loss is a client timer (in `supervise`)
-        let gps_lost = readings.gps.fix == GpsFix::None;
+        // the position; the sticks' loss is a client timer (in `supervise`)
+        let position = self.position_validity(readings);
         let armed = self.commander.armed();
         let cx = situation!(self, m);
         let mode = self.navigator.mode();
-        self.navigator.supervise_gps(gps_lost, armed, &cx, &mut self.say);
+        self.navigator.supervise_position(position, armed, &cx, &mut self.say);
         if self.navigator.mode() != mode {
-            if gps_lost {
+            if self.navigator.flying_blind() {
                 // a mode it cannot fly without a position, replaced
-                self.enter_failsafe(GPS_LOST);
-            } else if self.in_failsafe.as_ref().is_some_and(|f| f.cause == GPS_LOST) {
-                // the fix is back and what was meant is flown again
+                self.enter_failsafe(position.loss.cause());
+            } else if self
+                .in_failsafe
+                .as_ref()
+                .is_some_and(|f| PositionLoss::is_cause(&f.cause))
+            {
+                // the position is back and what was meant is flown again
                 self.in_failsafe = None;
             }
         }
@@ -439,6 +444,24 @@ impl Autopilot {
             None => Cow::Borrowed(readings),
             Some(nav) => Cow::Owned(nav.readings(readings)),
         }
+    }
+
+    /// The commander's verdict on the horizontal solution at the instant
+    /// of `readings` ([`super::position_checks`]): on the ideal solution
+    /// the GNSS fix alone; on the filter its validity and accuracy against
+    /// `COM_POS_FS_EPH` and `COM_VEL_FS_EVH`, with PX4's hysteresis.
+    fn position_validity(&mut self, readings: &SensorReadings) -> PositionValidity {
+        let fix = readings.gps.fix != GpsFix::None;
+        let Some(nav) = self.navigation.as_deref() else {
+            return PositionValidity::all(fix);
+        };
+        let f = &self.settings.failsafe;
+        self.position_checks.update(
+            readings.measurement.time_s,
+            &nav.horizontal_accuracy(fix),
+            f.position_eph_max_m,
+            f.velocity_evh_max_m_s,
+        )
     }
 
     /// Where the navigation solution comes from (`RP_NAV_SRC` at boot).
@@ -656,11 +679,6 @@ impl Autopilot {
     #[must_use]
     pub fn failsafe_in_force(&self) -> Option<&FailsafeInForce> {
         self.in_failsafe.as_ref()
-    }
-
-    /// The failsafe of a lost GNSS fix acts (a mode needing a position replaced, or Land without one).
-    pub(super) fn enter_gps_lost_failsafe(&mut self) {
-        self.enter_failsafe(GPS_LOST);
     }
 
     /// A failsafe acts for `cause`: in force from now (a new cause is a new failsafe).

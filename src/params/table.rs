@@ -321,6 +321,14 @@ parameters! {
     SIM_GUST_DUR: real(2.0, 0.1, 60.0, "s", "1-cosine gust: duration of one gust"),
     SIM_GUST_PER: real(0.0, 0.0, 3600.0, "s", "1-cosine gust: repeat period (0: a single gust)"),
     // --- PX4: failsafes (data link, battery, geofence) -------------------------------------------
+    COM_POS_FS_EPH: real(
+        5.0, -1.0, 400.0, "m",
+        "Horizontal position error threshold: a larger eph (2.5 times it once valid) is no position for the autonomous modes; -1: none",
+    ),
+    COM_VEL_FS_EVH: real(
+        1.0, 0.0, 1000.0, "m/s",
+        "Horizontal velocity error threshold: a larger evh (2.5 times it once valid) is no velocity for Offboard",
+    ),
     COM_DL_LOSS_T: int(10, 5, 300, "GCS connection loss: no GCS HEARTBEAT for this long [s] while armed"),
     NAV_DLL_ACT: choice(
         0, 0, 6,

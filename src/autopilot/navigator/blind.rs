@@ -1,29 +1,30 @@
-//! Flying without a position: the reaction to losing the GNSS fix, as PX4
-//! reacts (`COM_POSCTL_NAVL` 0 with a pilot, the Descend failsafe without).
+//! Flying without a position: the reaction to losing it, as PX4 reacts
+//! (`COM_POSCTL_NAVL` 0 with a pilot, the Descend failsafe without).
 //!
-//! The flight stack sees only the receiver's status
-//! ([`crate::signals::GpsReading`]); without a fix the horizontal position
-//! and velocity of the navigation solution are not to be trusted (the
-//! world lets them drift). In a mode that needs them — Hold, Takeoff, Land,
-//! Return, Mission, Offboard with position or velocity setpoints — the
-//! vehicle **descends** (PX4's Descend, shown as AUTO.LAND): level, with no
+//! Whether the position may be flown on is the commander's verdict
+//! ([`crate::autopilot::position_checks`]: the GNSS fix on the ideal
+//! solution, the filter's own accuracy on the filter). Without it, in a mode
+//! that needs it ([`PositionNeed`]: Hold, Takeoff, Land, Return, Mission,
+//! Orbit, Follow, Offboard with position or velocity setpoints) the vehicle
+//! **descends** (PX4's Descend, shown as AUTO.LAND): level, with no
 //! horizontal feedback at all, its height and heading held by the same
 //! blind reference as Altitude mode, sinking at `MPC_LAND_SPEED` until it
 //! lands. In Position mode the pilot keeps flying in **Altitude** mode.
-//! When the fix returns before touchdown, Descend gives way to what was
-//! intended ([`DescendThen`]: a landing keeps landing, with the position; a
-//! return returns; anything else holds where the vehicle is), and the
-//! Altitude fallback to Position; both announced. The supervision runs every
-//! step, not only on the change: a mode entered meanwhile that needs a
-//! position is corrected at once.
+//! When the position returns before touchdown, Descend gives way to what
+//! was intended ([`DescendThen`]: a landing keeps landing, with the
+//! position; a return returns; anything else holds where the vehicle is),
+//! and the Altitude fallback to Position; both announced. The supervision
+//! runs every step, not only on the change: a mode entered meanwhile that
+//! needs a position is corrected at once.
 //! Modes and commands that need a position are refused meanwhile.
 
 use nalgebra::Vector2;
 
 use super::manual::ManualMode;
-use super::offboard::LocalSetpoint;
+use super::offboard::{LocalSetpoint, Targets};
 use super::{DescendThen, Nav, Navigator, RtlPhase, Situation};
 use crate::autopilot::control_loop::Demand;
+use crate::autopilot::position_checks::{PositionLoss, PositionNeed, PositionValidity};
 use crate::autopilot::status::{Announcements, Severity};
 
 impl Navigator {
@@ -47,26 +48,41 @@ impl Navigator {
         }
     }
 
-    /// Whether the active mode steers by the horizontal position or velocity.
-    pub(in crate::autopilot) fn needs_position(&self) -> bool {
+    /// What the active mode steers by horizontally (PX4's mode requirements).
+    pub(in crate::autopilot) fn position_need(&self) -> PositionNeed {
         match self.nav {
             Nav::Hold { .. }
             | Nav::Takeoff { .. }
-            | Nav::Land { .. }
             | Nav::Rtl { .. }
             | Nav::Mission
             | Nav::Orbit(_)
-            | Nav::Follow(_) => true,
-            Nav::Manual(mode) => mode == ManualMode::Position,
-            Nav::Offboard => !matches!(self.offboard, Some((LocalSetpoint::Attitude(_), _))),
-            Nav::Descend { .. } => false,
+            | Nav::Follow(_) => PositionNeed::Accurate,
+            Nav::Land { .. } => PositionNeed::Relaxed,
+            Nav::Manual(ManualMode::Position) => PositionNeed::Relaxed,
+            Nav::Manual(_) | Nav::Descend { .. } => PositionNeed::None,
+            Nav::Offboard => self.offboard_need(),
         }
     }
 
-    /// Whether Offboard, entered now, would steer by the position or
-    /// velocity (the latest setpoint is not an attitude one).
-    pub(in crate::autopilot) fn offboard_needs_position(&self) -> bool {
-        !matches!(self.offboard, Some((LocalSetpoint::Attitude(_), _)))
+    /// What Offboard steers by, entered now: the latest setpoint's kind
+    /// (PX4's offboard check: a position setpoint needs the position, a
+    /// velocity or acceleration one the velocity, an attitude one neither).
+    pub(in crate::autopilot) fn offboard_need(&self) -> PositionNeed {
+        match self.offboard {
+            Some((LocalSetpoint::Attitude(_), _)) => PositionNeed::None,
+            Some((LocalSetpoint::Local(Targets { position: Some(_), .. }), _)) => PositionNeed::Accurate,
+            _ => PositionNeed::Velocity,
+        }
+    }
+
+    /// Whether the active mode stands in for one lost with the position
+    /// (Descend, or Altitude in place of Position).
+    pub(in crate::autopilot) fn flying_blind(&self) -> bool {
+        match self.nav {
+            Nav::Descend { .. } => true,
+            Nav::Manual(ManualMode::Altitude) => self.gps_fallback,
+            _ => false,
+        }
     }
 
     /// Descend: `MPC_LAND_SPEED` down, no horizontal acceleration, heading held.
@@ -90,60 +106,81 @@ impl Navigator {
         say.announce(Severity::Critical, text);
     }
 
-    /// The GNSS fix (`lost`: none) at the instant of `cx`, every step: while
-    /// it is lost, armed, a mode that needs a position is replaced (the
-    /// reaction of the module doc); on its return, Descend and the Altitude
-    /// fallback give way.
-    pub(in crate::autopilot) fn supervise_gps(
+    /// The commander's verdict on the position (`validity`) at the instant
+    /// of `cx`, every step: while armed, a mode that needs more than is
+    /// valid is replaced (the reaction of the module doc); when what Descend
+    /// or the Altitude fallback gave way for is valid again, it comes back.
+    pub(in crate::autopilot) fn supervise_position(
         &mut self,
-        lost: bool,
+        validity: PositionValidity,
         armed: bool,
         cx: &Situation<'_>,
         say: &mut Announcements,
     ) {
-        let changed = lost != self.gps_lost;
-        self.gps_lost = lost;
+        let before = std::mem::replace(&mut self.position, validity);
         if !armed {
             return;
         }
-        if lost {
-            if self.manual_mode() == Some(ManualMode::Position) {
-                self.enter_manual(ManualMode::Altitude);
-                self.gps_fallback = true;
-                say.announce(Severity::Critical, "No GPS fix: Position falls back to Altitude");
-            } else if self.needs_position() {
-                self.descend_without_position("No GPS fix: descending without position", say);
-            }
+        let lost = validity.loss.lost();
+        if self.manual_mode() == Some(ManualMode::Position) && !validity.serves(PositionNeed::Relaxed) {
+            self.enter_manual(ManualMode::Altitude);
+            self.gps_fallback = true;
+            say.announce(Severity::Critical, format!("{lost}: Position falls back to Altitude"));
             return;
         }
-        if !changed {
+        if !validity.serves(self.position_need()) {
+            self.descend_without_position(&format!("{lost}: descending without position"), say);
             return;
         }
+        let regained = |need| validity.serves(need) && !before.serves(need);
         match self.nav {
-            Nav::Descend { then } if !cx.landed => self.resume_after_descend(then, cx, say),
-            Nav::Manual(ManualMode::Altitude) if self.gps_fallback => {
+            Nav::Descend { then } if !cx.landed && regained(then.need()) => {
+                self.resume_after_descend(then, before.loss, cx, say);
+            }
+            Nav::Manual(ManualMode::Altitude) if self.gps_fallback && regained(PositionNeed::Relaxed) => {
                 self.enter_manual(ManualMode::Position);
-                say.announce(Severity::Warning, "GPS fix regained: back to Position");
+                say.announce(
+                    Severity::Warning,
+                    format!("{}: back to Position", before.loss.regained()),
+                );
             }
             _ => {}
         }
     }
 
-    /// The fix is back during Descend: carry on with what was intended, announced.
-    fn resume_after_descend(&mut self, then: DescendThen, cx: &Situation<'_>, say: &mut Announcements) {
+    /// The position is back during Descend (it was lost for `loss`): carry
+    /// on with what was intended, announced.
+    fn resume_after_descend(
+        &mut self,
+        then: DescendThen,
+        loss: PositionLoss,
+        cx: &Situation<'_>,
+        say: &mut Announcements,
+    ) {
+        let regained = loss.regained();
         match then {
             DescendThen::Hold => {
                 self.enter_hold();
-                say.announce(Severity::Warning, "GPS fix regained: holding position");
+                say.announce(Severity::Warning, format!("{regained}: holding position"));
             }
             DescendThen::Land => {
-                say.announce(Severity::Warning, "GPS fix regained: landing");
+                say.announce(Severity::Warning, format!("{regained}: landing"));
                 self.enter_land(cx.meas, false, say);
             }
             DescendThen::Return => {
-                say.announce(Severity::Warning, "GPS fix regained: returning");
+                say.announce(Severity::Warning, format!("{regained}: returning"));
                 self.enter_rtl(cx, say);
             }
+        }
+    }
+}
+
+impl DescendThen {
+    /// What the mode Descend gives way to needs of the position.
+    pub(in crate::autopilot) fn need(self) -> PositionNeed {
+        match self {
+            Self::Land => PositionNeed::Relaxed,
+            Self::Hold | Self::Return => PositionNeed::Accurate,
         }
     }
 }

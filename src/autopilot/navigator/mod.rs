@@ -35,6 +35,7 @@ use nalgebra::{UnitQuaternion, Vector2, Vector3};
 
 use super::FlightMode;
 use super::control_loop::Demand;
+use super::position_checks::PositionValidity;
 use super::settings::Settings;
 use super::status::Announcements;
 use super::telemetry::LandedState;
@@ -146,12 +147,12 @@ pub(super) enum Nav {
     Follow(Follow),
     /// Descend without a position (GPS loss).
     Descend {
-        /// What to fly when the fix returns before touchdown.
+        /// What to fly when the position returns before touchdown.
         then: DescendThen,
     },
 }
 
-/// What Descend gives way to when the GNSS fix returns in the air: what
+/// What Descend gives way to when the position returns in the air: what
 /// was intended when the position was lost.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum DescendThen {
@@ -196,9 +197,9 @@ pub(super) struct Navigator {
     vertical: Option<manual::Vertical>,
     /// Heading setpoint of Altitude, Stabilized and Descend [rad].
     yaw_sp: Option<f64>,
-    /// The GNSS receiver has no fix.
-    gps_lost: bool,
-    /// Altitude is flown because Position lost its GPS fix (back on its return).
+    /// What the modes may rely on of the horizontal solution (as of the latest step).
+    position: PositionValidity,
+    /// Altitude is flown because Position lost its position (back on its return).
     gps_fallback: bool,
 }
 
@@ -223,7 +224,7 @@ impl Navigator {
             manual_lost: false,
             vertical: None,
             yaw_sp: None,
-            gps_lost: false,
+            position: PositionValidity::default(),
             gps_fallback: false,
         })
     }
@@ -249,9 +250,14 @@ impl Navigator {
         self.nav
     }
 
-    /// Whether the GNSS receiver has no fix (as of the latest step).
-    pub(super) fn gps_lost(&self) -> bool {
-        self.gps_lost
+    /// What the modes may rely on of the horizontal solution (as of the latest step).
+    pub(super) fn position(&self) -> PositionValidity {
+        self.position
+    }
+
+    /// Whether the position is lost for the autonomous modes (as of the latest step).
+    pub(super) fn position_lost(&self) -> bool {
+        !self.position.position
     }
 
     /// Where the mission stands.

@@ -36,7 +36,8 @@ failed MAVSDK test neither hangs pytest's exit nor leaves a process behind.
 When the test failed (setup or call), its directory with the flight record
 (`flight.record`; replay with `rotorpilot replay`), the other logs and the
 flight's report page (`flight.html`, written by `rotorpilot report` at
-teardown: one HTML file that opens offline) is kept and named in the
+teardown, a shared vehicle's when the session ends: one HTML file that
+opens offline) is kept and named in the
 failure's report section and in the terminal summary;
 otherwise it is deleted (`--rotorpilot-keep always|failed|never`; a vehicle
 that failed to start too). Every vehicle's ports are reserved (outside the kernel's ephemeral
@@ -114,7 +115,7 @@ def pytest_runtest_makereport(item, call):
             rep.sections.append(("rotorpilot", "\n".join(lines)))
 
 
-def _kept_line(vehicle):
+def _kept_line(vehicle, shared=False):
     """Where a vehicle's directory is kept; the replay command only when
     there is a flight record to replay (a vehicle that never started has none)."""
     where = vehicle.log_dir or vehicle.root
@@ -123,8 +124,10 @@ def _kept_line(vehicle):
         return f"rotorpilot: logs kept in {where} (no flight record: the vehicle never started)"
     line = f"rotorpilot: flight record kept in {where} — replay with `rotorpilot replay {record}`"
     if vehicle.log_dir:
-        # written at the fixture's teardown, from the record
-        line += f"\nrotorpilot: report page {_page(vehicle)} (open it in a browser)"
+        # written from the record once the vehicle stops: at the fixture's
+        # teardown, or for a shared one when the session ends
+        when = " when the session ends (the vehicle serves other tests until then)" if shared else ""
+        line += f"\nrotorpilot: report page {_page(vehicle)}{when} (open it in a browser)"
     return line
 
 
@@ -267,7 +270,9 @@ def _rotorpilot_pool(request):
 
     pool = VehiclePool(start, reset_timeout=cfg.getoption("rotorpilot_ready_timeout"))
     yield pool
-    errors = pool.close(cfg.getoption("rotorpilot_keep"))
+    # a kept vehicle's page, titled with the failed tests it served
+    errors = pool.close(cfg.getoption("rotorpilot_keep"),
+                        on_kept=lambda e: _write_page(e.vehicle, ", ".join(e.failed_tests) or "shared vehicle"))
     if errors:
         raise errors[0]
 
@@ -300,7 +305,7 @@ def _release_shared(request):
     keep_mode = request.config.getoption("rotorpilot_keep")
     problems = []
     for e in entries:
-        problem = pool.release(e, failed)
+        problem = pool.release(e, failed, request.node.nodeid)
         if problem:
             problems.append(problem)
         if keep_mode == "always" or (keep_mode == "failed" and (failed or problem)):
@@ -314,7 +319,7 @@ def _shared_kept_lines(item):
     lines = []
     for e in item.stash.get(_SHARED, []):
         if e.vehicle.root:
-            line = _kept_line(e.vehicle)
+            line = _kept_line(e.vehicle, shared=True)
             if e.served > 1:
                 line += f" (a shared vehicle: this test's flight starts at step {e.start_step}, its reset's reboot)"
             lines.append(line)

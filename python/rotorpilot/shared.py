@@ -192,6 +192,7 @@ class _Entry:
         self.in_use = False
         self.served = 0  # tests it was handed to
         self.failed = False  # a test it served failed: its directory is kept
+        self.failed_tests = []  # the node ids of the tests it served that failed
         self.start_step = 0  # where the current test's flight starts in its record
         self.why = None  # why the pool dropped it
 
@@ -224,13 +225,16 @@ class VehiclePool:
         e.served += 1
         return e
 
-    def release(self, e, failed):
-        """Back into the pool after a test (`failed`: it failed). Kills any
+    def release(self, e, failed, test=None):
+        """Back into the pool after a test (`failed`: it failed; `test`: its
+        node id, kept for the report page when it failed). Kills any
         `mavsdk_server` the test left on the vehicle's ports; drops the
         vehicle if its daemon exited (a problem to report unless it exited
         with status 0: a client's shutdown). Returns the problem, or None."""
         e.in_use = False
         e.failed = e.failed or failed
+        if failed and test:
+            e.failed_tests.append(test)
         v = e.vehicle
         kill_mavsdk_servers([v.client_port, v.mavsdk_server_port])
         rc = v.proc.poll()
@@ -250,11 +254,12 @@ class VehiclePool:
         finally:
             self.dropped.append(e)
 
-    def close(self, keep):
+    def close(self, keep, on_kept=None):
         """Stop every vehicle; delete the directories as `keep` says
         (`--rotorpilot-keep`: "failed" keeps those a failed test used,
-        "always" all, "never" none). Returns the errors of vehicles that
-        could not be stopped."""
+        "always" all, "never" none) and call `on_kept(entry)` for each one
+        kept, stopped (its flight record complete). Returns the errors of
+        vehicles that could not be stopped."""
         errors = []
         for e in self._entries:
             try:
@@ -265,5 +270,7 @@ class VehiclePool:
         for e in self._entries + self.dropped:
             if keep == "never" or (keep == "failed" and not e.failed):
                 e.vehicle.cleanup()
+            elif on_kept is not None:
+                on_kept(e)
         self._entries = []
         return errors

@@ -84,6 +84,39 @@ def test_a_failed_test_keeps_its_record_and_says_where(pytester, tmp_path, xdist
     assert out.count(f"report page {page}") >= 2, out  # the failure's report section and the summary
 
 
+FAILING_SHARED = """
+import pytest
+
+pytestmark = pytest.mark.rotorpilot(reuse=True)
+
+def test_passes(rotorpilot_vehicle):
+    assert rotorpilot_vehicle.proc.poll() is None
+
+def test_fails(rotorpilot_vehicle):
+    assert False, "on purpose"
+"""
+
+
+@pytest.mark.parametrize("xdist", [False, True], ids=["plain", "xdist"])
+def test_a_failed_test_on_a_shared_vehicle_gets_the_report_page_it_is_told_of(pytester, tmp_path, xdist):
+    """A shared vehicle (reuse=True) keeps running for the next tests, so
+    its page is written when the session ends, from the whole record, and
+    titled with the failed tests it served; the failure's report says so."""
+    if xdist:
+        pytest.importorskip("xdist")
+    base = tmp_path / "vehicles"
+    args = ["--rotorpilot-speed", "20", "--rotorpilot-log-dir", str(base)] + (["-n", "1"] if xdist else [])
+    r = run_inner(pytester, FAILING_SHARED, *args)
+    out = r.stdout.str()
+    r.assert_outcomes(passed=1, failed=1)
+    pages = re.findall(r"report page (\S+flight\.html) when the session ends", out)
+    assert pages, out
+    page = pages[-1]
+    assert os.path.isfile(page), os.listdir(os.path.dirname(page))
+    assert "test_inner.py::test_fails" in open(page, encoding="utf-8").read()
+    assert f"report page {page}" in out.split("= rotorpilot =")[-1], out  # the summary names it too
+
+
 def test_a_passing_run_leaves_nothing_and_keep_always_keeps(pytester, tmp_path):
     base = tmp_path / "vehicles"
     r = run_inner(pytester, "def test_ok(rotorpilot_vehicle):\n    pass\n", "--rotorpilot-log-dir", str(base))

@@ -529,6 +529,40 @@ fn the_shipped_wind_draws_fly_the_wind_each_line_names_on_any_job_count() {
     assert_eq!(results(&shard.lines), results(&picked));
 }
 
+/// GIVEN the shipped wind grid (`tools/campaigns/mission-wind-grid.toml`:
+/// the square mission, estimate fed back, 0 to 20 m/s from each quarter)
+/// WHEN it is flown
+/// THEN every variant up to 15 m/s passes (the worst within 1.1 m of the
+/// 2 m allowed); at 17.5 m/s only the wind from the north fails (the 8 m/s
+/// legs fly north and east into it); at 20 m/s from the north and east, not
+/// from the south and west, as `docs/estimator.md` ("Flying in wind") says;
+/// the campaign exits 1 for its failed variants.
+#[test]
+fn the_wind_grid_starts_to_fail_where_the_docs_say() {
+    let file = concat!(env!("CARGO_MANIFEST_DIR"), "/tools/campaigns/mission-wind-grid.toml");
+    let run = simulate(&[file, "--json", "--jobs", "2"]);
+    assert_eq!(run.status, Some(1), "{}", run.stderr);
+    assert_eq!(run.lines.len(), 28);
+    let mut worst_calm_to_15: f64 = 0.0;
+    let mut failed = Vec::new();
+    for l in &run.lines {
+        let (speed, from) = (
+            f(&l["values"]["params.SIM_WIND_SPD"]),
+            f(&l["values"]["params.SIM_WIND_DIR"]),
+        );
+        let pass = l["verdict"] == "pass";
+        if speed <= 15.0 {
+            assert!(pass, "{l}");
+            worst_calm_to_15 = worst_calm_to_15.max(f(&l["max_tracking_error_m"]));
+        } else if !pass {
+            failed.push(format!("{speed} from {from}"));
+        }
+    }
+    assert!(worst_calm_to_15 < 1.1, "{worst_calm_to_15}");
+    failed.sort();
+    assert_eq!(failed, ["17.5 from 0", "20 from 0", "20 from 90"]);
+}
+
 #[test]
 fn a_bad_wind_draw_is_refused_naming_file_line_and_field() {
     let d = dir("wind-draws");

@@ -95,6 +95,9 @@ pub enum AutopilotCommand {
     ManualControl(ManualControl),
     /// Reboot or shut down: accepted only disarmed; the runtime carries it out.
     Power(PowerAction),
+    /// MAV_CMD_RUN_PREARM_CHECKS: run the arming checks now and say the
+    /// first that fails ("Preflight Fail: ..."); always accepted (PX4).
+    RunPrearmChecks,
     /// MAV_CMD_INJECT_FAILURE, PX4's numbers: accepted only with
     /// `SYS_FAILURE_EN`; the world carries it out.
     InjectFailure {

@@ -323,6 +323,7 @@ impl Autopilot {
         match cmd {
             AutopilotCommand::Arm { force } => self.arm(force, m),
             AutopilotCommand::Disarm { force } => self.disarm(force),
+            AutopilotCommand::RunPrearmChecks => self.run_prearm_checks(m),
             AutopilotCommand::Takeoff { altitude_amsl_m } => self.takeoff(altitude_amsl_m, m),
             AutopilotCommand::Land => self.land(m),
             AutopilotCommand::ReturnToLaunch => self.return_to_launch(m),
@@ -446,6 +447,19 @@ impl Autopilot {
         };
         let landed = self.land.landed();
         self.commander.arm(force, prearm, m.time_s, landed, &mut self.say)
+    }
+
+    /// Run the arming checks now, as PX4's commander does on
+    /// MAV_CMD_RUN_PREARM_CHECKS (a forced health report): the first that
+    /// fails is said ("Preflight Fail: ..."), armed or not; accepted.
+    fn run_prearm_checks(&mut self, m: &Measurement) -> CommandOutcome {
+        if !self.commander.armed()
+            && let Some(reason) = self.prearm_failure(m)
+        {
+            self.say
+                .announce(Severity::Critical, format!("Preflight Fail: {reason}"));
+        }
+        CommandOutcome::Accepted
     }
 
     fn disarm(&mut self, force: bool) -> CommandOutcome {

@@ -34,12 +34,16 @@ pub mod id {
     pub const DO_REPOSITION: u16 = 192;
     /// MAV_CMD_DO_SET_MISSION_CURRENT.
     pub const DO_SET_MISSION_CURRENT: u16 = 224;
+    /// MAV_CMD_DO_SET_STANDARD_MODE.
+    pub const DO_SET_STANDARD_MODE: u16 = 262;
     /// MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN.
     pub const PREFLIGHT_REBOOT_SHUTDOWN: u16 = 246;
     /// MAV_CMD_MISSION_START.
     pub const MISSION_START: u16 = 300;
     /// MAV_CMD_COMPONENT_ARM_DISARM.
     pub const COMPONENT_ARM_DISARM: u16 = 400;
+    /// MAV_CMD_RUN_PREARM_CHECKS.
+    pub const RUN_PREARM_CHECKS: u16 = 401;
     /// MAV_CMD_GET_HOME_POSITION.
     pub const GET_HOME_POSITION: u16 = 410;
     /// MAV_CMD_INJECT_FAILURE.
@@ -207,6 +211,14 @@ pub fn classify(c: &Command) -> Action {
         id::NAV_LAND => Action::Autopilot(AutopilotCommand::Land),
         id::NAV_RETURN_TO_LAUNCH => Action::Autopilot(AutopilotCommand::ReturnToLaunch),
         id::DO_SET_MODE => set_mode(p1 as u8, p2 as u8, p3 as u8),
+        // PX4: a standard mode the vehicle has no nav state for FAILS
+        id::DO_SET_STANDARD_MODE => convert::finite(p1)
+            .filter(|x| (0.0..=255.0).contains(x))
+            .and_then(|x| convert::mode_from_standard(x.round() as u8))
+            .map_or(Action::Answer(result::FAILED, None), |m| {
+                Action::Autopilot(AutopilotCommand::SetMode(m))
+            }),
+        id::RUN_PREARM_CHECKS => Action::Autopilot(AutopilotCommand::RunPrearmChecks),
         id::DO_REPOSITION => {
             // PX4: bit 0 (CHANGE_MODE) must be set and no other bit.
             let flags = if p2.is_finite() && p2 >= 0.0 { p2 as u32 } else { 0 };

@@ -4,6 +4,7 @@
 //! only here and in the message builders.
 
 use crate::autopilot::{CommandOutcome, FlightMode};
+use mavlink::dialects::common::MavStandardMode;
 
 /// PX4 main modes (`px4_custom_mode.h`).
 pub mod main_mode {
@@ -74,6 +75,48 @@ pub fn px4_mode(mode: FlightMode) -> (u8, u8) {
 pub fn custom_mode(mode: FlightMode) -> u32 {
     let (main, sub) = px4_mode(mode);
     (u32::from(main) << 16) | (u32::from(sub) << 24)
+}
+
+/// MAV_STANDARD_MODE of a flight mode, as PX4 reports a multicopter's
+/// (`mode_util::getStandardModeFromNavState`): position hold, orbit,
+/// altitude hold, safe recovery (Return), mission, land, takeoff;
+/// non-standard for the rest, Descend among them (PX4's nav state DESCEND,
+/// though its custom mode reads AUTO.LAND).
+#[must_use]
+pub fn standard_mode(mode: FlightMode) -> MavStandardMode {
+    match mode {
+        FlightMode::Position => MavStandardMode::MAV_STANDARD_MODE_POSITION_HOLD,
+        FlightMode::Orbit => MavStandardMode::MAV_STANDARD_MODE_ORBIT,
+        FlightMode::Altitude => MavStandardMode::MAV_STANDARD_MODE_ALTITUDE_HOLD,
+        FlightMode::ReturnToLaunch => MavStandardMode::MAV_STANDARD_MODE_SAFE_RECOVERY,
+        FlightMode::Mission => MavStandardMode::MAV_STANDARD_MODE_MISSION,
+        FlightMode::Land => MavStandardMode::MAV_STANDARD_MODE_LAND,
+        FlightMode::Takeoff => MavStandardMode::MAV_STANDARD_MODE_TAKEOFF,
+        FlightMode::Hold
+        | FlightMode::Offboard
+        | FlightMode::FollowTarget
+        | FlightMode::Stabilized
+        | FlightMode::Acro
+        | FlightMode::Manual
+        | FlightMode::Descend => MavStandardMode::MAV_STANDARD_MODE_NON_STANDARD,
+    }
+}
+
+/// The flight mode MAV_CMD_DO_SET_STANDARD_MODE asks for (PX4's
+/// `getNavStateFromStandardMode` for a multicopter), `None` for a standard
+/// mode a multicopter does not fly (non-standard, cruise, unknown).
+#[must_use]
+pub fn mode_from_standard(standard: u8) -> Option<FlightMode> {
+    const FLOWN: [FlightMode; 7] = [
+        FlightMode::Position,
+        FlightMode::Orbit,
+        FlightMode::Altitude,
+        FlightMode::ReturnToLaunch,
+        FlightMode::Mission,
+        FlightMode::Land,
+        FlightMode::Takeoff,
+    ];
+    FLOWN.into_iter().find(|m| standard_mode(*m) as u8 == standard)
 }
 
 /// What a requested PX4 (main, sub) asks of us.

@@ -17,7 +17,7 @@ use std::time::{Duration, Instant};
 
 use mavlink::MessageData;
 use mavlink::dialects::common::{
-    ALTITUDE_DATA, ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, DEBUG_VECT_DATA,
+    ALTITUDE_DATA, ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, CURRENT_MODE_DATA, DEBUG_VECT_DATA,
     ESTIMATOR_STATUS_DATA, EXTENDED_SYS_STATE_DATA, EstimatorStatusFlags, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA,
     GpsFixType, HEARTBEAT_DATA, HIGHRES_IMU_DATA, HIL_STATE_QUATERNION_DATA, HOME_POSITION_DATA,
     HighresImuUpdatedFlags, LOCAL_POSITION_NED_DATA, MISSION_CURRENT_DATA, MavAutopilot, MavBatteryFunction,
@@ -91,11 +91,13 @@ pub enum Stream {
     Vibration,
     /// ODOMETRY (331): the navigation solution with its covariance ([`odometry`]).
     Odometry,
+    /// CURRENT_MODE (436): the mode as a custom and a standard mode ([`current_mode`]).
+    CurrentMode,
 }
 
 impl Stream {
     /// Every stream.
-    pub const ALL: [Stream; 25] = [
+    pub const ALL: [Stream; 26] = [
         Stream::Heartbeat,
         Stream::SysStatus,
         Stream::SystemTime,
@@ -121,6 +123,7 @@ impl Stream {
         Stream::EstimatorStatus,
         Stream::Vibration,
         Stream::Odometry,
+        Stream::CurrentMode,
     ];
 
     /// MAVLink message id.
@@ -152,6 +155,7 @@ impl Stream {
             Stream::EstimatorStatus => ESTIMATOR_STATUS_DATA::ID,
             Stream::Vibration => VIBRATION_DATA::ID,
             Stream::Odometry => ODOMETRY_DATA::ID,
+            Stream::CurrentMode => CURRENT_MODE_DATA::ID,
         }
     }
 
@@ -176,8 +180,8 @@ impl Stream {
 pub type Rates = Vec<(Stream, f64)>;
 
 /// PX4's GCS link (normal mode, after the SITL overrides; WIND_COV at
-/// PX4's 0.5 Hz, ESTIMATOR_STATUS 0.5 Hz, VIBRATION 0.1 Hz, no ODOMETRY),
-/// plus the estimator streams at 10 Hz.
+/// PX4's 0.5 Hz, ESTIMATOR_STATUS 0.5 Hz, VIBRATION 0.1 Hz, CURRENT_MODE
+/// 0.5 Hz, no ODOMETRY), plus the estimator streams at 10 Hz.
 #[must_use]
 pub fn gcs_rates() -> Rates {
     vec![
@@ -201,11 +205,13 @@ pub fn gcs_rates() -> Rates {
         (Stream::WindCov, 0.5),
         (Stream::EstimatorStatus, 0.5),
         (Stream::Vibration, 0.1),
+        (Stream::CurrentMode, 0.5),
     ]
 }
 
 /// PX4's API link (onboard mode; WIND_COV at PX4's 10 Hz, HIGHRES_IMU at
-/// PX4's 50 Hz, ODOMETRY 30 Hz, ESTIMATOR_STATUS 1 Hz, VIBRATION 0.5 Hz), plus the estimator streams at 10 Hz. SCALED_IMU and
+/// PX4's 50 Hz, ODOMETRY 30 Hz, ESTIMATOR_STATUS 1 Hz, VIBRATION 0.5 Hz,
+/// CURRENT_MODE 0.5 Hz), plus the estimator streams at 10 Hz. SCALED_IMU and
 /// SCALED_PRESSURE are off on both links, as in PX4's normal and onboard
 /// modes, until a client asks.
 #[must_use]
@@ -233,6 +239,7 @@ pub fn api_rates() -> Rates {
         (Stream::Odometry, 30.0),
         (Stream::EstimatorStatus, 1.0),
         (Stream::Vibration, 0.5),
+        (Stream::CurrentMode, 0.5),
     ]
 }
 
@@ -409,6 +416,7 @@ pub fn build(stream: Stream, snapshot: &Snapshot, unix_time_us: u64) -> Vec<MavM
     let ground_speed = t.velocity_ned.xy().norm();
     let m = match stream {
         Stream::Heartbeat => MavMessage::HEARTBEAT(heartbeat(t)),
+        Stream::CurrentMode => MavMessage::CURRENT_MODE(current_mode(t)),
         Stream::SysStatus => {
             let gps = if t.gps_fix == GpsFix::None { GPS } else { 0 };
             let health =
@@ -768,6 +776,21 @@ pub fn heartbeat(t: &Telemetry) -> HEARTBEAT_DATA {
             MavState::MAV_STATE_STANDBY
         },
         mavlink_version: 3,
+    }
+}
+
+/// CURRENT_MODE as PX4 fills it (`CURRENT_MODE.hpp`): the heartbeat's
+/// custom mode, its standard mode ([`convert::standard_mode`]) and the
+/// custom mode the user meant: the same, unless a failsafe is in force,
+/// when rotorpilot does not keep the mode it replaced and says 0
+/// ("unknown", as MAVLink allows).
+#[must_use]
+pub fn current_mode(t: &Telemetry) -> CURRENT_MODE_DATA {
+    let custom_mode = convert::custom_mode(t.mode);
+    CURRENT_MODE_DATA {
+        custom_mode,
+        intended_custom_mode: if t.failsafe { 0 } else { custom_mode },
+        standard_mode: convert::standard_mode(t.mode),
     }
 }
 

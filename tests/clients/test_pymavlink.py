@@ -303,6 +303,34 @@ def test_mavros_connect_sequence(speed):
         assert median < 10.0 and p90 < 10.0, rtts
 
 
+def test_current_mode_and_standard_modes(vehicle):
+    """CURRENT_MODE streams at PX4's 0.5 Hz with the heartbeat's custom mode
+    and its MAV_STANDARD_MODE; MAV_CMD_DO_SET_STANDARD_MODE switches to a
+    standard mode a multicopter flies (SAFE_RECOVERY: Return) and FAILS one
+    it does not (CRUISE, a fixed-wing mode), as PX4 answers."""
+    m = connect(vehicle)
+    drain(m)
+    c = wait(m, "CURRENT_MODE", timeout=5.0)
+    assert c is not None, "no CURRENT_MODE"
+    hb = wait(m, "HEARTBEAT", timeout=3.0)
+    assert (c.custom_mode, c.intended_custom_mode) == (hb.custom_mode, hb.custom_mode), (c, hb)
+    assert c.standard_mode == mavlink.MAV_STANDARD_MODE_NON_STANDARD  # Hold has none
+    assert param_set(m, "MIS_TAKEOFF_ALT", 3.0).param_value == pytest.approx(3.0)
+    wait_armable(m)
+    m.arducopter_arm()
+    assert command(m, mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, float("nan")) == 0
+    assert wait(m, "HEARTBEAT", lambda h: mavutil.interpret_px4_mode(h.base_mode, h.custom_mode) == "LOITER", 20)
+    assert command(m, mavlink.MAV_CMD_DO_SET_STANDARD_MODE, mavlink.MAV_STANDARD_MODE_CRUISE) == \
+        mavlink.MAV_RESULT_FAILED
+    assert command(m, mavlink.MAV_CMD_DO_SET_STANDARD_MODE, mavlink.MAV_STANDARD_MODE_SAFE_RECOVERY) == \
+        mavlink.MAV_RESULT_ACCEPTED
+    c = wait(m, "CURRENT_MODE", lambda c: c.standard_mode == mavlink.MAV_STANDARD_MODE_SAFE_RECOVERY, 5.0)
+    assert c is not None, "CURRENT_MODE never said Return"
+    hb = wait(m, "HEARTBEAT", timeout=3.0)
+    assert mavutil.interpret_px4_mode(hb.base_mode, hb.custom_mode) == "RTL"
+    assert c.custom_mode == hb.custom_mode
+
+
 IDEAL = {"RP_NAV_SRC": 0}
 FILTER = {"RP_NAV_SRC": 1}
 

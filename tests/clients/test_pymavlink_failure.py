@@ -17,7 +17,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from harness import Vehicle, command, drain  # noqa: E402
 from harness import wait_message as wait  # noqa: E402
-from test_pymavlink import connect, param_set  # noqa: E402
+from test_pymavlink import connect, param_set, wait_armable  # noqa: E402
 
 from pymavlink import mavutil  # noqa: E402
 
@@ -108,6 +108,26 @@ def test_battery_cell_and_motors(vehicle):
     status_text(m, "motor 3 wrong (50% thrust)")
     assert inject(m, MOTOR, OK, 0) == mavlink.MAV_RESULT_ACCEPTED
     status_text(m, "CMD_INJECT_FAILURE, motors ok")
+
+
+def test_run_prearm_checks_says_the_failing_check(vehicle):
+    """MAV_CMD_RUN_PREARM_CHECKS is ACCEPTED and, as PX4's forced health
+    report, says the first check that fails ("Preflight Fail: ..."): with a
+    battery cell off, "battery critical"; once it is back, nothing fails and
+    nothing is said."""
+    m = enabled(vehicle)
+    wait_armable(m)
+    assert inject(m, BATTERY, OFF) == mavlink.MAV_RESULT_ACCEPTED
+    assert wait(m, "SYS_STATUS", lambda s: s.battery_remaining < 10, timeout=3.0) is not None
+    drain(m)
+    assert command(m, mavlink.MAV_CMD_RUN_PREARM_CHECKS) == mavlink.MAV_RESULT_ACCEPTED
+    status_text(m, "Preflight Fail: battery critical")
+    assert inject(m, BATTERY, OK) == mavlink.MAV_RESULT_ACCEPTED
+    wait_armable(m)
+    drain(m)
+    assert command(m, mavlink.MAV_CMD_RUN_PREARM_CHECKS) == mavlink.MAV_RESULT_ACCEPTED
+    said = wait(m, "STATUSTEXT", lambda s: "Preflight Fail" in s.text, timeout=1.0)
+    assert said is None, said.text
 
 
 def test_mavlink_signal_off_silences_the_vehicle_until_ok(vehicle):

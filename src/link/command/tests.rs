@@ -217,6 +217,31 @@ fn set_mode_and_refusals() {
 }
 
 #[test]
+fn standard_modes_and_prearm_checks() {
+    let c = |p1| classify(&long(262, [p1, N, N, N, N, N, N]));
+    for (standard, mode) in [
+        (1.0, FlightMode::Position),
+        (2.0, FlightMode::Orbit),
+        (4.0, FlightMode::Altitude),
+        (5.0, FlightMode::ReturnToLaunch),
+        (6.0, FlightMode::Mission),
+        (7.0, FlightMode::Land),
+        (8.0, FlightMode::Takeoff),
+    ] {
+        assert_eq!(c(standard), Action::Autopilot(AutopilotCommand::SetMode(mode)));
+        assert_eq!(convert::standard_mode(mode) as u8 as f32, standard);
+    }
+    // non-standard, cruise (fixed-wing), unknown, not a number: FAILED (PX4)
+    for p1 in [0.0, 3.0, 9.0, -1.0, 300.0, N] {
+        assert_eq!(c(p1), Action::Answer(result::FAILED, None), "{p1}");
+    }
+    assert_eq!(
+        classify(&long(401, [N; 7])),
+        Action::Autopilot(AutopilotCommand::RunPrearmChecks)
+    );
+}
+
+#[test]
 fn requests_and_reboot() {
     assert_eq!(
         classify(&long(512, [148.0, N, N, N, N, N, N])),

@@ -3,6 +3,7 @@
 
 use super::*;
 use crate::link::testing::snapshot;
+use mavlink::dialects::common::MavStandardMode;
 use nalgebra::{UnitQuaternion, Vector3};
 
 #[test]
@@ -74,6 +75,33 @@ fn mission_current_as_px4_fills_it() {
         assert_eq!(m.mission_state, MavMissionState::MISSION_STATE_PAUSED);
     }
     assert_eq!(Stream::from_message_id(42), Some(Stream::MissionCurrent));
+}
+
+#[test]
+fn current_mode_as_px4_fills_it() {
+    let mut s = snapshot();
+    for (mode, standard) in [
+        (FlightMode::Mission, MavStandardMode::MAV_STANDARD_MODE_MISSION),
+        (
+            FlightMode::ReturnToLaunch,
+            MavStandardMode::MAV_STANDARD_MODE_SAFE_RECOVERY,
+        ),
+        (FlightMode::Hold, MavStandardMode::MAV_STANDARD_MODE_NON_STANDARD),
+        (FlightMode::Descend, MavStandardMode::MAV_STANDARD_MODE_NON_STANDARD),
+    ] {
+        s.telemetry.mode = mode;
+        s.telemetry.failsafe = false;
+        let c = current_mode(&s.telemetry);
+        assert_eq!(c.custom_mode, heartbeat(&s.telemetry).custom_mode);
+        assert_eq!((c.intended_custom_mode, c.standard_mode), (c.custom_mode, standard));
+        // a failsafe replaced what the user meant: unknown here
+        s.telemetry.failsafe = true;
+        assert_eq!(current_mode(&s.telemetry).intended_custom_mode, 0);
+    }
+    assert_eq!(Stream::from_message_id(436), Some(Stream::CurrentMode));
+    for rates in [gcs_rates(), api_rates()] {
+        assert!(rates.contains(&(Stream::CurrentMode, 0.5)), "PX4's 0.5 Hz");
+    }
 }
 
 #[test]

@@ -235,9 +235,13 @@ def test_long_flight(rotorpilot_mavsdk):
 '''
 
 
+@pytest.mark.parametrize("xdist", [[], ["-n", "2"]], ids=["plain", "n2"])
 @pytest.mark.parametrize("body", [INTERRUPTED_DOCS_STYLE, INTERRUPTED_FIXTURE], ids=["docs_style", "fixture"])
-def test_interrupted_run_leaves_nothing(tmp_path, body):
-    """SIGINT (Ctrl-C) in the middle of a flight: pytest stops, tears down and exits 2."""
+def test_interrupted_run_leaves_nothing(tmp_path, body, xdist):
+    """SIGINT (Ctrl-C) in the middle of a flight: pytest stops, tears down and
+    exits 2. Plain, the signal goes to pytest alone (a CI runner stopping
+    it); under xdist to the whole process group, as a terminal's Ctrl-C
+    reaches the controller, its workers and what they started."""
     src = "import os\n" + PRELUDE.format(mod=_fixture_module()) + body
     test = tmp_path / "test_inner.py"
     test.write_text(src)
@@ -245,7 +249,7 @@ def test_interrupted_run_leaves_nothing(tmp_path, body):
     flag = tmp_path / "flying"
     env = dict(os.environ, ROTORPILOT_INNER_RUN=marker, INNER_FLAG=str(flag), PYTHONWARNINGS="ignore::FutureWarning")
     proc = subprocess.Popen([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
-                             "--rotorpilot-log-dir", str(tmp_path / "logs"), str(test)],
+                             "--rotorpilot-log-dir", str(tmp_path / "logs"), *xdist, str(test)],
                             cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             start_new_session=True)
     try:
@@ -253,7 +257,10 @@ def test_interrupted_run_leaves_nothing(tmp_path, body):
         while not flag.exists() and time.monotonic() < deadline and proc.poll() is None:
             time.sleep(0.1)
         assert flag.exists(), "the inner test never took off"
-        proc.send_signal(signal.SIGINT)
+        if xdist:
+            os.killpg(proc.pid, signal.SIGINT)
+        else:
+            proc.send_signal(signal.SIGINT)
         out, _ = proc.communicate(timeout=60)
         rc = proc.returncode
     except subprocess.TimeoutExpired:

@@ -287,19 +287,19 @@ impl Autopilot {
     /// | `StartMission` | Denied without a mission or with a first item beyond it; TemporarilyRejected when arming is (it arms) |
     /// | `SetMissionCurrent` | Denied beyond the mission |
     /// | `Reposition` | Denied for non-finite parts, lat/lon out of range, or an AMSL altitude above `RP_ALT_MAX_AMSL`; TemporarilyRejected when disarmed; a target outside the geofence (zones, `GF_MAX_HOR_DIST`, `GF_MAX_VER_DIST`) is Accepted, announced ("Reposition is outside geofence") and ignored, the vehicle holding where it is (PX4) |
-    /// | `Orbit` | Denied for non-finite parts, lat/lon out of range, an AMSL altitude above `RP_ALT_MAX_AMSL`, or a radius outside `[1, 1000]` m ("Orbit radius limit exceeded", PX4's `MC_ORBIT_RAD_MAX`); TemporarilyRejected without a GPS fix. Accepted disarmed too (the mode is selected; it cannot be armed in) |
+    /// | `Orbit` | Denied for non-finite parts, lat/lon out of range, an AMSL altitude above `RP_ALT_MAX_AMSL`, or a radius outside `[1, 1000]` m ("Orbit radius limit exceeded", PX4's `MC_ORBIT_RAD_MAX`); TemporarilyRejected without a valid position. Accepted disarmed too (the mode is selected; it cannot be armed in) |
     /// | `ChangeSpeed` | Denied when not finite |
     /// | `SetHome` | Denied for an invalid point |
     /// | `Offboard` | Denied when a given part is not finite, or nothing is given; a position above `GF_MAX_VER_DIST` is clamped to it (announced once) |
     /// | `ManualControl` | Denied when a stick is not finite or beyond `[-1, 1]` |
     /// | `FollowTarget` | Denied when not finite or off the globe; kept in any mode |
-    /// | `SetMode` FollowTarget | TemporarilyRejected without a GPS fix; accepted disarmed (not armable) |
-    /// | `SetMode` to a manual mode | TemporarilyRejected without fresh sticks (`COM_RC_LOSS_T`, client clock), Position also without a GPS fix |
-    /// | anything that needs a position (Hold, Takeoff, RTL, Mission, Reposition) | TemporarilyRejected without a GPS fix; Land then descends without position |
+    /// | `SetMode` FollowTarget | TemporarilyRejected without a valid position; accepted disarmed (not armable) |
+    /// | `SetMode` to a manual mode | TemporarilyRejected without fresh sticks (`COM_RC_LOSS_T`, client clock), Position also without a valid position |
+    /// | anything that needs a position (Hold, Takeoff, RTL, Mission, Reposition) | TemporarilyRejected without a valid position; Land then descends without position |
     /// | `Power` | Denied when armed |
     /// | `InjectFailure` | Denied while `SYS_FAILURE_EN` = 0 |
     ///
-    /// Disarmed, Hold is accepted with a GPS fix. Selecting the active
+    /// Disarmed, Hold is accepted with a valid position. Selecting the active
     /// mode again is accepted and changes nothing.
     ///
     /// A mode the pilot selects ends the failsafe in force (PX4's user
@@ -390,7 +390,7 @@ impl Autopilot {
 
     /// The gates of a command that flies to a point (`what`: Takeoff,
     /// Reposition), in order: an AMSL altitude above `RP_ALT_MAX_AMSL`
-    /// (Denied), disarmed, no GPS fix (TemporarilyRejected); each announced.
+    /// (Denied), disarmed, no valid position (TemporarilyRejected); each announced.
     /// The refusal, or `None` when it may go.
     fn refuse_flight(&mut self, what: &str, altitude_amsl_m: Option<f64>) -> Option<CommandOutcome> {
         if let Some(refused) = self.refuse_above_ceiling(what, altitude_amsl_m) {
@@ -813,7 +813,7 @@ impl Autopilot {
     }
 
     /// Switch to a manual mode: refused without fresh sticks (PX4: "No
-    /// manual control input"), and Position without a GPS fix.
+    /// manual control input"), and Position without a valid position.
     pub(super) fn enter_manual_mode(&mut self, mode: ManualMode, m: &Measurement) -> CommandOutcome {
         let fresh = self
             .navigator

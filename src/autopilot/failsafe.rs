@@ -5,7 +5,7 @@
 //! taking off (`COM_DISARM_PRFLT`), and PX4's failsafes below. Every
 //! failsafe acts through one runner ([`Autopilot::failsafe_action`]: one
 //! [`FailsafeAction`] per parameter value, one announcement, a landing under
-//! way never interrupted, a blind descent without a GPS fix).
+//! way never interrupted, a blind descent without a position).
 //!
 //! [`Failsafe`] is the part that remembers and decides (the data link, the
 //! battery level, the fence and its breach, the clamp announcement, the
@@ -443,7 +443,7 @@ impl Autopilot {
             }
             ClientTimer::ManualControlLoss => {
                 // in a manual mode NAV_RCL_ACT, descending instead of Hold,
-                // Return or Land without a GPS fix (the runner's rule)
+                // Return or Land without a position (the runner's rule)
                 if self.navigator.manual_control_lost(&mut self.say) {
                     let action = self.settings.manual.loss_action;
                     self.failsafe_action("manual control lost", action, m);

@@ -122,9 +122,9 @@ pub struct Autopilot {
 /// flight stack (PX4's failsafe framework: `vehicle_status.failsafe` is
 /// true while its selected action is not `None`). It starts when a failsafe
 /// acts (the one runner, or the flight stack replacing a mode it cannot fly
-/// without a GNSS fix) and ends when the vehicle disarms, when the pilot
-/// selects a mode (PX4's user takeover), or when a lost fix returns and the
-/// mode the pilot meant is flown again.
+/// without a position) and ends when the vehicle disarms, when the pilot
+/// selects a mode (PX4's user takeover), or when a lost position returns
+/// and the mode the pilot meant is flown again.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct FailsafeInForce {
     /// Why: the failsafe's cause (`no GPS fix`, `GCS connection lost`, `battery critical`, ...).

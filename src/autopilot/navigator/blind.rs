@@ -80,7 +80,7 @@ impl Navigator {
     pub(in crate::autopilot) fn flying_blind(&self) -> bool {
         match self.nav {
             Nav::Descend { .. } => true,
-            Nav::Manual(ManualMode::Altitude) => self.gps_fallback,
+            Nav::Manual(ManualMode::Altitude) => self.position_fallback,
             _ => false,
         }
     }
@@ -124,7 +124,7 @@ impl Navigator {
         let lost = validity.loss.lost();
         if self.manual_mode() == Some(ManualMode::Position) && !validity.serves(PositionNeed::Relaxed) {
             self.enter_manual(ManualMode::Altitude);
-            self.gps_fallback = true;
+            self.position_fallback = true;
             say.announce(Severity::Critical, format!("{lost}: Position falls back to Altitude"));
             return;
         }
@@ -137,7 +137,7 @@ impl Navigator {
             Nav::Descend { then } if !cx.landed && regained(then.need()) => {
                 self.resume_after_descend(then, before.loss, cx, say);
             }
-            Nav::Manual(ManualMode::Altitude) if self.gps_fallback && regained(PositionNeed::Relaxed) => {
+            Nav::Manual(ManualMode::Altitude) if self.position_fallback && regained(PositionNeed::Relaxed) => {
                 self.enter_manual(ManualMode::Position);
                 say.announce(
                     Severity::Warning,

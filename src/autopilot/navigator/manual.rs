@@ -271,7 +271,7 @@ impl Navigator {
         self.vertical = None;
         self.yaw_sp = None;
         self.rate_target = None;
-        self.gps_fallback = false;
+        self.position_fallback = false;
     }
 
     /// Advance the vertical reference towards the vertical velocity

@@ -200,7 +200,7 @@ pub(super) struct Navigator {
     /// What the modes may rely on of the horizontal solution (as of the latest step).
     position: PositionValidity,
     /// Altitude is flown because Position lost its position (back on its return).
-    gps_fallback: bool,
+    position_fallback: bool,
 }
 
 impl Navigator {
@@ -225,7 +225,7 @@ impl Navigator {
             vertical: None,
             yaw_sp: None,
             position: PositionValidity::default(),
-            gps_fallback: false,
+            position_fallback: false,
         })
     }
 

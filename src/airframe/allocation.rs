@@ -237,6 +237,13 @@ impl Allocator {
     /// Allocate a requested wrench to rotor speeds within limits (module doc).
     #[must_use]
     pub fn allocate(&self, req: &ControlWrench) -> Allocation {
+        allocate_wrench(self, req)
+    }
+
+    /// The body of [`Self::allocate`], inlined into both versions of
+    /// [`allocate_wrench`].
+    #[inline(always)]
+    fn allocate_inner(&self, req: &ControlWrench) -> Allocation {
         // fast path: the unsaturated `B^+ v`, `w_T + w_rp + w_y` per rotor
         let (t, tau) = (req.thrust_n, &req.torque_frd);
         let p = &self.b_pinv;
@@ -320,6 +327,18 @@ impl Allocator {
             saturated,
         }
     }
+}
+
+// Allocation is compiled twice, for the x86-64 baseline and with AVX2
+// (three-operand instructions, wider vectors), and the first call picks the
+// version this CPU runs. Both give the same bits: additions, products,
+// divisions and roots are IEEE operations rounded the same at any vector
+// width, and Rust neither fuses `a * b + c` nor reorders sums.
+
+/// [`Allocator::allocate`].
+#[multiversion::multiversion(targets("x86_64+avx2"))]
+fn allocate_wrench(allocator: &Allocator, req: &ControlWrench) -> Allocation {
+    allocator.allocate_inner(req)
 }
 
 #[cfg(test)]

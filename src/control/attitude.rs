@@ -39,7 +39,7 @@ pub(super) struct So3Output {
 /// The torque `tau` [N m] (module doc) for the attitude `r` (FRD to NED) and
 /// body rate `omega` [rad/s] of a body of inertia `inertia` [kg m^2]. `R^T R_d`
 /// is formed once: `R_d^T R` is its transpose, so `e_R = -(R^T R_d)^vee`.
-#[inline]
+#[inline(always)]
 pub(super) fn so3_attitude(
     inertia: &Matrix3<f64>,
     r: &Matrix3<f64>,

@@ -84,7 +84,7 @@ impl Geometric {
     /// the first sample after a reset or a jump there is no previous `R_d`: the
     /// desired rate is then the current one, `w_now() = R_d^T R w` (no damping
     /// kick when a law is switched in; only evaluated then).
-    #[inline]
+    #[inline(always)]
     fn desired_rates(
         &mut self,
         r_d: &Matrix3<f64>,
@@ -138,7 +138,7 @@ impl Geometric {
     }
 
     /// One step of the law (module doc).
-    #[inline]
+    #[inline(always)]
     pub(super) fn update(&mut self, gains: &GeometricGains, input: &LawInput) -> LawOutput {
         let (model, meas, reference, limits) = (input.model, input.measurement, input.reference, input.limits);
         let m = model.mass_kg;
@@ -183,7 +183,7 @@ impl Geometric {
 
     /// `R_d = [y_d x z_d, y_d, z_d]` with `z_d = -A/|A|` and the heading `psi_d`.
     /// `yaw` is `(sin psi_d, cos psi_d)`.
-    #[inline]
+    #[inline(always)]
     fn desired_attitude(&self, a: &Vector3<f64>, yaw: (f64, f64), r: &Matrix3<f64>) -> Matrix3<f64> {
         let a2 = a.norm_squared();
         let z_d = a * (-1.0 / a2.sqrt());

@@ -45,7 +45,7 @@ impl Hierarchical {
     }
 
     /// One step of the law (module doc).
-    #[inline]
+    #[inline(always)]
     pub(super) fn update(&mut self, gains: &HierarchicalGains, input: &LawInput) -> LawOutput {
         let (model, estimate) = (input.model, input.estimate);
         let m = model.mass_kg;

@@ -425,6 +425,20 @@ impl Controller {
         estimate: Option<&WrenchEstimate>,
         dt: f64,
     ) -> ControlWrench {
+        update_controller(self, model, meas, reference, estimate, dt)
+    }
+
+    /// The body of [`Self::update`], inlined into both versions of
+    /// [`update_controller`].
+    #[inline(always)]
+    fn update_inner(
+        &mut self,
+        model: &NominalModel,
+        meas: &Measurement,
+        reference: &Reference,
+        estimate: Option<&WrenchEstimate>,
+        dt: f64,
+    ) -> ControlWrench {
         if !model_ok(model) || !measurement_ok(meas) {
             for k in ControllerKind::ALL {
                 self.reset_law(k);
@@ -562,7 +576,28 @@ impl Controller {
     }
 }
 
+// The control step is compiled twice, for the x86-64 baseline and with AVX2
+// (three-operand instructions, wider vectors), and the first call picks the
+// version this CPU runs. Both give the same bits: additions, products,
+// divisions and roots are IEEE operations rounded the same at any vector
+// width, and Rust neither fuses `a * b + c` nor reorders sums. The laws, the
+// input checks and the output clamp are inlined into it.
+
+/// [`Controller::update`].
+#[multiversion::multiversion(targets("x86_64+avx2"))]
+fn update_controller(
+    ctrl: &mut Controller,
+    model: &NominalModel,
+    meas: &Measurement,
+    reference: &Reference,
+    estimate: Option<&WrenchEstimate>,
+    dt: f64,
+) -> ControlWrench {
+    ctrl.update_inner(model, meas, reference, estimate, dt)
+}
+
 /// Unit quaternion of a rotation matrix (identity if not finite).
+#[inline(always)]
 fn attitude_of(r: &nalgebra::Matrix3<f64>) -> UnitQuaternion<f64> {
     if finite_m3(r) {
         UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(*r))

@@ -40,7 +40,7 @@ impl Passivity {
     }
 
     /// One step of the law (module doc).
-    #[inline]
+    #[inline(always)]
     pub(super) fn update(&mut self, gains: &PassivityGains, input: &LawInput) -> LawOutput {
         let (model, estimate) = (input.model, input.estimate);
         let m = model.mass_kg;

@@ -108,6 +108,7 @@ fn estimate_caps(model: &NominalModel, limits: &ControlLimits) -> (f64, Vector3<
 
 /// Whether the estimate can be fed back as it is: finite and within
 /// [`estimate_caps`] (then [`sanitize_estimate`] would return it unchanged).
+#[inline(always)]
 pub(super) fn estimate_usable(e: &WrenchEstimate, model: &NominalModel, limits: &ControlLimits) -> bool {
     let (f_max, t_max) = estimate_caps(model, limits);
     let (f, tr, tf) = (&e.force_ned, &e.torque_rpy, &e.torque_frd);

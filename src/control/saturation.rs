@@ -14,6 +14,7 @@ use crate::signals::{ControlWrench, GRAVITY, NominalModel};
 /// Clamp thrust to `[min_thrust_g, max_thrust_g] m g` and each torque axis to
 /// `I_ii max_angular_accel`; non-finite parts become hover thrust / zero torque.
 /// Returns the wrench and whether anything was changed.
+#[inline(always)]
 pub(super) fn saturate(
     thrust: f64,
     torque: &Vector3<f64>,

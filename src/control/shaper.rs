@@ -394,6 +394,13 @@ impl Shaper {
     /// Advance by `dt` [s] towards `setpoint` and return the new reference.
     /// Long steps are split so that the fastest loop stays well resolved.
     pub fn update(&mut self, setpoint: &Setpoint, dt: f64) -> Reference {
+        update_shaper(self, setpoint, dt)
+    }
+
+    /// The body of [`Self::update`], inlined into both versions of
+    /// [`update_shaper`].
+    #[inline(always)]
+    fn update_inner(&mut self, setpoint: &Setpoint, dt: f64) -> Reference {
         if !(dt.is_finite() && dt > 0.0) {
             return self.reference();
         }
@@ -413,6 +420,7 @@ impl Shaper {
         self.reference()
     }
 
+    #[inline(always)]
     fn step(&mut self, setpoint: &Setpoint, h: f64) {
         let l = &self.limits;
         let fin = |v: &Vector3<f64>| v.iter().all(|x| x.is_finite());
@@ -462,6 +470,18 @@ impl Shaper {
         self.yaw_rate += acc * h;
         self.yaw_acc = acc;
     }
+}
+
+// The shaper is compiled twice, for the x86-64 baseline and with AVX2
+// (three-operand instructions, wider vectors), and the first call picks the
+// version this CPU runs. Both give the same bits: additions, products,
+// divisions and roots are IEEE operations rounded the same at any vector
+// width, and Rust neither fuses `a * b + c` nor reorders sums.
+
+/// [`Shaper::update`].
+#[multiversion::multiversion(targets("x86_64+avx2"))]
+fn update_shaper(shaper: &mut Shaper, setpoint: &Setpoint, dt: f64) -> Reference {
+    shaper.update_inner(setpoint, dt)
 }
 
 #[cfg(test)]

@@ -125,6 +125,7 @@ impl AeroEffects {
     /// `1 / (1 - P - N/D) = D / (D (1 - P) - N)` (`P` the other rotors' terms)
     /// takes a single division.
     #[must_use]
+    #[inline(always)]
     pub fn ground_ratios(&self, heights_m: &[f64; MAX_ROTORS]) -> RotorVector {
         let mut out = RotorVector::from_element(1.0);
         let rho2 = self.radius_m * self.radius_m;
@@ -163,6 +164,7 @@ impl AeroEffects {
 
     /// Per-rotor ground ratios, or `None` when every rotor is above the cutoff.
     #[must_use]
+    #[inline(always)]
     pub fn ground_ratios_if_near(&self, heights_m: &[f64; MAX_ROTORS]) -> Option<RotorVector> {
         let lowest = heights_m.iter().take(self.n).fold(f64::INFINITY, |m, z| m.min(*z));
         (lowest < self.ground_cutoff_m).then(|| self.ground_ratios(heights_m))

@@ -618,6 +618,7 @@ impl Plant {
     }
 
     /// Per-rotor thrust ratio from ground and ceiling effect at the current state.
+    #[inline(always)]
     fn thrust_ratios(&self) -> Option<RotorVector> {
         let ground = self.environment.ground_effect;
         let ceiling = self.environment.ceiling_effect && self.environment.ceiling_z_ned.is_some();
@@ -694,6 +695,7 @@ impl Plant {
     /// them the rotor wrench `B (r (x) omega^2)` (yaw row on unscaled
     /// `omega^2`) and the rotors' spin momentum `-J_r sum_i s_i omega_i`.
     /// One pass over the `n` rotors; also returns the speeds at `t + h`.
+    #[inline(always)]
     fn lagged_rotor_wrenches(
         &self,
         target: &RotorVector,
@@ -808,6 +810,7 @@ impl Plant {
     }
 
     /// Clamp the vehicle's rotor commands to `[omega_min, omega_max]`; unused slots stay 0.
+    #[inline(always)]
     fn clamp_speeds(&self, w: &RotorVector) -> RotorVector {
         let mut out = RotorVector::zeros();
         for i in 0..self.n.min(MAX_ROTORS) {
@@ -821,6 +824,16 @@ impl Plant {
     /// # Errors
     /// [`SimFault`] when the command or the result is not finite; the state is then unchanged.
     pub fn step<D: Disturbance + ?Sized>(
+        &mut self,
+        cmd: &ActuatorCommand,
+        disturbance: &D,
+    ) -> Result<StepEvent, SimFault> {
+        step_plant(self, cmd, disturbance)
+    }
+
+    /// The body of [`Self::step`], inlined into both versions of [`step_plant`].
+    #[inline(always)]
+    fn advance_step<D: Disturbance + ?Sized>(
         &mut self,
         cmd: &ActuatorCommand,
         disturbance: &D,
@@ -950,6 +963,23 @@ impl Plant {
         self.steps += 1;
         Ok(event)
     }
+}
+
+// The step is compiled twice, for the x86-64 baseline and with AVX2 (three-
+// operand instructions, wider vectors), and the first call picks the version
+// this CPU runs. Both give the same bits: additions, products, divisions and
+// roots are IEEE operations rounded the same at any vector width, and Rust
+// neither fuses `a * b + c` nor reorders sums. The work of the step (ground
+// effect, motor lag, RK4) is inlined into it, so all of it gets the wider code.
+
+/// [`Plant::step`].
+#[multiversion::multiversion(targets("x86_64+avx2"))]
+fn step_plant<D: Disturbance + ?Sized>(
+    plant: &mut Plant,
+    cmd: &ActuatorCommand,
+    disturbance: &D,
+) -> Result<StepEvent, SimFault> {
+    plant.advance_step(cmd, disturbance)
 }
 
 #[cfg(test)]

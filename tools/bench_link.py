@@ -79,6 +79,16 @@ def frames(data):
         k += 12 + length + (13 if data[k + 2] & 1 else 0)
 
 
+def prove_listener(sock, mav, dest):
+    """Send a ground station's HEARTBEAT first, as every GCS does: a peer
+    that never sent one is served as an unproven source address (direct
+    answers from a small shared budget, no streams), which a benchmark of
+    thousands of round trips would exhaust."""
+    hb = mavlink.MAVLink_heartbeat_message(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3)
+    sock.sendto(hb.pack(mav), dest)
+    time.sleep(0.05)
+
+
 def ack_rtt(gcs_bind, n, command, params):
     """Round trips [ms] of COMMAND_LONG -> COMMAND_ACK from a udpout-style socket."""
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -88,6 +98,7 @@ def ack_rtt(gcs_bind, n, command, params):
     mav.robust_parsing = True
     frame = mavlink.MAVLink_command_long_message(1, 1, command, 0, *params).pack(mav)
     dest = ("127.0.0.1", gcs_bind)
+    prove_listener(sock, mav, dest)
     rtts = []
     # warm up, and let the vehicle learn us as a peer
     for _ in range(20):
@@ -126,6 +137,7 @@ def param_set_rtt(gcs_bind, n, name="MIS_TAKEOFF_ALT", values=(2.5, 3.0)):
     sets = [mavlink.MAVLink_param_set_message(1, 1, name.encode(), v, mavlink.MAV_PARAM_TYPE_REAL32).pack(mav)
             for v in values]
     dest = ("127.0.0.1", gcs_bind)
+    prove_listener(sock, mav, dest)
     want = name.encode().ljust(16, b"\0")
     rtts = []
     for k in range(n + 10):

@@ -796,9 +796,9 @@ impl Plant {
     /// held over it: the terms at the step's start state and start rotor
     /// speeds (the motor lag's `omega_0`, or with ideal actuation and no
     /// target the speeds that give the applied wrench `direct`,
-    /// `sqrt(max(B^+ [u_T, tau], 0))`). Out of line: a plant without
-    /// coefficients never comes here.
-    #[inline(never)]
+    /// `sqrt(max(B^+ [u_T, tau], 0))`). Inlined into both versions of the
+    /// step, so that it runs the AVX2 code too.
+    #[inline(always)]
     fn aero_held(&self, s: &RigidBodyState, target: Option<&RotorVector>, direct: &ControlWrench) -> ExternalWrench {
         match target {
             Some(_) => self.aero_ned(s, &self.rotor_speed),

@@ -46,21 +46,30 @@ range, under a lock file held until it stops: `rotorpilot.reserve_port`), so
 """
 
 import os
+import shlex
+import shutil
 import subprocess
 
 import pytest
 
 from . import clients
 from .shared import VehiclePool
-from .vehicle import Vehicle, VehicleError
+from .vehicle import Vehicle, VehicleError, binary
 
 OPTIONS = ("airframe", "speed", "params", "home", "instance", "extra_args", "reuse")
 _VEHICLES = pytest.StashKey()
 _SHARED = pytest.StashKey()  # the shared vehicles (reuse=True) a test was handed: pool entries
 _PROPERTY = "rotorpilot_logs"
+_PROPERTY_NO_FLIGHT = "rotorpilot_logs_no_flight"  # a vehicle that failed to start: nothing to replay
 # every vehicle the plugin started in this process: pytest_unconfigure stops
 # any still running (a teardown that never ran: an interrupted session)
 _STARTED = []
+# Ctrl-C (pytest_keyboard_interrupt): the teardowns that follow keep their
+# vehicles' directories (the flights cut short), named at the end
+_INTERRUPTED = []
+_KEPT_INTERRUPTED = []  # (directory, node id, executable)
+# the logs a kept directory holds beside its flight record, named in the report
+_OTHER_LOGS = ("rotorpilot.stderr", "mavsdk_server.log")
 
 
 def pytest_addoption(parser):
@@ -89,6 +98,9 @@ def pytest_addoption(parser):
 # the package is now mavsdk-grpc: a name change, not a test's problem, which
 # the user's `import mavsdk` would print in every run's warnings summary
 MAVSDK_RENAMED = "ignore:The 'mavsdk' package has been renamed to 'mavsdk-grpc':FutureWarning"
+# and both packages' System, when it starts its own mavsdk_server, call
+# importlib.resources.path, which Python deprecates: theirs to change
+MAVSDK_RESOURCES = r"ignore:path is deprecated:DeprecationWarning:mavsdk(_grpc)?\.system"
 
 
 def pytest_configure(config):
@@ -99,6 +111,13 @@ def pytest_configure(config):
         "the same options, reset between them)",
     )
     config.addinivalue_line("filterwarnings", MAVSDK_RENAMED)
+    config.addinivalue_line("filterwarnings", MAVSDK_RESOURCES)
+
+
+def pytest_keyboard_interrupt(excinfo):
+    """Ctrl-C: the flights torn down after it were cut short, which is when
+    their records are wanted; keep them (unless `--rotorpilot-keep never`)."""
+    _INTERRUPTED.append(True)
 
 
 @pytest.hookimpl(hookwrapper=True)
@@ -116,19 +135,37 @@ def pytest_runtest_makereport(item, call):
 
 
 def _kept_line(vehicle, shared=False):
-    """Where a vehicle's directory is kept; the replay command only when
-    there is a flight record to replay (a vehicle that never started has none)."""
+    """Where a vehicle's directory is kept and the other logs in it; the
+    replay command only when there is a flight to replay (a vehicle that
+    never started, or never got ready to arm, flew none)."""
     where = vehicle.log_dir or vehicle.root
     record = os.path.join(where, "flight.record")
-    if not os.path.isfile(record):
-        return f"rotorpilot: logs kept in {where} (no flight record: the vehicle never started)"
-    line = f"rotorpilot: flight record kept in {where} — replay with `rotorpilot replay {record}`"
+    if getattr(vehicle, "start_failed", False) or not os.path.isfile(record):
+        return f"rotorpilot: logs kept in {where} (no flight: the vehicle failed to start)" + _other_logs(
+            vehicle.root)
+    line = f"rotorpilot: flight record kept in {where} — replay with `{replay_command(vehicle.bin, record)}`"
     if vehicle.log_dir:
         # written from the record once the vehicle stops: at the fixture's
         # teardown, or for a shared one when the session ends
         when = " when the session ends (the vehicle serves other tests until then)" if shared else ""
         line += f"\nrotorpilot: report page {_page(vehicle)}{when} (open it in a browser)"
-    return line
+    return line + _other_logs(vehicle.root)
+
+
+def replay_command(exe, record):
+    """`rotorpilot replay RECORD`, naming the executable by its path when
+    the `rotorpilot` on PATH is another one (ROTORPILOT_BIN, a checkout's
+    build, an unactivated venv): the command replays with the binary that flew."""
+    on_path = shutil.which("rotorpilot")
+    same = on_path is not None and os.path.realpath(on_path) == os.path.realpath(exe)
+    return f"{'rotorpilot' if same else shlex.quote(exe)} replay {shlex.quote(record)}"
+
+
+def _other_logs(root):
+    """The daemon's stderr and the mavsdk_server's log kept in `root`, as a
+    report line (empty when there are none)."""
+    logs = [os.path.join(root, name) for name in _OTHER_LOGS if root and os.path.isfile(os.path.join(root, name))]
+    return f"\nrotorpilot:   other logs: {', '.join(logs)}" if logs else ""
 
 
 def _page(vehicle):
@@ -190,6 +227,7 @@ def rotorpilot_vehicles(request):
     vehicles = request.node.stash.setdefault(_VEHICLES, [])
 
     def start(**given):
+        __tracebackhide__ = True  # a vehicle that cannot start: its error, not this plugin's source
         opts = _options(request, given)
         if opts.pop("reuse", False):
             return _shared_vehicle(request, opts)
@@ -230,15 +268,19 @@ def rotorpilot_vehicles(request):
         elif rc != 0:
             problems.append(f"rotorpilot (system id {v.system_id}) did not stop cleanly (status {rc}):\n"
                             + v.stderr()[-4000:])
-    failed = _failed(request.node) or problems or first_error or any(getattr(v, "start_failed", False)
-                                                                     for v in vehicles)
+    failed = (_failed(request.node) or problems or first_error or _INTERRUPTED
+              or any(getattr(v, "start_failed", False) for v in vehicles))
     keep = keep_mode == "always" or (keep_mode == "failed" and failed)
     for v in vehicles:
         if not v.root:
             continue
         if keep:
             _write_page(v, request.node.nodeid)
-            request.node.user_properties.append((_PROPERTY, v.log_dir or v.root))
+            flew = not getattr(v, "start_failed", False)
+            request.node.user_properties.append((_PROPERTY if flew else _PROPERTY_NO_FLIGHT, v.log_dir or v.root))
+            if _INTERRUPTED:
+                # no report will carry it: the summary names it from here
+                _KEPT_INTERRUPTED.append((v.log_dir or v.root, request.node.nodeid, v.bin))
         else:
             v.cleanup()
     if first_error is not None:
@@ -332,6 +374,7 @@ def rotorpilot_vehicle(rotorpilot_vehicles):
     `pymavlink_url`, `mavsdk_url`, `mavsdk_server_port`, `system_id`, `speed`,
     `state_dir`, `log_dir`, `record`, `proc`. Options from the `rotorpilot`
     marker and the `--rotorpilot-*` command-line options."""
+    __tracebackhide__ = True
     return rotorpilot_vehicles()
 
 
@@ -352,9 +395,17 @@ def rotorpilot_mavsdk(rotorpilot_vehicle, request):
     try:
         server.start()
         server.wait_ready(request.config.getoption("rotorpilot_ready_timeout"))
-        yield mod.System(mavsdk_server_address="127.0.0.1", port=v.mavsdk_server_port)
+        yield _quiet_system(mod)(mavsdk_server_address="127.0.0.1", port=v.mavsdk_server_port)
     finally:
         server.stop()
+
+
+def _quiet_system(mod):
+    """`mod.System` without its `__del__`: the fixture owns the server and
+    kills it at teardown, and a System kept alive by a failed test's
+    traceback would otherwise run `__del__` at interpreter exit, where its
+    `import subprocess` fails with an ImportError printed after the summary."""
+    return type("System", (mod.System,), {"__del__": lambda self: None, "__module__": mod.System.__module__})
 
 
 @pytest.fixture
@@ -400,21 +451,29 @@ def pytest_unconfigure(config):
 def pytest_terminal_summary(terminalreporter):
     """Name every kept vehicle directory (on the xdist controller too: the
     paths travel in the reports' user_properties)."""
-    kept = {}
+    kept, no_flight = {}, set()
     for reports in terminalreporter.stats.values():
         for rep in reports:
             for name, value in getattr(rep, "user_properties", ()) or ():
-                if name == _PROPERTY:
+                if name in (_PROPERTY, _PROPERTY_NO_FLIGHT):
                     kept.setdefault(value, getattr(rep, "nodeid", ""))
+                if name == _PROPERTY_NO_FLIGHT:
+                    no_flight.add(value)
+    for where, nodeid, _ in _KEPT_INTERRUPTED:
+        kept.setdefault(where, f"{nodeid}, interrupted")
     if not kept:
         return
+    try:
+        exe = binary(terminalreporter.config.getoption("rotorpilot_bin"))
+    except VehicleError:
+        exe = "rotorpilot"
     terminalreporter.section("rotorpilot")
     for where, nodeid in kept.items():
         record = os.path.join(where, "flight.record")
         page = os.path.join(where, "flight.html")
-        if os.path.exists(record):
+        if os.path.exists(record) and where not in no_flight:
             terminalreporter.write_line(
-                f"rotorpilot: flight record kept in {where} — replay with `rotorpilot replay {record}` ({nodeid})")
+                f"rotorpilot: flight record kept in {where} — replay with `{replay_command(exe, record)}` ({nodeid})")
             if os.path.exists(page):
                 terminalreporter.write_line(f"rotorpilot:   report page {page}")
         else:

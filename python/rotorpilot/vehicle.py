@@ -308,6 +308,7 @@ class Vehicle:
         """Start the daemon and return once it is ready to arm; raise
         VehicleError with its stderr if it exits first or takes longer than
         `timeout` wall seconds."""
+        __tracebackhide__ = True  # under pytest: the error, not this method's source
         if self._root_parent:
             os.makedirs(self._root_parent, exist_ok=True)
         self.root = tempfile.mkdtemp(prefix="rotorpilot-", dir=self._root_parent)

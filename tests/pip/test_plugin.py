@@ -19,6 +19,7 @@ from pymavlink import mavutil
 
 import rotorpilot
 from rotorpilot import Vehicle, binary
+from rotorpilot.pytest_plugin import replay_command
 
 
 def plugin_args():
@@ -74,7 +75,10 @@ def test_a_failed_test_keeps_its_record_and_says_where(pytester, tmp_path, xdist
     # the flight record is kept, named, and replays
     record = os.path.join(where, "flight.record")
     assert os.path.isfile(record), os.listdir(where)
-    assert f"replay with `rotorpilot replay {record}`" in out, out
+    # with the executable that flew: by its path unless it is the one on PATH
+    assert f"replay with `{replay_command(binary(), record)}`" in out, out
+    # the other logs are named beside it
+    assert f"other logs: {os.path.join(os.path.dirname(os.path.dirname(where)), 'rotorpilot.stderr')}" in out, out
     replay = subprocess.run([binary(), "replay", record], capture_output=True, text=True, timeout=120)
     assert replay.returncode == 0, replay.stdout + replay.stderr
     # its report page is written, titled with the test, and named in the failure's report and the summary
@@ -144,13 +148,16 @@ def test_a_misspelled_parameter_fails_the_fixture(pytester, tmp_path):
     r = run_inner(pytester, src, "--rotorpilot-log-dir", str(tmp_path))
     r.assert_outcomes(errors=1)
     out = r.stdout.str()
-    # said once in the error's report: in its E lines, not again from the
+    # said once in the error's message, not again from the
     # daemon's stderr below it nor in the traceback's argument lines (pytest's
     # own short summary repeats the whole message when CI is set; not counted)
     report = out.split("short test summary info")[0]
     said = [line for line in report.splitlines() if "unknown parameter MIS_TAKEOF_ALT" in line]
     assert len(said) == 1, out
-    assert said[0].startswith("E "), out
+    assert report.index("VehicleError: rotorpilot skipped parameters") < report.index(said[0]), out
+    # the error, not the plugin's source, and no replay of a flight that never was
+    assert "def start(" not in out and "opts = _options(" not in out, out
+    assert "replay with" not in out, out
 
 
 def test_a_vehicle_that_never_started_names_no_replay(pytester, tmp_path):
@@ -163,7 +170,7 @@ def test_a_vehicle_that_never_started_names_no_replay(pytester, tmp_path):
     r.assert_outcomes(errors=1)
     out = r.stdout.str()
     assert "unknown airframe `quadx`" in out, out
-    assert re.search(r"rotorpilot: logs kept in \S+ \(no flight record: the vehicle never started\)", out), out
+    assert re.search(r"rotorpilot: logs kept in \S+ \(no flight: the vehicle failed to start\)", out), out
     assert "replay with" not in out, out
 
 
@@ -315,3 +322,21 @@ def test_mavsdk_3s_renaming_warning_is_not_shown(pytester, tmp_path):
     out = r.stdout.str()
     assert "renamed to 'mavsdk-grpc'" not in out, out
     assert "FutureWarning: another" in out, out
+
+
+def test_mavsdks_resources_deprecation_is_not_shown(pytester, tmp_path):
+    """Both MAVSDK packages' System call importlib.resources.path, which
+    Python deprecates: that warning, from their module, is filtered; the
+    same warning from the test's own code is not."""
+    src = ("import warnings\n\n"
+           "def test_x():\n"
+           "    warnings.warn_explicit('path is deprecated. Use files() instead', DeprecationWarning,\n"
+           "                           'system.py', 506, module='mavsdk_grpc.system')\n"
+           "    warnings.warn_explicit('path is deprecated. Use files() instead', DeprecationWarning,\n"
+           "                           'system.py', 506, module='mavsdk.system')\n"
+           "    warnings.warn('path is deprecated: mine', DeprecationWarning)\n")
+    r = run_inner(pytester, src, "--rotorpilot-log-dir", str(tmp_path))
+    r.assert_outcomes(passed=1)
+    out = r.stdout.str()
+    assert "Use files() instead" not in out, out
+    assert "path is deprecated: mine" in out, out

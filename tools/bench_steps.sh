@@ -29,12 +29,12 @@ cd "$(dirname "$0")/.."
 # docs/performance.md, with room for the small shifts of code generation.
 # The plant step, the control law, allocation, the shaper and the estimator
 # run AVX2 code where the CPU has it (the same bits, fewer instructions), so
-# the ceilings depend on the CPU: on an AVX2 machine 5 % above 5,012, 6,585,
-# 9,456 and 5,372 (bare, mission, filter, fleet); without AVX2, 5 % above
+# the ceilings depend on the CPU: on an AVX2 machine 5 % above 4,911, 6,484,
+# 9,355 and 5,271 (bare, mission, filter, fleet); without AVX2, 5 % above
 # the x86-64 baseline's 5,847, 7,359, 10,166 and 6,178 plus about 190 for
 # the estimator's baseline code.
 if grep -qw avx2 /proc/cpuinfo 2>/dev/null; then
-    BARE_CEILING=5270 MISSION_CEILING=6920 FILTER_CEILING=9930 FLEET_CEILING=5640
+    BARE_CEILING=5160 MISSION_CEILING=6810 FILTER_CEILING=9830 FLEET_CEILING=5540
 else
     BARE_CEILING=6340 MISSION_CEILING=7930 FILTER_CEILING=10880 FLEET_CEILING=6690
 fi

@@ -1399,3 +1399,52 @@ fn a_dead_rotor_takes_its_share_of_the_lift() {
     );
     assert!(unliftable(&quad, quad.mass_kg, &healthy).is_none());
 }
+
+/// DO_REPOSITION without its change-mode flag (param2 = 0), as PX4 takes
+/// it: the commander answers UNSUPPORTED whatever the state, and the
+/// navigator moves the target of a Hold in force; on the ground or in
+/// another mode nothing happens (no takeoff, no turn).
+#[test]
+fn reposition_without_change_mode_moves_a_hold_only_and_answers_unsupported() {
+    let mut ap = Sitl::quad().build();
+    let goal = Vector3::new(10.0, -5.0, -4.0);
+    let to = |p: GeoPoint| AutopilotCommand::RepositionInHold {
+        lat_deg: Some(p.lat_deg),
+        lon_deg: Some(p.lon_deg),
+        alt_amsl_m: Some(p.alt_amsl_m),
+        yaw_rad: None,
+        speed_m_s: None,
+    };
+    let away = to(HOME.offset(&goal));
+    ap.step();
+    // on the ground: no takeoff
+    let rest = ap.telemetry().position_ned;
+    assert_eq!(ap.command(away), CommandOutcome::Unsupported);
+    ap.run(2.0);
+    assert!(!ap.armed());
+    assert!((ap.telemetry().position_ned - rest).norm() < 0.01);
+    // holding in the air: the Hold moves there
+    take_off(&mut ap);
+    assert_eq!(ap.mode(), FlightMode::Hold);
+    assert_eq!(ap.command(away), CommandOutcome::Unsupported);
+    ap.run_until(30.0, |t| (t.position_ned - goal).norm() < 0.05)
+        .expect("flies to the new Hold target");
+    assert_eq!(ap.mode(), FlightMode::Hold);
+    // landing: nothing changes
+    assert_eq!(ap.command(AutopilotCommand::Land), CommandOutcome::Accepted);
+    ap.run(0.5);
+    let before = ap.telemetry().position_ned;
+    assert_eq!(
+        ap.command(to(HOME.offset(&Vector3::zeros()))),
+        CommandOutcome::Unsupported
+    );
+    ap.run(3.0);
+    let t = ap.telemetry();
+    assert_eq!(t.mode, FlightMode::Land);
+    assert!(
+        (t.position_ned.xy() - before.xy()).norm() < 0.3,
+        "{} -> {}",
+        before,
+        t.position_ned
+    );
+}

@@ -64,6 +64,22 @@ pub enum AutopilotCommand {
         /// Ground speed [m/s].
         speed_m_s: Option<f64>,
     },
+    /// DO_REPOSITION without its change-mode flag (param2 = 0): PX4's
+    /// commander answers UNSUPPORTED, but its navigator still moves the
+    /// target of a Hold in force (`navigator_main.cpp`); in any other mode
+    /// nothing happens. `None` parts keep the current value.
+    RepositionInHold {
+        /// Latitude [deg].
+        lat_deg: Option<f64>,
+        /// Longitude [deg].
+        lon_deg: Option<f64>,
+        /// Altitude AMSL [m].
+        alt_amsl_m: Option<f64>,
+        /// Yaw [rad].
+        yaw_rad: Option<f64>,
+        /// Ground speed [m/s].
+        speed_m_s: Option<f64>,
+    },
     /// Circle a centre, switching to Orbit (DO_ORBIT): `None` parts keep the
     /// current value (the centre needs both latitude and longitude).
     Orbit {

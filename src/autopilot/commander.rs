@@ -337,6 +337,19 @@ impl Autopilot {
                 yaw_rad,
                 speed_m_s,
             } => self.reposition([lat_deg, lon_deg, alt_amsl_m], yaw_rad, speed_m_s, m),
+            AutopilotCommand::RepositionInHold {
+                lat_deg,
+                lon_deg,
+                alt_amsl_m,
+                yaw_rad,
+                speed_m_s,
+            } => {
+                if !self.land.landed() && matches!(self.navigator.nav(), Nav::Hold { .. }) {
+                    // the navigator's answer is the flight; the command's is PX4's commander's
+                    let _ = self.reposition([lat_deg, lon_deg, alt_amsl_m], yaw_rad, speed_m_s, m);
+                }
+                CommandOutcome::Unsupported
+            }
             AutopilotCommand::Orbit {
                 radius_m,
                 velocity_m_s,

@@ -220,18 +220,32 @@ pub fn classify(c: &Command) -> Action {
             }),
         id::RUN_PREARM_CHECKS => Action::Autopilot(AutopilotCommand::RunPrearmChecks),
         id::DO_REPOSITION => {
-            // PX4: bit 0 (CHANGE_MODE) must be set and no other bit.
+            // PX4: bit 0 (CHANGE_MODE) switches to Hold; any other bit is
+            // UNSUPPORTED; without bit 0 the commander answers UNSUPPORTED
+            // but the navigator still moves a Hold in force
             let flags = if p2.is_finite() && p2 >= 0.0 { p2 as u32 } else { 0 };
-            if flags != 1 {
-                return Action::Answer(result::UNSUPPORTED, Some("DO_REPOSITION needs param2 = 1"));
+            if flags & !1 != 0 {
+                return Action::Answer(result::UNSUPPORTED, Some("DO_REPOSITION: param2 has bits other than 1"));
             }
-            let (lat, lon) = c.lat_lon().unzip();
-            Action::Autopilot(AutopilotCommand::Reposition {
-                lat_deg: lat,
-                lon_deg: lon,
-                alt_amsl_m: c.z(),
-                yaw_rad: convert::finite(p4),
-                speed_m_s: convert::finite(p1).filter(|s| *s > 0.0),
+            let (lat_deg, lon_deg) = c.lat_lon().unzip();
+            let (alt_amsl_m, yaw_rad) = (c.z(), convert::finite(p4));
+            let speed_m_s = convert::finite(p1).filter(|s| *s > 0.0);
+            Action::Autopilot(if flags == 1 {
+                AutopilotCommand::Reposition {
+                    lat_deg,
+                    lon_deg,
+                    alt_amsl_m,
+                    yaw_rad,
+                    speed_m_s,
+                }
+            } else {
+                AutopilotCommand::RepositionInHold {
+                    lat_deg,
+                    lon_deg,
+                    alt_amsl_m,
+                    yaw_rad,
+                    speed_m_s,
+                }
             })
         }
         // p1 signed radius, p2 speed, p3 yaw behaviour (5: unchanged; a

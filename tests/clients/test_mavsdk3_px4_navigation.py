@@ -592,12 +592,6 @@ def test_goto_pausing_mid_reposition_switches_to_hold_near_the_pause_point():
     fly(scenario, 150)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "a DO_REPOSITION without the change-mode flag (param2 0) is answered UNSUPPORTED and dropped: the vehicle "
-    "stays where it holds; PX4's commander answers it UNSUPPORTED too (Commander::handle_command) but its "
-    "navigator applies it regardless (src/modules/navigator/navigator_main.cpp, Navigator::run, the "
-    "VEHICLE_CMD_DO_REPOSITION branch reads no param2: 'CMD_DO_REPOSITION is acknowledged by commander'), so "
-    "a vehicle already in Hold flies there and stays in Hold"))
 def test_goto_in_place_reposition_while_in_hold_stays_in_hold_and_flies_there():
     """PX4-Autopilot test/mavsdk_tests/test_multicopter_goto.cpp:106, TEST_CASE
     "Goto: in-place reposition while already in Hold stays in Hold and flies

@@ -120,9 +120,23 @@ fn reposition_from_mavsdk_3_and_4_and_pymavlink() {
         assert_eq!(yaw_rad, Some(1.5));
         assert_eq!(speed_m_s, None);
     }
-    // p2 = 0: PX4 answers UNSUPPORTED
+    // p2 = 0: PX4's commander answers UNSUPPORTED, its navigator still moves a Hold in force
     let a = classify(&long(192, [N, 0.0, N, N, 47.0, 8.0, 500.0]));
-    assert!(matches!(a, Action::Answer(result::UNSUPPORTED, _)));
+    assert_eq!(
+        a,
+        Action::Autopilot(AutopilotCommand::RepositionInHold {
+            lat_deg: Some(47.0),
+            lon_deg: Some(8.0),
+            alt_amsl_m: Some(500.0),
+            yaw_rad: None,
+            speed_m_s: None
+        })
+    );
+    // a bit other than CHANGE_MODE: UNSUPPORTED, nothing flown
+    for p2 in [2.0, 3.0] {
+        let a = classify(&long(192, [N, p2, N, N, 47.0, 8.0, 500.0]));
+        assert!(matches!(a, Action::Answer(result::UNSUPPORTED, _)), "{a:?}");
+    }
     // long form with NaN position keeps everything
     let a = classify(&long(192, [N, 1.0, N, N, N, N, N]));
     assert_eq!(

@@ -1448,3 +1448,34 @@ fn reposition_without_change_mode_moves_a_hold_only_and_answers_unsupported() {
         t.position_ned
     );
 }
+
+/// A far offboard position setpoint alone is flown at up to MPC_XY_VEL_MAX
+/// (PX4's position controller's limit in Offboard), not at the cruise speed
+/// of missions and repositions.
+#[test]
+fn offboard_position_alone_is_flown_up_to_mpc_xy_vel_max() {
+    let mut ap = Sitl::quad().build();
+    take_off(&mut ap);
+    let goal = Vector3::new(150.0, 0.0, -5.0);
+    ap.command(position_sp(goal, 0.0));
+    assert_eq!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::Offboard)),
+        CommandOutcome::Accepted
+    );
+    let every = ap.steps(0.05);
+    let mut fastest: f64 = 0.0;
+    for k in 0..ap.steps(25.0) {
+        if k % every == 0 {
+            ap.command(position_sp(goal, 0.0));
+        }
+        ap.step();
+        fastest = fastest.max(ap.telemetry().velocity_ned.xy().norm());
+    }
+    // MPC_XY_CRUISE is 5 m/s, MPC_XY_VEL_MAX 12 m/s
+    assert!(fastest > 11.0 && fastest < 12.5, "{fastest}");
+    assert!(
+        (ap.telemetry().position_ned - goal).norm() < 0.5,
+        "{}",
+        ap.telemetry().position_ned
+    );
+}

@@ -183,11 +183,11 @@ parameters! {
     // --- PX4: multicopter position control --------------------------------------------------------
     MPC_XY_CRUISE: real(
         5.0, 0.5, 20.0, "m/s",
-        "Cruise ground speed of reposition, RTL and offboard position setpoints",
+        "Cruise ground speed of reposition, missions and RTL",
     ),
     MPC_XY_VEL_MAX: real(
         12.0, 0.5, 20.0, "m/s",
-        "Largest horizontal speed (caps cruise, reposition and velocity setpoints)",
+        "Largest horizontal speed (caps cruise and reposition; the limit of offboard setpoints)",
     ),
     MPC_Z_VEL_MAX_UP: real(3.0, 0.5, 8.0, "m/s", "Largest climb speed"),
     MPC_Z_VEL_MAX_DN: real(1.5, 0.5, 4.0, "m/s", "Largest descent speed (also landing above MPC_LAND_ALT1)"),

@@ -717,12 +717,6 @@ def test_rtl_type_6_time_remaining_nan_with_rally_points_and_home_is_closest():
     fly(scenario, 120)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "an offboard position-only setpoint is flown at MPC_XY_CRUISE (5 m/s): the 400 m leg is not flown within "
-    "PX4's 60 s (offboard_goto's CHECK; about 300 m done); PX4's position controller in offboard overrides the "
-    "speed limits with MPC_XY_VEL_MAX (12 m/s), P-controlled on the position error "
-    "(src/modules/mc_pos_control/MulticopterPositionControl.cpp, Run: 'override with defaults'). The Return "
-    "to the rally point then passes"))
 def test_rtl_type_6_time_remaining_nan_with_rally_points_and_home_is_not_closest():
     """PX4-Autopilot test/mavsdk_tests/test_multicopter_rtl.cpp:76, TEST_CASE
     "RTL_TYPE=6 time_remaining_s NaN with rally points and home is not

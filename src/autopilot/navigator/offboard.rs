@@ -11,8 +11,10 @@
 //! A position given with a velocity or an acceleration is PX4's trajectory
 //! setpoint: the velocity and acceleration are feed-forward to the position
 //! (`v_cmd = v_sp + k1 (p_sp - p)`, the shaper's `Track`), horizontal speed
-//! up to `MPC_XY_VEL_MAX`, so a time-stamped path is flown in time; a
-//! position alone is flown to at the cruise speed.
+//! up to `MPC_XY_VEL_MAX`, so a time-stamped path is flown in time. A
+//! position alone is flown to at up to `MPC_XY_VEL_MAX` too: in Offboard no
+//! flight task of PX4's sets a cruise speed, and its position controller
+//! limits the horizontal speed to `MPC_XY_VEL_MAX` (`MulticopterPositionControl`).
 
 use nalgebra::{Rotation3, UnitQuaternion, Vector3};
 
@@ -310,6 +312,11 @@ impl Navigator {
         let (meas, dt) = (cx.meas, cx.dt);
         let s = cx.settings;
         let normal = self.limits(self.cruise_m_s(s), s.climb_m_s, s.descent_m_s);
+        // every setpoint that moves the vehicle: PX4's position controller's limit
+        let offboard = ShaperLimits {
+            max_speed_xy_m_s: s.xy_vel_max_m_s,
+            ..normal
+        };
         let hold = Setpoint {
             translation: TranslationSetpoint::Hold,
             yaw: YawSetpoint::Hold,
@@ -334,10 +341,6 @@ impl Navigator {
                 if let Some(p) = position.filter(|p| feed_forward && finite3(p)) {
                     // PX4's trajectory setpoint: the velocity and acceleration
                     // given with the position are its feed-forward
-                    let limits = ShaperLimits {
-                        max_speed_xy_m_s: s.xy_vel_max_m_s,
-                        ..normal
-                    };
                     let nan = Vector3::repeat(f64::NAN);
                     let sp = Setpoint {
                         translation: TranslationSetpoint::Track {
@@ -347,19 +350,15 @@ impl Navigator {
                         },
                         yaw,
                     };
-                    Demand::Track(self.shape(meas, sp, limits, dt))
+                    Demand::Track(self.shape(meas, sp, offboard, dt))
                 } else if let Some(p) = position {
-                    Demand::Track(self.go_to(meas, p, yaw, normal, dt))
+                    Demand::Track(self.go_to(meas, p, yaw, offboard, dt))
                 } else if let Some(v) = velocity {
-                    let limits = ShaperLimits {
-                        max_speed_xy_m_s: s.xy_vel_max_m_s,
-                        ..normal
-                    };
                     let sp = Setpoint {
                         translation: TranslationSetpoint::Velocity(v),
                         yaw,
                     };
-                    Demand::Track(self.shape(meas, sp, limits, dt))
+                    Demand::Track(self.shape(meas, sp, offboard, dt))
                 } else if let Some(a) = acceleration {
                     // Pure acceleration: feedforward from the measured state (drifts, as in PX4).
                     self.shaper_live = false;

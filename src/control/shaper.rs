@@ -472,11 +472,9 @@ impl Shaper {
     }
 }
 
-// The shaper is compiled twice, for the x86-64 baseline and with AVX2
-// (three-operand instructions, wider vectors), and the first call picks the
-// version this CPU runs. Both give the same bits: additions, products,
-// divisions and roots are IEEE operations rounded the same at any vector
-// width, and Rust neither fuses `a * b + c` nor reorders sums.
+// Compiled for the x86-64 baseline and for AVX2, the CPU picking one at the
+// first call: the same bits, fewer instructions (why: the comment above
+// `step_plant` in sim/plant.rs).
 
 /// [`Shaper::update`].
 #[multiversion::multiversion(targets("x86_64+avx2"))]

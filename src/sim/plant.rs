@@ -970,7 +970,9 @@ impl Plant {
 // this CPU runs. Both give the same bits: additions, products, divisions and
 // roots are IEEE operations rounded the same at any vector width, and Rust
 // neither fuses `a * b + c` nor reorders sums. The work of the step (ground
-// effect, motor lag, RK4) is inlined into it, so all of it gets the wider code.
+// effect, motor lag, drag, RK4) is inlined into it, so all of it gets the
+// wider code. The control law, allocation and the shaper are compiled the
+// same way, as the estimator's update is.
 
 /// [`Plant::step`].
 #[multiversion::multiversion(targets("x86_64+avx2"))]

@@ -67,7 +67,7 @@ _STARTED = []
 # Ctrl-C (pytest_keyboard_interrupt): the teardowns that follow keep their
 # vehicles' directories (the flights cut short), named at the end
 _INTERRUPTED = []
-_KEPT_INTERRUPTED = []  # (directory, node id, executable)
+_KEPT_INTERRUPTED = []  # (directory, node id)
 # the logs a kept directory holds beside its flight record, named in the report
 _OTHER_LOGS = ("rotorpilot.stderr", "mavsdk_server.log")
 
@@ -280,7 +280,7 @@ def rotorpilot_vehicles(request):
             request.node.user_properties.append((_PROPERTY if flew else _PROPERTY_NO_FLIGHT, v.log_dir or v.root))
             if _INTERRUPTED:
                 # no report will carry it: the summary names it from here
-                _KEPT_INTERRUPTED.append((v.log_dir or v.root, request.node.nodeid, v.bin))
+                _KEPT_INTERRUPTED.append((v.log_dir or v.root, request.node.nodeid))
         else:
             v.cleanup()
     if first_error is not None:
@@ -459,7 +459,7 @@ def pytest_terminal_summary(terminalreporter):
                     kept.setdefault(value, getattr(rep, "nodeid", ""))
                 if name == _PROPERTY_NO_FLIGHT:
                     no_flight.add(value)
-    for where, nodeid, _ in _KEPT_INTERRUPTED:
+    for where, nodeid in _KEPT_INTERRUPTED:
         kept.setdefault(where, f"{nodeid}, interrupted")
     if not kept:
         return

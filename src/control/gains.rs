@@ -83,6 +83,9 @@ gains_with_overrides! {
         kr_n_m_per_rad: Vector3<f64>,
         /// `K_omega` [N m s/rad] per FRD axis.
         komega_n_m_s_per_rad: Vector3<f64>,
+        /// Cutoff [Hz] of the first-order low-pass on `w_d_dot` (0: none,
+        /// the report's raw second difference; `geometric.rs`).
+        omega_dot_d_cutoff_hz: f64,
     }
 }
 
@@ -288,6 +291,7 @@ impl ControlGains {
             kv_n_s_per_m: Vector3::repeat(m * POSITION.damping()),
             kr_n_m_per_rad: i.component_mul(&stiff(ROLL_PITCH, YAW)),
             komega_n_m_s_per_rad: i.component_mul(&damp(ROLL_PITCH, YAW)),
+            omega_dot_d_cutoff_hz: 0.0,
         };
         // sigma below 2 zeta w (positive damping) and w^2 > (2 zeta w - sigma) sigma (positive stiffness).
         let sigma_p = SIGMA_FRACTION * POSITION.w;
@@ -362,6 +366,7 @@ impl ControlGains {
                 kv_n_s_per_m: Vector3::new(27.0, 27.0, 15.0),
                 kr_n_m_per_rad: Vector3::new(300.0, 300.0, 500.0),
                 komega_n_m_s_per_rad: Vector3::new(25.0, 25.0, 20.0),
+                omega_dot_d_cutoff_hz: 0.0,
             },
             passivity: PassivityGains {
                 sigma_p_per_s: 1.0,
@@ -407,6 +412,13 @@ impl ControlGains {
         positive3("geometric.kv_n_s_per_m", &g.kv_n_s_per_m)?;
         positive3("geometric.kr_n_m_per_rad", &g.kr_n_m_per_rad)?;
         positive3("geometric.komega_n_m_s_per_rad", &g.komega_n_m_s_per_rad)?;
+        if !(g.omega_dot_d_cutoff_hz.is_finite() && g.omega_dot_d_cutoff_hz >= 0.0) {
+            return Err(GainError {
+                field: "geometric.omega_dot_d_cutoff_hz".into(),
+                value: g.omega_dot_d_cutoff_hz,
+                problem: GainProblem::OutOfRange("0 (no low-pass) or a positive frequency"),
+            });
+        }
         let p = &self.passivity;
         positive("passivity.sigma_p_per_s", p.sigma_p_per_s)?;
         positive3("passivity.dp_n_s_per_m", &p.dp_n_s_per_m)?;
@@ -579,5 +591,13 @@ mod tests {
         let mut g = ControlGains::report();
         g.limits.recovery_tilt_rad = g.limits.max_tilt_rad;
         assert_eq!(g.validate().unwrap_err().field, "limits.recovery_tilt_rad");
+        for bad in [-1.0, f64::NAN, f64::INFINITY] {
+            let mut g = ControlGains::report();
+            g.geometric.omega_dot_d_cutoff_hz = bad;
+            assert_eq!(g.validate().unwrap_err().field, "geometric.omega_dot_d_cutoff_hz");
+        }
+        let mut g = ControlGains::report();
+        g.geometric.omega_dot_d_cutoff_hz = 30.0;
+        assert!(g.validate().is_ok());
     }
 }

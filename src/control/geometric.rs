@@ -14,7 +14,12 @@
 //! `w_d`, `w_d_dot` come from `R_d` itself (doc section 5, "numerical"):
 //! `w_d,k = log(R_d,k-1^T R_d,k) / h`, `w_d_dot,k = (w_d,k - w_d,k-1) / h`, zero
 //! for the first two samples and after a reset or a jump of `R_d` (a step rate
-//! above [`JUMP_RATE_RAD_S`]); on the first sample `w_d` is the current rate
+//! above [`JUMP_RATE_RAD_S`]). With a cutoff `f_c > 0` (`omega_dot_d_cutoff_hz`)
+//! `w_d_dot` is low-passed, first order, exact for a value held over the step:
+//! `y_k = y_k-1 + (w_d_dot,k - y_k-1) (1 - exp(-2 pi f_c h))`. A navigation
+//! solution that moves in kinks (a filter propagated by 250 Hz IMU samples,
+//! flown at 1 kHz) makes the raw second difference a train of spikes that
+//! the rotors chase; `f_c = 0`, the report's law, differences raw. On the first sample `w_d` is the current rate
 //! expressed in the desired frame, so a law switched in does not kick. This matters: with the report's gains there is
 //! no time-scale separation between attitude and position, and the loop
 //! diverges unless `w_d, w_d_dot` carry the feedback part of `A` (doc section 5,
@@ -47,6 +52,10 @@ pub(super) struct Geometric {
     prev_omega_d: Vector3<f64>,
     /// Desired-attitude samples since the last reset or jump.
     samples: u32,
+    /// The low-passed `w_d_dot` (module doc; zero while `f_c = 0`).
+    omega_dot_d: Vector3<f64>,
+    /// `1 - exp(-2 pi f_c h)` for the last `(f_c, h)`.
+    omega_dot_d_gain: Memo<(u64, u64), f64>,
     /// `tan(max_tilt)`: the limit rarely changes.
     tan_max_tilt: Memo<u64, f64>,
     /// `(sin psi_d, cos psi_d)`: the heading is often held.
@@ -91,6 +100,7 @@ impl Geometric {
         w_now: impl FnOnce() -> Vector3<f64>,
         dt: f64,
         max_accel: f64,
+        cutoff_hz: f64,
     ) -> (Vector3<f64>, Vector3<f64>, bool) {
         let w_now = || {
             let w = w_now();
@@ -116,12 +126,22 @@ impl Geometric {
                     } else {
                         Vector3::zeros()
                     };
+                    let w_dot = if cutoff_hz > 0.0 {
+                        let k = self.omega_dot_d_gain.get((cutoff_hz.to_bits(), dt.to_bits()), || {
+                            -(-std::f64::consts::TAU * cutoff_hz * dt).exp_m1()
+                        });
+                        self.omega_dot_d += (w_dot - self.omega_dot_d) * k;
+                        self.omega_dot_d
+                    } else {
+                        w_dot
+                    };
                     self.samples = self.samples.saturating_add(1);
                     (w, w_dot)
                 }
                 _ => {
                     jump = true;
                     self.samples = 1;
+                    self.omega_dot_d = Vector3::zeros();
                     (w_now(), Vector3::zeros())
                 }
             },
@@ -129,6 +149,7 @@ impl Geometric {
             Some(_) => (self.prev_omega_d, Vector3::zeros()),
             None => {
                 self.samples = 1;
+                self.omega_dot_d = Vector3::zeros();
                 (w_now(), Vector3::zeros())
             }
         };
@@ -162,6 +183,7 @@ impl Geometric {
             || r_d.tr_mul(&(r * meas.rate_frd)),
             input.dt,
             limits.max_angular_accel_rad_s2,
+            gains.omega_dot_d_cutoff_hz,
         );
         let target = AttitudeTarget {
             r_d: &r_d,
@@ -307,13 +329,50 @@ mod tests {
         let mut outs = vec![];
         for k in 0..4 {
             let r = *Rotation3::new(w * (f64::from(k) * h)).matrix();
-            outs.push(g.desired_rates(&r, Vector3::zeros, h, 1e3));
+            outs.push(g.desired_rates(&r, Vector3::zeros, h, 1e3, 0.0));
         }
         assert_eq!(outs[0].0, Vector3::zeros());
         assert!((outs[1].0 - w).norm() < 1e-9 && outs[1].1 == Vector3::zeros());
         assert!((outs[3].0 - w).norm() < 1e-9 && outs[3].1.norm() < 1e-5);
         let now = Vector3::new(0.1, 0.0, 0.0);
-        let jumped = g.desired_rates(Rotation3::new(Vector3::new(1.5, 0.0, 0.0)).matrix(), || now, h, 1e3);
+        let jumped = g.desired_rates(
+            Rotation3::new(Vector3::new(1.5, 0.0, 0.0)).matrix(),
+            || now,
+            h,
+            1e3,
+            0.0,
+        );
         assert!(jumped.2 && jumped.0 == now && jumped.1 == Vector3::zeros());
+    }
+
+    /// With a cutoff `f_c`, a desired attitude that starts turning at a
+    /// constant acceleration `alpha` gives `w_d_dot` rising as
+    /// `alpha (1 - exp(-2 pi f_c t))`; the cutoff 0 gives `alpha` at once.
+    #[test]
+    fn the_low_pass_on_w_d_dot_follows_a_first_order_rise() {
+        let alpha = Vector3::new(2.0, -1.0, 0.5);
+        let h = 1e-3;
+        let run = |cutoff_hz: f64| {
+            let mut g = Geometric::default();
+            (0..=40)
+                .map(|k| {
+                    let t = f64::from(k) * h;
+                    let r = *Rotation3::new(alpha * (0.5 * t * t)).matrix();
+                    g.desired_rates(&r, Vector3::zeros, h, 1e3, cutoff_hz).1
+                })
+                .collect::<Vec<_>>()
+        };
+        let raw = run(0.0);
+        assert!((raw[40] - alpha).norm() < 1e-3 * alpha.norm(), "{:?}", raw[40]);
+        let smooth = run(10.0);
+        // the third sample gives the first w_d_dot: 39 updates by sample 40
+        let t = 39.0 * h;
+        let expected = alpha * (1.0 - (-std::f64::consts::TAU * 10.0 * t).exp());
+        assert!(
+            (smooth[40] - expected).norm() < 1e-3 * alpha.norm(),
+            "{:?} vs {expected:?}",
+            smooth[40]
+        );
+        assert!(smooth[40].norm() < 0.95 * alpha.norm());
     }
 }

@@ -213,3 +213,45 @@ fn the_header_lists_the_failsafes_the_flight_stack_put_in_force() {
     assert_eq!(failsafe_line(&page), "failsafes: none");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+fn rotor_limit_line(page: &str) -> &str {
+    let at = page
+        .find("rotor commands at a limit")
+        .expect("a rotor-limit line in the header");
+    let rest = &page[at..];
+    &rest[..rest.find("</li>").unwrap()]
+}
+
+/// The header says how long a rotor command sat at a limit in the air (the
+/// controller asked for more than the rotors give): the square flown by a
+/// quad 1.6 times as heavy as its model (`SIM_MASS`, hover near full
+/// speed) climbs on saturated rotors, and its page gives the share and the
+/// first instant; the square at the nominal mass never saturates.
+#[test]
+fn the_header_says_how_long_the_rotors_sat_at_a_limit() {
+    let square = std::fs::read_to_string("tools/scenarios/mission-square.toml")
+        .unwrap()
+        .replace("duration_s = 300", "duration_s = 30");
+    let dir = common::scratch_dir("report-rotor-limit");
+    let heavy = dir.join("heavy.toml");
+    let nominal = dir.join("nominal.toml");
+    std::fs::write(&heavy, square.replace("[params]", "[params]\nSIM_MASS = 3.2")).unwrap();
+    std::fs::write(&nominal, &square).unwrap();
+    let pages = dir.join("pages");
+    for file in [&heavy, &nominal] {
+        let out = run(&["simulate", file.to_str().unwrap(), "--report", pages.to_str().unwrap()]);
+        assert!(!out.stderr.contains("panicked"), "{}", out.stderr);
+    }
+    let page = std::fs::read_to_string(pages.join("heavy.html")).unwrap();
+    let line = rotor_limit_line(&page);
+    let share: f64 = line
+        .trim_start_matches("rotor commands at a limit ")
+        .split(' ')
+        .next()
+        .and_then(|x| x.parse().ok())
+        .unwrap_or_else(|| panic!("{line}"));
+    assert!(share > 1.0 && share < 100.0 && line.contains("first at"), "{line}");
+    let page = std::fs::read_to_string(pages.join("nominal.html")).unwrap();
+    assert!(rotor_limit_line(&page).starts_with("rotor commands at a limit: never in the air"));
+    let _ = std::fs::remove_dir_all(&dir);
+}

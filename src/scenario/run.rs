@@ -169,6 +169,7 @@ impl Watched for ScenarioPilot<'_> {
             armed: true,
             mode: self.control.controller().kind().name().to_string(),
             in_air: true,
+            airborne: true,
             failsafe: None,
             landed: "in the air (a control law, no flight stack)".into(),
         }

@@ -154,6 +154,22 @@ fn verdict(h: &mut String, r: &FlightReport) {
         }
         None => h.push_str("<li>no reference tracked in the air</li>"),
     }
+    if let Some(l) = &v.rotor_limit {
+        let _ = match l.first_s {
+            Some(t) => write!(
+                h,
+                "<li class=\"bad\">rotor commands at a limit {:.1} % of the time in the air, first at {} ({})</li>",
+                100.0 * l.share,
+                fmt_s(t),
+                l.counted
+            ),
+            None => write!(
+                h,
+                "<li>rotor commands at a limit: never in the air ({})</li>",
+                l.counted
+            ),
+        };
+    }
     let _ = write!(
         h,
         "<li class=\"{}\">failsafes: {}</li>",

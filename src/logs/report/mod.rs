@@ -346,8 +346,23 @@ pub struct Verdict {
     /// (a flight record: flying, takeoff and landing excluded, as the
     /// mission summary counts it; a ULog: not landed).
     pub tracking_counted: &'static str,
+    /// How long a rotor command sat at a limit in the air: `None` without
+    /// rotors (ideal actuation) or never in the air.
+    pub rotor_limit: Option<RotorLimit>,
     /// Armed, mode and landed state at the end.
     pub final_state: String,
+}
+
+/// A rotor command at a limit while in the air: the rotors cannot give the
+/// wrench the controller asked for (a thrust or torque lost to saturation).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct RotorLimit {
+    /// Share of the time in the air with a rotor command at a limit, 0..1.
+    pub share: f64,
+    /// The first such instant [s].
+    pub first_s: Option<f64>,
+    /// What counts as a limit, as the header words it.
+    pub counted: &'static str,
 }
 
 /// Where a report's data came from and what to call it.
@@ -436,6 +451,8 @@ pub struct PilotState {
     /// counts only then, as the mission summary's does; the plot shows it
     /// whenever a reference is tracked).
     pub in_air: bool,
+    /// Off the ground: taking off, flying or landing.
+    pub airborne: bool,
     /// The cause of the failsafe in force, if any (PX4's `vehicle_status.failsafe`).
     pub failsafe: Option<String>,
     /// On the ground or in the air, as the page words it at the end.
@@ -467,6 +484,7 @@ impl Watched for Autopilot {
             armed: self.armed(),
             mode: format!("{:?}", self.mode()),
             in_air: landed == LandedState::InAir,
+            airborne: landed != LandedState::OnGround,
             failsafe: self.failsafe_in_force().map(|f| f.cause.clone()),
             landed: format!("{landed:?}"),
         }
@@ -498,6 +516,10 @@ pub struct Collector {
     plans: PlanView,
     plans_seen: Option<Plans>,
     max_err: Option<(f64, f64)>,
+    /// Steps in the air, and those with a rotor command at a limit (and the first's instant).
+    air_steps: u64,
+    limit_steps: u64,
+    first_limit_s: Option<f64>,
     /// The cause of the failsafe in force after the last step.
     failsafe: Option<String>,
     row: Vec<f64>,
@@ -520,6 +542,9 @@ impl Collector {
             plans: PlanView::default(),
             plans_seen: None,
             max_err: None,
+            air_steps: 0,
+            limit_steps: 0,
+            first_limit_s: None,
             failsafe: None,
             row: vec![f64::NAN; COLUMNS.len() + rotors],
         };
@@ -576,6 +601,7 @@ impl Collector {
             armed,
             mode,
             in_air,
+            airborne,
             failsafe,
             ..
         } = core.pilot(i).pilot_state();
@@ -595,6 +621,13 @@ impl Collector {
             let e = (truth.position_ned - reference.position_ned).norm();
             if self.max_err.is_none_or(|(m, _)| e > m) {
                 self.max_err = Some((e, t));
+            }
+        }
+        if airborne && matches!(rec.control.actuator, ActuatorCommand::RotorSpeeds(_)) {
+            self.air_steps += 1;
+            if rec.control.saturated {
+                self.limit_steps += 1;
+                self.first_limit_s.get_or_insert(t);
             }
         }
         if !core.steps().is_multiple_of(self.stride) {
@@ -714,6 +747,11 @@ impl Collector {
                 items: self.items,
                 max_tracking_error: self.max_err,
                 tracking_counted: "while flying: takeoff and landing excluded, as the mission summary counts it",
+                rotor_limit: (self.air_steps > 0).then(|| RotorLimit {
+                    share: self.limit_steps as f64 / self.air_steps as f64,
+                    first_s: self.first_limit_s,
+                    counted: "every step in the air; a rotor speed commanded at its minimum or maximum",
+                }),
                 final_state,
             },
             plans: self.plans,

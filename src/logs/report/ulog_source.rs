@@ -8,7 +8,7 @@
 
 use nalgebra::{Quaternion, UnitQuaternion};
 
-use super::{COLUMNS, Event, FlightReport, MAX_SAMPLES, ReportMeta, Series, Timeline, Verdict};
+use super::{COLUMNS, Event, FlightReport, MAX_SAMPLES, ReportMeta, RotorLimit, Series, Timeline, Verdict};
 use crate::autopilot::Severity;
 use crate::logs::ulog::read::{Topic, UlogFile, read_ulog};
 
@@ -88,6 +88,33 @@ fn euler_columns(topic: Option<&Topic>, q: &str, grid: &[u64]) -> [Vec<f64>; 3] 
 /// The distance from the trajectory setpoint at each setpoint's instant
 /// (the position, `truth` or the local position, held within a sample), as
 /// a topic with the field `err`; and its largest value in the air with its time [s].
+/// The share of `actuator_motors` samples in the air (`landed` 0 at their
+/// instant) with a rotor at full thrust (control 1), and the first's instant;
+/// `None` without motors or never in the air. The ULog holds no rotor's
+/// minimum speed, so only the upper limit is counted.
+fn rotor_limit(motors: Option<&Topic>, rotors: usize, land: Option<&Topic>) -> Option<RotorLimit> {
+    let m = motors?;
+    let at = &m.timestamp_us;
+    let landed = hold(land, "landed", at, u64::MAX);
+    let controls: Vec<&[f64]> = (0..rotors).filter_map(|k| m.field(&format!("control[{k}]"))).collect();
+    let (mut air, mut full, mut first) = (0u64, 0u64, None);
+    for (i, t) in at.iter().enumerate() {
+        if landed[i] != 0.0 {
+            continue;
+        }
+        air += 1;
+        if controls.iter().any(|c| c[i] >= 1.0 - 1e-6) {
+            full += 1;
+            first.get_or_insert(*t as f64 * 1e-6);
+        }
+    }
+    (air > 0).then(|| RotorLimit {
+        share: full as f64 / air as f64,
+        first_s: first,
+        counted: "actuator_motors samples while not landed; a rotor at full thrust",
+    })
+}
+
 fn tracking_error(
     pos: Option<&Topic>,
     truth: bool,
@@ -311,6 +338,7 @@ fn report(u: &UlogFile, file: &str, test: Option<&str>) -> Result<FlightReport, 
         verdict: Verdict {
             max_tracking_error: max_err,
             tracking_counted: "while not landed",
+            rotor_limit: rotor_limit(motors, rotors, u.topic("vehicle_land_detected")),
             final_state,
             ..Verdict::default()
         },
@@ -336,6 +364,29 @@ mod tests {
         assert!(got[0].is_nan());
         assert_eq!(&got[1..4], &[1.0, 1.0, 2.0]);
         assert!(got[4].is_nan(), "700 us after the last sample, stale at 500");
+    }
+
+    /// Two motors at 10 Hz: on the ground at full thrust (not counted), then
+    /// four samples in the air, one with a motor at full thrust.
+    #[test]
+    fn the_rotor_limit_counts_full_thrust_samples_in_the_air() {
+        let motors = Topic {
+            timestamp_us: vec![0, 100_000, 200_000, 300_000, 400_000, 500_000],
+            fields: [
+                ("control[0]".to_string(), vec![1.0, 0.6, 0.6, 1.0, 0.6, 0.6]),
+                ("control[1]".to_string(), vec![1.0, 0.6, 0.6, 0.6, 0.9, 0.6]),
+            ]
+            .into_iter()
+            .collect(),
+        };
+        let land = Topic {
+            timestamp_us: vec![0, 150_000],
+            fields: [("landed".to_string(), vec![1.0, 0.0])].into_iter().collect(),
+        };
+        let l = rotor_limit(Some(&motors), 2, Some(&land)).unwrap();
+        assert!((l.share - 0.25).abs() < 1e-12, "{l:?}");
+        assert_eq!(l.first_s, Some(0.3));
+        assert!(rotor_limit(None, 0, Some(&land)).is_none());
     }
 
     #[test]

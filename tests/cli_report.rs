@@ -255,3 +255,29 @@ fn the_header_says_how_long_the_rotors_sat_at_a_limit() {
     assert!(rotor_limit_line(&page).starts_with("rotor commands at a limit: never in the air"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A 10-minute flight's page stays under 5 MB: the quad hovering in gusty
+/// wind (`tools/scenarios/hover-wind-quad.toml`) for 590 s instead of 60,
+/// then landing; the series are sampled to at most 6,000 instants whatever
+/// the length.
+#[test]
+fn a_ten_minute_flights_page_stays_under_5_mb() {
+    let scenario = std::fs::read_to_string("tools/scenarios/hover-wind-quad.toml").unwrap();
+    let long = scenario
+        .replace("duration_s = 120", "duration_s = 700")
+        .replace("params = [60.0, 0.0, 0.0, nan]", "params = [590.0, 0.0, 0.0, nan]");
+    assert_ne!(long, scenario);
+    let dir = common::scratch_dir("report-ten-minutes");
+    let file = dir.join("ten-minutes.toml");
+    std::fs::write(&file, long).unwrap();
+    let pages = dir.join("pages");
+    let out = run(&["simulate", file.to_str().unwrap(), "--json", "--report", pages.to_str().unwrap()]);
+    assert!(out.ok(), "{}", out.stderr);
+    let flown: serde_json::Value = serde_json::from_str(&out.stdout).unwrap();
+    let t = flown["sim_time_s"].as_f64().unwrap();
+    assert!(t > 600.0, "a {t} s flight");
+    let page = std::fs::read_to_string(pages.join("ten-minutes.html")).unwrap();
+    assert_self_contained(&page);
+    println!("a {t:.0} s flight's page: {} bytes", page.len());
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -209,6 +209,8 @@ def test_fixture_failing_tests_neither_hang_nor_leak(tmp_path, mod, xdist):
     # a System kept alive by a failure's traceback says nothing at exit
     # (its __del__ would import at interpreter shutdown and print an ImportError)
     assert "Exception ignored" not in out, out[-4000:]
+    # the failure report names the MAVSDK server's log kept beside the record
+    assert "mavsdk_server.log" in out, out[-4000:]
 
 
 INTERRUPTED_DOCS_STYLE = '''

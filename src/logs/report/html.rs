@@ -64,6 +64,13 @@ fn fmt_s(t: f64) -> String {
     format!("{t:.2} s")
 }
 
+/// Metres to a decimetre, with no minus sign on a value that rounds to 0
+/// (a landing item at `-0.0 m`).
+fn fmt_dm(x: f64) -> String {
+    let s = format!("{x:.1}");
+    if s == "-0.0" { "0.0".into() } else { s }
+}
+
 /// The page.
 #[must_use]
 pub fn page(r: &FlightReport) -> String {
@@ -379,12 +386,12 @@ fn path(h: &mut String, r: &FlightReport) {
             .is_some_and(|i| i.reached_s.is_some());
         let _ = write!(
             h,
-            "<g class=\"item {}\"><title>item {} {} at {:.1} m</title><circle cx=\"{:.3}\" cy=\"{:.3}\" r=\"{:.3}\"/>\
+            "<g class=\"item {}\"><title>item {} {} at {} m</title><circle cx=\"{:.3}\" cy=\"{:.3}\" r=\"{:.3}\"/>\
              <text x=\"{:.3}\" y=\"{:.3}\" font-size=\"{:.3}\">{}</text></g>",
             if reached { "reached" } else { "missed" },
             p.seq,
             esc(&command_name(p.command)),
-            p.alt_m,
+            fmt_dm(p.alt_m),
             p.e,
             -p.n,
             1.2 * unit,
@@ -491,4 +498,15 @@ fn events(h: &mut String, r: &FlightReport) {
 #[must_use]
 pub fn samples(s: &Series) -> usize {
     s.t.len()
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn a_height_that_rounds_to_zero_has_no_minus_sign() {
+        assert_eq!(super::fmt_dm(-0.0), "0.0");
+        assert_eq!(super::fmt_dm(-0.04), "0.0");
+        assert_eq!(super::fmt_dm(-0.05), "-0.1");
+        assert_eq!(super::fmt_dm(12.34), "12.3");
+    }
 }

@@ -271,7 +271,13 @@ fn a_ten_minute_flights_page_stays_under_5_mb() {
     let file = dir.join("ten-minutes.toml");
     std::fs::write(&file, long).unwrap();
     let pages = dir.join("pages");
-    let out = run(&["simulate", file.to_str().unwrap(), "--json", "--report", pages.to_str().unwrap()]);
+    let out = run(&[
+        "simulate",
+        file.to_str().unwrap(),
+        "--json",
+        "--report",
+        pages.to_str().unwrap(),
+    ]);
     assert!(out.ok(), "{}", out.stderr);
     let flown: serde_json::Value = serde_json::from_str(&out.stdout).unwrap();
     let t = flown["sim_time_s"].as_f64().unwrap();

@@ -701,15 +701,6 @@ async def set_param_float(w, name, value):
     assert abs(got - value) < 0.01, f"{name} read back {got}, set {value}"
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "rotorpilot accepts a fly-through waypoint once its reference has passed the corner's bisector, whatever the "
-    "altitude error (src/autopilot/navigator/mission.rs, Phase::Leg `passed`): after the home change item 2 is "
-    "crossed 5 m above its new altitude and the mission moves on at once, so it is never missed and never flown "
-    "back to. PX4 accepts a multicopter waypoint only within its acceptance radius AND NAV_MC_ALT_RAD (the "
-    "passed-the-waypoint rule is fixed-wing only and also altitude-gated: src/modules/navigator/mission_block.cpp, "
-    "MissionBlock::is_mission_item_reached_or_completed), and since PX4 #28374 (flight_mode_manager, FlightTaskAuto) "
-    "the leg is re-anchored at the vehicle once it is past an unreached waypoint, so it turns back to it. Also: "
-    "MPC_Z_V_AUTO_DN is stored but has no effect (auto descents use MPC_Z_VEL_MAX_DN)"))
 def test_multicopter_recovers_after_missing_a_waypoint_during_a_home_altitude_change():
     """PX4-Autopilot test/mavsdk_tests/test_multicopter_missed_waypoint.cpp:331
     (commit 8d271b98a9ac), TEST_CASE "Multicopter recovers after missing a

@@ -16,7 +16,10 @@
 //!   limit instead of stopping, and slows only where it must stop.
 //! * **Reached**: within the acceptance radius (p2, else NAV_ACC_RAD)
 //!   horizontally and NAV_MC_ALT_RAD vertically, measured; a fly-through
-//!   item also when the reference has passed it. Then the hold time (p1,
+//!   item also when the reference has passed it, within NAV_MC_ALT_RAD.
+//!   Passed off its altitude (a home moved under a relative mission) the
+//!   item is missed: the leg starts again where the vehicle is and turns
+//!   back to the point, as PX4 re-anchors it. Then the hold time (p1,
 //!   simulated time), the loiter time, the loiter turns (circles of radius
 //!   |p3|) or the delay runs before the next item; LOITER_UNLIM never ends.
 //! * **Takeoff**: NAV_TAKEOFF climbs at MPC_TKO_SPEED where the vehicle is to
@@ -502,9 +505,13 @@ impl Navigator {
                     s.acceptance_radius_m
                 };
                 let off = cx.meas.position_ned - target;
-                let within = off.xy().norm() <= acc && off.z.abs() <= s.mc_alt_radius_m;
-                if within || passed {
+                let at_altitude = off.z.abs() <= s.mc_alt_radius_m;
+                if at_altitude && (passed || off.xy().norm() <= acc) {
                     self.item_reached(cx, seq, &it, target, say);
+                } else if passed {
+                    // missed: past the point, off its altitude; the leg starts
+                    // again where the vehicle is, so it turns back to the point
+                    self.mission.phase = Phase::leg(cx.meas.position_ned);
                 }
                 Demand::Track(r)
             }

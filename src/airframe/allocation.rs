@@ -215,6 +215,7 @@ impl Allocator {
         self.b_pinv * v.to_vector()
     }
 
+    #[inline(always)]
     fn in_bounds(&self, w: &RotorVector) -> bool {
         w.iter()
             .take(self.n)

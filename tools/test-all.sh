@@ -118,13 +118,13 @@ timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/cl
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_replay.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_wind.py
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_files.py
-# MAVSDK-Python's own examples, unmodified, from the checkout that
-# $MAVSDK_PYTHON_EXAMPLES names (tests/clients/mavsdk_python_examples/README.md:
-# the pinned tag, every file checked by SHA-256; the scripts are not ours to
-# commit); each test in a network and PID namespace of its own (unshare, as
-# root) on PX4's fixed ports, so four run at once (the scripts mostly sleep on
-# the wall clock): ~4 min. Without the variable every test skips and says why.
-if [ -n "${MAVSDK_PYTHON_EXAMPLES:-}" ] && ! command -v ip >/dev/null; then
+# MAVSDK-Python's own examples, unmodified, vendored with their licence
+# (tests/clients/mavsdk_python_examples/README.md: the pinned tag, every file
+# checked by SHA-256; $MAVSDK_PYTHON_EXAMPLES may name another copy); each
+# test in a network and PID namespace of its own (unshare, as root) on PX4's
+# fixed ports, so four run at once (the scripts mostly sleep on the wall
+# clock): ~4 min.
+if ! command -v ip >/dev/null; then
     # each namespace brings its loopback up with iproute2's `ip`
     apt-get install -y -qq iproute2 >/dev/null 2>&1 || { apt-get update -qq && apt-get install -y -qq iproute2; }
 fi

@@ -3,12 +3,12 @@ PX4 SITL instance 0, as a PX4 SITL user runs them: `python example.py` in
 the examples directory, the script connecting to udpin://0.0.0.0:14540 (or
 udp://:14540) and its mavsdk_server on TCP 50051, both hard-coded.
 
-The scripts are not in this repository: the directory named by
-$MAVSDK_PYTHON_EXAMPLES (the `examples/` of a MAVSDK-Python checkout at the
-tag mavsdk_python_examples/README.md names) is used, each script checked
-byte for byte against mavsdk_python_examples/SHA256SUMS and run from a
-scratch copy of that directory (some write files beside themselves). Without
-it every test skips, saying so.
+The scripts are vendored, unmodified, with their licence, in
+mavsdk_python_examples/examples/ (the tag mavsdk_python_examples/README.md
+names); $MAVSDK_PYTHON_EXAMPLES may name another copy (the `examples/` of a
+MAVSDK-Python checkout at that tag). Each script is checked byte for byte
+against mavsdk_python_examples/SHA256SUMS and run from a scratch copy of
+that directory (some write files beside themselves).
 
 Each test has a network namespace of its own (`unshare --net --pid`, its
 loopback up), so the fixed ports collide with nothing, and a PID namespace,
@@ -25,8 +25,8 @@ at the end, what a script sent reaching the GCS link. A script that fails
 because rotorpilot lacks a feature is `xfail(strict=True)` naming it, so it
 flips loudly when the feature lands.
 
-Run in the mavsdk 3.17.4 venv (which holds pymavlink):
-`MAVSDK_PYTHON_EXAMPLES=.../MAVSDK-Python/examples python -m pytest tests/clients/test_mavsdk_python_examples.py`.
+Run in the mavsdk 3.17.4 venv (which holds pymavlink), as root (namespaces):
+`python -m pytest -n 4 tests/clients/test_mavsdk_python_examples.py`.
 """
 
 import hashlib
@@ -51,7 +51,7 @@ sys.path.insert(0, str(HERE))
 from harness import Vehicle, wrapped_pid  # noqa: E402
 
 PINNED = HERE / "mavsdk_python_examples"
-SOURCE = os.environ.get("MAVSDK_PYTHON_EXAMPLES")
+SOURCE = os.environ.get("MAVSDK_PYTHON_EXAMPLES") or str(PINNED / "examples")
 
 # Vehicle speed-up: the scripts sleep on the wall clock, so a faster vehicle
 # only flies further within each pause; every script here stays correct at 5x.
@@ -209,11 +209,7 @@ def pinned_sums():
 
 
 def examples_dir():
-    """The upstream examples directory, every pinned file in it unmodified;
-    skips when $MAVSDK_PYTHON_EXAMPLES is not set."""
-    if not SOURCE:
-        pytest.skip("MAVSDK-Python's examples are not here: set MAVSDK_PYTHON_EXAMPLES to the examples/ of a "
-                    "MAVSDK-Python checkout at the tag tests/clients/mavsdk_python_examples/README.md names")
+    """The upstream examples directory, every pinned file in it unmodified."""
     root = Path(SOURCE)
     for name, digest in pinned_sums().items():
         f = root / name

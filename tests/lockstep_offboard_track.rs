@@ -91,3 +91,35 @@ fn position_with_velocity_and_acceleration_tracks_a_timed_path() {
     assert!(last < 0.15, "last error {last} m");
     assert!(last_bare > 1.0, "position alone trails: {last_bare} m");
 }
+
+/// GIVEN a hovering quad in Offboard
+/// WHEN it is sent, for 20 s, a fixed position 20 m north with a constant
+/// 1 m/s north velocity (MAVSDK's `offboard_position_velocity_ned.py` does so)
+/// THEN it settles where PX4's position controller does, `v_sp / MPC_XY_P`
+/// = 1.05 m past the point (`v = v_sp + MPC_XY_P (p_sp - p)` is zero there),
+/// within 0.1 m.
+#[test]
+fn a_constant_feed_forward_settles_past_the_point_as_on_px4() {
+    let mut ap = Sitl::quad().build();
+    ap.step();
+    ap.take_off_to(Some(5.0));
+    let start = ap.telemetry().position_ned;
+    let target = start + Vector3::new(20.0, 0.0, 0.0);
+    let sp = setpoint(target, Some(Vector3::new(1.0, 0.0, 0.0)), None);
+    let every = ap.steps(0.1);
+    for k in 0..ap.steps(20.0) {
+        if k % every == 0 {
+            assert_eq!(ap.command(sp), CommandOutcome::Accepted);
+            if k == 0 {
+                assert_eq!(
+                    ap.command(AutopilotCommand::SetMode(FlightMode::Offboard)),
+                    CommandOutcome::Accepted
+                );
+            }
+        }
+        ap.step();
+    }
+    let past = ap.telemetry().position_ned.x - target.x;
+    println!("settled {past:.3} m past the point (PX4: 1 / 0.95 = 1.053 m)");
+    assert!((past - 1.0 / 0.95).abs() < 0.1, "{past} m past");
+}

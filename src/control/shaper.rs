@@ -59,6 +59,9 @@ pub struct ShaperLimits {
     pub max_yaw_rate_rad_s: f64,
     /// Yaw acceleration [rad/s^2].
     pub max_yaw_accel_rad_s2: f64,
+    /// Position gain [1/s] of a [`TranslationSetpoint::Track`] setpoint (its
+    /// chain's `lambda = 4 k1`); 0: the position loop's own `k1`.
+    pub track_gain_per_s: f64,
 }
 
 impl Default for ShaperLimits {
@@ -74,6 +77,7 @@ impl Default for ShaperLimits {
             max_tilt_rad: 30f64.to_radians(),
             max_yaw_rate_rad_s: 1.0,
             max_yaw_accel_rad_s2: 1.5,
+            track_gain_per_s: 0.0,
         }
     }
 }
@@ -167,6 +171,13 @@ impl ShaperLimits {
                 problem: GainProblem::OutOfRange("below 80 deg"),
             });
         }
+        if !(self.track_gain_per_s.is_finite() && self.track_gain_per_s >= 0.0) {
+            return Err(ShaperError {
+                field: "track_gain_per_s",
+                value: self.track_gain_per_s,
+                problem: GainProblem::OutOfRange("0 (the position loop's) or a positive gain"),
+            });
+        }
         Ok(())
     }
 }
@@ -245,6 +256,8 @@ impl Setpoint {
 pub struct Shaper {
     limits: ShaperLimits,
     k: [f64; 4],
+    /// The gains a [`TranslationSetpoint::Track`] setpoint is followed with.
+    k_track: [f64; 4],
     k_yaw: f64,
     /// Horizontal acceleration limit `min(a_xy, g tan(max_tilt))` [m/s^2],
     /// set with the gains when the limits change (no `tan` per step).
@@ -294,6 +307,7 @@ impl Shaper {
         let mut s = Self {
             limits,
             k: [0.0; 4],
+            k_track: [0.0; 4],
             k_yaw: 0.0,
             a_xy_max: 0.0,
             substeps: None,
@@ -322,7 +336,13 @@ impl Shaper {
             .min(4.0 * a_xy / l.max_speed_xy_m_s)
             .min(4.0 * a_z / v_z)
             .clamp(0.05, 50.0);
-        self.k = [lambda / 4.0, 2.0 * lambda / 3.0, 1.5 * lambda, 4.0 * lambda];
+        let gains = |lambda: f64| [lambda / 4.0, 2.0 * lambda / 3.0, 1.5 * lambda, 4.0 * lambda];
+        self.k = gains(lambda);
+        self.k_track = if l.track_gain_per_s > 0.0 {
+            gains(4.0 * l.track_gain_per_s)
+        } else {
+            self.k
+        };
         self.k_yaw = l.max_yaw_accel_rad_s2 / l.max_yaw_rate_rad_s;
     }
 
@@ -407,7 +427,7 @@ impl Shaper {
         let (n, h) = match self.substeps {
             Some((bits, n, h)) if bits == dt.to_bits() => (n, h),
             _ => {
-                let h_max = 0.25 / self.k[3];
+                let h_max = 0.25 / self.k[3].max(self.k_track[3]);
                 let n = (dt / h_max).ceil().clamp(1.0, 10_000.0);
                 let h = dt / n;
                 self.substeps = Some((dt.to_bits(), n as u32, h));
@@ -424,7 +444,10 @@ impl Shaper {
     fn step(&mut self, setpoint: &Setpoint, h: f64) {
         let l = &self.limits;
         let fin = |v: &Vector3<f64>| v.iter().all(|x| x.is_finite());
-        let [k1, k2, k3, k4] = self.k;
+        let [k1, k2, k3, k4] = match setpoint.translation {
+            TranslationSetpoint::Track { .. } => self.k_track,
+            _ => self.k,
+        };
         let or_zero = |v: &Vector3<f64>| v.map(|x| if x.is_finite() { x } else { 0.0 });
         let (v_cmd, a_ff) = match setpoint.translation {
             TranslationSetpoint::Position(p) if fin(&p) => ((p - self.p) * k1, None),

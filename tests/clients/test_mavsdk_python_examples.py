@@ -151,19 +151,18 @@ EXAMPLES = [
     Example("offboard_position_ned.py", True, 90, lines=(r"-- Stopping offboard",), modes=(OFFBOARD,)),
     # it lands, then stops offboard, which (MAVSDK's Offboard.stop) switches
     # to Hold: the vehicle stays in the air, on PX4 too
+    # it holds (50, 0, -10) with a constant 1 m/s north feed-forward: PX4's
+    # position controller settles where v_sp + MPC_XY_P (p_sp - p) = 0,
+    # 1 / 0.95 = 1.05 m past the point
     Example(
         "offboard_position_velocity_ned.py", True, 90, lines=(r"-- Stopping offboard",), modes=(OFFBOARD,),
-        at=("-- Stopping offboard", (50.0, 0.0, -10.0)),
-        missing="offboard position + velocity as PX4 tracks it: with a constant 1 m/s feed-forward the vehicle "
-                "settles 3 m past the point (the shaper's gain; PX4's MPC_XY_P 0.95 gives 1.05 m)",
+        at=("-- Stopping offboard", (51.05, 0.0, -10.0)),
     ),
     Example("offboard_velocity_body.py", True, 90, lines=(r"-- Stopping offboard",), modes=(OFFBOARD,)),
     Example("offboard_velocity_ned.py", True, 90, lines=(r"-- Stopping offboard",), modes=(OFFBOARD,)),
     Example(
         "offboard_from_csv/offboard_from_csv.py", True, 240, lines=(r"-- Shape completed",), speed=1.0,
         lands=True, modes=(OFFBOARD,), at=("-- Shape completed", (0.0, 0.206, -15.0)),
-        missing="offboard position + velocity as PX4 tracks it: the setpoints pass through the shaper, which "
-                "trails a step from hover to 2 m/s by about 2 m at the path's end",
     ),
     Example(
         "send_status_message.py", True, 30, lines=(r"-- Connected to drone!",), gcs_texts=("Hello world!",),

@@ -10,8 +10,11 @@
 //!
 //! A position given with a velocity or an acceleration is PX4's trajectory
 //! setpoint: the velocity and acceleration are feed-forward to the position
-//! (`v_cmd = v_sp + k1 (p_sp - p)`, the shaper's `Track`), horizontal speed
-//! up to `MPC_XY_VEL_MAX`, so a time-stamped path is flown in time. A
+//! (`v_cmd = v_sp + k1 (p_sp - p)`, the shaper's `Track`, with `k1` PX4's
+//! position gain [`TRACK_GAIN_PER_S`] and the shaper's chain `(s + 4 k1)^4`
+//! around it), horizontal speed up to `MPC_XY_VEL_MAX`, so a time-stamped
+//! path is flown in time, and a constant feed-forward against a fixed
+//! position settles `v_sp / k1` past it, as on PX4. A
 //! position alone is flown to at up to `MPC_XY_VEL_MAX` too: in Offboard no
 //! flight task of PX4's sets a cruise speed, and its position controller
 //! limits the horizontal speed to `MPC_XY_VEL_MAX` (`MulticopterPositionControl`).
@@ -26,6 +29,10 @@ use crate::control::{Reference, Setpoint, ShaperLimits, TranslationSetpoint, Yaw
 use crate::geo::GeoPoint;
 use crate::math::euler_zyx;
 use crate::signals::Measurement;
+
+/// PX4's `MPC_XY_P` default [1/s]: its position controller's gain on the
+/// position error of a trajectory setpoint, `v = v_sp + MPC_XY_P (p_sp - p)`.
+const TRACK_GAIN_PER_S: f64 = 0.95;
 
 /// Landed in offboard, a position setpoint this far [m] above the vehicle starts the flight (PX4's takeoff trigger)...
 const TAKEOFF_TRIGGER_M: f64 = 0.2;
@@ -315,6 +322,7 @@ impl Navigator {
         // every setpoint that moves the vehicle: PX4's position controller's limit
         let offboard = ShaperLimits {
             max_speed_xy_m_s: s.xy_vel_max_m_s,
+            track_gain_per_s: TRACK_GAIN_PER_S,
             ..normal
         };
         let hold = Setpoint {

@@ -409,6 +409,65 @@ fn geofence_max_distance_returns_and_lands() {
     assert!(t.position_ned.xy().norm() < 1.0, "landed at home: {:?}", t.position_ned);
 }
 
+/// Return from 50 m north with `fence` stored there (GF_ACTION 1: a breach
+/// is only said), to the landing; the vehicle and the largest |east| [m]
+/// flown, every position of the return checked against `forbidden` (north,
+/// east).
+fn return_with_fence(fence: Vec<MissionItem>, forbidden: impl Fn(f64, f64) -> bool) -> (Sitl, f64) {
+    let mut ap = vehicle(&[("GF_ACTION", int(1)), ("RTL_RETURN_ALT", real(10.0))]);
+    take_off_to(&mut ap, 10.0);
+    assert_eq!(reposition(&mut ap, 50.0, 0.0, 10.0), CommandOutcome::Accepted);
+    ap.run_until(40.0, |t| {
+        (t.position_ned.xy() - nalgebra::Vector2::new(50.0, 0.0)).norm() < 0.3 && t.velocity_ned.norm() < 0.1
+    })
+    .expect("at 50 m north");
+    store_fence(&mut ap, fence);
+    assert_eq!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::ReturnToLaunch)),
+        CommandOutcome::Accepted
+    );
+    let mut widest: f64 = 0.0;
+    for _ in 0..ap.steps(120.0) {
+        ap.step();
+        let p = ap.telemetry().position_ned;
+        assert!(!forbidden(p.x, p.y), "in the exclusion zone at {p:?}");
+        widest = widest.max(p.y.abs());
+        if !ap.armed() {
+            break;
+        }
+    }
+    assert!(!ap.armed(), "landed and disarmed");
+    (ap, widest)
+}
+
+#[test]
+fn return_flies_round_an_exclusion_zone_at_the_margin() {
+    // a 10 m square across the straight line home, 20..30 m north
+    let square = polygon(5002, &[(20.0, -5.0), (30.0, -5.0), (30.0, 5.0), (20.0, 5.0)]);
+    let inside = |n: f64, e: f64| (20.0..=30.0).contains(&n) && (-5.0..=5.0).contains(&e);
+    let (mut ap, widest) = return_with_fence(square, inside);
+    // round one side, on the square grown by 2 NAV_ACC_RAD (4 m)
+    println!("return round a fence: widest {widest:.2} m east or west (the zone's side 5 m, margin 4 m)");
+    assert!((8.5..9.5).contains(&widest), "flew round at the margin: {widest}");
+    assert_eq!(ap.count("RTL: avoiding geofence"), 1);
+    assert_eq!(ap.count("Geofence breached"), 0);
+    assert!(ap.telemetry().position_ned.xy().norm() < 1.0, "landed at home");
+}
+
+#[test]
+fn return_without_a_way_round_flies_straight_and_says_so() {
+    // home itself inside an exclusion zone: PX4 flies the straight line
+    let around_home = polygon(5002, &[(-5.0, -5.0), (5.0, -5.0), (5.0, 5.0), (-5.0, 5.0)]);
+    let (mut ap, widest) = return_with_fence(around_home, |_, _| false);
+    assert!(widest < 0.5, "straight: {widest}");
+    assert_eq!(ap.count("RTL destination breaches geofence, flying directly"), 1);
+    assert_eq!(
+        ap.severity_of("RTL: no geofence avoidance path; flying directly"),
+        Some(Severity::Critical)
+    );
+    assert_eq!(ap.count("RTL: avoiding geofence"), 0);
+}
+
 // ----- maximum altitude ----------------------------------------------------------------------
 
 #[test]

@@ -15,6 +15,7 @@
 //! | `mission` | the mission as the commander sees it: start, set current, what a new upload does, MISSION_CURRENT's state |
 //! | `failsafe` | supervision: the `Failsafe` (data link, battery level, geofence breach, clamp notice, client clock) and the one runner's choice; offboard, data-link, manual-control loss, battery, geofence, auto-disarm wired through it; which clock the timers that wait for a client run on |
 //! | `geofence` | the stored fence's zones and PX4's distance limits, as pure geometry |
+//! | `fence_avoidance` | Return's way round the fence's zones: grown by a margin, a visibility graph, its shortest path (PX4's geofence avoidance planner) |
 //! | `rotor_monitor` | dead and degraded rotors from commanded versus ESC-reported speeds |
 //! | `land_detector` | landed or flying, from the measurements and the commanded thrust |
 //! | `estimate` | the wrench estimate fed back: held on the ground, cross-faded after a rebuild |
@@ -38,8 +39,9 @@
 //! * Takeoff climbs at `MPC_TKO_SPEED` to home + `MIS_TAKEOFF_ALT` (or higher
 //!   AMSL target), then Hold there. Land descends at `MPC_Z_VEL_MAX_DN` above
 //!   `MPC_LAND_ALT1` and `MPC_LAND_SPEED` below; RTL climbs to
-//!   `RTL_RETURN_ALT`, returns at the cruise speed, descends to
-//!   `RTL_DESCEND_ALT`, lands. Reposition is Hold with a target.
+//!   `RTL_RETURN_ALT`, returns at the cruise speed (round the geofence's
+//!   zones, `fence_avoidance`), descends to `RTL_DESCEND_ALT`, lands.
+//!   Reposition is Hold with a target.
 //! * Orbit (DO_ORBIT, `navigator/orbit.rs`): flies to the circle, then
 //!   round it at the commanded radius, speed and heading behaviour; not armable.
 //! * Follow target (`navigator/follow.rs`): FOLLOW_TARGET fixes kept in any
@@ -97,6 +99,7 @@ macro_rules! situation {
             home: &$ap.home,
             mission: $ap.plans.get(crate::mission::MissionType::Mission).items(),
             rally: $ap.plans.get(crate::mission::MissionType::Rally).items(),
+            fence: $ap.plans.get(crate::mission::MissionType::Fence).items(),
         }
     };
 }
@@ -108,6 +111,7 @@ mod control_loop;
 mod error;
 mod estimate;
 mod failsafe;
+mod fence_avoidance;
 mod geofence;
 mod land_detector;
 mod mission;

@@ -837,12 +837,6 @@ async def load_qgc_mission_and_geofence_here(w):
     return shapes
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "the Return flies the straight line home (climb, cruise, descend), whatever the fence: from mission item 2 "
-    "the ground truth crosses the exclusion polygon ('Geofence breached: inside exclusion zone'); PX4's direct "
-    "Return (RTL_TYPE 0) plans around exclusion zones on a visibility graph of the fence "
-    "(src/modules/navigator/RTLPlanner/geofence_avoidance_planner.cpp, GeofenceAvoidancePlanner, built from "
-    "the geofence in navigator_main.cpp). Landing within 5 m of home and the 400 s pass"))
 def test_return_direct_with_geofence_obstruction():
     """PX4-Autopilot test/mavsdk_tests/test_multicopter_rtl_with_geofence.cpp:43,
     TEST_CASE "Return direct with geofence obstruction": PX4's plan

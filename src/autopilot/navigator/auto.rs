@@ -5,6 +5,8 @@ use nalgebra::{Vector2, Vector3};
 
 use super::{HoldTarget, Nav, Navigator, REF_ARRIVED_M, RtlPhase, Situation, arrived};
 use crate::autopilot::control_loop::Demand;
+use crate::autopilot::fence_avoidance::{self, Route};
+use crate::autopilot::geofence::Fence;
 use crate::autopilot::status::{Announcements, Severity};
 use crate::control::{Reference, Setpoint, ShaperLimits, TranslationSetpoint, YawSetpoint};
 use crate::signals::Measurement;
@@ -13,6 +15,10 @@ use crate::signals::Measurement;
 const LAND_SINK_M: f64 = 5.0;
 /// A takeoff is complete when the vehicle is also within this height [m] of its target.
 const TAKEOFF_ACCEPT_M: f64 = 0.25;
+/// The return's way round the geofence keeps this many NAV_ACC_RAD off the zones (PX4's margin for a multicopter).
+const FENCE_MARGIN_ACC_RADII: f64 = 2.0;
+/// A leg round the geofence shorter than this [m] keeps the heading.
+const YAW_MIN_LEG_M: f64 = 1.0;
 
 impl Navigator {
     /// Hold where it is.
@@ -41,7 +47,10 @@ impl Navigator {
 
     /// Return: climb to at least RTL_RETURN_ALT above home where it is, fly
     /// home — or to the closest rally point when one is closer than home
-    /// (PX4's RTL_TYPE 0) — descend to RTL_DESCEND_ALT, land.
+    /// (PX4's RTL_TYPE 0) — round the geofence's zones, descend to
+    /// RTL_DESCEND_ALT, land. The way round is planned here, once, from where
+    /// the return starts ([`fence_avoidance`], margin 2 NAV_ACC_RAD); without
+    /// one the line is straight.
     pub(in crate::autopilot) fn enter_rtl(&mut self, cx: &Situation<'_>, say: &mut Announcements) {
         let p = self.current_position(cx.meas);
         let z_return = p.z.min(cx.home_ned.z - cx.settings.rtl_return_alt_m);
@@ -52,17 +61,62 @@ impl Navigator {
             .map(|g| g.ned_from(cx.origin).xy())
             .min_by(|a, b| (a - p.xy()).norm().total_cmp(&(b - p.xy()).norm()))
             .filter(|r| (r - p.xy()).norm() < (cx.home_ned.xy() - p.xy()).norm());
+        let dest_xy = rally.unwrap_or_else(|| cx.home_ned.xy());
         self.nav = Nav::Rtl {
             phase: RtlPhase::Climb { xy: p.xy() },
             z_return,
-            dest_xy: rally.unwrap_or_else(|| cx.home_ned.xy()),
+            dest_xy,
         };
+        self.rtl_route.clear();
         if !cx.landed {
             let to = if rally.is_some() { "rally point" } else { "launch" };
             say.announce(
                 Severity::Info,
                 format!("Return to {to} at {:.1} m above home", cx.home_ned.z - z_return),
             );
+            let fence = Fence::from_items(cx.fence, cx.origin);
+            let margin_m = FENCE_MARGIN_ACC_RADII * cx.settings.acceptance_radius_m;
+            self.take_route(fence_avoidance::plan(&fence, margin_m, p.xy(), dest_xy), say);
+        }
+    }
+
+    /// Keep the way round the geofence of a return starting, and say what it
+    /// is, as PX4 does: avoiding, or flying straight without a way (with
+    /// why: PX4 says that when the fence or the destination changes, in
+    /// longer words than one STATUSTEXT holds).
+    fn take_route(&mut self, route: Route, say: &mut Announcements) {
+        match route {
+            Route::NoFence | Route::Direct => {}
+            Route::Around(path) => {
+                self.rtl_route = path;
+                say.announce(Severity::Info, "RTL: avoiding geofence");
+            }
+            Route::Straight(why) => {
+                if let Some(code) = why.fence_code() {
+                    say.announce(
+                        Severity::Warning,
+                        format!("Geofence data invalid (code {code}), RTL flies directly"),
+                    );
+                } else if why == fence_avoidance::Unplanned::DestinationOutside {
+                    say.announce(Severity::Warning, "RTL destination breaches geofence, flying directly");
+                }
+                say.announce(Severity::Critical, "RTL: no geofence avoidance path; flying directly");
+            }
+        }
+    }
+
+    /// The phase after the climb or a corner round the geofence: the next
+    /// corner (heading towards it from `from`), else the destination.
+    fn after_corner(&self, next: usize, from: Vector2<f64>) -> RtlPhase {
+        match self.rtl_route.get(next) {
+            Some(corner) => {
+                let d = corner - from;
+                RtlPhase::Avoid {
+                    leg: next,
+                    yaw_rad: (d.norm() >= YAW_MIN_LEG_M).then(|| d.y.atan2(d.x)),
+                }
+            }
+            None => RtlPhase::Return,
         }
     }
 
@@ -182,7 +236,20 @@ impl Navigator {
                 let target = Vector3::new(xy.x, xy.y, z_return);
                 let r = self.go_to(meas, target, YawSetpoint::Hold, normal, dt);
                 if arrived(&r, &target) {
-                    set_phase(self, RtlPhase::Return);
+                    let next = self.after_corner(0, xy);
+                    set_phase(self, next);
+                }
+                r
+            }
+            RtlPhase::Avoid { leg, yaw_rad } => {
+                let corner = self.rtl_route.get(leg).copied().unwrap_or(home.xy());
+                let target = Vector3::new(corner.x, corner.y, z_return);
+                let yaw = yaw_rad.map_or(YawSetpoint::Hold, YawSetpoint::Angle);
+                let r = self.go_to(meas, target, yaw, normal, dt);
+                let near = (meas.position_ned.xy() - corner).norm() <= cx.settings.acceptance_radius_m;
+                if arrived(&r, &target) && near {
+                    let next = self.after_corner(leg + 1, corner);
+                    set_phase(self, next);
                 }
                 r
             }

@@ -77,6 +77,8 @@ pub(super) struct Situation<'a> {
     pub(super) mission: &'a [MissionItem],
     /// The stored rally points.
     pub(super) rally: &'a [MissionItem],
+    /// The stored geofence plan.
+    pub(super) fence: &'a [MissionItem],
 }
 
 /// Where Hold flies to (DO_REPOSITION), instead of braking where it is.
@@ -97,6 +99,13 @@ pub(super) enum RtlPhase {
     Climb {
         /// Where the climb happens.
         xy: Vector2<f64>,
+    },
+    /// Fly to a corner of the way round the geofence at the return altitude.
+    Avoid {
+        /// Which corner of [`Navigator`]'s route.
+        leg: usize,
+        /// Heading [rad] on the leg (towards the corner), `None` = keep.
+        yaw_rad: Option<f64>,
     },
     /// Fly home at the return altitude.
     Return,
@@ -187,6 +196,9 @@ pub(super) struct Navigator {
     rate_target: Option<UnitQuaternion<f64>>,
     /// Where the mission stands (kept while other modes fly: pause and resume).
     mission: MissionRun,
+    /// The corners round the geofence a return flies before its destination
+    /// [m], NED horizontal, planned as it starts.
+    rtl_route: Vec<Vector2<f64>>,
     /// Latest FOLLOW_TARGET fix, resolved to NED, and its arrival time.
     follow_target: Option<Target>,
     /// Latest sticks and their arrival time [s].
@@ -219,6 +231,7 @@ impl Navigator {
             offboard_lost: false,
             rate_target: None,
             mission: MissionRun::default(),
+            rtl_route: Vec::new(),
             follow_target: None,
             manual: None,
             manual_lost: false,

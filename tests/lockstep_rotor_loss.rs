@@ -33,6 +33,7 @@ const TILT_MAX_DEG: f64 = 10.0;
 enum Action {
     Continue = 0,
     Land = 2,
+    Terminate = 4,
 }
 
 fn vehicle(airframe: &str, action: Action) -> Sitl {
@@ -592,6 +593,55 @@ fn a_quad_losing_a_rotor_gives_up_yaw_and_lands() {
         f.texts.iter().any(|s| s.severity == Severity::Emergency),
         "{:?}",
         f.texts
+    );
+}
+
+/// GIVEN an octo hovering at 10 m with COM_ACT_FAIL_ACT 4, the value PX4
+/// documents as Terminate and acts on (its failsafe maps it to flight
+/// termination, though its metadata bounds the parameter at 3)
+/// WHEN rotor 1 dies
+/// THEN the flight stack terminates as soon as the monitor flags the rotor:
+/// disarmed by the failsafe (an Emergency text triggering flight
+/// termination, cut at STATUSTEXT's 50 characters), and the vehicle falls.
+#[test]
+fn with_the_terminate_action_a_lost_rotor_disarms_at_once() {
+    let mut v = vehicle("octo", Action::Terminate);
+    take_off(&mut v);
+    v.texts();
+    v.core_mut()
+        .world_mut()
+        .inject(
+            0,
+            Fault::Rotor {
+                rotor: 0,
+                health: RotorHealth::Off,
+            },
+        )
+        .unwrap();
+    let mut disarmed_after = None;
+    for k in 1..=v.steps(1.0) {
+        v.step();
+        if !v.pilot().armed() {
+            disarmed_after = Some(k);
+            break;
+        }
+    }
+    let said = v.texts();
+    let k = disarmed_after.unwrap_or_else(|| panic!("still armed 1 s after the loss: {said:?}"));
+    assert!(k <= v.steps(DETECT_MAX_S), "disarmed {k} steps after the loss");
+    assert!(
+        said.iter().any(|s| s.severity == Severity::Emergency
+            && s.text.starts_with("Failsafe: rotor failure, triggering flight termin")),
+        "{said:?}"
+    );
+    let z0 = v.telemetry().position_ned.z;
+    for _ in 0..v.steps(1.0) {
+        v.step();
+    }
+    assert!(
+        v.telemetry().position_ned.z > z0 + 3.0,
+        "not falling: {:?}",
+        v.telemetry().position_ned
     );
 }
 

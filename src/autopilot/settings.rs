@@ -64,12 +64,14 @@ impl FailsafeAction {
     }
 
     /// `COM_ACT_FAIL_ACT`: 0 warn only (the mode is kept: a mission goes
-    /// on), 1 Hold, 2 Land, 3 Return (PX4's 4, terminate, is outside its range).
+    /// on), 1 Hold, 2 Land, 3 Return, 4 Terminate (PX4's failsafe maps 4 to
+    /// flight termination, though its metadata bounds the parameter at 3).
     fn from_com_act_fail_act(v: i64) -> Self {
         match v {
             1 => Self::Hold,
             2 => Self::Land,
             3 => Self::Return,
+            4 => Self::Terminate,
             _ => Self::Warn,
         }
     }

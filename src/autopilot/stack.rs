@@ -365,7 +365,7 @@ impl Autopilot {
     /// (hover on the boundary or beyond the remaining rotors, or relaxed
     /// hover impossible, e.g. no rotational drag in the airframe: the heading
     /// is given up and the spin grows) land at once; otherwise a rotor that got worse
-    /// triggers `COM_ACT_FAIL_ACT` (0 warn only and keep the mode, 1 Hold, 2 Land, 3 Return).
+    /// triggers `COM_ACT_FAIL_ACT` (0 warn only and keep the mode, 1 Hold, 2 Land, 3 Return, 4 Terminate).
     fn rotors_changed(&mut self, events: &[RotorEvent], m: &crate::signals::Measurement) {
         let gains: Vec<f64> = self.rotors.status().iter().map(|r| r.thrust_fraction()).collect();
         let allocation = self.control.set_rotor_gains(&gains).clone();

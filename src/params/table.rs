@@ -219,10 +219,11 @@ parameters! {
         "Disarm this long after arming if the vehicle has not taken off (<= 0: never)",
     ),
     // --- PX4: commander, actuator failure (rotor monitor) --------------------------------------
+    // PX4's metadata bounds it at 3 but documents 4, Terminate, and its failsafe acts on it
     COM_ACT_FAIL_ACT: choice(
-        0, 0, 3,
+        0, 0, 4,
         "Action when a rotor fails or degrades in flight (ESC speed vs command)",
-        &[(0, "warning, fly on"), (1, "Hold"), (2, "Land"), (3, "Return")],
+        &[(0, "warning, fly on"), (1, "Hold"), (2, "Land"), (3, "Return"), (4, "Terminate")],
     ),
     // --- PX4: manual control (MANUAL_CONTROL sticks), RC loss ---------------------------------
     COM_RC_LOSS_T: real(0.5, 0.0, 35.0, "s", "Manual control (MANUAL_CONTROL) older than this is lost"),

@@ -291,8 +291,13 @@ async def coordinate_transformation(w):
 
 
 async def set_takeoff_altitude(w, alt_m):
-    await w.uav.action.set_takeoff_altitude(alt_m)
-    got = await w.uav.action.get_takeoff_altitude()
+    """set_takeoff_altitude: set, then read back (CHECKs, as PX4's)."""
+    try:
+        await w.uav.action.set_takeoff_altitude(alt_m)
+        got = await w.uav.action.get_takeoff_altitude()
+    except ActionError as e:
+        w.checks.check(False, f"takeoff altitude {alt_m}: {e}")
+        return
     w.checks.check(abs(got - alt_m) < 1e-4 * max(1.0, alt_m), f"takeoff altitude reads {got}, set {alt_m}")
 
 

@@ -14,13 +14,15 @@
 //! `w_d`, `w_d_dot` come from `R_d` itself (doc section 5, "numerical"):
 //! `w_d,k = log(R_d,k-1^T R_d,k) / h`, `w_d_dot,k = (w_d,k - w_d,k-1) / h`, zero
 //! for the first two samples and after a reset or a jump of `R_d` (a step rate
-//! above [`JUMP_RATE_RAD_S`]). With a cutoff `f_c > 0` (`omega_dot_d_cutoff_hz`)
-//! `w_d_dot` is low-passed, first order, exact for a value held over the step:
-//! `y_k = y_k-1 + (w_d_dot,k - y_k-1) (1 - exp(-2 pi f_c h))`. A navigation
+//! above [`JUMP_RATE_RAD_S`]); on the first sample `w_d` is the current rate
+//! expressed in the desired frame, so a law switched in does not kick.
+//! With a cutoff `f_c > 0` (`omega_dot_d_cutoff_hz`) `w_d_dot` is low-passed,
+//! first order, exact for a value held over the step,
+//! `y_k = y_k-1 + (w_d_dot,k - y_k-1) (1 - exp(-2 pi f_c h))`: a navigation
 //! solution that moves in kinks (a filter propagated by 250 Hz IMU samples,
 //! flown at 1 kHz) makes the raw second difference a train of spikes that
-//! the rotors chase; `f_c = 0`, the report's law, differences raw. On the first sample `w_d` is the current rate
-//! expressed in the desired frame, so a law switched in does not kick. This matters: with the report's gains there is
+//! the rotors chase; `f_c = 0`, the report's law, differences raw.
+//! The rates matter: with the report's gains there is
 //! no time-scale separation between attitude and position, and the loop
 //! diverges unless `w_d, w_d_dot` carry the feedback part of `A` (doc section 5,
 //! seed erratum 4); derivatives of the reference alone are not enough.

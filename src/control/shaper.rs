@@ -14,7 +14,10 @@
 //! `k2 = 2 lambda / 3`, `k1 = lambda / 4` (no overshoot). `lambda` is the largest
 //! value for which the linear region itself respects the limits:
 //! `lambda <= j_max / (1.5 a_max)` (the jerk loop) and `lambda <= 4 a_max / v_max`
-//! (braking from cruise, `k1 v_max <= a_max`). Velocity and acceleration
+//! (braking from cruise, `k1 v_max <= a_max`). A `Track` setpoint (a position
+//! with its velocity and acceleration as feed-forward) may have a position
+//! gain of its own, `k1'` (`ShaperLimits::track_gain_per_s`), followed by
+//! the chain `(s + 4 k1')^4`. Velocity and acceleration
 //! saturations keep the direction of the vector and bound the horizontal norm,
 //! the climb and the descent separately; jerk is bounded in norm. Jerk is
 //! continuous and snap bounded, so the geometric law's numerical `w_d_dot`

@@ -162,11 +162,17 @@ fn verdict(h: &mut String, r: &FlightReport) {
         None => h.push_str("<li>no reference tracked in the air</li>"),
     }
     if let Some(l) = &v.rotor_limit {
+        let percent = 100.0 * l.share;
         let _ = match l.first_s {
             Some(t) => write!(
                 h,
-                "<li class=\"bad\">rotor commands at a limit {:.1} % of the time in the air, first at {} ({})</li>",
-                100.0 * l.share,
+                "<li class=\"{}\">rotor commands at a limit {} % of the time in the air, first at {} ({})</li>",
+                if percent >= 1.0 { "bad" } else { "" },
+                if percent < 0.1 {
+                    format!("{percent:.3}")
+                } else {
+                    format!("{percent:.1}")
+                },
                 fmt_s(t),
                 l.counted
             ),

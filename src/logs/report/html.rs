@@ -64,6 +64,17 @@ fn fmt_s(t: f64) -> String {
     format!("{t:.2} s")
 }
 
+/// A share 0..1 as a percentage: to 0.1 %, or to 0.001 % under 0.1 % (a
+/// step or two of a long flight is not shown as 0.0 %).
+fn fmt_percent(share: f64) -> String {
+    let percent = 100.0 * share;
+    if percent < 0.1 {
+        format!("{percent:.3}")
+    } else {
+        format!("{percent:.1}")
+    }
+}
+
 /// Metres to a decimetre, with no minus sign on a value that rounds to 0
 /// (a landing item at `-0.0 m`).
 fn fmt_dm(x: f64) -> String {
@@ -162,17 +173,12 @@ fn verdict(h: &mut String, r: &FlightReport) {
         None => h.push_str("<li>no reference tracked in the air</li>"),
     }
     if let Some(l) = &v.rotor_limit {
-        let percent = 100.0 * l.share;
         let _ = match l.first_s {
             Some(t) => write!(
                 h,
                 "<li class=\"{}\">rotor commands at a limit {} % of the time in the air, first at {} ({})</li>",
-                if percent >= 1.0 { "bad" } else { "" },
-                if percent < 0.1 {
-                    format!("{percent:.3}")
-                } else {
-                    format!("{percent:.1}")
-                },
+                if l.share >= 0.01 { "bad" } else { "" },
+                fmt_percent(l.share),
                 fmt_s(t),
                 l.counted
             ),
@@ -508,6 +514,13 @@ pub fn samples(s: &Series) -> usize {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_small_share_is_not_shown_as_zero() {
+        assert_eq!(super::fmt_percent(0.000_03), "0.003");
+        assert_eq!(super::fmt_percent(0.031), "3.1");
+        assert_eq!(super::fmt_percent(0.0), "0.000");
+    }
+
     #[test]
     fn a_height_that_rounds_to_zero_has_no_minus_sign() {
         assert_eq!(super::fmt_dm(-0.0), "0.0");

@@ -16,15 +16,14 @@ use nalgebra::Vector3;
 
 use super::command::{AutopilotCommand, CommandOutcome, PowerAction};
 use super::failsafe::{ClientTimer, PendingTimer};
+use super::health::HealthComponent;
 use super::land_detector::LandEvent;
 use super::navigator::{HoldTarget, ManualMode, Nav, OrbitChange};
 use super::position_checks::PositionNeed;
-use super::settings::FailsafeAction;
 use super::status::{Announcements, Severity};
 use super::{Autopilot, FlightMode, ManualControl, OffboardSetpoint, TargetFix};
-use super::{BatteryWarning, RotorStatus, TIME_EPS};
+use super::{BatteryWarning, TIME_EPS};
 use crate::geo::GeoPoint;
-use crate::mission::MissionType;
 use crate::signals::{Measurement, SensorReadings};
 
 /// DO_CHANGE_SPEED's "back to the default speed" value.
@@ -44,8 +43,9 @@ pub(super) struct Prearm {
     pub(super) estimator_initialised: bool,
     /// Home is a valid point.
     pub(super) home_valid: bool,
-    /// The mode steers by a position that is lost: why (`no GPS fix`, ...).
-    pub(super) mode_without_position: Option<&'static str>,
+    /// The mode steers by a position that is lost: why (`no GPS fix`, ...)
+    /// and what it concerns.
+    pub(super) mode_without_position: Option<(&'static str, HealthComponent)>,
     /// Every rotor is healthy (the rotor monitor).
     pub(super) rotors_healthy: bool,
     /// The battery warning level in force.
@@ -53,38 +53,34 @@ pub(super) struct Prearm {
     /// The data link is lost and `NAV_DLL_ACT` would act on it.
     pub(super) data_link_lost_with_action: bool,
     /// Why the selected mode cannot be armed in, if it cannot (no sticks,
-    /// no offboard signal, no mission, an automatic mode that is not armable).
-    pub(super) mode: Option<&'static str>,
+    /// no offboard signal, no mission, an automatic mode that is not
+    /// armable), and what it concerns.
+    pub(super) mode: Option<(&'static str, HealthComponent)>,
 }
 
 impl Prearm {
+    /// Every failing check, in PX4's order, with the component it concerns.
+    pub(super) fn failures(&self) -> impl Iterator<Item = (&'static str, HealthComponent)> {
+        use HealthComponent as C;
+        [
+            (!self.landed).then_some(("vehicle not landed", C::None)),
+            (!self.position_valid).then_some(("no valid position estimate", C::LocalPositionEstimate)),
+            (!self.estimator_initialised).then_some(("estimator not initialised", C::AttitudeEstimate)),
+            (!self.home_valid).then_some(("home position invalid", C::GlobalPositionEstimate)),
+            self.mode_without_position,
+            (!self.rotors_healthy).then_some(("ESC failure", C::MotorsEscs)),
+            (self.battery >= BatteryWarning::Critical).then_some(("battery critical", C::Battery)),
+            self.data_link_lost_with_action
+                .then_some(("no ground station connection", C::CommunicationLinks)),
+            self.mode,
+        ]
+        .into_iter()
+        .flatten()
+    }
+
     /// The first failing check, in PX4's order, as the reason arming is denied.
     pub(super) fn failure(&self) -> Option<&'static str> {
-        if !self.landed {
-            return Some("vehicle not landed");
-        }
-        if !self.position_valid {
-            return Some("no valid position estimate");
-        }
-        if !self.estimator_initialised {
-            return Some("estimator not initialised");
-        }
-        if !self.home_valid {
-            return Some("home position invalid");
-        }
-        if let Some(why) = self.mode_without_position {
-            return Some(why);
-        }
-        if !self.rotors_healthy {
-            return Some("ESC failure");
-        }
-        if self.battery >= BatteryWarning::Critical {
-            return Some("battery critical");
-        }
-        if self.data_link_lost_with_action {
-            return Some("no ground station connection");
-        }
-        self.mode
+        self.failures().next().map(|(why, _)| why)
     }
 }
 
@@ -417,38 +413,7 @@ impl Autopilot {
 
     /// Why arming would be refused at the instant of `m`, if it would ([`Prearm::failure`]).
     pub(super) fn prearm_failure(&self, m: &Measurement) -> Option<&'static str> {
-        let nav = self.navigator.nav();
-        let mode = match nav {
-            Nav::Manual(mode) => {
-                self.navigator
-                    .manual_prearm_failure(mode, m.time_s, self.settings.manual.loss_s, self.failsafe.clock())
-            }
-            Nav::Offboard if !self.offboard_fresh(m.time_s) => Some("no offboard signal"),
-            Nav::Mission if self.plans.get(MissionType::Mission).is_empty() => Some("no valid mission"),
-            Nav::Hold { .. } | Nav::Offboard | Nav::Mission => None,
-            Nav::Takeoff { .. }
-            | Nav::Land { .. }
-            | Nav::Rtl { .. }
-            | Nav::Orbit(_)
-            | Nav::Follow(_)
-            | Nav::Descend { .. } => Some("flight mode not armable"),
-        };
-        Prearm {
-            landed: self.land.landed(),
-            position_valid: self.navigation().is_none_or(super::navigation::FilterNavigation::ready),
-            estimator_initialised: self.control_initialised(),
-            home_valid: self.home.is_valid(),
-            mode_without_position: {
-                let position = self.navigator.position();
-                (!position.serves(self.navigator.position_need())).then(|| position.loss.cause())
-            },
-            rotors_healthy: self.rotor_status().iter().all(|r| *r == RotorStatus::Healthy),
-            battery: self.battery_warning(),
-            data_link_lost_with_action: self.failsafe.data_link_is_lost()
-                && self.settings.failsafe.data_link_loss_action != FailsafeAction::None,
-            mode,
-        }
-        .failure()
+        self.prearm_in(self.navigator.mode(), m.time_s).failure()
     }
 
     /// Arm (prearm checks unless `force`), at the instant of `m`.
@@ -896,11 +861,11 @@ mod tests {
             position_valid: false,
             estimator_initialised: false,
             home_valid: false,
-            mode_without_position: Some("no GPS fix"),
+            mode_without_position: Some(("no GPS fix", HealthComponent::Gps)),
             rotors_healthy: false,
             battery: BatteryWarning::Emergency,
             data_link_lost_with_action: true,
-            mode: Some("no offboard signal"),
+            mode: Some(("no offboard signal", HealthComponent::None)),
         };
         assert_eq!(all_bad.failure(), Some("vehicle not landed"));
         let cases = [
@@ -927,7 +892,7 @@ mod tests {
             ),
             (
                 Prearm {
-                    mode_without_position: Some("no GPS fix"),
+                    mode_without_position: Some(("no GPS fix", HealthComponent::Gps)),
                     ..ready()
                 },
                 "no GPS fix",
@@ -955,7 +920,7 @@ mod tests {
             ),
             (
                 Prearm {
-                    mode: Some("no valid mission"),
+                    mode: Some(("no valid mission", HealthComponent::None)),
                     ..ready()
                 },
                 "no valid mission",
@@ -976,7 +941,7 @@ mod tests {
         // the mode is judged last
         let p = Prearm {
             home_valid: false,
-            mode: Some("no manual control input"),
+            mode: Some(("no manual control input", HealthComponent::None)),
             ..ready()
         };
         assert_eq!(p.failure(), Some("home position invalid"));

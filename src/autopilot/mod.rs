@@ -113,6 +113,7 @@ mod estimate;
 mod failsafe;
 mod fence_avoidance;
 mod geofence;
+mod health;
 mod land_detector;
 mod mission;
 mod navigation;
@@ -132,6 +133,7 @@ pub use control_loop::RotorAllocation;
 pub use control_loop::{ControlLoop, ControlLoopError, ControlOutput, Demand};
 pub use error::AutopilotError;
 pub use failsafe::{ClientClock, ClientTimer, PendingTimer};
+pub use health::{FailedCheck, HealthComponent, HealthReport, ModeSet};
 pub use navigation::{FilterNavigation, NavSource, nav_config};
 pub use navigator::ItemDone;
 pub use navigator::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};
@@ -183,6 +185,32 @@ pub enum FlightMode {
     /// PX4's Descend (shown as AUTO.LAND): land without a position estimate —
     /// level, no horizontal control, sinking at MPC_LAND_SPEED (GPS loss).
     Descend,
+}
+
+impl FlightMode {
+    /// Every mode, in declaration order.
+    pub const ALL: [Self; 14] = [
+        Self::Position,
+        Self::Hold,
+        Self::Takeoff,
+        Self::Land,
+        Self::ReturnToLaunch,
+        Self::Offboard,
+        Self::Mission,
+        Self::Altitude,
+        Self::Stabilized,
+        Self::Acro,
+        Self::Manual,
+        Self::Orbit,
+        Self::FollowTarget,
+        Self::Descend,
+    ];
+
+    /// The mode's place in [`FlightMode::ALL`].
+    #[must_use]
+    pub fn index(self) -> usize {
+        self as usize
+    }
 }
 
 /// Time comparisons of the flight stack tolerate this much rounding [s]

@@ -19,6 +19,7 @@
 //!
 //! On the ideal navigation solution (no filter) there is no accuracy to
 //! read: the position is valid exactly while the GNSS receiver has a fix.
+use super::health::HealthComponent;
 
 /// What a mode steers by horizontally (see the module's table).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -65,6 +66,14 @@ impl PositionLoss {
         match self {
             Self::NoFix => "no GPS fix",
             Self::Estimate => "no valid position estimate",
+        }
+    }
+
+    /// What the loss concerns, in a health report.
+    pub(super) fn component(self) -> HealthComponent {
+        match self {
+            Self::NoFix => HealthComponent::Gps,
+            Self::Estimate => HealthComponent::GlobalPositionEstimate,
         }
     }
 

@@ -23,6 +23,7 @@ use nalgebra::Vector2;
 use super::manual::ManualMode;
 use super::offboard::{LocalSetpoint, Targets};
 use super::{DescendThen, Nav, Navigator, RtlPhase, Situation};
+use crate::autopilot::FlightMode;
 use crate::autopilot::control_loop::Demand;
 use crate::autopilot::position_checks::{PositionLoss, PositionNeed, PositionValidity};
 use crate::autopilot::status::{Announcements, Severity};
@@ -50,17 +51,26 @@ impl Navigator {
 
     /// What the active mode steers by horizontally (PX4's mode requirements).
     pub(in crate::autopilot) fn position_need(&self) -> PositionNeed {
-        match self.nav {
-            Nav::Hold { .. }
-            | Nav::Takeoff { .. }
-            | Nav::Rtl { .. }
-            | Nav::Mission
-            | Nav::Orbit(_)
-            | Nav::Follow(_) => PositionNeed::Accurate,
-            Nav::Land { .. } => PositionNeed::Relaxed,
-            Nav::Manual(ManualMode::Position) => PositionNeed::Relaxed,
-            Nav::Manual(_) | Nav::Descend { .. } => PositionNeed::None,
-            Nav::Offboard => self.offboard_need(),
+        self.position_need_of(self.mode())
+    }
+
+    /// What `mode` steers by horizontally, were it flown now (PX4's mode
+    /// requirements; Offboard by its latest setpoint).
+    pub(in crate::autopilot) fn position_need_of(&self, mode: FlightMode) -> PositionNeed {
+        match mode {
+            FlightMode::Hold
+            | FlightMode::Takeoff
+            | FlightMode::ReturnToLaunch
+            | FlightMode::Mission
+            | FlightMode::Orbit
+            | FlightMode::FollowTarget => PositionNeed::Accurate,
+            FlightMode::Land | FlightMode::Position => PositionNeed::Relaxed,
+            FlightMode::Altitude
+            | FlightMode::Stabilized
+            | FlightMode::Acro
+            | FlightMode::Manual
+            | FlightMode::Descend => PositionNeed::None,
+            FlightMode::Offboard => self.offboard_need(),
         }
     }
 

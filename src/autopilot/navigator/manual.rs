@@ -82,6 +82,18 @@ pub(in crate::autopilot) enum ManualMode {
 }
 
 impl ManualMode {
+    /// The stick mode that `mode` is, if it is one.
+    pub(in crate::autopilot) fn of(mode: FlightMode) -> Option<Self> {
+        match mode {
+            FlightMode::Position => Some(Self::Position),
+            FlightMode::Altitude => Some(Self::Altitude),
+            FlightMode::Stabilized => Some(Self::Stabilized),
+            FlightMode::Acro => Some(Self::Acro),
+            FlightMode::Manual => Some(Self::Manual),
+            _ => None,
+        }
+    }
+
     /// The mode as clients see it.
     pub(in crate::autopilot) fn flight_mode(self) -> FlightMode {
         match self {

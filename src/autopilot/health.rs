@@ -1,0 +1,225 @@
+//! The health and arming report: every arming check that fails now, for
+//! every mode at once, as PX4's commander reports it to ground stations
+//! (its health and arming checks: each failing check names the modes it
+//! keeps from arming and the component it concerns; a summary says, per
+//! mode, whether arming in it, or switching to it while armed, is possible).
+//!
+//! The checks are the prearm checks of the [`commander`](super::commander)
+//! ([`Prearm`]), run once per mode: the global ones (landed, position
+//! estimate, estimator, home, rotors, battery, data link) fail every mode;
+//! the position check fails the modes whose [`PositionNeed`] the position
+//! does not serve; the mode's own check (sticks, offboard signal, a
+//! mission, an armable mode) fails that mode. Arming in the selected mode
+//! is refused with the first failure of that mode, in PX4's order; the
+//! report lists them all. A query: it changes nothing.
+
+use super::commander::Prearm;
+use super::navigator::ManualMode;
+use super::settings::FailsafeAction;
+use super::{Autopilot, FlightMode, RotorStatus};
+
+/// What a check concerns (PX4's health components, the ones rotorpilot's checks speak of).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HealthComponent {
+    /// No component in particular (the vehicle, the mode).
+    None,
+    /// The GNSS receiver.
+    Gps,
+    /// Manual control (RC or joystick).
+    RemoteControl,
+    /// Motors and ESCs.
+    MotorsEscs,
+    /// The battery.
+    Battery,
+    /// The data link to the ground station.
+    CommunicationLinks,
+    /// The mission.
+    Mission,
+    /// The attitude estimate.
+    AttitudeEstimate,
+    /// The local position estimate.
+    LocalPositionEstimate,
+    /// The global position estimate (and home).
+    GlobalPositionEstimate,
+}
+
+/// A set of [`FlightMode`]s (one bit each, by [`FlightMode::ALL`] index).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ModeSet(u16);
+
+impl ModeSet {
+    /// Every mode.
+    pub const ALL: Self = Self((1 << FlightMode::ALL.len()) - 1);
+
+    /// Just `mode`.
+    #[must_use]
+    pub fn of(mode: FlightMode) -> Self {
+        Self(1 << mode.index())
+    }
+
+    /// Whether `mode` is in the set.
+    #[must_use]
+    pub fn contains(self, mode: FlightMode) -> bool {
+        self.0 & Self::of(mode).0 != 0
+    }
+
+    /// The set with `mode` added.
+    #[must_use]
+    pub fn with(self, mode: FlightMode) -> Self {
+        Self(self.0 | Self::of(mode).0)
+    }
+
+    /// The modes in the set, in [`FlightMode::ALL`] order.
+    pub fn iter(self) -> impl Iterator<Item = FlightMode> {
+        FlightMode::ALL.into_iter().filter(move |m| self.contains(*m))
+    }
+}
+
+/// One check that fails.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FailedCheck {
+    /// Why, in the words arming is denied with ("no GPS fix", "battery critical", ...).
+    pub text: &'static str,
+    /// What it concerns.
+    pub component: HealthComponent,
+    /// The modes it keeps from arming.
+    pub modes: ModeSet,
+}
+
+/// The health and arming report at one instant.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct HealthReport {
+    /// Every failing check, in PX4's order (a check failing several modes once).
+    pub checks: Vec<FailedCheck>,
+    /// The modes arming is possible in.
+    pub can_arm: ModeSet,
+    /// The modes that can be switched to while armed.
+    pub can_run: ModeSet,
+}
+
+impl HealthReport {
+    /// The components with an error: those of the checks that fail every mode.
+    pub fn errors(&self) -> impl Iterator<Item = HealthComponent> + '_ {
+        self.checks
+            .iter()
+            .filter(|c| c.modes == ModeSet::ALL && c.component != HealthComponent::None)
+            .map(|c| c.component)
+    }
+
+    /// Add `mode` to the modes the check `text` fails (the check added the first time).
+    fn fail(&mut self, text: &'static str, component: HealthComponent, mode: FlightMode) {
+        match self.checks.iter_mut().find(|c| c.text == text) {
+            Some(c) => c.modes = c.modes.with(mode),
+            None => self.checks.push(FailedCheck {
+                text,
+                component,
+                modes: ModeSet::of(mode),
+            }),
+        }
+    }
+}
+
+impl Autopilot {
+    /// The health and arming report at simulated time `now_s` [s] (the
+    /// instant of the latest step).
+    #[must_use]
+    pub fn health_report(&self, now_s: f64) -> HealthReport {
+        let mut report = HealthReport::default();
+        for mode in FlightMode::ALL {
+            let prearm = self.prearm_in(mode, now_s);
+            let mut failures = prearm.failures().peekable();
+            if failures.peek().is_none() {
+                report.can_arm = report.can_arm.with(mode);
+            }
+            for (text, component) in failures {
+                report.fail(text, component, mode);
+            }
+            if prearm.mode_without_position.is_none() && self.mode_runnable(mode, now_s) {
+                report.can_run = report.can_run.with(mode);
+            }
+        }
+        report
+    }
+
+    /// What the prearm checks see at `now_s` [s] for arming in `mode`.
+    pub(super) fn prearm_in(&self, mode: FlightMode, now_s: f64) -> Prearm {
+        let position = self.navigator.position();
+        Prearm {
+            landed: self.land.landed(),
+            position_valid: self.navigation().is_none_or(super::navigation::FilterNavigation::ready),
+            estimator_initialised: self.control_initialised(),
+            home_valid: self.home.is_valid(),
+            mode_without_position: (!position.serves(self.navigator.position_need_of(mode)))
+                .then(|| (position.loss.cause(), position.loss.component())),
+            rotors_healthy: self.rotor_status().iter().all(|r| *r == RotorStatus::Healthy),
+            battery: self.battery_warning(),
+            data_link_lost_with_action: self.failsafe.data_link_is_lost()
+                && self.settings.failsafe.data_link_loss_action != FailsafeAction::None,
+            mode: self.mode_prearm_failure(mode, now_s),
+        }
+    }
+
+    /// Why `mode` itself cannot be armed in at `now_s` [s], if it cannot:
+    /// the sticks of a manual mode, the offboard signal, a mission, or a
+    /// mode that is not armable.
+    fn mode_prearm_failure(&self, mode: FlightMode, now_s: f64) -> Option<(&'static str, HealthComponent)> {
+        if let Some(manual) = ManualMode::of(mode) {
+            let clock = self.failsafe.clock();
+            return self
+                .navigator
+                .manual_prearm_failure(manual, now_s, self.settings.manual.loss_s, clock)
+                .map(|why| (why, HealthComponent::RemoteControl));
+        }
+        match mode {
+            FlightMode::Offboard if !self.offboard_fresh(now_s) => Some(("no offboard signal", HealthComponent::None)),
+            FlightMode::Mission if self.plans.get(crate::mission::MissionType::Mission).is_empty() => {
+                Some(("no valid mission", HealthComponent::Mission))
+            }
+            FlightMode::Hold | FlightMode::Offboard | FlightMode::Mission => None,
+            _ => Some(("flight mode not armable", HealthComponent::None)),
+        }
+    }
+
+    /// Whether `mode` (its position served) could be switched to while
+    /// armed at `now_s` [s]: a manual mode needs its sticks, Offboard its
+    /// signal, Mission a mission.
+    fn mode_runnable(&self, mode: FlightMode, now_s: f64) -> bool {
+        if ManualMode::of(mode).is_some() {
+            let clock = self.failsafe.clock();
+            return self.navigator.manual_fresh(now_s, self.settings.manual.loss_s, clock);
+        }
+        match mode {
+            FlightMode::Offboard => self.offboard_fresh(now_s),
+            FlightMode::Mission => !self.plans.get(crate::mission::MissionType::Mission).is_empty(),
+            _ => true,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_mode_set_holds_what_was_added() {
+        let s = ModeSet::default().with(FlightMode::Mission).with(FlightMode::Hold);
+        assert!(s.contains(FlightMode::Mission) && s.contains(FlightMode::Hold));
+        assert!(!s.contains(FlightMode::Offboard));
+        assert_eq!(s.iter().collect::<Vec<_>>(), [FlightMode::Hold, FlightMode::Mission]);
+        assert!(FlightMode::ALL.iter().all(|m| ModeSet::ALL.contains(*m)));
+    }
+
+    #[test]
+    fn a_check_failing_several_modes_is_listed_once() {
+        let mut r = HealthReport::default();
+        r.fail("no GPS fix", HealthComponent::Gps, FlightMode::Hold);
+        r.fail("battery critical", HealthComponent::Battery, FlightMode::Hold);
+        r.fail("no GPS fix", HealthComponent::Gps, FlightMode::Mission);
+        assert_eq!(r.checks.len(), 2);
+        assert_eq!(
+            r.checks[0].modes,
+            ModeSet::of(FlightMode::Hold).with(FlightMode::Mission)
+        );
+        assert_eq!(r.errors().count(), 0, "no check fails every mode");
+    }
+}

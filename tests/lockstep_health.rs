@@ -6,11 +6,18 @@
 mod common;
 
 use common::sitl::{Sitl, int};
-use rotorpilot::autopilot::{AutopilotCommand, CommandOutcome, FlightMode, HealthComponent, HealthReport, ModeSet};
+use rotorpilot::autopilot::{
+    AutopilotCommand, CHECK_TEXTS, CommandOutcome, FlightMode, HealthComponent, HealthReport, ModeSet,
+};
 use rotorpilot::sim::{Fault, RotorHealth};
 
+/// The report now; each of its texts one the event metadata knows.
 fn report(ap: &Sitl) -> HealthReport {
-    ap.pilot().health_report(ap.time_s())
+    let r = ap.pilot().health_report(ap.time_s());
+    for c in &r.checks {
+        assert!(CHECK_TEXTS.contains(&c.text), "{:?} is not in CHECK_TEXTS", c.text);
+    }
+    r
 }
 
 fn set(modes: &[FlightMode]) -> ModeSet {

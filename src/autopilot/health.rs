@@ -18,6 +18,25 @@ use super::navigator::ManualMode;
 use super::settings::FailsafeAction;
 use super::{Autopilot, FlightMode, RotorStatus};
 
+/// Every text a failing check can give ([`FailedCheck::text`]), in PX4's
+/// order: what a ground station's event metadata must know.
+pub const CHECK_TEXTS: [&str; 14] = [
+    "vehicle not landed",
+    "no valid position estimate",
+    "estimator not initialised",
+    "home position invalid",
+    "no GPS fix",
+    "ESC failure",
+    "battery critical",
+    "no ground station connection",
+    "no manual control input",
+    "throttle above center",
+    "high throttle",
+    "no offboard signal",
+    "no valid mission",
+    "flight mode not armable",
+];
+
 /// What a check concerns (PX4's health components, the ones rotorpilot's checks speak of).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum HealthComponent {

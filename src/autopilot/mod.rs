@@ -133,7 +133,7 @@ pub use control_loop::RotorAllocation;
 pub use control_loop::{ControlLoop, ControlLoopError, ControlOutput, Demand};
 pub use error::AutopilotError;
 pub use failsafe::{ClientClock, ClientTimer, PendingTimer};
-pub use health::{FailedCheck, HealthComponent, HealthReport, ModeSet};
+pub use health::{CHECK_TEXTS, FailedCheck, HealthComponent, HealthReport, ModeSet};
 pub use navigation::{FilterNavigation, NavSource, nav_config};
 pub use navigator::ItemDone;
 pub use navigator::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetpoint, RelativeFrame, Targets};

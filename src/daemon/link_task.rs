@@ -201,6 +201,10 @@ impl LinkTask {
                         self.flush().await;
                     }
                     Ok(Event::ParamValue(m)) => self.link.broadcast_param(Instant::now().into_std(), &m),
+                    Ok(Event::Events(list)) => {
+                        self.link.send_events(Instant::now().into_std(), &list);
+                        self.flush().await;
+                    }
                     Ok(Event::MissionItemReached(seq)) => {
                         self.link.on_mission_item_reached(Instant::now().into_std(), seq);
                         self.flush().await;

@@ -30,7 +30,7 @@ use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
-use mavlink::dialects::common::MavMessage;
+use mavlink::dialects::common::{EVENT_DATA, MavMessage};
 use tokio::sync::oneshot;
 
 use crate::autopilot::{AutopilotCommand, CommandOutcome, StatusText};
@@ -90,6 +90,8 @@ pub(super) enum Event {
     /// MISSION_ITEM_REACHED for this seq.
     MissionItemReached(u16),
     ParamValue(Arc<MavMessage>),
+    /// EVENTs of the health and arming report, numbered for the vehicle.
+    Events(Arc<Vec<EVENT_DATA>>),
 }
 
 /// The parameter store, locked (never across an `.await`).

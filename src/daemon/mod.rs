@@ -573,6 +573,8 @@ impl Daemon {
                 link_lost: link_lost_tx,
                 ulog,
                 recorder: v.recorder,
+                health: crate::link::events::Reporter::default(),
+                health_forced: false,
             });
             // one writer per file: the saver, links' write-through and the final save share its lock
             let params_file = ParamsFile::new(path.clone());

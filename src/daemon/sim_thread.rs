@@ -24,6 +24,7 @@ use crate::autopilot::{
     Autopilot, AutopilotCommand, AutopilotError, ClientClock, ClientTimer, CommandOutcome, ItemDone, PendingTimer,
     PowerAction,
 };
+use crate::link::events;
 use crate::lockstep::input::{Applied, Input};
 use crate::lockstep::{Lockstep, Snapshot};
 use crate::mission::{MissionResult, PlanChange};
@@ -81,6 +82,11 @@ pub(super) struct VehicleIo {
     pub(super) ulog: Option<UlogFile>,
     /// The flight record and CSV (`--log-dir`): every input goes through `Sim::apply`.
     pub(super) recorder: Option<Recorder>,
+    /// The health and arming report's events: their sequence, and when the next goes out.
+    pub(super) health: events::Reporter,
+    /// A report is to go out at the next publication, changed or not
+    /// (MAV_CMD_RUN_PREARM_CHECKS or an arming request came).
+    pub(super) health_forced: bool,
 }
 
 impl Sim {
@@ -230,6 +236,14 @@ impl Sim {
             info!(instance = io.instance, sysid = io.system_id, text = %s.text, "status");
             let _ = io.events.send(Event::StatusText(s));
         }
+        let now_s = self.core.time_s();
+        if io.health_forced || io.health.due(now_s) {
+            let report = self.core.pilot(v).health_report(now_s);
+            let sent = io.health.update(now_s, report, std::mem::take(&mut io.health_forced));
+            if !sent.is_empty() {
+                let _ = io.events.send(Event::Events(Arc::new(sent)));
+            }
+        }
         // MISSION_ITEM_REACHED tells the items reached, not those run at once (PX4)
         for done in self.core.drain_mission_done(v) {
             if let ItemDone::Reached(seq) = done {
@@ -246,6 +260,13 @@ impl Sim {
         }
         match r {
             SimRequest::Command { command, reply } => {
+                // PX4 reports the arming checks at once when asked to or asked to arm
+                if matches!(
+                    command,
+                    AutopilotCommand::RunPrearmChecks | AutopilotCommand::Arm { .. }
+                ) {
+                    self.vehicles[v].health_forced = true;
+                }
                 let mut outcome = self.command(v, command);
                 let mut then = AfterAnswer::GoOn;
                 if let AutopilotCommand::Power(action) = command

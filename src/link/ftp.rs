@@ -7,7 +7,8 @@
 //! data bytes, matched by sequence number and opcode), and PX4's error codes. Files are reached through a
 //! [`FileStore`] the daemon gives the link (real files, confined to the
 //! vehicle's state and log directories); `@PARAM/param.pck` (PX4's packed
-//! parameter file, [`param_pck`]) is served here from the parameter table.
+//! parameter file, [`param_pck`]) is served here from the parameter table,
+//! and the component metadata files ([`super::events`]) from memory.
 //!
 //! The payload (251 bytes) as PX4 lays it out: `seq: u16, session: u8,
 //! opcode: u8, size: u8, req_opcode: u8, burst_complete: u8, padding: u8,
@@ -333,8 +334,9 @@ enum Session {
     Read { file: Box<dyn ReadFile>, size: u32 },
     /// A file open for writing.
     Write { path: String },
-    /// `@PARAM/param.pck` as it was at open.
-    ParamRead { bytes: Vec<u8> },
+    /// A file held in memory: `@PARAM/param.pck` as it was at open, or a
+    /// component metadata file ([`super::events::metadata_file`]).
+    Bytes { bytes: Vec<u8> },
     /// `@PARAM/param.pck` being uploaded.
     ParamWrite(param_pck::Upload),
 }
@@ -443,7 +445,7 @@ impl Server {
                     (*size, buf)
                 }))
             }
-            Session::ParamRead { bytes } => {
+            Session::Bytes { bytes } => {
                 let start = (offset as usize).min(bytes.len());
                 let end = (start + len).min(bytes.len());
                 Some(Ok((bytes.len() as u32, bytes[start..end].to_vec())))
@@ -558,12 +560,16 @@ impl Link {
                     return Some(Err(vec![err::NO_SESSIONS_AVAILABLE]));
                 }
                 let path = path();
-                let opened = if param_pck::is_param_path(&path) {
+                let opened = if let (op::OPEN_FILE_RO, Some(file)) = (req.opcode, super::events::metadata_file(&path)) {
+                    let bytes = file.to_vec();
+                    let size = bytes.len() as u32;
+                    Ok((Session::Bytes { bytes }, size))
+                } else if param_pck::is_param_path(&path) {
                     match req.opcode {
                         op::OPEN_FILE_RO => param_pck::download(&path, params, MAX_DATA)
                             .map(|bytes| {
                                 let size = bytes.len() as u32;
-                                (Session::ParamRead { bytes }, size)
+                                (Session::Bytes { bytes }, size)
                             })
                             .map_err(|param_pck::Refused| FsError::Errno(errno::EINVAL)),
                         _ => Ok((Session::ParamWrite(param_pck::Upload::default()), 0)),
@@ -605,7 +611,7 @@ impl Link {
                 })
             }
             op::BURST_READ_FILE => {
-                if req.session != 0 || !matches!(ftp.session, Some(Session::Read { .. } | Session::ParamRead { .. })) {
+                if req.session != 0 || !matches!(ftp.session, Some(Session::Read { .. } | Session::Bytes { .. })) {
                     return Some(Err(vec![err::INVALID_SESSION]));
                 }
                 ftp.burst = Some(Burst {

@@ -31,6 +31,7 @@
 //! | [`ftp`] | MAVLink FTP: sessions, bursts, `@PARAM/param.pck`, over a [`ftp::FileStore`] |
 //! | [`log_download`] | LOG_REQUEST_* / LOG_ENTRY / LOG_DATA over the store's ULogs |
 //! | [`forward`] | forwarding between a vehicle's links, by PX4's rule (`mavlink start -f`) |
+//! | [`events`] | the events protocol (health and arming report), component metadata |
 
 // PX4 and its clients still speak messages the XML marks deprecated
 // (SET_MODE, PING, ...): we must too.
@@ -39,6 +40,7 @@
 pub mod budget;
 pub mod command;
 pub mod convert;
+pub mod events;
 pub mod forward;
 pub mod ftp;
 pub mod log_download;
@@ -58,8 +60,8 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::common::{
-    AUTOPILOT_VERSION_DATA, HEARTBEAT_DATA, MavMessage, MavProtocolCapability, MavSeverity, PING_DATA, STATUSTEXT_DATA,
-    TIMESYNC_DATA,
+    AUTOPILOT_VERSION_DATA, COMPONENT_METADATA_DATA, EVENT_DATA, HEARTBEAT_DATA, MavMessage, MavProtocolCapability,
+    MavSeverity, PING_DATA, STATUSTEXT_DATA, TIMESYNC_DATA,
 };
 use mission::{ItemMode, Missions, Partner, PlanTicket};
 
@@ -208,6 +210,8 @@ pub struct Link {
     /// The raw sensors' simulation: not asked for, to ask for (a raw
     /// sensor stream came due), asked for.
     raw_sensors: RawDemand,
+    /// The events sent lately, for REQUEST_EVENT, and CURRENT_EVENT_SEQUENCE's turn.
+    events: events::EventLog,
 }
 
 /// Whether a link needs the vehicle's raw sensors simulated.
@@ -294,6 +298,7 @@ impl Link {
             logs: log_download::Server::default(),
             forwarding: None,
             raw_sensors: RawDemand::None,
+            events: events::EventLog::new(now),
         }
     }
 
@@ -503,6 +508,16 @@ impl Link {
         self.text(To::All, t.severity, &t.text);
     }
 
+    /// Queue the vehicle's new events ([`events::Reporter`]) for every
+    /// peer, and keep them for REQUEST_EVENT.
+    pub fn send_events(&mut self, now: Instant, list: &[EVENT_DATA]) {
+        self.tick(now);
+        for e in list {
+            self.events.keep(e);
+            self.send(To::All, &MavMessage::EVENT(e.clone()));
+        }
+    }
+
     /// Queue a PARAM_VALUE for every peer, [`command::PARAM_REBROADCAST_DELAY`]
     /// from `now` (PX4 rebroadcasts a changed parameter on every link).
     pub fn broadcast_param(&mut self, now: Instant, value: &MavMessage) {
@@ -533,6 +548,7 @@ impl Link {
             lists,
             self.ftp.next_deadline(),
             self.logs.next_deadline(),
+            Some(self.events.next_deadline()),
         ]
         .into_iter()
         .flatten()
@@ -573,6 +589,9 @@ impl Link {
             }
         }
         self.due = due;
+        if let Some(m) = self.events.current_sequence(now) {
+            self.send(To::All, &m);
+        }
         self.send_param_lists(now);
         self.ftp_poll(now);
         self.log_send(now);
@@ -956,6 +975,11 @@ impl Link {
                 self.on_log_request_end();
             }
             MavMessage::LOG_ERASE(m) if self.for_me(m.target_system, m.target_component) => self.on_log_erase(),
+            MavMessage::REQUEST_EVENT(m) if self.for_me(m.target_system, m.target_component) => {
+                for answer in self.events.request(m.first_sequence, m.last_sequence, requester) {
+                    self.send(reply, &answer);
+                }
+            }
             _ => {}
         }
     }
@@ -1130,7 +1154,8 @@ pub fn autopilot_version(identity: Identity) -> MavMessage {
     })
 }
 
-/// The messages a REQUEST_MESSAGE for `id` gets: AUTOPILOT_VERSION, or any
+/// The messages a REQUEST_MESSAGE for `id` gets: AUTOPILOT_VERSION,
+/// COMPONENT_METADATA, or any
 /// stream's message; `None` (DENIED, as PX4) for the rest and for a stream
 /// with nothing to send (WIND_COV without a wind estimate: PX4 denies a
 /// request its stream does not answer).
@@ -1138,6 +1163,9 @@ pub fn autopilot_version(identity: Identity) -> MavMessage {
 pub fn requested(id: u32, t: &Snapshot, identity: Identity) -> Option<Vec<MavMessage>> {
     if id == command::AUTOPILOT_VERSION_ID {
         return Some(vec![autopilot_version(identity)]);
+    }
+    if id == <COMPONENT_METADATA_DATA as mavlink::MessageData>::ID {
+        return Some(vec![events::component_metadata(t.telemetry.time_s)]);
     }
     // SYSTEM_TIME's unix time is not known here; 0 means "unknown".
     Stream::from_message_id(id)

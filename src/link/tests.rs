@@ -384,3 +384,62 @@ fn a_gcs_heartbeat_tells_the_autopilot_the_data_link_is_alive() {
     }));
     assert!(l.on_datagram(t0, addr(50001), &other, &snapshot(), &p).is_empty());
 }
+
+#[test]
+fn component_metadata_names_the_general_file_and_its_crc() {
+    let t0 = Instant::now();
+    let mut l = link(t0);
+    let p = FakeParams::standard();
+    let nan = f32::NAN;
+    l.on_datagram(
+        t0,
+        addr(50000),
+        &cmd(512, [397.0, nan, nan, nan, nan, nan, nan], 1),
+        &snapshot(),
+        &p,
+    );
+    let d = decoded(&l.drain());
+    assert_eq!(d.iter().map(|x| x.1).collect::<Vec<_>>(), vec![77, 397]);
+    let m = mavlink::dialects::common::COMPONENT_METADATA_DATA::deser(mavlink::MavlinkVersion::V2, &d[1].2).unwrap();
+    assert_eq!(m.uri.to_str().unwrap(), "mftp://etc/extras/component_general.json");
+    assert_eq!(m.file_crc, crate::mission::crc::crc32part(events::general_json(), 0));
+}
+
+#[test]
+fn events_go_to_every_peer_and_a_lost_one_is_sent_again_on_request() {
+    let t0 = Instant::now();
+    let mut l = link(t0);
+    let p = FakeParams::standard();
+    l.poll(t0, &snapshot(), 0);
+    let current: Vec<_> = decoded(&l.drain()).into_iter().filter(|d| d.1 == 411).collect();
+    assert_eq!(current.len(), 1, "CURRENT_EVENT_SEQUENCE at once");
+    let mut reporter = events::Reporter::default();
+    let ready = crate::autopilot::HealthReport {
+        can_arm: crate::autopilot::ModeSet::ALL,
+        ..Default::default()
+    };
+    let sent = reporter.update(0.0, ready, true);
+    l.send_events(t0, &sent);
+    let out = decoded(&l.drain());
+    assert_eq!(out.iter().filter(|d| d.1 == 410).count(), 2);
+    assert!(out.iter().all(|d| d.0 == To::All));
+    let ask = v2(&MavMessage::REQUEST_EVENT(
+        mavlink::dialects::common::REQUEST_EVENT_DATA {
+            target_system: 1,
+            target_component: 1,
+            first_sequence: 1,
+            last_sequence: 2,
+        },
+    ));
+    l.on_datagram(t0, addr(50000), &ask, &snapshot(), &p);
+    let again = decoded(&l.drain());
+    assert_eq!(
+        again.iter().map(|d| d.1).collect::<Vec<_>>(),
+        [410, 413],
+        "1 again, 2 not yet"
+    );
+    assert!(again.iter().all(|d| d.0 == To::Peer(addr(50000))));
+    l.poll(t0 + events::CURRENT_SEQUENCE_PERIOD, &snapshot(), 0);
+    let later: Vec<_> = decoded(&l.drain()).into_iter().filter(|d| d.1 == 411).collect();
+    assert_eq!(later.len(), 1, "every 3 s");
+}

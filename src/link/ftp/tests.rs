@@ -582,3 +582,25 @@ fn a_crc32_goes_on_past_four_gib() {
     assert_eq!(c.step(CRC_PER_TURN), Some(Ok(crate::mission::crc::crc32part(&tail, 0))));
     assert_eq!(c.offset, size);
 }
+
+#[test]
+fn the_component_metadata_files_are_served_from_memory() {
+    let mut r = Rig::new(files());
+    for (path, want) in [
+        (
+            &b"/etc/extras/component_general.json"[..],
+            crate::link::events::general_json(),
+        ),
+        (&b"etc/extras/all_events.json"[..], crate::link::events::events_json()),
+    ] {
+        let (opcode, size) = r.one(0, op::OPEN_FILE_RO, 0, path);
+        assert_eq!(opcode, op::ACK);
+        assert_eq!(size, (want.len() as u32).to_le_bytes().to_vec());
+        let (f, end) = r.burst();
+        assert_eq!((f.as_slice(), end), (want, err::EOF));
+        assert_eq!(r.one(0, op::TERMINATE_SESSION, 0, &[]).0, op::ACK);
+    }
+    let (opcode, _) = r.one(0, op::CREATE_FILE, 0, b"/etc/extras/all_events.json");
+    assert_eq!(opcode, op::ACK, "writing goes to the store, never to the metadata");
+    assert_eq!(r.one(0, op::TERMINATE_SESSION, 0, &[]).0, op::ACK);
+}

@@ -65,7 +65,7 @@ fn ready_on_the_ground_each_mode_says_what_it_lacks() {
     for m in MANUAL_MODES.iter().chain(&[FlightMode::Mission, FlightMode::Offboard]) {
         assert!(!r.can_run.contains(*m), "{m:?} cannot run");
     }
-    assert_eq!(r.errors().count(), 0, "nothing is broken");
+    assert_eq!(r.health_errors().count(), 0, "nothing is broken");
 }
 
 #[test]
@@ -90,6 +90,7 @@ fn without_gps_the_modes_that_steer_by_position_fail_and_arming_says_the_same() 
         assert!(!gps.modes.contains(m), "{m:?} does not need it");
     }
     assert!(!r.can_arm.contains(FlightMode::Hold));
+    assert!(r.health_errors().any(|c| c == HealthComponent::Gps));
     assert_eq!(
         ap.command(AutopilotCommand::Arm { force: false }),
         CommandOutcome::TemporarilyRejected("no GPS fix")
@@ -114,5 +115,5 @@ fn a_lost_rotor_fails_every_mode_as_an_esc_error() {
     assert_eq!(esc.modes, ModeSet::ALL);
     assert_eq!(esc.component, HealthComponent::MotorsEscs);
     assert_eq!(r.can_arm, ModeSet::default());
-    assert_eq!(r.errors().collect::<Vec<_>>(), [HealthComponent::MotorsEscs]);
+    assert_eq!(r.health_errors().collect::<Vec<_>>(), [HealthComponent::MotorsEscs]);
 }

@@ -62,6 +62,15 @@ pub enum HealthComponent {
     GlobalPositionEstimate,
 }
 
+impl HealthComponent {
+    /// Whether a failure of it is a fault of the vehicle (not the sticks or
+    /// the mission a mode lacks, nor no component at all).
+    #[must_use]
+    pub fn is_health(self) -> bool {
+        !matches!(self, Self::None | Self::RemoteControl | Self::Mission)
+    }
+}
+
 /// A set of [`FlightMode`]s (one bit each, by [`FlightMode::ALL`] index).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ModeSet(u16);
@@ -117,12 +126,16 @@ pub struct HealthReport {
 }
 
 impl HealthReport {
-    /// The components with an error: those of the checks that fail every mode.
-    pub fn errors(&self) -> impl Iterator<Item = HealthComponent> + '_ {
-        self.checks
-            .iter()
-            .filter(|c| c.modes == ModeSet::ALL && c.component != HealthComponent::None)
-            .map(|c| c.component)
+    /// The parts of the vehicle whose health fails (a sensor, the motors,
+    /// the battery, the data link, an estimate), each once: not the sticks
+    /// or the mission a mode lacks.
+    pub fn health_errors(&self) -> impl Iterator<Item = HealthComponent> + '_ {
+        let mut seen = Vec::new();
+        self.checks.iter().map(|c| c.component).filter(move |c| {
+            let new = c.is_health() && !seen.contains(c);
+            seen.push(*c);
+            new
+        })
     }
 
     /// Add `mode` to the modes the check `text` fails (the check added the first time).
@@ -239,6 +252,13 @@ mod tests {
             r.checks[0].modes,
             ModeSet::of(FlightMode::Hold).with(FlightMode::Mission)
         );
-        assert_eq!(r.errors().count(), 0, "no check fails every mode");
+        let errors: Vec<_> = r.health_errors().collect();
+        assert_eq!(errors, [HealthComponent::Gps, HealthComponent::Battery]);
+        r.fail("no valid mission", HealthComponent::Mission, FlightMode::Mission);
+        assert_eq!(
+            r.health_errors().count(),
+            2,
+            "a mode's mission is no fault of the vehicle"
+        );
     }
 }

@@ -238,17 +238,23 @@ impl Args {
 }
 
 /// The events of `report`, as PX4's commander sends a report: the
-/// arming-check summary (chunk 0, error and warning components, can-arm and
-/// can-run mode groups), each failing check (mode groups, component bit
-/// index), the health summary (chunk 0, present, error and warning
-/// components).
+/// arming-check summary (chunk 0, the components the failing checks concern
+/// as errors, no warnings, can-arm and can-run mode groups), each failing
+/// check (mode groups, component bit index), the health summary (chunk 0,
+/// the components present, those whose health fails, no warnings).
 #[must_use]
 pub fn health_events(report: &HealthReport) -> Vec<Pending> {
-    let errors = report.errors().fold(0, |m, c| m | component(c).0);
+    // the arming checks' errors: every component a failing check concerns
+    let arming_errors = report
+        .checks
+        .iter()
+        .filter(|c| c.component != HealthComponent::None)
+        .fold(0, |m, c| m | component(c.component).0);
+    let health_errors = report.health_errors().fold(0, |m, c| m | component(c).0);
     let mut out = Vec::with_capacity(report.checks.len() + 2);
     let summary = Args::default()
         .u8(0)
-        .u32(errors)
+        .u32(arming_errors)
         .u32(0)
         .u32(group_mask(report.can_arm))
         .u32(group_mask(report.can_run));
@@ -270,7 +276,7 @@ pub fn health_events(report: &HealthReport) -> Vec<Pending> {
             arguments: Args::default().u32(group_mask(c.modes)).u8(index).bytes,
         });
     }
-    let health = Args::default().u8(0).u32(present_mask()).u32(errors).u32(0);
+    let health = Args::default().u8(0).u32(present_mask()).u32(health_errors).u32(0);
     out.push(Pending {
         id: event_id(HEALTH_SUMMARY),
         log_levels: LOG_PROTOCOL,

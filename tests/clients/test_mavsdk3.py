@@ -58,7 +58,7 @@ FLIGHTS = ["takeoff_and_land.py", "goto.py", "offboard_position_ned.py", "offboa
 
 @pytest.mark.parametrize(
     "speed,script",
-    [(SPEED, s) for s in FLIGHTS + ["all_params.py", "ground_truth.py", "orbit.py", "highres_imu.py", "follow_me.py"]]
+    [(SPEED, s) for s in FLIGHTS + ["all_params.py", "ground_truth.py", "orbit.py", "highres_imu.py", "follow_me.py", "arming_checks.py"]]
     + [(FAST, s) for s in FLIGHTS]
     # a timed path streamed at 10 Hz, as the example streams it: in real time
     # (sped up, the client's own latency stales every setpoint)

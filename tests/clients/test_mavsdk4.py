@@ -22,6 +22,7 @@ from harness import Vehicle  # noqa: E402
 
 from mavsdk import ComponentType, Configuration, Mavsdk  # noqa: E402
 from mavsdk.plugins.action import Action, ActionError, ActionResult  # noqa: E402
+from mavsdk.plugins.events import Events, EventsError  # noqa: E402
 from mavsdk.plugins.mavlink_direct import MavlinkDirect, MavlinkMessage  # noqa: E402
 from mavsdk.plugins.mission import Mission, MissionItem, MissionPlan  # noqa: E402
 from mavsdk.plugins.offboard import Offboard, PositionNedYaw, VelocityNedYaw  # noqa: E402
@@ -79,6 +80,26 @@ def drone(request):
 
 def test_identity(drone):
     assert drone.system.has_autopilot()
+
+
+def test_arming_check_report(drone):
+    """MAVSDK's Events plugin reads the arming checks as PX4 sends them
+    (component metadata over MAVLink FTP, then the report's EVENTs): ready
+    in Hold, Hold can be armed; the other modes' problems are listed."""
+    events = Events(drone.system)
+
+    def report():
+        try:
+            return events.get_health_and_arming_checks_report()
+        except EventsError:
+            return None
+
+    r = until("an arming-check report", report, 20)
+    mode = r.current_mode_intention
+    assert (mode.mode_name, mode.can_arm_or_run, mode.problems) == ("Hold", True, [])
+    assert {"No valid mission", "No manual control input"} <= {p.message for p in r.all_problems}
+    present = {c.name for c in r.health_components if c.is_present and not c.has_error}
+    assert {"gps", "motors_escs", "battery"} <= present
 
 
 def refused(call):

@@ -45,7 +45,11 @@ fn a_report_is_the_arming_summary_each_check_and_the_health_summary() {
     assert_eq!(e[0].id, event_id("commander_arming_check_summary"));
     assert_eq!(e[0].log_levels, 0x88);
     assert_eq!(e[0].arguments[0], 0, "chunk 0");
-    assert_eq!(u32_at(&e[0].arguments, 1), 256, "error: motors_escs");
+    assert_eq!(
+        u32_at(&e[0].arguments, 1),
+        256 | 262_144,
+        "arming errors: motors_escs, mission"
+    );
     assert_eq!(u32_at(&e[0].arguments, 13), 0, "can run nothing");
     assert_eq!(e[1].id, event_id("check_esc_failure"));
     assert_eq!(e[1].log_levels, 0x33);
@@ -54,7 +58,11 @@ fn a_report_is_the_arming_summary_each_check_and_the_health_summary() {
     assert_eq!(e[2].id, event_id("check_no_valid_mission"));
     assert_eq!(u32_at(&e[2].arguments, 0), 1 << 3, "Mission is navigation state 3");
     assert_eq!(e[3].id, event_id("commander_health_summary"));
-    assert_eq!(u32_at(&e[3].arguments, 5), 256, "error");
+    assert_eq!(
+        u32_at(&e[3].arguments, 5),
+        256,
+        "health error: the motors, not the mission"
+    );
     assert!(u32_at(&e[3].arguments, 1) & 256 != 0, "the motors are present");
     assert_eq!(group_mask(hold_mission), 1 << 4 | 1 << 3);
 }

@@ -71,6 +71,15 @@ fn take_off(v: &mut Sitl) {
         t.position_ned
     );
     assert_eq!(t.mode, FlightMode::Hold);
+    // hovering, every rotor commanded between idle and full speed
+    let out = t.rotor_outputs;
+    assert!(
+        out.count > 0
+            && out.commands[..out.count]
+                .iter()
+                .all(|c| c.is_some_and(|u| u > 0.0 && u < 1.0)),
+        "{out:?}"
+    );
 }
 
 /// Figures of one rotor-loss flight.
@@ -208,6 +217,21 @@ fn hover_loss(airframe: &str, rotor: usize, action: Action) -> Figures {
         rotor + 1,
         v.pilot().rotor_status()
     );
+    // the motor outputs a client sees (ACTUATOR_OUTPUT_STATUS): armed, the
+    // failed rotor stopped and every other commanded; disarmed, all stopped
+    let out = t.rotor_outputs;
+    assert_eq!(out.count, v.pilot().rotor_status().len());
+    for (i, c) in out.commands.iter().enumerate() {
+        let running = t.armed && i < out.count && i != rotor;
+        assert_eq!(
+            c.is_some(),
+            running,
+            "{airframe} rotor {} lost, rotor {}: {c:?}",
+            rotor + 1,
+            i + 1
+        );
+        assert!(c.is_none_or(|u| (0.0..=1.0).contains(&u)), "{c:?}");
+    }
     let failed = format!("Motor {} failed", rotor + 1);
     assert!(
         f.texts

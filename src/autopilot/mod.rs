@@ -143,7 +143,7 @@ pub use stack::{Autopilot, FailsafeInForce};
 pub use status::{STATUS_TEXT_LEN, Severity, StatusText, cut_status_text, status_text_lines};
 pub use telemetry::{
     InnovationRatios, LandedState, MissionState, MissionStatus, NavVariances, NavigationReport, OrbitStatus,
-    SolutionStatus, Telemetry, VehicleType,
+    RotorOutputs, SolutionStatus, Telemetry, VehicleType,
 };
 pub use vibration::ImuVibration;
 

@@ -20,7 +20,7 @@ use super::rotor_monitor::{RotorEvent, RotorMonitor, RotorStatus};
 use super::settings::FailsafeAction;
 use super::settings::Settings;
 use super::status::{Announcements, Severity, StatusText};
-use super::telemetry::{OrbitStatus, Telemetry, VehicleType};
+use super::telemetry::{OrbitStatus, RotorOutputs, Telemetry, VehicleType};
 use super::vibration::VibrationMonitor;
 use super::wind::WindMonitor;
 use crate::airframe::{Actuation, Airframe};
@@ -29,7 +29,7 @@ use crate::estimation::{Discretization, EstimatorConfig, MomentumEstimator};
 use crate::geo::GeoPoint;
 use crate::mission::{MissionResult, PlanChange, Plans};
 use crate::params::ParamStore;
-use crate::signals::{GRAVITY, GpsFix, NominalModel, SensorReadings, WrenchEstimate};
+use crate::signals::{ActuatorCommand, GRAVITY, GpsFix, MAX_ROTORS, NominalModel, SensorReadings, WrenchEstimate};
 
 /// The gains for the airframe flown with the nominal mass `MDL_MASS`
 /// ([`ControlGains::for_airframe`]) and the loop frequency scales
@@ -601,7 +601,41 @@ impl Autopilot {
                 None => ideal_navigation_report(readings.gps.fix),
             },
             vibration: self.vibration.metrics(),
+            rotor_outputs: self.rotor_outputs(),
         }
+    }
+
+    /// The latest step's rotor commands as motor outputs ([`RotorOutputs`]):
+    /// each commanded speed placed between idle and full speed; every rotor
+    /// stopped while the actuators get no speeds (disarmed, rotors stopped),
+    /// and a rotor the allocation has taken out (thrust fraction 0, flagged
+    /// failed) stopped whatever the allocator left in its slot.
+    fn rotor_outputs(&self) -> RotorOutputs {
+        if self.airframe.actuation != Actuation::Rotors {
+            return RotorOutputs::default();
+        }
+        let n = self.airframe.rotor_count().min(MAX_ROTORS);
+        let mut out = RotorOutputs {
+            count: n,
+            ..RotorOutputs::default()
+        };
+        let ActuatorCommand::RotorSpeeds(w) = self.control.output().actuator else {
+            return out;
+        };
+        let removed = |i: usize| match self.control.rotor_allocation() {
+            RotorAllocation::Full => false,
+            RotorAllocation::Reduced { gains }
+            | RotorAllocation::LostYaw { gains, .. }
+            | RotorAllocation::RelaxedHover { gains } => gains.get(i).is_some_and(|g| *g <= 0.0),
+        };
+        let (lo, hi) = (self.airframe.rotor.speed_min_rad_s, self.airframe.rotor.speed_max_rad_s);
+        for (i, slot) in out.commands.iter_mut().enumerate().take(n) {
+            let u = (w[i] - lo) / (hi - lo);
+            if !removed(i) && u.is_finite() {
+                *slot = Some(u.clamp(0.0, 1.0));
+            }
+        }
+        out
     }
 
     /// The stored plans (mission, geofence, rally points).

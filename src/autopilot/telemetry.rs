@@ -7,7 +7,7 @@ use serde::Serialize;
 
 use super::FlightMode;
 use crate::geo::GeoPoint;
-use crate::signals::{GpsFix, WindEstimate, WrenchEstimate};
+use crate::signals::{GpsFix, MAX_ROTORS, WindEstimate, WrenchEstimate};
 
 /// What the vehicle reports as its landed state (MAV_LANDED_STATE).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -122,6 +122,36 @@ pub struct Telemetry {
     pub navigation: NavigationReport,
     /// The IMU's vibration metrics, once it has given two samples (VIBRATION).
     pub vibration: Option<super::vibration::ImuVibration>,
+    /// What the flight stack commands each rotor (ACTUATOR_OUTPUT_STATUS).
+    pub rotor_outputs: RotorOutputs,
+}
+
+/// What the flight stack commands each rotor in one step, as a client of the
+/// autopilot sees its motor outputs: a running rotor's share of its speed
+/// range, or stopped. A rotor is stopped while the vehicle is disarmed (or
+/// its rotors are stopped) and once the allocation has taken it out after
+/// the rotor monitor flagged it failed: the stack then commands it nothing,
+/// as PX4's allocator leaves a removed motor's output unset.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct RotorOutputs {
+    /// Rotors the vehicle has (0 on an ideal-actuation airframe, whose
+    /// thrust and torque act directly: no motor outputs to report).
+    pub count: usize,
+    /// Per rotor from rotor 1 (entries past `count` are `None`): `Some(u)`
+    /// running, with `u = (w_cmd - w_min) / (w_max - w_min)` in `[0, 1]`
+    /// the commanded speed's place between idle and full speed
+    /// (dimensionless); `None` stopped.
+    pub commands: [Option<f64>; MAX_ROTORS],
+}
+
+impl Default for RotorOutputs {
+    /// No rotors.
+    fn default() -> Self {
+        Self {
+            count: 0,
+            commands: [None; MAX_ROTORS],
+        }
+    }
 }
 
 /// What PX4's EKF2 says of its solution (`estimator_status` and

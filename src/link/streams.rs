@@ -17,19 +17,20 @@ use std::time::{Duration, Instant};
 
 use mavlink::MessageData;
 use mavlink::dialects::common::{
-    ALTITUDE_DATA, ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA, CURRENT_MODE_DATA, DEBUG_VECT_DATA,
-    ESTIMATOR_STATUS_DATA, EXTENDED_SYS_STATE_DATA, EstimatorStatusFlags, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA,
-    GpsFixType, HEARTBEAT_DATA, HIGHRES_IMU_DATA, HIL_STATE_QUATERNION_DATA, HOME_POSITION_DATA,
-    HighresImuUpdatedFlags, LOCAL_POSITION_NED_DATA, MISSION_CURRENT_DATA, MavAutopilot, MavBatteryFunction,
-    MavBatteryType, MavEstimatorType, MavFrame, MavLandedState, MavMessage, MavModeFlag, MavState, MavSysStatusSensor,
-    MavType, MavVtolState, MissionState as MavMissionState, NAMED_VALUE_FLOAT_DATA, ODOMETRY_DATA,
-    ORBIT_EXECUTION_STATUS_DATA, SCALED_IMU_DATA, SCALED_PRESSURE_DATA, SYS_STATUS_DATA, SYSTEM_TIME_DATA,
-    VFR_HUD_DATA, VIBRATION_DATA, WIND_COV_DATA,
+    ACTUATOR_OUTPUT_STATUS_DATA, ALTITUDE_DATA, ATTITUDE_DATA, ATTITUDE_QUATERNION_DATA, BATTERY_STATUS_DATA,
+    CURRENT_MODE_DATA, DEBUG_VECT_DATA, ESTIMATOR_STATUS_DATA, EXTENDED_SYS_STATE_DATA, EstimatorStatusFlags,
+    GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA, HIGHRES_IMU_DATA,
+    HIL_STATE_QUATERNION_DATA, HOME_POSITION_DATA, HighresImuUpdatedFlags, LOCAL_POSITION_NED_DATA,
+    MISSION_CURRENT_DATA, MavAutopilot, MavBatteryFunction, MavBatteryType, MavEstimatorType, MavFrame, MavLandedState,
+    MavMessage, MavModeFlag, MavState, MavSysStatusSensor, MavType, MavVtolState, MissionState as MavMissionState,
+    NAMED_VALUE_FLOAT_DATA, ODOMETRY_DATA, ORBIT_EXECUTION_STATUS_DATA, SCALED_IMU_DATA, SCALED_PRESSURE_DATA,
+    SYS_STATUS_DATA, SYSTEM_TIME_DATA, VFR_HUD_DATA, VIBRATION_DATA, WIND_COV_DATA,
 };
 
 use super::convert;
 use crate::autopilot::{
-    BatteryWarning, FlightMode, ImuVibration, LandedState, MissionState, NavigationReport, Telemetry, VehicleType,
+    BatteryWarning, FlightMode, ImuVibration, LandedState, MissionState, NavigationReport, RotorOutputs, Telemetry,
+    VehicleType,
 };
 use crate::lockstep::Snapshot;
 use crate::signals::{GnssSample, GpsFix, RawSensorReadings};
@@ -93,11 +94,15 @@ pub enum Stream {
     Odometry,
     /// CURRENT_MODE (436): the mode as a custom and a standard mode ([`current_mode`]).
     CurrentMode,
+    /// ACTUATOR_OUTPUT_STATUS (375): each motor output as PX4 SITL's PWM
+    /// outputs read ([`actuator_output_status`]); off unless a client asks
+    /// (MAVSDK's `set_rate_actuator_output_status`).
+    ActuatorOutputStatus,
 }
 
 impl Stream {
     /// Every stream.
-    pub const ALL: [Stream; 26] = [
+    pub const ALL: [Stream; 27] = [
         Stream::Heartbeat,
         Stream::SysStatus,
         Stream::SystemTime,
@@ -124,6 +129,7 @@ impl Stream {
         Stream::Vibration,
         Stream::Odometry,
         Stream::CurrentMode,
+        Stream::ActuatorOutputStatus,
     ];
 
     /// MAVLink message id.
@@ -156,6 +162,7 @@ impl Stream {
             Stream::Vibration => VIBRATION_DATA::ID,
             Stream::Odometry => ODOMETRY_DATA::ID,
             Stream::CurrentMode => CURRENT_MODE_DATA::ID,
+            Stream::ActuatorOutputStatus => ACTUATOR_OUTPUT_STATUS_DATA::ID,
         }
     }
 
@@ -598,8 +605,53 @@ pub fn build(stream: Stream, snapshot: &Snapshot, unix_time_us: u64) -> Vec<MavM
                 .collect();
         }
         Stream::Odometry => MavMessage::ODOMETRY(odometry(t)),
+        Stream::ActuatorOutputStatus => match actuator_output_status(us, &t.rotor_outputs) {
+            Some(m) => MavMessage::ACTUATOR_OUTPUT_STATUS(m),
+            None => return Vec::new(),
+        },
     };
     vec![m]
+}
+
+/// The output channels PX4 SITL's simulated PWM output driver has (and
+/// reports as `active`), whatever the airframe uses of them.
+pub const OUTPUT_CHANNELS: usize = 16;
+/// A stopped motor's output [us]: the disarmed PWM (PX4's default
+/// `PWM_MAIN_DISn`), also what an unused channel holds.
+pub const PWM_DISARMED_US: f32 = 900.0;
+/// A motor's output at idle [us] (PX4's default `PWM_MAIN_MINn`).
+pub const PWM_MIN_US: f32 = 1000.0;
+/// A motor's output at full speed [us] (PX4's default `PWM_MAIN_MAXn`).
+pub const PWM_MAX_US: f32 = 2000.0;
+
+/// ACTUATOR_OUTPUT_STATUS as PX4 SITL sends it from its motor outputs
+/// (`ACTUATOR_OUTPUT_STATUS.hpp`), on the PWM scale its simulated output
+/// driver uses with SIH and Gazebo Classic (whose typhoon_h480 PX4's
+/// control-allocation test flies): `active` the driver's 16 channels,
+/// channel `i` motor `i + 1`; a running motor at `1000 + 1000 u` [us] (`u`
+/// its place between idle and full speed, [`RotorOutputs`]; whole
+/// microseconds, cut as PX4 cuts them to an integer); a stopped one (disarmed, or taken out of
+/// the allocation after a motor failure, which PX4 leaves unset) and an
+/// unused channel at the disarmed 900 us; the 16 channels past those 0.
+/// Stamped `time_usec`. Nothing on an airframe without motors (ideal
+/// actuation), as PX4 sends nothing without an output driver.
+#[must_use]
+pub fn actuator_output_status(time_usec: u64, r: &RotorOutputs) -> Option<ACTUATOR_OUTPUT_STATUS_DATA> {
+    if r.count == 0 {
+        return None;
+    }
+    let mut actuator = [0.0f32; 32];
+    actuator[..OUTPUT_CHANNELS].fill(PWM_DISARMED_US);
+    for (out, cmd) in actuator.iter_mut().zip(&r.commands).take(r.count.min(OUTPUT_CHANNELS)) {
+        if let Some(u) = cmd {
+            *out = (PWM_MIN_US + (PWM_MAX_US - PWM_MIN_US) * (*u as f32).clamp(0.0, 1.0)).trunc();
+        }
+    }
+    Some(ACTUATOR_OUTPUT_STATUS_DATA {
+        time_usec,
+        active: OUTPUT_CHANNELS as u32,
+        actuator,
+    })
 }
 
 /// GPS_RAW_INT from the receiver's solution as PX4 fills it

@@ -14,7 +14,7 @@ use super::{Link, LinkConfig};
 
 use crate::autopilot::{
     FlightMode, ImuVibration, InnovationRatios, LandedState, MissionState, MissionStatus, NavVariances,
-    NavigationReport, SolutionStatus, Telemetry, VehicleType,
+    NavigationReport, RotorOutputs, SolutionStatus, Telemetry, VehicleType,
 };
 use crate::geo::GeoPoint;
 use crate::lockstep::Snapshot;
@@ -127,6 +127,11 @@ pub(crate) fn snapshot() -> Snapshot {
                 gyro_rad_s: 0.004,
                 coning_rad2_s2: 1e-6,
             }),
+            // a quadrotor at rest, disarmed: its rotors stopped
+            rotor_outputs: RotorOutputs {
+                count: 4,
+                ..RotorOutputs::default()
+            },
         },
         truth: Default::default(),
         ground_truth: Default::default(),

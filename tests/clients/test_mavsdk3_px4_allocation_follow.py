@@ -339,6 +339,7 @@ def ensure_motor_stopped(w, index, num_motors):
     outputs = list(s.actuator) if s is not None else []
     w.checks.check(active >= num_motors, f"ACTUATOR_OUTPUT_STATUS active {active}, under {num_motors}"
                                          f"{'' if s is not None else ' (none received)'}")
+    print(f"ACTUATOR_OUTPUT_STATUS at {w.now_s:.1f} s: active {active}, motors {outputs[:num_motors]}")
     for i in range(num_motors):
         value = outputs[i] if i < len(outputs) else float("nan")
         if i == index:
@@ -391,14 +392,6 @@ def corridor_report(worst):
         print("largest distance from the legs: " + ", ".join(f"item {k} {v:.2f} m" for k, v in sorted(worst.items())))
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "rotorpilot sends no ACTUATOR_OUTPUT_STATUS (MAVSDK's set_rate_actuator_output_status fails and "
-    "actuator_output_status never arrives), so ensure_motor_stopped's CHECKs fail; PX4 streams it on request from "
-    "its actuator_outputs "
-    "(src/modules/mavlink/streams/ACTUATOR_OUTPUT_STATUS.hpp, MavlinkStreamActuatorOutputStatus::send), and the "
-    "case's bounds (a stopped motor at most 901, the others at least 999) are the PWM outputs of the "
-    "gazebo-classic typhoon_h480 its CI flew. The flight itself (the mission within its corridor and height, the "
-    "Return, home within 5 m) passes"))
 def test_control_allocation_remove_one_motor():
     """PX4-Autopilot test/mavsdk_tests/test_multicopter_control_allocation.cpp:40
     at commit 88e483492f87e38d32cbca045ea9c6e81dba1a23, TEST_CASE "Control

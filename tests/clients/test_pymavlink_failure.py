@@ -3,7 +3,9 @@ a test script would inject failures into PX4 SITL: DENIED while SYS_FAILURE_EN
 is 0; once set, each supported unit/type ACCEPTED with its effect on the wire
 (GPS_RAW_INT and the SYS_STATUS GPS health bit, the battery voltage, the
 motor's STATUSTEXT, a silent radio) and undone with FAILURE_TYPE_OK;
-unsupported pairs UNSUPPORTED, a motor that does not exist DENIED.
+unsupported pairs UNSUPPORTED, a motor that does not exist DENIED. A motor
+switched off in flight reads stopped in ACTUATOR_OUTPUT_STATUS, as PX4's
+control-allocation test checks it.
 
 Run with the pymavlink venv: `python -m pytest tests/clients/test_pymavlink_failure.py`.
 """
@@ -17,7 +19,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from harness import Vehicle, command, drain  # noqa: E402
 from harness import wait_message as wait  # noqa: E402
-from test_pymavlink import connect, param_set, wait_armable  # noqa: E402
+from test_pymavlink import connect, param_set, rel_alt, wait_armable  # noqa: E402
 
 from pymavlink import mavutil  # noqa: E402
 
@@ -26,6 +28,7 @@ INJECT = mavlink.MAV_CMD_INJECT_FAILURE
 GPS, BATTERY, MOTOR, MAVLINK_SIGNAL = 4, 100, 101, 105
 OK, OFF, STUCK, WRONG = 0, 1, 2, 4
 GPS_HEALTH = 0x20  # MAV_SYS_STATUS_SENSOR_GPS
+ACTUATOR_OUTPUT_STATUS = 375
 
 
 @pytest.fixture
@@ -142,3 +145,52 @@ def test_mavlink_signal_off_silences_the_vehicle_until_ok(vehicle):
     # it still listens: OK is answered and the heartbeats come back
     assert inject(m, MAVLINK_SIGNAL, OK) == mavlink.MAV_RESULT_ACCEPTED
     assert wait(m, "HEARTBEAT", timeout=3.0) is not None, "no heartbeat after OK"
+
+
+def test_a_motor_off_in_flight_reads_stopped_in_actuator_output_status():
+    """ACTUATOR_OUTPUT_STATUS as PX4 SITL's PWM outputs read (PX4's
+    control-allocation test: a stopped motor at most 901, a running one at
+    least 999): off until asked; once SET_MESSAGE_INTERVAL asks, 16 active
+    channels, all at the disarmed 900 us on the ground; the six motors of
+    hexa-ppnnpn (it flies on without motor 1) between 1000 and 2000 in a
+    hover; motor 1 switched off reads 900 while the five others run."""
+    with Vehicle(speed=5.0, extra=["--airframe", "hexa-ppnnpn"]) as v:
+        try:
+            m = enabled(v)
+            drain(m)
+            assert wait(m, "ACTUATOR_OUTPUT_STATUS", timeout=1.0) is None, "sent unasked (PX4: off by default)"
+            assert command(m, mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, ACTUATOR_OUTPUT_STATUS, 50_000) == 0
+            a = wait(m, "ACTUATOR_OUTPUT_STATUS", timeout=2.0)
+            assert a is not None, "no ACTUATOR_OUTPUT_STATUS once asked"
+            assert a.active == 16 and list(a.actuator[:16]) == [900.0] * 16, (a.active, a.actuator)
+
+            assert param_set(m, "MIS_TAKEOFF_ALT", 5.0).param_value == pytest.approx(5.0)
+            wait_armable(m)
+            m.arducopter_arm()
+            assert wait(m, "HEARTBEAT", lambda h: h.base_mode & 128, 3.0) is not None, "armed"
+            assert command(m, mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 10) == 0
+            loiter = wait(m, "HEARTBEAT",
+                          lambda h: mavutil.interpret_px4_mode(h.base_mode, h.custom_mode) == "LOITER", 20)
+            assert loiter is not None, "takeoff complete"
+            assert abs(rel_alt(m) - 5.0) < 0.5
+            drain(m)
+            a = wait(m, "ACTUATOR_OUTPUT_STATUS", timeout=2.0)
+            print(f"hovering: {list(a.actuator[:6])}")
+            assert all(1000.0 <= x <= 2000.0 for x in a.actuator[:6]), a.actuator
+            assert list(a.actuator[6:16]) == [900.0] * 10, "unused channels at their disarmed value"
+
+            assert inject(m, MOTOR, OFF, 1) == mavlink.MAV_RESULT_ACCEPTED
+            stopped = wait(m, "ACTUATOR_OUTPUT_STATUS", lambda a: a.actuator[0] <= 901.0, timeout=5.0)
+            assert stopped is not None, "motor 1 never read stopped"
+            drain(m)
+            a = wait(m, "ACTUATOR_OUTPUT_STATUS", timeout=2.0)
+            print(f"motor 1 off: {list(a.actuator[:6])}")
+            assert a.actuator[0] == 900.0, a.actuator
+            assert all(x >= 999.0 for x in a.actuator[1:6]), a.actuator
+            # a single one on request, as any stream's message
+            drain(m)
+            assert command(m, mavlink.MAV_CMD_REQUEST_MESSAGE, ACTUATOR_OUTPUT_STATUS) == 0
+            assert wait(m, "ACTUATOR_OUTPUT_STATUS", timeout=1.0) is not None
+        except BaseException:
+            print("rotorpilot log (tail):\n" + v.logs())
+            raise

@@ -111,10 +111,12 @@ fn default_rates_and_deadlines() {
     let mut due = Vec::new();
     s.due(t0, &mut due);
     // every stream but the ground truth, which waits to be asked for (as in
-    // PX4 SITL), and the raw sensor streams and ODOMETRY PX4's normal mode does not send
-    assert_eq!(due.len(), Stream::ALL.len() - 5);
+    // PX4 SITL), the motor outputs, and the raw sensor streams and ODOMETRY
+    // PX4's normal mode does not send
+    assert_eq!(due.len(), Stream::ALL.len() - 6);
     for off in [
         Stream::HilStateQuaternion,
+        Stream::ActuatorOutputStatus,
         Stream::HighresImu,
         Stream::ScaledImu,
         Stream::ScaledPressure,
@@ -430,6 +432,53 @@ fn odometry_packs_the_solution_in_ned_with_the_covariance_diagonal() {
         (b.x, b.y, b.z, b.child_frame_id),
         (1.0, -2.0, -5.0, MavFrame::MAV_FRAME_LOCAL_NED)
     );
+}
+
+#[test]
+fn actuator_output_status_reads_px4_sitl_pwm_and_waits_to_be_asked() {
+    use crate::autopilot::RotorOutputs;
+    let mut s = snapshot();
+    let outputs = |s: &Snapshot| match build(Stream::ActuatorOutputStatus, s, 0).pop() {
+        Some(m @ MavMessage::ACTUATOR_OUTPUT_STATUS(_)) => match roundtrip(&m) {
+            MavMessage::ACTUATOR_OUTPUT_STATUS(a) => a,
+            other => panic!("{other:?}"),
+        },
+        other => panic!("{other:?}"),
+    };
+    // disarmed: every channel of PX4 SITL's 16 at the disarmed 900 us, the rest 0
+    let a = outputs(&s);
+    assert_eq!((a.time_usec, a.active), (12_500_000, 16));
+    assert!(a.actuator[..16].iter().all(|v| *v == 900.0), "{:?}", a.actuator);
+    assert!(a.actuator[16..].iter().all(|v| *v == 0.0));
+    // a hexa in flight, rotor 1 taken out after a failure: 900 for it (at
+    // most 901, PX4's test), idle 1000, full 2000, whole microseconds;
+    // channels 7 to 16 unused, at their disarmed value
+    let mut commands = [None; crate::signals::MAX_ROTORS];
+    commands[1..6].copy_from_slice(&[Some(0.0), Some(0.5), Some(1.0), Some(0.2345), Some(1.5)]);
+    s.telemetry.rotor_outputs = RotorOutputs { count: 6, commands };
+    let a = outputs(&s);
+    assert_eq!(a.actuator[..7], [900.0, 1000.0, 1500.0, 2000.0, 1234.0, 2000.0, 900.0]);
+    assert!(a.actuator[6..16].iter().all(|v| *v == 900.0));
+    // an ideal-actuation airframe has no motor outputs: nothing, and a
+    // REQUEST_MESSAGE for it is denied
+    s.telemetry.rotor_outputs = RotorOutputs::default();
+    assert!(build(Stream::ActuatorOutputStatus, &s, 0).is_empty());
+    // id 375; off on both links until SET_MESSAGE_INTERVAL (PX4 streams it
+    // only when asked)
+    assert_eq!(Stream::from_message_id(375), Some(Stream::ActuatorOutputStatus));
+    let t0 = Instant::now();
+    for rates in [gcs_rates(), api_rates()] {
+        let mut sched = Scheduler::new(t0, &rates);
+        assert_eq!(sched.interval(Stream::ActuatorOutputStatus), None);
+        sched.set(
+            t0,
+            Stream::ActuatorOutputStatus,
+            Interval::Every(Duration::from_millis(5)),
+        );
+        let mut due = Vec::new();
+        sched.due(t0, &mut due);
+        assert!(due.contains(&Stream::ActuatorOutputStatus));
+    }
 }
 
 /// `m` framed by the link's encoder and read back from the bytes.

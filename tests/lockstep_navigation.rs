@@ -403,7 +403,11 @@ fn a_gnss_loss_is_flown_through_on_dead_reckoning_until_the_filter_gives_up() {
     assert!((4.5..5.5).contains(&lost_s) && !valid, "{lost_s} {valid}");
     assert!(drift < 1.0, "{drift}");
     assert_eq!(v.count("No GPS fix: descending without position"), 1, "{:?}", v.said());
-    assert!(v.pilot().failsafe_in_force().is_some_and(|f| f.cause == "no GPS fix"));
+    assert!(
+        v.pilot()
+            .failsafe_in_force()
+            .is_some_and(|f| (f.cause.as_str(), f.action) == ("no GPS fix", "Descend"))
+    );
     v.run(12.0 - lost_s);
     let ok = AutopilotCommand::InjectFailure {
         unit: failure::UNIT_GPS,

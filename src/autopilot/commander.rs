@@ -504,7 +504,7 @@ impl Autopilot {
             if !matches!(self.navigator.nav(), Nav::Descend { .. }) {
                 // a landing asked for: the position back keeps landing
                 self.navigator.enter_descend(super::navigator::DescendThen::Land);
-                self.enter_failsafe(position.loss.cause());
+                self.enter_blind_failsafe();
                 self.say.announce(
                     Severity::Critical,
                     format!("{}: descending without position", position.loss.lost()),

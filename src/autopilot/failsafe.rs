@@ -298,6 +298,44 @@ pub(super) enum Response {
     Disarm,
 }
 
+impl Response {
+    /// The action taken, as announced: `asked` unless it became another.
+    fn taken(self, asked: FailsafeAction) -> FailsafeAction {
+        match self {
+            Self::Hold => FailsafeAction::Hold,
+            Self::Return => FailsafeAction::Return,
+            Self::Land => FailsafeAction::Land,
+            Self::Descend(_) => FailsafeAction::Descend,
+            Self::Disarm => asked,
+        }
+    }
+}
+
+/// Every cause a failsafe acts for ([`crate::autopilot::FailsafeInForce::cause`]).
+pub const FAILSAFE_CAUSES: [&str; 10] = [
+    "GCS connection lost",
+    "manual control lost",
+    "offboard signal lost",
+    "battery critical",
+    "battery emergency",
+    "geofence breach",
+    "rotor loss",
+    "rotor failure",
+    "no GPS fix",
+    "no valid position estimate",
+];
+
+/// Every action a failsafe takes, as announced ([`crate::autopilot::FailsafeInForce::action`]).
+pub const FAILSAFE_ACTIONS: [&str; 7] = [
+    "Hold",
+    "Return",
+    "Land",
+    "Descend",
+    "Altitude",
+    "flight termination",
+    "Disarm",
+];
+
 /// The runner's choice for failsafe `action` caused by `cause`, announced
 /// as PX4 does ("Failsafe activated due to {cause}, triggering {action}",
 /// shortened to fit a STATUSTEXT: "Failsafe: {cause}, triggering
@@ -580,8 +618,8 @@ impl Autopilot {
             self.navigator.landing(),
             &mut self.say,
         );
-        if response.is_some() {
-            self.enter_failsafe(cause);
+        if let Some(r) = response {
+            self.enter_failsafe(cause, r.taken(action).name());
         }
         match response {
             Some(Response::Hold) => self.navigator.enter_hold(),
@@ -688,6 +726,14 @@ mod tests {
         assert!(!f.data_link_is_lost());
         assert_eq!(texts(&mut say), ["Data link regained"]);
         assert_eq!(f.data_link_timer(&s).unwrap().started_s, 9.0);
+    }
+
+    #[test]
+    fn every_action_taken_is_one_the_event_metadata_knows() {
+        use FailsafeAction as A;
+        for a in [A::Hold, A::Return, A::Land, A::Terminate, A::Disarm, A::Descend] {
+            assert!(FAILSAFE_ACTIONS.contains(&a.name()), "{a:?}");
+        }
     }
 
     #[test]

@@ -132,7 +132,7 @@ pub use command::{AutopilotCommand, CommandOutcome, PowerAction};
 pub use control_loop::RotorAllocation;
 pub use control_loop::{ControlLoop, ControlLoopError, ControlOutput, Demand};
 pub use error::AutopilotError;
-pub use failsafe::{ClientClock, ClientTimer, PendingTimer};
+pub use failsafe::{ClientClock, ClientTimer, FAILSAFE_ACTIONS, FAILSAFE_CAUSES, PendingTimer};
 pub use health::{CHECK_TEXTS, FailedCheck, HealthComponent, HealthReport, ModeSet};
 pub use navigation::{FilterNavigation, NavSource, nav_config};
 pub use navigator::ItemDone;

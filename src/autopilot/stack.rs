@@ -140,8 +140,12 @@ pub struct Autopilot {
 /// and the mode the pilot meant is flown again.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct FailsafeInForce {
-    /// Why: the failsafe's cause (`no GPS fix`, `GCS connection lost`, `battery critical`, ...).
+    /// Why: the failsafe's cause (`no GPS fix`, `GCS connection lost`,
+    /// `battery critical`, ...; one of [`super::FAILSAFE_CAUSES`]).
     pub cause: String,
+    /// What it does, as announced (`Return`, `Land`, `Descend`, ...; one of
+    /// [`super::FAILSAFE_ACTIONS`]).
+    pub action: &'static str,
 }
 
 impl Autopilot {
@@ -333,7 +337,7 @@ impl Autopilot {
         if self.navigator.mode() != mode {
             if self.navigator.flying_blind() {
                 // a mode it cannot fly without a position, replaced
-                self.enter_failsafe(position.loss.cause());
+                self.enter_blind_failsafe();
             } else if self
                 .in_failsafe
                 .as_ref()
@@ -728,11 +732,26 @@ impl Autopilot {
         self.in_failsafe.as_ref()
     }
 
-    /// A failsafe acts for `cause`: in force from now (a new cause is a new failsafe).
-    pub(super) fn enter_failsafe(&mut self, cause: &str) {
+    /// A failsafe acts for `cause` with `action`: in force from now (a new
+    /// cause is a new failsafe).
+    pub(super) fn enter_failsafe(&mut self, cause: &str, action: &'static str) {
         if self.in_failsafe.as_ref().is_none_or(|f| f.cause != cause) {
-            self.in_failsafe = Some(FailsafeInForce { cause: cause.into() });
+            self.in_failsafe = Some(FailsafeInForce {
+                cause: cause.into(),
+                action,
+            });
         }
+    }
+
+    /// A mode replaced for the lost position (Descend, or Altitude in place
+    /// of Position): the failsafe in force from now.
+    pub(super) fn enter_blind_failsafe(&mut self) {
+        let action = if self.navigator.mode() == super::FlightMode::Altitude {
+            "Altitude"
+        } else {
+            "Descend"
+        };
+        self.enter_failsafe(self.navigator.position().loss.cause(), action);
     }
 
     /// The NED origin (where the vehicle booted).

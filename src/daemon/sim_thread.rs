@@ -21,8 +21,8 @@ use super::messages::{Event, SimRequest, lock};
 use super::recorder::Recorder;
 use super::ulog_file::{self, UlogFile};
 use crate::autopilot::{
-    Autopilot, AutopilotCommand, AutopilotError, ClientClock, ClientTimer, CommandOutcome, ItemDone, PendingTimer,
-    PowerAction,
+    Autopilot, AutopilotCommand, AutopilotError, ClientClock, ClientTimer, CommandOutcome, FailsafeInForce, ItemDone,
+    PendingTimer, PowerAction,
 };
 use crate::link::events;
 use crate::lockstep::input::{Applied, Input};
@@ -87,6 +87,8 @@ pub(super) struct VehicleIo {
     /// A report is to go out at the next publication, changed or not
     /// (MAV_CMD_RUN_PREARM_CHECKS or an arming request came).
     pub(super) health_forced: bool,
+    /// The failsafe in force at the last publication (a new one is an event).
+    pub(super) failsafe_seen: Option<FailsafeInForce>,
 }
 
 impl Sim {
@@ -237,6 +239,14 @@ impl Sim {
             let _ = io.events.send(Event::StatusText(s));
         }
         let now_s = self.core.time_s();
+        let failsafe = self.core.pilot(v).failsafe_in_force();
+        if failsafe != io.failsafe_seen.as_ref() {
+            if let Some(f) = failsafe {
+                let e = io.health.stamp(now_s, events::failsafe_event(&f.cause, f.action));
+                let _ = io.events.send(Event::Events(Arc::new(vec![e])));
+            }
+            io.failsafe_seen = failsafe.cloned();
+        }
         if io.health_forced || io.health.due(now_s) {
             let report = self.core.pilot(v).health_report(now_s);
             let sent = io.health.update(now_s, report, std::mem::take(&mut io.health_forced));

@@ -13,7 +13,9 @@
 //!   report at most every 2 s, a forced one (MAV_CMD_RUN_PREARM_CHECKS, an
 //!   arming request) at once. [`EventLog`] (one per link) keeps the last 20
 //!   for REQUEST_EVENT (answered from it, or with RESPONSE_EVENT_ERROR) and
-//!   sends CURRENT_EVENT_SEQUENCE every 3 s so a client notices a gap.
+//!   sends CURRENT_EVENT_SEQUENCE every 3 s so a client notices a gap. A
+//!   failsafe that starts is an event too ([`failsafe_event`]), in the words
+//!   of its STATUSTEXT.
 //! - **Mode groups** are PX4's navigation states: bit `n` of a mode mask is
 //!   the mode whose `vehicle_status.nav_state` is `n` ([`nav_state`]); the
 //!   metadata lists the heartbeat's custom mode of each.
@@ -37,7 +39,9 @@ use mavlink::dialects::common::{
 };
 use serde_json::{Map, Value, json};
 
-use crate::autopilot::{CHECK_TEXTS, FlightMode, HealthComponent, HealthReport, ModeSet};
+use crate::autopilot::{
+    CHECK_TEXTS, FAILSAFE_ACTIONS, FAILSAFE_CAUSES, FlightMode, HealthComponent, HealthReport, ModeSet,
+};
 
 use super::convert;
 
@@ -63,6 +67,11 @@ pub const CHECK_PERIOD_S: f64 = 0.1;
 const LOG_PROTOCOL: u8 = 0x88;
 /// Log levels byte of a failing check: Error, internal and external.
 const LOG_ERROR: u8 = 0x33;
+
+/// Log levels byte of a failsafe: Critical, internal and external.
+const LOG_CRITICAL: u8 = 0x22;
+/// The name of the failsafe event.
+const FAILSAFE: &str = "commander_failsafe_activated";
 
 /// The name of the arming-check summary event (PX4's).
 const ARMING_SUMMARY: &str = "commander_arming_check_summary";
@@ -285,6 +294,34 @@ pub fn health_events(report: &HealthReport) -> Vec<Pending> {
     out
 }
 
+/// The event of a failsafe acting for `cause` with `action` (the words of
+/// its STATUSTEXT, "Failsafe: {cause}, triggering {action}"): their places
+/// in [`FAILSAFE_CAUSES`] and [`FAILSAFE_ACTIONS`] from 1, 0 for one the
+/// metadata does not list.
+#[must_use]
+pub fn failsafe_event(cause: &str, action: &str) -> Pending {
+    let place = |list: &[&str], x: &str| list.iter().position(|c| *c == x).map_or(0, |i| i as u8 + 1);
+    Pending {
+        id: event_id(FAILSAFE),
+        log_levels: LOG_CRITICAL,
+        arguments: Args::default()
+            .u8(place(&FAILSAFE_CAUSES, cause))
+            .u8(place(&FAILSAFE_ACTIONS, action))
+            .bytes,
+    }
+}
+
+/// A closed list as an enum of the metadata: 0 `other`, then each entry.
+fn enum_entries(list: &[&str]) -> Map<String, Value> {
+    let mut entries = Map::new();
+    entries.insert("0".into(), json!({ "name": "other", "description": "other" }));
+    for (i, text) in list.iter().enumerate() {
+        let name = text.to_lowercase().replace(' ', "_");
+        entries.insert((i + 1).to_string(), json!({ "name": name, "description": text }));
+    }
+    entries
+}
+
 /// One vehicle's event source: the sequence counter and PX4's rule for
 /// when a health report goes out.
 #[derive(Clone, Debug)]
@@ -337,7 +374,7 @@ impl Reporter {
     }
 
     /// `p` with the next sequence number and the time `now_s` [s].
-    fn stamp(&mut self, now_s: f64, p: Pending) -> EVENT_DATA {
+    pub fn stamp(&mut self, now_s: f64, p: Pending) -> EVENT_DATA {
         let sequence = self.next_sequence;
         self.next_sequence = sequence.wrapping_add(1);
         EVENT_DATA {
@@ -522,10 +559,24 @@ pub fn events_json() -> &'static [u8] {
                         "description": "Subsystems and components",
                         "entries": component_entries,
                     },
+                    "failsafe_cause_t": {
+                        "type": "uint8_t", "description": "Why a failsafe acts",
+                        "entries": enum_entries(&FAILSAFE_CAUSES),
+                    },
+                    "failsafe_action_t": {
+                        "type": "uint8_t", "description": "What a failsafe does",
+                        "entries": enum_entries(&FAILSAFE_ACTIONS),
+                    },
                 },
                 "event_groups": {
                     "arming_check": { "events": arming },
                     "health": { "events": health },
+                    "default": { "events": {
+                        (event_id(FAILSAFE) & 0xFF_FFFF).to_string(): {
+                            "name": FAILSAFE, "message": "Failsafe: {1}, triggering {2}",
+                            "arguments": [arg("cause", "failsafe_cause_t"), arg("action", "failsafe_action_t")],
+                        },
+                    }},
                 },
             }},
         });

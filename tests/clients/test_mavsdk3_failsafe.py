@@ -4,7 +4,8 @@ the Geofence plugin and left by offboard velocity (GF_ACTION Hold; a goto
 outside it refused), the ground station going silent (MAVSDK's GCS heartbeats
 stop with its server: NAV_DLL_ACT Return, watched by a pymavlink listener on
 the GCS link that sends no heartbeat) and the battery drained to critical
-(COM_LOW_BAT_ACT Land, BATTERY_STATUS charge_state). Every wait is bounded.
+(COM_LOW_BAT_ACT Land, BATTERY_STATUS charge_state; the failsafe also read as
+an event by MAVSDK's Events plugin). Every wait is bounded.
 
 Run with the mavsdk<4 venv: `python -m pytest tests/clients/test_mavsdk3_failsafe.py`.
 """
@@ -190,8 +191,24 @@ def test_battery_critical_lands():
             try:
                 texts = []
                 collector = collect_texts(uav, texts)
+                events = []
+
+                async def collect_events():
+                    async for e in uav.events.events():
+                        events.append(e)
+
+                event_collector = asyncio.ensure_future(collect_events())
                 await take_off(uav, 5.0)
                 await until_said(texts, "Failsafe: battery critical, triggering Land", 30)
+                # the same words as an event (MAVSDK's Events plugin, decoded by the vehicle's metadata)
+                for _ in range(100):
+                    if any(e.message == "Failsafe: battery critical, triggering Land" for e in events):
+                        break
+                    await asyncio.sleep(0.05)
+                event_collector.cancel()
+                said = [(e.message, e.log_level.name) for e in events]
+                print(f"events: {said}")
+                assert ("Failsafe: battery critical, triggering Land", "CRITICAL") in said
                 b = await common.sample(uav.telemetry.battery(), "battery")
                 print(f"battery: landing with {b.remaining_percent:.1f} % left")
                 assert b.remaining_percent < 8.0

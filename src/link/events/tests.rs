@@ -173,3 +173,30 @@ fn the_metadata_decodes_every_event_a_report_sends() {
     assert_eq!(metadata_file("etc/extras/component_general.json"), Some(general_json()));
     assert_eq!(metadata_file("etc/extras/other.json"), None);
 }
+
+#[test]
+fn a_failsafe_is_an_event_in_the_words_of_its_status_text() {
+    let e = failsafe_event("battery critical", "Land");
+    assert_eq!(e.id, event_id("commander_failsafe_activated"));
+    assert_eq!(e.log_levels, 0x22, "critical");
+    let cause = usize::from(e.arguments[0]);
+    let action = usize::from(e.arguments[1]);
+    assert_eq!(
+        (FAILSAFE_CAUSES[cause - 1], FAILSAFE_ACTIONS[action - 1]),
+        ("battery critical", "Land")
+    );
+    assert_eq!(failsafe_event("a cause nobody listed", "Land").arguments[0], 0, "other");
+    let meta: Value = serde_json::from_slice(events_json()).unwrap();
+    let px4 = &meta["components"]["1"];
+    let sub = (event_id("commander_failsafe_activated") & 0xFF_FFFF).to_string();
+    assert_eq!(
+        px4["event_groups"]["default"]["events"][&sub]["message"],
+        "Failsafe: {1}, triggering {2}"
+    );
+    let causes = &px4["enums"]["failsafe_cause_t"]["entries"];
+    assert_eq!(causes[cause.to_string()]["description"], "battery critical");
+    assert_eq!(
+        px4["enums"]["failsafe_action_t"]["entries"][action.to_string()]["description"],
+        "Land"
+    );
+}

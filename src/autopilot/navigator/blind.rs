@@ -34,6 +34,22 @@ impl Navigator {
         self.restart_references();
     }
 
+    /// In Descend: give way to `then` when the position returns (a failsafe
+    /// in force again decides it, not the mode Descend replaced). Nothing otherwise.
+    pub(in crate::autopilot) fn set_descend_then(&mut self, then: DescendThen) {
+        if let Nav::Descend { then: t } = &mut self.nav {
+            *t = then;
+        }
+    }
+
+    /// What Descend gives way to when the position returns (`None`: not in Descend).
+    pub(in crate::autopilot) fn descending_then(&self) -> Option<DescendThen> {
+        match self.nav {
+            Nav::Descend { then } => Some(then),
+            _ => None,
+        }
+    }
+
     /// What the active mode meant to do, for Descend to resume when the
     /// fix returns: a landing lands, a return returns, the rest holds.
     fn descend_then(&self) -> DescendThen {
@@ -176,6 +192,18 @@ impl Navigator {
 }
 
 impl DescendThen {
+    /// The more severe of `self` and `other` (PX4's order of failsafe
+    /// actions: Hold, Return, Land): what the failsafe framework selects
+    /// when both are in force.
+    pub(in crate::autopilot) fn most_severe(self, other: Self) -> Self {
+        let rank = |t: Self| match t {
+            Self::Hold => 0,
+            Self::Return => 1,
+            Self::Land => 2,
+        };
+        if rank(other) > rank(self) { other } else { self }
+    }
+
     /// What the mode Descend gives way to needs of the position.
     pub(in crate::autopilot) fn need(self) -> PositionNeed {
         match self {

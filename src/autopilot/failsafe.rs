@@ -5,7 +5,8 @@
 //! taking off (`COM_DISARM_PRFLT`), and PX4's failsafes below. Every
 //! failsafe acts through one runner ([`Autopilot::failsafe_action`]: one
 //! [`FailsafeAction`] per parameter value, one announcement, a landing under
-//! way never interrupted, a blind descent without a position).
+//! way never interrupted, a blind descent without a position, a failsafe
+//! the pilot took over back in force while its cause lasts).
 //!
 //! [`Failsafe`] is the part that remembers and decides (the data link, the
 //! battery level, the fence and its breach, the clamp announcement, the

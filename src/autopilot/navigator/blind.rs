@@ -13,7 +13,9 @@
 //! When the position returns before touchdown, Descend gives way to what
 //! was intended ([`DescendThen`]: a landing keeps landing, with the
 //! position; a return returns; anything else holds where the vehicle is),
-//! and the Altitude fallback to Position; both announced. The supervision
+//! and the Altitude fallback to Position; both announced (a failsafe the
+//! pilot took over, in force again with the position loss, sets what Descend
+//! gives way to: [`Navigator::set_descend_then`]). The supervision
 //! runs every step, not only on the change: a mode entered meanwhile that
 //! needs a position is corrected at once.
 //! Modes and commands that need a position are refused meanwhile.

@@ -774,9 +774,11 @@ fn the_stock_hexa_gives_up_its_heading_on_the_boundary_and_lands_when_hover_is_i
 /// GIVEN hexa-ppnnpn hovering at 40 m with a mission stored, losing its
 /// neighbouring rotors 1 and 2 one second apart: no hover holds its heading,
 /// so the rotor monitor lands it (the failsafe "rotor loss", Land)
-/// WHEN the pilot switches to Mission during that landing, and the position
-/// is then lost for a second and comes back
-/// THEN the switch is accepted and flown (PX4's user takeover: a Land
+/// WHEN the position is lost and comes back during that landing, the pilot
+/// then switches to Mission, and the position is lost again for a second
+/// and comes back
+/// THEN the first loss is a Descend and a landing again, the rotor loss's
+/// failsafe in force throughout; the switch is accepted and flown (PX4's user takeover: a Land
 /// failsafe allows a mode switch, `FailsafeBase::getSelectedAction`), but
 /// the position loss ends the takeover and the landing, whose cause (the
 /// dead rotors) is still there, is in force again: Descend while blind, Land
@@ -813,6 +815,16 @@ fn a_mission_taken_over_from_a_rotor_loss_landing_lands_again_after_a_position_l
     assert_eq!(v.mode(), FlightMode::Land, "{said:?}");
     let rotor_loss = |v: &Sitl| v.pilot().failsafe_in_force().is_some_and(|f| f.cause == "rotor loss");
     assert!(rotor_loss(&v));
+
+    // the position lost and back during the landing: still the rotor loss's landing
+    v.gps(false);
+    v.run(0.5);
+    assert_eq!(v.mode(), FlightMode::Descend);
+    assert!(rotor_loss(&v), "{:?}", v.pilot().failsafe_in_force());
+    v.gps(true);
+    v.run(0.5);
+    assert_eq!(v.mode(), FlightMode::Land, "{:?}", v.texts());
+    assert!(rotor_loss(&v), "{:?}", v.pilot().failsafe_in_force());
 
     // the pilot takes over: accepted and flown
     assert_eq!(

@@ -369,6 +369,16 @@ impl Autopilot {
                     cause: f.cause,
                     action: Some(then),
                 });
+            } else if let Some(then) = self.navigator.descending_then()
+                && let Some(f) = self.in_failsafe.as_mut()
+                && let Some(action) = f.action
+            {
+                // a failsafe's own mode replaced: that failsafe stays in
+                // force (PX4: its action, the most severe, falls back to
+                // Descend), and it is what follows when the position returns
+                let then = action.most_severe(then);
+                f.action = Some(then);
+                self.navigator.set_descend_then(then);
             } else if self.navigator.flying_blind() {
                 // a mode it cannot fly without a position, replaced
                 self.enter_failsafe(position.loss.cause(), None);

@@ -149,6 +149,62 @@ fn data_link_loss_never_without_a_gcs_and_no_action_when_disabled() {
     assert!(ap.armed());
 }
 
+/// GIVEN a quad at 20 m landing for a lost data link (NAV_DLL_ACT 3, Land)
+/// WHEN the pilot switches to Hold (PX4's user takeover: accepted, Hold
+/// flown, no failsafe in force) and then the GPS fix is lost for 2 s
+/// THEN while the link is still lost the Land failsafe is in force again
+/// (PX4 keeps the action while its cause lasts; the position loss ends the
+/// takeover and the most severe action wins): Descend, then Land when the
+/// fix returns, not Hold. With the link regained before the fix is lost,
+/// the failsafe is over: Descend gives way to the pilot's Hold.
+#[test]
+fn a_land_failsafe_taken_over_comes_back_with_a_position_loss_while_its_cause_lasts() {
+    for link_back in [false, true] {
+        let mut ap = vehicle(&[("NAV_DLL_ACT", int(3))]);
+        take_off_to(&mut ap, 20.0);
+        ap.heartbeat();
+        ap.run_until(15.0, |t| t.mode == FlightMode::Land)
+            .unwrap_or_else(|| panic!("the lost link lands: {:?} {:?}", ap.mode(), ap.texts()));
+        assert!(
+            ap.pilot()
+                .failsafe_in_force()
+                .is_some_and(|f| f.cause == "GCS connection lost")
+        );
+        assert_eq!(
+            ap.command(AutopilotCommand::SetMode(FlightMode::Hold)),
+            CommandOutcome::Accepted
+        );
+        assert_eq!(ap.mode(), FlightMode::Hold);
+        assert!(ap.pilot().failsafe_in_force().is_none(), "taken over");
+        ap.run(1.0);
+        if link_back {
+            ap.heartbeat();
+        }
+        ap.gps(false);
+        ap.run(2.0);
+        assert_eq!(ap.mode(), FlightMode::Descend);
+        let cause = ap.pilot().failsafe_in_force().map(|f| f.cause.clone());
+        ap.gps(true);
+        ap.run(1.0);
+        if link_back {
+            assert_eq!(cause.as_deref(), Some("no GPS fix"));
+            assert_eq!(ap.mode(), FlightMode::Hold);
+            assert!(ap.pilot().failsafe_in_force().is_none());
+            assert_eq!(ap.count("Failsafe: GCS connection lost, triggering Descend"), 0);
+        } else {
+            assert_eq!(cause.as_deref(), Some("GCS connection lost"));
+            assert_eq!(ap.count("Failsafe: GCS connection lost, triggering Descend"), 1);
+            assert_eq!(ap.mode(), FlightMode::Land);
+            assert!(
+                ap.pilot()
+                    .failsafe_in_force()
+                    .is_some_and(|f| f.cause == "GCS connection lost")
+            );
+            land_and_disarm(&mut ap, 60.0);
+        }
+    }
+}
+
 #[test]
 fn data_link_loss_on_the_wall_clock_acts_on_the_runtime_timeout() {
     let mut ap = vehicle(&[("NAV_DLL_ACT", int(3))]);

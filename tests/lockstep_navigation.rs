@@ -406,7 +406,7 @@ fn a_gnss_loss_is_flown_through_on_dead_reckoning_until_the_filter_gives_up() {
     assert!(
         v.pilot()
             .failsafe_in_force()
-            .is_some_and(|f| (f.cause.as_str(), f.action) == ("no GPS fix", "Descend"))
+            .is_some_and(|f| (f.cause.as_str(), f.triggered) == ("no GPS fix", "Descend"))
     );
     v.run(12.0 - lost_s);
     let ok = AutopilotCommand::InjectFailure {

@@ -794,3 +794,92 @@ fn the_stock_hexa_gives_up_its_heading_on_the_boundary_and_lands_when_hover_is_i
         assert!(v.telemetry().position_ned.xy().metric_distance(&p0.xy()) < 1.0, "{f:?}");
     }
 }
+
+/// GIVEN hexa-ppnnpn hovering at 40 m with a mission stored, losing its
+/// neighbouring rotors 1 and 2 one second apart: no hover holds its heading,
+/// so the rotor monitor lands it (the failsafe "rotor loss", Land)
+/// WHEN the position is lost and comes back during that landing, the pilot
+/// then switches to Mission, and the position is lost again for a second
+/// and comes back
+/// THEN the first loss is a Descend and a landing again, the rotor loss's
+/// failsafe in force throughout; the switch is accepted and flown (PX4's user takeover: a Land
+/// failsafe allows a mode switch, `FailsafeBase::getSelectedAction`), but
+/// the position loss ends the takeover and the landing, whose cause (the
+/// dead rotors) is still there, is in force again: Descend while blind, Land
+/// when the position is back (not Hold), still a failsafe; it lands and disarms.
+#[test]
+fn a_mission_taken_over_from_a_rotor_loss_landing_lands_again_after_a_position_loss() {
+    let mut v = vehicle("hexa-ppnnpn", Action::Continue);
+    v.core_mut()
+        .change_plans(
+            0,
+            PlanChange::Store {
+                kind: MissionType::Mission,
+                items: vec![wp(20.0, 0.0, 40.0), wp(20.0, 20.0, 40.0)],
+                base_id: None,
+            },
+        )
+        .unwrap();
+    v.run(3.0);
+    v.take_off_to(Some(40.0));
+    v.run(3.0);
+    v.texts();
+    for rotor in [0, 1] {
+        v.inject(Fault::Rotor {
+            rotor,
+            health: RotorHealth::Off,
+        });
+        v.run(1.0);
+    }
+    let said = v.texts();
+    assert!(
+        said.iter().any(|s| s.text == "Rotor loss: yaw uncontrollable, landing"),
+        "{said:?}"
+    );
+    assert_eq!(v.mode(), FlightMode::Land, "{said:?}");
+    let rotor_loss = |v: &Sitl| v.pilot().failsafe_in_force().is_some_and(|f| f.cause == "rotor loss");
+    assert!(rotor_loss(&v));
+
+    // the position lost and back during the landing: still the rotor loss's landing
+    v.gps(false);
+    v.run(0.5);
+    assert_eq!(v.mode(), FlightMode::Descend);
+    assert!(rotor_loss(&v), "{:?}", v.pilot().failsafe_in_force());
+    v.gps(true);
+    v.run(0.5);
+    assert_eq!(v.mode(), FlightMode::Land, "{:?}", v.texts());
+    assert!(rotor_loss(&v), "{:?}", v.pilot().failsafe_in_force());
+
+    // the pilot takes over: accepted and flown
+    assert_eq!(
+        v.command(AutopilotCommand::SetMode(FlightMode::Mission)),
+        CommandOutcome::Accepted
+    );
+    assert_eq!(v.mode(), FlightMode::Mission);
+    assert!(v.pilot().failsafe_in_force().is_none(), "taken over");
+    v.run(0.5);
+    assert_eq!(v.mode(), FlightMode::Mission);
+    v.texts();
+
+    // the position lost: a blind descent, the landing failsafe in force again
+    v.gps(false);
+    v.run(1.0);
+    let said = v.texts();
+    assert_eq!(v.mode(), FlightMode::Descend, "{said:?}");
+    assert!(rotor_loss(&v), "{said:?}");
+    assert!(
+        said.iter()
+            .any(|s| s.severity == Severity::Critical && s.text == "Failsafe: rotor loss, triggering Descend"),
+        "{said:?}"
+    );
+
+    // the position back: the landing goes on, not Hold
+    v.gps(true);
+    v.run(1.0);
+    let said = v.texts();
+    assert_eq!(v.mode(), FlightMode::Land, "{said:?}");
+    assert!(rotor_loss(&v), "{said:?}");
+    assert!(said.iter().any(|s| s.text == "GPS fix regained: landing"), "{said:?}");
+    let landed = v.run_until(60.0, |t| !t.armed);
+    assert!(landed.is_some(), "not landed and disarmed: {:?}", v.texts());
+}

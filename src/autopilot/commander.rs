@@ -299,13 +299,25 @@ impl Autopilot {
     /// mode again is accepted and changes nothing.
     ///
     /// A mode the pilot selects ends the failsafe in force (PX4's user
-    /// takeover), unless the command itself started a failsafe (Land without a fix).
+    /// takeover: a Hold, Return, Land or Descend failsafe allows a mode
+    /// switch), unless the command itself started a failsafe (Land without
+    /// a fix). While the cause of the failsafe taken over lasts, it is
+    /// remembered: the next failsafe, a lost position's Descend included,
+    /// ends the takeover and the more severe action is in force (PX4's
+    /// `FailsafeBase::checkFailsafe` and `getSelectedAction`).
     pub fn command(&mut self, cmd: AutopilotCommand, readings: &SensorReadings) -> CommandOutcome {
         let mode = self.navigator.mode();
         let held = self.in_failsafe.take();
         let outcome = self.dispatch(cmd, readings);
         let took_over = outcome == CommandOutcome::Accepted && self.navigator.mode() != mode;
-        if self.in_failsafe.is_none() && !took_over {
+        if took_over {
+            if let Some(f) = held
+                && f.action.is_some()
+                && self.failsafe_cause_lasts(&f.cause)
+            {
+                self.taken_over = Some(f);
+            }
+        } else if self.in_failsafe.is_none() {
             self.in_failsafe = held;
         }
         outcome

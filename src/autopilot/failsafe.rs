@@ -5,7 +5,8 @@
 //! taking off (`COM_DISARM_PRFLT`), and PX4's failsafes below. Every
 //! failsafe acts through one runner ([`Autopilot::failsafe_action`]: one
 //! [`FailsafeAction`] per parameter value, one announcement, a landing under
-//! way never interrupted, a blind descent without a position).
+//! way never interrupted, a blind descent without a position, a failsafe
+//! the pilot took over back in force while its cause lasts).
 //!
 //! [`Failsafe`] is the part that remembers and decides (the data link, the
 //! battery level, the fence and its breach, the clamp announcement, the
@@ -46,7 +47,8 @@ use nalgebra::Vector3;
 use super::battery::BatteryWarning;
 use super::geofence::{self, Breach, Fence};
 use super::navigator::{DescendThen, Nav};
-use super::position_checks::PositionValidity;
+use super::position_checks::{PositionLoss, PositionValidity};
+use super::rotor_monitor::RotorStatus;
 use super::settings::{FailsafeAction, FailsafeSettings};
 use super::status::{Announcements, Severity};
 use super::{Autopilot, TIME_EPS};
@@ -92,6 +94,28 @@ pub struct PendingTimer {
 /// Offboard setpoints within the altitude limit this long [s] end an
 /// excursion: the next clamp is announced again.
 const CLAMP_REARM_S: f64 = 5.0;
+
+/// The causes of the failsafes, as announced ("Failsafe: {cause}, triggering
+/// {action}") and kept in [`super::FailsafeInForce`]; a lost position names
+/// its own ([`super::position_checks::PositionLoss::cause`]).
+pub(super) mod cause {
+    /// No GCS HEARTBEAT for `COM_DL_LOSS_T` (`NAV_DLL_ACT`).
+    pub(in crate::autopilot) const DATA_LINK: &str = "GCS connection lost";
+    /// No MANUAL_CONTROL for `COM_RC_LOSS_T` in a manual mode (`NAV_RCL_ACT`).
+    pub(in crate::autopilot) const MANUAL_CONTROL: &str = "manual control lost";
+    /// No offboard setpoint for `COM_OF_LOSS_T` in Offboard (`COM_OBL_RC_ACT`).
+    pub(in crate::autopilot) const OFFBOARD: &str = "offboard signal lost";
+    /// The battery at its critical level (`COM_LOW_BAT_ACT`).
+    pub(in crate::autopilot) const BATTERY_CRITICAL: &str = "battery critical";
+    /// The battery at its emergency level (`COM_LOW_BAT_ACT`).
+    pub(in crate::autopilot) const BATTERY_EMERGENCY: &str = "battery emergency";
+    /// Outside the geofence (`GF_ACTION`).
+    pub(in crate::autopilot) const GEOFENCE: &str = "geofence breach";
+    /// A rotor lost with no hover left that holds the heading: land at once.
+    pub(in crate::autopilot) const ROTOR_LOSS: &str = "rotor loss";
+    /// A rotor failed or degraded, the vehicle still flyable (`COM_ACT_FAIL_ACT`).
+    pub(in crate::autopilot) const ROTOR_FAILURE: &str = "rotor failure";
+}
 
 /// The failsafes' memory between steps and their decisions: the data link
 /// (the latest GCS HEARTBEAT, declared lost), the battery warning level (and
@@ -203,12 +227,12 @@ impl Failsafe {
             BatteryWarning::Critical => (
                 Severity::Critical,
                 "Critical battery level, land now",
-                "battery critical",
+                cause::BATTERY_CRITICAL,
             ),
             BatteryWarning::Emergency => (
                 Severity::Emergency,
                 "Emergency battery level, land immediately",
-                "battery emergency",
+                cause::BATTERY_EMERGENCY,
             ),
         };
         say.announce(severity, text);
@@ -311,18 +335,19 @@ impl Response {
     }
 }
 
-/// Every cause a failsafe acts for ([`crate::autopilot::FailsafeInForce::cause`]).
+/// Every cause a failsafe acts for ([`crate::autopilot::FailsafeInForce::cause`]):
+/// the [`cause`]s and a lost position's.
 pub const FAILSAFE_CAUSES: [&str; 10] = [
-    "GCS connection lost",
-    "manual control lost",
-    "offboard signal lost",
-    "battery critical",
-    "battery emergency",
-    "geofence breach",
-    "rotor loss",
-    "rotor failure",
-    "no GPS fix",
-    "no valid position estimate",
+    cause::DATA_LINK,
+    cause::MANUAL_CONTROL,
+    cause::OFFBOARD,
+    cause::BATTERY_CRITICAL,
+    cause::BATTERY_EMERGENCY,
+    cause::GEOFENCE,
+    cause::ROTOR_LOSS,
+    cause::ROTOR_FAILURE,
+    PositionLoss::NoFix.cause(),
+    PositionLoss::Estimate.cause(),
 ];
 
 /// Every action a failsafe takes, as announced ([`crate::autopilot::FailsafeInForce::action`]).
@@ -477,14 +502,14 @@ impl Autopilot {
             ClientTimer::DataLinkLoss => {
                 // PX4 ignores the loss while landing: the runner's rule
                 let action = self.failsafe.data_link_lost(&self.settings.failsafe, &mut self.say);
-                self.failsafe_action("GCS connection lost", action, m);
+                self.failsafe_action(cause::DATA_LINK, action, m);
             }
             ClientTimer::ManualControlLoss => {
                 // in a manual mode NAV_RCL_ACT, descending instead of Hold,
                 // Return or Land without a position (the runner's rule)
                 if self.navigator.manual_control_lost(&mut self.say) {
                     let action = self.settings.manual.loss_action;
-                    self.failsafe_action("manual control lost", action, m);
+                    self.failsafe_action(cause::MANUAL_CONTROL, action, m);
                 }
             }
         }
@@ -534,7 +559,7 @@ impl Autopilot {
             return;
         }
         let action = self.settings.offboard_loss_action;
-        self.failsafe_action("offboard signal lost", action, m);
+        self.failsafe_action(cause::OFFBOARD, action, m);
     }
 
     /// A GCS HEARTBEAT (MAV_TYPE_GCS, from any link) arrived at the instant of
@@ -578,7 +603,7 @@ impl Autopilot {
         }
         let breach = self.geofence_breach(&m.position_ned);
         if let Some(action) = self.failsafe.geofence(breach, &self.settings.failsafe, &mut self.say) {
-            self.failsafe_action("geofence breach", action, m);
+            self.failsafe_action(cause::GEOFENCE, action, m);
         }
     }
 
@@ -606,9 +631,65 @@ impl Autopilot {
         self.failsafe.offboard_clamped(clamped, self.now_s, &mut self.say);
     }
 
+    /// Whether the cause of a failsafe (`cause`) is still there (PX4's
+    /// `state_failure` of an action in the failsafe framework's list): a
+    /// rotor flagged, the data link lost, the battery at its critical level
+    /// or worse (it never recovers armed), outside the geofence, the sticks
+    /// lost. The offboard signal and a lost position only stand in for the
+    /// mode the pilot chose (PX4's mode fallback): a mode chosen since ends them.
+    pub(in crate::autopilot) fn failsafe_cause_lasts(&self, cause: &str) -> bool {
+        match cause {
+            cause::ROTOR_LOSS | cause::ROTOR_FAILURE => self.rotor_status().iter().any(|r| *r != RotorStatus::Healthy),
+            cause::DATA_LINK => self.failsafe.data_link_is_lost(),
+            cause::BATTERY_CRITICAL | cause::BATTERY_EMERGENCY => {
+                self.failsafe.battery_warning() >= BatteryWarning::Critical
+            }
+            cause::GEOFENCE => self.failsafe.breached,
+            cause::MANUAL_CONTROL => {
+                !self
+                    .navigator
+                    .manual_fresh(self.now_s, self.settings.manual.loss_s, self.failsafe.clock())
+            }
+            _ => false,
+        }
+    }
+
     /// Take a failsafe action for `cause` (the one runner of every
     /// failsafe): [`respond`] chooses, the navigator or the commander carries it out.
+    /// A Hold, Return or Land ends a takeover (PX4: a new action of Hold or
+    /// worse clears it), and the failsafe taken over comes back instead when
+    /// its action is the more severe.
     pub(in crate::autopilot) fn failsafe_action(&mut self, cause: &str, action: FailsafeAction, m: &Measurement) {
+        let mut cause = cause.to_owned();
+        let mut action = action;
+        if matches!(
+            action,
+            FailsafeAction::Hold
+                | FailsafeAction::Return
+                | FailsafeAction::Land
+                | FailsafeAction::Terminate
+                | FailsafeAction::Disarm
+        ) && self.commander.armed()
+            && let Some(f) = self.taken_over.take()
+        {
+            let then = match action {
+                FailsafeAction::Hold => Some(DescendThen::Hold),
+                FailsafeAction::Return => Some(DescendThen::Return),
+                FailsafeAction::Land => Some(DescendThen::Land),
+                _ => None,
+            };
+            if let (Some(then), Some(before)) = (then, f.action)
+                && before.most_severe(then) != then
+            {
+                action = match before {
+                    DescendThen::Hold => FailsafeAction::Hold,
+                    DescendThen::Return => FailsafeAction::Return,
+                    DescendThen::Land => FailsafeAction::Land,
+                };
+                cause = f.cause;
+            }
+        }
+        let cause = cause.as_str();
         let response = respond(
             cause,
             action,
@@ -618,8 +699,15 @@ impl Autopilot {
             self.navigator.landing(),
             &mut self.say,
         );
+        let doing = match response {
+            Some(Response::Hold) => Some(DescendThen::Hold),
+            Some(Response::Return) => Some(DescendThen::Return),
+            Some(Response::Land) => Some(DescendThen::Land),
+            Some(Response::Descend(then)) => Some(then),
+            Some(Response::Disarm) | None => None,
+        };
         if let Some(r) = response {
-            self.enter_failsafe(cause, r.taken(action).name());
+            self.enter_failsafe(cause, doing, r.taken(action).name());
         }
         match response {
             Some(Response::Hold) => self.navigator.enter_hold(),

@@ -62,7 +62,7 @@ impl PositionLoss {
     }
 
     /// The failsafe's cause, as the failsafe state names it.
-    pub(super) fn cause(self) -> &'static str {
+    pub(super) const fn cause(self) -> &'static str {
         match self {
             Self::NoFix => "no GPS fix",
             Self::Estimate => "no valid position estimate",

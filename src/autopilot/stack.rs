@@ -11,10 +11,10 @@ use super::commander::Commander;
 use super::control_loop::{ControlLoop, ControlOutput, RotorAllocation};
 use super::error::AutopilotError;
 use super::estimate::EstimateFeedback;
-use super::failsafe::Failsafe;
+use super::failsafe::{Failsafe, cause};
 use super::land_detector::LandDetector;
 use super::navigation::{FilterNavigation, NavSource, ideal_navigation_report, nav_config};
-use super::navigator::Navigator;
+use super::navigator::{DescendThen, Navigator};
 use super::position_checks::{PositionChecks, PositionLoss, PositionValidity};
 use super::rotor_monitor::{RotorEvent, RotorMonitor, RotorStatus};
 use super::settings::FailsafeAction;
@@ -122,6 +122,12 @@ pub struct Autopilot {
     wind: WindMonitor,
     /// The failsafe in force, if any (PX4's `vehicle_status.failsafe`).
     pub(super) in_failsafe: Option<FailsafeInForce>,
+    /// A failsafe the pilot took over from by selecting a mode while its
+    /// cause lasts (PX4 keeps its action in the failsafe framework's list,
+    /// the user takeover active): the next failsafe, a lost position's
+    /// Descend included, ends the takeover and the more severe action of the
+    /// two is in force. Forgotten when its cause clears or on disarming.
+    pub(super) taken_over: Option<FailsafeInForce>,
     /// The navigation filter flown on (`RP_NAV_SRC` = 1, read at boot);
     /// `None`: the readings' own navigation solution.
     navigation: Option<Box<FilterNavigation>>,
@@ -137,15 +143,21 @@ pub struct Autopilot {
 /// acts (the one runner, or the flight stack replacing a mode it cannot fly
 /// without a position) and ends when the vehicle disarms, when the pilot
 /// selects a mode (PX4's user takeover), or when a lost position returns
-/// and the mode the pilot meant is flown again.
+/// and the mode the pilot meant is flown again. A failsafe taken over while
+/// its cause lasts comes back with the next failsafe (PX4: a new action
+/// ends the takeover, the most severe action in force is flown).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct FailsafeInForce {
     /// Why: the failsafe's cause (`no GPS fix`, `GCS connection lost`,
     /// `battery critical`, ...; one of [`super::FAILSAFE_CAUSES`]).
     pub cause: String,
-    /// What it does, as announced (`Return`, `Land`, `Descend`, ...; one of
-    /// [`super::FAILSAFE_ACTIONS`]).
-    pub action: &'static str,
+    /// What it has the vehicle do (Hold, Return, Land; a descent without
+    /// position gives way to it); `None` for a mode replaced because the
+    /// position was lost.
+    pub(super) action: Option<DescendThen>,
+    /// What it triggered, as announced (`Return`, `Land`, `Descend`, ...;
+    /// one of [`super::FAILSAFE_ACTIONS`]).
+    pub triggered: &'static str,
 }
 
 impl Autopilot {
@@ -203,6 +215,7 @@ impl Autopilot {
             failsafe: Failsafe::default(),
             wind: WindMonitor::new(airframe),
             in_failsafe: None,
+            taken_over: None,
             navigation: match NavSource::from_params(params) {
                 NavSource::Ideal => None,
                 NavSource::Filter => Some(Box::new(FilterNavigation::new(nav_config(params), home))),
@@ -288,6 +301,7 @@ impl Autopilot {
         if !self.commander.armed() {
             // disarmed (a failsafe's disarm shows for the step it acted)
             self.in_failsafe = None;
+            self.taken_over = None;
         }
         let weight = self.control.nominal().mass_kg * GRAVITY;
         // a filter still aligning gives no solution to learn the resting
@@ -334,8 +348,43 @@ impl Autopilot {
         let cx = situation!(self, m);
         let mode = self.navigator.mode();
         self.navigator.supervise_position(position, armed, &cx, &mut self.say);
+        if self
+            .taken_over
+            .as_ref()
+            .is_some_and(|f| !self.failsafe_cause_lasts(&f.cause))
+        {
+            self.taken_over = None;
+        }
         if self.navigator.mode() != mode {
-            if self.navigator.flying_blind() {
+            if let Some(then) = self.navigator.descending_then()
+                && let Some(f) = self.taken_over.take()
+            {
+                // the pilot's mode replaced by Descend (PX4's mode fallback,
+                // a new failsafe): the takeover ends, and the failsafe taken
+                // over, its cause still there, is in force again; the more
+                // severe of the two follows when the position returns
+                let then = f.action.map_or(then, |a| a.most_severe(then));
+                self.navigator.set_descend_then(then);
+                self.say.announce(
+                    Severity::Critical,
+                    format!("Failsafe: {}, triggering {}", f.cause, FailsafeAction::Descend.name()),
+                );
+                self.in_failsafe = Some(FailsafeInForce {
+                    cause: f.cause,
+                    action: Some(then),
+                    triggered: FailsafeAction::Descend.name(),
+                });
+            } else if let Some(then) = self.navigator.descending_then()
+                && let Some(f) = self.in_failsafe.as_mut()
+                && let Some(action) = f.action
+            {
+                // a failsafe's own mode replaced: that failsafe stays in
+                // force (PX4: its action, the most severe, falls back to
+                // Descend), and it is what follows when the position returns
+                let then = action.most_severe(then);
+                f.action = Some(then);
+                self.navigator.set_descend_then(then);
+            } else if self.navigator.flying_blind() {
                 // a mode it cannot fly without a position, replaced
                 self.enter_blind_failsafe();
             } else if self
@@ -427,7 +476,7 @@ impl Autopilot {
             Some(Ok(())) => {
                 self.say
                     .announce(Severity::Emergency, "Rotor loss: yaw given up, emergency descent");
-                self.failsafe_action("rotor loss", FailsafeAction::Land, m);
+                self.failsafe_action(cause::ROTOR_LOSS, FailsafeAction::Land, m);
             }
             Some(Err(e)) => {
                 // (a STATUSTEXT holds 50 characters: the reason in short)
@@ -438,16 +487,16 @@ impl Autopilot {
                 };
                 self.say
                     .announce(Severity::Emergency, format!("Rotor loss: yaw lost, landing: {why}"));
-                self.failsafe_action("rotor loss", FailsafeAction::Land, m);
+                self.failsafe_action(cause::ROTOR_LOSS, FailsafeAction::Land, m);
             }
             None if no_hover => {
                 self.say
                     .announce(Severity::Emergency, "Rotor loss: yaw uncontrollable, landing");
-                self.failsafe_action("rotor loss", FailsafeAction::Land, m);
+                self.failsafe_action(cause::ROTOR_LOSS, FailsafeAction::Land, m);
             }
             None => {
                 let action = self.settings.actuator_failure_action;
-                self.failsafe_action("rotor failure", action, m);
+                self.failsafe_action(cause::ROTOR_FAILURE, action, m);
             }
         }
     }
@@ -732,14 +781,22 @@ impl Autopilot {
         self.in_failsafe.as_ref()
     }
 
-    /// A failsafe acts for `cause` with `action`: in force from now (a new
-    /// cause is a new failsafe).
-    pub(super) fn enter_failsafe(&mut self, cause: &str, action: &'static str) {
-        if self.in_failsafe.as_ref().is_none_or(|f| f.cause != cause) {
-            self.in_failsafe = Some(FailsafeInForce {
-                cause: cause.into(),
-                action,
-            });
+    /// A failsafe acts for `cause`, having the vehicle do `action`, as
+    /// announced (`triggered`): in force from now (a new cause is a new
+    /// failsafe; the same cause takes its new action).
+    pub(super) fn enter_failsafe(&mut self, cause: &str, action: Option<DescendThen>, triggered: &'static str) {
+        match &mut self.in_failsafe {
+            Some(f) if f.cause == cause => {
+                f.action = action.or(f.action);
+                f.triggered = triggered;
+            }
+            _ => {
+                self.in_failsafe = Some(FailsafeInForce {
+                    cause: cause.into(),
+                    action,
+                    triggered,
+                });
+            }
         }
     }
 
@@ -751,7 +808,7 @@ impl Autopilot {
         } else {
             "Descend"
         };
-        self.enter_failsafe(self.navigator.position().loss.cause(), action);
+        self.enter_failsafe(self.navigator.position().loss.cause(), None, action);
     }
 
     /// The NED origin (where the vehicle booted).

@@ -242,7 +242,7 @@ impl Sim {
         let failsafe = self.core.pilot(v).failsafe_in_force();
         if failsafe != io.failsafe_seen.as_ref() {
             if let Some(f) = failsafe {
-                let e = io.health.stamp(now_s, events::failsafe_event(&f.cause, f.action));
+                let e = io.health.stamp(now_s, events::failsafe_event(&f.cause, f.triggered));
                 let _ = io.events.send(Event::Events(Arc::new(vec![e])));
             }
             io.failsafe_seen = failsafe.cloned();

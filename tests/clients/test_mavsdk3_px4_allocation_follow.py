@@ -424,11 +424,14 @@ def test_control_allocation_remove_one_motor():
 @pytest.mark.xfail(strict=True, reason=(
     "rotorpilot's hexas number their rotors clockwise from the front right, so PX4's instances 1 and 2 (opposite "
     "on PX4's hexa-X) are neighbours here; without them hexa-ppnnpn has no hover that holds yaw, so the rotor "
-    "monitor gives up the heading and lands ('Rotor loss: yaw uncontrollable, landing'), the spinning vehicle's "
-    "filter position comes and goes, and the mission started after it is never finished (the vehicle ends in "
-    "Hold). PX4 removes the first failed motor from its allocation and flies on with what the allocator can give "
-    "(src/modules/control_allocator/ControlAllocator.cpp, ControlAllocator::check_for_motor_failures, "
-    "CA_FAILURE_MODE 1); no failsafe lands it (COM_ACT_FAIL_ACT 0)"))
+    "monitor gives up the heading and lands ('Rotor loss: yaw uncontrollable, landing'). The mission started "
+    "during that landing is accepted and flown, as PX4 lets a pilot's mode switch take over a Land failsafe, but "
+    "the spinning vehicle's filter position comes and goes, and the first loss brings the landing back while its "
+    "cause lasts ('Failsafe: rotor loss, triggering Descend', then Land when the position returns; PX4's "
+    "FailsafeBase keeps the action, src/modules/commander/failsafe/framework.cpp): it lands and disarms with the "
+    "mission unfinished. PX4 removes the first failed motor from its allocation and flies on with what the "
+    "allocator can give (src/modules/control_allocator/ControlAllocator.cpp, "
+    "ControlAllocator::check_for_motor_failures, CA_FAILURE_MODE 1); no failsafe lands it (COM_ACT_FAIL_ACT 0)"))
 def test_control_allocation_remove_two_motors():
     """PX4-Autopilot test/mavsdk_tests/test_multicopter_control_allocation.cpp:95
     at commit 88e483492f87e38d32cbca045ea9c6e81dba1a23, TEST_CASE "Control

@@ -13,7 +13,9 @@
 //! When the position returns before touchdown, Descend gives way to what
 //! was intended ([`DescendThen`]: a landing keeps landing, with the
 //! position; a return returns; anything else holds where the vehicle is),
-//! and the Altitude fallback to Position; both announced. The supervision
+//! and the Altitude fallback to Position; both announced (a failsafe the
+//! pilot took over, in force again with the position loss, sets what Descend
+//! gives way to: [`Navigator::set_descend_then`]). The supervision
 //! runs every step, not only on the change: a mode entered meanwhile that
 //! needs a position is corrected at once.
 //! Modes and commands that need a position are refused meanwhile.
@@ -33,6 +35,22 @@ impl Navigator {
     pub(in crate::autopilot) fn enter_descend(&mut self, then: DescendThen) {
         self.nav = Nav::Descend { then };
         self.restart_references();
+    }
+
+    /// In Descend: give way to `then` when the position returns (a failsafe
+    /// in force again decides it, not the mode Descend replaced). Nothing otherwise.
+    pub(in crate::autopilot) fn set_descend_then(&mut self, then: DescendThen) {
+        if let Nav::Descend { then: t } = &mut self.nav {
+            *t = then;
+        }
+    }
+
+    /// What Descend gives way to when the position returns (`None`: not in Descend).
+    pub(in crate::autopilot) fn descending_then(&self) -> Option<DescendThen> {
+        match self.nav {
+            Nav::Descend { then } => Some(then),
+            _ => None,
+        }
     }
 
     /// What the active mode meant to do, for Descend to resume when the
@@ -186,6 +204,18 @@ impl Navigator {
 }
 
 impl DescendThen {
+    /// The more severe of `self` and `other` (PX4's order of failsafe
+    /// actions: Hold, Return, Land): what the failsafe framework selects
+    /// when both are in force.
+    pub(in crate::autopilot) fn most_severe(self, other: Self) -> Self {
+        let rank = |t: Self| match t {
+            Self::Hold => 0,
+            Self::Return => 1,
+            Self::Land => 2,
+        };
+        if rank(other) > rank(self) { other } else { self }
+    }
+
     /// What the mode Descend gives way to needs of the position.
     pub(in crate::autopilot) fn need(self) -> PositionNeed {
         match self {

@@ -90,7 +90,7 @@ fn refused_values_leave_the_store_unchanged() {
         ("NOT_A_PARAM", ParamValue::Real32(1.0)),
         ("MIS_TAKEOFF_ALT", ParamValue::Real32(f32::NAN)),
         ("MIS_TAKEOFF_ALT", ParamValue::Real32(f32::INFINITY)),
-        ("MIS_TAKEOFF_ALT", ParamValue::Real32(81.0)),
+        ("MIS_TAKEOFF_ALT", ParamValue::Real32(-0.5)),
         ("MIS_TAKEOFF_ALT", ParamValue::Int32(3)),
         ("CTRL_TYPE", ParamValue::Real32(2.0)),
         ("CTRL_TYPE", ParamValue::Int32(-1)),

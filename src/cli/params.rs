@@ -258,7 +258,7 @@ mod tests {
         // a PX4 parameter rotorpilot stores without using, with PX4's range and unit
         assert!(
             md.contains(
-                "| `MPC_Z_V_AUTO_DN` | REAL32 | 1.5 | 0.5 | 4 | m/s | no | Descent velocity in autonomous modes |"
+                "| `MPC_ACC_DOWN_MAX` | REAL32 | 3 | 2 | 15 | m/s^2 | no | Maximum downwards acceleration in climb rate controlled modes |"
             ),
             "{md}"
         );

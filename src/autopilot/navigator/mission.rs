@@ -448,14 +448,15 @@ impl Navigator {
         }
         let s = cx.settings;
         let cruise = self.cruise_m_s(s);
-        let normal = self.limits(cruise, s.climb_m_s, s.descent_m_s);
+        let normal = self.limits(cruise, s.auto_climb_m_s, s.auto_descent_m_s);
         let hold_yaw = YawSetpoint::Hold;
         let item_yaw = deg_or_none(it.params[3]);
         match self.mission.phase {
             // replaced above
             Phase::Begin => Demand::Idle,
             Phase::TakeOff { target_ned } => {
-                let limits = self.limits(cruise, s.takeoff_speed_m_s, s.descent_m_s);
+                let height_m = cx.home_ned.z - cx.meas.position_ned.z;
+                let limits = self.limits(cruise, s.takeoff_climb_m_s(height_m), s.auto_descent_m_s);
                 let r = self.go_to(cx.meas, target_ned, hold_yaw, limits, cx.dt);
                 if super::arrived(&r, &target_ned) && (cx.meas.position_ned.z - target_ned.z).abs() < s.mc_alt_radius_m
                 {
@@ -705,8 +706,8 @@ impl Navigator {
             },
             self.limits(
                 self.cruise_m_s(cx.settings),
-                cx.settings.climb_m_s,
-                cx.settings.descent_m_s,
+                cx.settings.auto_climb_m_s,
+                cx.settings.auto_descent_m_s,
             ),
             cx.dt,
         );

@@ -22,8 +22,9 @@
 //!   back to the point, as PX4 re-anchors it. Then the hold time (p1,
 //!   simulated time), the loiter time, the loiter turns (circles of radius
 //!   |p3|) or the delay runs before the next item; LOITER_UNLIM never ends.
-//! * **Takeoff**: NAV_TAKEOFF climbs at MPC_TKO_SPEED where the vehicle is to
-//!   the item's altitude (at least MIS_TAKEOFF_ALT); any other first item
+//! * **Takeoff**: NAV_TAKEOFF climbs where the vehicle is to the item's
+//!   altitude (at least MIS_TAKEOFF_ALT), at MPC_TKO_SPEED below MPC_LAND_ALT1
+//!   above home and MPC_Z_V_AUTO_UP above (as Takeoff); any other first item
 //!   flown from the ground takes off the same way first (PX4's automatic
 //!   takeoff) to the higher of MIS_TAKEOFF_ALT and the item's altitude.
 //! * **Land** flies to the point at its altitude, then descends as Land

@@ -153,6 +153,8 @@ const SHARED_WITH_PX4: &[&str] = &[
     "MPC_XY_VEL_MAX",
     "MPC_Z_VEL_MAX_UP",
     "MPC_Z_VEL_MAX_DN",
+    "MPC_Z_V_AUTO_UP",
+    "MPC_Z_V_AUTO_DN",
     "MPC_TKO_SPEED",
     "MPC_LAND_SPEED",
     "MPC_LAND_ALT1",

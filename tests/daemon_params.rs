@@ -185,7 +185,7 @@ async fn refused_sets_answer_the_unchanged_value() {
     let v = Vehicle::start(config(Some(c.addr()), None, 1.0)).await;
     let real = MavParamType::MAV_PARAM_TYPE_REAL32;
     for (id, value, kind) in [
-        ("MIS_TAKEOFF_ALT", 1000.0, real),   // out of range
+        ("MIS_TAKEOFF_ALT", -1.0, real),     // out of range
         ("MIS_TAKEOFF_ALT", f32::NAN, real), // NaN
         ("MIS_TAKEOFF_ALT", f32::from_bits(5), MavParamType::MAV_PARAM_TYPE_INT32), // wrong type
         ("MIS_TAKEOFF_ALT", 5.0, MavParamType::MAV_PARAM_TYPE_UINT8), // unsupported type

@@ -36,9 +36,13 @@
 //!   Auto-disarm `COM_DISARM_LAND` s after a landing, `COM_DISARM_PRFLT` s
 //!   after arming without a takeoff. Disarming selects Hold.
 //! * Armed on the ground in Hold, Position, Land or RTL the rotors idle.
-//! * Takeoff climbs at `MPC_TKO_SPEED` to home + `MIS_TAKEOFF_ALT` (or higher
-//!   AMSL target), then Hold there. Land descends at `MPC_Z_VEL_MAX_DN` above
-//!   `MPC_LAND_ALT1` and `MPC_LAND_SPEED` below; RTL climbs to
+//! * Takeoff climbs to home + `MIS_TAKEOFF_ALT` (or higher AMSL target) at
+//!   `MPC_TKO_SPEED` below `MPC_LAND_ALT1` above home and `MPC_Z_V_AUTO_UP`
+//!   above (`Settings::takeoff_climb_m_s`), then Hold there. The other
+//!   automatic climbs and descents (Hold's reposition, RTL, mission legs) are
+//!   at `MPC_Z_V_AUTO_UP`/`_DN`, each at most `MPC_Z_VEL_MAX_UP`/`_DN`.
+//!   Land descends at `MPC_Z_VEL_MAX_DN` above `MPC_LAND_ALT1` and
+//!   `MPC_LAND_SPEED` below; RTL climbs to
 //!   `RTL_RETURN_ALT`, returns at the cruise speed (round the geofence's
 //!   zones, `fence_avoidance`), descends to `RTL_DESCEND_ALT`, lands.
 //!   Reposition is Hold with a target.

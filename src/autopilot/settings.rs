@@ -274,10 +274,19 @@ pub(super) struct Settings {
     pub(super) mc_alt_radius_m: f64,
     pub(super) cruise_m_s: f64,
     pub(super) xy_vel_max_m_s: f64,
+    /// `MPC_Z_VEL_MAX_UP` [m/s]: the manual modes, offboard, orbit and follow.
     pub(super) climb_m_s: f64,
+    /// `MPC_Z_VEL_MAX_DN` [m/s]: as `climb_m_s`, and a landing above `MPC_LAND_ALT1`.
     pub(super) descent_m_s: f64,
+    /// `MPC_Z_V_AUTO_UP` [m/s], at most `MPC_Z_VEL_MAX_UP`: the automatic modes.
+    pub(super) auto_climb_m_s: f64,
+    /// `MPC_Z_V_AUTO_DN` [m/s], at most `MPC_Z_VEL_MAX_DN`: the automatic modes (not landing).
+    pub(super) auto_descent_m_s: f64,
+    /// `MPC_TKO_SPEED` [m/s], at most `MPC_Z_VEL_MAX_UP` ([`Self::takeoff_climb_m_s`]).
     pub(super) takeoff_speed_m_s: f64,
+    /// `MPC_LAND_SPEED` [m/s], at most `MPC_Z_VEL_MAX_DN`.
     pub(super) land_speed_m_s: f64,
+    /// `MPC_LAND_ALT1` [m] above home.
     pub(super) land_alt1_m: f64,
     pub(super) offboard_loss_s: f64,
     pub(super) offboard_loss_action: FailsafeAction,
@@ -332,6 +341,8 @@ impl Settings {
             xy_vel_max_m_s: p.real(Param::MPC_XY_VEL_MAX),
             climb_m_s: p.real(Param::MPC_Z_VEL_MAX_UP),
             descent_m_s: p.real(Param::MPC_Z_VEL_MAX_DN),
+            auto_climb_m_s: p.real(Param::MPC_Z_V_AUTO_UP),
+            auto_descent_m_s: p.real(Param::MPC_Z_V_AUTO_DN),
             takeoff_speed_m_s: p.real(Param::MPC_TKO_SPEED),
             land_speed_m_s: p.real(Param::MPC_LAND_SPEED),
             land_alt1_m: p.real(Param::MPC_LAND_ALT1),
@@ -354,6 +365,12 @@ impl Settings {
             manual: ManualSettings::from_store(p),
             follow: FollowSettings::from_store(p),
         };
+        // the automatic modes' speeds stay within the largest ones, as PX4's
+        // MulticopterPositionControl::parameters_update constrains them
+        s.auto_climb_m_s = s.auto_climb_m_s.min(s.climb_m_s);
+        s.auto_descent_m_s = s.auto_descent_m_s.min(s.descent_m_s);
+        s.takeoff_speed_m_s = s.takeoff_speed_m_s.min(s.climb_m_s);
+        s.land_speed_m_s = s.land_speed_m_s.min(s.descent_m_s);
         // the return altitude stays inside GF_MAX_VER_DIST (PX4's RTL)
         s.rtl_return_alt_m = s.failsafe.cap_height(s.rtl_return_alt_m);
         let positive = [
@@ -361,6 +378,8 @@ impl Settings {
             ("MPC_XY_VEL_MAX", s.xy_vel_max_m_s),
             ("MPC_Z_VEL_MAX_UP", s.climb_m_s),
             ("MPC_Z_VEL_MAX_DN", s.descent_m_s),
+            ("MPC_Z_V_AUTO_UP", s.auto_climb_m_s),
+            ("MPC_Z_V_AUTO_DN", s.auto_descent_m_s),
             ("MPC_TKO_SPEED", s.takeoff_speed_m_s),
             ("MPC_LAND_SPEED", s.land_speed_m_s),
             ("MDL_MASS", s.model_mass_kg),
@@ -375,6 +394,23 @@ impl Settings {
             }
         }
         Ok(s)
+    }
+
+    /// The climb speed limit of a takeoff [m/s] at `height_m` [m] above home,
+    /// PX4's (FlightTaskAuto::_updateTrajConstraints for a takeoff setpoint,
+    /// the height its `_dist_to_ground`):
+    /// ```text
+    /// v_up(h) = MPC_TKO_SPEED    if h < MPC_LAND_ALT1
+    ///           MPC_Z_V_AUTO_UP  otherwise
+    /// ```
+    /// both at most `MPC_Z_VEL_MAX_UP`. With PX4's defaults: 1.5 m/s up to
+    /// 10 m, 3 m/s above.
+    pub(super) fn takeoff_climb_m_s(&self, height_m: f64) -> f64 {
+        if height_m < self.land_alt1_m {
+            self.takeoff_speed_m_s
+        } else {
+            self.auto_climb_m_s
+        }
     }
 }
 
@@ -391,5 +427,29 @@ mod tests {
         assert_eq!(s.model_mass_kg, 2.0);
         assert_eq!(s.offboard_loss_action, FailsafeAction::Hold);
         assert!(!s.feedback && !s.failure_injection);
+    }
+
+    #[test]
+    fn takeoff_climbs_at_mpc_tko_speed_below_mpc_land_alt1_and_auto_speeds_stay_within_the_largest() {
+        let mut p = ParamStore::new(&Airframe::load("quad").unwrap());
+        let s = Settings::from_store(&p).unwrap();
+        assert_eq!((s.auto_climb_m_s, s.auto_descent_m_s), (3.0, 1.5));
+        assert_eq!(s.takeoff_climb_m_s(0.0), 1.5);
+        assert_eq!(s.takeoff_climb_m_s(9.99), 1.5);
+        assert_eq!(s.takeoff_climb_m_s(10.0), 3.0);
+        assert_eq!(s.takeoff_climb_m_s(100.0), 3.0);
+        for (name, x) in [
+            ("MPC_Z_VEL_MAX_UP", 2.0),
+            ("MPC_Z_V_AUTO_UP", 5.0),
+            ("MPC_TKO_SPEED", 2.5),
+            ("MPC_Z_VEL_MAX_DN", 1.0),
+            ("MPC_Z_V_AUTO_DN", 3.0),
+            ("MPC_LAND_SPEED", 1.2),
+        ] {
+            p.set(name, crate::params::ParamValue::Real32(x)).unwrap();
+        }
+        let s = Settings::from_store(&p).unwrap();
+        assert_eq!((s.auto_climb_m_s, s.auto_descent_m_s), (2.0, 1.0));
+        assert_eq!((s.takeoff_speed_m_s, s.land_speed_m_s), (2.0, 1.0));
     }
 }

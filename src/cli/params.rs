@@ -243,7 +243,7 @@ mod tests {
     fn formats_carry_type_range_unit_values_and_reboot() {
         let md = markdown();
         assert!(
-            md.contains("| `MIS_TAKEOFF_ALT` | REAL32 | 2.5 | 0 | 80 | m | yes | Takeoff altitude"),
+            md.contains("| `MIS_TAKEOFF_ALT` | REAL32 | 2.5 | 0 | 3.4028235e38 | m | yes | Takeoff altitude"),
             "{md}"
         );
         assert!(
@@ -258,7 +258,7 @@ mod tests {
         // a PX4 parameter rotorpilot stores without using, with PX4's range and unit
         assert!(
             md.contains(
-                "| `MPC_Z_V_AUTO_DN` | REAL32 | 1.5 | 0.5 | 4 | m/s | no | Descent velocity in autonomous modes |"
+                "| `MPC_ACC_DOWN_MAX` | REAL32 | 3 | 2 | 15 | m/s^2 | no | Maximum downwards acceleration in climb rate controlled modes |"
             ),
             "{md}"
         );

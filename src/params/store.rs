@@ -316,7 +316,7 @@ mod tests {
         let e = s.set("MIS_TAKEOFF_ALT", ParamValue::Real32(-1.0)).unwrap_err();
         let msg = e.to_string();
         assert!(
-            msg.contains("MIS_TAKEOFF_ALT") && msg.contains("-1") && msg.contains("[0, 80] m"),
+            msg.contains("MIS_TAKEOFF_ALT") && msg.contains("-1") && msg.contains("outside [0, "),
             "{msg}"
         );
         assert!(s.set("EST_ORDER", ParamValue::Int32(0)).is_err());

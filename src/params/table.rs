@@ -175,7 +175,8 @@ impl Param {
 
 parameters! {
     // --- PX4: mission, return, navigation -------------------------------------------------------
-    MIS_TAKEOFF_ALT: real(2.5, 0.0, 80.0, "m", "Takeoff altitude above home (a lower takeoff target is raised to it)"),
+    // PX4 declares no maximum (src/modules/navigator/mission_params.yaml; older PX4 had 80 m)
+    MIS_TAKEOFF_ALT: real(2.5, 0.0, f32::MAX as f64, "m", "Takeoff altitude above home (a lower takeoff target is raised to it)"),
     RTL_RETURN_ALT: real(30.0, 0.0, 150.0, "m", "RTL: climb to at least this altitude above home before returning"),
     RTL_DESCEND_ALT: real(10.0, 2.0, 100.0, "m", "RTL: above home, descend to this altitude before landing"),
     NAV_ACC_RAD: real(2.0, 0.05, 200.0, "m", "Horizontal acceptance radius of a target (mission items without their own, RTL arrival over home)"),
@@ -191,11 +192,22 @@ parameters! {
     ),
     MPC_Z_VEL_MAX_UP: real(3.0, 0.5, 8.0, "m/s", "Largest climb speed"),
     MPC_Z_VEL_MAX_DN: real(1.5, 0.5, 4.0, "m/s", "Largest descent speed (also landing above MPC_LAND_ALT1)"),
-    MPC_TKO_SPEED: real(1.5, 0.5, 5.0, "m/s", "Climb speed of a takeoff"),
+    MPC_Z_V_AUTO_UP: real(
+        3.0, 0.5, 8.0, "m/s",
+        "Climb speed in the automatic modes (at most MPC_Z_VEL_MAX_UP; a takeoff above MPC_LAND_ALT1)",
+    ),
+    MPC_Z_V_AUTO_DN: real(
+        1.5, 0.5, 4.0, "m/s",
+        "Descent speed in the automatic modes, landing aside (at most MPC_Z_VEL_MAX_DN)",
+    ),
+    MPC_TKO_SPEED: real(
+        1.5, 0.5, 5.0, "m/s",
+        "Climb speed of a takeoff below MPC_LAND_ALT1 above home (at most MPC_Z_VEL_MAX_UP)",
+    ),
     MPC_LAND_SPEED: real(0.7, 0.2, 2.0, "m/s", "Landing descent speed below MPC_LAND_ALT1"),
     MPC_LAND_ALT1: real(
         10.0, 0.0, 122.0, "m",
-        "Landing: above this height descend at MPC_Z_VEL_MAX_DN, below at MPC_LAND_SPEED",
+        "Height above home: a landing descends at MPC_Z_VEL_MAX_DN above it, at MPC_LAND_SPEED below; a takeoff climbs at MPC_TKO_SPEED below it",
     ),
     // --- PX4: commander ------------------------------------------------------------------------
     COM_OF_LOSS_T: real(1.0, 0.0, 60.0, "s", "Offboard: setpoints older than this are lost (OFFBOARD refused or left)"),

@@ -513,13 +513,6 @@ def test_control_allocation_return_home_on_motor_failure():
     fly(scenario, 120, HEXA)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "the takeoff: MIS_TAKEOFF_ALT is bounded at 80 m here (PX4 bounds it not), so the 100 m is refused "
-    "(PARAMETER_ERROR) and the vehicle stops at the 2.5 m it had; and rotorpilot's takeoff climbs at "
-    "MPC_TKO_SPEED (1.5 m/s) all the way up, 67 s to 100 m, where PX4 climbs at it only within MPC_LAND_ALT1 of "
-    "the ground and then at MPC_Z_V_AUTO_UP (src/modules/flight_mode_manager/tasks/Auto/FlightTaskAuto.cpp, "
-    "FlightTaskAuto::_updateTrajConstraints), so 100 m is not reached within 60 s either. The termination itself "
-    "(COM_ACT_FAIL_ACT 4) disarms at once: from 60 m, which both allow, the case passes"))
 def test_control_allocation_terminate_on_motor_failure():
     """PX4-Autopilot test/mavsdk_tests/test_multicopter_control_allocation.cpp:243
     at commit 88e483492f87e38d32cbca045ea9c6e81dba1a23, TEST_CASE "Control

@@ -128,7 +128,7 @@ def test_params(drone):
     e, took = refused(lambda: drone.param.get_param_float("NO_SUCH_PARAM"))
     assert e.result == ParamResult.DOES_NOT_EXIST, e
     assert took < 1.0, f"unknown parameter answered after {took:.2f} s"
-    e, took = refused(lambda: drone.param.set_param_float("MIS_TAKEOFF_ALT", 1000.0))
+    e, took = refused(lambda: drone.param.set_param_float("MIS_TAKEOFF_ALT", -1.0))
     assert e.result == ParamResult.VALUE_OUT_OF_RANGE, e
     assert took < 1.0, f"refused set answered after {took:.2f} s"
     assert drone.param.get_param_float("MIS_TAKEOFF_ALT") == pytest.approx(3.5)

@@ -166,7 +166,7 @@ def test_param_fetch_set_and_refuse(vehicle):
     assert kinds(a) == ["PARAM_VALUE", "PARAM_VALUE"], a
     assert all(v.param_value == 3.0 for v in a), a
     # out of range: refused, the unchanged value comes back
-    a = param_answers(m, "MIS_TAKEOFF_ALT", 1000.0)
+    a = param_answers(m, "MIS_TAKEOFF_ALT", -1.0)
     assert kinds(a) == ["PARAM_ERROR", "PARAM_VALUE"], a
     assert a[0].error == mavlink.MAV_PARAM_ERROR_VALUE_OUT_OF_RANGE
     assert a[1].param_value == 3.0

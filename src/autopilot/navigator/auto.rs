@@ -133,7 +133,8 @@ impl Navigator {
     pub(super) fn mode_demand(&mut self, cx: &Situation<'_>, say: &mut Announcements) -> Demand {
         let (meas, s, dt) = (cx.meas, cx.settings, cx.dt);
         let cruise = self.cruise_m_s(s);
-        let (climb, descent) = (s.climb_m_s, s.descent_m_s);
+        // the automatic modes' vertical speeds (PX4's MPC_Z_V_AUTO_UP/DN)
+        let (climb, descent) = (s.auto_climb_m_s, s.auto_descent_m_s);
         let normal = self.limits(cruise, climb, descent);
         match self.nav {
             Nav::Hold { target, .. } => {
@@ -159,7 +160,8 @@ impl Navigator {
                 Demand::Track(r)
             }
             Nav::Takeoff { target_ned, then } => {
-                let limits = self.limits(cruise, s.takeoff_speed_m_s, descent);
+                let height_m = cx.home_ned.z - meas.position_ned.z;
+                let limits = self.limits(cruise, s.takeoff_climb_m_s(height_m), descent);
                 let r = self.go_to(meas, target_ned, YawSetpoint::Hold, limits, dt);
                 if arrived(&r, &target_ned) && (meas.position_ned.z - target_ned.z).abs() < TAKEOFF_ACCEPT_M {
                     self.nav = Nav::Hold {
@@ -208,7 +210,7 @@ impl Navigator {
             s.land_speed_m_s
         };
         let target = Vector3::new(xy.x, xy.y, cx.rest_z + LAND_SINK_M);
-        let limits = self.limits(self.cruise_m_s(s), s.climb_m_s, speed);
+        let limits = self.limits(self.cruise_m_s(s), s.auto_climb_m_s, speed);
         self.go_to(cx.meas, target, YawSetpoint::Hold, limits, cx.dt)
     }
 

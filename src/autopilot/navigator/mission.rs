@@ -22,8 +22,9 @@
 //!   back to the point, as PX4 re-anchors it. Then the hold time (p1,
 //!   simulated time), the loiter time, the loiter turns (circles of radius
 //!   |p3|) or the delay runs before the next item; LOITER_UNLIM never ends.
-//! * **Takeoff**: NAV_TAKEOFF climbs at MPC_TKO_SPEED where the vehicle is to
-//!   the item's altitude (at least MIS_TAKEOFF_ALT); any other first item
+//! * **Takeoff**: NAV_TAKEOFF climbs where the vehicle is to the item's
+//!   altitude (at least MIS_TAKEOFF_ALT), at MPC_TKO_SPEED below MPC_LAND_ALT1
+//!   above home and MPC_Z_V_AUTO_UP above (as Takeoff); any other first item
 //!   flown from the ground takes off the same way first (PX4's automatic
 //!   takeoff) to the higher of MIS_TAKEOFF_ALT and the item's altitude.
 //! * **Land** flies to the point at its altitude, then descends as Land
@@ -448,14 +449,15 @@ impl Navigator {
         }
         let s = cx.settings;
         let cruise = self.cruise_m_s(s);
-        let normal = self.limits(cruise, s.climb_m_s, s.descent_m_s);
+        let normal = self.limits(cruise, s.auto_climb_m_s, s.auto_descent_m_s);
         let hold_yaw = YawSetpoint::Hold;
         let item_yaw = deg_or_none(it.params[3]);
         match self.mission.phase {
             // replaced above
             Phase::Begin => Demand::Idle,
             Phase::TakeOff { target_ned } => {
-                let limits = self.limits(cruise, s.takeoff_speed_m_s, s.descent_m_s);
+                let height_m = cx.home_ned.z - cx.meas.position_ned.z;
+                let limits = self.limits(cruise, s.takeoff_climb_m_s(height_m), s.auto_descent_m_s);
                 let r = self.go_to(cx.meas, target_ned, hold_yaw, limits, cx.dt);
                 if super::arrived(&r, &target_ned) && (cx.meas.position_ned.z - target_ned.z).abs() < s.mc_alt_radius_m
                 {
@@ -705,8 +707,8 @@ impl Navigator {
             },
             self.limits(
                 self.cruise_m_s(cx.settings),
-                cx.settings.climb_m_s,
-                cx.settings.descent_m_s,
+                cx.settings.auto_climb_m_s,
+                cx.settings.auto_descent_m_s,
             ),
             cx.dt,
         );

@@ -58,12 +58,12 @@ async def main():
     require(await uav.action.get_takeoff_altitude() == 6.0, "MIS_TAKEOFF_ALT 6.0 is get_takeoff_altitude")
 
     try:
-        await uav.param.set_param_float("MIS_TAKEOFF_ALT", 500.0)
+        await uav.param.set_param_float("MIS_TAKEOFF_ALT", -1.0)
         refused = False
     except ParamError as err:
-        print(f"[param] 500 m takeoff height refused: {err._result.result}")
+        print(f"[param] -1 m takeoff height refused: {err._result.result}")
         refused = True
-    require(refused, "MIS_TAKEOFF_ALT = 500 refused")
+    require(refused, "MIS_TAKEOFF_ALT = -1 refused (PX4's minimum is 0, it has no maximum)")
     require(await uav.param.get_param_float("MIS_TAKEOFF_ALT") == 6.0, "MIS_TAKEOFF_ALT still 6.0")
 
     floats, ints = as_table(await uav.param.get_all_params())

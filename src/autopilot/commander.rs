@@ -1,12 +1,12 @@
 //! The commander: what each [`AutopilotCommand`] does and when it is refused
-//! (PX4 behaviour, `docs/mavlink.md` sections 3, 5 and 8) — arming and
-//! its prearm checks, the mode state machine, home, and the gates of reboot
-//! and failure injection. Each command is judged at the instant it is
+//! (PX4 behaviour, `docs/mavlink.md` sections 3, 5 and 8) — arming (its
+//! prearm checks are `prearm`'s), the mode state machine, home, and the
+//! gates of reboot and failure injection. Each command is judged at the instant it is
 //! applied, against the sensor readings of that instant.
 //!
 //! [`Commander`] is the part that holds the arming state (armed, since
-//! when, taken off, landed since when) and decides on its own: the prearm
-//! checks in PX4's order ([`Prearm`]), arming and disarming, the gate of a
+//! when, taken off, landed since when) and decides on its own: arming (on
+//! the first failing prearm check) and disarming, the gate of a
 //! command that needs the vehicle armed, the auto-disarm timers, reboot and
 //! shutdown ([`PowerDecision`]) and failure injection. The [`Autopilot`]
 //! gathers what the checks need from the other parts and carries out what
@@ -14,15 +14,14 @@
 
 use nalgebra::Vector3;
 
+use super::TIME_EPS;
 use super::command::{AutopilotCommand, CommandOutcome, PowerAction};
 use super::failsafe::{ClientTimer, PendingTimer};
-use super::health::HealthComponent;
 use super::land_detector::LandEvent;
 use super::navigator::{HoldTarget, ManualMode, Nav, OrbitChange};
 use super::position_checks::PositionNeed;
 use super::status::{Announcements, Severity};
 use super::{Autopilot, FlightMode, ManualControl, OffboardSetpoint, TargetFix};
-use super::{BatteryWarning, TIME_EPS};
 use crate::geo::GeoPoint;
 use crate::signals::{Measurement, SensorReadings};
 
@@ -30,59 +29,6 @@ use crate::signals::{Measurement, SensorReadings};
 const SPEED_DEFAULT: f64 = -2.0;
 /// A target this little above `GF_MAX_VER_DIST` [m] is still at it (rounding of AMSL altitudes).
 const ALTITUDE_TOLERANCE_M: f64 = 1e-3;
-
-/// What the prearm checks look at, gathered by the [`Autopilot`] at one instant.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) struct Prearm {
-    /// The land detector says landed.
-    pub(super) landed: bool,
-    /// The navigation solution may be flown on (always with the ideal
-    /// source; the filter aligned with its position valid).
-    pub(super) position_valid: bool,
-    /// The estimator has had its first sample.
-    pub(super) estimator_initialised: bool,
-    /// Home is a valid point.
-    pub(super) home_valid: bool,
-    /// The mode steers by a position that is lost: why (`no GPS fix`, ...)
-    /// and what it concerns.
-    pub(super) mode_without_position: Option<(&'static str, HealthComponent)>,
-    /// Every rotor is healthy (the rotor monitor).
-    pub(super) rotors_healthy: bool,
-    /// The battery warning level in force.
-    pub(super) battery: BatteryWarning,
-    /// The data link is lost and `NAV_DLL_ACT` would act on it.
-    pub(super) data_link_lost_with_action: bool,
-    /// Why the selected mode cannot be armed in, if it cannot (no sticks,
-    /// no offboard signal, no mission, an automatic mode that is not
-    /// armable), and what it concerns.
-    pub(super) mode: Option<(&'static str, HealthComponent)>,
-}
-
-impl Prearm {
-    /// Every failing check, in PX4's order, with the component it concerns.
-    pub(super) fn failures(&self) -> impl Iterator<Item = (&'static str, HealthComponent)> {
-        use HealthComponent as C;
-        [
-            (!self.landed).then_some(("vehicle not landed", C::None)),
-            (!self.position_valid).then_some(("no valid position estimate", C::LocalPositionEstimate)),
-            (!self.estimator_initialised).then_some(("estimator not initialised", C::AttitudeEstimate)),
-            (!self.home_valid).then_some(("home position invalid", C::GlobalPositionEstimate)),
-            self.mode_without_position,
-            (!self.rotors_healthy).then_some(("ESC failure", C::MotorsEscs)),
-            (self.battery >= BatteryWarning::Critical).then_some(("battery critical", C::Battery)),
-            self.data_link_lost_with_action
-                .then_some(("no ground station connection", C::CommunicationLinks)),
-            self.mode,
-        ]
-        .into_iter()
-        .flatten()
-    }
-
-    /// The first failing check, in PX4's order, as the reason arming is denied.
-    pub(super) fn failure(&self) -> Option<&'static str> {
-        self.failures().next().map(|(why, _)| why)
-    }
-}
 
 /// The commander's answer to MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN: the runtime
 /// carries out an allowed one.
@@ -849,114 +795,6 @@ mod tests {
 
     fn texts(say: &mut Announcements) -> Vec<String> {
         say.drain().into_iter().map(|s| s.text).collect()
-    }
-
-    fn ready() -> Prearm {
-        Prearm {
-            landed: true,
-            position_valid: true,
-            estimator_initialised: true,
-            home_valid: true,
-            mode_without_position: None,
-            rotors_healthy: true,
-            battery: BatteryWarning::None,
-            data_link_lost_with_action: false,
-            mode: None,
-        }
-    }
-
-    #[test]
-    fn prearm_checks_name_the_first_failure_in_px4_order() {
-        assert_eq!(ready().failure(), None);
-        let all_bad = Prearm {
-            landed: false,
-            position_valid: false,
-            estimator_initialised: false,
-            home_valid: false,
-            mode_without_position: Some(("no GPS fix", HealthComponent::Gps)),
-            rotors_healthy: false,
-            battery: BatteryWarning::Emergency,
-            data_link_lost_with_action: true,
-            mode: Some(("no offboard signal", HealthComponent::None)),
-        };
-        assert_eq!(all_bad.failure(), Some("vehicle not landed"));
-        let cases = [
-            (
-                Prearm {
-                    position_valid: false,
-                    ..ready()
-                },
-                "no valid position estimate",
-            ),
-            (
-                Prearm {
-                    estimator_initialised: false,
-                    ..ready()
-                },
-                "estimator not initialised",
-            ),
-            (
-                Prearm {
-                    home_valid: false,
-                    ..ready()
-                },
-                "home position invalid",
-            ),
-            (
-                Prearm {
-                    mode_without_position: Some(("no GPS fix", HealthComponent::Gps)),
-                    ..ready()
-                },
-                "no GPS fix",
-            ),
-            (
-                Prearm {
-                    rotors_healthy: false,
-                    ..ready()
-                },
-                "ESC failure",
-            ),
-            (
-                Prearm {
-                    battery: BatteryWarning::Critical,
-                    ..ready()
-                },
-                "battery critical",
-            ),
-            (
-                Prearm {
-                    data_link_lost_with_action: true,
-                    ..ready()
-                },
-                "no ground station connection",
-            ),
-            (
-                Prearm {
-                    mode: Some(("no valid mission", HealthComponent::None)),
-                    ..ready()
-                },
-                "no valid mission",
-            ),
-        ];
-        for (p, why) in cases {
-            assert_eq!(p.failure(), Some(why));
-        }
-        // a low battery does not stop arming
-        assert_eq!(
-            Prearm {
-                battery: BatteryWarning::Low,
-                ..ready()
-            }
-            .failure(),
-            None
-        );
-        // the mode is judged last
-        let p = Prearm {
-            home_valid: false,
-            mode: Some(("no manual control input", HealthComponent::None)),
-            ..ready()
-        };
-        assert_eq!(p.failure(), Some("home position invalid"));
     }
 
     #[test]

@@ -2,21 +2,10 @@
 //! every mode at once, as PX4's commander reports it to ground stations
 //! (its health and arming checks: each failing check names the modes it
 //! keeps from arming and the component it concerns; a summary says, per
-//! mode, whether arming in it, or switching to it while armed, is possible).
-//!
-//! The checks are the prearm checks of the [`commander`](super::commander)
-//! ([`Prearm`]), run once per mode: the global ones (landed, position
-//! estimate, estimator, home, rotors, battery, data link) fail every mode;
-//! the position check fails the modes whose [`PositionNeed`] the position
-//! does not serve; the mode's own check (sticks, offboard signal, a
-//! mission, an armable mode) fails that mode. Arming in the selected mode
-//! is refused with the first failure of that mode, in PX4's order; the
-//! report lists them all. A query: it changes nothing.
+//! mode, whether arming in it, or switching to it while armed, is
+//! possible). The report's types; `prearm` runs the checks.
 
-use super::commander::Prearm;
-use super::navigator::ManualMode;
-use super::settings::FailsafeAction;
-use super::{Autopilot, FlightMode, RotorStatus};
+use super::FlightMode;
 
 /// Every text a failing check can give ([`FailedCheck::text`]), in PX4's
 /// order: what a ground station's event metadata must know.
@@ -139,7 +128,7 @@ impl HealthReport {
     }
 
     /// Add `mode` to the modes the check `text` fails (the check added the first time).
-    fn fail(&mut self, text: &'static str, component: HealthComponent, mode: FlightMode) {
+    pub(super) fn fail(&mut self, text: &'static str, component: HealthComponent, mode: FlightMode) {
         match self.checks.iter_mut().find(|c| c.text == text) {
             Some(c) => c.modes = c.modes.with(mode),
             None => self.checks.push(FailedCheck {
@@ -147,83 +136,6 @@ impl HealthReport {
                 component,
                 modes: ModeSet::of(mode),
             }),
-        }
-    }
-}
-
-impl Autopilot {
-    /// The health and arming report at simulated time `now_s` [s] (the
-    /// instant of the latest step).
-    #[must_use]
-    pub fn health_report(&self, now_s: f64) -> HealthReport {
-        let mut report = HealthReport::default();
-        for mode in FlightMode::ALL {
-            let prearm = self.prearm_in(mode, now_s);
-            let mut failures = prearm.failures().peekable();
-            if failures.peek().is_none() {
-                report.can_arm = report.can_arm.with(mode);
-            }
-            for (text, component) in failures {
-                report.fail(text, component, mode);
-            }
-            if prearm.mode_without_position.is_none() && self.mode_runnable(mode, now_s) {
-                report.can_run = report.can_run.with(mode);
-            }
-        }
-        report
-    }
-
-    /// What the prearm checks see at `now_s` [s] for arming in `mode`.
-    pub(super) fn prearm_in(&self, mode: FlightMode, now_s: f64) -> Prearm {
-        let position = self.navigator.position();
-        Prearm {
-            landed: self.land.landed(),
-            position_valid: self.navigation().is_none_or(super::navigation::FilterNavigation::ready),
-            estimator_initialised: self.control_initialised(),
-            home_valid: self.home.is_valid(),
-            mode_without_position: (!position.serves(self.navigator.position_need_of(mode)))
-                .then(|| (position.loss.cause(), position.loss.component())),
-            rotors_healthy: self.rotor_status().iter().all(|r| *r == RotorStatus::Healthy),
-            battery: self.battery_warning(),
-            data_link_lost_with_action: self.failsafe.data_link_is_lost()
-                && self.settings.failsafe.data_link_loss_action != FailsafeAction::None,
-            mode: self.mode_prearm_failure(mode, now_s),
-        }
-    }
-
-    /// Why `mode` itself cannot be armed in at `now_s` [s], if it cannot:
-    /// the sticks of a manual mode, the offboard signal, a mission, or a
-    /// mode that is not armable.
-    fn mode_prearm_failure(&self, mode: FlightMode, now_s: f64) -> Option<(&'static str, HealthComponent)> {
-        if let Some(manual) = ManualMode::of(mode) {
-            let clock = self.failsafe.clock();
-            return self
-                .navigator
-                .manual_prearm_failure(manual, now_s, self.settings.manual.loss_s, clock)
-                .map(|why| (why, HealthComponent::RemoteControl));
-        }
-        match mode {
-            FlightMode::Offboard if !self.offboard_fresh(now_s) => Some(("no offboard signal", HealthComponent::None)),
-            FlightMode::Mission if self.plans.get(crate::mission::MissionType::Mission).is_empty() => {
-                Some(("no valid mission", HealthComponent::Mission))
-            }
-            FlightMode::Hold | FlightMode::Offboard | FlightMode::Mission => None,
-            _ => Some(("flight mode not armable", HealthComponent::None)),
-        }
-    }
-
-    /// Whether `mode` (its position served) could be switched to while
-    /// armed at `now_s` [s]: a manual mode needs its sticks, Offboard its
-    /// signal, Mission a mission.
-    fn mode_runnable(&self, mode: FlightMode, now_s: f64) -> bool {
-        if ManualMode::of(mode).is_some() {
-            let clock = self.failsafe.clock();
-            return self.navigator.manual_fresh(now_s, self.settings.manual.loss_s, clock);
-        }
-        match mode {
-            FlightMode::Offboard => self.offboard_fresh(now_s),
-            FlightMode::Mission => !self.plans.get(crate::mission::MissionType::Mission).is_empty(),
-            _ => true,
         }
     }
 }

@@ -10,10 +10,12 @@
 //! |---|---|
 //! | `stack` | [`Autopilot`]: the state, parameters, and one step in order (sense, detect, supervise, guide, act) |
 //! | `command` | the commands a client gives ([`AutopilotCommand`]) and the answers ([`CommandOutcome`]) |
-//! | `commander` | commands: the `Commander` (arming state, prearm checks, disarm, auto-disarm timers, reboot and failure-injection gates) and the wiring of each command (the mode state machine, home) |
+//! | `commander` | commands: the `Commander` (arming state, arming, disarm, auto-disarm timers, reboot and failure-injection gates) and the wiring of each command (the mode state machine, home) |
 //! | `navigator/` | guidance per mode family: `auto` (hold, takeoff, land, return), `offboard` (setpoints and their frames), `mission` (the stored mission flown as paths), `manual` (sticks and the manual modes), `blind` (the descent without a position), `orbit` (circling a centre) |
 //! | `mission` | the mission as the commander sees it: start, set current, what a new upload does, MISSION_CURRENT's state |
 //! | `failsafe` | supervision: the `Failsafe` (data link, battery level, geofence breach, clamp notice, client clock) and the one runner's choice; offboard, data-link, manual-control loss, battery, geofence, auto-disarm wired through it; which clock the timers that wait for a client run on |
+//! | `prearm` | the prearm checks for any mode, in PX4's order: the first failure arming is refused with, and the health and arming report (all of them, every mode at once) |
+//! | `health` | the health and arming report's types: the failing checks, the modes each blocks, what each concerns |
 //! | `geofence` | the stored fence's zones and PX4's distance limits, as pure geometry |
 //! | `fence_avoidance` | Return's way round the fence's zones: grown by a margin, a visibility graph, its shortest path (PX4's geofence avoidance planner) |
 //! | `rotor_monitor` | dead and degraded rotors from commanded versus ESC-reported speeds |
@@ -123,6 +125,7 @@ mod mission;
 mod navigation;
 mod navigator;
 mod position_checks;
+mod prearm;
 mod rotor_monitor;
 mod settings;
 mod stack;

@@ -218,8 +218,48 @@ impl FlightMode {
     pub fn index(self) -> usize {
         self as usize
     }
+
+    /// PX4's `vehicle_status.nav_state` of the mode (`NAVIGATION_STATE_*`).
+    #[must_use]
+    pub fn nav_state(self) -> u8 {
+        match self {
+            Self::Manual => 0,
+            Self::Altitude => 1,
+            Self::Position => 2,
+            Self::Mission => 3,
+            Self::Hold => 4,
+            Self::ReturnToLaunch => 5,
+            Self::Acro => 10,
+            Self::Descend => 12,
+            Self::Offboard => 14,
+            Self::Stabilized => 15,
+            Self::Takeoff => 17,
+            Self::Land => 18,
+            Self::FollowTarget => 19,
+            Self::Orbit => 21,
+        }
+    }
 }
 
 /// Time comparisons of the flight stack tolerate this much rounding [s]
 /// (simulated time is a step count times the step).
 const TIME_EPS: f64 = 1e-9;
+
+#[cfg(test)]
+mod tests {
+    use super::FlightMode;
+
+    #[test]
+    fn nav_states_are_px4_numbers() {
+        let px4 = [
+            (FlightMode::Hold, 4),
+            (FlightMode::Takeoff, 17),
+            (FlightMode::Land, 18),
+            (FlightMode::Offboard, 14),
+            (FlightMode::Mission, 3),
+        ];
+        for (mode, n) in px4 {
+            assert_eq!(mode.nav_state(), n, "{mode:?}");
+        }
+    }
+}

@@ -93,26 +93,10 @@ pub const fn event_id(name: &str) -> u32 {
     (hash & 0xFF_FFFF) | 1 << 24
 }
 
-/// PX4's navigation state of `mode` (its mode group's bit); `None` for
-/// Descend, which clients see as Land.
-#[must_use]
-pub fn nav_state(mode: FlightMode) -> Option<u32> {
-    Some(match mode {
-        FlightMode::Manual => 0,
-        FlightMode::Altitude => 1,
-        FlightMode::Position => 2,
-        FlightMode::Mission => 3,
-        FlightMode::Hold => 4,
-        FlightMode::ReturnToLaunch => 5,
-        FlightMode::Acro => 10,
-        FlightMode::Offboard => 14,
-        FlightMode::Stabilized => 15,
-        FlightMode::Takeoff => 17,
-        FlightMode::Land => 18,
-        FlightMode::FollowTarget => 19,
-        FlightMode::Orbit => 21,
-        FlightMode::Descend => return None,
-    })
+/// PX4's navigation state of `mode` as a mode group (its bit in a mode
+/// mask); `None` for Descend, which has no group (clients see it as Land).
+fn nav_state(mode: FlightMode) -> Option<u32> {
+    (mode != FlightMode::Descend).then(|| u32::from(mode.nav_state()))
 }
 
 /// `modes` as a mode-group mask (bit = [`nav_state`]).

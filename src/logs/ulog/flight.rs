@@ -242,27 +242,6 @@ fn air_density(pressure_pa: f64, temperature_c: f64) -> f64 {
     pressure_pa / (287.1 * (temperature_c + 273.15))
 }
 
-/// PX4's `vehicle_status.nav_state` for a mode (`NAVIGATION_STATE_*`).
-#[must_use]
-pub fn nav_state(mode: FlightMode) -> u8 {
-    match mode {
-        FlightMode::Manual => 0,
-        FlightMode::Altitude => 1,
-        FlightMode::Position => 2,
-        FlightMode::Mission => 3,
-        FlightMode::Hold => 4,
-        FlightMode::ReturnToLaunch => 5,
-        FlightMode::Acro => 10,
-        FlightMode::Descend => 12,
-        FlightMode::Offboard => 14,
-        FlightMode::Stabilized => 15,
-        FlightMode::Takeoff => 17,
-        FlightMode::Land => 18,
-        FlightMode::Orbit => 21,
-        FlightMode::FollowTarget => 19,
-    }
-}
-
 /// The ULog level of a STATUSTEXT severity (both are syslog's numbers).
 #[must_use]
 pub fn log_level(severity: Severity) -> LogLevel {
@@ -662,7 +641,7 @@ impl<W: Write> FlightUlog<W> {
             let s = Sample::new(tt)
                 // ARMING_STATE_DISARMED = 1, ARMED = 2
                 .u8(if tel.armed { 2 } else { 1 })
-                .u8(nav_state(tel.mode))
+                .u8(tel.mode.nav_state())
                 // VEHICLE_TYPE_ROTARY_WING
                 .u8(1)
                 .bool(tel.prearm_ok)
@@ -786,20 +765,6 @@ mod tests {
         let counts = data_counts(&log.finish().unwrap());
         assert_eq!(counts[usize::from(id::AIR_DATA)], 0);
         assert_eq!(counts[usize::from(id::SENSOR_COMBINED)], 50);
-    }
-
-    #[test]
-    fn nav_states_are_px4_numbers() {
-        let px4 = [
-            (FlightMode::Hold, 4),
-            (FlightMode::Takeoff, 17),
-            (FlightMode::Land, 18),
-            (FlightMode::Offboard, 14),
-            (FlightMode::Mission, 3),
-        ];
-        for (mode, n) in px4 {
-            assert_eq!(nav_state(mode), n, "{mode:?}");
-        }
     }
 
     #[test]

@@ -333,7 +333,43 @@ impl Response {
             Self::Disarm => asked,
         }
     }
+
+    /// What the vehicle is to do once it has a position (a Descend gives
+    /// way to it); `None` for a disarm.
+    fn then(self) -> Option<DescendThen> {
+        match self {
+            Self::Hold => Some(DescendThen::Hold),
+            Self::Return => Some(DescendThen::Return),
+            Self::Land => Some(DescendThen::Land),
+            Self::Descend(then) => Some(then),
+            Self::Disarm => None,
+        }
+    }
 }
+
+/// What a Hold, Return or Land failsafe has the vehicle do once it has a
+/// position (`None` for any other action).
+fn then_of(action: FailsafeAction) -> Option<DescendThen> {
+    match action {
+        FailsafeAction::Hold => Some(DescendThen::Hold),
+        FailsafeAction::Return => Some(DescendThen::Return),
+        FailsafeAction::Land => Some(DescendThen::Land),
+        _ => None,
+    }
+}
+
+/// The failsafe action that has the vehicle do `then`.
+fn action_of(then: DescendThen) -> FailsafeAction {
+    match then {
+        DescendThen::Hold => FailsafeAction::Hold,
+        DescendThen::Return => FailsafeAction::Return,
+        DescendThen::Land => FailsafeAction::Land,
+    }
+}
+
+/// The action a lost position in Position mode takes: Altitude mode (PX4's
+/// `COM_POSCTL_NAVL` 0).
+pub(super) const ALTITUDE_FALLBACK: &str = "Altitude";
 
 /// Every cause a failsafe acts for ([`crate::autopilot::FailsafeInForce::cause`]):
 /// the [`cause`]s and a lost position's.
@@ -352,13 +388,13 @@ pub const FAILSAFE_CAUSES: [&str; 10] = [
 
 /// Every action a failsafe takes, as announced ([`crate::autopilot::FailsafeInForce::action`]).
 pub const FAILSAFE_ACTIONS: [&str; 7] = [
-    "Hold",
-    "Return",
-    "Land",
-    "Descend",
-    "Altitude",
-    "flight termination",
-    "Disarm",
+    FailsafeAction::Hold.name(),
+    FailsafeAction::Return.name(),
+    FailsafeAction::Land.name(),
+    FailsafeAction::Descend.name(),
+    ALTITUDE_FALLBACK,
+    FailsafeAction::Terminate.name(),
+    FailsafeAction::Disarm.name(),
 ];
 
 /// The runner's choice for failsafe `action` caused by `cause`, announced
@@ -389,12 +425,7 @@ pub(super) fn respond(
         say.announce(Severity::Warning, format!("Failsafe warning: {cause}"));
         return None;
     }
-    let then = match action {
-        FailsafeAction::Land => Some(DescendThen::Land),
-        FailsafeAction::Return => Some(DescendThen::Return),
-        FailsafeAction::Hold => Some(DescendThen::Hold),
-        _ => None,
-    };
+    let then = then_of(action);
     let action = match then {
         Some(then) if !position.serves(then.need()) => FailsafeAction::Descend,
         _ => action,
@@ -671,23 +702,12 @@ impl Autopilot {
                 | FailsafeAction::Disarm
         ) && self.commander.armed()
             && let Some(f) = self.taken_over.take()
+            // the failsafe taken over is the more severe: it comes back
+            && let (Some(then), Some(before)) = (then_of(action), f.action)
+            && before.most_severe(then) != then
         {
-            let then = match action {
-                FailsafeAction::Hold => Some(DescendThen::Hold),
-                FailsafeAction::Return => Some(DescendThen::Return),
-                FailsafeAction::Land => Some(DescendThen::Land),
-                _ => None,
-            };
-            if let (Some(then), Some(before)) = (then, f.action)
-                && before.most_severe(then) != then
-            {
-                action = match before {
-                    DescendThen::Hold => FailsafeAction::Hold,
-                    DescendThen::Return => FailsafeAction::Return,
-                    DescendThen::Land => FailsafeAction::Land,
-                };
-                cause = f.cause;
-            }
+            action = action_of(before);
+            cause = f.cause;
         }
         let cause = cause.as_str();
         let response = respond(
@@ -699,15 +719,8 @@ impl Autopilot {
             self.navigator.landing(),
             &mut self.say,
         );
-        let doing = match response {
-            Some(Response::Hold) => Some(DescendThen::Hold),
-            Some(Response::Return) => Some(DescendThen::Return),
-            Some(Response::Land) => Some(DescendThen::Land),
-            Some(Response::Descend(then)) => Some(then),
-            Some(Response::Disarm) | None => None,
-        };
         if let Some(r) = response {
-            self.enter_failsafe(cause, doing, r.taken(action).name());
+            self.enter_failsafe(cause, r.then(), r.taken(action).name());
         }
         match response {
             Some(Response::Hold) => self.navigator.enter_hold(),

@@ -89,7 +89,7 @@ impl FailsafeAction {
     }
 
     /// The mode or reaction as the STATUSTEXT names it.
-    pub(super) fn name(self) -> &'static str {
+    pub(super) const fn name(self) -> &'static str {
         match self {
             Self::None | Self::Warn => "warning",
             Self::Hold => "Hold",

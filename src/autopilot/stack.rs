@@ -804,9 +804,9 @@ impl Autopilot {
     /// of Position): the failsafe in force from now.
     pub(super) fn enter_blind_failsafe(&mut self) {
         let action = if self.navigator.mode() == super::FlightMode::Altitude {
-            "Altitude"
+            super::failsafe::ALTITUDE_FALLBACK
         } else {
-            "Descend"
+            FailsafeAction::Descend.name()
         };
         self.enter_failsafe(self.navigator.position().loss.cause(), None, action);
     }

@@ -575,7 +575,6 @@ impl Daemon {
                 recorder: v.recorder,
                 health: crate::link::events::Reporter::default(),
                 health_forced: false,
-                failsafe_seen: None,
             });
             // one writer per file: the saver, links' write-through and the final save share its lock
             let params_file = ParamsFile::new(path.clone());

@@ -21,8 +21,8 @@ use super::messages::{Event, SimRequest, lock};
 use super::recorder::Recorder;
 use super::ulog_file::{self, UlogFile};
 use crate::autopilot::{
-    Autopilot, AutopilotCommand, AutopilotError, ClientClock, ClientTimer, CommandOutcome, FailsafeInForce, ItemDone,
-    PendingTimer, PowerAction,
+    Autopilot, AutopilotCommand, AutopilotError, ClientClock, ClientTimer, CommandOutcome, ItemDone, PendingTimer,
+    PowerAction,
 };
 use crate::link::events;
 use crate::lockstep::input::{Applied, Input};
@@ -82,13 +82,12 @@ pub(super) struct VehicleIo {
     pub(super) ulog: Option<UlogFile>,
     /// The flight record and CSV (`--log-dir`): every input goes through `Sim::apply`.
     pub(super) recorder: Option<Recorder>,
-    /// The health and arming report's events: their sequence, and when the next goes out.
+    /// The vehicle's events (the health and arming report, failsafes):
+    /// their sequence, and when the next report goes out.
     pub(super) health: events::Reporter,
     /// A report is to go out at the next publication, changed or not
     /// (MAV_CMD_RUN_PREARM_CHECKS or an arming request came).
     pub(super) health_forced: bool,
-    /// The failsafe in force at the last publication (a new one is an event).
-    pub(super) failsafe_seen: Option<FailsafeInForce>,
 }
 
 impl Sim {
@@ -240,12 +239,11 @@ impl Sim {
         }
         let now_s = self.core.time_s();
         let failsafe = self.core.pilot(v).failsafe_in_force();
-        if failsafe != io.failsafe_seen.as_ref() {
-            if let Some(f) = failsafe {
-                let e = io.health.stamp(now_s, events::failsafe_event(&f.cause, f.triggered));
-                let _ = io.events.send(Event::Events(Arc::new(vec![e])));
-            }
-            io.failsafe_seen = failsafe.cloned();
+        if let Some(e) = io
+            .health
+            .failsafe(now_s, failsafe.map(|f| (f.cause.as_str(), f.triggered)))
+        {
+            let _ = io.events.send(Event::Events(Arc::new(vec![e])));
         }
         if io.health_forced || io.health.due(now_s) {
             let report = self.core.pilot(v).health_report(now_s);

@@ -17,7 +17,7 @@
 //!   failsafe that starts is an event too ([`failsafe_event`]), in the words
 //!   of its STATUSTEXT.
 //! - **Mode groups** are PX4's navigation states: bit `n` of a mode mask is
-//!   the mode whose `vehicle_status.nav_state` is `n` ([`nav_state`]); the
+//!   the mode whose `vehicle_status.nav_state` is `n` ([`group`]); the
 //!   metadata lists the heartbeat's custom mode of each.
 //! - **Metadata.** COMPONENT_METADATA (on MAV_CMD_REQUEST_MESSAGE) names
 //!   `mftp://etc/extras/component_general.json` and its CRC; that file
@@ -93,34 +93,32 @@ pub const fn event_id(name: &str) -> u32 {
     (hash & 0xFF_FFFF) | 1 << 24
 }
 
-/// PX4's navigation state of `mode` as a mode group (its bit in a mode
-/// mask); `None` for Descend, which has no group (clients see it as Land).
-fn nav_state(mode: FlightMode) -> Option<u32> {
-    (mode != FlightMode::Descend).then(|| u32::from(mode.nav_state()))
+/// PX4's mode group of `mode`: its bit in a mode mask (the mode's
+/// `nav_state`), name and description; `None` for Descend, which has no
+/// group (clients see it as Land).
+fn group(mode: FlightMode) -> Option<(u32, &'static str, &'static str)> {
+    let (name, description) = match mode {
+        FlightMode::Manual => ("manual", "Manual"),
+        FlightMode::Altitude => ("altctl", "Altitude"),
+        FlightMode::Position => ("posctl", "Position"),
+        FlightMode::Mission => ("mission", "Mission"),
+        FlightMode::Hold => ("loiter", "Hold"),
+        FlightMode::ReturnToLaunch => ("rtl", "Return"),
+        FlightMode::Acro => ("acro", "Acro"),
+        FlightMode::Offboard => ("offboard", "Offboard"),
+        FlightMode::Stabilized => ("stab", "Stabilized"),
+        FlightMode::Takeoff => ("takeoff", "Takeoff"),
+        FlightMode::Land => ("land", "Land"),
+        FlightMode::FollowTarget => ("follow_target", "Follow Target"),
+        FlightMode::Orbit => ("orbit", "Orbit"),
+        FlightMode::Descend => return None,
+    };
+    Some((u32::from(mode.nav_state()), name, description))
 }
 
-/// `modes` as a mode-group mask (bit = [`nav_state`]).
+/// `modes` as a mode-group mask (bit = the mode's `nav_state`, [`group`]).
 fn group_mask(modes: ModeSet) -> u32 {
-    modes.iter().filter_map(nav_state).fold(0, |m, s| m | 1 << s)
-}
-
-/// PX4's name and description of the mode group with bit `state`.
-fn group_name(state: u32) -> (&'static str, &'static str) {
-    match state {
-        0 => ("manual", "Manual"),
-        1 => ("altctl", "Altitude"),
-        2 => ("posctl", "Position"),
-        3 => ("mission", "Mission"),
-        4 => ("loiter", "Hold"),
-        5 => ("rtl", "Return"),
-        10 => ("acro", "Acro"),
-        14 => ("offboard", "Offboard"),
-        15 => ("stab", "Stabilized"),
-        17 => ("takeoff", "Takeoff"),
-        18 => ("land", "Land"),
-        19 => ("follow_target", "Follow Target"),
-        _ => ("orbit", "Orbit"),
-    }
+    modes.iter().filter_map(group).fold(0, |m, (bit, ..)| m | 1 << bit)
 }
 
 /// PX4's health component bit, name and label of `c`.
@@ -316,6 +314,8 @@ pub struct Reporter {
     last: Option<(HealthReport, f64)>,
     /// When the checks run next [s].
     next_check_s: f64,
+    /// The failsafe last said (cause, action), while one is in force.
+    failsafe_said: Option<(String, &'static str)>,
 }
 
 impl Default for Reporter {
@@ -324,6 +324,7 @@ impl Default for Reporter {
             next_sequence: 0,
             last: None,
             next_check_s: f64::NEG_INFINITY,
+            failsafe_said: None,
         }
     }
 }
@@ -357,8 +358,21 @@ impl Reporter {
         events
     }
 
+    /// The failsafe in force at `now_s` [s] (its cause and the action it
+    /// triggered, as announced; `None`: none): its event if it was not said
+    /// yet, a new cause or a new action for it ([`failsafe_event`]).
+    pub fn failsafe(&mut self, now_s: f64, in_force: Option<(&str, &'static str)>) -> Option<EVENT_DATA> {
+        let said = self.failsafe_said.as_ref().map(|(c, a)| (c.as_str(), *a));
+        if in_force == said {
+            return None;
+        }
+        self.failsafe_said = in_force.map(|(c, a)| (c.to_owned(), a));
+        let (cause, action) = in_force?;
+        Some(self.stamp(now_s, failsafe_event(cause, action)))
+    }
+
     /// `p` with the next sequence number and the time `now_s` [s].
-    pub fn stamp(&mut self, now_s: f64, p: Pending) -> EVENT_DATA {
+    fn stamp(&mut self, now_s: f64, p: Pending) -> EVENT_DATA {
         let sequence = self.next_sequence;
         self.next_sequence = sequence.wrapping_add(1);
         EVENT_DATA {
@@ -484,11 +498,12 @@ pub fn events_json() -> &'static [u8] {
         let mut groups = Map::new();
         let mut group_entries = Map::new();
         for mode in FlightMode::ALL {
-            let Some(state) = nav_state(mode) else { continue };
-            groups.insert(state.to_string(), json!([convert::custom_mode(mode)]));
-            let (name, description) = group_name(state);
+            let Some((bit, name, description)) = group(mode) else {
+                continue;
+            };
+            groups.insert(bit.to_string(), json!([convert::custom_mode(mode)]));
             group_entries.insert(
-                (1u32 << state).to_string(),
+                (1u32 << bit).to_string(),
                 json!({ "name": name, "description": description }),
             );
         }

@@ -200,3 +200,28 @@ fn a_failsafe_is_an_event_in_the_words_of_its_status_text() {
         "Land"
     );
 }
+
+#[test]
+fn a_failsafe_is_said_once_for_each_cause_and_action() {
+    let mut r = Reporter::default();
+    assert!(r.failsafe(0.0, None).is_none(), "none in force");
+    let first = r
+        .failsafe(1.0, Some(("battery critical", "Return")))
+        .expect("a new failsafe");
+    assert_eq!((first.sequence, first.event_time_boot_ms), (0, 1000));
+    assert!(
+        r.failsafe(1.1, Some(("battery critical", "Return"))).is_none(),
+        "said already"
+    );
+    let again = r
+        .failsafe(2.0, Some(("battery critical", "Descend")))
+        .expect("a new action for it");
+    assert_eq!(again.arguments, failsafe_event("battery critical", "Descend").arguments);
+    assert!(r.failsafe(3.0, None).is_none(), "an ended failsafe says nothing");
+    assert_eq!(
+        r.failsafe(4.0, Some(("battery critical", "Descend")))
+            .map(|e| e.sequence),
+        Some(2),
+        "a new one"
+    );
+}

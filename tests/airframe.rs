@@ -357,6 +357,13 @@ fn malformed_airframes_get_named_errors() {
         ("not-toml.toml", "not-toml.toml:2", ""),
         ("negative-aero.toml", "aero.k_d", "must be a finite number >= 0"),
         ("unknown-aero-key.toml", "c_d", "unknown field"),
+        ("motor-repeated.toml", "rotors[3].motor", "motor 4 is rotors[2] already"),
+        ("motor-out-of-range.toml", "rotors[4].motor", "from 1 to 4, got 5"),
+        (
+            "motor-partial.toml",
+            "rotors[2].motor",
+            "missing: rotors[1] gives its motor number",
+        ),
     ];
     for (file, field, problem) in cases {
         let path = format!("{dir}/{file}");
@@ -418,5 +425,39 @@ fn an_airframe_with_a_bad_gain_is_refused_where_it_would_fly() {
             err.contains("bad-gain.toml") && err.contains("kp_n_per_m[1]") && !err.contains("panicked"),
             "{args:?}: {err}"
         );
+    }
+}
+
+/// The shipped airframes number their motors as PX4 numbers the same
+/// places (output Motor N, `CA_ROTOR{N-1}`): quad-X 1 front right, 2 rear
+/// left, 3 front left, 4 rear right; hexa-X 1 right, 2 left, 3 front left,
+/// 4 rear right, 5 front right, 6 rear left; the report's octocopter, which
+/// PX4 has not, in its file's order.
+#[test]
+fn shipped_airframes_number_their_motors_as_px4() {
+    let quad_x = [45.0, 225.0, 315.0, 135.0];
+    let hexa_x = [90.0, 270.0, 330.0, 150.0, 30.0, 210.0];
+    let octo: Vec<f64> = (0..8).map(|i| f64::from(i) * 45.0).collect();
+    for (name, angles) in [
+        ("quad", &quad_x[..]),
+        ("fsr-quad", &quad_x[..]),
+        ("hexa", &hexa_x[..]),
+        ("hexa-ppnnpn", &hexa_x[..]),
+        ("octo", &octo[..]),
+    ] {
+        let af = Airframe::load(name).unwrap();
+        assert_eq!(af.rotor_count(), angles.len(), "{name}");
+        for (k, want) in angles.iter().enumerate() {
+            let motor = k + 1;
+            let rotor = af
+                .rotor_of_motor(motor)
+                .unwrap_or_else(|| panic!("{name}: no motor {motor}"));
+            assert_eq!(af.motor_of_rotor(rotor), motor);
+            let got = af.rotors[rotor].angle_rad.to_degrees().rem_euclid(360.0);
+            assert!(
+                (got - want).abs() < 1e-9,
+                "{name} motor {motor}: at {got} deg, PX4's at {want}"
+            );
+        }
     }
 }

@@ -77,15 +77,16 @@ fn failure_injection_is_denied_while_sys_failure_en_is_0() {
 
 /// GIVEN a hovering quad
 /// WHEN motor 2 is switched off, then made WRONG (SIM_MOT_WRONG_FR = 0.25), then OK
-/// THEN its ESC reads no speed, then half the others' (a quarter of the thrust
-/// is half the speed), then the commanded speed again; each announced.
+/// THEN the rotor PX4's quad-X numbers 2, the rear left (the file's rotor 3),
+/// is hit: its ESC reads no speed, then half the others' (a quarter of the
+/// thrust is half the speed), then the commanded speed again; each announced.
 #[test]
 fn motor_off_wrong_and_ok_reach_the_rotor() {
     let mut v = vehicle("quad", &[]);
     airborne(&mut v);
     v.texts();
     assert_eq!(inject(&mut v, MOTOR, OFF, 2), CommandOutcome::Accepted);
-    assert_eq!(faults(&v).rotors[1], RotorHealth::Off);
+    assert_eq!(faults(&v).rotors[2], RotorHealth::Off);
     assert_eq!(
         v.texts(),
         vec![StatusText {
@@ -95,12 +96,12 @@ fn motor_off_wrong_and_ok_reach_the_rotor() {
     );
     v.run(0.3);
     let esc = v.readings().rotor_speeds_rad_s;
-    assert!(esc[1] < 1.0, "dead rotor spins at {}", esc[1]);
-    assert!(esc[0] > 100.0 && esc[2] > 100.0 && esc[3] > 100.0, "{esc:?}");
+    assert!(esc[2] < 1.0, "dead rotor spins at {}", esc[2]);
+    assert!(esc[0] > 100.0 && esc[1] > 100.0 && esc[3] > 100.0, "{esc:?}");
 
     v.set_param("SIM_MOT_WRONG_FR", ParamValue::Real32(0.25));
     assert_eq!(inject(&mut v, MOTOR, WRONG, 2), CommandOutcome::Accepted);
-    assert_eq!(faults(&v).rotors[1], RotorHealth::Degraded { thrust_fraction: 0.25 });
+    assert_eq!(faults(&v).rotors[2], RotorHealth::Degraded { thrust_fraction: 0.25 });
     // the flight stack has said its own piece meanwhile (the rotor monitor's verdict)
     let said = v.texts();
     assert!(
@@ -446,7 +447,8 @@ fn inject_failure_maps_without_the_autopilot_gate() {
         v.core_mut().inject_failure(0, inj(MOTOR, OFF, 4)),
         CommandOutcome::Accepted
     );
-    assert_eq!(faults(&v).rotors[3], RotorHealth::Off);
+    // PX4's motor 4 of a quad-X: the rear right, the file's rotor 2
+    assert_eq!(faults(&v).rotors[1], RotorHealth::Off);
     assert_eq!(
         v.core_mut().inject_failure(0, inj(GPS, 3, 0)),
         CommandOutcome::Unsupported

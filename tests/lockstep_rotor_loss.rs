@@ -217,22 +217,24 @@ fn hover_loss(airframe: &str, rotor: usize, action: Action) -> Figures {
         rotor + 1,
         v.pilot().rotor_status()
     );
-    // the motor outputs a client sees (ACTUATOR_OUTPUT_STATUS): armed, the
-    // failed rotor stopped and every other commanded; disarmed, all stopped
+    // the motor outputs a client sees (ACTUATOR_OUTPUT_STATUS), by motor
+    // number: armed, the failed rotor's motor stopped and every other
+    // commanded; disarmed, all stopped
     let out = t.rotor_outputs;
     assert_eq!(out.count, v.pilot().rotor_status().len());
+    let motor = Airframe::load(airframe).unwrap().motor_of_rotor(rotor);
     for (i, c) in out.commands.iter().enumerate() {
-        let running = t.armed && i < out.count && i != rotor;
+        let running = t.armed && i < out.count && i + 1 != motor;
         assert_eq!(
             c.is_some(),
             running,
-            "{airframe} rotor {} lost, rotor {}: {c:?}",
+            "{airframe} rotor {} (motor {motor}) lost, motor {}: {c:?}",
             rotor + 1,
             i + 1
         );
         assert!(c.is_none_or(|u| (0.0..=1.0).contains(&u)), "{c:?}");
     }
-    let failed = format!("Motor {} failed", rotor + 1);
+    let failed = format!("Motor {motor} failed");
     assert!(
         f.texts
             .iter()
@@ -532,10 +534,17 @@ fn a_half_thrust_rotor_is_flagged_degraded_with_its_fraction_and_flown_on() {
         assert!(f.detect_s.unwrap() <= DETECT_MAX_S);
         assert!(f.max_error_m < ERROR_MAX_M, "{f:?}");
         assert!(matches!(v.pilot().rotor_allocation(), RotorAllocation::Reduced { .. }));
+        // said by its motor number (PX4's: the hexa-X's motor 4 is its rotor 3)
+        let degraded = format!(
+            "Motor {} degraded: 5",
+            Airframe::load(airframe).unwrap().motor_of_rotor(2)
+        );
         assert!(
             f.texts
                 .iter()
-                .any(|s| s.severity == Severity::Warning && s.text.starts_with("Motor 3 degraded: 5"))
+                .any(|s| s.severity == Severity::Warning && s.text.starts_with(&degraded)),
+            "{:?}",
+            f.texts
         );
         // repaired: taken back, the full allocation again
         let f = fly_with_fault(
@@ -549,7 +558,11 @@ fn a_half_thrust_rotor_is_flagged_degraded_with_its_fraction_and_flown_on() {
         );
         assert_eq!(v.telemetry().degraded_rotors, 0);
         assert_eq!(*v.pilot().rotor_allocation(), RotorAllocation::Full);
-        assert!(f.texts.iter().any(|s| s.text == "Motor 3 recovered"), "{:?}", f.texts);
+        let recovered = format!(
+            "Motor {} recovered",
+            Airframe::load(airframe).unwrap().motor_of_rotor(2)
+        );
+        assert!(f.texts.iter().any(|s| s.text == recovered), "{:?}", f.texts);
     }
 }
 

@@ -91,6 +91,8 @@ struct FileRotorGeometry {
     angle_deg: f64,
     arm_m: f64,
     spin: Spin,
+    #[serde(default)]
+    motor: Option<usize>,
 }
 
 #[derive(Deserialize)]
@@ -269,6 +271,7 @@ fn validate(raw: FileAirframe, file: &str) -> Result<Airframe, FileError> {
             angle_rad: g.angle_deg.to_radians(),
             arm_m,
             spin: g.spin,
+            motor: motor_number(&c, &raw.rotors, i)?,
         });
     }
     for i in 0..n {
@@ -358,4 +361,27 @@ fn validate(raw: FileAirframe, file: &str) -> Result<Airframe, FileError> {
         }
     }
     Ok(airframe)
+}
+
+/// The motor number of `rotors[i]` (from 0): its `motor`, which every rotor
+/// gives or none does (then its place, from 1), each of 1 to n once.
+fn motor_number(c: &Checker<'_>, rotors: &[FileRotorGeometry], i: usize) -> Result<usize, FileError> {
+    let n = rotors.len();
+    let field = format!("rotors[{}].motor", i + 1);
+    let Some(m) = rotors[i].motor else {
+        return match rotors.iter().position(|r| r.motor.is_some()) {
+            Some(j) => Err(c.fail(
+                field,
+                format!("missing: rotors[{}] gives its motor number, so every rotor must", j + 1),
+            )),
+            None => Ok(i + 1),
+        };
+    };
+    if !(1..=n).contains(&m) {
+        return Err(c.fail(field, format!("must be a motor number from 1 to {n}, got {m}")));
+    }
+    if let Some(j) = rotors[..i].iter().position(|r| r.motor == Some(m)) {
+        return Err(c.fail(field, format!("motor {m} is rotors[{}] already", j + 1)));
+    }
+    Ok(m)
 }

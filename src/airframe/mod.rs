@@ -60,7 +60,7 @@ impl Spin {
     }
 }
 
-/// Where one rotor sits and which way it spins.
+/// Where one rotor sits, which way it spins, and the number a client calls it by.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct RotorGeometry {
     /// Arm angle `a_i` [rad] from `x_b` towards `y_b`.
@@ -69,6 +69,12 @@ pub struct RotorGeometry {
     pub arm_m: f64,
     /// Spin direction.
     pub spin: Spin,
+    /// Its motor number, from 1: the number PX4 gives the motor in this
+    /// place on its airframe of the same layout (output function Motor N,
+    /// `CA_ROTOR{N-1}`), which MAV_CMD_INJECT_FAILURE's instance, the
+    /// channels of ACTUATOR_OUTPUT_STATUS and the motor STATUSTEXTs count
+    /// by. By default the rotor's place in the airframe file.
+    pub motor: usize,
 }
 
 impl RotorGeometry {
@@ -285,6 +291,18 @@ impl Airframe {
     #[must_use]
     pub fn rotor_count(&self) -> usize {
         self.rotors.len()
+    }
+
+    /// The rotor (from 0) whose motor number is `motor` ([`RotorGeometry::motor`]), if any.
+    #[must_use]
+    pub fn rotor_of_motor(&self, motor: usize) -> Option<usize> {
+        self.rotors.iter().position(|r| r.motor == motor)
+    }
+
+    /// The motor number of rotor `i` (from 0; [`RotorGeometry::motor`]), or `i + 1` past the rotors.
+    #[must_use]
+    pub fn motor_of_rotor(&self, i: usize) -> usize {
+        self.rotors.get(i).map_or(i + 1, |r| r.motor)
     }
 
     /// The 4 x n effectiveness matrix `B` of this airframe (doc section 3).

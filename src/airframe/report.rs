@@ -58,6 +58,9 @@ pub struct AirframeReport {
     pub hover_margins: Option<TorqueMargins>,
     /// One entry per single-rotor failure.
     pub rotor_failure: Vec<FailureAnalysis>,
+    /// Each rotor's motor number, from rotor 1: the number MAVLink clients
+    /// give it ([`super::RotorGeometry::motor`], PX4's numbering).
+    pub motors: Vec<usize>,
 }
 
 impl AirframeReport {
@@ -98,6 +101,7 @@ impl AirframeReport {
             hover,
             hover_margins,
             rotor_failure: super::analyse_failures(a),
+            motors: a.rotors.iter().map(|r| r.motor).collect(),
         }
     }
 
@@ -115,6 +119,13 @@ impl AirframeReport {
             },
             self.mass_kg,
             self.rotor_count
+        );
+        let motors: Vec<String> = self.motors.iter().map(ToString::to_string).collect();
+        let _ = writeln!(
+            s,
+            "motor numbers of rotors 1 to {} (as MAVLink clients count them, PX4's): {}",
+            self.rotor_count,
+            motors.join(", ")
         );
         let _ = writeln!(
             s,
@@ -163,7 +174,8 @@ impl AirframeReport {
                 }
                 HoverVerdict::Infeasible => "hover infeasible within the rotor speed limits".to_string(),
             };
-            let _ = write!(s, "  rotor {:>2}: rank {}, {what}", f.rotor, f.rank);
+            let motor = self.motors.get(f.rotor.wrapping_sub(1)).copied().unwrap_or(f.rotor);
+            let _ = write!(s, "  rotor {:>2} (motor {motor}): rank {}, {what}", f.rotor, f.rank);
             if let Some(m) = &f.margins {
                 let _ = write!(s, "; margins {}", margins_text(m));
             }

@@ -445,7 +445,7 @@ impl Autopilot {
         };
         let mut worse = false;
         for e in events {
-            let label = e.index + 1;
+            let label = self.airframe.motor_of_rotor(e.index);
             match e.to {
                 RotorStatus::Failed => {
                     worse = true;
@@ -658,7 +658,8 @@ impl Autopilot {
         }
     }
 
-    /// The latest step's rotor commands as motor outputs ([`RotorOutputs`]):
+    /// The latest step's rotor commands as motor outputs ([`RotorOutputs`]),
+    /// by motor number ([`crate::airframe::RotorGeometry::motor`]):
     /// each commanded speed placed between idle and full speed; every rotor
     /// stopped while the actuators get no speeds (disarmed, rotors stopped),
     /// and a rotor the allocation has taken out (thrust fraction 0, flagged
@@ -682,10 +683,12 @@ impl Autopilot {
             | RotorAllocation::RelaxedHover { gains } => gains.get(i).is_some_and(|g| *g <= 0.0),
         };
         let (lo, hi) = (self.airframe.rotor.speed_min_rad_s, self.airframe.rotor.speed_max_rad_s);
-        for (i, slot) in out.commands.iter_mut().enumerate().take(n) {
+        for i in 0..n {
             let u = (w[i] - lo) / (hi - lo);
-            if !removed(i) && u.is_finite() {
-                *slot = Some(u.clamp(0.0, 1.0));
+            // channel N - 1 is motor N
+            let slot = self.airframe.motor_of_rotor(i) - 1;
+            if !removed(i) && u.is_finite() && slot < n {
+                out.commands[slot] = Some(u.clamp(0.0, 1.0));
             }
         }
         out

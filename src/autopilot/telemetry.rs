@@ -137,7 +137,8 @@ pub struct RotorOutputs {
     /// Rotors the vehicle has (0 on an ideal-actuation airframe, whose
     /// thrust and torque act directly: no motor outputs to report).
     pub count: usize,
-    /// Per rotor from rotor 1 (entries past `count` are `None`): `Some(u)`
+    /// Per motor from motor 1, by motor number
+    /// ([`crate::airframe::RotorGeometry::motor`]; entries past `count` are `None`): `Some(u)`
     /// running, with `u = (w_cmd - w_min) / (w_max - w_min)` in `[0, 1]`
     /// the commanded speed's place between idle and full speed
     /// (dimensionless); `None` stopped.

@@ -64,12 +64,15 @@ pub struct FailureInjection {
 
 /// What an injection does to the world: the faults, in order, and the
 /// announcement; or the refusal (UNSUPPORTED, DENIED) when it cannot be done.
+/// A motor's instance is its motor number, `motors[i]` that of rotor `i`
+/// (PX4's numbering, [`crate::airframe::RotorGeometry::motor`]).
 ///
 /// # Errors
 /// The outcome to answer instead; nothing is to change then.
 pub fn failure_faults(
     inj: FailureInjection,
     active: &ActiveFaults,
+    motors: &[usize],
     settings: FaultSettings,
 ) -> Result<(Vec<Fault>, StatusText), CommandOutcome> {
     use self::{
@@ -93,8 +96,10 @@ pub fn failure_faults(
             let rotors: Vec<usize> = match usize::from(inj.instance) {
                 _ if n == 0 => return Err(CommandOutcome::Denied("no motor can fail: ideal actuation")),
                 0 => (0..n).collect(),
-                k if k <= n => vec![k - 1],
-                _ => return Err(CommandOutcome::Denied("no such motor")),
+                k => match rotor_of_motor(motors, k) {
+                    Some(r) if r < n => vec![r],
+                    _ => return Err(CommandOutcome::Denied("no such motor")),
+                },
             };
             let f = settings.motor_thrust_fraction;
             let (health, what) = match inj.kind {
@@ -106,7 +111,7 @@ pub fn failure_faults(
                 ),
             };
             let which = match rotors.as_slice() {
-                [r] => format!("motor {}", r + 1),
+                [_] => format!("motor {}", inj.instance),
                 _ => "motors".to_string(),
             };
             let severity = if inj.kind == TYPE_OK {
@@ -180,6 +185,12 @@ pub fn failure_faults(
     }
 }
 
+/// The rotor (from 0) whose motor number in `motors` is `motor`.
+#[must_use]
+pub fn rotor_of_motor(motors: &[usize], motor: usize) -> Option<usize> {
+    motors.iter().position(|m| *m == motor)
+}
+
 impl<P: Pilot> Lockstep<P> {
     /// Inject a failure into vehicle `i`'s world at the current instant
     /// (module doc: the supported units and types), without asking its
@@ -187,7 +198,12 @@ impl<P: Pilot> Lockstep<P> {
     /// UNSUPPORTED or DENIED (nothing changed). [`Lockstep::command`] calls
     /// this once the autopilot allows the injection (`SYS_FAILURE_EN`).
     pub fn inject_failure(&mut self, i: usize, inj: FailureInjection) -> CommandOutcome {
-        let (faults, text) = match failure_faults(inj, self.world.faults(i), self.world.fault_settings(i)) {
+        let (faults, text) = match failure_faults(
+            inj,
+            self.world.faults(i),
+            self.world.motors(i),
+            self.world.fault_settings(i),
+        ) {
             Ok(x) => x,
             Err(outcome) => return outcome,
         };

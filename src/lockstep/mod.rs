@@ -591,7 +591,7 @@ impl Lockstep<Autopilot> {
                     // the ESCs report healthy again (PX4's injector cleared)
                     let rotors: Vec<usize> = match usize::from(instance) {
                         0 => (0..crate::signals::MAX_ROTORS).collect(),
-                        k => vec![k - 1],
+                        k => failure::rotor_of_motor(self.world.motors(i), k).into_iter().collect(),
                     };
                     self.pilots[i].esc_reports_healthy(&rotors, &m);
                 }

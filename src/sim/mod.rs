@@ -238,6 +238,9 @@ struct Body {
     /// The air at this vehicle (its turbulence on its own stream).
     wind: Wind,
     faults: ActiveFaults,
+    /// Each rotor's motor number ([`crate::airframe::RotorGeometry::motor`]),
+    /// from rotor 1: the numbers failures are injected by.
+    motors: Vec<usize>,
     /// What an injected WRONG fault does (`SIM_*_WRONG_*`).
     fault_settings: FaultSettings,
     /// The navigation solution at the current instant before the injected
@@ -478,6 +481,7 @@ impl World {
             disturbance: DisturbanceSource::Constant(ExternalWrench::default()),
             wind: Wind::new(sensors.seed),
             faults: ActiveFaults::none(if airframe.actuation == Actuation::Rotors { n } else { 0 }),
+            motors: airframe.rotors.iter().map(|r| r.motor).collect(),
             fault_settings: FaultSettings::default(),
             nav: Measurement::default(),
             reading: SensorReadings {
@@ -526,6 +530,7 @@ impl World {
         b.battery = Battery::new(b.disk_area_m2, DEFAULT_CELLS, DEFAULT_CAPACITY_MAH, 0.0);
         b.disturbance = DisturbanceSource::Constant(ExternalWrench::default());
         b.faults = ActiveFaults::none(b.faults.rotors.len());
+        b.motors = airframe.rotors.iter().map(|r| r.motor).collect();
         b.measured = false;
     }
 
@@ -793,6 +798,13 @@ impl World {
     #[must_use]
     pub fn faults(&self, i: usize) -> &ActiveFaults {
         &self.bodies[i].faults
+    }
+
+    /// Vehicle `i`'s motor number of each rotor, from rotor 1
+    /// ([`crate::airframe::RotorGeometry::motor`]).
+    #[must_use]
+    pub fn motors(&self, i: usize) -> &[usize] {
+        &self.bodies[i].motors
     }
 
     /// The injected truth on vehicle `i` now (a schedule's values at this

@@ -16,7 +16,7 @@
 //! | `vehicle_global_position` | 5 Hz | navigation solution |
 //! | `vehicle_attitude_setpoint` | 20 Hz | the controller |
 //! | `trajectory_setpoint` | 5 Hz | the reference tracked (only while one is) |
-//! | `actuator_motors` | 10 Hz | rotor commands |
+//! | `actuator_motors` | 10 Hz | rotor commands, by motor number (PX4's) |
 //! | `battery_status` | 5 Hz | battery |
 //! | `vehicle_status` | 1 Hz and on change (arming, mode, `failsafe`) | commander |
 //! | `vehicle_land_detected` | 1 Hz and on change | land detector |
@@ -299,6 +299,9 @@ pub struct FlightUlog<W: Write> {
     /// The full-thrust rotor speed [rad/s] (`actuator_motors` = (w / w_max)^2).
     speed_max_rad_s: f64,
     rotor_count: usize,
+    /// Each rotor's motor number, from rotor 1: `actuator_motors.control[N - 1]`
+    /// is motor N, as on PX4 ([`crate::airframe::RotorGeometry::motor`]).
+    motors: Vec<usize>,
     /// What the status topics last logged.
     last: Option<Status>,
     /// Every parameter's value as last logged (by index).
@@ -349,6 +352,7 @@ impl<W: Write> FlightUlog<W> {
             every,
             speed_max_rad_s: airframe.rotor.speed_max_rad_s,
             rotor_count: airframe.rotor_count().min(MOTORS),
+            motors: airframe.rotors.iter().map(|r| r.motor).collect(),
             last: None,
             params: params.iter().map(|(_, v)| v).collect(),
             order: est_order(params),
@@ -504,9 +508,11 @@ impl<W: Write> FlightUlog<W> {
             match c.actuator {
                 ActuatorCommand::Stop => control[..self.rotor_count].fill(0.0),
                 ActuatorCommand::RotorSpeeds(w) => {
-                    for (u, w) in control.iter_mut().zip(w.iter()).take(self.rotor_count) {
+                    for (&motor, w) in self.motors.iter().zip(w.iter()).take(self.rotor_count) {
                         // thrust over full thrust: T = c_T w^2
-                        *u = (w / self.speed_max_rad_s).powi(2).clamp(0.0, 1.0);
+                        if let Some(u) = control.get_mut(motor - 1) {
+                            *u = (w / self.speed_max_rad_s).powi(2).clamp(0.0, 1.0);
+                        }
                     }
                 }
                 // a wrench acts directly (ideal actuation): no rotor commands

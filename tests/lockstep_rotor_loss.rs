@@ -463,29 +463,28 @@ fn with_the_land_action_every_lost_rotor_ends_upright_on_the_ground_and_disarmed
     }
 }
 
+/// GIVEN hexa-ppnnpn hovering, `COM_ACT_FAIL_ACT` 0
+/// WHEN rotor 5 or 6 dies (no hover with zero yaw torque within the
+/// others' speed range)
+/// THEN it flies on with its heading free, holding its position, as PX4
+/// flies on with what its allocator gives; with `COM_ACT_FAIL_ACT` 2 it lands upright.
 #[test]
-fn an_unrecoverable_hexa_rotor_still_lands_at_once() {
-    // rotors 5 and 6 of PPNNPN leave no hover in the speed limits: land, best effort
-    let mut v = vehicle("hexa-ppnnpn", Action::Continue);
-    take_off(&mut v);
-    let p0 = v.telemetry().position_ned;
-    let f = fly_with_fault(
-        &mut v,
-        4,
-        RotorHealth::Off,
-        8.0,
-        |_, p| Some((p - p0).norm()),
-        |_| {},
-        Some(40.0),
-    );
-    f.print("hexa-ppnnpn hover, rotor 5 off (infeasible)");
-    assert!(f.disarmed && f.touchdown_tilt_deg.unwrap() < TILT_MAX_DEG, "{f:?}");
-    assert!(f.detect_s.unwrap() <= DETECT_MAX_S);
-    assert!(
-        f.texts.iter().any(|s| s.severity == Severity::Emergency),
-        "{:?}",
-        f.texts
-    );
+fn an_unrecoverable_ppnnpn_rotor_is_flown_on_with_the_heading_free() {
+    for j in [4, 5] {
+        let f = hover_loss("hexa-ppnnpn", j, Action::Continue);
+        f.print(&format!("hexa-ppnnpn hover, rotor {} off (infeasible)", j + 1));
+        assert!(f.detect_s.unwrap() <= DETECT_MAX_S, "{f:?}");
+        assert!(
+            f.texts.iter().any(|s| s.text.ends_with("heading free")),
+            "{:?}",
+            f.texts
+        );
+        assert!(!f.disarmed && f.max_error_m < ERROR_MAX_M, "{f:?}");
+        assert!(f.max_yaw_rate_deg_s < 360.0, "{f:?}");
+        let f = hover_loss("hexa-ppnnpn", j, Action::Land);
+        f.print(&format!("hexa-ppnnpn hover, rotor {} off (infeasible), land", j + 1));
+        assert!(f.disarmed && f.touchdown_tilt_deg.unwrap() < TILT_MAX_DEG, "{f:?}");
+    }
 }
 
 #[test]
@@ -767,11 +766,22 @@ fn rotor_loss_table() {
     }
 }
 
+/// GIVEN the stock hexa (PNPNPN) hovering, `COM_ACT_FAIL_ACT` 0 (PX4's default)
+/// WHEN any one rotor dies: rotors 1, 3, 4, 6 leave hover with zero yaw
+/// torque on the edge of what the others give, 2 and 5 beyond it (doc
+/// section 3)
+/// THEN the heading is given up and the yaw gets what roll, pitch and thrust
+/// leave (`YawPriority::Last`): it flies on as PX4 does, a warning and no
+/// landing, holding its position within 0.25 m and its yaw rate bounded by
+/// the rotors' drag; with `COM_ACT_FAIL_ACT` 2 it lands upright below where it was.
 #[test]
-fn the_stock_hexa_gives_up_its_heading_on_the_boundary_and_lands_when_hover_is_infeasible() {
-    // PNPNPN: rotors 1, 3, 4, 6 leave hover on the boundary (yaw and one of
-    // roll/pitch without margin), 2 and 5 leave none (doc section 3)
+fn the_stock_hexa_flies_on_with_its_heading_free_after_losing_any_rotor() {
     for (j, verdict) in rotors("hexa") {
+        assert!(
+            matches!(verdict, HoverVerdict::Boundary | HoverVerdict::Infeasible),
+            "stock hexa rotor {}: {verdict:?}",
+            j + 1
+        );
         let mut v = vehicle("hexa", Action::Continue);
         take_off(&mut v);
         let p0 = v.telemetry().position_ned;
@@ -779,50 +789,52 @@ fn the_stock_hexa_gives_up_its_heading_on_the_boundary_and_lands_when_hover_is_i
             &mut v,
             j,
             RotorHealth::Off,
-            8.0,
+            40.0,
             |_, p| Some((p - p0).norm()),
             |_| {},
-            Some(40.0),
+            None,
         );
         f.print(&format!("hexa hover, rotor {} off ({verdict:?})", j + 1));
         assert!(f.detect_s.unwrap() <= DETECT_MAX_S, "{f:?}");
-        match verdict {
-            HoverVerdict::Boundary | HoverVerdict::Infeasible => {
-                assert!(matches!(v.pilot().rotor_allocation(), RotorAllocation::LostYaw { .. }));
-                assert!(
-                    f.texts.iter().any(|s| s.text.ends_with("heading free")),
-                    "{:?}",
-                    f.texts
-                );
-                assert!(
-                    f.texts.iter().any(|s| s.severity == Severity::Emergency),
-                    "{:?}",
-                    f.texts
-                );
-            }
-            other => panic!("stock hexa rotor {}: {other:?}", j + 1),
-        }
-        assert!(f.disarmed && f.touchdown_tilt_deg.unwrap() < TILT_MAX_DEG, "{f:?}");
-        // held position while the spin grew: the landing point is below where it was
-        assert!(v.telemetry().position_ned.xy().metric_distance(&p0.xy()) < 1.0, "{f:?}");
+        assert!(matches!(v.pilot().rotor_allocation(), RotorAllocation::LostYaw { .. }));
+        assert!(
+            f.texts.iter().any(|s| s.text.ends_with("heading free")),
+            "{:?}",
+            f.texts
+        );
+        assert!(
+            f.texts.iter().all(|s| s.severity != Severity::Emergency),
+            "{:?}",
+            f.texts
+        );
+        assert_eq!(v.mode(), FlightMode::Hold, "{:?}", f.texts);
+        assert!(!f.disarmed && f.max_error_m < 0.25, "{f:?}");
+        assert!(f.max_tilt_deg < 15.0 && f.max_yaw_rate_deg_s < 360.0, "{f:?}");
     }
+    let mut v = vehicle("hexa", Action::Land);
+    take_off(&mut v);
+    let p0 = v.telemetry().position_ned;
+    let f = fly_with_fault(&mut v, 1, RotorHealth::Off, 8.0, |_, _| None, |_| {}, Some(40.0));
+    f.print("hexa hover, rotor 2 off, COM_ACT_FAIL_ACT 2");
+    assert!(f.disarmed && f.touchdown_tilt_deg.unwrap() < TILT_MAX_DEG, "{f:?}");
+    assert!(v.telemetry().position_ned.xy().metric_distance(&p0.xy()) < 1.0, "{f:?}");
 }
 
-/// GIVEN hexa-ppnnpn hovering at 40 m with a mission stored, losing its
-/// neighbouring rotors 1 and 2 one second apart: no hover holds its heading,
-/// so the rotor monitor lands it (the failsafe "rotor loss", Land)
+/// GIVEN hexa-ppnnpn hovering at 40 m with a mission stored and
+/// `COM_ACT_FAIL_ACT` 2, losing its neighbouring rotors 1 and 2 one second
+/// apart: the failsafe "rotor failure" lands it
 /// WHEN the position is lost and comes back during that landing, the pilot
 /// then switches to Mission, and the position is lost again for a second
 /// and comes back
-/// THEN the first loss is a Descend and a landing again, the rotor loss's
+/// THEN the first loss is a Descend and a landing again, the rotor failure's
 /// failsafe in force throughout; the switch is accepted and flown (PX4's user takeover: a Land
 /// failsafe allows a mode switch, `FailsafeBase::getSelectedAction`), but
 /// the position loss ends the takeover and the landing, whose cause (the
 /// dead rotors) is still there, is in force again: Descend while blind, Land
 /// when the position is back (not Hold), still a failsafe; it lands and disarms.
 #[test]
-fn a_mission_taken_over_from_a_rotor_loss_landing_lands_again_after_a_position_loss() {
-    let mut v = vehicle("hexa-ppnnpn", Action::Continue);
+fn a_mission_taken_over_from_a_rotor_failure_landing_lands_again_after_a_position_loss() {
+    let mut v = vehicle("hexa-ppnnpn", Action::Land);
     v.core_mut()
         .change_plans(
             0,
@@ -846,22 +858,27 @@ fn a_mission_taken_over_from_a_rotor_loss_landing_lands_again_after_a_position_l
     }
     let said = v.texts();
     assert!(
-        said.iter().any(|s| s.text == "Rotor loss: yaw uncontrollable, landing"),
+        said.iter()
+            .any(|s| s.text == "Failsafe: rotor failure, triggering Land"),
         "{said:?}"
     );
     assert_eq!(v.mode(), FlightMode::Land, "{said:?}");
-    let rotor_loss = |v: &Sitl| v.pilot().failsafe_in_force().is_some_and(|f| f.cause == "rotor loss");
-    assert!(rotor_loss(&v));
+    let in_failsafe = |v: &Sitl| {
+        v.pilot()
+            .failsafe_in_force()
+            .is_some_and(|f| f.cause == "rotor failure")
+    };
+    assert!(in_failsafe(&v));
 
-    // the position lost and back during the landing: still the rotor loss's landing
+    // the position lost and back during the landing: still the failsafe landing
     v.gps(false);
     v.run(0.5);
     assert_eq!(v.mode(), FlightMode::Descend);
-    assert!(rotor_loss(&v), "{:?}", v.pilot().failsafe_in_force());
+    assert!(in_failsafe(&v), "{:?}", v.pilot().failsafe_in_force());
     v.gps(true);
     v.run(0.5);
     assert_eq!(v.mode(), FlightMode::Land, "{:?}", v.texts());
-    assert!(rotor_loss(&v), "{:?}", v.pilot().failsafe_in_force());
+    assert!(in_failsafe(&v), "{:?}", v.pilot().failsafe_in_force());
 
     // the pilot takes over: accepted and flown
     assert_eq!(
@@ -879,10 +896,10 @@ fn a_mission_taken_over_from_a_rotor_loss_landing_lands_again_after_a_position_l
     v.run(1.0);
     let said = v.texts();
     assert_eq!(v.mode(), FlightMode::Descend, "{said:?}");
-    assert!(rotor_loss(&v), "{said:?}");
+    assert!(in_failsafe(&v), "{said:?}");
     assert!(
         said.iter()
-            .any(|s| s.severity == Severity::Critical && s.text == "Failsafe: rotor loss, triggering Descend"),
+            .any(|s| s.severity == Severity::Critical && s.text == "Failsafe: rotor failure, triggering Descend"),
         "{said:?}"
     );
 
@@ -891,8 +908,57 @@ fn a_mission_taken_over_from_a_rotor_loss_landing_lands_again_after_a_position_l
     v.run(1.0);
     let said = v.texts();
     assert_eq!(v.mode(), FlightMode::Land, "{said:?}");
-    assert!(rotor_loss(&v), "{said:?}");
+    assert!(in_failsafe(&v), "{said:?}");
     assert!(said.iter().any(|s| s.text == "GPS fix regained: landing"), "{said:?}");
     let landed = v.run_until(60.0, |t| !t.armed);
     assert!(landed.is_some(), "not landed and disarmed: {:?}", v.texts());
+}
+
+/// GIVEN the stock hexa hovering, `COM_ACT_FAIL_ACT` 0
+/// WHEN its motors 1 and 2 die one second apart (PX4's numbering: the right
+/// and left rotors, an opposite pair, as PX4's "Remove two motors" takes them)
+/// THEN the four left have rank 3 (roll and yaw torque move together), so
+/// the heading is given up with no yaw correction (`YawPriority::Dropped`),
+/// and it flies on: it holds its position within 0.5 m with no emergency and
+/// no landing, as PX4 flies on with what its allocator gives.
+#[test]
+fn the_stock_hexa_without_an_opposite_pair_flies_on() {
+    let af = Airframe::load("hexa").unwrap();
+    let mut v = vehicle("hexa", Action::Continue);
+    take_off(&mut v);
+    let p0 = v.telemetry().position_ned;
+    v.texts();
+    for motor in [1, 2] {
+        let rotor = af.rotor_of_motor(motor).unwrap();
+        v.inject(Fault::Rotor {
+            rotor,
+            health: RotorHealth::Off,
+        });
+        v.run(1.0);
+    }
+    let mut worst = 0.0f64;
+    for _ in 0..300 {
+        v.run(0.1);
+        worst = worst.max((v.telemetry().position_ned - p0).norm());
+    }
+    let said = v.texts();
+    println!("hexa without motors 1 and 2: largest position error {worst:.3} m; {said:?}");
+    assert!(
+        matches!(
+            v.pilot().rotor_allocation(),
+            RotorAllocation::LostYaw {
+                verdict: HoverVerdict::RankDeficient,
+                ..
+            }
+        ),
+        "{:?}",
+        v.pilot().rotor_allocation()
+    );
+    assert!(
+        said.iter().any(|s| s.text == "Motor 2 failed: heading free"),
+        "{said:?}"
+    );
+    assert!(said.iter().all(|s| s.severity != Severity::Emergency), "{said:?}");
+    assert!(v.armed() && v.mode() == FlightMode::Hold, "{said:?}");
+    assert!(worst < 0.5, "{worst}");
 }

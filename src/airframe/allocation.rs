@@ -12,6 +12,13 @@
 //!    pitch still come before thrust;
 //! 3. then the largest `lambda` in `[0, 1]` that keeps `+ lambda w_y` in bounds;
 //! 4. clamp; what was not delivered is reported.
+//!
+//! After rotor faults that leave hover with zero yaw torque on the edge of
+//! what the rotors can give ([`YawPriority::Last`]), steps 2 and 3 take roll,
+//! pitch and thrust from the inverse over `[u_T, tau_x, tau_y]` alone,
+//! `P_3`, whatever yaw torque that gives, and step 3 then corrects the yaw
+//! along the pure-yaw direction `y = B^+ e_4` of the four-row inverse:
+//! `w_y = y (tau_z - b_4^T w_base)`, `b_4^T` the yaw row of `B`.
 
 use nalgebra::{DMatrix, SMatrix, Vector3};
 
@@ -83,6 +90,28 @@ pub struct Allocator {
     delta_max_fraction: f64,
     /// Rotors the allocation uses; the others (failed) are held at idle, `w_min`.
     active: [bool; MAX_ROTORS],
+    /// With [`YawPriority::Last`], `P_3`: the inverse over `[u_T, tau_x,
+    /// tau_y]` that steps 2 and 3 desaturate from (module doc).
+    yaw_free: Option<SMatrix<f64, MAX_ROTORS, 3>>,
+}
+
+/// Where the yaw torque stands in an allocator built after rotor faults
+/// ([`Allocator::with_rotor_gains`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum YawPriority {
+    /// A row of the inverse like the others, desaturated last (the module
+    /// doc's steps): the intact vehicle's way.
+    Row,
+    /// Roll, pitch and thrust first, from the inverse over `[u_T, tau_x,
+    /// tau_y]`, whatever yaw torque that gives; then the yaw torque
+    /// corrected towards the request as far as the bounds allow (module
+    /// doc). For a hover whose zero yaw torque lies on the edge of what the
+    /// remaining rotors can give: roll and pitch keep their whole margin,
+    /// and the yaw gets what is left.
+    Last,
+    /// No yaw at all: the inverse over `[u_T, tau_x, tau_y]` only, its yaw
+    /// column zero (the remaining rotors have rank 3).
+    Dropped,
 }
 
 /// The result of one allocation.
@@ -113,7 +142,7 @@ impl Allocator {
     /// The rank of `B` when it is below 4 (no inverse), or when `n` is out of range.
     pub fn new(b: &DMatrix<f64>, w_min: f64, w_max: f64) -> Result<Self, usize> {
         // every rotor healthy: the fault allocator with all thrust fractions 1
-        Self::with_rotor_gains(b, w_min, w_max, &vec![1.0; b.ncols()], false)
+        Self::with_rotor_gains(b, w_min, w_max, &vec![1.0; b.ncols()], YawPriority::Row)
     }
 
     /// The allocator after rotor faults (`docs/model.md` sections 3
@@ -121,54 +150,90 @@ impl Allocator {
     /// `gains[i]` the rotor still gives (1 healthy, `0 < f < 1` degraded);
     /// a rotor with `gains[i] <= 0` (failed) is dropped: its column is deleted
     /// from the inverse, `B_f^+ = B_f^T (B_f B_f^T)^-1`, and it is commanded idle.
-    /// With `drop_yaw` the inverse is taken over the rows `[u_T, tau_x, tau_y]`
-    /// only (yaw given up: the rank-deficient case of a quad with a dead
-    /// rotor); the yaw column of `B^+` is then zero.
+    /// `yaw` says where the yaw torque stands: with [`YawPriority::Dropped`]
+    /// the inverse is over the rows `[u_T, tau_x, tau_y]` only (the
+    /// rank-deficient case of a quad with a dead rotor) and the yaw column
+    /// of `B^+` is zero; with [`YawPriority::Last`] `B^+` is the right
+    /// inverse `[P_3 - y b_4^T P_3, y]` (exact where nothing saturates) and
+    /// desaturation starts from `P_3` (module doc).
     ///
     /// # Errors
-    /// The rank of the rows kept when it is below their number (no inverse), or
-    /// when the shapes are wrong.
+    /// The rank of the rows the inverse needs when it is below their number
+    /// (no inverse), or when the shapes are wrong.
     pub fn with_rotor_gains(
         b: &DMatrix<f64>,
         w_min: f64,
         w_max: f64,
         gains: &[f64],
-        drop_yaw: bool,
+        yaw: YawPriority,
     ) -> Result<Self, usize> {
         let n = b.ncols();
         if b.nrows() != 4 || n > MAX_ROTORS || gains.len() != n {
             return Err(rank(b));
         }
         let kept: Vec<usize> = (0..n).filter(|i| gains[*i] > 0.0).collect();
-        let rows = if drop_yaw { 3 } else { 4 };
-        let bf = DMatrix::from_fn(rows, kept.len(), |r, j| b[(r, kept[j])] * gains[kept[j]]);
-        let r = rank(&bf);
-        if r < rows {
-            return Err(r);
-        }
-        let inv = (&bf * bf.transpose()).try_inverse().ok_or(r)?;
-        let pinv = bf.transpose() * inv;
+        // the minimum-norm inverse of the first `rows` rows over the kept columns
+        let inverse = |rows: usize| -> Result<DMatrix<f64>, usize> {
+            let bf = DMatrix::from_fn(rows, kept.len(), |r, j| b[(r, kept[j])] * gains[kept[j]]);
+            let r = rank(&bf);
+            if r < rows {
+                return Err(r);
+            }
+            let inv = (&bf * bf.transpose()).try_inverse().ok_or(r)?;
+            Ok(bf.transpose() * inv)
+        };
         let mut bp = SMatrix::<f64, 4, MAX_ROTORS>::zeros();
-        let mut pp = SMatrix::<f64, MAX_ROTORS, 4>::zeros();
         let mut active = [false; MAX_ROTORS];
-        for (j, &i) in kept.iter().enumerate() {
+        for &i in &kept {
             active[i] = true;
             for k in 0..4 {
                 bp[(k, i)] = b[(k, i)] * gains[i];
             }
-            for k in 0..rows {
-                pp[(i, k)] = pinv[(j, k)];
-            }
         }
+        // a kept rotor's rows of a pseudo-inverse, zero-padded
+        let padded = |pinv: &DMatrix<f64>| {
+            let mut pp = SMatrix::<f64, MAX_ROTORS, 4>::zeros();
+            for (j, &i) in kept.iter().enumerate() {
+                for k in 0..pinv.ncols() {
+                    pp[(i, k)] = pinv[(j, k)];
+                }
+            }
+            pp
+        };
+        let (b_pinv, yaw_free) = match yaw {
+            YawPriority::Row => (padded(&inverse(4)?), None),
+            YawPriority::Dropped => (padded(&inverse(3)?), None),
+            YawPriority::Last => {
+                let y = padded(&inverse(4)?).column(3).into_owned();
+                let p3 = padded(&inverse(3)?).fixed_columns::<3>(0).into_owned();
+                // `P_3 - y b_4^T P_3`: roll, pitch and thrust with zero yaw torque
+                let k = bp.row(3) * p3;
+                let mut pp = SMatrix::<f64, MAX_ROTORS, 4>::zeros();
+                pp.fixed_columns_mut::<3>(0).copy_from(&(p3 - y * k));
+                pp.set_column(3, &y);
+                (pp, Some(p3))
+            }
+        };
         Ok(Self {
             n,
             b: bp,
-            b_pinv: pp,
+            b_pinv,
             w_min,
             w_max,
             delta_max_fraction: 0.3,
             active,
+            yaw_free,
         })
+    }
+
+    /// Where the yaw torque stands in this allocator.
+    #[must_use]
+    pub fn yaw_priority(&self) -> YawPriority {
+        match (&self.yaw_free, self.b_pinv.column(3).iter().all(|x| *x == 0.0)) {
+            (Some(_), _) => YawPriority::Last,
+            (None, true) => YawPriority::Dropped,
+            (None, false) => YawPriority::Row,
+        }
     }
 
     /// Whether rotor `i` (from 0) is allocated (false for a dropped, failed rotor).
@@ -257,10 +322,19 @@ impl Allocator {
         let (sigma, delta, lambda, saturated, w) = if self.in_bounds(&full) {
             (1.0, 0.0, 1.0, false, full)
         } else {
-            let w_t = self.b_pinv.column(0) * req.thrust_n;
-            let w_rp = self.b_pinv.column(1) * req.torque_frd.x + self.b_pinv.column(2) * req.torque_frd.y;
-            let w_y = self.b_pinv.column(3) * req.torque_frd.z;
-            let n_t: RotorVector = self.b_pinv.column(0).into_owned();
+            // roll, pitch and thrust from `P_3` when yaw comes last
+            let (w_t, w_rp, n_t): (RotorVector, RotorVector, RotorVector) = match &self.yaw_free {
+                None => (
+                    self.b_pinv.column(0) * req.thrust_n,
+                    self.b_pinv.column(1) * req.torque_frd.x + self.b_pinv.column(2) * req.torque_frd.y,
+                    self.b_pinv.column(0).into_owned(),
+                ),
+                Some(p3) => (
+                    p3.column(0) * req.thrust_n,
+                    p3.column(1) * req.torque_frd.x + p3.column(2) * req.torque_frd.y,
+                    p3.column(0).into_owned(),
+                ),
+            };
             let delta_max = self.delta_max_fraction * req.thrust_n.abs();
             // For a fixed sigma the feasible shifts form an interval; the feasible
             // (sigma, delta) set is convex, so feasibility in sigma is an interval
@@ -294,6 +368,11 @@ impl Allocator {
                 .or_else(|| largest_sigma(f64::INFINITY))
                 .unwrap_or((0.0, 0.0));
             let base = w_t + w_rp * sigma + n_t * delta;
+            // the yaw torque still wanted: all of it, or what `P_3`'s base lacks
+            let w_y = match &self.yaw_free {
+                None => self.b_pinv.column(3) * req.torque_frd.z,
+                Some(_) => self.b_pinv.column(3) * (req.torque_frd.z - self.b.row(3).transpose().dot(&base)),
+            };
             let mut lambda: f64 = 1.0;
             for i in (0..self.n).filter(|i| self.active[*i]) {
                 if w_y[i] > 0.0 {
@@ -351,13 +430,13 @@ mod tests {
         let (lo, hi) = af.speed_sq_bounds();
         let b = af.effectiveness();
         let intact = af.allocator();
-        let same = Allocator::with_rotor_gains(&b, lo, hi, &[1.0; 8], false).unwrap();
+        let same = Allocator::with_rotor_gains(&b, lo, hi, &[1.0; 8], YawPriority::Row).unwrap();
         let req = ControlWrench::new(16.0, Vector3::new(0.2, -0.3, 0.05));
         assert_eq!(intact.allocate(&req).speed_sq, same.allocate(&req).speed_sq);
         let mut g = [1.0; 8];
         g[2] = 0.0;
         g[5] = 0.5;
-        let reduced = Allocator::with_rotor_gains(&b, lo, hi, &g, false).unwrap();
+        let reduced = Allocator::with_rotor_gains(&b, lo, hi, &g, YawPriority::Row).unwrap();
         assert!(!reduced.is_active(2) && reduced.is_active(5));
         let a = reduced.allocate(&req);
         assert!(!a.saturated);
@@ -376,10 +455,47 @@ mod tests {
         let (lo, hi) = q.speed_sq_bounds();
         let g = [0.0, 1.0, 1.0, 1.0];
         assert_eq!(
-            Allocator::with_rotor_gains(&q.effectiveness(), lo, hi, &g, false).unwrap_err(),
+            Allocator::with_rotor_gains(&q.effectiveness(), lo, hi, &g, YawPriority::Row).unwrap_err(),
             3
         );
-        let yawless = Allocator::with_rotor_gains(&q.effectiveness(), lo, hi, &g, true).unwrap();
+        let yawless = Allocator::with_rotor_gains(&q.effectiveness(), lo, hi, &g, YawPriority::Dropped).unwrap();
         assert_eq!(yawless.b_pinv().column(3).norm(), 0.0);
+    }
+
+    #[test]
+    fn with_yaw_last_roll_pitch_and_thrust_keep_their_range_and_yaw_gets_the_rest() {
+        // the stock hexa without rotor 1: hover with zero yaw torque needs
+        // the opposite rotor at idle, so a zero-yaw base leaves no margin
+        let af = Airframe::load("hexa").unwrap();
+        let (lo, hi) = af.speed_sq_bounds();
+        let b = af.effectiveness();
+        let g = [0.0, 1.0, 1.0, 1.0, 1.0, 1.0];
+        let row = Allocator::with_rotor_gains(&b, lo, hi, &g, YawPriority::Row).unwrap();
+        let last = Allocator::with_rotor_gains(&b, lo, hi, &g, YawPriority::Last).unwrap();
+        assert_eq!(last.yaw_priority(), YawPriority::Last);
+        assert_eq!(row.yaw_priority(), YawPriority::Row);
+        let hover = af.mass_kg * 9.81;
+        let mut row_lost_roll_pitch = false;
+        for (tx, ty) in [(0.3, 0.0), (-0.3, 0.0), (0.0, 0.3), (0.0, -0.3), (0.2, -0.2)] {
+            let req = ControlWrench::new(hover, Vector3::new(tx, ty, 0.0));
+            let a = last.allocate(&req);
+            let (got, want) = (a.achieved.to_vector(), req.to_vector());
+            for k in 0..3 {
+                assert!((got[k] - want[k]).abs() < 1e-6, "{tx} {ty}: {got} vs {want}");
+            }
+            assert_eq!(a.roll_pitch_scale, 1.0);
+            row_lost_roll_pitch |= row.allocate(&req).roll_pitch_scale < 1.0;
+            // the yaw torque left is the closest the bounds allow: one step
+            // further along the pure-yaw direction leaves them
+            let dz = a.unallocated.torque_frd.z;
+            if dz.abs() > 1e-9 {
+                assert!(a.yaw_scale < 1.0);
+                assert!(!last.in_bounds(&(a.speed_sq + last.b_pinv().column(3) * (1e-3 * dz))));
+            }
+        }
+        assert!(row_lost_roll_pitch, "the zero-yaw base gives way on roll or pitch");
+        // a wrench the rotors can give (one they gave) is given exactly
+        let given = last.allocate(&ControlWrench::new(hover, Vector3::zeros())).achieved;
+        assert!(last.allocate(&given).unallocated.to_vector().norm() < 1e-6);
     }
 }

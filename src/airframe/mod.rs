@@ -16,7 +16,7 @@ mod failure;
 mod file;
 mod report;
 
-pub use allocation::{Allocation, Allocator, effectiveness, rank, wrench_map};
+pub use allocation::{Allocation, Allocator, YawPriority, effectiveness, rank, wrench_map};
 pub use failure::{
     FailureAnalysis, HoverVerdict, TorqueMargins, analyse_failures, degraded_verdict, hover_margins, intact_verdict,
 };

@@ -21,7 +21,7 @@
 
 use nalgebra::{UnitQuaternion, Vector3};
 
-use crate::airframe::{Actuation, Airframe, Allocator, HoverVerdict, degraded_verdict};
+use crate::airframe::{Actuation, Airframe, Allocator, HoverVerdict, YawPriority, degraded_verdict};
 use crate::control::{
     ControlGains, Controller, ControllerKind, GainError, Reference, RelaxedHover, RelaxedHoverError, RelaxedHoverPhase,
 };
@@ -119,17 +119,21 @@ pub enum RotorAllocation {
         gains: Vec<f64>,
     },
     /// Failed columns deleted, degraded ones scaled, but hover with zero yaw
-    /// torque is only on the boundary of the attainable set (or beyond it):
-    /// yaw is given up entirely — the inverse is taken over `[u_T, tau_x,
-    /// tau_y]` only, so the remaining rotors' full range serves roll, pitch
-    /// and thrust (with yaw at the lowest priority the boundary leaves no
-    /// roll/pitch margin and the vehicle flips) — and the heading is left free
-    /// (the reference heading follows the measured one). The yaw rate then
-    /// grows (no rotational drag holds it): the autopilot lands.
+    /// torque is only on the boundary of the attainable set (or beyond it),
+    /// or the remaining rotors of a vehicle with more than four have rank 3:
+    /// the heading is given up (the reference heading follows the measured
+    /// one, no yaw rate asked) and roll, pitch and thrust come first — the
+    /// inverse over `[u_T, tau_x, tau_y]` gives them the remaining rotors'
+    /// full range (from a zero-yaw base the boundary would leave no roll or
+    /// pitch margin and the vehicle would flip) — and the yaw gets what is
+    /// left ([`YawPriority::Last`]; none at rank 3, [`YawPriority::Dropped`]).
+    /// The yaw rate settles where the rotors' drag holds it, and the vehicle
+    /// flies on as PX4's allocator flies on with what it can give.
     LostYaw {
         /// Thrust fraction per rotor (0 failed, 1 healthy), from rotor 1.
         gains: Vec<f64>,
-        /// The verdict ([`HoverVerdict::Boundary`] or [`HoverVerdict::Infeasible`]).
+        /// The verdict ([`HoverVerdict::Boundary`], [`HoverVerdict::Infeasible`]
+        /// or [`HoverVerdict::RankDeficient`]).
         verdict: HoverVerdict,
     },
     /// The remaining rotors have rank 3 (a quad with a dead rotor): no
@@ -254,8 +258,9 @@ impl ControlLoop {
     /// allocator; otherwise failed columns are deleted and degraded ones
     /// scaled ([`Allocator::with_rotor_gains`]), and the hover verdict of
     /// what remains chooses [`RotorAllocation`]: Feasible `Reduced`,
-    /// Boundary or Infeasible `LostYaw`, RankDeficient `RelaxedHover` (yaw row
-    /// dropped; `LostYaw` too). When no inverse exists at all the previous allocator stays.
+    /// Boundary or Infeasible `LostYaw` (yaw last), RankDeficient
+    /// `RelaxedHover` for a quad and `LostYaw` for more rotors
+    /// (yaw row dropped). When no inverse exists at all the previous allocator stays.
     /// Ideal actuation has no rotors: nothing changes.
     pub fn set_rotor_gains(&mut self, gains: &[f64]) -> &RotorAllocation {
         let n = self.airframe.rotor_count();
@@ -275,16 +280,20 @@ impl ControlLoop {
         let dead = single_dead_rotor(&gains);
         let b = self.airframe.effectiveness();
         let (lo, hi) = self.airframe.speed_sq_bounds();
-        let full_rank = Allocator::with_rotor_gains(&b, lo, hi, &gains, false);
+        let full_rank = Allocator::with_rotor_gains(&b, lo, hi, &gains, YawPriority::Row);
         let (allocator, mode) = match (verdict, full_rank) {
             (HoverVerdict::Feasible, Ok(a)) => (Some(a), RotorAllocation::Reduced { gains }),
             (HoverVerdict::Boundary | HoverVerdict::Infeasible, Ok(_)) => (
-                Allocator::with_rotor_gains(&b, lo, hi, &gains, true).ok(),
+                Allocator::with_rotor_gains(&b, lo, hi, &gains, YawPriority::Last).ok(),
                 RotorAllocation::LostYaw { gains, verdict },
             ),
-            (_, _) => (
-                Allocator::with_rotor_gains(&b, lo, hi, &gains, true).ok(),
+            (_, _) if n == 4 => (
+                Allocator::with_rotor_gains(&b, lo, hi, &gains, YawPriority::Dropped).ok(),
                 RotorAllocation::RelaxedHover { gains },
+            ),
+            (_, _) => (
+                Allocator::with_rotor_gains(&b, lo, hi, &gains, YawPriority::Dropped).ok(),
+                RotorAllocation::LostYaw { gains, verdict },
             ),
         };
         if let Some(a) = allocator {

@@ -414,11 +414,13 @@ impl Autopilot {
     /// hover ([`ControlLoop::engage_relaxed_hover`]): yaw given up, it holds
     /// the point where the failure was detected and descends at
     /// `MPC_LAND_SPEED` in Land mode, rotors stopped at touchdown, disarmed as
-    /// after any landing. Without a static hover that holds yaw otherwise
-    /// (hover on the boundary or beyond the remaining rotors, or relaxed
-    /// hover impossible, e.g. no rotational drag in the airframe: the heading
-    /// is given up and the spin grows) land at once; otherwise a rotor that got worse
-    /// triggers `COM_ACT_FAIL_ACT` (0 warn only and keep the mode, 1 Hold, 2 Land, 3 Return, 4 Terminate).
+    /// after any landing; when relaxed hover cannot fly it (e.g. no
+    /// rotational drag in the airframe) it lands at once. Any other rotor
+    /// that got worse triggers `COM_ACT_FAIL_ACT` (0 warn only and keep the
+    /// mode, 1 Hold, 2 Land, 3 Return, 4 Terminate), as PX4 flies on with
+    /// what its allocator can give: also when no hover holds the heading any
+    /// more ([`RotorAllocation::LostYaw`]), where the heading is left free and
+    /// the yaw gets what roll, pitch and thrust leave.
     fn rotors_changed(&mut self, events: &[RotorEvent], m: &crate::signals::Measurement) {
         let gains: Vec<f64> = self.rotors.status().iter().map(|r| r.thrust_fraction()).collect();
         let allocation = self.control.set_rotor_gains(&gains).clone();
@@ -464,9 +466,6 @@ impl Autopilot {
                 }
             }
         }
-        // heading given up: the yaw rate is free to grow (no rotational drag
-        // holds it), so no hover lasts; land while attitude holds
-        let no_hover = allocation.heading_free();
         if !flying || !worse {
             return;
         }
@@ -487,11 +486,6 @@ impl Autopilot {
                 };
                 self.say
                     .announce(Severity::Emergency, format!("Rotor loss: yaw lost, landing: {why}"));
-                self.failsafe_action(cause::ROTOR_LOSS, FailsafeAction::Land, m);
-            }
-            None if no_hover => {
-                self.say
-                    .announce(Severity::Emergency, "Rotor loss: yaw uncontrollable, landing");
                 self.failsafe_action(cause::ROTOR_LOSS, FailsafeAction::Land, m);
             }
             None => {

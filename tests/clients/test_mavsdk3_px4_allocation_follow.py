@@ -38,12 +38,14 @@ finished within 500 s of vehicle time) and autopilot_tester_follow_me.cpp of
 commit 25ed6b6. Each case that fails for a difference from PX4 is marked
 xfail (strict) with what rotorpilot does, what PX4 does and where PX4 does it.
 
-The airframe. PX4's hexa-X numbers its motors in opposite pairs (1 right, 2
-left, ...), rotorpilot's hexas number theirs clockwise from the front right,
-so PX4's instances are sent as they are: a script written for PX4 SITL sends
-those. The control-allocation cases fly `hexa-ppnnpn`, rotorpilot's hexa
-built to survive a motor loss (rotors 1 to 4; docs/failures.md): the stock
-`hexa` lands after losing any one, where PX4's typhoon flies on.
+The airframe. The control-allocation cases fly the stock `hexa`, a hexa-X
+with alternating spins as PX4's typhoon_h480 is. Its motors carry PX4's
+hexa-X numbers (1 right, 2 left, 3 front left, 4 rear right, 5 front right,
+6 rear left: opposite pairs), so PX4's instances are sent as they are, as a
+script written for PX4 SITL sends them. Without any one motor its hover
+with zero yaw torque is on the edge of what the others give, and without
+motors 1 and 2 the four left have rank 3: in both it flies on with its
+heading free, as PX4 flies on with what its allocator gives (docs/failures.md).
 
 Wire details. MAVSDK's FollowMe sends target locations only once a HEARTBEAT
 has shown AUTO.FOLLOW_TARGET (set_target_location answers NOT_ACTIVE until
@@ -113,7 +115,7 @@ from mavsdk.follow_me import Config, FollowMeError, TargetLocation  # noqa: E402
 from mavsdk.mission import MissionPlan  # noqa: E402
 
 # the airframe the control-allocation cases fly (module doc)
-HEXA = "hexa-ppnnpn"
+HEXA = "hexa"
 # the typhoon_h480's motor count, as PX4's case writes it ("TODO: get from model")
 NUM_MOTORS = 6
 
@@ -421,17 +423,6 @@ def test_control_allocation_remove_one_motor():
     fly(scenario, 150, HEXA)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "rotorpilot's hexas number their rotors clockwise from the front right, so PX4's instances 1 and 2 (opposite "
-    "on PX4's hexa-X) are neighbours here; without them hexa-ppnnpn has no hover that holds yaw, so the rotor "
-    "monitor gives up the heading and lands ('Rotor loss: yaw uncontrollable, landing'). The mission started "
-    "during that landing is accepted and flown, as PX4 lets a pilot's mode switch take over a Land failsafe, but "
-    "the spinning vehicle's filter position comes and goes, and the first loss brings the landing back while its "
-    "cause lasts ('Failsafe: rotor loss, triggering Descend', then Land when the position returns; PX4's "
-    "FailsafeBase keeps the action, src/modules/commander/failsafe/framework.cpp): it lands and disarms with the "
-    "mission unfinished. PX4 removes the first failed motor from its allocation and flies on with what the "
-    "allocator can give (src/modules/control_allocator/ControlAllocator.cpp, "
-    "ControlAllocator::check_for_motor_failures, CA_FAILURE_MODE 1); no failsafe lands it (COM_ACT_FAIL_ACT 0)"))
 def test_control_allocation_remove_two_motors():
     """PX4-Autopilot test/mavsdk_tests/test_multicopter_control_allocation.cpp:95
     at commit 88e483492f87e38d32cbca045ea9c6e81dba1a23, TEST_CASE "Control
@@ -458,13 +449,6 @@ def test_control_allocation_remove_two_motors():
     fly(scenario, 150, HEXA)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "motors 1 to 4 of hexa-ppnnpn go and come back in flight, but without rotor 5 (or 6) it has no hover that "
-    "holds yaw: the rotor monitor gives up the heading and lands ('Rotor loss: yaw uncontrollable, landing'), "
-    "more than 4 m below the hover and disarmed before the motor is back, so no mission is flown (the stock hexa "
-    "does the same for any rotor). PX4 removes the failed motor from its allocation and flies on with what the "
-    "allocator can give (src/modules/control_allocator/ControlAllocator.cpp, "
-    "ControlAllocator::check_for_motor_failures, CA_FAILURE_MODE 1); no failsafe lands it (COM_ACT_FAIL_ACT 0)"))
 def test_control_allocation_remove_and_restore_every_motor_once():
     """PX4-Autopilot test/mavsdk_tests/test_multicopter_control_allocation.cpp:150
     at commit 88e483492f87e38d32cbca045ea9c6e81dba1a23, TEST_CASE "Control

@@ -154,8 +154,8 @@ def fly(scenario, wall_limit, airframe=None):
                 await asyncio.wait_for(scenario(w), wall_limit)
                 w.checks.done(w)
             finally:
-                await w.stop()
                 uav._stop_mavsdk_server()
+                await w.stop()
 
         return asyncio.run(main())
 

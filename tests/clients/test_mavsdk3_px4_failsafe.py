@@ -129,9 +129,14 @@ class Watch:
         return self
 
     async def stop(self):
+        """Cancel the subscriptions, waiting at most 5 s for them: a gRPC
+        stream can sit out a cancellation, and a test that passed must not
+        hang in its teardown. Stop mavsdk_server first (`fly`), so that every
+        stream ends with its connection."""
         for task in self.tasks:
             task.cancel()
-        await asyncio.gather(*self.tasks, return_exceptions=True)
+        if self.tasks:
+            await asyncio.wait(self.tasks, timeout=5.0)
 
     async def until(self, cond, sim_s, what, late=AssertionError):
         """Wait until `cond()` holds, at most `sim_s` seconds of vehicle time
@@ -221,8 +226,8 @@ def fly(params, scenario, wall_limit):
                 w.start()
                 return await asyncio.wait_for(scenario(w), wall_limit)
             finally:
-                await w.stop()
                 uav._stop_mavsdk_server()
+                await w.stop()
 
         return asyncio.run(main())
 

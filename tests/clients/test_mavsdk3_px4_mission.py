@@ -180,8 +180,8 @@ def fly(scenario, sim_s, params=None):
                 except Exception as e:
                     raise AssertionError(f"{type(e).__name__}: {e}\n{w.story()}") from e
             finally:
-                await w.stop()
                 uav._stop_mavsdk_server()
+                await w.stop()
 
         return asyncio.run(main())
 

@@ -261,10 +261,10 @@ def fly(scenario, wall_limit, params=None):
                 await asyncio.wait_for(scenario(w), wall_limit)
                 w.checks.done(w)
             finally:
+                uav._stop_mavsdk_server()
                 await w.stop()
                 if w.link is not None:
                     w.link.close()
-                uav._stop_mavsdk_server()
 
         return asyncio.run(main())
 

@@ -11,8 +11,8 @@ mod common;
 use common::sitl::{HOME, Sitl, int, point, real};
 use nalgebra::Vector3;
 use rotorpilot::autopilot::{
-    AutopilotCommand, BatteryWarning, ClientClock, ClientTimer, CommandOutcome, FlightMode, OffboardSetpoint, Severity,
-    Targets, Telemetry,
+    AutopilotCommand, BatteryWarning, ClientClock, ClientTimer, CommandOutcome, FlightMode, MissionState,
+    OffboardSetpoint, Severity, Targets, Telemetry,
 };
 use rotorpilot::geo::GeoPoint;
 use rotorpilot::mission::{MissionItem, MissionType, PlanChange};
@@ -793,4 +793,56 @@ fn a_mission_outside_the_geofence_is_refused_at_start() {
         CommandOutcome::Accepted
     );
     assert!(ap.armed());
+}
+
+/// GIVEN a mission under way, 40 m north then 40 m east at 15 m
+/// WHEN the GNSS fix is lost on the first leg for 2 s and comes back
+/// THEN the vehicle descends blind meanwhile (Descend, "No GPS fix:
+/// descending without position"), and with the fix back flies the mission
+/// on from the item it stood at ("GPS fix regained: resuming mission"), as
+/// PX4 gives the pilot's mode back once its requirements hold again; the
+/// mission completes.
+#[test]
+fn a_mission_interrupted_by_a_position_loss_resumes_when_it_returns() {
+    let mut ap = vehicle(&[]);
+    let wp = |north: f64, east: f64| {
+        let g = point(north, east, 15.0);
+        MissionItem {
+            frame: 3, // MAV_FRAME_GLOBAL_RELATIVE_ALT
+            command: 16,
+            autocontinue: true,
+            params: [0.0, 2.0, 0.0, f32::NAN],
+            x: rotorpilot::mission::quantise_deg(g.lat_deg),
+            y: rotorpilot::mission::quantise_deg(g.lon_deg),
+            z: 15.0,
+        }
+    };
+    ap.core_mut()
+        .change_plans(
+            0,
+            PlanChange::Store {
+                kind: MissionType::Mission,
+                items: vec![wp(40.0, 0.0), wp(40.0, 40.0)],
+                base_id: None,
+            },
+        )
+        .expect("mission stored");
+    take_off_to(&mut ap, 15.0);
+    assert_eq!(
+        ap.command(AutopilotCommand::StartMission { first: None }),
+        CommandOutcome::Accepted
+    );
+    ap.run(4.0);
+    assert_eq!(ap.mode(), FlightMode::Mission);
+    ap.gps(false);
+    ap.run(2.0);
+    assert_eq!(ap.mode(), FlightMode::Descend, "{:?}", ap.said());
+    ap.gps(true);
+    ap.run_until(5.0, |t| t.mode != FlightMode::Descend)
+        .unwrap_or_else(|| panic!("still descending: {:?}", ap.said()));
+    assert_eq!(ap.mode(), FlightMode::Mission, "{:?}", ap.said());
+    assert_eq!(ap.count("GPS fix regained: resuming mission"), 1, "{:?}", ap.said());
+    assert!(ap.pilot().failsafe_in_force().is_none());
+    ap.run_until(60.0, |t| t.mission.state == MissionState::Complete)
+        .unwrap_or_else(|| panic!("mission not completed: {:?} {:?}", ap.mode(), ap.said()));
 }

@@ -358,10 +358,11 @@ fn then_of(action: FailsafeAction) -> Option<DescendThen> {
     }
 }
 
-/// The failsafe action that has the vehicle do `then`.
+/// The failsafe action that has the vehicle do `then` (the mission, which
+/// no failsafe action flies, is never the more severe: Hold stands for it).
 fn action_of(then: DescendThen) -> FailsafeAction {
     match then {
-        DescendThen::Hold => FailsafeAction::Hold,
+        DescendThen::Mission | DescendThen::Hold => FailsafeAction::Hold,
         DescendThen::Return => FailsafeAction::Return,
         DescendThen::Land => FailsafeAction::Land,
     }

@@ -12,7 +12,8 @@
 //! lands. In Position mode the pilot keeps flying in **Altitude** mode.
 //! When the position returns before touchdown, Descend gives way to what
 //! was intended ([`DescendThen`]: a landing keeps landing, with the
-//! position; a return returns; anything else holds where the vehicle is),
+//! position; a return returns; a mission flies on from the item it stood
+//! at, as PX4 gives the mode back; anything else holds where the vehicle is),
 //! and the Altitude fallback to Position; both announced (a failsafe the
 //! pilot took over, in force again with the position loss, sets what Descend
 //! gives way to: [`Navigator::set_descend_then`]). The supervision
@@ -54,7 +55,8 @@ impl Navigator {
     }
 
     /// What the active mode meant to do, for Descend to resume when the
-    /// fix returns: a landing lands, a return returns, the rest holds.
+    /// fix returns: a landing lands, a return returns, a mission flies on,
+    /// the rest holds.
     fn descend_then(&self) -> DescendThen {
         match self.nav {
             Nav::Descend { then } => then,
@@ -63,6 +65,7 @@ impl Navigator {
             } => DescendThen::Land,
             Nav::Rtl { .. } => DescendThen::Return,
             _ if self.landing() => DescendThen::Land,
+            Nav::Mission => DescendThen::Mission,
             _ => DescendThen::Hold,
         }
     }
@@ -187,6 +190,10 @@ impl Navigator {
     ) {
         let regained = loss.regained();
         match then {
+            DescendThen::Mission => {
+                self.enter_mission();
+                say.announce(Severity::Warning, format!("{regained}: resuming mission"));
+            }
             DescendThen::Hold => {
                 self.enter_hold();
                 say.announce(Severity::Warning, format!("{regained}: holding position"));
@@ -205,13 +212,14 @@ impl Navigator {
 
 impl DescendThen {
     /// The more severe of `self` and `other` (PX4's order of failsafe
-    /// actions: Hold, Return, Land): what the failsafe framework selects
-    /// when both are in force.
+    /// actions: Hold, Return, Land; the mission, no failsafe action, below
+    /// them): what the failsafe framework selects when both are in force.
     pub(in crate::autopilot) fn most_severe(self, other: Self) -> Self {
         let rank = |t: Self| match t {
-            Self::Hold => 0,
-            Self::Return => 1,
-            Self::Land => 2,
+            Self::Mission => 0,
+            Self::Hold => 1,
+            Self::Return => 2,
+            Self::Land => 3,
         };
         if rank(other) > rank(self) { other } else { self }
     }
@@ -220,7 +228,7 @@ impl DescendThen {
     pub(in crate::autopilot) fn need(self) -> PositionNeed {
         match self {
             Self::Land => PositionNeed::Relaxed,
-            Self::Hold | Self::Return => PositionNeed::Accurate,
+            Self::Mission | Self::Hold | Self::Return => PositionNeed::Accurate,
         }
     }
 }

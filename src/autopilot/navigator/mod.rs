@@ -165,6 +165,9 @@ pub(super) enum Nav {
 /// was intended when the position was lost.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum DescendThen {
+    /// Fly the mission on from the item it stood at (PX4 gives the pilot's
+    /// mode back once the position it needs is valid again).
+    Mission,
     /// Hold where it is.
     Hold,
     /// Keep landing, with the position (Land where it is).

@@ -773,6 +773,62 @@ mod tests {
         assert_eq!(counts[usize::from(id::SENSOR_COMBINED)], 50);
     }
 
+    /// `actuator_motors.control[N - 1]` is motor N, PX4's numbering: on the
+    /// hexa, whose motor 1 is its file's rotor 2, the motor switched off
+    /// (taken out of the allocation, commanded idle) is `control[0]`, and
+    /// its opposite, motor 2 (rotor 5), which the hover without it idles, `control[1]`.
+    #[test]
+    fn actuator_motors_count_by_motor_number() {
+        use crate::autopilot::{AutopilotCommand, CommandOutcome};
+        use crate::lockstep::failure::{FailureInjection, TYPE_OFF, UNIT_MOTOR};
+        let airframe = crate::airframe::Airframe::load("hexa").unwrap();
+        assert_eq!(airframe.rotor_of_motor(1), Some(1));
+        let mut params = ParamStore::new(&airframe);
+        params.set("RP_NAV_SRC", ParamValue::Int32(0)).unwrap();
+        let mut core = Lockstep::one_vehicle(
+            &airframe,
+            crate::geo::GeoPoint::PX4_SITL_HOME,
+            &params,
+            crate::sim::SensorConfig::default(),
+        )
+        .unwrap();
+        for _ in 0..1000 {
+            core.step();
+        }
+        assert_eq!(
+            core.command(0, AutopilotCommand::Arm { force: false }),
+            CommandOutcome::Accepted
+        );
+        let takeoff = AutopilotCommand::Takeoff { altitude_amsl_m: None };
+        assert_eq!(core.command(0, takeoff), CommandOutcome::Accepted);
+        for _ in 0..10_000 {
+            core.step();
+        }
+        let off = FailureInjection {
+            unit: UNIT_MOTOR,
+            kind: TYPE_OFF,
+            instance: 1,
+        };
+        assert_eq!(core.inject_failure(0, off), CommandOutcome::Accepted);
+        for _ in 0..1000 {
+            core.step();
+        }
+        let mut log = FlightUlog::new(Vec::new(), &params, &core, 0).unwrap();
+        for _ in 0..1000 {
+            core.step();
+            log.on_step(&mut core, 0).unwrap();
+        }
+        let ulog = super::super::read::read_ulog(&log.finish().unwrap(), "test.ulg").unwrap();
+        let motors = ulog.topic("actuator_motors").unwrap();
+        let last = |k: usize| *motors.field(&format!("control[{k}]")).unwrap().last().unwrap();
+        assert!(last(0) < 0.02, "motor 1 runs: {}", last(0));
+        assert!(last(1) < 0.02, "motor 2 runs: {}", last(1));
+        for k in 2..6 {
+            assert!(last(k) > 0.2, "motor {} idles: {}", k + 1, last(k));
+        }
+        assert!(last(6).is_nan(), "no motor 7");
+    }
+
     #[test]
     fn topic_ids_follow_the_table() {
         let names = [

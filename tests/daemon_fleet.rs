@@ -546,12 +546,19 @@ async fn an_encounter_ends_with_its_closest_approach_told_to_both_and_replayed()
     wait_armable(&mut c).await;
     let home = rotorpilot::geo::GeoPoint::PX4_SITL_HOME;
     let low = (home.alt_amsl_m + 1.0) as f32;
-    c.command_long(api1, 400, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], (2, 1))
-        .await;
-    assert_eq!(c.ack_of(400, Duration::from_secs(3)).await.expect("arm").1.result, 0);
-    c.command_long(api1, 22, [NAN, 0.0, 0.0, NAN, NAN, NAN, low], (2, 1))
-        .await;
-    assert_eq!(c.ack_of(22, Duration::from_secs(3)).await.expect("takeoff").1.result, 0);
+    let arm = [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+    assert_eq!(
+        c.command_long_acked(api1, 400, arm, (2, 1)).await.expect("arm").result,
+        0
+    );
+    let takeoff = [NAN, 0.0, 0.0, NAN, NAN, NAN, low];
+    assert_eq!(
+        c.command_long_acked(api1, 22, takeoff, (2, 1))
+            .await
+            .expect("takeoff")
+            .result,
+        0
+    );
     tokio::time::sleep(Duration::from_millis(1500)).await;
     let south = [
         -1.0,
@@ -562,12 +569,10 @@ async fn an_encounter_ends_with_its_closest_approach_told_to_both_and_replayed()
         home.lon_deg as f32,
         low,
     ];
-    c.command_long(api1, 192, south, (2, 1)).await;
     assert_eq!(
-        c.ack_of(192, Duration::from_secs(3))
+        c.command_long_acked(api1, 192, south, (2, 1))
             .await
             .expect("reposition")
-            .1
             .result,
         0
     );

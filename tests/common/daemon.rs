@@ -290,6 +290,27 @@ impl Client {
         .await
     }
 
+    /// Send a COMMAND_LONG and wait for its ACK, sending it again each
+    /// second while none comes, as MAVSDK retries a command, but for up to
+    /// 10 s (MAVSDK gives up after 3 tries): right after a big build, a
+    /// vehicle writing its logs can stall for seconds on a machine whose
+    /// disk is still flushing, and its ACK comes late, not never.
+    pub async fn command_long_acked(
+        &mut self,
+        to: SocketAddr,
+        command: u16,
+        p: [f32; 7],
+        target: (u8, u8),
+    ) -> Option<CommandAck> {
+        for _ in 0..10 {
+            self.command_long(to, command, p, target).await;
+            if let Some((_, ack)) = self.ack_of(command, Duration::from_secs(1)).await {
+                return Some(ack);
+            }
+        }
+        None
+    }
+
     /// Send COMMAND_LONG to 1/1 and wait for its ACK.
     pub async fn command(&mut self, to: SocketAddr, command: u16, p: [f32; 7]) -> CommandAck {
         self.command_long(to, command, p, (1, 1)).await;

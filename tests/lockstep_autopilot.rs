@@ -249,6 +249,34 @@ fn rtl_from_20_m_away_returns_lands_near_home_and_disarms() {
     );
 }
 
+/// RTL_DESCEND_ALT 0, the least PX4 declares: the return descends over home
+/// all the way, touches down gently and disarms.
+#[test]
+fn rtl_with_descend_alt_0_descends_over_home_lands_and_disarms() {
+    let mut ap = Sitl::quad()
+        .params(&[("RTL_RETURN_ALT", real(12.0)), ("RTL_DESCEND_ALT", real(0.0))])
+        .build();
+    take_off(&mut ap);
+    assert_eq!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::ReturnToLaunch)),
+        CommandOutcome::Accepted
+    );
+    let mut touchdown_speed: f64 = 0.0;
+    ap.run_until(120.0, |t| {
+        if height(t) < 0.5 {
+            touchdown_speed = touchdown_speed.max(t.velocity_ned.z);
+        }
+        !t.armed
+    })
+    .expect("returns, lands and disarms");
+    let t = ap.telemetry();
+    assert!(t.position_ned.xy().norm() < 0.3, "near home: {}", t.position_ned);
+    assert_eq!(t.landed, LandedState::OnGround);
+    assert!(touchdown_speed < 0.7, "touched down at {touchdown_speed} m/s");
+    let s = texts(&mut ap);
+    assert!(has(&s, "Landing detected") && has(&s, "Disarmed by landing"), "{s:?}");
+}
+
 #[test]
 fn reposition_flies_to_lat_lon_alt_with_yaw_and_holds() {
     let mut ap = Sitl::quad().build();

@@ -286,6 +286,84 @@ fn shared_defaults_are_px4_sitl_boot_defaults() {
     }
 }
 
+/// Shared parameters whose range here does not reach a bound PX4 declares,
+/// each with why: (name, reason).
+const RANGE_DEVIATIONS: &[(&str, &str)] = &[
+    (
+        "MPC_XY_VEL_MAX",
+        "PX4 declares 0; the speeds it caps (cruise, reposition, offboard) must stay > 0 here",
+    ),
+    (
+        "BAT1_CAPACITY",
+        "PX4's -1 is 'unknown'; the simulated pack needs a capacity",
+    ),
+];
+
+/// PX4 checks no range on PARAM_SET, but QGroundControl offers what PX4
+/// declares and scripts set values within it: every value PX4 declares
+/// valid for a parameter we share is accepted here too (where PX4 declares
+/// no bound, the bound here is our own). Each shared parameter's range
+/// reaches PX4's declared bounds, or is listed in RANGE_DEVIATIONS; the
+/// bounds themselves are set and read back.
+#[test]
+fn shared_ranges_reach_the_bounds_px4_declares() {
+    use rotorpilot::params::px4_params;
+    let mut s = ParamStore::new(&quad());
+    let limits = |kind: ParamType| match kind {
+        ParamType::Int32 => (f64::from(i32::MIN), f64::from(i32::MAX)),
+        ParamType::Real32 => (f64::from(f32::MIN), f64::from(f32::MAX)),
+    };
+    let value = |kind: ParamType, x: f64| match kind {
+        ParamType::Int32 => ParamValue::Int32(x as i32),
+        ParamType::Real32 => ParamValue::Real32(x as f32),
+    };
+    let px4 = px4_params();
+    let mut short = Vec::new();
+    for name in SHARED_WITH_PX4 {
+        let theirs = px4.iter().find(|q| q.name == *name).unwrap();
+        let (i, _) = s.get(name).unwrap();
+        let ours = *s.spec(i).unwrap();
+        let (lo, hi) = limits(theirs.kind);
+        // PX4's declared bounds (an undeclared one is the type's limit)
+        let declared: Vec<f64> = [theirs.min, theirs.max]
+            .into_iter()
+            .filter(|b| *b != lo && *b != hi)
+            .collect();
+        let unreached: Vec<f64> = declared
+            .iter()
+            .copied()
+            .filter(|b| *b < ours.min || *b > ours.max)
+            .collect();
+        let listed = RANGE_DEVIATIONS.iter().any(|d| d.0 == *name);
+        if unreached.is_empty() {
+            assert!(
+                !listed,
+                "{name} now reaches PX4's bounds: drop it from RANGE_DEVIATIONS"
+            );
+            for b in declared {
+                let v = value(theirs.kind, b);
+                assert_eq!(s.set(name, v), Ok(v), "{name} = {b}, a value PX4 declares valid");
+            }
+        } else if !listed {
+            let bound = |b: f64| {
+                if b == lo || b == hi {
+                    "none".to_string()
+                } else {
+                    b.to_string()
+                }
+            };
+            short.push(format!(
+                "{name}: here {}..{}, PX4 declares {}..{}",
+                ours.min,
+                ours.max,
+                bound(theirs.min),
+                bound(theirs.max)
+            ));
+        }
+    }
+    assert!(short.is_empty(), "ranges short of PX4's declared bounds: {short:#?}");
+}
+
 #[test]
 fn px4_parameters_rotorpilot_does_not_use_are_stored_checked_and_saved() {
     use rotorpilot::params::{Effect, px4_params};

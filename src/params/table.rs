@@ -178,7 +178,7 @@ parameters! {
     // PX4 declares no maximum (src/modules/navigator/mission_params.yaml; older PX4 had 80 m)
     MIS_TAKEOFF_ALT: real(2.5, 0.0, f32::MAX as f64, "m", "Takeoff altitude above home (a lower takeoff target is raised to it)"),
     RTL_RETURN_ALT: real(30.0, 0.0, 150.0, "m", "RTL: climb to at least this altitude above home before returning"),
-    RTL_DESCEND_ALT: real(10.0, 2.0, 100.0, "m", "RTL: above home, descend to this altitude before landing"),
+    RTL_DESCEND_ALT: real(10.0, 0.0, 100.0, "m", "RTL: above home, descend to this altitude before landing"),
     NAV_ACC_RAD: real(2.0, 0.05, 200.0, "m", "Horizontal acceptance radius of a target (mission items without their own, RTL arrival over home)"),
     NAV_MC_ALT_RAD: real(0.8, 0.05, 200.0, "m", "Vertical acceptance radius of a mission item"),
     // --- PX4: multicopter position control --------------------------------------------------------
@@ -348,9 +348,9 @@ parameters! {
         "GCS connection loss action (4: none)",
         &[(0, "disabled"), (1, "Hold"), (2, "Return"), (3, "Land"), (5, "Terminate"), (6, "Disarm")],
     ),
-    BAT_LOW_THR: real(0.15, 0.12, 0.4, "norm", "Battery low below this remaining charge (warning)"),
-    BAT_CRIT_THR: real(0.07, 0.05, 0.1, "norm", "Battery critical below this remaining charge (COM_LOW_BAT_ACT)"),
-    BAT_EMERGEN_THR: real(0.05, 0.03, 0.07, "norm", "Battery emergency below this remaining charge (COM_LOW_BAT_ACT)"),
+    BAT_LOW_THR: real(0.15, 0.12, 0.5, "norm", "Battery low below this remaining charge (warning)"),
+    BAT_CRIT_THR: real(0.07, 0.05, 0.5, "norm", "Battery critical below this remaining charge (COM_LOW_BAT_ACT)"),
+    BAT_EMERGEN_THR: real(0.05, 0.03, 0.5, "norm", "Battery emergency below this remaining charge (COM_LOW_BAT_ACT)"),
     COM_LOW_BAT_ACT: choice(
         0, 0, 3,
         "Low battery action",
@@ -367,7 +367,7 @@ parameters! {
         &[(0, "none"), (1, "warning"), (2, "Hold"), (3, "Return"), (4, "Terminate"), (5, "Land")],
     ),
     GF_MAX_HOR_DIST: real(0.0, 0.0, 10_000.0, "m", "Geofence: largest horizontal distance from home (0: no limit)"),
-    GF_MAX_VER_DIST: real(0.0, 0.0, 1_000.0, "m", "Geofence: largest height above home, also for targets (0: no limit)"),
+    GF_MAX_VER_DIST: real(0.0, 0.0, 10_000.0, "m", "Geofence: largest height above home, also for targets (0: no limit)"),
     // --- rotorpilot: failure injection (MAV_CMD_INJECT_FAILURE, FAILURE_TYPE_WRONG) ------------
     SIM_MOT_WRONG_FR: real(0.5, 0.0, 1.0, "", "Injected MOTOR WRONG: the motor gives this fraction of its thrust"),
     SIM_GPS_WRONG_M: real(

@@ -230,6 +230,18 @@ def test_px4_parameters_px4s_integration_tests_set(vehicle):
     assert a[1].param_value == 2.5
 
 
+def test_bounds_px4_declares_are_accepted(vehicle):
+    """QGroundControl offers a parameter's range as PX4 declares it: a value
+    at PX4's bound is stored here too (each of these was refused before,
+    PARAM_ERROR, out of range)."""
+    m = connect(vehicle)
+    for name, value in [("RTL_DESCEND_ALT", 0.0), ("BAT_LOW_THR", 0.5), ("BAT_CRIT_THR", 0.5),
+                        ("BAT_EMERGEN_THR", 0.5), ("GF_MAX_VER_DIST", 10000.0)]:
+        a = param_answers(m, name, value)
+        assert kinds(a) == ["PARAM_VALUE", "PARAM_VALUE"], f"{name}: {a}"
+        assert all(v.param_value == value for v in a), f"{name}: {a}"
+
+
 def test_full_parameter_list_at_1x():
     """MAVROS and QGroundControl load the whole list at connect: all of it,
     in index order, quickly, at 1x."""

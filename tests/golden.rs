@@ -124,6 +124,9 @@ fn without_aero_table(text: &str) -> String {
 /// coefficient 0) THEN each golden flight in still air (every one but the
 /// wind scenarios, which fly drag by design) writes, bit for bit, the log of
 /// the build before the airframes had drag: `tests/golden/drag-free.sha256`.
+/// That build landed at MPC_LAND_SPEED from MPC_LAND_ALT1 down, as PX4's
+/// landing does with MPC_LAND_ALT2 at MPC_LAND_ALT1 (10 m): the missions fly
+/// with that setting here.
 #[test]
 fn drag_free_airframes_fly_the_logs_of_the_build_before() {
     let dir = std::env::temp_dir().join(format!("rotorpilot-drag-free-{}", std::process::id()));
@@ -157,6 +160,8 @@ fn drag_free_airframes_fly_the_logs_of_the_build_before() {
         );
         let mut hash = HashWriter(Sha256::new());
         if is_mission(&file) {
+            assert!(scenario_text.contains("\n[params]\n"), "{path}: a [params] table");
+            let scenario_text = scenario_text.replacen("\n[params]\n", "\n[params]\nMPC_LAND_ALT2 = 10.0\n", 1);
             let flight =
                 MissionFlight::from_toml(&scenario_text, path, file.parent()).unwrap_or_else(|e| panic!("{path}: {e}"));
             run_mission(&flight, Some(&mut hash)).unwrap_or_else(|e| panic!("{path}: {e}"));

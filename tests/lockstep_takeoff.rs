@@ -2,7 +2,9 @@
 //! flies them (FlightTaskAuto::_updateTrajConstraints): a takeoff climbs at
 //! MPC_TKO_SPEED below MPC_LAND_ALT1 above home and at MPC_Z_V_AUTO_UP above
 //! it; the other automatic climbs and descents (a reposition here) at
-//! MPC_Z_V_AUTO_UP / MPC_Z_V_AUTO_DN, each at most MPC_Z_VEL_MAX_UP / _DN.
+//! MPC_Z_V_AUTO_UP / MPC_Z_V_AUTO_DN, each at most MPC_Z_VEL_MAX_UP / _DN;
+//! a landing descends at MPC_Z_VEL_MAX_DN above MPC_LAND_ALT1, slowing
+//! linearly to MPC_LAND_SPEED at MPC_LAND_ALT2 (FlightTaskAuto::_prepareLandSetpoints).
 //! One quad in the lockstep core, simulated time only.
 
 mod common;
@@ -142,4 +144,47 @@ fn a_reposition_climbs_at_mpc_z_v_auto_up_and_descends_at_mpc_z_v_auto_dn() {
     assert!((up - 2.0).abs() < 0.06, "climb {up:.3} m/s");
     let (_, down) = to(&mut ap, 10.0);
     assert!((down - 1.0).abs() < 0.05, "descent {down:.3} m/s");
+}
+
+/// Land from `up_m` [m]: the descent speed [m/s] against the height [m],
+/// one sample a step, until the vehicle is on the ground.
+fn landing(ap: &mut Sitl, up_m: f64) -> Vec<(f64, f64)> {
+    ap.step();
+    ap.take_off_to(Some(up_m));
+    assert_eq!(ap.command(AutopilotCommand::Land), CommandOutcome::Accepted);
+    let mut samples = Vec::new();
+    ap.run_until(90.0, |t| {
+        samples.push((height(t), t.velocity_ned.z));
+        !t.armed
+    })
+    .expect("lands and disarms");
+    samples
+}
+
+/// The largest descent speed [m/s] of `samples` between `from` and `to` m.
+fn peak_descent(samples: &[(f64, f64)], from: f64, to: f64) -> f64 {
+    samples
+        .iter()
+        .filter(|(h, _)| *h > from && *h < to)
+        .fold(0.0, |m, (_, v)| m.max(*v))
+}
+
+#[test]
+fn a_landing_slows_from_mpc_z_vel_max_dn_at_mpc_land_alt1_to_mpc_land_speed_at_mpc_land_alt2() {
+    let mut ap = Sitl::quad().build();
+    let s = landing(&mut ap, 20.0);
+    // PX4's defaults: 1.5 m/s above 10 m, 0.7 m/s below 5 m, linear between
+    let above = peak_descent(&s, 11.0, 19.0);
+    assert!((above - 1.5).abs() < 0.05, "above MPC_LAND_ALT1: {above:.3} m/s");
+    // halfway the limit is 1.1 m/s; the shaper follows it down within its
+    // acceleration and jerk limits, a little behind
+    let (_, midway) = *s.iter().find(|(h, _)| *h < 7.5).unwrap();
+    assert!(midway > 1.1 && midway < 1.3, "at 7.5 m, halfway: {midway:.3} m/s");
+    let below = peak_descent(&s, 0.5, 3.0);
+    assert!(below < 0.7 * 1.03, "below MPC_LAND_ALT2: {below:.3} m/s");
+    // MPC_LAND_ALT2 at MPC_LAND_ALT1: the step of the builds before
+    let mut ap = Sitl::quad().params(&[("MPC_LAND_ALT2", real(10.0))]).build();
+    let s = landing(&mut ap, 20.0);
+    let (_, at_7) = *s.iter().find(|(h, _)| *h < 7.0).unwrap();
+    assert!((at_7 - 0.7).abs() < 0.02, "at 7 m: {at_7:.3} m/s");
 }

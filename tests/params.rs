@@ -158,6 +158,7 @@ const SHARED_WITH_PX4: &[&str] = &[
     "MPC_TKO_SPEED",
     "MPC_LAND_SPEED",
     "MPC_LAND_ALT1",
+    "MPC_LAND_ALT2",
     "COM_OF_LOSS_T",
     "COM_OBL_RC_ACT",
     "COM_DISARM_LAND",

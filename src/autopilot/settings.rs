@@ -276,7 +276,7 @@ pub(super) struct Settings {
     pub(super) xy_vel_max_m_s: f64,
     /// `MPC_Z_VEL_MAX_UP` [m/s]: the manual modes, offboard, orbit and follow.
     pub(super) climb_m_s: f64,
-    /// `MPC_Z_VEL_MAX_DN` [m/s]: as `climb_m_s`, and a landing above `MPC_LAND_ALT1`.
+    /// `MPC_Z_VEL_MAX_DN` [m/s]: as `climb_m_s`, and a landing above `MPC_LAND_ALT1` ([`Self::land_descent_m_s`]).
     pub(super) descent_m_s: f64,
     /// `MPC_Z_V_AUTO_UP` [m/s], at most `MPC_Z_VEL_MAX_UP`: the automatic modes.
     pub(super) auto_climb_m_s: f64,
@@ -286,8 +286,10 @@ pub(super) struct Settings {
     pub(super) takeoff_speed_m_s: f64,
     /// `MPC_LAND_SPEED` [m/s], at most `MPC_Z_VEL_MAX_DN`.
     pub(super) land_speed_m_s: f64,
-    /// `MPC_LAND_ALT1` [m] above home.
+    /// `MPC_LAND_ALT1` [m] above home, at least `MPC_LAND_ALT2`.
     pub(super) land_alt1_m: f64,
+    /// `MPC_LAND_ALT2` [m] above home.
+    pub(super) land_alt2_m: f64,
     pub(super) offboard_loss_s: f64,
     pub(super) offboard_loss_action: FailsafeAction,
     pub(super) disarm_land_s: f64,
@@ -346,6 +348,7 @@ impl Settings {
             takeoff_speed_m_s: p.real(Param::MPC_TKO_SPEED),
             land_speed_m_s: p.real(Param::MPC_LAND_SPEED),
             land_alt1_m: p.real(Param::MPC_LAND_ALT1),
+            land_alt2_m: p.real(Param::MPC_LAND_ALT2),
             offboard_loss_s: p.real(Param::COM_OF_LOSS_T),
             offboard_loss_action,
             disarm_land_s: p.real(Param::COM_DISARM_LAND),
@@ -371,6 +374,9 @@ impl Settings {
         s.auto_descent_m_s = s.auto_descent_m_s.min(s.descent_m_s);
         s.takeoff_speed_m_s = s.takeoff_speed_m_s.min(s.climb_m_s);
         s.land_speed_m_s = s.land_speed_m_s.min(s.descent_m_s);
+        // the first step of a slow landing is no lower than the second (PX4's
+        // FlightTaskAuto::updateParams)
+        s.land_alt1_m = s.land_alt1_m.max(s.land_alt2_m);
         // the return altitude stays inside GF_MAX_VER_DIST (PX4's RTL)
         s.rtl_return_alt_m = s.failsafe.cap_height(s.rtl_return_alt_m);
         let positive = [
@@ -394,6 +400,27 @@ impl Settings {
             }
         }
         Ok(s)
+    }
+
+    /// The descent speed limit of a landing [m/s] at `height_m` [m] above
+    /// home, PX4's (FlightTaskAuto::_prepareLandSetpoints, `math::gradual`):
+    /// ```text
+    /// v_down(h) = MPC_LAND_SPEED                                   if h <= ALT2
+    ///             MPC_LAND_SPEED + (h - ALT2) / (ALT1 - ALT2)
+    ///                              (MPC_Z_VEL_MAX_DN - MPC_LAND_SPEED)  if ALT2 < h < ALT1
+    ///             MPC_Z_VEL_MAX_DN                                 if h >= ALT1
+    /// ```
+    /// (`ALT1`, `ALT2` being `MPC_LAND_ALT1`, `MPC_LAND_ALT2`). With PX4's
+    /// defaults: 1.5 m/s above 10 m, 0.7 m/s below 5 m, linear between.
+    pub(super) fn land_descent_m_s(&self, height_m: f64) -> f64 {
+        let (lo, hi) = (self.land_alt2_m, self.land_alt1_m);
+        if height_m <= lo {
+            self.land_speed_m_s
+        } else if height_m >= hi {
+            self.descent_m_s
+        } else {
+            self.land_speed_m_s + (height_m - lo) / (hi - lo) * (self.descent_m_s - self.land_speed_m_s)
+        }
     }
 
     /// The climb speed limit of a takeoff [m/s] at `height_m` [m] above home,

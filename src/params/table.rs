@@ -191,7 +191,7 @@ parameters! {
         "Largest horizontal speed (caps cruise and reposition; the limit of offboard setpoints)",
     ),
     MPC_Z_VEL_MAX_UP: real(3.0, 0.5, 8.0, "m/s", "Largest climb speed"),
-    MPC_Z_VEL_MAX_DN: real(1.5, 0.5, 4.0, "m/s", "Largest descent speed (also landing above MPC_LAND_ALT1)"),
+    MPC_Z_VEL_MAX_DN: real(1.5, 0.5, 4.0, "m/s", "Largest descent speed (also a landing above MPC_LAND_ALT1)"),
     MPC_Z_V_AUTO_UP: real(
         3.0, 0.5, 8.0, "m/s",
         "Climb speed in the automatic modes (at most MPC_Z_VEL_MAX_UP; a takeoff above MPC_LAND_ALT1)",
@@ -204,10 +204,14 @@ parameters! {
         1.5, 0.5, 5.0, "m/s",
         "Climb speed of a takeoff below MPC_LAND_ALT1 above home (at most MPC_Z_VEL_MAX_UP)",
     ),
-    MPC_LAND_SPEED: real(0.7, 0.2, 2.0, "m/s", "Landing descent speed below MPC_LAND_ALT1"),
+    MPC_LAND_SPEED: real(0.7, 0.2, 2.0, "m/s", "Landing descent speed below MPC_LAND_ALT2"),
     MPC_LAND_ALT1: real(
         10.0, 0.0, 122.0, "m",
-        "Height above home: a landing descends at MPC_Z_VEL_MAX_DN above it, at MPC_LAND_SPEED below; a takeoff climbs at MPC_TKO_SPEED below it",
+        "Height above home: a landing descends at MPC_Z_VEL_MAX_DN above it, slowing linearly to MPC_LAND_SPEED at MPC_LAND_ALT2; a takeoff climbs at MPC_TKO_SPEED below it",
+    ),
+    MPC_LAND_ALT2: real(
+        5.0, 0.0, 122.0, "m",
+        "Height above home below which a landing descends at MPC_LAND_SPEED (MPC_LAND_ALT1 is at least this)",
     ),
     // --- PX4: commander ------------------------------------------------------------------------
     COM_OF_LOSS_T: real(1.0, 0.0, 60.0, "s", "Offboard: setpoints older than this are lost (OFFBOARD refused or left)"),

@@ -201,14 +201,12 @@ impl Navigator {
         }
     }
 
-    /// Descend to land at `xy`: MPC_Z_VEL_MAX_DN above MPC_LAND_ALT1, MPC_LAND_SPEED below.
+    /// Descend to land at `xy`, at PX4's landing speed for the height
+    /// ([`crate::autopilot::settings::Settings::land_descent_m_s`]: MPC_Z_VEL_MAX_DN above MPC_LAND_ALT1,
+    /// slowing linearly to MPC_LAND_SPEED at MPC_LAND_ALT2).
     pub(super) fn descend(&mut self, cx: &Situation<'_>, xy: Vector2<f64>) -> Reference {
         let s = cx.settings;
-        let speed = if cx.rest_z - cx.meas.position_ned.z > s.land_alt1_m {
-            s.descent_m_s
-        } else {
-            s.land_speed_m_s
-        };
+        let speed = s.land_descent_m_s(cx.rest_z - cx.meas.position_ned.z);
         let target = Vector3::new(xy.x, xy.y, cx.rest_z + LAND_SINK_M);
         let limits = self.limits(self.cruise_m_s(s), s.auto_climb_m_s, speed);
         self.go_to(cx.meas, target, YawSetpoint::Hold, limits, cx.dt)

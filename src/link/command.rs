@@ -182,8 +182,10 @@ pub enum Action {
     /// STATUSTEXT.
     Answer(u8, Option<&'static str>),
     /// ACK ACCEPTED (if the link can build the message, else DENIED), then
-    /// send the message.
-    SendMessage(u32),
+    /// send the message: its id, and param2 of MAV_CMD_REQUEST_MESSAGE
+    /// rounded, `None` when NaN or outside 0..=255 (AVAILABLE_MODES reads it
+    /// as the mode index, 0 for all; the other messages ignore it).
+    SendMessage(u32, Option<u8>),
     /// Change a stream interval on this link (ACCEPTED, or FAILED for a
     /// message the vehicle does not stream).
     SetInterval(u32, Interval),
@@ -304,10 +306,14 @@ pub fn classify(c: &Command) -> Action {
             if !p1.is_finite() || p1 < 0.0 {
                 return Action::Answer(result::DENIED, None);
             }
-            Action::SendMessage(p1 as u32)
+            let index = convert::finite(p2)
+                .map(f64::round)
+                .filter(|x| (0.0..=255.0).contains(x))
+                .map(|x| x as u8);
+            Action::SendMessage(p1 as u32, index)
         }
-        id::REQUEST_AUTOPILOT_CAPABILITIES => Action::SendMessage(AUTOPILOT_VERSION_ID),
-        id::GET_HOME_POSITION => Action::SendMessage(HOME_POSITION_ID),
+        id::REQUEST_AUTOPILOT_CAPABILITIES => Action::SendMessage(AUTOPILOT_VERSION_ID, None),
+        id::GET_HOME_POSITION => Action::SendMessage(HOME_POSITION_ID, None),
         // param1 failure unit, param2 failure type, param3 instance (0: all);
         // a number that is none (NaN, out of 0..255) is 255, which names nothing
         id::INJECT_FAILURE => {

@@ -4,7 +4,7 @@
 //! only here and in the message builders.
 
 use crate::autopilot::{CommandOutcome, FlightMode};
-use mavlink::dialects::common::MavStandardMode;
+use mavlink::dialects::common::{AVAILABLE_MODES_DATA, MavModeProperty, MavStandardMode};
 
 /// PX4 main modes (`px4_custom_mode.h`).
 pub mod main_mode {
@@ -99,6 +99,68 @@ pub fn standard_mode(mode: FlightMode) -> MavStandardMode {
         | FlightMode::Acro
         | FlightMode::Manual
         | FlightMode::Descend => MavStandardMode::MAV_STANDARD_MODE_NON_STANDARD,
+    }
+}
+
+/// AVAILABLE_MODES, as PX4's mavlink stream answers MAV_CMD_REQUEST_MESSAGE
+/// for it: `index` 0 gives every mode, `k` the k-th (from 1); `None` (the
+/// request DENIED) past the last. The modes are those rotorpilot flies, in
+/// PX4's order (by nav state); each carries its MAV_STANDARD_MODE and PX4
+/// custom mode, PX4's name where it is not a standard mode
+/// (`mode_util::nav_state_names`), and MAV_MODE_PROPERTY_ADVANCED for all
+/// but Altitude and Position (`mode_util::isAdvanced`). PX4 also lists
+/// modes a multicopter here cannot fly (Termination, Precision Landing,
+/// VTOL Takeoff, ...); they are left out, so a ground station offers only
+/// what the vehicle accepts. The list never changes, so no
+/// AVAILABLE_MODES_MONITOR is sent (PX4 sends it only after a change).
+#[must_use]
+pub fn available_modes(index: u8) -> Option<Vec<AVAILABLE_MODES_DATA>> {
+    let mut modes = FlightMode::ALL;
+    modes.sort_by_key(|m| m.nav_state());
+    let count = modes.len() as u8;
+    let entry = |i: usize, mode: FlightMode| {
+        let standard = standard_mode(mode);
+        let name = match standard {
+            MavStandardMode::MAV_STANDARD_MODE_NON_STANDARD => px4_mode_name(mode),
+            _ => "",
+        };
+        let mut properties = MavModeProperty::empty();
+        if !matches!(mode, FlightMode::Altitude | FlightMode::Position) {
+            properties |= MavModeProperty::MAV_MODE_PROPERTY_ADVANCED;
+        }
+        AVAILABLE_MODES_DATA {
+            custom_mode: custom_mode(mode),
+            properties,
+            number_modes: count,
+            mode_index: i as u8 + 1,
+            standard_mode: standard,
+            mode_name: name.into(),
+        }
+    };
+    match index {
+        0 => Some(modes.iter().enumerate().map(|(i, m)| entry(i, *m)).collect()),
+        k if k <= count => Some(vec![entry(usize::from(k) - 1, modes[usize::from(k) - 1])]),
+        _ => None,
+    }
+}
+
+/// PX4's name of a mode's nav state (`mode_util::nav_state_names`).
+fn px4_mode_name(mode: FlightMode) -> &'static str {
+    match mode {
+        FlightMode::Manual => "Manual",
+        FlightMode::Altitude => "Altitude",
+        FlightMode::Position => "Position",
+        FlightMode::Mission => "Mission",
+        FlightMode::Hold => "Hold",
+        FlightMode::ReturnToLaunch => "Return",
+        FlightMode::Acro => "Acro",
+        FlightMode::Descend => "Descend",
+        FlightMode::Offboard => "Offboard",
+        FlightMode::Stabilized => "Stabilized",
+        FlightMode::Takeoff => "Takeoff",
+        FlightMode::Land => "Land",
+        FlightMode::FollowTarget => "Follow Target",
+        FlightMode::Orbit => "Orbit",
     }
 }
 

@@ -60,8 +60,8 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::common::{
-    AUTOPILOT_VERSION_DATA, COMPONENT_METADATA_DATA, EVENT_DATA, HEARTBEAT_DATA, MavMessage, MavProtocolCapability,
-    MavSeverity, PING_DATA, STATUSTEXT_DATA, TIMESYNC_DATA,
+    AUTOPILOT_VERSION_DATA, AVAILABLE_MODES_DATA, COMPONENT_METADATA_DATA, EVENT_DATA, HEARTBEAT_DATA, MavMessage,
+    MavProtocolCapability, MavSeverity, PING_DATA, STATUSTEXT_DATA, TIMESYNC_DATA,
 };
 use mission::{ItemMode, Missions, Partner, PlanTicket};
 
@@ -999,7 +999,7 @@ impl Link {
                     self.text(reply, Severity::Warning, r);
                 }
             }
-            Action::SendMessage(id) => match requested(id, t, self.config.identity) {
+            Action::SendMessage(id, index) => match requested(id, index, t, self.config.identity) {
                 Some(msgs) => {
                     self.ack(ticket, convert::result::ACCEPTED);
                     for m in &msgs {
@@ -1154,15 +1154,18 @@ pub fn autopilot_version(identity: Identity) -> MavMessage {
     })
 }
 
-/// The messages a REQUEST_MESSAGE for `id` gets: AUTOPILOT_VERSION,
-/// COMPONENT_METADATA, or any
+/// The messages a REQUEST_MESSAGE for `id` (with param2 as `index`) gets:
+/// AUTOPILOT_VERSION, COMPONENT_METADATA, AVAILABLE_MODES, or any
 /// stream's message; `None` (DENIED, as PX4) for the rest and for a stream
 /// with nothing to send (WIND_COV without a wind estimate: PX4 denies a
 /// request its stream does not answer).
 #[must_use]
-pub fn requested(id: u32, t: &Snapshot, identity: Identity) -> Option<Vec<MavMessage>> {
+pub fn requested(id: u32, index: Option<u8>, t: &Snapshot, identity: Identity) -> Option<Vec<MavMessage>> {
     if id == command::AUTOPILOT_VERSION_ID {
         return Some(vec![autopilot_version(identity)]);
+    }
+    if id == <AVAILABLE_MODES_DATA as mavlink::MessageData>::ID {
+        return convert::available_modes(index?).map(|m| m.into_iter().map(MavMessage::AVAILABLE_MODES).collect());
     }
     if id == <COMPONENT_METADATA_DATA as mavlink::MessageData>::ID {
         return Some(vec![events::component_metadata(t.telemetry.time_s)]);

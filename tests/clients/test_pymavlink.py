@@ -242,6 +242,36 @@ def test_bounds_px4_declares_are_accepted(vehicle):
         assert all(v.param_value == value for v in a), f"{name}: {a}"
 
 
+def test_available_modes_list_the_modes_the_vehicle_flies(vehicle):
+    """QGroundControl builds its mode menu for PX4 from AVAILABLE_MODES (the
+    standard modes protocol): MAV_CMD_REQUEST_MESSAGE with param2 0 gives
+    every mode, k the k-th, one past the last is denied. Each mode carries
+    PX4's custom mode, so the HEARTBEAT's mode is among them."""
+    m = connect(vehicle)
+    hb = m.wait_heartbeat(timeout=5)
+    # MAVLink 2 only: the ids and enums of pymavlink's v20 dialect
+    available_modes, standard_mode_mission = 435, 6
+    assert command(m, mavlink.MAV_CMD_REQUEST_MESSAGE, available_modes, 0) == 0
+    first = wait(m, "AVAILABLE_MODES", lambda _: True, 3.0)
+    assert first is not None, "no AVAILABLE_MODES"
+    modes = [first]
+    while len(modes) < first.number_modes:
+        nxt = wait(m, "AVAILABLE_MODES", lambda _: True, 3.0)
+        assert nxt is not None, f"{len(modes)} of {first.number_modes} modes"
+        modes.append(nxt)
+    assert sorted(x.mode_index for x in modes) == list(range(1, first.number_modes + 1))
+    by_mode = {x.custom_mode: x for x in modes}
+    assert hb.custom_mode in by_mode, f"the current mode {hb.custom_mode} is listed"
+    mission = by_mode[4 << 16 | 4 << 24]  # AUTO.MISSION
+    assert mission.standard_mode == standard_mode_mission and mission.mode_name == ""
+    assert by_mode[4 << 16 | 3 << 24].mode_name == "Hold"  # AUTO.LOITER, not a standard mode
+    assert command(m, mavlink.MAV_CMD_REQUEST_MESSAGE, available_modes, 3) == 0
+    third = wait(m, "AVAILABLE_MODES", lambda _: True, 3.0)
+    assert third is not None and third.mode_index == 3 and third.custom_mode == modes[2].custom_mode
+    past = command(m, mavlink.MAV_CMD_REQUEST_MESSAGE, available_modes, first.number_modes + 1)
+    assert past == mavlink.MAV_RESULT_DENIED
+
+
 def test_full_parameter_list_at_1x():
     """MAVROS and QGroundControl load the whole list at connect: all of it,
     in index order, quickly, at 1x."""

@@ -259,10 +259,22 @@ fn standard_modes_and_prearm_checks() {
 fn requests_and_reboot() {
     assert_eq!(
         classify(&long(512, [148.0, N, N, N, N, N, N])),
-        Action::SendMessage(148)
+        Action::SendMessage(148, None)
     );
-    assert_eq!(classify(&long(520, [1.0, N, N, N, N, N, N])), Action::SendMessage(148));
-    assert_eq!(classify(&long(410, [0.0; 7])), Action::SendMessage(242));
+    // param2, rounded, is a message's index (AVAILABLE_MODES' mode)
+    assert_eq!(
+        classify(&long(512, [435.0, 2.4, N, N, N, N, N])),
+        Action::SendMessage(435, Some(2))
+    );
+    assert_eq!(
+        classify(&long(512, [435.0, -1.0, N, N, N, N, N])),
+        Action::SendMessage(435, None)
+    );
+    assert_eq!(
+        classify(&long(520, [1.0, N, N, N, N, N, N])),
+        Action::SendMessage(148, None)
+    );
+    assert_eq!(classify(&long(410, [0.0; 7])), Action::SendMessage(242, None));
     assert_eq!(
         classify(&long(511, [245.0, 1e6, N, N, N, N, N])),
         Action::SetInterval(245, Interval::Every(Duration::from_secs(1)))

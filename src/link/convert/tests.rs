@@ -83,3 +83,40 @@ fn units() {
     assert_eq!(sat_i32(f64::NAN), 0);
     assert_eq!(finite(f32::NAN), None);
 }
+
+#[test]
+fn available_modes_list_the_flown_modes_in_px4s_order() {
+    let all = available_modes(0).unwrap();
+    assert_eq!(all.len(), FlightMode::ALL.len());
+    for (i, m) in all.iter().enumerate() {
+        assert_eq!((m.mode_index, m.number_modes), (i as u8 + 1, all.len() as u8));
+    }
+    // by nav state: Manual (0) first, Orbit (21) last
+    assert_eq!(all[0].custom_mode, custom_mode(FlightMode::Manual));
+    assert_eq!(all[all.len() - 1].custom_mode, custom_mode(FlightMode::Orbit));
+    let mission = all
+        .iter()
+        .find(|m| m.custom_mode == custom_mode(FlightMode::Mission))
+        .unwrap();
+    assert_eq!(mission.standard_mode, MavStandardMode::MAV_STANDARD_MODE_MISSION);
+    assert_eq!(
+        mission.mode_name.to_str().unwrap(),
+        "",
+        "a standard mode carries no name"
+    );
+    assert!(mission.properties.contains(MavModeProperty::MAV_MODE_PROPERTY_ADVANCED));
+    let hold = all
+        .iter()
+        .find(|m| m.custom_mode == custom_mode(FlightMode::Hold))
+        .unwrap();
+    assert_eq!(hold.standard_mode, MavStandardMode::MAV_STANDARD_MODE_NON_STANDARD);
+    assert_eq!(hold.mode_name.to_str().unwrap(), "Hold");
+    let position = all
+        .iter()
+        .find(|m| m.custom_mode == custom_mode(FlightMode::Position))
+        .unwrap();
+    assert!(position.properties.is_empty(), "Position is not an advanced mode");
+    // one by index; past the last, nothing
+    assert_eq!(available_modes(3).unwrap(), vec![all[2].clone()]);
+    assert!(available_modes(all.len() as u8 + 1).is_none());
+}

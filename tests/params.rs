@@ -310,10 +310,6 @@ const RANGE_DEVIATIONS: &[(&str, &str)] = &[
 fn shared_ranges_reach_the_bounds_px4_declares() {
     use rotorpilot::params::px4_params;
     let mut s = ParamStore::new(&quad());
-    let limits = |kind: ParamType| match kind {
-        ParamType::Int32 => (f64::from(i32::MIN), f64::from(i32::MAX)),
-        ParamType::Real32 => (f64::from(f32::MIN), f64::from(f32::MAX)),
-    };
     let value = |kind: ParamType, x: f64| match kind {
         ParamType::Int32 => ParamValue::Int32(x as i32),
         ParamType::Real32 => ParamValue::Real32(x as f32),
@@ -324,7 +320,7 @@ fn shared_ranges_reach_the_bounds_px4_declares() {
         let theirs = px4.iter().find(|q| q.name == *name).unwrap();
         let (i, _) = s.get(name).unwrap();
         let ours = *s.spec(i).unwrap();
-        let (lo, hi) = limits(theirs.kind);
+        let (lo, hi) = theirs.kind.limits();
         // PX4's declared bounds (an undeclared one is the type's limit)
         let declared: Vec<f64> = [theirs.min, theirs.max]
             .into_iter()

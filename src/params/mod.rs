@@ -79,6 +79,16 @@ impl ParamType {
         }
     }
 
+    /// The smallest and largest value the type holds, as f64: a bound PX4
+    /// leaves undeclared is this limit.
+    #[must_use]
+    pub fn limits(self) -> (f64, f64) {
+        match self {
+            ParamType::Int32 => (f64::from(i32::MIN), f64::from(i32::MAX)),
+            ParamType::Real32 => (f64::from(f32::MIN), f64::from(f32::MAX)),
+        }
+    }
+
     /// The type of a MAV_PARAM_TYPE number (only 6 and 9 are used, as in PX4).
     #[must_use]
     pub fn from_mavlink_id(id: u8) -> Option<ParamType> {

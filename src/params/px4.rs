@@ -62,10 +62,7 @@ fn parse_line(line: &'static str) -> Result<Px4Param, String> {
         "FLOAT" => ParamType::Real32,
         other => return Err(format!("type `{other}`")),
     };
-    let (lo, hi) = match kind {
-        ParamType::Int32 => (f64::from(i32::MIN), f64::from(i32::MAX)),
-        ParamType::Real32 => (f64::from(f32::MIN), f64::from(f32::MAX)),
-    };
+    let (lo, hi) = kind.limits();
     let num = |s: &str, or: f64| -> Result<f64, String> {
         if s.is_empty() {
             Ok(or)

@@ -292,9 +292,9 @@ impl Client {
 
     /// Send a COMMAND_LONG and wait for its ACK, sending it again each
     /// second while none comes, as MAVSDK retries a command, but for up to
-    /// 10 s (MAVSDK gives up after 3 tries): right after a big build, a
-    /// vehicle writing its logs can stall for seconds on a machine whose
-    /// disk is still flushing, and its ACK comes late, not never.
+    /// 10 s (MAVSDK gives up after 3 tries): on a machine just busy with a
+    /// build an ACK has failed to come within 3 s (cause not found), and
+    /// one late or lost answer is not what a test that uses this checks.
     pub async fn command_long_acked(
         &mut self,
         to: SocketAddr,

@@ -18,6 +18,12 @@ use rotorpilot::geo::GeoPoint;
 use rotorpilot::mission::{MissionItem, MissionType, PlanChange};
 use rotorpilot::params::ParamValue;
 
+/// `COM_FAIL_ACT_T` 0: a failsafe acts at the instant of its cause, for the
+/// tests of the causes and actions (the delay's own tests are at the end).
+fn at_once() -> (&'static str, ParamValue) {
+    ("COM_FAIL_ACT_T", real(0.0))
+}
+
 /// The quad with `params`, on the ground at home.
 fn vehicle(params: &[(&str, ParamValue)]) -> Sitl {
     Sitl::quad().params(params).build()
@@ -96,7 +102,7 @@ fn polygon(command: u16, corners: &[(f64, f64)]) -> Vec<MissionItem> {
 
 #[test]
 fn data_link_loss_returns_lands_and_is_regained() {
-    let mut ap = vehicle(&[("NAV_DLL_ACT", int(2)), ("RTL_RETURN_ALT", real(15.0))]);
+    let mut ap = vehicle(&[("NAV_DLL_ACT", int(2)), ("RTL_RETURN_ALT", real(15.0)), at_once()]);
     ap.heartbeat();
     take_off_to(&mut ap, 5.0);
     reposition(&mut ap, 20.0, 0.0, 5.0);
@@ -160,7 +166,7 @@ fn data_link_loss_never_without_a_gcs_and_no_action_when_disabled() {
 #[test]
 fn a_land_failsafe_taken_over_comes_back_with_a_position_loss_while_its_cause_lasts() {
     for link_back in [false, true] {
-        let mut ap = vehicle(&[("NAV_DLL_ACT", int(3))]);
+        let mut ap = vehicle(&[("NAV_DLL_ACT", int(3)), at_once()]);
         take_off_to(&mut ap, 20.0);
         ap.heartbeat();
         ap.run_until(15.0, |t| t.mode == FlightMode::Land)
@@ -207,7 +213,7 @@ fn a_land_failsafe_taken_over_comes_back_with_a_position_loss_while_its_cause_la
 
 #[test]
 fn data_link_loss_on_the_wall_clock_acts_on_the_runtime_timeout() {
-    let mut ap = vehicle(&[("NAV_DLL_ACT", int(3))]);
+    let mut ap = vehicle(&[("NAV_DLL_ACT", int(3)), at_once()]);
     ap.pilot_mut().set_client_clock(ClientClock::Wall);
     ap.heartbeat();
     let heard = ap.time_s();
@@ -247,6 +253,7 @@ fn battery_drains_in_flight_through_each_threshold_return_then_land() {
     let mut params = small_pack();
     params.push(("COM_LOW_BAT_ACT", int(3)));
     params.push(("RTL_RETURN_ALT", real(8.0)));
+    params.push(at_once());
     let mut ap = vehicle(&params);
     take_off_to(&mut ap, 5.0);
     assert_eq!(ap.telemetry().battery_warning, BatteryWarning::None);
@@ -323,6 +330,7 @@ fn battery_drains_in_flight_through_each_threshold_return_then_land() {
 fn battery_critical_lands_with_com_low_bat_act_2_and_only_warns_by_default() {
     let mut params = small_pack();
     params.push(("COM_LOW_BAT_ACT", int(2)));
+    params.push(at_once());
     let mut ap = vehicle(&params);
     take_off_to(&mut ap, 4.0);
     let at = ap
@@ -447,6 +455,7 @@ fn geofence_max_distance_returns_and_lands() {
         ("GF_ACTION", int(3)),
         ("GF_MAX_HOR_DIST", real(15.0)),
         ("RTL_RETURN_ALT", real(8.0)),
+        at_once(),
     ]);
     take_off_to(&mut ap, 5.0);
     let t0 = ap.time_s();
@@ -845,4 +854,143 @@ fn a_mission_interrupted_by_a_position_loss_resumes_when_it_returns() {
     assert!(ap.pilot().failsafe_in_force().is_none());
     ap.run_until(60.0, |t| t.mission.state == MissionState::Complete)
         .unwrap_or_else(|| panic!("mission not completed: {:?} {:?}", ap.mode(), ap.said()));
+}
+
+// ----- the failsafe delay (COM_FAIL_ACT_T) ----------------------------------------------------
+
+/// A quad flying a mission north at 15 m with `NAV_DLL_ACT` Return and
+/// `params`, a GCS heard for the first 5 s of the mission and then 9 s of
+/// silence; returns it with the time of the last GCS HEARTBEAT [s].
+fn mission_then_silence(params: &[(&str, ParamValue)]) -> (Sitl, f64) {
+    let mut all = vec![("NAV_DLL_ACT", int(2))];
+    all.extend_from_slice(params);
+    let mut ap = vehicle(&all);
+    let g = point(300.0, 0.0, 15.0);
+    let wp = MissionItem {
+        frame: 3, // MAV_FRAME_GLOBAL_RELATIVE_ALT
+        command: 16,
+        autocontinue: true,
+        params: [0.0, 2.0, 0.0, f32::NAN],
+        x: rotorpilot::mission::quantise_deg(g.lat_deg),
+        y: rotorpilot::mission::quantise_deg(g.lon_deg),
+        z: 15.0,
+    };
+    ap.core_mut()
+        .change_plans(
+            0,
+            PlanChange::Store {
+                kind: MissionType::Mission,
+                items: vec![wp],
+                base_id: None,
+            },
+        )
+        .expect("mission stored");
+    take_off_to(&mut ap, 15.0);
+    assert_eq!(
+        ap.command(AutopilotCommand::StartMission { first: None }),
+        CommandOutcome::Accepted
+    );
+    for _ in 0..5 {
+        ap.run(1.0);
+        ap.heartbeat();
+    }
+    assert_eq!(ap.mode(), FlightMode::Mission);
+    let last = ap.time_s();
+    ap.run(9.0);
+    assert_eq!(ap.mode(), FlightMode::Mission);
+    (ap, last)
+}
+
+/// GIVEN a quad on a mission with `NAV_DLL_ACT` Return and PX4's default
+/// `COM_FAIL_ACT_T` of 5 s
+/// WHEN the data link is lost
+/// THEN it holds first — Hold, the failsafe in force, "Failsafe: GCS
+/// connection lost, Return in 5 s" — stops within a few metres, and returns
+/// 5 s later ("... triggering Return"), as PX4's failsafe framework delays
+/// an action the user may take over (`FailsafeBase::checkFailsafe`,
+/// `getSelectedAction`).
+#[test]
+fn a_failsafe_holds_for_com_fail_act_t_before_it_returns() {
+    let (mut ap, last) = mission_then_silence(&[]);
+    let lost = ap
+        .run_until(3.0, |t| t.mode != FlightMode::Mission)
+        .expect("the data-link loss stops the mission");
+    assert!(
+        (lost - last - 10.0).abs() <= 2e-3,
+        "left the mission {} s after the last heartbeat",
+        lost - last
+    );
+    assert_eq!(ap.mode(), FlightMode::Hold, "{:?}", ap.said());
+    let f = ap
+        .pilot()
+        .failsafe_in_force()
+        .expect("a failsafe in force while it holds");
+    assert_eq!((f.cause.as_str(), f.triggered), ("GCS connection lost", "Hold"));
+    assert_eq!(
+        ap.count("Failsafe: GCS connection lost, Return in 5 s"),
+        1,
+        "{:?}",
+        ap.said()
+    );
+    assert_eq!(
+        ap.severity_of("Failsafe: GCS connection lost, Return in 5 s"),
+        Some(Severity::Critical)
+    );
+    assert!(ap.telemetry().failsafe);
+    let stop = ap.telemetry().position_ned;
+    let rtl = ap
+        .run_until(10.0, |t| t.mode == FlightMode::ReturnToLaunch)
+        .expect("returns after the delay");
+    let t = ap.telemetry();
+    let held = t.position_ned - stop;
+    println!(
+        "failsafe delay: Hold at {lost:.3} s, Return at {rtl:.3} s ({:.3} s); braked within {:.2} m, {:.3} m/s at the end",
+        rtl - lost,
+        held.norm(),
+        t.velocity_ned.norm()
+    );
+    assert!((rtl - lost - 5.0).abs() <= 2e-3, "Return {} s after Hold", rtl - lost);
+    // from the mission's 5 m/s: PX4's braking (MPC_ACC_HOR 3 m/s^2) stops within about 5 m
+    assert!(held.norm() < 8.0, "moved {held} m while holding");
+    assert!(
+        t.velocity_ned.norm() < 0.3,
+        "still moving at {} m/s",
+        t.velocity_ned.norm()
+    );
+    assert_eq!(
+        ap.count("Failsafe: GCS connection lost, triggering Return"),
+        1,
+        "{:?}",
+        ap.said()
+    );
+    let f = ap.pilot().failsafe_in_force().expect("the return is the failsafe");
+    assert_eq!(f.triggered, "Return");
+}
+
+/// GIVEN the same loss
+/// WHEN the pilot selects Hold (the mode flown) 2 s into the delay
+/// THEN the Return never comes and no failsafe is in force (PX4's user
+/// takeover: a mode switch during the delay); and with `COM_FAIL_ACT_T` 0
+/// the Return comes at once.
+#[test]
+fn selecting_a_mode_during_the_delay_takes_over_and_com_fail_act_t_0_acts_at_once() {
+    let (mut ap, _) = mission_then_silence(&[]);
+    ap.run_until(3.0, |t| t.mode != FlightMode::Mission).expect("holds");
+    ap.run(2.0);
+    assert_eq!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::Hold)),
+        CommandOutcome::Accepted
+    );
+    assert!(ap.pilot().failsafe_in_force().is_none());
+    ap.run(10.0);
+    assert_eq!(ap.mode(), FlightMode::Hold, "{:?}", ap.said());
+    assert_eq!(ap.count("triggering Return"), 0, "{:?}", ap.said());
+
+    let (mut ap, last) = mission_then_silence(&[("COM_FAIL_ACT_T", real(0.0))]);
+    let at = ap
+        .run_until(3.0, |t| t.mode != FlightMode::Mission)
+        .expect("the data-link loss stops the mission");
+    assert!((at - last - 10.0).abs() <= 2e-3);
+    assert_eq!(ap.mode(), FlightMode::ReturnToLaunch, "{:?}", ap.said());
+    assert_eq!(ap.count(" in 5 s"), 0);
 }

@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::sitl::{HOME, Sitl};
+use common::sitl::{HOME, Sitl, real};
 use nalgebra::Vector3;
 use rotorpilot::autopilot::{
     Autopilot, AutopilotCommand, CommandOutcome, ControlOutput, FlightMode, ManualControl, Severity, StatusText,
@@ -399,8 +399,8 @@ fn stabilized_and_acro_respond_to_the_sticks() {
 
 #[test]
 fn losing_the_sticks_in_a_manual_mode_returns_and_not_in_hold_or_mission() {
-    // Position: NAV_RCL_ACT default (2) returns
-    let mut v = Vehicle::new(&[]);
+    // Position: NAV_RCL_ACT default (2) returns (at once: COM_FAIL_ACT_T 0)
+    let mut v = Vehicle::new(&[("COM_FAIL_ACT_T", real(0.0))]);
     v.climb_in(FlightMode::Position, 0.6, 4.0);
     v.sticks = ManualControl::CENTRED;
     v.run(1.0);
@@ -413,11 +413,15 @@ fn losing_the_sticks_in_a_manual_mode_returns_and_not_in_hold_or_mission() {
         "lost COM_RC_LOSS_T after the last sticks: {after} s"
     );
     assert!(v.said(Severity::Critical, "Manual control lost"));
-    // NAV_RCL_ACT 3: land
+    // NAV_RCL_ACT 3: land, after PX4's COM_FAIL_ACT_T (5 s) in Hold
     let mut v = Vehicle::new(&[("NAV_RCL_ACT", ParamValue::Int32(3))]);
     v.climb_in(FlightMode::Altitude, 0.6, 3.0);
     v.sending = false;
-    assert!(v.run_until(2.0, |t| t.mode == FlightMode::Land));
+    assert!(v.run_until(1.0, |t| t.mode == FlightMode::Hold));
+    let held = v.core.time_s();
+    assert!(v.run_until(6.0, |t| t.mode == FlightMode::Land));
+    let waited = v.core.time_s() - held;
+    assert!((waited - 5.0).abs() < 0.01, "landed {waited} s after Hold");
     // Hold with sticks that stop: nothing happens
     let mut v = Vehicle::new(&[]);
     auto_hover(&mut v, 5.0);
@@ -561,7 +565,7 @@ fn position_falls_back_to_altitude_without_gps_and_back() {
 #[test]
 fn above_real_time_the_runtime_times_the_stick_loss_on_the_wall_clock() {
     use rotorpilot::autopilot::{ClientClock, ClientTimer};
-    let mut v = Vehicle::new(&[]);
+    let mut v = Vehicle::new(&[("COM_FAIL_ACT_T", real(0.0))]);
     v.core.pilot_mut().ap.set_client_clock(ClientClock::Wall);
     v.climb_in(FlightMode::Altitude, 0.6, 3.0);
     v.sending = false;

@@ -8,7 +8,7 @@
 
 mod common;
 
-use common::sitl::{HOME, Sitl, int};
+use common::sitl::{HOME, Sitl, int, real};
 use nalgebra::Vector3;
 use rotorpilot::airframe::{Airframe, HoverVerdict, analyse_failures};
 use rotorpilot::autopilot::{
@@ -835,6 +835,8 @@ fn the_stock_hexa_flies_on_with_its_heading_free_after_losing_any_rotor() {
 #[test]
 fn a_mission_taken_over_from_a_rotor_failure_landing_lands_again_after_a_position_loss() {
     let mut v = vehicle("hexa-ppnnpn", Action::Land);
+    // the Land at the instant of the failure (no COM_FAIL_ACT_T Hold first)
+    v.set_param("COM_FAIL_ACT_T", real(0.0));
     v.core_mut()
         .change_plans(
             0,

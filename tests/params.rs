@@ -162,6 +162,7 @@ const SHARED_WITH_PX4: &[&str] = &[
     "COM_OF_LOSS_T",
     "COM_OBL_RC_ACT",
     "COM_DISARM_LAND",
+    "COM_FAIL_ACT_T",
     "COM_DISARM_PRFLT",
     "COM_ACT_FAIL_ACT",
     "COM_RC_LOSS_T",

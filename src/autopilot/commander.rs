@@ -250,13 +250,19 @@ impl Autopilot {
     /// a fix). While the cause of the failsafe taken over lasts, it is
     /// remembered: the next failsafe, a lost position's Descend included,
     /// ends the takeover and the more severe action is in force (PX4's
-    /// `FailsafeBase::checkFailsafe` and `getSelectedAction`).
+    /// `FailsafeBase::checkFailsafe` and `getSelectedAction`). A failsafe
+    /// holding before its Return or Land (`COM_FAIL_ACT_T`) is taken over
+    /// the same way, by selecting Hold too: its action is not carried out.
     pub fn command(&mut self, cmd: AutopilotCommand, readings: &SensorReadings) -> CommandOutcome {
         let mode = self.navigator.mode();
+        // while a failsafe holds before it acts, selecting a mode takes over
+        // even when it is Hold, the mode flown (PX4: the user's intended mode changed)
+        let selects_mode = self.failsafe_delayed() && matches!(cmd, AutopilotCommand::SetMode(_));
         let held = self.in_failsafe.take();
         let outcome = self.dispatch(cmd, readings);
-        let took_over = outcome == CommandOutcome::Accepted && self.navigator.mode() != mode;
+        let took_over = outcome == CommandOutcome::Accepted && (self.navigator.mode() != mode || selects_mode);
         if took_over {
+            self.failsafe_delay_taken_over();
             if let Some(f) = held
                 && f.action.is_some()
                 && self.failsafe_cause_lasts(&f.cause)

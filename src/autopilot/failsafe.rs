@@ -143,6 +143,8 @@ pub(super) struct Failsafe {
     clamp_announced: bool,
     /// Since when the offboard setpoints are within the altitude limit [s].
     clamp_clear_since_s: Option<f64>,
+    /// A failsafe action held back while the vehicle holds (`COM_FAIL_ACT_T`).
+    delayed: Option<Delayed>,
 }
 
 impl Failsafe {
@@ -401,12 +403,8 @@ pub const FAILSAFE_ACTIONS: [&str; 7] = [
 /// The runner's choice for failsafe `action` caused by `cause`, announced
 /// as PX4 does ("Failsafe activated due to {cause}, triggering {action}",
 /// shortened to fit a STATUSTEXT: "Failsafe: {cause}, triggering
-/// {action}"); `None` when nothing is to be done. Disarmed, nothing
-/// happens; a warning is only said. While the position does not serve
-/// Hold, Return or Land (`position`), each becomes Descend (remembering
-/// which, for when the position returns). A mode already in force (`nav`) is not entered
-/// again, and a landing (`landing`: Land, Descend, a return's or a mission's
-/// landing) is not interrupted by Hold, Return or Land (PX4).
+/// {action}"); `None` when nothing is to be done ([`decide`]); a warning is
+/// only said.
 pub(super) fn respond(
     cause: &str,
     action: FailsafeAction,
@@ -416,14 +414,37 @@ pub(super) fn respond(
     landing: bool,
     say: &mut Announcements,
 ) -> Option<Response> {
-    if action == FailsafeAction::None {
-        return None;
-    }
-    if !armed {
-        return None;
-    }
-    if action == FailsafeAction::Warn {
+    if action == FailsafeAction::Warn && armed {
         say.announce(Severity::Warning, format!("Failsafe warning: {cause}"));
+    }
+    let response = decide(action, armed, position, nav, landing)?;
+    let severity = if response == Response::Disarm {
+        Severity::Emergency
+    } else {
+        Severity::Critical
+    };
+    say.announce(
+        severity,
+        format!("Failsafe: {cause}, triggering {}", response.taken(action).name()),
+    );
+    Some(response)
+}
+
+/// What failsafe `action` has the vehicle do, unsaid; `None` when nothing is
+/// to be done. Disarmed, nothing happens, and a warning acts on nothing.
+/// While the position does not serve Hold, Return or Land (`position`),
+/// each becomes Descend (remembering which, for when the position
+/// returns). A mode already in force (`nav`) is not entered again, and a
+/// landing (`landing`: Land, Descend, a return's or a mission's landing) is
+/// not interrupted by Hold, Return or Land (PX4).
+fn decide(
+    action: FailsafeAction,
+    armed: bool,
+    position: PositionValidity,
+    nav: Nav,
+    landing: bool,
+) -> Option<Response> {
+    if matches!(action, FailsafeAction::None | FailsafeAction::Warn) || !armed {
         return None;
     }
     let then = then_of(action);
@@ -440,12 +461,6 @@ pub(super) fn respond(
     if already {
         return None;
     }
-    let severity = if matches!(action, FailsafeAction::Terminate | FailsafeAction::Disarm) {
-        Severity::Emergency
-    } else {
-        Severity::Critical
-    };
-    say.announce(severity, format!("Failsafe: {cause}, triggering {}", action.name()));
     match action {
         FailsafeAction::Hold => Some(Response::Hold),
         FailsafeAction::Return => Some(Response::Return),
@@ -454,6 +469,41 @@ pub(super) fn respond(
         FailsafeAction::Terminate | FailsafeAction::Disarm => Some(Response::Disarm),
         FailsafeAction::None | FailsafeAction::Warn => None,
     }
+}
+
+/// Whether the failsafe for `cause` may hold before it acts
+/// (`COM_FAIL_ACT_T`): those whose action PX4 lets the user take over
+/// "automatically" (`UserTakeoverAllowed::Auto`, the default of
+/// `FailsafeBase::ActionOptions`) — the data link, the sticks, the battery,
+/// the geofence, a failed rotor. Not the offboard signal and a lost position
+/// (PX4's mode fallback, which acts at once), nor a rotor loss that leaves
+/// no heading (rotorpilot's own, an emergency).
+fn may_wait(cause: &str) -> bool {
+    matches!(
+        cause,
+        cause::DATA_LINK
+            | cause::MANUAL_CONTROL
+            | cause::BATTERY_CRITICAL
+            | cause::BATTERY_EMERGENCY
+            | cause::GEOFENCE
+            | cause::ROTOR_FAILURE
+    )
+}
+
+/// A failsafe's Return or Land held back while the vehicle holds (PX4's
+/// delayed action, `COM_FAIL_ACT_T`): carried out when it is due unless
+/// the pilot selects a mode, the vehicle disarms, the position stops
+/// serving Hold, or a failsafe that cannot wait acts first. A failsafe
+/// that can wait joins it, and the more severe action of the two is
+/// carried out when it is due.
+#[derive(Clone, Debug, PartialEq)]
+struct Delayed {
+    /// Why (the cause of the more severe action).
+    cause: String,
+    /// What follows: Return or Land.
+    action: FailsafeAction,
+    /// When it is due [s].
+    due_s: f64,
 }
 
 // ----- the wiring: the failsafes' decisions carried out by the flight stack ---------------------
@@ -579,6 +629,7 @@ impl Autopilot {
             self.disarm_now("Disarmed by landing");
         }
         self.supervise_geofence(m);
+        self.supervise_delayed_failsafe(m);
     }
 
     /// Offboard setpoints lost while in Offboard: announced, then `COM_OBL_RC_ACT`.
@@ -687,10 +738,14 @@ impl Autopilot {
     }
 
     /// Take a failsafe action for `cause` (the one runner of every
-    /// failsafe): [`respond`] chooses, the navigator or the commander carries it out.
-    /// A Hold, Return or Land ends a takeover (PX4: a new action of Hold or
-    /// worse clears it), and the failsafe taken over comes back instead when
-    /// its action is the more severe.
+    /// failsafe). A Hold, Return or Land ends a takeover (PX4: a new action
+    /// of Hold or worse clears it), and the failsafe taken over comes back
+    /// instead when its action is the more severe. A Return or Land that
+    /// may wait ([`may_wait`]) holds for `COM_FAIL_ACT_T` first (PX4's
+    /// `FailsafeBase`: "Failsafe activated, entering Hold for 5 seconds";
+    /// here "Failsafe: {cause}, {action} in 5 s"), unless a
+    /// failsafe beyond Hold is in force already or the position does not
+    /// serve Hold; a delay running takes it in. Any other action ends the delay.
     pub(in crate::autopilot) fn failsafe_action(&mut self, cause: &str, action: FailsafeAction, m: &Measurement) {
         let mut cause = cause.to_owned();
         let mut action = action;
@@ -710,7 +765,69 @@ impl Autopilot {
             action = action_of(before);
             cause = f.cause;
         }
-        let cause = cause.as_str();
+        if !self.failsafe_waits(&cause, action) {
+            self.act_on_failsafe(&cause, action, m);
+            return;
+        }
+        let then = then_of(action).expect("a Return or Land");
+        if let Some(d) = self.failsafe.delayed.as_mut() {
+            // a delay running: the more severe action follows when it is due
+            let before = then_of(d.action).expect("a Return or Land");
+            if before.most_severe(then) != before {
+                d.action = action;
+                d.cause.clone_from(&cause);
+                self.enter_failsafe(&cause, Some(then), FailsafeAction::Hold.name());
+            }
+            return;
+        }
+        // PX4 says "Failsafe activated, entering Hold for 5 seconds" (and in
+        // its event the cause and the action); the cause, the action and the
+        // delay in whole seconds fit one STATUSTEXT
+        let delay_s = self.settings.failsafe.action_delay_s;
+        self.say.announce(
+            Severity::Critical,
+            format!("Failsafe: {cause}, {} in {} s", action.name(), (delay_s + 0.5).floor()),
+        );
+        if !matches!(self.navigator.nav(), Nav::Hold { target: None, .. }) {
+            self.navigator.enter_hold();
+        }
+        self.enter_failsafe(&cause, Some(then), FailsafeAction::Hold.name());
+        self.failsafe.delayed = Some(Delayed {
+            cause,
+            action,
+            due_s: m.time_s + delay_s,
+        });
+    }
+
+    /// Whether failsafe `action` for `cause` holds first: it may wait, it
+    /// is a Return or Land the runner would carry out now, Hold can be
+    /// flown (the position serves it), and no failsafe beyond Hold is in
+    /// force (PX4's `clearDelayIfNeeded`).
+    fn failsafe_waits(&self, cause: &str, action: FailsafeAction) -> bool {
+        let position = self.navigator.position();
+        self.settings.failsafe.action_delay_s > 0.0
+            && may_wait(cause)
+            && matches!(
+                decide(
+                    action,
+                    self.commander.armed(),
+                    position,
+                    self.navigator.nav(),
+                    self.navigator.landing(),
+                ),
+                Some(Response::Return | Response::Land)
+            )
+            && position.serves(DescendThen::Hold.need())
+            && self
+                .in_failsafe
+                .as_ref()
+                .is_none_or(|f| f.triggered == FailsafeAction::Hold.name())
+    }
+
+    /// Carry out failsafe `action` for `cause` now: [`respond`] chooses, the
+    /// navigator or the commander carries it out; a delayed action still
+    /// waiting is dropped when this one acts.
+    fn act_on_failsafe(&mut self, cause: &str, action: FailsafeAction, m: &Measurement) {
         let response = respond(
             cause,
             action,
@@ -721,6 +838,7 @@ impl Autopilot {
             &mut self.say,
         );
         if let Some(r) = response {
+            self.failsafe.delayed = None;
             self.enter_failsafe(cause, r.then(), r.taken(action).name());
         }
         match response {
@@ -737,6 +855,33 @@ impl Autopilot {
             Some(Response::Disarm) => self.disarm_now("Disarmed by failsafe"),
             None => {}
         }
+    }
+
+    /// The delayed failsafe action at the instant of `m`: dropped when the
+    /// vehicle is disarmed or the position no longer serves Hold (the lost
+    /// position's Descend gives way to the action instead), carried out
+    /// when due.
+    fn supervise_delayed_failsafe(&mut self, m: &Measurement) {
+        let Some(d) = &self.failsafe.delayed else {
+            return;
+        };
+        if !self.commander.armed() || !self.navigator.position().serves(DescendThen::Hold.need()) {
+            self.failsafe.delayed = None;
+        } else if m.time_s >= d.due_s - TIME_EPS {
+            let d = self.failsafe.delayed.take().expect("just seen");
+            self.act_on_failsafe(&d.cause, d.action, m);
+        }
+    }
+
+    /// The pilot selected a mode: a delayed failsafe action is not carried
+    /// out (PX4's user takeover during the delay).
+    pub(in crate::autopilot) fn failsafe_delay_taken_over(&mut self) {
+        self.failsafe.delayed = None;
+    }
+
+    /// Whether a failsafe action is held back now (`COM_FAIL_ACT_T`).
+    pub(in crate::autopilot) fn failsafe_delayed(&self) -> bool {
+        self.failsafe.delayed.is_some()
     }
 }
 

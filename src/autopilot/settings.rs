@@ -152,6 +152,8 @@ pub(super) struct FailsafeSettings {
     pub(super) geofence_action: FailsafeAction,
     /// `GF_MAX_HOR_DIST`, `GF_MAX_VER_DIST`.
     pub(super) geofence_limits: DistanceLimits,
+    /// `COM_FAIL_ACT_T` [s]: how long a delayed failsafe holds first (0: not delayed).
+    pub(super) action_delay_s: f64,
     /// `COM_POS_FS_EPH` [m] (negative: no limit).
     pub(super) position_eph_max_m: f64,
     /// `COM_VEL_FS_EVH` [m/s].
@@ -175,6 +177,8 @@ impl FailsafeSettings {
                 max_horizontal_m: p.real(Param::GF_MAX_HOR_DIST),
                 max_vertical_m: p.real(Param::GF_MAX_VER_DIST),
             },
+            // PX4 delays only above 0.1 s (`FailsafeBase::checkFailsafe`)
+            action_delay_s: Some(p.real(Param::COM_FAIL_ACT_T)).filter(|t| *t > 0.1).unwrap_or(0.0),
             position_eph_max_m: p.real(Param::COM_POS_FS_EPH),
             velocity_evh_max_m_s: p.real(Param::COM_VEL_FS_EVH),
         }

@@ -230,6 +230,10 @@ parameters! {
         ],
     ),
     COM_DISARM_LAND: real(2.0, -1.0, 20.0, "s", "Disarm this long after a landing (<= 0: never)"),
+    COM_FAIL_ACT_T: real(
+        5.0, 0.0, 25.0, "s",
+        "Failsafe delay: Hold this long before a Return or Land failsafe acts, for the pilot to take over (<= 0.1: none)",
+    ),
     COM_DISARM_PRFLT: real(
         10.0, -1.0, 20.0, "s",
         "Disarm this long after arming if the vehicle has not taken off (<= 0: never)",

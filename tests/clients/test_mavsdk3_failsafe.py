@@ -2,8 +2,8 @@
 mavsdk_server) against the rotorpilot binary at 20x: a geofence uploaded with
 the Geofence plugin and left by offboard velocity (GF_ACTION Hold; a goto
 outside it refused), the ground station going silent (MAVSDK's GCS heartbeats
-stop with its server: NAV_DLL_ACT Return, watched by a pymavlink listener on
-the GCS link that sends no heartbeat) and the battery drained to critical
+stop with its server: NAV_DLL_ACT Return after PX4's 5 s in Hold, watched by
+a pymavlink listener on the GCS link that sends no heartbeat) and the battery drained to critical
 (COM_LOW_BAT_ACT Land, BATTERY_STATUS charge_state; the failsafe also read as
 an event by MAVSDK's Events plugin). Every wait is bounded.
 
@@ -167,7 +167,16 @@ def test_data_link_loss_returns_when_mavsdk_goes_silent():
         drain(m, seen)
         hb = wait_msg(m, "HEARTBEAT", lambda h: px4_mode(h) == "LOITER", 5, seen)
         assert hb.base_mode & mavutil.mavlink.MAV_MODE_FLAG_SAFETY_ARMED
-        wait_msg(m, "HEARTBEAT", lambda h: px4_mode(h) == "RTL", 15, seen)
+        # as PX4 (COM_FAIL_ACT_T 5 s): the failsafe holds 5 s of vehicle time
+        # before it returns (timed by the ATTITUDE after each text: the
+        # heartbeat, once a wall second, is 20 vehicle seconds apart here)
+        wait_msg(m, "STATUSTEXT", lambda t: t.text == "Failsafe: GCS connection lost, Return in 5 s", 15, seen)
+        held = wait_msg(m, "ATTITUDE", lambda a: True, 2).time_boot_ms
+        wait_msg(m, "STATUSTEXT", lambda t: t.text == "Failsafe: GCS connection lost, triggering Return", 5, seen)
+        returned = wait_msg(m, "ATTITUDE", lambda a: True, 2).time_boot_ms
+        print(f"data link: Hold, then Return {(returned - held) / 1000:.2f} s of vehicle time later")
+        assert 4.0 < (returned - held) / 1000 < 6.0
+        wait_msg(m, "HEARTBEAT", lambda h: px4_mode(h) == "RTL", 5, seen)
         took = time.monotonic() - silent
         print(f"data link: RTL {took:.2f} s of wall time after MAVSDK stopped (COM_DL_LOSS_T 5 s, on the wall "
               f"clock at {FAST:.0f}x)")

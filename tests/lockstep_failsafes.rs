@@ -968,7 +968,8 @@ fn a_failsafe_holds_for_com_fail_act_t_before_it_returns() {
 }
 
 /// GIVEN the same loss
-/// WHEN the pilot selects Hold (the mode flown) 2 s into the delay
+/// WHEN the pilot selects Hold (the mode flown) 2 s into the delay, or
+/// repositions 1 s into it
 /// THEN the Return never comes and no failsafe is in force (PX4's user
 /// takeover: a mode switch during the delay); and with `COM_FAIL_ACT_T` 0
 /// the Return comes at once.
@@ -986,6 +987,16 @@ fn selecting_a_mode_during_the_delay_takes_over_and_com_fail_act_t_0_acts_at_onc
     assert_eq!(ap.mode(), FlightMode::Hold, "{:?}", ap.said());
     assert_eq!(ap.count("triggering Return"), 0, "{:?}", ap.said());
 
+    // a reposition during the delay takes over too (PX4: DO_REPOSITION changes the mode the user means)
+    let (mut ap, _) = mission_then_silence(&[]);
+    ap.run_until(3.0, |t| t.mode != FlightMode::Mission).expect("holds");
+    ap.run(1.0);
+    assert_eq!(reposition(&mut ap, 20.0, 20.0, 15.0), CommandOutcome::Accepted);
+    assert!(ap.pilot().failsafe_in_force().is_none());
+    ap.run(10.0);
+    assert_eq!(ap.mode(), FlightMode::Hold, "{:?}", ap.said());
+    assert_eq!(ap.count("triggering Return"), 0, "{:?}", ap.said());
+
     let (mut ap, last) = mission_then_silence(&[("COM_FAIL_ACT_T", real(0.0))]);
     let at = ap
         .run_until(3.0, |t| t.mode != FlightMode::Mission)
@@ -993,4 +1004,83 @@ fn selecting_a_mode_during_the_delay_takes_over_and_com_fail_act_t_0_acts_at_onc
     assert!((at - last - 10.0).abs() <= 2e-3);
     assert_eq!(ap.mode(), FlightMode::ReturnToLaunch, "{:?}", ap.said());
     assert_eq!(ap.count(" in 5 s"), 0);
+}
+
+/// GIVEN a quad with a 100 mAh pack, `COM_LOW_BAT_ACT` 3 (Return at
+/// critical, Land at emergency) and PX4's 5 s delay
+/// WHEN the charge falls through critical, and half a second later through
+/// emergency
+/// THEN the critical Return holds first, the emergency's Land joins the
+/// delay, and when it runs out the vehicle lands: one delay for all, the
+/// most severe action after it (PX4's `FailsafeBase`).
+#[test]
+fn a_more_severe_failsafe_joins_the_delay_and_follows_it() {
+    let mut params = small_pack();
+    params.push(("COM_LOW_BAT_ACT", int(3)));
+    let mut ap = vehicle(&params);
+    take_off_to(&mut ap, 5.0);
+    let critical = ap
+        .run_until(40.0, |t| t.battery_warning == BatteryWarning::Critical)
+        .expect("critical");
+    assert_eq!(ap.mode(), FlightMode::Hold);
+    assert_eq!(
+        ap.count("Failsafe: battery critical, Return in 5 s"),
+        1,
+        "{:?}",
+        ap.said()
+    );
+    let emergency = ap
+        .run_until(3.0, |t| t.battery_warning == BatteryWarning::Emergency)
+        .expect("emergency");
+    assert_eq!(ap.mode(), FlightMode::Hold, "the Land joins the delay");
+    let landing = ap
+        .run_until(6.0, |t| t.mode != FlightMode::Hold)
+        .expect("acts when the delay runs out");
+    println!(
+        "battery: critical at {critical:.3} s, emergency at {emergency:.3} s, {:?} at {landing:.3} s",
+        ap.mode()
+    );
+    assert_eq!(ap.mode(), FlightMode::Land, "{:?}", ap.said());
+    assert!(
+        (landing - critical - 5.0).abs() <= 2e-3,
+        "acted {} s after critical",
+        landing - critical
+    );
+    assert_eq!(
+        ap.count("Failsafe: battery emergency, triggering Land"),
+        1,
+        "{:?}",
+        ap.said()
+    );
+    assert_eq!(ap.count("triggering Return"), 0, "{:?}", ap.said());
+}
+
+/// GIVEN the client timers on the wall clock (a daemon above real time)
+/// WHEN a data-link loss starts the failsafe delay
+/// THEN the delay is a client timer (it waits for the pilot to take over):
+/// simulated time alone never ends it, and the runtime's expiry does.
+#[test]
+fn the_failsafe_delay_runs_on_the_client_clock() {
+    let (mut ap, _) = mission_then_silence(&[]);
+    ap.run_until(3.0, |t| t.mode != FlightMode::Mission).expect("holds");
+    let started = ap.time_s();
+    ap.pilot_mut().set_client_clock(ClientClock::Wall);
+    ap.run(20.0);
+    assert_eq!(ap.mode(), FlightMode::Hold, "{:?}", ap.said());
+    let timer = ap
+        .pilot()
+        .client_timers()
+        .into_iter()
+        .find(|p| p.timer == ClientTimer::FailsafeDelay)
+        .expect("the delay is pending");
+    assert!(
+        (timer.started_s - started).abs() < 2e-3 && timer.duration_s == 5.0,
+        "{timer:?}"
+    );
+    assert!(
+        ap.core_mut()
+            .client_timeout(0, ClientTimer::FailsafeDelay, timer.started_s)
+    );
+    assert_eq!(ap.mode(), FlightMode::ReturnToLaunch);
+    assert_eq!(ap.count("Failsafe: GCS connection lost, triggering Return"), 1);
 }

@@ -25,13 +25,17 @@
 //! * Geofence ([`super::geofence`]): the stored fence plan and
 //!   `GF_MAX_HOR_DIST`/`GF_MAX_VER_DIST`, checked on the current position
 //!   while armed in the air; `GF_ACTION` once per breach.
+//! * The failsafe delay: a Return or Land the pilot may take over holds for
+//!   `COM_FAIL_ACT_T` first (PX4's `FailsafeBase`), a client timer
+//!   ([`ClientTimer::FailsafeDelay`]: it waits for the pilot to take over).
 //!
 //! # Which clock a timer runs on
 //! A timer about the flight itself (landing, hold and loiter times, the
 //! disarm after a landing) runs on simulated time, always. A timer that
 //! waits for a client to act — the preflight auto-disarm (will the script
 //! take off?), the offboard loss (is the setpoint stream still there?), the
-//! data-link loss and the manual-control loss — runs on simulated time headless and at speeds up to real time, and on
+//! data-link loss, the manual-control loss and the failsafe delay (will the
+//! pilot take over?) — runs on simulated time headless and at speeds up to real time, and on
 //! the wall clock when the runtime runs faster ([`ClientClock::Wall`]): a
 //! script that works at 1x keeps working at 20x without editing a
 //! parameter. The core never reads a clock: it lists its pending client
@@ -78,6 +82,9 @@ pub enum ClientTimer {
     /// The pilot's sticks (MANUAL_CONTROL) in a manual mode: lost after
     /// `COM_RC_LOSS_T` without them, then `NAV_RCL_ACT`.
     ManualControlLoss,
+    /// A failsafe holding before its action: the action after
+    /// `COM_FAIL_ACT_T`, unless the pilot took over.
+    FailsafeDelay,
 }
 
 /// A client timer running now.
@@ -471,39 +478,43 @@ fn decide(
     }
 }
 
-/// Whether the failsafe for `cause` may hold before it acts
-/// (`COM_FAIL_ACT_T`): those whose action PX4 lets the user take over
+/// Whether failsafe `action` for `cause` starts or joins the failsafe
+/// delay (`COM_FAIL_ACT_T`): the actions PX4 lets the user take over
 /// "automatically" (`UserTakeoverAllowed::Auto`, the default of
-/// `FailsafeBase::ActionOptions`) — the data link, the sticks, the battery,
-/// the geofence, a failed rotor. Not the offboard signal and a lost position
-/// (PX4's mode fallback, which acts at once), nor a rotor loss that leaves
-/// no heading (rotorpilot's own, an emergency).
-fn may_wait(cause: &str) -> bool {
-    matches!(
-        cause,
+/// `FailsafeBase::ActionOptions`, in `failsafe.cpp`) — the data link, the
+/// sticks, the battery, a failed rotor, and the geofence's Return and Land
+/// (its Hold is `AlwaysModeSwitchOnly`). Not the offboard signal and a lost
+/// position (PX4's mode fallbacks, which act at once), nor a rotor loss that
+/// leaves no heading (rotorpilot's own, an emergency).
+fn may_wait(cause: &str, action: FailsafeAction) -> bool {
+    match cause {
         cause::DATA_LINK
-            | cause::MANUAL_CONTROL
-            | cause::BATTERY_CRITICAL
-            | cause::BATTERY_EMERGENCY
-            | cause::GEOFENCE
-            | cause::ROTOR_FAILURE
-    )
+        | cause::MANUAL_CONTROL
+        | cause::BATTERY_CRITICAL
+        | cause::BATTERY_EMERGENCY
+        | cause::ROTOR_FAILURE => true,
+        cause::GEOFENCE => action != FailsafeAction::Hold,
+        _ => false,
+    }
 }
 
-/// A failsafe's Return or Land held back while the vehicle holds (PX4's
-/// delayed action, `COM_FAIL_ACT_T`): carried out when it is due unless
-/// the pilot selects a mode, the vehicle disarms, the position stops
-/// serving Hold, or a failsafe that cannot wait acts first. A failsafe
-/// that can wait joins it, and the more severe action of the two is
-/// carried out when it is due.
+/// The failsafe delay (PX4's `_current_delay`, `COM_FAIL_ACT_T`): the
+/// vehicle holds, and `action` follows when it runs out, unless the pilot
+/// selects a mode, the vehicle disarms, the position stops serving Hold, or
+/// a Return, Land or worse that cannot wait acts first. One delay for all:
+/// a failsafe that may wait joins it, and the more severe action is carried
+/// out when it runs out. A Hold failsafe starts it too (it holds at once,
+/// and a Return or Land that joins it acts when it runs out).
 #[derive(Clone, Debug, PartialEq)]
 struct Delayed {
-    /// Why (the cause of the more severe action).
+    /// Why (the cause of the most severe action).
     cause: String,
-    /// What follows: Return or Land.
+    /// What follows: Hold, Return or Land.
     action: FailsafeAction,
-    /// When it is due [s].
-    due_s: f64,
+    /// When it started [s].
+    started_s: f64,
+    /// How long it runs [s] (`COM_FAIL_ACT_T` then).
+    duration_s: f64,
 }
 
 // ----- the wiring: the failsafes' decisions carried out by the flight stack ---------------------
@@ -547,6 +558,13 @@ impl Autopilot {
                 timer: ClientTimer::ManualControlLoss,
                 started_s: t,
                 duration_s: s.manual.loss_s,
+            });
+        }
+        if let Some(d) = &self.failsafe.delayed {
+            out.push(PendingTimer {
+                timer: ClientTimer::FailsafeDelay,
+                started_s: d.started_s,
+                duration_s: d.duration_s,
             });
         }
         out
@@ -594,6 +612,10 @@ impl Autopilot {
                     self.failsafe_action(cause::MANUAL_CONTROL, action, m);
                 }
             }
+            ClientTimer::FailsafeDelay => {
+                let d = self.failsafe.delayed.take().expect("a running timer");
+                self.act_on_failsafe(&d.cause, d.action, m);
+            }
         }
     }
 
@@ -629,7 +651,7 @@ impl Autopilot {
             self.disarm_now("Disarmed by landing");
         }
         self.supervise_geofence(m);
-        self.supervise_delayed_failsafe(m);
+        self.supervise_failsafe_delay();
     }
 
     /// Offboard setpoints lost while in Offboard: announced, then `COM_OBL_RC_ACT`.
@@ -740,13 +762,17 @@ impl Autopilot {
     /// Take a failsafe action for `cause` (the one runner of every
     /// failsafe). A Hold, Return or Land ends a takeover (PX4: a new action
     /// of Hold or worse clears it), and the failsafe taken over comes back
-    /// instead when its action is the more severe. A Return or Land that
-    /// may wait ([`may_wait`]) holds for `COM_FAIL_ACT_T` first (PX4's
-    /// `FailsafeBase`: "Failsafe activated, entering Hold for 5 seconds";
-    /// here "Failsafe: {cause}, {action} in 5 s"), unless a
-    /// failsafe beyond Hold is in force already or the position does not
-    /// serve Hold; a delay running takes it in. Any other action ends the delay.
+    /// instead when its action is the more severe.
+    ///
+    /// The failsafe delay ([`Delayed`], `COM_FAIL_ACT_T`): a Return or Land
+    /// that may wait ([`may_wait`], judged on this failsafe's own cause)
+    /// holds first (PX4's `FailsafeBase`: "Failsafe activated, entering Hold
+    /// for 5 seconds"; here "Failsafe: {cause}, {action} in 5 s"), unless
+    /// the position does not serve Hold or a failsafe other than Hold is in
+    /// force already; a Hold that may wait holds at once and starts the
+    /// delay too. A delay running takes such a failsafe in.
     pub(in crate::autopilot) fn failsafe_action(&mut self, cause: &str, action: FailsafeAction, m: &Measurement) {
+        let may_wait = may_wait(cause, action);
         let mut cause = cause.to_owned();
         let mut action = action;
         if matches!(
@@ -765,14 +791,14 @@ impl Autopilot {
             action = action_of(before);
             cause = f.cause;
         }
-        if !self.failsafe_waits(&cause, action) {
+        if !(may_wait && self.failsafe_waits(action)) {
             self.act_on_failsafe(&cause, action, m);
             return;
         }
-        let then = then_of(action).expect("a Return or Land");
+        let then = then_of(action).expect("a Hold, Return or Land");
         if let Some(d) = self.failsafe.delayed.as_mut() {
-            // a delay running: the more severe action follows when it is due
-            let before = then_of(d.action).expect("a Return or Land");
+            // the delay running: the more severe action follows when it runs out
+            let before = then_of(d.action).expect("a Hold, Return or Land");
             if before.most_severe(then) != before {
                 d.action = action;
                 d.cause.clone_from(&cause);
@@ -780,33 +806,37 @@ impl Autopilot {
             }
             return;
         }
-        // PX4 says "Failsafe activated, entering Hold for 5 seconds" (and in
-        // its event the cause and the action); the cause, the action and the
-        // delay in whole seconds fit one STATUSTEXT
         let delay_s = self.settings.failsafe.action_delay_s;
-        self.say.announce(
-            Severity::Critical,
-            format!("Failsafe: {cause}, {} in {} s", action.name(), (delay_s + 0.5).floor()),
-        );
-        if !matches!(self.navigator.nav(), Nav::Hold { target: None, .. }) {
-            self.navigator.enter_hold();
+        if action == FailsafeAction::Hold {
+            self.act_on_failsafe(&cause, action, m);
+        } else {
+            // PX4 says "Failsafe activated, entering Hold for 5 seconds" (and
+            // in its event the cause and the action); the cause, the action
+            // and the delay in whole seconds fit one STATUSTEXT
+            self.say.announce(
+                Severity::Critical,
+                format!("Failsafe: {cause}, {} in {} s", action.name(), (delay_s + 0.5).floor()),
+            );
+            if !matches!(self.navigator.nav(), Nav::Hold { target: None, .. }) {
+                self.navigator.enter_hold();
+            }
+            self.enter_failsafe(&cause, Some(then), FailsafeAction::Hold.name());
         }
-        self.enter_failsafe(&cause, Some(then), FailsafeAction::Hold.name());
         self.failsafe.delayed = Some(Delayed {
             cause,
             action,
-            due_s: m.time_s + delay_s,
+            started_s: m.time_s,
+            duration_s: delay_s,
         });
     }
 
-    /// Whether failsafe `action` for `cause` holds first: it may wait, it
-    /// is a Return or Land the runner would carry out now, Hold can be
-    /// flown (the position serves it), and no failsafe beyond Hold is in
-    /// force (PX4's `clearDelayIfNeeded`).
-    fn failsafe_waits(&self, cause: &str, action: FailsafeAction) -> bool {
+    /// Whether failsafe `action` holds first (or joins the delay): the delay
+    /// is not 0, it is a Hold, Return or Land the runner would carry out
+    /// now, Hold can be flown (the position serves it), and no failsafe
+    /// other than Hold is in force (PX4's `clearDelayIfNeeded`).
+    fn failsafe_waits(&self, action: FailsafeAction) -> bool {
         let position = self.navigator.position();
         self.settings.failsafe.action_delay_s > 0.0
-            && may_wait(cause)
             && matches!(
                 decide(
                     action,
@@ -815,7 +845,7 @@ impl Autopilot {
                     self.navigator.nav(),
                     self.navigator.landing(),
                 ),
-                Some(Response::Return | Response::Land)
+                Some(Response::Hold | Response::Return | Response::Land)
             )
             && position.serves(DescendThen::Hold.need())
             && self
@@ -825,8 +855,8 @@ impl Autopilot {
     }
 
     /// Carry out failsafe `action` for `cause` now: [`respond`] chooses, the
-    /// navigator or the commander carries it out; a delayed action still
-    /// waiting is dropped when this one acts.
+    /// navigator or the commander carries it out. A Return, Land or worse
+    /// ends the failsafe delay; a Hold leaves it running, and its failsafe in force.
     fn act_on_failsafe(&mut self, cause: &str, action: FailsafeAction, m: &Measurement) {
         let response = respond(
             cause,
@@ -837,7 +867,9 @@ impl Autopilot {
             self.navigator.landing(),
             &mut self.say,
         );
-        if let Some(r) = response {
+        if let Some(r) = response
+            && !(r == Response::Hold && self.failsafe.delayed.is_some())
+        {
             self.failsafe.delayed = None;
             self.enter_failsafe(cause, r.then(), r.taken(action).name());
         }
@@ -857,29 +889,22 @@ impl Autopilot {
         }
     }
 
-    /// The delayed failsafe action at the instant of `m`: dropped when the
-    /// vehicle is disarmed or the position no longer serves Hold (the lost
-    /// position's Descend gives way to the action instead), carried out
-    /// when due.
-    fn supervise_delayed_failsafe(&mut self, m: &Measurement) {
-        let Some(d) = &self.failsafe.delayed else {
-            return;
-        };
-        if !self.commander.armed() || !self.navigator.position().serves(DescendThen::Hold.need()) {
+    /// The failsafe delay ends without its action when the position no
+    /// longer serves Hold (the lost position's Descend gives way to the
+    /// action instead); it runs out as a client timer.
+    fn supervise_failsafe_delay(&mut self) {
+        if self.failsafe.delayed.is_some() && !self.navigator.position().serves(DescendThen::Hold.need()) {
             self.failsafe.delayed = None;
-        } else if m.time_s >= d.due_s - TIME_EPS {
-            let d = self.failsafe.delayed.take().expect("just seen");
-            self.act_on_failsafe(&d.cause, d.action, m);
         }
     }
 
-    /// The pilot selected a mode: a delayed failsafe action is not carried
-    /// out (PX4's user takeover during the delay).
-    pub(in crate::autopilot) fn failsafe_delay_taken_over(&mut self) {
+    /// The pilot selected a mode (PX4's user takeover) or the vehicle
+    /// disarmed: the failsafe delay ends without its action.
+    pub(in crate::autopilot) fn end_failsafe_delay(&mut self) {
         self.failsafe.delayed = None;
     }
 
-    /// Whether a failsafe action is held back now (`COM_FAIL_ACT_T`).
+    /// Whether the failsafe delay runs (`COM_FAIL_ACT_T`).
     pub(in crate::autopilot) fn failsafe_delayed(&self) -> bool {
         self.failsafe.delayed.is_some()
     }

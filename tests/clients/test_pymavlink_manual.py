@@ -2,7 +2,8 @@
 the real rotorpilot binary: MANUAL_CONTROL streamed at 20 Hz, Position mode
 (POSCTL) flown with the sticks — climb with throttle, fly forward with
 pitch, seen in LOCAL_POSITION_NED — then the sticks stop and the vehicle
-returns (NAV_RCL_ACT default, AUTO.RTL in the heartbeat). Manual modes are
+returns after 5 s in Hold (NAV_RCL_ACT default, COM_FAIL_ACT_T; AUTO.RTL in
+the heartbeat). Manual modes are
 refused without manual control, as PX4 refuses them. The vehicle runs at
 5x: the manual-control loss timer (COM_RC_LOSS_T) then runs on the wall
 clock, so the script needs no scaled parameter. Every wait is bounded.
@@ -121,14 +122,20 @@ def test_position_mode_flown_with_a_virtual_joystick_then_lost(vehicle):
     # centred: stops
     js.x = 0
     assert js.wait("LOCAL_POSITION_NED", lambda p: abs(p.vx) < 0.1 and p.x > x0 + 20.0, 10.0) is not None
-    # the sticks stop: after COM_RC_LOSS_T (0.5 s) the vehicle returns (NAV_RCL_ACT 2)
+    # the sticks stop: after COM_RC_LOSS_T (0.5 s) the vehicle holds, and
+    # returns (NAV_RCL_ACT 2) after PX4's COM_FAIL_ACT_T (5 s), both on the
+    # wall clock above real time
     js.on = False
     stopped = time.monotonic()
     text = js.wait("STATUSTEXT", lambda s: s.text == "Manual control lost", 3.0)
     assert text is not None and text.severity == mavlink.MAV_SEVERITY_CRITICAL
-    rtl = js.wait("HEARTBEAT", lambda h: h.get_srcComponent() == 1 and main_sub(h) == (AUTO, RTL_SUB), 3.0)
+    hold = js.wait("STATUSTEXT", lambda s: s.text == "Failsafe: manual control lost, Return in 5 s", 3.0)
+    assert hold is not None, "holds first"
+    held = time.monotonic()
+    rtl = js.wait("HEARTBEAT", lambda h: h.get_srcComponent() == 1 and main_sub(h) == (AUTO, RTL_SUB), 8.0)
     assert rtl is not None, "returns"
-    assert time.monotonic() - stopped >= 0.45, "not before COM_RC_LOSS_T"
+    assert held - stopped >= 0.45, "not before COM_RC_LOSS_T"
+    assert time.monotonic() - held >= 4.9, "not before COM_FAIL_ACT_T"
     home_bound = js.wait("LOCAL_POSITION_NED", lambda p: p.vx < -1.0, 20.0)
     assert home_bound is not None, "flies back towards home"
     # a manual mode without manual control is refused again

@@ -1033,6 +1033,12 @@ fn a_more_severe_failsafe_joins_the_delay_and_follows_it() {
         .run_until(3.0, |t| t.battery_warning == BatteryWarning::Emergency)
         .expect("emergency");
     assert_eq!(ap.mode(), FlightMode::Hold, "the Land joins the delay");
+    assert_eq!(
+        ap.count("Failsafe: battery emergency, Land in 5 s"),
+        1,
+        "{:?}",
+        ap.said()
+    );
     let landing = ap
         .run_until(6.0, |t| t.mode != FlightMode::Hold)
         .expect("acts when the delay runs out");

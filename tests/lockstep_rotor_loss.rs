@@ -964,3 +964,36 @@ fn the_stock_hexa_without_an_opposite_pair_flies_on() {
     assert!(v.armed() && v.mode() == FlightMode::Hold, "{said:?}");
     assert!(worst < 0.5, "{worst}");
 }
+
+/// GIVEN a quad that lost a rotor and flies its emergency landing, with
+/// `NAV_DLL_ACT` Return and a GCS heard
+/// WHEN the pilot takes over (selects Hold) and the data link is then lost
+/// THEN the landing taken over, the more severe action, comes back at once:
+/// the data link's Return would hold for `COM_FAIL_ACT_T` first, but a
+/// rotor loss's landing never waits.
+#[test]
+fn a_rotor_loss_landing_taken_over_comes_back_at_once_with_the_next_failsafe() {
+    let mut v = Sitl::airframe("quad")
+        .params(&[("NAV_DLL_ACT", int(2)), ("COM_DL_LOSS_T", int(5))])
+        .build();
+    take_off(&mut v);
+    v.heartbeat();
+    let heard = v.time_s();
+    fly_with_fault(&mut v, 0, RotorHealth::Off, 0.5, |_, _| None, |_| {}, None);
+    assert_eq!(v.mode(), FlightMode::Land);
+    assert_eq!(
+        v.command(AutopilotCommand::SetMode(FlightMode::Hold)),
+        CommandOutcome::Accepted
+    );
+    assert_eq!(v.mode(), FlightMode::Hold);
+    let back = v
+        .run_until(6.0, |t| t.mode != FlightMode::Hold)
+        .unwrap_or_else(|| panic!("no failsafe: {:?}", v.texts()));
+    assert!(
+        (back - heard - 5.0).abs() < 2e-3,
+        "{} s after the last heartbeat",
+        back - heard
+    );
+    assert_eq!(v.mode(), FlightMode::Land, "{:?}", v.texts());
+    assert_eq!(v.count(" in 5 s"), 0, "{:?}", v.texts());
+}

@@ -613,8 +613,11 @@ impl Autopilot {
                 }
             }
             ClientTimer::FailsafeDelay => {
+                // a Hold was flown from the start: nothing follows
                 let d = self.failsafe.delayed.take().expect("a running timer");
-                self.act_on_failsafe(&d.cause, d.action, m);
+                if d.action != FailsafeAction::Hold {
+                    self.act_on_failsafe(&d.cause, d.action, m);
+                }
             }
         }
     }
@@ -765,14 +768,14 @@ impl Autopilot {
     /// instead when its action is the more severe.
     ///
     /// The failsafe delay ([`Delayed`], `COM_FAIL_ACT_T`): a Return or Land
-    /// that may wait ([`may_wait`], judged on this failsafe's own cause)
-    /// holds first (PX4's `FailsafeBase`: "Failsafe activated, entering Hold
+    /// that may wait ([`may_wait`], judged on this failsafe's own cause and
+    /// on that of one taken over that comes back) holds first (PX4's `FailsafeBase`: "Failsafe activated, entering Hold
     /// for 5 seconds"; here "Failsafe: {cause}, {action} in 5 s"), unless
     /// the position does not serve Hold or a failsafe other than Hold is in
     /// force already; a Hold that may wait holds at once and starts the
     /// delay too. A delay running takes such a failsafe in.
     pub(in crate::autopilot) fn failsafe_action(&mut self, cause: &str, action: FailsafeAction, m: &Measurement) {
-        let may_wait = may_wait(cause, action);
+        let mut can_wait = may_wait(cause, action);
         let mut cause = cause.to_owned();
         let mut action = action;
         if matches!(
@@ -789,19 +792,27 @@ impl Autopilot {
             && before.most_severe(then) != then
         {
             action = action_of(before);
+            // it waits only if it may itself (a rotor loss's landing never does)
+            can_wait &= may_wait(&f.cause, action);
             cause = f.cause;
         }
-        if !(may_wait && self.failsafe_waits(action)) {
+        if !(can_wait && self.failsafe_waits(action)) {
             self.act_on_failsafe(&cause, action, m);
             return;
         }
         let then = then_of(action).expect("a Hold, Return or Land");
         if let Some(d) = self.failsafe.delayed.as_mut() {
-            // the delay running: the more severe action follows when it runs out
+            // the delay running: the more severe action follows when it runs
+            // out, announced with the time left
             let before = then_of(d.action).expect("a Hold, Return or Land");
             if before.most_severe(then) != before {
                 d.action = action;
                 d.cause.clone_from(&cause);
+                let left_s = (d.started_s + d.duration_s - m.time_s).max(0.0);
+                self.say.announce(
+                    Severity::Critical,
+                    format!("Failsafe: {cause}, {} in {} s", action.name(), (left_s + 0.5).floor()),
+                );
                 self.enter_failsafe(&cause, Some(then), FailsafeAction::Hold.name());
             }
             return;

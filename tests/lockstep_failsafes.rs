@@ -98,6 +98,36 @@ fn polygon(command: u16, corners: &[(f64, f64)]) -> Vec<MissionItem> {
         .collect()
 }
 
+/// Store a mission of waypoints 15 m above home at `(north, east)` [m]
+/// (MAV_FRAME_GLOBAL_RELATIVE_ALT, 2 m acceptance radius).
+fn store_mission_at_15_m(ap: &mut Sitl, points: &[(f64, f64)]) {
+    let items = points
+        .iter()
+        .map(|&(north, east)| {
+            let g = point(north, east, 15.0);
+            MissionItem {
+                frame: 3, // MAV_FRAME_GLOBAL_RELATIVE_ALT
+                command: 16,
+                autocontinue: true,
+                params: [0.0, 2.0, 0.0, f32::NAN],
+                x: rotorpilot::mission::quantise_deg(g.lat_deg),
+                y: rotorpilot::mission::quantise_deg(g.lon_deg),
+                z: 15.0,
+            }
+        })
+        .collect();
+    ap.core_mut()
+        .change_plans(
+            0,
+            PlanChange::Store {
+                kind: MissionType::Mission,
+                items,
+                base_id: None,
+            },
+        )
+        .expect("mission stored");
+}
+
 // ----- data-link loss ------------------------------------------------------------------------
 
 #[test]
@@ -814,28 +844,7 @@ fn a_mission_outside_the_geofence_is_refused_at_start() {
 #[test]
 fn a_mission_interrupted_by_a_position_loss_resumes_when_it_returns() {
     let mut ap = vehicle(&[]);
-    let wp = |north: f64, east: f64| {
-        let g = point(north, east, 15.0);
-        MissionItem {
-            frame: 3, // MAV_FRAME_GLOBAL_RELATIVE_ALT
-            command: 16,
-            autocontinue: true,
-            params: [0.0, 2.0, 0.0, f32::NAN],
-            x: rotorpilot::mission::quantise_deg(g.lat_deg),
-            y: rotorpilot::mission::quantise_deg(g.lon_deg),
-            z: 15.0,
-        }
-    };
-    ap.core_mut()
-        .change_plans(
-            0,
-            PlanChange::Store {
-                kind: MissionType::Mission,
-                items: vec![wp(40.0, 0.0), wp(40.0, 40.0)],
-                base_id: None,
-            },
-        )
-        .expect("mission stored");
+    store_mission_at_15_m(&mut ap, &[(40.0, 0.0), (40.0, 40.0)]);
     take_off_to(&mut ap, 15.0);
     assert_eq!(
         ap.command(AutopilotCommand::StartMission { first: None }),
@@ -865,26 +874,7 @@ fn mission_then_silence(params: &[(&str, ParamValue)]) -> (Sitl, f64) {
     let mut all = vec![("NAV_DLL_ACT", int(2))];
     all.extend_from_slice(params);
     let mut ap = vehicle(&all);
-    let g = point(300.0, 0.0, 15.0);
-    let wp = MissionItem {
-        frame: 3, // MAV_FRAME_GLOBAL_RELATIVE_ALT
-        command: 16,
-        autocontinue: true,
-        params: [0.0, 2.0, 0.0, f32::NAN],
-        x: rotorpilot::mission::quantise_deg(g.lat_deg),
-        y: rotorpilot::mission::quantise_deg(g.lon_deg),
-        z: 15.0,
-    };
-    ap.core_mut()
-        .change_plans(
-            0,
-            PlanChange::Store {
-                kind: MissionType::Mission,
-                items: vec![wp],
-                base_id: None,
-            },
-        )
-        .expect("mission stored");
+    store_mission_at_15_m(&mut ap, &[(300.0, 0.0)]);
     take_off_to(&mut ap, 15.0);
     assert_eq!(
         ap.command(AutopilotCommand::StartMission { first: None }),

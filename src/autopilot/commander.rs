@@ -252,18 +252,18 @@ impl Autopilot {
     /// ends the takeover and the more severe action is in force (PX4's
     /// `FailsafeBase::checkFailsafe` and `getSelectedAction`). A failsafe
     /// holding before its Return or Land (`COM_FAIL_ACT_T`) is taken over
-    /// the same way, by selecting Hold or a reposition too: its action is
-    /// not carried out.
+    /// the same way, also by selecting Hold or by a reposition that changes
+    /// the mode: its action is not carried out.
     pub fn command(&mut self, cmd: AutopilotCommand, readings: &SensorReadings) -> CommandOutcome {
         let mode = self.navigator.mode();
         // while a failsafe holds before it acts, selecting a mode takes over
         // even when it is Hold, the mode flown, and so does a reposition
         // (PX4: the user's intended mode changed)
-        let selects_mode = self.failsafe_delayed()
+        let takes_over_the_delay = self.failsafe_delayed()
             && matches!(cmd, AutopilotCommand::SetMode(_) | AutopilotCommand::Reposition { .. });
         let held = self.in_failsafe.take();
         let outcome = self.dispatch(cmd, readings);
-        let took_over = outcome == CommandOutcome::Accepted && (self.navigator.mode() != mode || selects_mode);
+        let took_over = outcome == CommandOutcome::Accepted && (self.navigator.mode() != mode || takes_over_the_delay);
         if took_over {
             self.end_failsafe_delay();
             if let Some(f) = held

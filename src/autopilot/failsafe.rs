@@ -498,6 +498,17 @@ fn may_wait(cause: &str, action: FailsafeAction) -> bool {
     }
 }
 
+/// Announce that failsafe `action` for `cause` follows in `seconds` [s],
+/// rounded to whole seconds. PX4 says "Failsafe activated, entering Hold
+/// for 5 seconds" (and in its event the cause and the action); the cause,
+/// the action and the time fit one STATUSTEXT: "Failsafe: {cause}, {action} in 5 s".
+fn announce_delay(say: &mut Announcements, cause: &str, action: FailsafeAction, seconds: f64) {
+    say.announce(
+        Severity::Critical,
+        format!("Failsafe: {cause}, {} in {} s", action.name(), (seconds + 0.5).floor()),
+    );
+}
+
 /// The failsafe delay (PX4's `_current_delay`, `COM_FAIL_ACT_T`): the
 /// vehicle holds, and `action` follows when it runs out, unless the pilot
 /// selects a mode, the vehicle disarms, the position stops serving Hold, or
@@ -809,10 +820,7 @@ impl Autopilot {
                 d.action = action;
                 d.cause.clone_from(&cause);
                 let left_s = (d.started_s + d.duration_s - m.time_s).max(0.0);
-                self.say.announce(
-                    Severity::Critical,
-                    format!("Failsafe: {cause}, {} in {} s", action.name(), (left_s + 0.5).floor()),
-                );
+                announce_delay(&mut self.say, &cause, action, left_s);
                 self.enter_failsafe(&cause, Some(then), FailsafeAction::Hold.name());
             }
             return;
@@ -821,13 +829,7 @@ impl Autopilot {
         if action == FailsafeAction::Hold {
             self.act_on_failsafe(&cause, action, m);
         } else {
-            // PX4 says "Failsafe activated, entering Hold for 5 seconds" (and
-            // in its event the cause and the action); the cause, the action
-            // and the delay in whole seconds fit one STATUSTEXT
-            self.say.announce(
-                Severity::Critical,
-                format!("Failsafe: {cause}, {} in {} s", action.name(), (delay_s + 0.5).floor()),
-            );
+            announce_delay(&mut self.say, &cause, action, delay_s);
             if !matches!(self.navigator.nav(), Nav::Hold { target: None, .. }) {
                 self.navigator.enter_hold();
             }

@@ -5,7 +5,9 @@ outside it refused), the ground station going silent (MAVSDK's GCS heartbeats
 stop with its server: NAV_DLL_ACT Return after PX4's 5 s in Hold, watched by
 a pymavlink listener on the GCS link that sends no heartbeat) and the battery drained to critical
 (COM_LOW_BAT_ACT Land, BATTERY_STATUS charge_state; the failsafe also read as
-an event by MAVSDK's Events plugin). Every wait is bounded.
+an event by MAVSDK's Events plugin), and the pilot taking over in the failsafe's
+5 s of Hold (MAVSDK's hold() during the battery's delay: the landing never
+comes). Every wait is bounded.
 
 Run with the mavsdk<4 venv: `python -m pytest tests/clients/test_mavsdk3_failsafe.py`.
 """
@@ -236,3 +238,40 @@ def test_battery_critical_lands():
         print(f"BATTERY_STATUS charge_state {bs.charge_state}, remaining {bs.battery_remaining} %")
         assert bs.charge_state >= mavutil.mavlink.MAV_BATTERY_CHARGE_STATE_CRITICAL
         assert not st.onboard_control_sensors_health & mavutil.mavlink.MAV_SYS_STATUS_SENSOR_BATTERY
+
+
+def test_taking_over_during_the_failsafe_hold_cancels_the_landing():
+    # the battery drains to 6 %: below BAT_CRIT_THR (7 %), above BAT_EMERGEN_THR
+    # (5 %), so only the critical failsafe comes, and no more severe one after it
+    params = {"BAT1_CAPACITY": 100.0, "SIM_BAT_MIN_PCT": 6.0, "COM_LOW_BAT_ACT": 2}
+    with Vehicle(speed=FAST, params=params) as v:
+
+        async def fly():
+            uav = await connect(v)
+            try:
+                texts = []
+                collector = collect_texts(uav, texts)
+                await take_off(uav, 5.0)
+                # as PX4 (COM_FAIL_ACT_T 5 s, on the wall clock at 20x): Hold first
+                await until_said(texts, "Failsafe: battery critical, Land in 5 s", 30)
+                await common.expect_mode(uav, FlightMode.HOLD, 5)
+                # the pilot takes over by selecting a mode, Hold itself
+                await uav.action.hold()
+                taken = time.monotonic()
+                # well past the delay: no landing, still holding where it was
+                await asyncio.sleep(8.0)
+                print(f"took over; {time.monotonic() - taken:.1f} s of wall time later: {texts}")
+                assert not any("triggering Land" in t for t in texts), texts
+                await common.expect_mode(uav, FlightMode.HOLD, 5)
+                p = await common.sample(uav.telemetry.position(), "position")
+                print(f"holding at {p.relative_altitude_m:.2f} m")
+                assert await common.sample(uav.telemetry.armed(), "armed")
+                assert p.relative_altitude_m > 4.0
+                # the pilot lands when they choose
+                await uav.action.land()
+                await common.touchdown(uav, 60)
+                collector.cancel()
+            finally:
+                uav._stop_mavsdk_server()
+
+        asyncio.run(asyncio.wait_for(fly(), 120))

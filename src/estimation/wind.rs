@@ -21,7 +21,7 @@
 //! ```text
 //! v_x(s) = -F_x / (c_dx s + k_d S)      v_y(s) = -F_y / (c_dy s + k_d S)
 //! v_z(s) = (v_g,d - R_31 v_x - R_32 v_y) / R_33        (the air moves with the ground vertically)
-//! |v(s)| = s                                            (one scalar equation, solved by bisection)
+//! |v(s)| = s                                            (one scalar equation, solved by Newton's method)
 //! w_ned  = v_g,ned - R v(s)                             (w_d = 0 by construction)
 //! ```
 //!
@@ -54,8 +54,14 @@ pub const MAX_AIRSPEED_M_S: f64 = 200.0;
 /// (60 deg) makes the vertical closure ill-conditioned.
 pub const MIN_COS_TILT: f64 = 0.5;
 
-/// Bisection steps: `MAX_AIRSPEED_M_S / 2^60` is far below any noise.
-const BISECTIONS: usize = 60;
+/// The solver stops when an iterate moves the airspeed by less than this
+/// [m/s], far below any noise.
+const TOLERANCE_M_S: f64 = 1e-12;
+
+/// Iterations at most: enough for bisection alone to narrow
+/// `[0, MAX_AIRSPEED_M_S]` to [`TOLERANCE_M_S`] (48), where Newton's method
+/// takes about six.
+const MAX_ITERATIONS: usize = 64;
 
 /// The nominal drag model the wind estimate inverts (the body-horizontal
 /// terms of the airframe's aerodynamic coefficients).
@@ -119,27 +125,48 @@ pub fn wind_from_force(
         return None;
     }
     let f = r.transpose() * force_ned;
+    // v(s) and its slope dv/ds: d v_x/ds = -v_x c_dx / (c_dx s + k_d S),
+    // likewise v_y, and d v_z/ds = -(R_31 v_x' + R_32 v_y') / R_33
     let airspeed = |s: f64| {
-        let vx = -f.x / (model.c_dx * s + linear);
-        let vy = -f.y / (model.c_dy * s + linear);
+        let (dx, dy) = (model.c_dx * s + linear, model.c_dy * s + linear);
+        let (vx, vy) = (-f.x / dx, -f.y / dy);
         let vz = (velocity_ned.z - r[(2, 0)] * vx - r[(2, 1)] * vy) / r33;
-        Vector3::new(vx, vy, vz)
+        let (sx, sy) = (-vx * model.c_dx / dx, -vy * model.c_dy / dy);
+        let sz = -(r[(2, 0)] * sx + r[(2, 1)] * sy) / r33;
+        (Vector3::new(vx, vy, vz), Vector3::new(sx, sy, sz))
     };
-    // |v(s)| - s: >= 0 at s = 0 (infinite there without rotor drag), < 0 beyond the root
-    let excess = |s: f64| airspeed(s).norm() - s;
-    if excess(MAX_AIRSPEED_M_S) >= 0.0 {
+    // g(s) = |v(s)| - s: >= 0 at s = 0 (infinite there without rotor drag),
+    // < 0 beyond the root. Newton's method on g, s <- s - g / g' with
+    // g' = v . v' / |v| - 1, kept inside the bracket [lo, hi] of the root
+    // (a step that leaves it, or no slope, bisects instead)
+    let (v_max, _) = airspeed(MAX_AIRSPEED_M_S);
+    if v_max.norm() - MAX_AIRSPEED_M_S >= 0.0 {
         return None;
     }
     let (mut lo, mut hi) = (0.0, MAX_AIRSPEED_M_S);
-    for _ in 0..BISECTIONS {
-        let mid = 0.5 * (lo + hi);
-        if excess(mid) >= 0.0 {
-            lo = mid;
+    let mut s = MAX_AIRSPEED_M_S;
+    let mut airspeed_frd = v_max;
+    for _ in 0..MAX_ITERATIONS {
+        let (v, slope) = airspeed(s);
+        airspeed_frd = v;
+        let norm = v.norm();
+        let g = norm - s;
+        if g >= 0.0 {
+            lo = s;
         } else {
-            hi = mid;
+            hi = s;
         }
+        let newton = s - g / (v.dot(&slope) / norm - 1.0);
+        let next = if newton > lo && newton < hi {
+            newton
+        } else {
+            0.5 * (lo + hi)
+        };
+        if g == 0.0 || (next - s).abs() <= TOLERANCE_M_S {
+            break;
+        }
+        s = next;
     }
-    let airspeed_frd = airspeed(hi);
     let mut wind_ned = velocity_ned - r * airspeed_frd;
     wind_ned.z = 0.0;
     wind_ned

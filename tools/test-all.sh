@@ -94,47 +94,71 @@ client_venv mavsdk4 "mavsdk==4.1.0" "pytest==9.2.0"
 # without declaring it.
 client_venv mavproxy "MAVProxy==1.8.74" "future==1.0.0" "pymavlink==2.4.50" "pytest==9.2.0"
 export PYTHONWARNINGS="ignore::FutureWarning"
-# every wait inside is bounded; the outer timeout is a last resort
-timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink.py
-timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_mission.py
-timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_manual.py
-timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_failure.py
-timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_rotor_loss.py
-timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_logs.py
-timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_signing.py
-timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_hardening.py
-timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_startup.py
-timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_wind.py
-timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_sensors.py
-timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_forward.py
-timeout 900 "$VENV/pymavlink/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_pymavlink_ftp.py
-timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3.py
-timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_mission.py
-timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_failsafe.py
-timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_px4_failsafe.py
-timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_px4_mission.py
-timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_px4_navigation.py
-timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_px4_offboard_manual.py
-timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_px4_allocation_follow.py
-timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_failure.py
-timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_replay.py
-timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_wind.py
-timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk3_files.py
+# Every wait inside is bounded; the outer timeout is a last resort. The
+# files run in two lanes at once (they mostly wait on the wall clock), each
+# lane's files one after another in a network namespace of its own (loopback
+# up: PX4's fixed ports there collide with nothing), each lane's output
+# printed when both end; the lanes of a pair hold about the same wall time.
+# Without namespaces (not root), one lane after the other.
+if ! command -v ip >/dev/null; then
+    # each namespace brings its loopback up with iproute2's `ip`
+    apt-get install -y -qq iproute2 >/dev/null 2>&1 || { apt-get update -qq && apt-get install -y -qq iproute2; }
+fi
+# lane VENV FILE...: the files of tests/clients/ one after another with the
+# venv's python; fails when one fails, after running them all
+lane() {
+    local venv=$1 status=0 f
+    shift
+    for f in "$@"; do
+        echo "-- $f"
+        timeout 900 "$VENV/$venv/bin/python" -m pytest -q -p no:cacheprovider "tests/clients/$f" || status=1
+    done
+    return $status
+}
+export -f lane
+export VENV
+# lanes "VENV FILE..." "VENV FILE...": the lanes at once, each in a namespace of its own
+lanes() {
+    local dir status=0 i=0 pids=() l
+    if ! unshare -n true 2>/dev/null; then
+        for l in "$@"; do
+            # shellcheck disable=SC2086 # a lane is a list of words
+            lane $l || status=1
+        done
+        return $status
+    fi
+    dir=$(mktemp -d)
+    for l in "$@"; do
+        # shellcheck disable=SC2086
+        unshare -n bash -c 'ip link set lo up && lane "$@"' lane $l >"$dir/$i.log" 2>&1 &
+        pids+=($!)
+        i=$((i + 1))
+    done
+    for i in "${!pids[@]}"; do
+        wait "${pids[$i]}" || status=1
+        echo "-- lane $((i + 1)) of ${#pids[@]}"
+        cat "$dir/$i.log"
+    done
+    rm -rf "$dir"
+    return $status
+}
+# pymavlink: ~2.5 min a lane
+lanes "pymavlink test_pymavlink.py test_pymavlink_failure.py test_pymavlink_signing.py test_pymavlink_wind.py test_pymavlink_forward.py test_pymavlink_ftp.py test_pymavlink_startup.py" \
+      "pymavlink test_pymavlink_mission.py test_pymavlink_sensors.py test_pymavlink_manual.py test_pymavlink_hardening.py test_pymavlink_rotor_loss.py test_pymavlink_logs.py"
+# MAVSDK 3 and PX4's cases re-expressed in it: ~8 min a lane
+lanes "mavsdk3 test_mavsdk3.py test_mavsdk3_px4_failsafe.py test_mavsdk3_px4_navigation.py test_mavsdk3_px4_offboard_manual.py test_mavsdk3_failure.py test_mavsdk3_replay.py" \
+      "mavsdk3 test_mavsdk3_mission.py test_mavsdk3_failsafe.py test_mavsdk3_px4_mission.py test_mavsdk3_px4_allocation_follow.py test_mavsdk3_wind.py test_mavsdk3_files.py"
 # MAVSDK-Python's own examples, unmodified, vendored with their licence
 # (tests/clients/mavsdk_python_examples/README.md: the pinned tag, every file
 # checked by SHA-256; $MAVSDK_PYTHON_EXAMPLES may name another copy); each
 # test in a network and PID namespace of its own (unshare, as root) on PX4's
 # fixed ports, so four run at once (the scripts mostly sleep on the wall
 # clock): ~4 min.
-if ! command -v ip >/dev/null; then
-    # each namespace brings its loopback up with iproute2's `ip`
-    apt-get install -y -qq iproute2 >/dev/null 2>&1 || { apt-get update -qq && apt-get install -y -qq iproute2; }
-fi
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -rs -n 4 -p no:cacheprovider tests/clients/test_mavsdk_python_examples.py
 # a fleet in one process on PX4's ports: needs UDP 14550, 14540..14543 and the instances' ports free
 timeout 900 "$VENV/mavsdk3/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_fleet.py
-timeout 900 "$VENV/mavsdk4/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavsdk4.py
-timeout 600 "$VENV/mavproxy/bin/python" -m pytest -q -p no:cacheprovider tests/clients/test_mavproxy.py
+# MAVSDK 4 native and MAVProxy: ~1.5 and ~1 min
+lanes "mavsdk4 test_mavsdk4.py" "mavproxy test_mavproxy.py"
 
 echo "== pip install . in a fresh venv; the pytest fixture flies MAVSDK 3 and pymavlink tests, plain and -n 2; failing MAVSDK tests end and leave nothing; a shared vehicle is reset between tests"
 # What a user does: a new venv each run, `pip install .` (maturin builds the

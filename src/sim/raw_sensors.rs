@@ -171,6 +171,29 @@ struct PendingFix {
     velocity_ned: Vector3<f64>,
 }
 
+/// What the IMU integrates over the step that ended at `truth`: the body
+/// rate [rad/s] FRD and the attitude that takes the step's specific force
+/// into the body. In flight, the true rate and attitude at its end. At a
+/// touchdown, whose stop levels the vehicle in one step and leaves it with
+/// no rate, the step's rotation `log(q_{j-1}^-1 q_j) / dt` and the attitude
+/// halfway through it (the navigation filter's own assumption, `R_mid`): the
+/// gyroscope feels the levelling as the accelerometer feels the stop, and
+/// the stop's impulse is not tilted by the levelling. At rest nothing moves
+/// and the true values stand.
+fn step_motion(
+    last: Option<&UnitQuaternion<f64>>,
+    truth: &Measurement,
+    dt_s: f64,
+) -> (Vector3<f64>, UnitQuaternion<f64>) {
+    match last {
+        Some(q0) if truth.rate_frd == Vector3::zeros() && truth.attitude != *q0 => {
+            let rotation = (q0.inverse() * truth.attitude).scaled_axis();
+            (rotation / dt_s, q0 * UnitQuaternion::from_scaled_axis(rotation * 0.5))
+        }
+        _ => (truth.rate_frd, truth.attitude),
+    }
+}
+
 /// `(phi, sigma_d)` of a first-order Gauss-Markov bias sampled every `dt`
 /// (module doc).
 fn gauss_markov(random_walk: f64, tau_s: f64, dt_s: f64) -> (f64, f64) {
@@ -216,6 +239,8 @@ pub(super) struct RawSensors {
     last: RawSensorReadings,
     /// The true NED velocity at the last step [m/s] (None before the first).
     last_velocity_ned: Option<Vector3<f64>>,
+    /// The true attitude at the last step (None before the first).
+    last_attitude: Option<UnitQuaternion<f64>>,
     /// What the IMU has summed since its last sample.
     imu_sum: ImuSum,
     /// The step of the first sample (the sensors' power-on): the sample
@@ -256,6 +281,7 @@ impl RawSensors {
             pending: None,
             last: RawSensorReadings::default(),
             last_velocity_ned: None,
+            last_attitude: None,
             imu_sum: ImuSum::default(),
             first_step: None,
         }
@@ -288,8 +314,10 @@ impl RawSensors {
             None => *accel_ned,
         };
         self.last_velocity_ned = Some(truth.velocity_ned);
-        self.imu_sum.force_frd += r.inverse_transform_vector(&(a - Vector3::new(0.0, 0.0, GRAVITY)));
-        self.imu_sum.rate_frd += truth.rate_frd;
+        let (rate_frd, felt_in) = step_motion(self.last_attitude.as_ref(), truth, self.dt_s);
+        self.last_attitude = Some(truth.attitude);
+        self.imu_sum.force_frd += felt_in.inverse_transform_vector(&(a - Vector3::new(0.0, 0.0, GRAVITY)));
+        self.imu_sum.rate_frd += rate_frd;
         self.imu_sum.steps += 1;
         if k.is_multiple_of(self.every[0]) {
             let dt = self.every[0] as f64 * self.dt_s;
@@ -529,6 +557,66 @@ mod tests {
         assert!((stop + 1.0).abs() < 0.01, "{stop} m/s: the stop, upward");
         let rest = dv(10.1, 12.0);
         assert!(rest.abs() < 0.01, "{rest}");
+    }
+
+    /// GIVEN a vehicle rolled 20 deg, descending at 2 m/s with no rate, that
+    /// the touchdown at 10.0005 s stops and levels in one step (as the plant
+    /// does)
+    /// WHEN the gyroscope's and accelerometer's samples are summed over
+    /// their intervals
+    /// THEN the gyroscope holds the levelling (its rate times the interval
+    /// sums to the -20 deg roll) and the accelerometer the stop along the
+    /// attitude halfway through it, so that a strapdown that turns the
+    /// stop's impulse by that attitude (the navigation filter's `R_mid`)
+    /// finds it vertical.
+    #[test]
+    fn the_gyroscope_feels_the_levelling_at_a_touchdown() {
+        let mut raw = RawSensors::new(GeoPoint::PX4_SITL_HOME, 1e-3, 5);
+        let roll = 20f64.to_radians();
+        let landing = |t: f64| {
+            let before = t < 10.0005;
+            Measurement {
+                time_s: t,
+                velocity_ned: Vector3::new(0.0, 0.0, if before { 2.0 } else { 0.0 }),
+                attitude: UnitQuaternion::from_euler_angles(if before { roll } else { 0.0 }, 0.0, 0.0),
+                ..Measurement::default()
+            }
+        };
+        let all = run(&mut raw, SensorFaults::default(), 10.5, landing);
+        let samples = |f: &dyn Fn(&RawSensorReadings) -> Option<AxesSample>| {
+            let mut v: Vec<AxesSample> = all.iter().filter_map(f).collect();
+            v.dedup_by(|a, b| a.time_s == b.time_s);
+            v
+        };
+        let (gyr, acc) = (samples(&|r| r.gyro), samples(&|r| r.accel));
+        let interval = 1.0 / IMU_RATE_HZ;
+        let sum = |v: &[AxesSample], from: f64, to: f64, g: Vector3<f64>| -> Vector3<f64> {
+            v.iter()
+                .filter(|s| s.time_s > from && s.time_s <= to)
+                .map(|s| (s.frd - g) * interval)
+                .sum()
+        };
+        let turned = sum(&gyr, 9.9, 10.1, Vector3::zeros());
+        assert!((turned.x + roll).abs() < 0.01, "{turned}: the levelling");
+        assert!(turned.yz().norm() < 0.01, "{turned}");
+        // the stop, in the body at half the roll: vertical once turned back
+        let half = UnitQuaternion::from_euler_angles(0.5 * roll, 0.0, 0.0);
+        let stop = half * sum(&acc, 9.9, 10.1, Vector3::zeros());
+        let gravity_in = |from: f64, to: f64| -> Vector3<f64> {
+            // the sampled intervals' gravity, level or rolled
+            acc.iter()
+                .filter(|s| s.time_s > from && s.time_s <= to)
+                .map(|s| {
+                    let q = UnitQuaternion::from_euler_angles(if s.time_s < 10.0005 { roll } else { 0.0 }, 0.0, 0.0);
+                    half * q.inverse_transform_vector(&Vector3::new(0.0, 0.0, -GRAVITY)) * interval
+                })
+                .sum()
+        };
+        let dv = stop - gravity_in(9.9, 10.1);
+        assert!(
+            (dv.z + 2.0).abs() < 0.05 && dv.xy().norm() < 0.05,
+            "{dv}: the 2 m/s stop, upward"
+        );
     }
 
     #[test]

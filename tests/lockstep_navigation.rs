@@ -462,3 +462,51 @@ fn com_pos_fs_eph_ends_the_dead_reckoning_when_the_filter_grows_unsure() {
     assert!(valid && lost_s < 4.8, "{lost_s} {valid}");
     assert!((1.25..1.4).contains(&eph), "{eph}");
 }
+
+/// GIVEN the quad on the filter hovering 10 m up in Hold
+/// WHEN motor 2 stops (the emergency descent, its heading given up: it
+/// comes down tilted and lands hard)
+/// THEN the filter keeps a valid position through the touchdown, which stops
+/// the vehicle and levels it in one step (the IMU feels both: the stop's
+/// impulse and the levelling's rotation), its solution stays within 0.8 m
+/// of the truth on the ground, and the landing is detected although the
+/// solution is not yet back on the height the vehicle took off from (the
+/// ground stopped a commanded descent: the emergency commands one): the
+/// vehicle disarms within 10 s of the failure.
+#[test]
+fn a_hard_tilted_touchdown_after_a_rotor_loss_leaves_the_filter_on_the_ground() {
+    let mut v = quad_on_filter(1);
+    wait_and_take_off(&mut v, 10.0);
+    v.run(5.0);
+    let off = AutopilotCommand::InjectFailure {
+        unit: failure::UNIT_MOTOR,
+        kind: failure::TYPE_OFF,
+        instance: 2,
+    };
+    assert_eq!(v.command(off), CommandOutcome::Accepted);
+    let t0 = v.time_s();
+    let mut e = Errors::default();
+    let mut landed_s = None;
+    while v.armed() {
+        assert!(
+            v.time_s() - t0 < 10.0,
+            "still armed 10 s after the failure: {:?}",
+            v.said()
+        );
+        let on_ground = v.core().world().plant(0).truth().position_ned.z > -0.3;
+        if on_ground {
+            landed_s.get_or_insert(v.time_s() - t0);
+            step_and_compare(v.core_mut(), &mut e);
+        } else {
+            v.step();
+        }
+    }
+    let disarmed_s = v.time_s() - t0;
+    println!(
+        "rotor loss on the filter: on the ground {:.2} s after the failure, disarmed after {disarmed_s:.2} s; \
+         largest errors on the ground {e:?}",
+        landed_s.unwrap_or(f64::NAN)
+    );
+    assert_eq!(v.count("No valid position estimate"), 0, "{:?}", v.said());
+    assert!(e.vertical_m < 0.8 && e.horizontal_m < 0.8, "{e:?}");
+}

@@ -478,9 +478,15 @@ impl ControlLoop {
                 .hover
                 .update(measurement, flight.target_ned, flight.descent_m_s, dt);
             let landed = flight.landed();
+            let descent_m_s = flight.descent_m_s;
             self.controller.reset();
             let out = &mut self.output;
-            out.reference = Reference::default();
+            // the emergency's setpoint: down at its descent rate (what the
+            // land detector takes for a commanded descent)
+            out.reference = Reference {
+                velocity_ned: Vector3::new(0.0, 0.0, descent_m_s),
+                ..Reference::default()
+            };
             out.saturated = false;
             if landed {
                 out.actuator = ActuatorCommand::Stop;

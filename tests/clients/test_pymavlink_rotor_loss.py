@@ -75,7 +75,10 @@ def test_motor_loss_at_10_m_is_an_emergency_descent_to_a_disarmed_landing(vehicl
     print(f"landed {off:.2f} m from the point of the failure")
     # the shipped quad (1000 rad/s motors) lands about 4.9 m off from 10 m
     assert off < 6.0, off
-    assert abs(after.z) < 0.5, after.z
+    # on the navigation filter the height estimate, a little behind the fast
+    # descent when it stopped, comes back to the ground after the disarm
+    settled = wait(m, "LOCAL_POSITION_NED", lambda p: abs(p.z) < 0.5, 15.0)
+    assert settled is not None, f"height estimate {after.z:.2f} m, not back near the ground"
     state = wait(m, "EXTENDED_SYS_STATE", lambda e: e.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND, 3.0)
     assert state is not None, "not on the ground"
     # upright on the ground

@@ -457,6 +457,18 @@ impl ControlLoop {
         &self.output
     }
 
+    /// The vertical speed [m/s] NED (down positive) the latest [`Self::act`]
+    /// commanded: the reference's, or during the emergency descent after a
+    /// rotor loss (whose reference is none) its descent rate. The land
+    /// detector's "the ground stopped a commanded descent" needs it.
+    #[must_use]
+    pub fn commanded_vz_m_s(&self) -> f64 {
+        match &self.relaxed_hover {
+            Some(flight) if self.actuation == Actuation::Rotors => flight.descent_m_s,
+            _ => self.output.reference.velocity_ned.z,
+        }
+    }
+
     /// The second phase of a step at `t_k`: the controller for `demand` on
     /// the measurement of that [`Self::sense`], with `feedback` as the
     /// estimate to compensate ([`Demand::Track`] only), then allocation; `u_k`
@@ -478,15 +490,9 @@ impl ControlLoop {
                 .hover
                 .update(measurement, flight.target_ned, flight.descent_m_s, dt);
             let landed = flight.landed();
-            let descent_m_s = flight.descent_m_s;
             self.controller.reset();
             let out = &mut self.output;
-            // the emergency's setpoint: down at its descent rate (what the
-            // land detector takes for a commanded descent)
-            out.reference = Reference {
-                velocity_ned: Vector3::new(0.0, 0.0, descent_m_s),
-                ..Reference::default()
-            };
+            out.reference = Reference::default();
             out.saturated = false;
             if landed {
                 out.actuator = ActuatorCommand::Stop;

@@ -312,7 +312,7 @@ impl Autopilot {
             Some(nav) => nav.ready(),
         };
         if land_reads {
-            let commanded_vz = self.control.output().reference.velocity_ned.z;
+            let commanded_vz = self.control.commanded_vz_m_s();
             let event = self
                 .land
                 .update(m, self.control.last_applied().thrust_n, weight, commanded_vz);

@@ -261,6 +261,9 @@ struct Body {
     raw: Option<Box<RawSensors>>,
     /// Whether the raw sensors of the current instant were drawn.
     raw_sampled: bool,
+    /// Whether the step that ended at the current instant was a touchdown
+    /// (the raw IMU then feels its levelling).
+    touched_down: bool,
 }
 
 impl Body {
@@ -292,6 +295,7 @@ impl Body {
             raw.sample(
                 &self.plant.truth(),
                 &accel,
+                self.touched_down,
                 &self.faults.sensors,
                 gnss,
                 &mut self.reading.raw,
@@ -370,6 +374,7 @@ impl Body {
             .update(self.plant.last_wrench().thrust_n, self.plant.dt_s());
         self.measured = false;
         self.raw_sampled = false;
+        self.touched_down = matches!(event, StepEvent::Touchdown { .. });
         report.external = self.plant.last_external_wrench();
         report.true_mass_kg = self.plant.true_mass_kg();
         report.wind_ned = self.plant.wind_ned();
@@ -504,6 +509,7 @@ impl World {
             seed: sensors.seed,
             raw: None,
             raw_sampled: false,
+            touched_down: false,
         });
         self.reports.push(StepReport::default());
         self.bodies.len() - 1
@@ -532,6 +538,7 @@ impl World {
         b.faults = ActiveFaults::none(b.faults.rotors.len());
         b.motors = airframe.rotors.iter().map(|r| r.motor).collect();
         b.measured = false;
+        b.touched_down = false;
     }
 
     /// Simulate vehicle `i`'s raw sensors ([`raw_sensors`]) from now on, its

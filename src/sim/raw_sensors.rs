@@ -18,7 +18,9 @@
 //! mean over the simulation steps since the last sample of the specific
 //! force `R_j^T ((v_j - v_{j-1}) / dt - g e3)` (each step's true velocity
 //! change, so a touchdown's stop is felt as the impulse it is) and of the
-//! body rate. On top of the mean,
+//! body rate (at a touchdown, which levels the vehicle in one step, the
+//! step's rotation, and the stop's force taken in at the attitude halfway
+//! through it: [`step_motion`]). On top of the mean,
 //! white noise of density `sigma` [unit/sqrt(Hz)] sampled every `dt` has the
 //! standard deviation `sigma / sqrt(dt)`; the bias starts at a turn-on value
 //! drawn once and then follows a first-order Gauss-Markov process of
@@ -173,20 +175,22 @@ struct PendingFix {
 
 /// What the IMU integrates over the step that ended at `truth`: the body
 /// rate [rad/s] FRD and the attitude that takes the step's specific force
-/// into the body. In flight, the true rate and attitude at its end. At a
-/// touchdown, whose stop levels the vehicle in one step and leaves it with
-/// no rate, the step's rotation `log(q_{j-1}^-1 q_j) / dt` and the attitude
-/// halfway through it (the navigation filter's own assumption, `R_mid`): the
-/// gyroscope feels the levelling as the accelerometer feels the stop, and
-/// the stop's impulse is not tilted by the levelling. At rest nothing moves
-/// and the true values stand.
+/// into the body. After any step but a touchdown, the true rate and attitude
+/// at its end. A touchdown (`touched_down`) stops the vehicle and levels it
+/// in one step, leaving it no rate: then the step's rotation
+/// `log(q_{j-1}^-1 q_j) / dt` and the attitude halfway through it (the
+/// navigation filter's own assumption, `R_mid`), so that the gyroscope feels
+/// the levelling as the accelerometer feels the stop, and the stop's impulse
+/// is not tilted by the levelling. The gyroscope is not clipped: a hard
+/// landing's levelling reads some 100 rad/s for one sample.
 fn step_motion(
     last: Option<&UnitQuaternion<f64>>,
     truth: &Measurement,
+    touched_down: bool,
     dt_s: f64,
 ) -> (Vector3<f64>, UnitQuaternion<f64>) {
     match last {
-        Some(q0) if truth.rate_frd == Vector3::zeros() && truth.attitude != *q0 => {
+        Some(q0) if touched_down => {
             let rotation = (q0.inverse() * truth.attitude).scaled_axis();
             (rotation / dt_s, q0 * UnitQuaternion::from_scaled_axis(rotation * 0.5))
         }
@@ -295,12 +299,14 @@ impl RawSensors {
     /// Sample the sensors due at the instant of `truth` into `out`, given
     /// the true NED acceleration `accel_ned` [m/s^2] at that instant (used
     /// only at the first step seen: after it, the step's velocity change),
-    /// the injected faults and the GNSS state. Called once every step; the
-    /// sensors not due keep their latest sample.
+    /// whether the step that ended there was a touchdown, the injected
+    /// faults and the GNSS state. Called once every step; the sensors not
+    /// due keep their latest sample.
     pub(super) fn sample(
         &mut self,
         truth: &Measurement,
         accel_ned: &Vector3<f64>,
+        touched_down: bool,
         faults: &SensorFaults,
         gnss: GnssState,
         out: &mut RawSensorReadings,
@@ -314,7 +320,7 @@ impl RawSensors {
             None => *accel_ned,
         };
         self.last_velocity_ned = Some(truth.velocity_ned);
-        let (rate_frd, felt_in) = step_motion(self.last_attitude.as_ref(), truth, self.dt_s);
+        let (rate_frd, felt_in) = step_motion(self.last_attitude.as_ref(), truth, touched_down, self.dt_s);
         self.last_attitude = Some(truth.attitude);
         self.imu_sum.force_frd += felt_in.inverse_transform_vector(&(a - Vector3::new(0.0, 0.0, GRAVITY)));
         self.imu_sum.rate_frd += rate_frd;
@@ -474,7 +480,12 @@ mod tests {
             satellites: 12,
         };
         for k in 0..(seconds / raw.dt_s).round() as u64 {
-            raw.sample(&truth(k as f64 * raw.dt_s), &Vector3::zeros(), &faults, gnss, &mut out);
+            let m = truth(k as f64 * raw.dt_s);
+            // the plant's touchdown: the first step that ends stopped and levelled
+            let touched_down = k > 0
+                && m.velocity_ned == Vector3::zeros()
+                && truth((k - 1) as f64 * raw.dt_s).velocity_ned != Vector3::zeros();
+            raw.sample(&m, &Vector3::zeros(), touched_down, &faults, gnss, &mut out);
             all.push(out);
         }
         all
@@ -663,7 +674,7 @@ mod tests {
         };
         let mut faults = SensorFaults::default();
         let step = |raw: &mut RawSensors, k: u64, f: &SensorFaults, g: GnssState, out: &mut RawSensorReadings| {
-            raw.sample(&at_rest(k as f64 * 1e-3), &Vector3::zeros(), f, g, out);
+            raw.sample(&at_rest(k as f64 * 1e-3), &Vector3::zeros(), false, f, g, out);
         };
         for k in 0..500 {
             step(&mut raw, k, &faults, gnss, &mut out);

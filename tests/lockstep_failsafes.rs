@@ -116,16 +116,21 @@ fn store_mission_at_15_m(ap: &mut Sitl, points: &[(f64, f64)]) {
             }
         })
         .collect();
+    store_plan(ap, MissionType::Mission, items);
+}
+
+/// Store `items` as the vehicle's plan of `kind` (as a complete upload does).
+fn store_plan(ap: &mut Sitl, kind: MissionType, items: Vec<MissionItem>) {
     ap.core_mut()
         .change_plans(
             0,
             PlanChange::Store {
-                kind: MissionType::Mission,
+                kind,
                 items,
                 base_id: None,
             },
         )
-        .expect("mission stored");
+        .expect("plan stored");
 }
 
 // ----- data-link loss ------------------------------------------------------------------------
@@ -391,16 +396,7 @@ fn fence() -> Vec<MissionItem> {
 }
 
 fn store_fence(ap: &mut Sitl, items: Vec<MissionItem>) {
-    ap.core_mut()
-        .change_plans(
-            0,
-            PlanChange::Store {
-                kind: MissionType::Fence,
-                items,
-                base_id: None,
-            },
-        )
-        .expect("fence stored");
+    store_plan(ap, MissionType::Fence, items);
 }
 
 #[test]
@@ -805,18 +801,7 @@ fn a_mission_outside_the_geofence_is_refused_at_start() {
         y: rotorpilot::mission::quantise_deg(g.lon_deg),
         z: up,
     };
-    let store = |ap: &mut Sitl, items: Vec<MissionItem>| {
-        ap.core_mut()
-            .change_plans(
-                0,
-                PlanChange::Store {
-                    kind: MissionType::Mission,
-                    items,
-                    base_id: None,
-                },
-            )
-            .expect("mission stored");
-    };
+    let store = |ap: &mut Sitl, items: Vec<MissionItem>| store_plan(ap, MissionType::Mission, items);
     // 30 m up, above GF_MAX_VER_DIST = 20 m: denied, announced, still disarmed
     store(&mut ap, vec![wp(22, HOME, 5.0), wp(16, g, 30.0)]);
     assert!(matches!(

@@ -55,6 +55,13 @@ fn quad_on_filter(height_ref: i32) -> Sitl {
         .build()
 }
 
+/// Inject a failure as MAV_CMD_INJECT_FAILURE does (`unit`, `kind`, and the
+/// instance, 0 for all), and check that it was accepted.
+fn inject(v: &mut Sitl, unit: u8, kind: u8, instance: u8) {
+    let cmd = AutopilotCommand::InjectFailure { unit, kind, instance };
+    assert_eq!(v.command(cmd), CommandOutcome::Accepted);
+}
+
 /// Arm once the filter allows it (PX4: no valid position estimate before),
 /// take off to `up` m; the time the filter took [s].
 fn wait_and_take_off(v: &mut Sitl, up: f64) -> f64 {
@@ -188,12 +195,7 @@ fn baro_stuck(height_ref: i32) {
     };
     assert_eq!(status.height_ref, Some(configured), "{status:?}");
     assert!(status.baro_hgt, "{status:?}");
-    let stuck = AutopilotCommand::InjectFailure {
-        unit: failure::UNIT_BARO,
-        kind: failure::TYPE_STUCK,
-        instance: 0,
-    };
-    assert_eq!(v.command(stuck), CommandOutcome::Accepted);
+    inject(&mut v, failure::UNIT_BARO, failure::TYPE_STUCK, 0);
     let t0 = v.time_s();
     let dropped = loop {
         v.step();
@@ -359,12 +361,7 @@ fn a_flight_after_a_reboot_on_the_filter_is_a_fresh_vehicles() {
 fn gnss_off_in_hover(v: &mut Sitl, up: f64) -> f64 {
     wait_and_take_off(v, up);
     v.run(5.0);
-    let off = AutopilotCommand::InjectFailure {
-        unit: failure::UNIT_GPS,
-        kind: failure::TYPE_OFF,
-        instance: 0,
-    };
-    assert_eq!(v.command(off), CommandOutcome::Accepted);
+    inject(v, failure::UNIT_GPS, failure::TYPE_OFF, 0);
     v.time_s()
 }
 
@@ -409,12 +406,7 @@ fn a_gnss_loss_is_flown_through_on_dead_reckoning_until_the_filter_gives_up() {
             .is_some_and(|f| (f.cause.as_str(), f.triggered) == ("no GPS fix", "Descend"))
     );
     v.run(12.0 - lost_s);
-    let ok = AutopilotCommand::InjectFailure {
-        unit: failure::UNIT_GPS,
-        kind: failure::TYPE_OK,
-        instance: 0,
-    };
-    assert_eq!(v.command(ok), CommandOutcome::Accepted);
+    inject(&mut v, failure::UNIT_GPS, failure::TYPE_OK, 0);
     let t1 = v.time_s();
     let (back_s, _, valid) = until_mode(&mut v, t1, FlightMode::Hold, 5.0);
     println!("GNSS back: Hold again {back_s:.2} s later");
@@ -478,12 +470,7 @@ fn a_hard_tilted_touchdown_after_a_rotor_loss_leaves_the_filter_on_the_ground() 
     let mut v = quad_on_filter(1);
     wait_and_take_off(&mut v, 10.0);
     v.run(5.0);
-    let off = AutopilotCommand::InjectFailure {
-        unit: failure::UNIT_MOTOR,
-        kind: failure::TYPE_OFF,
-        instance: 2,
-    };
-    assert_eq!(v.command(off), CommandOutcome::Accepted);
+    inject(&mut v, failure::UNIT_MOTOR, failure::TYPE_OFF, 2);
     let t0 = v.time_s();
     // the largest errors on the ground, and from 1 s after the touchdown
     let (mut e, mut settled) = (Errors::default(), Errors::default());

@@ -780,8 +780,9 @@ impl Autopilot {
     ///
     /// The failsafe delay ([`Delayed`], `COM_FAIL_ACT_T`): a Return or Land
     /// that may wait ([`may_wait`], judged on this failsafe's own cause and
-    /// on that of one taken over that comes back) holds first (PX4's `FailsafeBase`: "Failsafe activated, entering Hold
-    /// for 5 seconds"; here "Failsafe: {cause}, {action} in 5 s"), unless
+    /// on that of one taken over that comes back) holds first (PX4's
+    /// `FailsafeBase`: "Failsafe activated, entering Hold for 5 seconds";
+    /// here "Failsafe: {cause}, {action} in 5 s"), unless
     /// the position does not serve Hold or a failsafe other than Hold is in
     /// force already; a Hold that may wait holds at once and starts the
     /// delay too. A delay running takes such a failsafe in.

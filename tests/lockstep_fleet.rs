@@ -258,8 +258,16 @@ fn each_vehicle_flies_exactly_as_alone_on_any_threads() {
         assert!(a == b, "{name}: 1 and 2 threads differ");
         if i < 4 {
             let mut alone = Vec::new();
-            run(&Scenario::from_file(Path::new(&s.source)).unwrap(), Some(&mut alone)).unwrap();
+            let summary = run(&Scenario::from_file(Path::new(&s.source)).unwrap(), Some(&mut alone)).unwrap();
             assert!(a == alone, "{name}: not the bytes of {} alone", s.source);
+            // its summary too: the state and estimate at its own end, though
+            // the fleet flies on until its longest flight ends
+            let serde_json::Value::Object(fields) = serde_json::to_value(&summary).unwrap() else {
+                panic!()
+            };
+            for (key, value) in fields.iter().filter(|(k, _)| k.as_str() != "wall_time_s") {
+                assert_eq!(&v1["results"][i][key], value, "{name}: {key} differs from alone");
+            }
         }
     }
     // the rotor loss was applied to its own vehicle only

@@ -662,7 +662,8 @@ impl Daemon {
         let sim_thread = std::thread::Builder::new()
             .name("rotorpilot-sim".into())
             .spawn(move || {
-                sim.run(&inbox);
+                // a fleet's loop runs on a stepping thread (`StepThreads`)
+                sim.core.threads().run(|| sim.run(&inbox));
                 let _ = sim_done_tx.send(());
             })
             .context("starting the simulation thread")?;

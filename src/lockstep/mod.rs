@@ -39,8 +39,8 @@ use crate::mission::{MissionResult, PlanChange, Plans};
 use crate::params::{ParamStore, ParamValue};
 use crate::signals::{DEFAULT_STEP_S, Measurement, RawSensorReadings, SensorReadings};
 use crate::sim::{
-    Environment, Proximity, ProximityEvent, ProximityKind, SensorConfig, SimFault, StepReport, Truth, VehicleSlot,
-    World, WorldSettings,
+    Environment, Proximity, ProximityEvent, ProximityKind, RigidBodyState, SensorConfig, SimFault, StepReport, Truth,
+    VehicleSlot, World, WorldSettings,
 };
 
 /// Flight software in the loop: from the sensor readings at `t_k` to what
@@ -99,6 +99,8 @@ pub struct StepRecord<'a> {
     pub control: &'a ControlOutput,
     /// What the world did.
     pub world: &'a StepReport,
+    /// The true state at the step's end, `t_{k+1}`.
+    pub end: &'a RigidBodyState,
 }
 
 /// What a client may be told about a vehicle: its autopilot's telemetry and
@@ -157,12 +159,35 @@ pub struct Lockstep<P> {
     /// after the step that raised it (every one: the runtimes drain them
     /// after each batch of steps; a pair is told once per rise).
     proximity_events: VecDeque<(f64, ProximityEvent)>,
-    /// The vehicles' world positions [m, NED] and body radii [m] after the
-    /// last step, noted by each vehicle's step for the proximity check.
+    /// The vehicles' world positions [m, NED] and body radii [m] at the
+    /// latest instant, noted by each vehicle's step for the proximity check.
     positions: Vec<Vector3<f64>>,
     radii: Vec<f64>,
+    /// Every vehicle's places over the steps of [`Self::step_ahead`],
+    /// vehicle by vehicle: `noted[i * steps + s]` after its step `s`.
+    noted: Vec<Place>,
     /// Threads stepping the vehicles (none: on the caller's thread).
-    pool: Option<rayon::ThreadPool>,
+    threads: StepThreads,
+}
+
+/// The threads that step a fleet's vehicles ([`Lockstep::set_threads`];
+/// none: the caller's thread steps them).
+///
+/// A loop of steps run on one of them ([`Self::run`]) hands each step's
+/// split to the others while they still wait for work from the step
+/// before; called from any other thread, every step wakes the threads and
+/// then the caller again.
+#[derive(Clone, Debug, Default)]
+pub struct StepThreads(Option<std::sync::Arc<rayon::ThreadPool>>);
+
+impl StepThreads {
+    /// `f`, run on one of the stepping threads (on the caller's without them).
+    pub fn run<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
+        match &self.0 {
+            Some(pool) => pool.install(f),
+            None => f(),
+        }
+    }
 }
 
 /// Pilot status texts kept per vehicle until drained (the autopilot's own queue's size).
@@ -176,38 +201,38 @@ struct Lane<'a, P> {
     measurement: &'a mut Measurement,
     fault: &'a mut Option<SimFault>,
     texts: &'a mut VecDeque<(f64, StatusText)>,
-    /// Its world position [m, NED] and body radius [m] after the step
-    /// (for the proximity check).
-    place: (&'a mut Vector3<f64>, &'a mut f64),
 }
+
+/// Where a vehicle was after one of its steps: its world position [m, NED]
+/// and body radius [m] (for the proximity check).
+type Place = (Vector3<f64>, f64);
 
 /// One vehicle's step at `t_s`: its pilot's texts stamped, sense, decide,
 /// integrate; a fault that stopped the rotors told to the pilot and kept;
-/// its place noted; then `after` given its record.
-fn step_vehicle<P: Pilot, T>(lane: Lane<'_, P>, t_s: f64, extra: &mut T, after: &impl Fn(&mut T, &P, StepRecord<'_>)) {
-    let Lane {
-        mut slot,
-        pilot,
-        measurement,
-        fault,
-        texts,
-        place,
-    } = lane;
-    stamp_texts(texts, pilot, t_s);
+/// its `place` noted; then `after` given its record.
+fn step_vehicle<P: Pilot, T>(
+    lane: &mut Lane<'_, P>,
+    t_s: f64,
+    place: &mut Place,
+    extra: &mut T,
+    after: &impl Fn(&mut T, &P, StepRecord<'_>),
+) {
+    let (slot, pilot) = (&mut lane.slot, &mut *lane.pilot);
+    stamp_texts(lane.texts, pilot, t_s);
     let readings = slot.sense();
     pilot.decide(readings);
-    *measurement = pilot.solution(readings);
+    *lane.measurement = pilot.solution(readings);
     let report = slot.integrate(&pilot.output().actuator);
     if let Some(f) = report.fault {
         pilot.rotors_stopped(&f);
-        *fault = Some(f);
+        *lane.fault = Some(f);
     }
-    *place.0 = slot.position_ned();
-    *place.1 = slot.body_radius_m();
+    *place = (slot.position_ned(), slot.body_radius_m());
     let record = StepRecord {
-        measurement,
+        measurement: lane.measurement,
         control: pilot.output(),
         world: slot.report(),
+        end: slot.state(),
     };
     after(extra, pilot, record);
 }
@@ -273,7 +298,8 @@ impl<P: Pilot> Lockstep<P> {
             proximity_events: VecDeque::new(),
             positions: Vec::new(),
             radii: Vec::new(),
-            pool: None,
+            noted: Vec::new(),
+            threads: StepThreads::default(),
         }
     }
 
@@ -285,18 +311,24 @@ impl<P: Pilot> Lockstep<P> {
     /// # Errors
     /// The threads could not be started.
     pub fn set_threads(&mut self, threads: usize) -> Result<(), String> {
-        self.pool = if threads > 1 {
-            Some(
+        self.threads = StepThreads(if threads > 1 {
+            Some(std::sync::Arc::new(
                 rayon::ThreadPoolBuilder::new()
                     .num_threads(threads)
                     .thread_name(|k| format!("rotorpilot-step-{k}"))
                     .build()
                     .map_err(|e| e.to_string())?,
-            )
+            ))
         } else {
             None
-        };
+        });
         Ok(())
+    }
+
+    /// The threads of [`Self::set_threads`], to run a loop of steps on.
+    #[must_use]
+    pub fn threads(&self) -> StepThreads {
+        self.threads.clone()
     }
 
     /// Report every pair of vehicles that comes closer than `distance_m` [m]
@@ -415,29 +447,60 @@ impl<P: Pilot> Lockstep<P> {
     /// # Panics
     /// When `extras` is not one per vehicle.
     pub fn step_each<T: Send>(&mut self, extras: &mut [T], after: impl Fn(&mut T, &P, StepRecord<'_>) + Sync) {
+        self.step_ahead(1, extras, after, |_| {});
+    }
+
+    /// `steps` of [`Self::step_each`], each vehicle through all of them
+    /// before the next vehicle (on the threads of [`Self::set_threads`]
+    /// when set), so that a vehicle's data stays in its core's caches over
+    /// its steps. The vehicles do not interact within a step, so each one
+    /// flies the same to the bit as in `steps` calls of
+    /// [`Self::step_each`]. Then the clock ticks once per step, and after
+    /// each tick the proximity check looks at the places the vehicles'
+    /// steps noted for that instant and `instant(self)` runs (to drain and
+    /// follow that instant's proximity events, as after [`Self::step`]).
+    ///
+    /// Nothing reaches a vehicle between these steps: only for flights
+    /// that need no input but before the first of them.
+    ///
+    /// # Panics
+    /// When `extras` is not one per vehicle.
+    pub fn step_ahead<T: Send>(
+        &mut self,
+        steps: usize,
+        extras: &mut [T],
+        after: impl Fn(&mut T, &P, StepRecord<'_>) + Sync,
+        mut instant: impl FnMut(&mut Self),
+    ) {
         let n = self.pilots.len();
         assert_eq!(extras.len(), n, "one extra per vehicle");
-        let t = self.time_s();
-        self.positions.resize(n, Vector3::zeros());
-        self.radii.resize(n, 0.0);
-        let per_vehicle = |(lane, extra): (Lane<'_, P>, &mut T)| step_vehicle(lane, t, extra, &after);
+        if steps == 0 {
+            return;
+        }
+        let (first, dt) = (self.world.steps(), self.world.dt_s());
+        self.noted.resize(n * steps, (Vector3::zeros(), 0.0));
+        // each step's instant as `World::time_s` gives it then
+        let per_vehicle = |((mut lane, extra), places): ((Lane<'_, P>, &mut T), &mut [Place])| {
+            for (s, place) in (first..).zip(places) {
+                step_vehicle(&mut lane, s as f64 * dt, place, extra, &after);
+            }
+        };
         let lanes = self
             .world
             .slots()
             .zip(self.pilots.iter_mut())
             .zip(self.measurements.iter_mut())
             .zip(self.last_fault.iter_mut().zip(self.pilot_texts.iter_mut()))
-            .zip(self.positions.iter_mut().zip(self.radii.iter_mut()))
-            .map(|((((slot, pilot), measurement), (fault, texts)), place)| Lane {
+            .map(|(((slot, pilot), measurement), (fault, texts))| Lane {
                 slot,
                 pilot,
                 measurement,
                 fault,
                 texts,
-                place,
             })
-            .zip(extras.iter_mut());
-        match &self.pool {
+            .zip(extras.iter_mut())
+            .zip(self.noted.chunks_mut(steps));
+        match &self.threads.0 {
             Some(pool) if n >= 2 * VEHICLES_PER_TASK => {
                 use rayon::iter::{IndexedParallelIterator as _, IntoParallelIterator as _, ParallelIterator as _};
                 let all: Vec<_> = lanes.collect();
@@ -449,8 +512,27 @@ impl<P: Pilot> Lockstep<P> {
             }
             _ => lanes.for_each(per_vehicle),
         }
-        self.world.tick();
-        self.check_proximity();
+        self.positions.resize(n, Vector3::zeros());
+        self.radii.resize(n, 0.0);
+        for s in 0..steps {
+            for (i, &(p, r)) in self.noted.iter().skip(s).step_by(steps).enumerate() {
+                self.positions[i] = p;
+                self.radii[i] = r;
+            }
+            self.world.tick();
+            self.check_proximity();
+            instant(self);
+        }
+    }
+
+    /// Vehicle `i`'s world position [m, NED] at the latest instant the
+    /// clock ticked to, as its step noted it for the proximity check.
+    ///
+    /// # Panics
+    /// Before the first step.
+    #[must_use]
+    pub fn noted_position_ned(&self, i: usize) -> Vector3<f64> {
+        self.positions[i]
     }
 
     /// Vehicle `i`'s latest step.
@@ -460,6 +542,7 @@ impl<P: Pilot> Lockstep<P> {
             measurement: &self.measurements[i],
             control: self.pilots[i].output(),
             world: self.world.last_report(i),
+            end: self.world.plant(i).state(),
         }
     }
 

@@ -444,6 +444,14 @@ type Log = CsvLog<BufWriter<FsFile>>;
 trait Track<P: Pilot>: Send {
     fn is_over(&self) -> bool;
     fn before_step(&mut self, core: &mut Lockstep<P>, i: usize);
+    /// How many of the next steps (at least 1, at most `most`) vehicle `i`'s
+    /// flight needs nothing of the core for but [`Self::before_step`]
+    /// before the first, nor [`Self::after_step`] after any: a flight
+    /// that ends within them is judged after them, from what it kept at
+    /// its end.
+    fn steps_alone(&self, core: &Lockstep<P>, i: usize, most: u64) -> u64;
+    /// The steps left until the flight ends at the latest (1 when not known).
+    fn steps_left(&self) -> u64;
     /// After the vehicle's step, with its own record alone: run on the
     /// thread that stepped it, beside the other vehicles' steps.
     fn after_own_step(&mut self, pilot: &P, rec: &StepRecord<'_>, log: Option<&mut Log>) -> anyhow::Result<()>;
@@ -461,13 +469,19 @@ impl<'a> Track<run::ScenarioPilot<'a>> for Flown {
     fn before_step(&mut self, core: &mut Lockstep<run::ScenarioPilot<'a>>, i: usize) {
         Flown::before_step(self, core, i);
     }
+    fn steps_alone(&self, core: &Lockstep<run::ScenarioPilot<'a>>, i: usize, most: u64) -> u64 {
+        Flown::steps_alone(self, core, i, most)
+    }
+    fn steps_left(&self) -> u64 {
+        Flown::steps_left(self)
+    }
     fn after_own_step(
         &mut self,
         pilot: &run::ScenarioPilot<'a>,
         rec: &StepRecord<'_>,
         log: Option<&mut Log>,
     ) -> anyhow::Result<()> {
-        Ok(Flown::after_step(self, pilot.step_s(), rec, log)?)
+        Ok(Flown::after_step(self, pilot, rec, log)?)
     }
     fn after_step(
         &mut self,
@@ -490,6 +504,12 @@ impl Track<Autopilot> for MissionFlown<'_> {
     }
     fn before_step(&mut self, core: &mut Lockstep<Autopilot>, i: usize) {
         MissionFlown::before_step(self, core, i);
+    }
+    fn steps_alone(&self, _core: &Lockstep<Autopilot>, _i: usize, _most: u64) -> u64 {
+        1
+    }
+    fn steps_left(&self) -> u64 {
+        1
     }
     fn after_own_step(
         &mut self,
@@ -518,6 +538,11 @@ struct Lane<T> {
 /// A vehicle's report page as it is collected, and the meta it will carry.
 type Watch = Option<(Collector, ReportMeta)>;
 
+/// The most steps a fleet's vehicles are stepped ahead at once
+/// ([`Lockstep::step_ahead`]): 64 ms of flight, 2 MB of noted places for
+/// 1,024 vehicles.
+const MOST_AHEAD: u64 = 64;
+
 /// What [`fly_tracks`] gives: the outcomes, the events, the steps, the pages.
 type FleetFlown = (Vec<Outcome>, Vec<FleetEvent>, u64, Vec<FlightReport>);
 
@@ -525,7 +550,7 @@ type FleetFlown = (Vec<Outcome>, Vec<FleetEvent>, u64, Vec<FlightReport>);
 /// flight ends, its log closed and its page (when watched) finished then.
 /// The outcomes, the events, the steps, the pages (in vehicle order).
 fn fly_tracks<P: Watched, T: Track<P>>(
-    mut core: Lockstep<P>,
+    core: &mut Lockstep<P>,
     tracks: Vec<T>,
     logs: Vec<Option<Log>>,
     mut watches: Vec<Watch>,
@@ -548,44 +573,68 @@ fn fly_tracks<P: Watched, T: Track<P>>(
     // a flight over before its first step (a zero duration) is judged at once
     for i in 0..n {
         if lanes[i].track.as_ref().is_some_and(Track::is_over) {
-            finish(&mut core, i, &mut lanes[i], &mut outcomes)?;
-            pages[i] = page(&mut core, &mut watches[i], outcomes[i].as_ref());
+            finish(core, i, &mut lanes[i], &mut outcomes)?;
+            pages[i] = page(core, &mut watches[i], outcomes[i].as_ref());
             running -= 1;
         }
     }
     while running > 0 {
         for (i, lane) in lanes.iter_mut().enumerate() {
             if let Some(t) = &mut lane.track {
-                t.before_step(&mut core, i);
+                t.before_step(core, i);
             }
         }
-        core.step_each(&mut lanes, |lane, pilot, rec| {
-            if let Some(t) = &mut lane.track
-                && let Err(e) = t.after_own_step(pilot, &rec, lane.log.as_mut())
-            {
-                lane.failed = Some(e);
-            }
-        });
+        // as many steps as every flight flies alone, none past the last
+        // one's end (one while a page watches every step)
+        let running_tracks = || {
+            lanes
+                .iter()
+                .enumerate()
+                .filter_map(|(i, l)| Some((i, l.track.as_ref()?)))
+        };
+        let ahead = if watches.iter().any(Option::is_some) {
+            1
+        } else {
+            let alone = running_tracks().map(|(i, t)| t.steps_alone(core, i, MOST_AHEAD)).min();
+            let left = running_tracks().map(|(_, t)| t.steps_left()).max();
+            alone.unwrap_or(1).min(left.unwrap_or(1)).max(1)
+        };
+        core.step_ahead(
+            ahead as usize,
+            &mut lanes,
+            |lane, pilot, rec| {
+                // a flight over within the steps ahead is judged after them
+                if let Some(t) = &mut lane.track
+                    && !t.is_over()
+                    && lane.failed.is_none()
+                    && let Err(e) = t.after_own_step(pilot, &rec, lane.log.as_mut())
+                {
+                    lane.failed = Some(e);
+                }
+            },
+            |core| {
+                for (t, e) in core.drain_proximity_events() {
+                    encounters.open(t, e);
+                }
+                events.extend(encounters.follow(core));
+            },
+        );
         for i in 0..n {
             let lane = &mut lanes[i];
             if let Some(e) = lane.failed.take() {
                 return Err(e);
             }
             let Some(t) = &mut lane.track else { continue };
-            t.after_step(&mut core, i, lane.log.as_mut())?;
+            t.after_step(core, i, lane.log.as_mut())?;
             if let Some((c, _)) = &mut watches[i] {
-                run::watch_step(c, &mut core, i);
+                run::watch_step(c, core, i);
             }
             if lanes[i].track.as_ref().is_some_and(Track::is_over) {
-                finish(&mut core, i, &mut lanes[i], &mut outcomes)?;
-                pages[i] = page(&mut core, &mut watches[i], outcomes[i].as_ref());
+                finish(core, i, &mut lanes[i], &mut outcomes)?;
+                pages[i] = page(core, &mut watches[i], outcomes[i].as_ref());
                 running -= 1;
             }
         }
-        for (t, e) in core.drain_proximity_events() {
-            encounters.open(t, e);
-        }
-        events.extend(encounters.follow(&core));
     }
     events.extend(encounters.finish());
     // in the order they were raised: by time, then by pair (a pair rises
@@ -717,7 +766,9 @@ pub fn fly_with(
                     meta_of(i).map(|m| (Collector::new(&core, i, steps), m))
                 })
                 .collect();
-            fly_tracks(core, tracks, logs, watches).map(|(o, e, s, p)| (o, e, s, dt, p))?
+            core.threads()
+                .run(|| fly_tracks(&mut core, tracks, logs, watches))
+                .map(|(o, e, s, p)| (o, e, s, dt, p))?
         }
         FleetFlights::Mission(list) => {
             let vehicles: Vec<FleetVehicle<'_>> = list
@@ -747,7 +798,9 @@ pub fn fly_with(
                     meta_of(i).map(|m| (Collector::new(&core, i, steps), m))
                 })
                 .collect();
-            fly_tracks(core, tracks, logs, watches).map(|(o, e, s, p)| (o, e, s, dt, p))?
+            core.threads()
+                .run(|| fly_tracks(&mut core, tracks, logs, watches))
+                .map(|(o, e, s, p)| (o, e, s, dt, p))?
         }
     };
     let summary = FleetSummary {

@@ -19,7 +19,7 @@ use crate::logs::meta::LogMeta;
 use crate::logs::report::{Collector, FlightReport, PilotState, ReportMeta, Watched};
 use crate::math::{euler_zyx, from_euler_zyx};
 use crate::mission::Plans;
-use crate::signals::{ControlWrench, GRAVITY, Measurement, SensorReadings};
+use crate::signals::{ControlWrench, GRAVITY, Measurement, SensorReadings, WrenchEstimate};
 use crate::sim::{DisturbanceSource, RigidBodyState, SensorConfig, SimFault, World};
 
 /// Where a scenario's vehicle lies on the globe, for its raw sensors and
@@ -329,7 +329,7 @@ pub fn run_with(
     while !flight.is_over() {
         flight.before_step(&mut core, 0);
         core.step();
-        flight.after_step(s.step_s, &core.last_step(0), log.as_mut())?;
+        flight.after_step(core.pilot(0), &core.last_step(0), log.as_mut())?;
         if let Some(c) = &mut collector {
             watch_step(c, &mut core, 0);
         }
@@ -381,6 +381,9 @@ pub(super) struct Flown {
     /// How many `[[fault]]`s the scenario has (none left to apply: the
     /// step before needs nothing of the core).
     faults: usize,
+    /// The true state and the pilot's estimate when the flight ended, taken
+    /// then (a fleet's vehicle flies on after its own flight is over).
+    end: Option<(RigidBodyState, WrenchEstimate)>,
 }
 
 impl Flown {
@@ -406,6 +409,7 @@ impl Flown {
             applied: Vec::new(),
             next_fault: 0,
             faults: s.faults.len(),
+            end: None,
         }
     }
 
@@ -428,12 +432,48 @@ impl Flown {
         }
     }
 
-    /// After step `k` (of `step_s` [s]) of its vehicle, whose record is
-    /// `rec`: tally it and log it.
+    /// The steps left to fly.
+    pub(super) fn steps_left(&self) -> u64 {
+        self.steps.saturating_sub(self.k)
+    }
+
+    /// How many of the next steps (at least 1, at most `most`) vehicle
+    /// `i` flies with nothing from the core but [`Self::before_step`]
+    /// before the first: up to the step the next fault is due at (past the
+    /// flight's end, the vehicle flies on unwatched).
+    pub(super) fn steps_alone(&self, core: &Lockstep<ScenarioPilot<'_>>, i: usize, most: u64) -> u64 {
+        let most = most.max(1);
+        let s = core.pilot(i).scenario;
+        let Some(f) = s.faults.get(self.next_fault) else {
+            return most;
+        };
+        // the first step whose instant `fault::due` finds the fault due at
+        (1..most)
+            .find(|d| f.at_s <= (self.k + d) as f64 * s.step_s + 1e-9)
+            .unwrap_or(most)
+    }
+
+    /// After step `k` of its vehicle, flown by `pilot`, whose record is
+    /// `rec`: tally it and log it; at the flight's end, keep its state and
+    /// estimate for [`Self::summary`].
     ///
     /// # Errors
     /// A failed write to `log`.
     pub(super) fn after_step<W: Write>(
+        &mut self,
+        pilot: &ScenarioPilot<'_>,
+        rec: &StepRecord<'_>,
+        log: Option<&mut CsvLog<W>>,
+    ) -> std::io::Result<()> {
+        self.tally(pilot.step_s(), rec, log)?;
+        if self.is_over() {
+            self.end = Some((*rec.end, pilot.control.estimate()));
+        }
+        Ok(())
+    }
+
+    /// Step `k` (of `step_s` [s]) tallied and logged.
+    fn tally<W: Write>(
         &mut self,
         step_s: f64,
         rec: &StepRecord<'_>,
@@ -492,8 +532,9 @@ impl Flown {
         let s = core.pilot(i).scenario;
         let dt = s.step_s;
         let flown = self.flown;
-        let state = core.world().plant(i).state();
-        let est = core.pilot(i).control.estimate();
+        let (state, est) = self
+            .end
+            .unwrap_or_else(|| (*core.world().plant(i).state(), core.pilot(i).control.estimate()));
         let flown_f = flown.max(1) as f64;
         let rms = (self.sum_sq / flown_f).map(f64::sqrt);
         let tail = if self.tail_n > 0 {

@@ -413,6 +413,12 @@ impl VehicleSlot<'_> {
         self.report
     }
 
+    /// The vehicle's true state (as [`World::plant`]'s).
+    #[must_use]
+    pub fn state(&self) -> &RigidBodyState {
+        self.body.plant.state()
+    }
+
     /// The vehicle's position in the world's NED frame [m] (as
     /// [`World::position_ned`]: its origin plus its own NED position).
     #[must_use]

@@ -37,14 +37,13 @@ impl Encounters {
             return ended;
         }
         let pairs = core.proximity_pairs();
-        let world = core.world();
         let t = core.time_s();
         self.open.retain_mut(|e| {
             if pairs.binary_search_by(|&(a, b, _)| (a, b).cmp(&(e.a, e.b))).is_err() {
                 ended.push(*e);
                 return false;
             }
-            let d = (world.position_ned(e.b) - world.position_ned(e.a)).norm();
+            let d = (core.noted_position_ned(e.b) - core.noted_position_ned(e.a)).norm();
             if d < e.closest_m {
                 e.closest_m = d;
                 e.closest_s = t;

@@ -434,3 +434,71 @@ fn the_work_after_each_vehicles_step_sees_its_own_record_on_any_threads() {
     assert_ne!(one[0], one[1], "each vehicle reads its own noise");
     assert_eq!(one, fly(2));
 }
+
+/// A fleet without pages steps each vehicle ahead on its own
+/// (`Lockstep::step_ahead`); a fleet whose pages are collected
+/// (`--report`) steps one step at a time. Both judge every flight, raise
+/// every event and end the fleet at the same step: with flights of
+/// different lengths, one stopped by the simulation inside the steps ahead
+/// (its state driven non-finite at 0.3 s, after the others ended), a
+/// controller switched at another flight's last instant, and vehicles that
+/// start within the proximity distance.
+#[test]
+fn stepping_ahead_judges_every_flight_and_ends_the_fleet_where_one_step_at_a_time_does() {
+    use rotorpilot::logs::report::ReportMeta;
+
+    let dir = scratch("ahead");
+    let hover = |duration_s: f64, extra: &str| {
+        format!(
+            "airframe = \"quad\"\ncontroller = \"geometric\"\nduration_s = {duration_s}\n\
+             [reference]\nkind = \"hover\"\nposition_ned = [0.0, 0.0, -2.0]\n{extra}"
+        )
+    };
+    let files = [
+        (
+            "boom.toml",
+            hover(1.0, "[[disturbance]]\nat_s = 0.3\nforce_ned = [1e308, 0.0, 0.0]\n"),
+        ),
+        (
+            "switch.toml",
+            hover(0.2, "[[switch]]\nat_s = 0.2\ncontroller = \"hierarchical\"\n"),
+        ),
+        ("short.toml", hover(0.25, "")),
+    ];
+    for (name, text) in &files {
+        std::fs::write(dir.join(name), text).unwrap();
+    }
+    let path = fleet_file(
+        &dir,
+        "ends.toml",
+        "[fleet]\nproximity_m = 3.0\n\
+         [[vehicle]]\nscenario = \"boom.toml\"\noffset_m = [0.0, 0.0]\n\
+         [[vehicle]]\nscenario = \"switch.toml\"\noffset_m = [2.0, 0.0]\n\
+         [[vehicle]]\nscenario = \"short.toml\"\noffset_m = [0.0, 2.5]\ncount = 16\nspacing_m = [0.0, 1.0]\n",
+    );
+    let fleet = Fleet::load(&path).unwrap();
+    for threads in [1, 2] {
+        let ahead = fleet::fly(&fleet, threads, None).unwrap();
+        let (one_at_a_time, pages) = fleet::fly_with(&fleet, threads, None, Some(&ReportMeta::default())).unwrap();
+        assert_eq!(pages.len(), 18);
+        let (a, b) = (without_wall(&ahead), without_wall(&one_at_a_time));
+        let first = a.bytes().zip(b.bytes()).position(|(x, y)| x != y);
+        assert!(
+            a == b,
+            "{threads} threads: they differ from byte {first:?}: {}",
+            &a[first.unwrap_or(0).saturating_sub(80)..][..160]
+        );
+        // the fleet ends with the step that stopped the last flight
+        assert_eq!(ahead.steps, 301, "{threads} threads");
+        let Outcome::Scenario(boom) = &ahead.results[0].outcome else {
+            panic!()
+        };
+        assert!(boom.fault.is_some() && boom.steps == 300, "{boom:?}");
+        let Outcome::Scenario(switch) = &ahead.results[1].outcome else {
+            panic!()
+        };
+        assert_eq!(switch.controller, "geometric", "the switch comes after its flight");
+        assert!(!ahead.events.is_empty());
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -7,7 +7,9 @@
 //! in the [`Inbox`] (one bounded queue per vehicle, served round robin), so
 //! a command is served at once and a flooding client delays the others by
 //! at most one request per turn. If the machine cannot keep up, simulated
-//! time falls behind instead of bursting (a warning says so).
+//! time falls behind instead of bursting (a warning says so). A fleet
+//! stepped on several threads runs this loop on one of them
+//! ([`crate::lockstep::StepThreads::run`]).
 
 use std::sync::mpsc::{RecvTimeoutError, TryRecvError};
 use std::sync::{Arc, Mutex};

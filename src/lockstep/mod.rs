@@ -26,6 +26,7 @@ pub mod input;
 pub mod preflight;
 
 use std::collections::VecDeque;
+use std::ops::ControlFlow;
 
 use crate::airframe::Airframe;
 use nalgebra::Vector3;
@@ -99,7 +100,8 @@ pub struct StepRecord<'a> {
     pub control: &'a ControlOutput,
     /// What the world did.
     pub world: &'a StepReport,
-    /// The true state at the step's end, `t_{k+1}`.
+    /// The true state at the step's end, `t_{k+1}` (through
+    /// [`Lockstep::last_step`]: the vehicle's state now).
     pub end: &'a RigidBodyState,
 }
 
@@ -316,6 +318,9 @@ impl<P: Pilot> Lockstep<P> {
                 rayon::ThreadPoolBuilder::new()
                     .num_threads(threads)
                     .thread_name(|k| format!("rotorpilot-step-{k}"))
+                    // a whole loop of steps may run on one of them (`StepThreads::run`),
+                    // with the main thread's stack
+                    .stack_size(8 << 20)
                     .build()
                     .map_err(|e| e.to_string())?,
             ))
@@ -447,7 +452,7 @@ impl<P: Pilot> Lockstep<P> {
     /// # Panics
     /// When `extras` is not one per vehicle.
     pub fn step_each<T: Send>(&mut self, extras: &mut [T], after: impl Fn(&mut T, &P, StepRecord<'_>) + Sync) {
-        self.step_ahead(1, extras, after, |_| {});
+        self.step_ahead(1, extras, after, |_, _| ControlFlow::Continue(()));
     }
 
     /// `steps` of [`Self::step_each`], each vehicle through all of them
@@ -457,11 +462,17 @@ impl<P: Pilot> Lockstep<P> {
     /// flies the same to the bit as in `steps` calls of
     /// [`Self::step_each`]. Then the clock ticks once per step, and after
     /// each tick the proximity check looks at the places the vehicles'
-    /// steps noted for that instant and `instant(self)` runs (to drain and
-    /// follow that instant's proximity events, as after [`Self::step`]).
+    /// steps noted for that instant and `instant(self, extras)` runs (to
+    /// drain and follow that instant's proximity events, as after
+    /// [`Self::step`]): the time, the proximity pairs and
+    /// [`Self::noted_position_ned`] are that instant's, while the vehicles
+    /// already stand after all `steps`.
     ///
     /// Nothing reaches a vehicle between these steps: only for flights
-    /// that need no input but before the first of them.
+    /// that need no input but before the first of them. When `instant`
+    /// breaks, the clock stops at that instant, the vehicles standing the
+    /// rest of the steps ahead of it: for the end of a run, after which
+    /// the core is stepped no more.
     ///
     /// # Panics
     /// When `extras` is not one per vehicle.
@@ -470,7 +481,7 @@ impl<P: Pilot> Lockstep<P> {
         steps: usize,
         extras: &mut [T],
         after: impl Fn(&mut T, &P, StepRecord<'_>) + Sync,
-        mut instant: impl FnMut(&mut Self),
+        mut instant: impl FnMut(&mut Self, &mut [T]) -> ControlFlow<()>,
     ) {
         let n = self.pilots.len();
         assert_eq!(extras.len(), n, "one extra per vehicle");
@@ -521,7 +532,9 @@ impl<P: Pilot> Lockstep<P> {
             }
             self.world.tick();
             self.check_proximity();
-            instant(self);
+            if instant(self, extras).is_break() {
+                break;
+            }
         }
     }
 

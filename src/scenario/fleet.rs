@@ -40,6 +40,7 @@
 
 use std::fs::File as FsFile;
 use std::io::BufWriter;
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -450,8 +451,10 @@ trait Track<P: Pilot>: Send {
     /// that ends within them is judged after them, from what it kept at
     /// its end.
     fn steps_alone(&self, core: &Lockstep<P>, i: usize, most: u64) -> u64;
-    /// The steps left until the flight ends at the latest (1 when not known).
+    /// The steps left until the flight ends at the latest.
     fn steps_left(&self) -> u64;
+    /// The flight was over once the core had taken `steps` steps.
+    fn over_by(&self, steps: u64) -> bool;
     /// After the vehicle's step, with its own record alone: run on the
     /// thread that stepped it, beside the other vehicles' steps.
     fn after_own_step(&mut self, pilot: &P, rec: &StepRecord<'_>, log: Option<&mut Log>) -> anyhow::Result<()>;
@@ -474,6 +477,9 @@ impl<'a> Track<run::ScenarioPilot<'a>> for Flown {
     }
     fn steps_left(&self) -> u64 {
         Flown::steps_left(self)
+    }
+    fn over_by(&self, steps: u64) -> bool {
+        Flown::over_by(self, steps)
     }
     fn after_own_step(
         &mut self,
@@ -508,8 +514,12 @@ impl Track<Autopilot> for MissionFlown<'_> {
     fn steps_alone(&self, _core: &Lockstep<Autopilot>, _i: usize, _most: u64) -> u64 {
         1
     }
+    // stepped one step at a time (`steps_alone`): the next step may be its last
     fn steps_left(&self) -> u64 {
         1
+    }
+    fn over_by(&self, _steps: u64) -> bool {
+        MissionFlown::is_over(self)
     }
     fn after_own_step(
         &mut self,
@@ -539,8 +549,8 @@ struct Lane<T> {
 type Watch = Option<(Collector, ReportMeta)>;
 
 /// The most steps a fleet's vehicles are stepped ahead at once
-/// ([`Lockstep::step_ahead`]): 64 ms of flight, 2 MB of noted places for
-/// 1,024 vehicles.
+/// ([`Lockstep::step_ahead`]): 64 ms of flight at the default 1 kHz, 2 MB
+/// of noted places for 1,024 vehicles.
 const MOST_AHEAD: u64 = 64;
 
 /// What [`fly_tracks`] gives: the outcomes, the events, the steps, the pages.
@@ -612,11 +622,19 @@ fn fly_tracks<P: Watched, T: Track<P>>(
                     lane.failed = Some(e);
                 }
             },
-            |core| {
+            |core, lanes| {
                 for (t, e) in core.drain_proximity_events() {
                     encounters.open(t, e);
                 }
                 events.extend(encounters.follow(core));
+                // the clock stops where the last flight ended (on a fault, that
+                // may be inside the steps ahead)
+                let steps = core.steps();
+                if lanes.iter().all(|l| l.track.as_ref().is_none_or(|t| t.over_by(steps))) {
+                    ControlFlow::Break(())
+                } else {
+                    ControlFlow::Continue(())
+                }
             },
         );
         for i in 0..n {

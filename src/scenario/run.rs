@@ -11,7 +11,9 @@ use serde::Serialize;
 use super::fault::{self, AppliedFault};
 use super::{ReferencePlan, Scenario};
 use crate::autopilot::{ControlLoop, ControlOutput, Demand, FilterNavigation};
-use crate::control::{Reference, Setpoint, Shaper, ShaperLimits, TranslationSetpoint, feedforward_attitude};
+use crate::control::{
+    ControllerKind, Reference, Setpoint, Shaper, ShaperLimits, TranslationSetpoint, feedforward_attitude,
+};
 use crate::geo::GeoPoint;
 use crate::lockstep::{Lockstep, Pilot, StepRecord};
 use crate::logs::csv::CsvLog;
@@ -381,9 +383,28 @@ pub(super) struct Flown {
     /// How many `[[fault]]`s the scenario has (none left to apply: the
     /// step before needs nothing of the core).
     faults: usize,
-    /// The true state and the pilot's estimate when the flight ended, taken
-    /// then (a fleet's vehicle flies on after its own flight is over).
-    end: Option<(RigidBodyState, WrenchEstimate)>,
+    /// What the summary reads of the vehicle, taken when the flight ended.
+    end: Option<End>,
+}
+
+/// What a flight's summary reads of its vehicle, taken at the flight's end
+/// (a fleet's vehicle flies on after its own flight is over).
+#[derive(Clone, Copy, Debug)]
+struct End {
+    state: RigidBodyState,
+    estimate: WrenchEstimate,
+    controller: ControllerKind,
+}
+
+impl End {
+    /// `pilot`'s vehicle, whose true state is `state`, now.
+    fn of(pilot: &ScenarioPilot<'_>, state: &RigidBodyState) -> Self {
+        Self {
+            state: *state,
+            estimate: pilot.control.estimate(),
+            controller: pilot.control.controller().kind(),
+        }
+    }
 }
 
 impl Flown {
@@ -437,6 +458,12 @@ impl Flown {
         self.steps.saturating_sub(self.k)
     }
 
+    /// The flight was over once its vehicle had taken `steps` steps (its
+    /// last step is step `k - 1`).
+    pub(super) fn over_by(&self, steps: u64) -> bool {
+        self.is_over() && self.k <= steps
+    }
+
     /// How many of the next steps (at least 1, at most `most`) vehicle
     /// `i` flies with nothing from the core but [`Self::before_step`]
     /// before the first: up to the step the next fault is due at (past the
@@ -467,7 +494,7 @@ impl Flown {
     ) -> std::io::Result<()> {
         self.tally(pilot.step_s(), rec, log)?;
         if self.is_over() {
-            self.end = Some((*rec.end, pilot.control.estimate()));
+            self.end = Some(End::of(pilot, rec.end));
         }
         Ok(())
     }
@@ -532,9 +559,13 @@ impl Flown {
         let s = core.pilot(i).scenario;
         let dt = s.step_s;
         let flown = self.flown;
-        let (state, est) = self
+        let End {
+            state,
+            estimate: est,
+            controller,
+        } = self
             .end
-            .unwrap_or_else(|| (*core.world().plant(i).state(), core.pilot(i).control.estimate()));
+            .unwrap_or_else(|| End::of(core.pilot(i), core.world().plant(i).state()));
         let flown_f = flown.max(1) as f64;
         let rms = (self.sum_sq / flown_f).map(f64::sqrt);
         let tail = if self.tail_n > 0 {
@@ -546,7 +577,7 @@ impl Flown {
         Summary {
             scenario: s.source.clone(),
             airframe: s.airframe.name.clone(),
-            controller: core.pilot(i).control.controller().kind().name().to_string(),
+            controller: controller.name().to_string(),
             steps: flown,
             sim_time_s: flown as f64 * dt,
             wall_time_s: 0.0,

@@ -523,12 +523,16 @@ impl<P: Pilot> Lockstep<P> {
             }
             _ => lanes.for_each(per_vehicle),
         }
+        // the places noted are for the proximity check alone
+        let watched = self.proximity.is_some();
         self.positions.resize(n, Vector3::zeros());
         self.radii.resize(n, 0.0);
         for s in 0..steps {
-            for (i, &(p, r)) in self.noted.iter().skip(s).step_by(steps).enumerate() {
-                self.positions[i] = p;
-                self.radii[i] = r;
+            if watched {
+                for (i, &(p, r)) in self.noted.iter().skip(s).step_by(steps).enumerate() {
+                    self.positions[i] = p;
+                    self.radii[i] = r;
+                }
             }
             self.world.tick();
             self.check_proximity();
@@ -539,7 +543,8 @@ impl<P: Pilot> Lockstep<P> {
     }
 
     /// Vehicle `i`'s world position [m, NED] at the latest instant the
-    /// clock ticked to, as its step noted it for the proximity check.
+    /// clock ticked to, as its step noted it for the proximity check (while
+    /// proximity is watched: [`Self::watch_proximity`]).
     ///
     /// # Panics
     /// Before the first step.

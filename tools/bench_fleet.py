@@ -36,7 +36,9 @@ clock, so its time is the fleet's.
    real-time factor its summary gives, the speed-up from 1 to 2 threads, and
    the CPU seconds each run took: user + system of the child, which a busy
    machine does not inflate as it does wall time), and the daemon's 250
-   vehicles streaming to the listener flat out (section 1's figure). With
+   vehicles streaming to the listener flat out (section 1's figure), on the
+   daemon's navigation filter and, as the goals count them, on the ideal
+   navigation solution (a `--fleet` file setting RP_NAV_SRC 0). With
    `--compare OTHER_BINARY` each configuration runs with both binaries in
    turn, side by side in one run.
 
@@ -270,15 +272,30 @@ class Run:
             log.close()
 
 
-def fleet_cmd(n, first, speed, links, state, listen_port, void_port):
-    """The command line of one fleet (n > 1 or forced) or lone vehicle (n == 0: `--instance first` alone)."""
+def fleet_cmd(n, first, speed, links, state, listen_port, void_port, fleet_file=None):
+    """The command line of one fleet (n > 1 or forced) or lone vehicle (n == 0: `--instance first` alone);
+    with `fleet_file`, the fleet that file describes."""
     remote = {"listener": f"127.0.0.1:{listen_port}", "void": f"127.0.0.1:{void_port}", "none": "none"}[links]
     argv = [binary()]
-    if n:
-        argv += ["--count", str(n)]
-    argv += ["--instance", str(first), "--speed", f"{speed:g}", "--state-dir", state, "--reset-params",
+    if fleet_file:
+        argv += ["--fleet", fleet_file]
+    else:
+        if n:
+            argv += ["--count", str(n)]
+        argv += ["--instance", str(first)]
+    argv += ["--speed", f"{speed:g}", "--state-dir", state, "--reset-params",
              "--reset-plans", "--api-remote", remote, "--gcs-remote", "none"]
     return argv
+
+
+def ideal_fleet_file(n, first, directory):
+    """A fleet file of `--count n --instance first`'s vehicles flying the ideal navigation
+    solution (RP_NAV_SRC 0, as scenario and mission files fly) instead of the daemon's filter."""
+    path = os.path.join(directory, "ideal.toml")
+    with open(path, "w") as f:
+        f.write(f"[[vehicle]]\ninstance = {first}\ncount = {n}\nspacing_m = [3.0, 0.0]\n"
+                "params = { RP_NAV_SRC = 0 }\n")
+    return path
 
 
 def shown(argv, listen_port, void_port, state):
@@ -301,7 +318,8 @@ def measure(config, window_s, warmup_s):
         commands = [fleet_cmd(0, first + k, speed, links, os.path.join(tmp, str(first + k)), listener.port, void_port)
                     for k in range(n)]
     else:
-        commands = [fleet_cmd(n, first, speed, links, tmp, listener.port, void_port)]
+        fleet_file = ideal_fleet_file(n, first, tmp) if config.get("ideal") else None
+        commands = [fleet_cmd(n, first, speed, links, tmp, listener.port, void_port, fleet_file)]
     config["command"] = shown(commands[0], listener.port, void_port, tmp) + (
         f"  # k = {first}..{first + n - 1}, one process each" if lone else "")
     if lone:
@@ -381,7 +399,7 @@ def headless(threads):
 
 def goals(binaries, repeat, window, warmup):
     """Section 5: each binary's fleet-1024 factors and its 250-vehicle daemon rate, alternating."""
-    rows = {b: {"h1": [], "h2": [], "daemon": []} for b in binaries}
+    rows = {b: {"h1": [], "h2": [], "daemon": [], "ideal": []} for b in binaries}
     daemon = {"n": 250, "first": 0, "speed": 1000.0, "links": "listener", "lone": False}
     for r in range(repeat):
         for b in binaries:
@@ -393,22 +411,29 @@ def goals(binaries, repeat, window, warmup):
             res = measure(dict(daemon), window, warmup)
             rows[b]["daemon"].append(res)
             print(f"# run {r + 1}: {b} --count 250 --speed 1000 (API -> listener)\n#   -> {res}", file=sys.stderr, flush=True)
+            res = measure(dict(daemon, ideal=True), window, warmup)
+            rows[b]["ideal"].append(res)
+            print(f"# run {r + 1}: {b} the same on the ideal navigation\n#   -> {res}", file=sys.stderr, flush=True)
     print("\n### Tracked goals (fleet-1024 headless; 250 vehicles in the daemon, API links to a listener, flat out)\n")
     cols = ["binary", "fleet-1024, 1 thread (x real time)", "2 threads", "speed-up 1 -> 2 (wall)",
-            "CPU s, 1 thread", "CPU s, 2 threads", "daemon, 250 vehicles (x real time)", "load avg"]
+            "CPU s, 1 thread", "CPU s, 2 threads", "daemon, 250 vehicles (x real time)",
+            "the same, ideal navigation", "load avg"]
     print("| " + " | ".join(cols) + " |")
     print("|" + "---|" * len(cols))
     for b in binaries:
         h1, h2, d = rows[b]["h1"], rows[b]["h2"], [x for x in rows[b]["daemon"] if "error" not in x]
+        ideal = [x for x in rows[b]["ideal"] if "error" not in x]
         speedup = [x["wall"] / y["wall"] for x, y in zip(h1, h2)]
-        loads = [x["load"] for x in h1 + h2] + [x["load"] for x in rows[b]["daemon"]]
+        loads = [x["load"] for x in h1 + h2] + [x["load"] for x in rows[b]["daemon"] + rows[b]["ideal"]]
         print("| " + " | ".join([
             b, fmt([x["factor"] for x in h1], 3), fmt([x["factor"] for x in h2], 3), fmt(speedup, 2),
             fmt([x["cpu"] for x in h1], 2), fmt([x["cpu"] for x in h2], 2), fmt([x["factor"] for x in d], 2),
-            fmt(loads, 2),
+            fmt([x["factor"] for x in ideal], 2), fmt(loads, 2),
         ]) + " |")
     print(f"\nCommands: `rotorpilot simulate tools/fleets/fleet-1024.toml --json --threads 1|2`; "
-          f"`{shown(fleet_cmd(250, 0, 1000.0, 'listener', 'STATE', 1, 2), 1, 2, 'STATE')}`")
+          f"`{shown(fleet_cmd(250, 0, 1000.0, 'listener', 'STATE', 1, 2), 1, 2, 'STATE')}`; the ideal navigation: "
+          f"`{shown(fleet_cmd(250, 0, 1000.0, 'listener', 'STATE', 1, 2, 'IDEAL.toml'), 1, 2, 'STATE')}` with "
+          "IDEAL.toml one [[vehicle]] entry of instance 0, count 250, params = { RP_NAV_SRC = 0 }")
 
 
 def fmt(xs, digits):

@@ -533,13 +533,14 @@ fn true_positions(csv: &str) -> Vec<[f64; 3]> {
         .collect()
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn an_encounter_ends_with_its_closest_approach_told_to_both_and_replayed() {
-    let logs = scratch_path("fleet-encounter");
+/// A fleet of two, 3 m apart (not near), each logging below `logs` when
+/// given, at x5: system 2 takes off (1 m asked), then flies south over
+/// system 1 to 3.3 m beyond it. The closest approach each is told when
+/// the encounter ends, naming the other (its "Passed" STATUSTEXT,
+/// sorted by system id).
+async fn encounter_told(logs: Option<&Path>) -> Vec<(u8, String)> {
     let mut gcs = Client::with_ids(255, 190).await;
-    // 3 m apart: not near; system 2 takes off (1 m asked), then flies south
-    // over system 1 to 3.3 m beyond it
-    let fleet = Fleet::start_logged(2, 3.0, 5.0, gcs.addr(), Some(&logs)).await;
+    let fleet = Fleet::start_logged(2, 3.0, 5.0, gcs.addr(), logs).await;
     let (_, api1) = fleet.links[1];
     let mut c = Client::new().await;
     c.heartbeat(api1).await;
@@ -595,14 +596,38 @@ async fn an_encounter_ends_with_its_closest_approach_told_to_both_and_replayed()
     }
     fleet.stop().await;
     passed.sort();
-    let closest = |other: u8| -> String {
-        let prefix = format!("Passed system {other}: closest approach ");
-        let (_, t) = passed
-            .iter()
-            .find(|(_, t)| t.starts_with(&prefix))
-            .unwrap_or_else(|| panic!("{passed:?}"));
-        t[prefix.len()..].strip_suffix(" m").expect("in metres").to_string()
-    };
+    passed
+}
+
+/// The closest approach that `passed` (of [`encounter_told`]) tells system
+/// `other`'s partner, as its text gives it [m].
+fn closest(passed: &[(u8, String)], other: u8) -> String {
+    let prefix = format!("Passed system {other}: closest approach ");
+    let (_, t) = passed
+        .iter()
+        .find(|(_, t)| t.starts_with(&prefix))
+        .unwrap_or_else(|| panic!("{passed:?}"));
+    t[prefix.len()..].strip_suffix(" m").expect("in metres").to_string()
+}
+
+/// Unlogged, the fleet steps each vehicle ahead through a chunk of steps
+/// (`Lockstep::step_ahead`): the encounter is still followed instant by
+/// instant and told to both.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_unlogged_fleet_tells_both_of_an_encounter_and_its_closest_approach() {
+    let passed = encounter_told(None).await;
+    assert_eq!((passed[0].0, passed[1].0), (1, 2), "{passed:?}");
+    let told = closest(&passed, 2);
+    assert_eq!(closest(&passed, 1), told, "both told the same closest approach");
+    let d: f64 = told.parse().unwrap();
+    assert!(d > 0.0 && d < 2.0, "they crossed closer than the 2 m reported: {d}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_encounter_ends_with_its_closest_approach_told_to_both_and_replayed() {
+    let logs = scratch_path("fleet-encounter");
+    let passed = encounter_told(Some(&logs)).await;
+    let closest = |other: u8| closest(&passed, other);
     assert_eq!((passed[0].0, passed[1].0), (1, 2), "{passed:?}");
     let told = closest(2);
     assert_eq!(closest(1), told, "both told the same closest approach");

@@ -502,3 +502,121 @@ fn stepping_ahead_judges_every_flight_and_ends_the_fleet_where_one_step_at_a_tim
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A fleet of flight stacks (the daemon's) stepped ahead
+/// (`Lockstep::step_ahead`, as the daemon steps a chunk when nothing logs
+/// every step) flies as one step at a time: between chunks of several
+/// lengths, where the daemon serves its requests (arming, a takeoff) and
+/// publishes, every vehicle's snapshot and stamped status texts are the
+/// same to the bit, and so is every instant's time and proximity event
+/// (one vehicle comes near others inside chunks), on 1 and 2
+/// threads.
+#[test]
+fn flight_stacks_stepped_ahead_fly_as_one_step_at_a_time() {
+    use std::ops::ControlFlow;
+
+    use nalgebra::Vector3;
+    use rotorpilot::airframe::Airframe;
+    use rotorpilot::autopilot::{AutopilotCommand, CommandOutcome};
+    use rotorpilot::geo::GeoPoint;
+    use rotorpilot::lockstep::{FleetVehicle, Lockstep};
+    use rotorpilot::params::ParamStore;
+    use rotorpilot::sim::{SensorConfig, SensorNoise};
+
+    let airframe = Airframe::load("quad").unwrap();
+    let params = ParamStore::new(&airframe);
+    let origin = GeoPoint::PX4_SITL_HOME;
+    let noise = SensorNoise {
+        position_m: 0.05,
+        velocity_m_s: 0.05,
+        attitude_rad: 0.005,
+        rate_rad_s: 0.005,
+    };
+    // more vehicles than one parallel task takes, 3 m apart in a row, but
+    // vehicle 1 within the 2 m proximity distance of vehicle 0
+    let vehicles: Vec<FleetVehicle<'_>> = (0..24_u64)
+        .map(|i| FleetVehicle {
+            airframe: &airframe,
+            home: origin.offset(&Vector3::new(if i == 1 { 1.5 } else { 3.0 * i as f64 }, 0.0, 0.0)),
+            params: &params,
+            sensors: SensorConfig { noise, seed: i },
+        })
+        .collect();
+    let chunks = [1_usize, 7, 64, 13, 64, 40, 2, 64];
+    let fly = |ahead: bool, threads: usize| {
+        let mut core = Lockstep::fleet(origin, &vehicles).unwrap();
+        core.set_threads(threads).unwrap();
+        core.watch_proximity(2.0);
+        let mut seen: Vec<String> = Vec::new();
+        let mut flying = vec![false; vehicles.len()];
+        for (c, k) in chunks.iter().cycle().take(240).enumerate() {
+            if ahead {
+                let mut none = vec![(); vehicles.len()];
+                core.step_ahead(
+                    *k,
+                    &mut none,
+                    |(), _, _| {},
+                    |core, _| {
+                        seen.push(format!("{} {:?}", core.time_s(), core.drain_proximity_events()));
+                        ControlFlow::Continue(())
+                    },
+                );
+            } else {
+                for _ in 0..*k {
+                    core.step();
+                    seen.push(format!("{} {:?}", core.time_s(), core.drain_proximity_events()));
+                }
+            }
+            // between chunks: every even vehicle arms as soon as it may and
+            // takes off to 4 m (vehicle 0 rises away from vehicle 1)
+            for (i, up) in flying.iter_mut().enumerate().step_by(2) {
+                if !*up && core.command(i, AutopilotCommand::Arm { force: false }) == CommandOutcome::Accepted {
+                    let home = core.snapshot(i).telemetry.home.alt_amsl_m;
+                    let takeoff = AutopilotCommand::Takeoff {
+                        altitude_amsl_m: Some(home + 4.0),
+                    };
+                    assert_eq!(core.command(i, takeoff), CommandOutcome::Accepted);
+                    *up = true;
+                }
+            }
+            // then vehicle 2 flies north, down to 1.5 m, over vehicles 3
+            // to 5, coming near them inside chunks
+            if c == 100 {
+                let to = vehicles[6].home;
+                let over = AutopilotCommand::Reposition {
+                    lat_deg: Some(to.lat_deg),
+                    lon_deg: Some(to.lon_deg),
+                    alt_amsl_m: Some(to.alt_amsl_m + 1.5),
+                    yaw_rad: None,
+                    speed_m_s: None,
+                };
+                assert_eq!(core.command(2, over), CommandOutcome::Accepted);
+            }
+            for i in 0..vehicles.len() {
+                seen.push(format!(
+                    "{i} {:?} {:?}",
+                    core.snapshot(i),
+                    core.drain_stamped_status_texts(i)
+                ));
+            }
+        }
+        assert!(flying.iter().step_by(2).all(|&up| up), "every even vehicle took off");
+        let height = -core.world().plant(0).state().position_ned.z;
+        assert!(height > 1.0, "vehicle 0 climbs: {height} m");
+        seen
+    };
+    let one_at_a_time = fly(false, 1);
+    let near = |s: &String| s.matches("Near").count();
+    assert!(
+        one_at_a_time.iter().map(near).sum::<usize>() >= 3,
+        "vehicles 0 and 1 start near, vehicle 2 comes near others in flight: {:?}",
+        one_at_a_time.iter().filter(|s| near(s) > 0).collect::<Vec<_>>()
+    );
+    for threads in [1, 2] {
+        let ahead = fly(true, threads);
+        assert_eq!(ahead.len(), one_at_a_time.len());
+        for (a, b) in ahead.iter().zip(&one_at_a_time) {
+            assert_eq!(a, b, "stepped ahead on {threads} threads");
+        }
+    }
+}

@@ -2,7 +2,8 @@
 //! of the fleet, on one clock), paced against the wall clock. Every tick of
 //! wall time it runs the steps that are due so that simulated time = speed x
 //! wall time (batched: no per-step syscall; requests are served between
-//! chunks of steps), then publishes each vehicle's [`Snapshot`] on its
+//! chunks of steps, each vehicle stepped through a chunk before the next
+//! unless it logs), then publishes each vehicle's [`Snapshot`] on its
 //! `watch` and its status texts on its `broadcast`. Between ticks it sleeps
 //! in the [`Inbox`] (one bounded queue per vehicle, served round robin), so
 //! a command is served at once and a flooding client delays the others by
@@ -11,6 +12,7 @@
 //! stepped on several threads runs this loop on one of them
 //! ([`crate::lockstep::StepThreads::run`]).
 
+use std::ops::ControlFlow;
 use std::sync::mpsc::{RecvTimeoutError, TryRecvError};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -28,15 +30,16 @@ use crate::autopilot::{
 };
 use crate::link::events;
 use crate::lockstep::input::{Applied, Input};
-use crate::lockstep::{Lockstep, Snapshot};
+use crate::lockstep::{Lockstep, MOST_AHEAD, Snapshot};
 use crate::mission::{MissionResult, PlanChange};
 use crate::params::{ParamStore, ParamValue};
 use crate::scenario::fleet::FleetEvent;
 use crate::scenario::fleet::encounters::Encounters;
 
-/// Vehicle-steps run between two looks at the requests (50 steps of a lone
-/// vehicle; one step of a fleet of 50 or more).
-const CHUNK_VEHICLE_STEPS: u64 = 50;
+/// Vehicle-steps run between two looks at the requests, at most
+/// [`MOST_AHEAD`] steps: 64 steps of a lone vehicle or of a fleet of up to
+/// 64, 16 of a fleet of 250, 4 of 1,000; a millisecond or two of wall time.
+const CHUNK_VEHICLE_STEPS: u64 = 4096;
 /// At most this much wall time is spent stepping per tick; the rest waits.
 const MAX_BATCH_WALL: Duration = Duration::from_millis(20);
 
@@ -101,7 +104,7 @@ impl Sim {
         self.run_loop(rx);
         // the encounters still open end with the flight
         let open = std::mem::take(&mut self.encounters).finish();
-        self.end_encounters(open);
+        end_encounters(&mut self.core, &mut self.vehicles, open);
         for v in 0..self.vehicles.len() {
             self.publish(v);
         }
@@ -120,7 +123,7 @@ impl Sim {
     fn run_loop(&mut self, rx: &Inbox<SimRequest>) {
         let dt = self.core.dt_s();
         let vehicles = self.vehicles.len().max(1) as u64;
-        let chunk = (CHUNK_VEHICLE_STEPS / vehicles).max(1);
+        let chunk = (CHUNK_VEHICLE_STEPS / vehicles).clamp(1, MOST_AHEAD);
         let start = Instant::now();
         let mut base = start;
         let mut base_steps: u64 = 0;
@@ -160,11 +163,7 @@ impl Sim {
             }
             while due > 0 {
                 let n = due.min(chunk);
-                for _ in 0..n {
-                    self.core.step();
-                    self.after_step();
-                    self.proximity();
-                }
+                self.step_chunk(n);
                 steps += n;
                 due -= n;
                 // the requests waiting now, round robin (what comes in
@@ -224,8 +223,7 @@ impl Sim {
     /// Vehicle `v`'s instance and system id, as the user set them (log lines
     /// name a vehicle by these, never by its place in the fleet).
     fn who(&self, v: usize) -> (u8, u8) {
-        let io = &self.vehicles[v];
-        (io.instance, io.system_id)
+        self.vehicles[v].who()
     }
 
     /// Publish vehicle `v`'s snapshot and status texts.
@@ -362,16 +360,7 @@ impl Sim {
     /// steps), recording it in its record when recording: the only way
     /// inputs reach the core.
     pub(super) fn apply(&mut self, v: usize, input: Input) -> Applied {
-        let step = self.core.steps();
-        let io = &mut self.vehicles[v];
-        let applied = {
-            let mut p = lock(&io.params);
-            crate::lockstep::input::apply(&mut self.core, v, &mut p, &input)
-        };
-        if let Some(r) = &mut io.recorder {
-            r.input(step, &input, &applied);
-        }
-        applied
+        apply(&mut self.core, &mut self.vehicles, v, input)
     }
 
     /// [`Self::apply`] a command.
@@ -425,58 +414,43 @@ impl Sim {
         }
     }
 
-    /// After each step: record the proximity events the step raised in
-    /// both vehicles' records (the core announced them itself: recorded,
-    /// not applied; a replay applies them), open an encounter with each,
-    /// follow the open ones, and tell both vehicles of each that ended
-    /// ([`Self::end_encounters`]). Nothing to do when no pair is near.
-    pub(super) fn proximity(&mut self) {
-        let step = self.core.steps();
-        for (t, e) in self.core.drain_proximity_events() {
-            for (me, other) in [(e.a, e.b), (e.b, e.a)] {
-                let (instance, sysid) = self.who(me);
-                info!(instance, sysid, other = %self.core.label(other), kind = e.kind.name(), distance_m = e.distance_m, "proximity");
-                if let Some(r) = &mut self.vehicles[me].recorder {
-                    let input = Input::Proximity {
-                        other: self.core.label(other).to_string(),
-                        kind: e.kind,
-                        distance_m: e.distance_m,
-                    };
-                    r.input(step, &input, &Applied::Announced);
-                }
+    /// `n` steps of every vehicle, the proximity followed at each instant
+    /// ([`follow_proximity`]). While no vehicle logs its steps
+    /// (`--log-dir`), each vehicle runs through all `n` before the next
+    /// ([`Lockstep::step_ahead`]: its data stays in the caches); nothing
+    /// reaches a vehicle between them anyway, the requests being served
+    /// between chunks. A vehicle that logs is written after every step, from
+    /// the whole core: then the vehicles take one step at a time.
+    fn step_chunk(&mut self, n: u64) {
+        if self
+            .vehicles
+            .iter()
+            .any(|io| io.recorder.is_some() || io.ulog.is_some())
+        {
+            for _ in 0..n {
+                self.core.step();
+                self.after_step();
+                follow_proximity(&mut self.core, &mut self.vehicles, &mut self.encounters);
             }
-            self.encounters.open(t, e);
+            return;
         }
-        let ended = self.encounters.follow(&self.core);
-        if !ended.is_empty() {
-            self.end_encounters(ended);
-        }
-    }
-
-    /// Tell both vehicles of each encounter in `ended` its closest approach
-    /// (applied and recorded as [`Input::EncounterEnded`], logged). A pair
-    /// that rose twice (near, then touching) ends both encounters at once:
-    /// it is told once, of the first (which followed it longest: its
-    /// closest approach is the least).
-    fn end_encounters(&mut self, mut ended: Vec<FleetEvent>) {
-        // stable: each pair's first-opened encounter stays first
-        ended.sort_by_key(|e| (e.a, e.b));
-        ended.dedup_by_key(|e| (e.a, e.b));
-        for e in ended {
-            for (me, other) in [(e.a, e.b), (e.b, e.a)] {
-                let (instance, sysid) = self.who(me);
-                let label = self.core.label(other).to_string();
-                info!(instance, sysid, other = %label, closest_m = e.closest_m, closest_s = e.closest_s, "encounter ended");
-                self.apply(
-                    me,
-                    Input::EncounterEnded {
-                        other: label,
-                        closest_m: e.closest_m,
-                        closest_s: e.closest_s,
-                    },
-                );
-            }
-        }
+        let Self {
+            core,
+            vehicles,
+            encounters,
+            ..
+        } = self;
+        let mut none = vec![(); vehicles.len()];
+        let steps = usize::try_from(n).unwrap_or(usize::MAX);
+        core.step_ahead(
+            steps,
+            &mut none,
+            |(), _, _| {},
+            |core, _| {
+                follow_proximity(core, vehicles, encounters);
+                ControlFlow::Continue(())
+            },
+        );
     }
 
     /// After each step: every vehicle's CSV row and ULog topics.
@@ -486,6 +460,85 @@ impl Sim {
                 r.after_step(&self.core);
             }
             ulog_file::after_step(&mut io.ulog, &mut self.core);
+        }
+    }
+}
+
+impl VehicleIo {
+    /// Its instance and system id, as the user set them (log lines name a
+    /// vehicle by these, never by its place in the fleet).
+    fn who(&self) -> (u8, u8) {
+        (self.instance, self.system_id)
+    }
+}
+
+/// Apply one input to vehicle `v` at the current instant (between its
+/// steps), recording it in its record when recording ([`Sim::apply`]).
+fn apply(core: &mut Lockstep<Autopilot>, vehicles: &mut [VehicleIo], v: usize, input: Input) -> Applied {
+    let step = core.steps();
+    let io = &mut vehicles[v];
+    let applied = {
+        let mut p = lock(&io.params);
+        crate::lockstep::input::apply(core, v, &mut p, &input)
+    };
+    if let Some(r) = &mut io.recorder {
+        r.input(step, &input, &applied);
+    }
+    applied
+}
+
+/// After each instant: record the proximity events its step raised in
+/// both vehicles' records (the core announced them itself: recorded, not
+/// applied; a replay applies them), open an encounter with each, follow
+/// the open ones, and tell both vehicles of each that ended
+/// ([`end_encounters`]). Nothing to do when no pair is near.
+fn follow_proximity(core: &mut Lockstep<Autopilot>, vehicles: &mut [VehicleIo], encounters: &mut Encounters) {
+    let step = core.steps();
+    for (t, e) in core.drain_proximity_events() {
+        for (me, other) in [(e.a, e.b), (e.b, e.a)] {
+            let (instance, sysid) = vehicles[me].who();
+            info!(instance, sysid, other = %core.label(other), kind = e.kind.name(), distance_m = e.distance_m, "proximity");
+            if let Some(r) = &mut vehicles[me].recorder {
+                let input = Input::Proximity {
+                    other: core.label(other).to_string(),
+                    kind: e.kind,
+                    distance_m: e.distance_m,
+                };
+                r.input(step, &input, &Applied::Announced);
+            }
+        }
+        encounters.open(t, e);
+    }
+    let ended = encounters.follow(core);
+    if !ended.is_empty() {
+        end_encounters(core, vehicles, ended);
+    }
+}
+
+/// Tell both vehicles of each encounter in `ended` its closest approach
+/// (applied and recorded as [`Input::EncounterEnded`], logged). A pair that
+/// rose twice (near, then touching) ends both encounters at once: it is
+/// told once, of the first (which followed it longest: its closest approach
+/// is the least).
+fn end_encounters(core: &mut Lockstep<Autopilot>, vehicles: &mut [VehicleIo], mut ended: Vec<FleetEvent>) {
+    // stable: each pair's first-opened encounter stays first
+    ended.sort_by_key(|e| (e.a, e.b));
+    ended.dedup_by_key(|e| (e.a, e.b));
+    for e in ended {
+        for (me, other) in [(e.a, e.b), (e.b, e.a)] {
+            let (instance, sysid) = vehicles[me].who();
+            let label = core.label(other).to_string();
+            info!(instance, sysid, other = %label, closest_m = e.closest_m, closest_s = e.closest_s, "encounter ended");
+            apply(
+                core,
+                vehicles,
+                me,
+                Input::EncounterEnded {
+                    other: label,
+                    closest_m: e.closest_m,
+                    closest_s: e.closest_s,
+                },
+            );
         }
     }
 }

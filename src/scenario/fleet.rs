@@ -52,7 +52,7 @@ use super::placement::{MAX_VEHICLES, Placement};
 use super::run::{self, Flown};
 use super::{MissionFlight, Scenario, is_mission, mission};
 use crate::autopilot::Autopilot;
-use crate::lockstep::{FleetVehicle, Lockstep, Pilot, StepRecord};
+use crate::lockstep::{FleetVehicle, Lockstep, MOST_AHEAD, Pilot, StepRecord};
 use crate::logs::csv::CsvLog;
 use crate::logs::report::{Collector, FlightReport, ReportMeta, Watched};
 use crate::sim::World;
@@ -547,11 +547,6 @@ struct Lane<T> {
 
 /// A vehicle's report page as it is collected, and the meta it will carry.
 type Watch = Option<(Collector, ReportMeta)>;
-
-/// The most steps a fleet's vehicles are stepped ahead at once
-/// ([`Lockstep::step_ahead`]): 64 ms of flight at the default 1 kHz, 2 MB
-/// of noted places for 1,024 vehicles.
-const MOST_AHEAD: u64 = 64;
 
 /// What [`fly_tracks`] gives: the outcomes, the events, the steps, the pages.
 type FleetFlown = (Vec<Outcome>, Vec<FleetEvent>, u64, Vec<FlightReport>);

@@ -508,19 +508,21 @@ fn stepping_ahead_judges_every_flight_and_ends_the_fleet_where_one_step_at_a_tim
 /// every step) flies as one step at a time: between chunks of several
 /// lengths, where the daemon serves its requests (arming, a takeoff) and
 /// publishes, every vehicle's snapshot and stamped status texts are the
-/// same to the bit, and so is every instant's time and proximity event
-/// (one vehicle comes near others inside chunks), on 1 and 2
-/// threads.
+/// same to the bit, and so is what the daemon reads at every instant: the
+/// time, the proximity events, the encounters followed to their closest
+/// approach (one vehicle comes near others and leaves them inside chunks)
+/// and the places the steps noted, on 1 and 2 threads.
 #[test]
 fn flight_stacks_stepped_ahead_fly_as_one_step_at_a_time() {
     use std::ops::ControlFlow;
 
     use nalgebra::Vector3;
     use rotorpilot::airframe::Airframe;
-    use rotorpilot::autopilot::{AutopilotCommand, CommandOutcome};
+    use rotorpilot::autopilot::{Autopilot, AutopilotCommand, CommandOutcome};
     use rotorpilot::geo::GeoPoint;
     use rotorpilot::lockstep::{FleetVehicle, Lockstep};
     use rotorpilot::params::ParamStore;
+    use rotorpilot::scenario::fleet::encounters::Encounters;
     use rotorpilot::sim::{SensorConfig, SensorNoise};
 
     let airframe = Airframe::load("quad").unwrap();
@@ -542,12 +544,25 @@ fn flight_stacks_stepped_ahead_fly_as_one_step_at_a_time() {
             sensors: SensorConfig { noise, seed: i },
         })
         .collect();
+    // what the daemon reads at each instant: the time, the proximity
+    // events, the encounters it follows (opened, then ended with their
+    // closest approach) and the places the vehicles' steps noted
+    fn instant(core: &mut Lockstep<Autopilot>, encounters: &mut Encounters) -> String {
+        let events = core.drain_proximity_events();
+        for (t, e) in &events {
+            encounters.open(*t, *e);
+        }
+        let ended = encounters.follow(core);
+        let places: Vec<_> = (0..core.world().len()).map(|i| core.noted_position_ned(i)).collect();
+        format!("{} {events:?} {ended:?} {places:?}", core.time_s())
+    }
     let chunks = [1_usize, 7, 64, 13, 64, 40, 2, 64];
     let fly = |ahead: bool, threads: usize| {
         let mut core = Lockstep::fleet(origin, &vehicles).unwrap();
         core.set_threads(threads).unwrap();
         core.watch_proximity(2.0);
         let mut seen: Vec<String> = Vec::new();
+        let mut encounters = Encounters::default();
         let mut flying = vec![false; vehicles.len()];
         for (c, k) in chunks.iter().cycle().take(240).enumerate() {
             if ahead {
@@ -557,14 +572,14 @@ fn flight_stacks_stepped_ahead_fly_as_one_step_at_a_time() {
                     &mut none,
                     |(), _, _| {},
                     |core, _| {
-                        seen.push(format!("{} {:?}", core.time_s(), core.drain_proximity_events()));
+                        seen.push(instant(core, &mut encounters));
                         ControlFlow::Continue(())
                     },
                 );
             } else {
                 for _ in 0..*k {
                     core.step();
-                    seen.push(format!("{} {:?}", core.time_s(), core.drain_proximity_events()));
+                    seen.push(instant(&mut core, &mut encounters));
                 }
             }
             // between chunks: every even vehicle arms as soon as it may and
@@ -606,11 +621,15 @@ fn flight_stacks_stepped_ahead_fly_as_one_step_at_a_time() {
         seen
     };
     let one_at_a_time = fly(false, 1);
-    let near = |s: &String| s.matches("Near").count();
+    let near = |s: &String| s.matches("kind: Near").count();
+    let ended = |s: &String| s.matches("closest_m").count();
     assert!(
-        one_at_a_time.iter().map(near).sum::<usize>() >= 3,
-        "vehicles 0 and 1 start near, vehicle 2 comes near others in flight: {:?}",
-        one_at_a_time.iter().filter(|s| near(s) > 0).collect::<Vec<_>>()
+        one_at_a_time.iter().map(near).sum::<usize>() >= 3 && one_at_a_time.iter().map(ended).sum::<usize>() >= 2,
+        "vehicles 0 and 1 start near, vehicle 2 comes near others in flight and leaves them: {:?}",
+        one_at_a_time
+            .iter()
+            .filter(|s| near(s) + ended(s) > 0)
+            .collect::<Vec<_>>()
     );
     for threads in [1, 2] {
         let ahead = fly(true, threads);

@@ -38,7 +38,8 @@ use crate::scenario::fleet::encounters::Encounters;
 
 /// Vehicle-steps run between two looks at the requests, at most
 /// [`MOST_AHEAD`] steps: 64 steps of a lone vehicle or of a fleet of up to
-/// 64, 16 of a fleet of 250, 4 of 1,000; a millisecond or two of wall time.
+/// 64, 16 of a fleet of 250 (the most the daemon holds); a millisecond or
+/// two of wall time.
 const CHUNK_VEHICLE_STEPS: u64 = 4096;
 /// At most this much wall time is spent stepping per tick; the rest waits.
 const MAX_BATCH_WALL: Duration = Duration::from_millis(20);
@@ -62,7 +63,7 @@ pub(super) struct Sim {
     /// Stops the daemon: a client's accepted shutdown ([`Self::power`]).
     pub(super) exit: mpsc::Sender<()>,
     /// The fleet's open encounters, followed to their closest approach
-    /// ([`Self::proximity`]).
+    /// ([`follow_proximity`]).
     pub(super) encounters: Encounters,
 }
 

@@ -215,16 +215,10 @@ impl Sim {
         }
         for p in expired {
             if self.client_timeout(v, p.timer, p.started_s) {
-                let (instance, sysid) = self.who(v);
+                let (instance, sysid) = self.vehicles[v].who();
                 debug!(instance, sysid, timer = ?p.timer, "client timer ran out on the wall clock");
             }
         }
-    }
-
-    /// Vehicle `v`'s instance and system id, as the user set them (log lines
-    /// name a vehicle by these, never by its place in the fleet).
-    fn who(&self, v: usize) -> (u8, u8) {
-        self.vehicles[v].who()
     }
 
     /// Publish vehicle `v`'s snapshot and status texts.
@@ -300,7 +294,7 @@ impl Sim {
             }
             SimRequest::SetParam { name, value, reply } => {
                 let outcome = self.set_param(v, &name, value);
-                let (instance, sysid) = self.who(v);
+                let (instance, sysid) = self.vehicles[v].who();
                 match &outcome {
                     Ok(x) => info!(instance, sysid, %name, value = %x, "parameter set"),
                     Err(e) => info!(instance, sysid, %name, error = %e, "parameter refused"),
@@ -310,7 +304,7 @@ impl Sim {
             }
             SimRequest::Plans { change, reply } => {
                 let outcome = self.change_plans(v, change);
-                let (instance, sysid) = self.who(v);
+                let (instance, sysid) = self.vehicles[v].who();
                 info!(instance, sysid, ?outcome, "plans changed");
                 self.publish(v);
                 if outcome.is_ok() {
@@ -345,12 +339,12 @@ impl Sim {
             Ok(()) => {
                 // the core announces it ("Rebooted: simulation reset"); the
                 // caller publishes before the ACK
-                let (instance, sysid) = self.who(v);
+                let (instance, sysid) = self.vehicles[v].who();
                 info!(instance, sysid, "rebooted: simulation reset");
                 CommandOutcome::Accepted
             }
             Err(e) => {
-                let (instance, sysid) = self.who(v);
+                let (instance, sysid) = self.vehicles[v].who();
                 warn!(instance, sysid, error = %e, "reboot failed");
                 CommandOutcome::Failed("reboot failed")
             }
@@ -420,14 +414,10 @@ impl Sim {
     /// (`--log-dir`), each vehicle runs through all `n` before the next
     /// ([`Lockstep::step_ahead`]: its data stays in the caches); nothing
     /// reaches a vehicle between them anyway, the requests being served
-    /// between chunks. A vehicle that logs is written after every step, from
-    /// the whole core: then the vehicles take one step at a time.
+    /// between chunks. A vehicle that logs its steps is written after every
+    /// step, from the whole core: then the vehicles take one step at a time.
     fn step_chunk(&mut self, n: u64) {
-        if self
-            .vehicles
-            .iter()
-            .any(|io| io.recorder.is_some() || io.ulog.is_some())
-        {
+        if self.vehicles.iter().any(VehicleIo::logs_its_steps) {
             for _ in 0..n {
                 self.core.step();
                 self.after_step();
@@ -442,9 +432,9 @@ impl Sim {
             ..
         } = self;
         let mut none = vec![(); vehicles.len()];
-        let steps = usize::try_from(n).unwrap_or(usize::MAX);
+        // a chunk is at most MOST_AHEAD (64) steps: the cast is exact
         core.step_ahead(
-            steps,
+            n.min(MOST_AHEAD) as usize,
             &mut none,
             |(), _, _| {},
             |core, _| {
@@ -470,6 +460,12 @@ impl VehicleIo {
     /// vehicle by these, never by its place in the fleet).
     fn who(&self) -> (u8, u8) {
         (self.instance, self.system_id)
+    }
+
+    /// Whether it logs its steps (`--log-dir`: the flight record, the CSV,
+    /// the ULog), each written after the step from the whole core.
+    fn logs_its_steps(&self) -> bool {
+        self.recorder.is_some() || self.ulog.is_some()
     }
 }
 

@@ -28,18 +28,25 @@ REAL_TIME = 1.0
 SCRIPTS = HERE / "mavsdk_examples"
 
 
-def run_script(name, vehicle, timeout=150):
+def script_env(vehicle):
+    """The environment a script of mavsdk_examples/ reads (common.py)."""
     env = dict(os.environ)
-    env["ROTORPILOT_MAVSDK_URL"] = f"udpin://0.0.0.0:{vehicle.api_port}"
-    env["MAVSDK_SERVER_PORT"] = str(free_tcp_port())
-    env["ROTORPILOT_SPEED"] = str(vehicle.speed)
-    env["PYTHONWARNINGS"] = "ignore::FutureWarning"
+    env.update(
+        ROTORPILOT_MAVSDK_URL=f"udpin://0.0.0.0:{vehicle.api_port}",
+        MAVSDK_SERVER_PORT=str(free_tcp_port()),
+        ROTORPILOT_SPEED=str(vehicle.speed),
+        PYTHONWARNINGS="ignore::FutureWarning",
+    )
+    return env
+
+
+def run_script(name, vehicle, timeout=150):
     t0 = time.monotonic()
     try:
         p = subprocess.run(
             [sys.executable, str(SCRIPTS / name)],
             cwd=SCRIPTS,
-            env=env,
+            env=script_env(vehicle),
             capture_output=True,
             text=True,
             timeout=timeout,
@@ -81,17 +88,10 @@ def test_gcs_and_mavsdk_at_once_and_a_reconnecting_gcs():
     with Vehicle(speed=SPEED) as v:
         gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{v.gcs_port}", source_system=255)
         assert gcs.wait_heartbeat(timeout=5) is not None
-        env = dict(os.environ)
-        env.update(
-            ROTORPILOT_MAVSDK_URL=f"udpin://0.0.0.0:{v.api_port}",
-            MAVSDK_SERVER_PORT=str(free_tcp_port()),
-            ROTORPILOT_SPEED=str(v.speed),
-            PYTHONWARNINGS="ignore::FutureWarning",
-        )
         script = subprocess.Popen(
             [sys.executable, str(SCRIPTS / "takeoff_and_land.py")],
             cwd=SCRIPTS,
-            env=env,
+            env=script_env(v),
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
             text=True,
@@ -120,6 +120,47 @@ def test_gcs_and_mavsdk_at_once_and_a_reconnecting_gcs():
             out, _ = script.communicate(timeout=120)
             print(out[-2000:])
             assert script.returncode == 0, out
+        finally:
+            if script.poll() is None:
+                script.kill()
+                script.wait(5)
+
+
+def test_a_status_text_mavsdk_sends_reaches_the_gcs():
+    """ServerUtility.send_status_text on the API link, as MAVSDK-Python's
+    send_status_message.py example sends it (as system 1): a pymavlink GCS on
+    the GCS link reads the text, sent by MAVSDK's system and component. The
+    GCS sends its heartbeat each second: PX4 forwards a message without a
+    target only onto a link on which it has heard someone."""
+    from pymavlink import mavutil
+
+    with Vehicle(speed=SPEED) as v:
+        gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{v.gcs_port}", source_system=255)
+        assert gcs.wait_heartbeat(timeout=5) is not None
+        script = subprocess.Popen(
+            [sys.executable, str(SCRIPTS / "status_text.py")],
+            cwd=SCRIPTS,
+            env=script_env(v),
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+        try:
+            texts = []
+            deadline = time.monotonic() + 30
+            while time.monotonic() < deadline and not any(t == "Hello world!" for t, _ in texts):
+                gcs.mav.heartbeat_send(6, 8, 0, 0, 0)
+                m = gcs.recv_match(type="STATUSTEXT", blocking=True, timeout=1)
+                if m is not None:
+                    texts.append((m.text, (m.get_srcSystem(), m.get_srcComponent())))
+            out, _ = script.communicate(timeout=60)
+            print(out[-2000:])
+            assert script.returncode == 0, out
+            sent = [src for t, src in texts if t == "Hello world!"]
+            assert sent, f"the GCS got no 'Hello world!', only {texts}"
+            # MAVSDK's system (1, as the example sets it) and its component,
+            # not the autopilot's: forwarded as sent, not announced anew
+            assert sent[0][0] == 1 and sent[0][1] != 1, sent
         finally:
             if script.poll() is None:
                 script.kill()

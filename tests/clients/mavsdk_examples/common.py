@@ -115,11 +115,12 @@ async def pause(uav, sim_seconds):
     )
 
 
-async def bring_up(need_position=True):
-    """Start a mavsdk_server for the vehicle's API link, wait until the vehicle
-    is discovered and (unless told otherwise) until it reports a global
-    position estimate and a home position, and return the System."""
-    uav = System(port=SERVER_PORT)
+async def bring_up(need_position=True, sysid=245):
+    """Start a mavsdk_server for the vehicle's API link (MAVSDK speaking as
+    system `sysid`, 245 by default), wait until the vehicle is discovered and
+    (unless told otherwise) until it reports a global position estimate and a
+    home position, and return the System."""
+    uav = System(port=SERVER_PORT, sysid=sysid)
     _SYSTEMS.add(uav)
     await uav.connect(system_address=API_URL)
     print(f"[link] gRPC on :{SERVER_PORT}, listening for the vehicle on {API_URL}")

@@ -221,7 +221,10 @@ class Run:
                 log.flush()
                 log.seek(0)
                 lines = [x for x in log.read().splitlines() if x.strip()]
-                self.error = (lines[-1] if lines else f"exit {p.poll()}")[:200]
+                # the daemon's own words ("error: invalid value '256' for
+                # '--count <N>': ..."), not the hint clap prints after them
+                said = [x for x in lines if x.startswith("error")] or lines[-1:]
+                self.error = (said[0] if said else f"exit {p.poll()}")[:200]
                 return
 
     @staticmethod

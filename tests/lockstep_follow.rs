@@ -10,7 +10,7 @@ mod common;
 
 use common::sitl::{Sitl, int, point, real};
 use nalgebra::{Vector2, Vector3};
-use rotorpilot::autopilot::{AutopilotCommand, CommandOutcome, FlightMode, TargetFix, Telemetry};
+use rotorpilot::autopilot::{AutopilotCommand, CommandOutcome, FlightMode, ManualControl, TargetFix, Telemetry};
 use rotorpilot::math::{euler_zyx, wrap_pi};
 use rotorpilot::params::ParamValue;
 
@@ -249,4 +249,137 @@ fn a_target_below_the_ground_brings_it_down_to_the_safety_altitude_not_to_land()
     assert_eq!(ap.mode(), FlightMode::FollowTarget);
     assert!(lowest > 0.5, "came down to {lowest} m");
     assert!((height(&t) - 1.0).abs() < 0.5, "height {}", height(&t));
+}
+
+/// Fly `seconds` holding `sticks` (sent at 50 Hz, as PX4's test sends
+/// them) with a still target at `target`, a fix every 0.2 s.
+fn hold_sticks(ap: &mut Sitl, seconds: f64, target: Vector2<f64>, sticks: ManualControl) {
+    let (fix_every, stick_every) = ((0.2 / ap.dt_s()).round() as usize, (0.02 / ap.dt_s()).round() as usize);
+    for k in 0..ap.steps(seconds) {
+        if k % fix_every == 0 {
+            assert_eq!(
+                ap.command(fix(target.x, target.y, Some(Vector3::zeros()))),
+                CommandOutcome::Accepted
+            );
+        }
+        if k % stick_every == 0 {
+            assert_eq!(
+                ap.command(AutopilotCommand::ManualControl(sticks)),
+                CommandOutcome::Accepted
+            );
+        }
+        ap.step();
+    }
+}
+
+/// GIVEN a quad following a still target from 10 m in front, 10 m high
+/// (PX4's "Follow target - RC Adjustment" case: `FLW_TGT_FA` 0), the
+/// sticks centred
+/// WHEN full throttle is held for 3 s, then full pitch forward, then full
+/// roll right, each followed by centred sticks until the vehicle settles
+/// THEN the follow height grows, at most by its 1.5 m/s for those 3 s and
+/// at least by the half of it that PX4's test asks for; the distance the
+/// same with 2 m/s; the angle clockwise, at most by `FLW_TGT_MAX_VEL / d`
+/// (5 m/s over some 14 m: 0.35 rad/s); and centred sticks then hold the
+/// geometry the sticks made.
+#[test]
+fn the_sticks_move_the_follow_height_distance_and_angle() {
+    let mut ap = airborne(&[
+        ("FLW_TGT_DST", real(10.0)),
+        ("FLW_TGT_HT", real(10.0)),
+        ("FLW_TGT_FA", real(0.0)),
+    ]);
+    let target = ap.telemetry().position_ned.xy();
+    let centred = ManualControl::CENTRED;
+    let stick = |pitch, roll, throttle| ManualControl {
+        pitch,
+        roll,
+        throttle,
+        yaw: 0.0,
+    };
+    hold_sticks(&mut ap, 0.2, target, centred);
+    assert_eq!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::FollowTarget)),
+        CommandOutcome::Accepted
+    );
+    hold_sticks(&mut ap, 25.0, target, centred);
+    // (height above home, distance from the target, bearing from it clockwise from north)
+    let at = |ap: &mut Sitl| {
+        let t = ap.telemetry();
+        let d = t.position_ned.xy() - target;
+        (height(&t), d.norm(), d.y.atan2(d.x))
+    };
+    let (h0, d0, a0) = at(&mut ap);
+    assert!(
+        (h0 - 10.0).abs() < 0.3 && (d0 - 10.0).abs() < 0.5 && a0.abs() < 0.1,
+        "{h0} m high, {d0} m away, at {a0} rad"
+    );
+    let settle = 8.0;
+
+    hold_sticks(&mut ap, 3.0, target, stick(0.0, 0.0, 1.0));
+    hold_sticks(&mut ap, settle, target, centred);
+    let (h1, d1, a1) = at(&mut ap);
+    assert!(h1 - h0 > 2.25 && h1 - h0 < 4.5 + 0.1, "climbed {} m", h1 - h0);
+    assert!(
+        (d1 - d0).abs() < 0.3 && wrap_pi(a1 - a0).abs() < 0.05,
+        "throttle moved more than the height"
+    );
+
+    hold_sticks(&mut ap, 3.0, target, stick(1.0, 0.0, 0.0));
+    hold_sticks(&mut ap, settle, target, centred);
+    let (h2, d2, a2) = at(&mut ap);
+    assert!(d2 - d1 > 3.0 && d2 - d1 < 6.0 + 0.1, "moved out {} m", d2 - d1);
+    assert!(
+        (h2 - h1).abs() < 0.3 && wrap_pi(a2 - a1).abs() < 0.05,
+        "pitch moved more than the distance"
+    );
+
+    hold_sticks(&mut ap, 3.0, target, stick(0.0, 1.0, 0.0));
+    hold_sticks(&mut ap, settle, target, centred);
+    let (h3, d3, a3) = at(&mut ap);
+    let most = 5.0 / d2 * 3.0;
+    let turned = wrap_pi(a3 - a2);
+    assert!(
+        turned > most / 2.0 && turned < most + 0.05,
+        "turned {turned} rad clockwise, at most {most}"
+    );
+    assert!(
+        (h3 - h2).abs() < 0.3 && (d3 - d2).abs() < 0.3,
+        "roll moved more than the angle"
+    );
+
+    // centred sticks hold what the sticks made
+    hold_sticks(&mut ap, 10.0, target, centred);
+    let (h4, d4, a4) = at(&mut ap);
+    assert!((h4 - h3).abs() < 0.1 && (d4 - d3).abs() < 0.1 && wrap_pi(a4 - a3).abs() < 0.01);
+    assert_eq!(ap.mode(), FlightMode::FollowTarget);
+}
+
+/// GIVEN a quad following a still target 10 m away, 10 m high
+/// WHEN one MANUAL_CONTROL at full throttle comes, and no other
+/// THEN the height grows only while those sticks are fresh (`COM_RC_LOSS_T`,
+/// 0.5 s: PX4 zeroes sticks whose signal is lost), some 0.75 m at most.
+#[test]
+fn sticks_that_stop_coming_stop_moving_the_geometry() {
+    let mut ap = airborne(&[("FLW_TGT_DST", real(10.0)), ("FLW_TGT_HT", real(10.0))]);
+    let target = ap.telemetry().position_ned.xy() + Vector2::new(10.0, 0.0);
+    hold_sticks(&mut ap, 0.2, target, ManualControl::CENTRED);
+    assert_eq!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::FollowTarget)),
+        CommandOutcome::Accepted
+    );
+    hold_sticks(&mut ap, 25.0, target, ManualControl::CENTRED);
+    let h0 = height(&ap.telemetry());
+    let full = ManualControl {
+        throttle: 1.0,
+        ..ManualControl::CENTRED
+    };
+    assert_eq!(
+        ap.command(AutopilotCommand::ManualControl(full)),
+        CommandOutcome::Accepted
+    );
+    let now = ap.time_s();
+    chase(&mut ap, 15.0, now, target, Vector2::zeros(), true);
+    let climbed = height(&ap.telemetry()) - h0;
+    assert!(climbed > 0.2 && climbed < 0.75 + 0.05, "climbed {climbed} m");
 }

@@ -100,6 +100,7 @@ macro_rules! situation {
             resting: $ap.land.landed() || $ap.land.ground_contact(),
             landed: $ap.land.landed(),
             dt: $ap.dt_s(),
+            clock: $ap.failsafe.clock(),
             max_thrust_n: $ap.max_thrust_n(),
             origin: &$ap.origin,
             home: &$ap.home,

@@ -21,10 +21,9 @@ docstrings name the file and the line of the TEST_CASE):
   autopilot_tester_follow_me.cpp): a target simulated 1 Hz on a straight
   line north, streamed as positions, or positions and velocities, while the
   follow angle goes round behind, in front, front right and front left;
-  velocities alone, which must not move the vehicle. "Follow target - RC
-  Adjustment" (test_multicopter_follow_me.cpp:106) needs RC sticks
-  (ManualControl) while following and is not here: it is skipped with that
-  reason.
+  velocities alone, which must not move the vehicle; RC sticks
+  (ManualControl) moving the follow height, distance and angle of a still
+  target.
 
 The line numbers are those of the newest stored revision of each file:
 test_multicopter_control_allocation.cpp of commit 88e4834 (which checks
@@ -112,6 +111,7 @@ from mavsdk import System  # noqa: E402
 from mavsdk.action import ActionError  # noqa: E402
 from mavsdk.failure import FailureType, FailureUnit  # noqa: E402
 from mavsdk.follow_me import Config, FollowMeError, TargetLocation  # noqa: E402
+from mavsdk.manual_control import ManualControlError  # noqa: E402
 from mavsdk.mission import MissionPlan  # noqa: E402
 
 # the airframe the control-allocation cases fly (module doc)
@@ -592,6 +592,11 @@ class FollowTargetSimulator:
     def position_ground_truth_ned(self):
         return list(self.position)
 
+    def position_global_ground_truth(self):
+        n, e, d = self.position
+        lat, lon = CoordinateTransformation(self.home.latitude_deg, self.home.longitude_deg).global_from_local(n, e)
+        return lat, lon, d + self.home.absolute_altitude_m
+
     def position_global_noisy(self):
         n, e, d = self.noisy(self.position, 1.0)
         lat, lon = CoordinateTransformation(self.home.latitude_deg, self.home.longitude_deg).global_from_local(n, e)
@@ -730,6 +735,99 @@ async def stream_velocity_only(w):
     w.checks.check(moved < 4.0, f"moved {moved:.2f} m, not under 4 m")
 
 
+async def rc_adjustment_test(w):
+    """AutopilotTesterFollowMe::rc_adjustment_test: follow height 10 m,
+    distance 10 m, angle 0 (in front), the rest MAVSDK's defaults (8 m/s
+    tangential); a still target where the vehicle is, its ground truth sent
+    at every iteration; 60 s of iterations at 50 Hz, each 20 ms of vehicle
+    time, the phases by the vehicle's time since the start (PX4 counts
+    iterations of a sleep of that length). Sticks (ManualControl, throttle
+    centred at 0.5): centred 5 s; throttle up 3 s, centred 2 s, then the
+    height 2.25 m over where it was at 5 s (half of 1.5 m/s for 3 s); pitch
+    forward 3 s, centred 2 s, then the distance over 13 m (10 + half of
+    2 m/s for 3 s); roll right 3 s, centred 2 s, then the follow angle
+    turned clockwise.
+
+    The angle. PX4's test asks for 2.25 rad (half of 1.5 rad/s for 3 s), but
+    PX4's task turns the angle at min(1.5 rad/s, FLW_TGT_MAX_VEL / distance)
+    (FlightTaskAutoFollowTarget::updateRcAdjustedFollowAngle): 8 m/s over
+    the 13 m and more the distance check has just asked for, at most
+    0.62 rad/s, 1.85 rad in 3 s. So the check here is PX4's own rule, half of
+    what that rate gives at the distance the roll starts from.
+
+    The first CHECK: MAVSDK's FollowMe starts sending once a HEARTBEAT shows
+    the mode (module doc), so the iterations start once it is active."""
+    rate_hz = 50
+    height_m, angle_deg, distance_m = 10.0, 0.0, 10.0
+    # the test's copies of FlightTaskAutoFollowTarget's constants [m/s, m/s, rad/s]
+    distance_speed, height_speed, angle_speed = 2.0, 1.5, 1.5
+    target_pos = current_position_ned(w)
+    target = FollowTargetSimulator(target_pos, w.home_truth)
+    base = default_config()
+    config = Config(height_m, distance_m, base.responsiveness, base.altitude_mode, base.max_tangential_vel_m_s,
+                    angle_deg)
+    await follow_me_call(w, "set_config", w.uav.follow_me.set_config(config))
+    lat, lon, alt = target.position_global_ground_truth()
+    nan = float("nan")
+    location = TargetLocation(lat, lon, alt, nan, nan, nan)
+    await follow_me_call(w, "start", w.uav.follow_me.start())
+    await wait_for_follow_me_active(w)
+
+    def offset(p):
+        return p[0] - target_pos[0], p[1] - target_pos[1]
+
+    async def sticks(x, y, z):
+        try:
+            await w.uav.manual_control.set_manual_control_input(x, y, z, 0.0)
+        except ManualControlError as e:
+            w.checks.check(False, f"manual control ({x}, {y}, {z}): {e}")
+
+    t0 = w.now_s
+    checked = set()
+    initial = roll_from_m = None
+    while (t := w.now_s - t0) <= 60.0:
+        await w.uav.follow_me.set_target_location(location)
+        here = current_position_ned(w)
+        if t < 5:
+            await sticks(0.0, 0.0, 0.5)
+        elif initial is None:
+            initial = here
+        elif t < 8:
+            await sticks(0.0, 0.0, 1.0)
+        elif t < 10:
+            await sticks(0.0, 0.0, 0.5)
+        elif "height" not in checked:
+            checked.add("height")
+            climbed = -(here[2] - initial[2])
+            print(f"[rc] the follow height grew {climbed:.2f} m")
+            w.checks.check(climbed > height_speed * 3.0 * 0.5, f"climbed {climbed:.2f} m, not over "
+                                                               f"{height_speed * 3.0 * 0.5} m")
+        elif t < 13:
+            await sticks(1.0, 0.0, 0.5)
+        elif t < 15:
+            await sticks(0.0, 0.0, 0.5)
+        elif "distance" not in checked:
+            checked.add("distance")
+            roll_from_m = math.hypot(*offset(here))
+            print(f"[rc] the follow distance is {roll_from_m:.2f} m")
+            w.checks.check(roll_from_m > distance_m + distance_speed * 3.0 * 0.5,
+                           f"{roll_from_m:.2f} m from the target, not over {distance_m + distance_speed * 3.0 * 0.5} m")
+        elif t < 18:
+            await sticks(0.0, 1.0, 0.5)
+        elif t < 20:
+            await sticks(0.0, 0.0, 0.5)
+        elif "angle" not in checked:
+            checked.add("angle")
+            north, east = offset(here)
+            angle = math.atan2(east, north)
+            most = min(angle_speed, config.max_tangential_vel_m_s / roll_from_m) * 3.0
+            print(f"[rc] the follow angle is {angle:.2f} rad (at most {most:.2f} at PX4's rate)")
+            w.checks.check(angle > math.radians(angle_deg) + most * 0.5,
+                           f"follow angle {angle:.2f} rad, not over {most * 0.5:.2f}")
+        await w.sleep_for(1.0 / rate_hz)
+    w.checks.check(checked == {"height", "distance", "angle"}, f"checked only {sorted(checked)}")
+
+
 async def follow_takeoff(w):
     """The cases' start: ready, home stored, armed, takeoff altitude 10 m,
     takeoff, in the air."""
@@ -781,11 +879,17 @@ def test_follow_target_velocity_streaming_only():
     fly(scenario, 120)
 
 
-@pytest.mark.skip(reason=(
-    "PX4-Autopilot test/mavsdk_tests/test_multicopter_follow_me.cpp:106, TEST_CASE \"Follow target - RC "
-    "Adjustment\": it moves RC sticks (ManualControl.set_manual_control_input at 50 Hz) while following, to "
-    "change the follow height, distance and angle; this file re-expresses only the cases without RC sticks"))
 def test_follow_target_rc_adjustment():
     """PX4-Autopilot test/mavsdk_tests/test_multicopter_follow_me.cpp:106
     at commit 1bbd11683f715ebce43c377e0c8628d783ba5b04, TEST_CASE "Follow
-    target - RC Adjustment" (skipped)."""
+    target - RC Adjustment": takeoff to 10 m, rc_adjustment_test (a still
+    target; full throttle, then full pitch, then full roll, each for 3 s,
+    the follow height, distance and angle checked after each); Land,
+    disarmed within 300 s."""
+
+    async def scenario(w):
+        await follow_takeoff(w)
+        await rc_adjustment_test(w)
+        await follow_land(w)
+
+    fly(scenario, 150)

@@ -19,7 +19,8 @@
 //!   the orbit angle `theta` moves to `course + FLW_TGT_FA` at most at
 //!   `FLW_TGT_MAX_VEL / FLW_TGT_DST` rad/s. On entry `theta` is where the
 //!   vehicle already is, seen from the target, and the course the one that
-//!   puts the follow angle there.
+//!   puts the follow angle there; a vehicle within [`YAW_MIN_DISTANCE_M`]
+//!   of the target starts as PX4's task always does, both north (0).
 //! * Desired position `p_d = x + FLW_TGT_DST [cos theta, sin theta, 0]`
 //!   (NED), its height `FLW_TGT_HT` above home (`FLW_TGT_ALT_M` 0, and 1
 //!   over this flat ground), never lower than where the mode started, or
@@ -27,8 +28,19 @@
 //! * More than [`ALT_ACCEPTANCE_M`] off that height the vehicle first climbs
 //!   or descends where it is; within it, it flies `p_d` with the filtered
 //!   target velocity and acceleration as feed-forward
-//!   ([`TranslationSetpoint::Track`]), the nose to the target once more
+//!   ([`TranslationSetpoint::Track`]), plus the velocity at which the
+//!   sticks (below) move `p_d`, the nose to the target once more
 //!   than [`YAW_MIN_DISTANCE_M`] away, horizontal speed under `MPC_XY_VEL_MAX`.
+//! * The pilot's sticks (MANUAL_CONTROL) move the follow geometry, as in
+//!   PX4's task: throttle the height at up to [`HEIGHT_ADJUST_M_S`], pitch
+//!   the distance at up to [`DISTANCE_ADJUST_M_S`], roll the angle at up to
+//!   `min(ANGLE_ADJUST_RAD_S, FLW_TGT_MAX_VEL / d)` (right: clockwise), each
+//!   stick through PX4's expo and deadzone, `x' = s expo(deadzone(stick))`.
+//!   Each moves only while the vehicle is within [`ADJUST_WINDOW_S`] of
+//!   that speed of what it adjusts (the previous height setpoint, the
+//!   distance, the orbit angle), so that the setpoint never runs away from
+//!   it. Distance and height stay within `[1, 100]` m. A parameter set
+//!   meanwhile replaces what the sticks made of it.
 //! * Below [`MIN_SAFETY_ALTITUDE_M`] above the ground (`h = z_rest - z`, NED)
 //!   it stops moving horizontally and climbs at [`EMERGENCY_ASCENT_M_S`]
 //!   (PX4's emergency ascent): a follow height that asks for the ground (a
@@ -39,8 +51,10 @@
 
 use nalgebra::{Vector2, Vector3};
 
+use super::manual::{ManualControl, expo_deadzone};
 use super::{Nav, Navigator, Situation};
 use crate::autopilot::control_loop::Demand;
+use crate::autopilot::settings::FollowSettings;
 use crate::control::{Setpoint, TranslationSetpoint, YawSetpoint};
 use crate::math::wrap_pi;
 
@@ -64,6 +78,19 @@ const YAW_MIN_DISTANCE_M: f64 = 1.0;
 const MIN_SAFETY_ALTITUDE_M: f64 = 1.0;
 /// The climb rate of that ascent [m/s] (PX4's `EMERGENCY_ASCENT_SPEED`).
 const EMERGENCY_ASCENT_M_S: f64 = 0.5;
+/// Full pitch stick moves the follow distance this fast [m/s] (PX4's `FOLLOW_DISTANCE_USER_ADJUST_SPEED`).
+const DISTANCE_ADJUST_M_S: f64 = 2.0;
+/// Full throttle moves the follow height this fast [m/s] (PX4's `FOLLOW_HEIGHT_USER_ADJUST_SPEED`).
+const HEIGHT_ADJUST_M_S: f64 = 1.5;
+/// Full roll stick moves the follow angle at most this fast [rad/s] (PX4's `FOLLOW_ANGLE_USER_ADJUST_SPEED`).
+const ANGLE_ADJUST_RAD_S: f64 = 1.5;
+/// The sticks set the distance and the height up to this [m] (PX4's `FOLLOW_DISTANCE_MAX`, `FOLLOW_HEIGHT_MAX`).
+const ADJUST_MAX_M: f64 = 100.0;
+/// A stick adjusts only while the vehicle is within this many seconds of
+/// its adjustment speed of the setpoint [s] (PX4's `USER_ADJUSTMENT_ERROR_TIME_WINDOW`).
+const ADJUST_WINDOW_S: f64 = 0.5;
+/// The expo of the sticks (PX4's `Sticks`, 0.6).
+const STICK_EXPO: f64 = 0.6;
 
 /// One FOLLOW_TARGET report, as the client sends it.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -128,6 +155,25 @@ impl Target {
     }
 }
 
+/// Where the vehicle follows from: distance [m], height [m] and angle
+/// [rad, clockwise from the target's course].
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Geometry {
+    distance_m: f64,
+    height_m: f64,
+    angle_rad: f64,
+}
+
+impl Geometry {
+    fn of(fs: &FollowSettings) -> Self {
+        Self {
+            distance_m: fs.distance_m,
+            height_m: fs.height_m,
+            angle_rad: fs.angle_rad,
+        }
+    }
+}
+
 /// What Follow remembers between steps.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(in crate::autopilot) struct Follow {
@@ -141,6 +187,12 @@ pub(in crate::autopilot) struct Follow {
     theta_rad: Option<f64>,
     /// The follow height's NED z floor: where the mode started [m].
     start_z: f64,
+    /// The geometry flown: the parameters', moved by the sticks.
+    geometry: Geometry,
+    /// The parameters' geometry when last read (a change replaces the flown one).
+    params: Geometry,
+    /// The NED z of the last position setpoint [m] (where the mode started, at first).
+    setpoint_z: f64,
 }
 
 /// One step of the second-order target filter (module doc), `dt` [s].
@@ -156,6 +208,38 @@ fn filter_step(
     (x + (v + v_next) * (0.5 * dt), v_next, a)
 }
 
+/// One step `dt` [s] of the sticks' adjustments of `g` (module doc): `p`
+/// the vehicle [m], `x` the filtered target [m], NED; `theta` the orbit
+/// angle setpoint [rad] and `setpoint_z` the height setpoint [m] of the
+/// step before. A centred stick changes nothing.
+fn adjust(
+    mut g: Geometry,
+    sticks: &ManualControl,
+    (p, x): (&Vector3<f64>, &Vector3<f64>),
+    (theta, setpoint_z): (Option<f64>, f64),
+    (deadzone, max_tangential_m_s, dt): (f64, f64, f64),
+) -> Geometry {
+    let rate = |stick: f64| expo_deadzone(stick, STICK_EXPO, deadzone);
+    let up = rate(sticks.throttle);
+    if up != 0.0 && (setpoint_z - p.z).abs() < HEIGHT_ADJUST_M_S * ADJUST_WINDOW_S {
+        g.height_m = (g.height_m + HEIGHT_ADJUST_M_S * up * dt).clamp(MIN_SAFETY_ALTITUDE_M, ADJUST_MAX_M);
+    }
+    let out = p.xy() - x.xy();
+    let away = rate(sticks.pitch);
+    if away != 0.0 && (out.norm() - g.distance_m).abs() < DISTANCE_ADJUST_M_S * ADJUST_WINDOW_S {
+        g.distance_m = (g.distance_m + DISTANCE_ADJUST_M_S * away * dt).clamp(YAW_MIN_DISTANCE_M, ADJUST_MAX_M);
+    }
+    let round = rate(sticks.roll);
+    if let Some(theta) = theta.filter(|_| round != 0.0) {
+        let measured = out.y.atan2(out.x);
+        if wrap_pi(measured - theta).abs() < ANGLE_ADJUST_RAD_S * ADJUST_WINDOW_S {
+            let most = ANGLE_ADJUST_RAD_S.min(max_tangential_m_s / g.distance_m);
+            g.angle_rad = wrap_pi(g.angle_rad + most * round * dt);
+        }
+    }
+    g
+}
+
 /// Move `theta` towards `goal` [rad] by at most `max_step` [rad], the short way.
 fn orbit_step(theta: f64, goal: f64, max_step: f64) -> f64 {
     let e = wrap_pi(goal - theta);
@@ -164,6 +248,22 @@ fn orbit_step(theta: f64, goal: f64, max_step: f64) -> f64 {
     } else {
         wrap_pi(theta + e.signum() * max_step)
     }
+}
+
+/// `flown` with each parameter that changed since `seen` put in its place
+/// (PX4's task on a parameter update); `seen` becomes `now`.
+fn refreshed(mut flown: Geometry, seen: &mut Geometry, now: &Geometry) -> Geometry {
+    if now.distance_m != seen.distance_m {
+        flown.distance_m = now.distance_m;
+    }
+    if now.height_m != seen.height_m {
+        flown.height_m = now.height_m;
+    }
+    if now.angle_rad != seen.angle_rad {
+        flown.angle_rad = now.angle_rad;
+    }
+    *seen = *now;
+    flown
 }
 
 impl Navigator {
@@ -185,12 +285,16 @@ impl Navigator {
     /// Follow entered: no filter yet, the height floor where the vehicle is meant to be.
     pub(in crate::autopilot) fn enter_follow(&mut self, cx: &Situation<'_>) {
         let p = self.current_position(cx.meas);
+        let geometry = Geometry::of(&cx.settings.follow);
         self.nav = Nav::Follow(Follow {
             filter: None,
             fed_s: f64::NEG_INFINITY,
             course_rad: 0.0,
             theta_rad: None,
             start_z: p.z,
+            geometry,
+            params: geometry,
+            setpoint_z: p.z,
         });
     }
 
@@ -220,43 +324,71 @@ impl Navigator {
         f.filter = Some(filter);
         f.fed_s = t;
         let (x, v, a) = filter;
+        let before = refreshed(f.geometry, &mut f.params, &Geometry::of(fs));
+        let g = adjust(
+            before,
+            &self.fresh_sticks(t, s.manual.loss_s, cx.clock),
+            (&p, &x),
+            (f.theta_rad, f.setpoint_z),
+            (s.manual.deadzone, fs.max_tangential_m_s, dt),
+        );
+        f.geometry = g;
         let speed_xy = v.xy().norm();
         let theta = match f.theta_rad {
             None => {
-                // start where the vehicle is, seen from the target
+                // start where the vehicle is, seen from the target; over the
+                // target, where no side is nearer, as PX4 starts: the orbit
+                // angle and the course north
                 let out = p.xy() - x.xy();
-                let theta = if out.norm() > 1e-6 { out.y.atan2(out.x) } else { 0.0 };
-                f.course_rad = wrap_pi(theta - fs.angle_rad);
-                theta
+                if out.norm() > YAW_MIN_DISTANCE_M {
+                    let theta = out.y.atan2(out.x);
+                    f.course_rad = wrap_pi(theta - g.angle_rad);
+                    theta
+                } else {
+                    f.course_rad = 0.0;
+                    0.0
+                }
             }
             Some(theta) => theta,
         };
         if speed_xy >= COURSE_DEADZONE_M_S {
             f.course_rad = v.y.atan2(v.x);
         }
-        let max_step = fs.max_tangential_m_s / fs.distance_m * dt;
-        let theta = orbit_step(theta, f.course_rad + fs.angle_rad, max_step);
+        let max_step = fs.max_tangential_m_s / g.distance_m * dt;
+        let theta = orbit_step(theta, f.course_rad + g.angle_rad, max_step);
         f.theta_rad = Some(theta);
-        let xy = x.xy() + Vector2::new(theta.cos(), theta.sin()) * fs.distance_m;
+        let radial = Vector2::new(theta.cos(), theta.sin());
+        let xy = x.xy() + radial * g.distance_m;
         let z = if fs.track_altitude {
-            x.z - fs.height_m
+            x.z - g.height_m
         } else {
-            f.start_z.min(cx.home_ned.z - fs.height_m)
+            f.start_z.min(cx.home_ned.z - g.height_m)
         };
+        // what the sticks move, fed forward: out along the radial, round
+        // along the tangent (clockwise seen from above), up
+        let out_m_s = (g.distance_m - before.distance_m) / dt;
+        let round_m_s = wrap_pi(g.angle_rad - before.angle_rad) / dt * g.distance_m;
+        let moving = Vector3::new(
+            radial.x * out_m_s - radial.y * round_m_s,
+            radial.y * out_m_s + radial.x * round_m_s,
+            -(g.height_m - before.height_m) / dt,
+        );
         let to_target = x.xy() - p.xy();
         let yaw = if to_target.norm() > YAW_MIN_DISTANCE_M {
             YawSetpoint::Angle(to_target.y.atan2(to_target.x))
         } else {
             YawSetpoint::Hold
         };
-        let translation = if cx.rest_z - p.z < MIN_SAFETY_ALTITUDE_M {
+        let emergency = cx.rest_z - p.z < MIN_SAFETY_ALTITUDE_M;
+        f.setpoint_z = if emergency { p.z } else { z };
+        let translation = if emergency {
             // too close to the ground: no horizontal motion, climb slowly
             TranslationSetpoint::Velocity(Vector3::new(0.0, 0.0, -EMERGENCY_ASCENT_M_S))
         } else if (z - p.z).abs() < ALT_ACCEPTANCE_M {
             let vertical = if fs.track_altitude { 1.0 } else { 0.0 };
             TranslationSetpoint::Track {
                 position: Vector3::new(xy.x, xy.y, z),
-                velocity: Vector3::new(v.x, v.y, v.z * vertical),
+                velocity: Vector3::new(v.x, v.y, v.z * vertical) + moving,
                 acceleration: Vector3::new(a.x, a.y, a.z * vertical),
             }
         } else {

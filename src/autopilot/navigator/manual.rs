@@ -136,6 +136,11 @@ fn expo(x: f64, e: f64) -> f64 {
     (1.0 - e) * x + e * x * x * x
 }
 
+/// PX4's `math::expo_deadzone`: `expo(deadzone(x, dz), e)`.
+pub(super) fn expo_deadzone(x: f64, e: f64, dz: f64) -> f64 {
+    expo(deadzone(x, dz), e)
+}
+
 /// PX4's `math::superexpo`: `expo(x, e) (1 - g) / (1 - |x| g)`.
 fn superexpo(x: f64, e: f64, g: f64) -> f64 {
     let x = x.clamp(-1.0, 1.0);
@@ -218,6 +223,17 @@ impl Navigator {
         match self.manual {
             Some((s, _)) if !self.manual_lost => s,
             _ => ManualControl::CENTRED,
+        }
+    }
+
+    /// The sticks as PX4's flight tasks read them: the latest while fresh
+    /// ([`Navigator::manual_fresh`]), centred once `loss_s` [s] have passed
+    /// without any (PX4 zeroes the sticks when their signal is lost).
+    pub(in crate::autopilot) fn fresh_sticks(&self, now: f64, loss_s: f64, clock: ClientClock) -> ManualControl {
+        if self.manual_fresh(now, loss_s, clock) {
+            self.sticks()
+        } else {
+            ManualControl::CENTRED
         }
     }
 

@@ -33,12 +33,12 @@ pub use offboard::{AltitudeReference, AttitudeTarget, GlobalTarget, OffboardSetp
 
 use nalgebra::{UnitQuaternion, Vector2, Vector3};
 
-use super::FlightMode;
 use super::control_loop::Demand;
 use super::position_checks::PositionValidity;
 use super::settings::Settings;
 use super::status::Announcements;
 use super::telemetry::LandedState;
+use super::{ClientClock, FlightMode};
 use crate::control::{Reference, Setpoint, Shaper, ShaperError, ShaperLimits, TranslationSetpoint, YawSetpoint};
 use crate::geo::GeoPoint;
 use crate::mission::MissionItem;
@@ -67,6 +67,8 @@ pub(super) struct Situation<'a> {
     pub(super) landed: bool,
     /// Step [s].
     pub(super) dt: f64,
+    /// The clock client timers run on: how the sticks' freshness is timed.
+    pub(super) clock: ClientClock,
     /// What offboard thrust 1.0 means [N].
     pub(super) max_thrust_n: f64,
     /// The NED origin.

@@ -280,7 +280,7 @@ fn hold_sticks(ap: &mut Sitl, seconds: f64, target: Vector2<f64>, sticks: Manual
 /// THEN the follow height grows, at most by its 1.5 m/s for those 3 s and
 /// at least by the half of it that PX4's test asks for; the distance the
 /// same with 2 m/s; the angle clockwise, at most by `FLW_TGT_MAX_VEL / d`
-/// (5 m/s over some 14 m: 0.35 rad/s); and centred sticks then hold the
+/// (5 m/s over some 15 m: 0.33 rad/s); and centred sticks then hold the
 /// geometry the sticks made.
 #[test]
 fn the_sticks_move_the_follow_height_distance_and_angle() {
@@ -382,4 +382,54 @@ fn sticks_that_stop_coming_stop_moving_the_geometry() {
     chase(&mut ap, 15.0, now, target, Vector2::zeros(), true);
     let climbed = height(&ap.telemetry()) - h0;
     assert!(climbed > 0.2 && climbed < 0.75 + 0.05, "climbed {climbed} m");
+}
+
+/// GIVEN a quad following a still target, with the client timers on the
+/// wall clock (the daemon above `--speed 1`)
+/// WHEN one MANUAL_CONTROL at full throttle comes, and no other
+/// THEN the sticks' loss timer runs in Follow target too, and once the
+/// runtime says it ran out the height stops growing, without a failsafe
+/// (the mode stays, nothing is announced: `NAV_RCL_ACT` is for the manual
+/// modes).
+#[test]
+fn on_the_wall_clock_the_runtimes_stick_loss_stops_the_sticks_in_follow() {
+    use rotorpilot::autopilot::{ClientClock, ClientTimer};
+    let mut ap = airborne(&[("FLW_TGT_DST", real(10.0)), ("FLW_TGT_HT", real(10.0))]);
+    ap.pilot_mut().set_client_clock(ClientClock::Wall);
+    let target = ap.telemetry().position_ned.xy() + Vector2::new(10.0, 0.0);
+    hold_sticks(&mut ap, 0.2, target, ManualControl::CENTRED);
+    assert_eq!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::FollowTarget)),
+        CommandOutcome::Accepted
+    );
+    let now = ap.time_s();
+    chase(&mut ap, 25.0, now, target, Vector2::zeros(), true);
+    let full = ManualControl {
+        throttle: 1.0,
+        ..ManualControl::CENTRED
+    };
+    assert_eq!(
+        ap.command(AutopilotCommand::ManualControl(full)),
+        CommandOutcome::Accepted
+    );
+    let sent = ap.time_s();
+    let now = ap.time_s();
+    chase(&mut ap, 3.0, now, target, Vector2::zeros(), true);
+    let timer = ap
+        .pilot()
+        .client_timers()
+        .into_iter()
+        .find(|p| p.timer == ClientTimer::ManualControlLoss)
+        .expect("the sticks' loss timer runs in Follow target");
+    assert_eq!(timer.started_s, sent);
+    assert!(
+        height(&ap.telemetry()) > 11.0,
+        "the stick, still in force, raised the height"
+    );
+    ap.core_mut().client_timeout(0, ClientTimer::ManualControlLoss, sent);
+    let h = height(&ap.telemetry());
+    let now = ap.time_s();
+    chase(&mut ap, 10.0, now, target, Vector2::zeros(), true);
+    assert!(height(&ap.telemetry()) - h < 1.0, "climbed on after the loss");
+    assert_eq!(ap.mode(), FlightMode::FollowTarget);
 }

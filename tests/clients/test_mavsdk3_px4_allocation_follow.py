@@ -593,6 +593,9 @@ class FollowTargetSimulator:
         return list(self.position)
 
     def position_global_ground_truth(self):
+        # the altitude as PX4's tester gives it (home's plus the NED down
+        # offset, its sign as there); the cases follow at a constant height
+        # above home, which does not read it
         n, e, d = self.position
         lat, lon = CoordinateTransformation(self.home.latitude_deg, self.home.longitude_deg).global_from_local(n, e)
         return lat, lon, d + self.home.absolute_altitude_m

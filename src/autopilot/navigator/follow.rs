@@ -39,8 +39,11 @@
 //!   Each moves only while the vehicle is within [`ADJUST_WINDOW_S`] of
 //!   that speed of what it adjusts (the previous height setpoint, the
 //!   distance, the orbit angle), so that the setpoint never runs away from
-//!   it. Distance and height stay within `[1, 100]` m. A parameter set
-//!   meanwhile replaces what the sticks made of it.
+//!   it. A stick moves distance and height within `[1, 100]` m (a
+//!   parameter set outside stays until a stick moves it back in), never
+//!   the height above home below where the mode started. A parameter set
+//!   meanwhile replaces what the sticks made of it. Sticks older than
+//!   `COM_RC_LOSS_T` are centred, as PX4 zeroes lost sticks.
 //! * Below [`MIN_SAFETY_ALTITUDE_M`] above the ground (`h = z_rest - z`, NED)
 //!   it stops moving horizontally and climbs at [`EMERGENCY_ASCENT_M_S`]
 //!   (PX4's emergency ascent): a follow height that asks for the ground (a
@@ -208,6 +211,16 @@ fn filter_step(
     (x + (v + v_next) * (0.5 * dt), v_next, a)
 }
 
+/// `x + dx`, kept within `[lo, hi]` by a move towards it, never taken out
+/// of it by one, and never snapped into it from outside.
+fn step_within(x: f64, dx: f64, lo: f64, hi: f64) -> f64 {
+    if dx > 0.0 {
+        (x + dx).min(hi.max(x))
+    } else {
+        (x + dx).max(lo.min(x))
+    }
+}
+
 /// One step `dt` [s] of the sticks' adjustments of `g` (module doc): `p`
 /// the vehicle [m], `x` the filtered target [m], NED; `theta` the orbit
 /// angle setpoint [rad] and `setpoint_z` the height setpoint [m] of the
@@ -222,12 +235,22 @@ fn adjust(
     let rate = |stick: f64| expo_deadzone(stick, STICK_EXPO, deadzone);
     let up = rate(sticks.throttle);
     if up != 0.0 && (setpoint_z - p.z).abs() < HEIGHT_ADJUST_M_S * ADJUST_WINDOW_S {
-        g.height_m = (g.height_m + HEIGHT_ADJUST_M_S * up * dt).clamp(MIN_SAFETY_ALTITUDE_M, ADJUST_MAX_M);
+        g.height_m = step_within(
+            g.height_m,
+            HEIGHT_ADJUST_M_S * up * dt,
+            MIN_SAFETY_ALTITUDE_M,
+            ADJUST_MAX_M,
+        );
     }
     let out = p.xy() - x.xy();
     let away = rate(sticks.pitch);
     if away != 0.0 && (out.norm() - g.distance_m).abs() < DISTANCE_ADJUST_M_S * ADJUST_WINDOW_S {
-        g.distance_m = (g.distance_m + DISTANCE_ADJUST_M_S * away * dt).clamp(YAW_MIN_DISTANCE_M, ADJUST_MAX_M);
+        g.distance_m = step_within(
+            g.distance_m,
+            DISTANCE_ADJUST_M_S * away * dt,
+            YAW_MIN_DISTANCE_M,
+            ADJUST_MAX_M,
+        );
     }
     let round = rate(sticks.roll);
     if let Some(theta) = theta.filter(|_| round != 0.0) {
@@ -325,13 +348,26 @@ impl Navigator {
         f.fed_s = t;
         let (x, v, a) = filter;
         let before = refreshed(f.geometry, &mut f.params, &Geometry::of(fs));
-        let g = adjust(
+        let mut g = adjust(
             before,
             &self.fresh_sticks(t, s.manual.loss_s, cx.clock),
             (&p, &x),
             (f.theta_rad, f.setpoint_z),
             (s.manual.deadzone, fs.max_tangential_m_s, dt),
         );
+        // the height above home never goes below where the mode started:
+        // the sticks do not wind it down past that floor
+        let height_z = |h: f64| {
+            if fs.track_altitude {
+                x.z - h
+            } else {
+                f.start_z.min(cx.home_ned.z - h)
+            }
+        };
+        if !fs.track_altitude {
+            let floor_m = cx.home_ned.z - f.start_z;
+            g.height_m = g.height_m.max(before.height_m.min(floor_m));
+        }
         f.geometry = g;
         let speed_xy = v.xy().norm();
         let theta = match f.theta_rad {
@@ -355,23 +391,28 @@ impl Navigator {
             f.course_rad = v.y.atan2(v.x);
         }
         let max_step = fs.max_tangential_m_s / g.distance_m * dt;
-        let theta = orbit_step(theta, f.course_rad + g.angle_rad, max_step);
+        let goal = f.course_rad + g.angle_rad;
+        let theta_before = theta;
+        let theta = orbit_step(theta, goal, max_step);
         f.theta_rad = Some(theta);
         let radial = Vector2::new(theta.cos(), theta.sin());
         let xy = x.xy() + radial * g.distance_m;
-        let z = if fs.track_altitude {
-            x.z - g.height_m
-        } else {
-            f.start_z.min(cx.home_ned.z - g.height_m)
-        };
+        let z = height_z(g.height_m);
         // what the sticks move, fed forward: out along the radial, round
-        // along the tangent (clockwise seen from above), up
+        // along the tangent (clockwise seen from above) while the stick
+        // turns the angle and the orbit angle keeps up with it, up or down
+        // as the flown height moves
         let out_m_s = (g.distance_m - before.distance_m) / dt;
-        let round_m_s = wrap_pi(g.angle_rad - before.angle_rad) / dt * g.distance_m;
+        let turning = g.angle_rad != before.angle_rad && theta == wrap_pi(goal);
+        let round_m_s = if turning {
+            wrap_pi(theta - theta_before) / dt * g.distance_m
+        } else {
+            0.0
+        };
         let moving = Vector3::new(
             radial.x * out_m_s - radial.y * round_m_s,
             radial.y * out_m_s + radial.x * round_m_s,
-            -(g.height_m - before.height_m) / dt,
+            (z - height_z(before.height_m)) / dt,
         );
         let to_target = x.xy() - p.xy();
         let yaw = if to_target.norm() > YAW_MIN_DISTANCE_M {
@@ -439,6 +480,76 @@ mod tests {
         assert!((steps as f64 * dt - std::f64::consts::PI).abs() < 2e-3, "{steps}");
         // the short way across +-pi
         assert!(orbit_step(3.0, -3.0, 0.01) > 3.0 - 1e-12 || orbit_step(3.0, -3.0, 0.01) < -3.0);
+    }
+
+    #[test]
+    fn a_stick_moves_what_it_moves_inside_its_window_and_within_bounds() {
+        let g = Geometry {
+            distance_m: 10.0,
+            height_m: 10.0,
+            angle_rad: 0.0,
+        };
+        let (dt, dz, max_vel) = (1e-3, 0.1, 5.0);
+        // the vehicle 10 m north of the target, at its height setpoint
+        let (p, x) = (Vector3::new(10.0, 0.0, -10.0), Vector3::zeros());
+        let stick = |pitch, roll, throttle| ManualControl {
+            pitch,
+            roll,
+            throttle,
+            yaw: 0.0,
+        };
+        let at = |sticks: ManualControl, theta: Option<f64>, setpoint_z: f64| {
+            adjust(g, &sticks, (&p, &x), (theta, setpoint_z), (dz, max_vel, dt))
+        };
+        // centred, or within the deadzone: nothing moves
+        assert_eq!(at(ManualControl::CENTRED, Some(0.0), -10.0), g);
+        assert_eq!(at(stick(0.05, -0.1, 0.1), Some(0.0), -10.0), g);
+        // full sticks: 1.5 m/s up, 2 m/s out, min(1.5, 5 / d) rad/s clockwise
+        // (d as the pitch has just moved it, as PX4 orders them)
+        let moved = at(stick(1.0, 1.0, 1.0), Some(0.0), -10.0);
+        assert!((moved.height_m - (10.0 + 1.5 * dt)).abs() < 1e-12);
+        assert!((moved.distance_m - (10.0 + 2.0 * dt)).abs() < 1e-12);
+        assert!((moved.angle_rad - 5.0 / moved.distance_m * dt).abs() < 1e-12);
+        // outside each window: the setpoint 0.75 m from the vehicle, the
+        // vehicle 1 m off the distance, 0.75 rad off the orbit angle (or none yet)
+        assert_eq!(at(stick(0.0, 0.0, 1.0), Some(0.0), -10.75).height_m, 10.0);
+        let off = adjust(
+            g,
+            &stick(1.0, 0.0, 0.0),
+            (&Vector3::new(11.0, 0.0, -10.0), &x),
+            (Some(0.0), -10.0),
+            (dz, max_vel, dt),
+        );
+        assert_eq!(off.distance_m, 10.0);
+        assert_eq!(at(stick(0.0, 1.0, 0.0), Some(-0.75), -10.0).angle_rad, 0.0);
+        assert_eq!(at(stick(0.0, 1.0, 0.0), None, -10.0).angle_rad, 0.0);
+        // bounds: a move never takes a value out of [lo, hi], nor snaps one in from outside
+        assert_eq!(step_within(99.9995, 0.001, 1.0, 100.0), 100.0);
+        assert_eq!(step_within(1.0004, -0.001, 1.0, 100.0), 1.0);
+        assert_eq!(step_within(150.0, 0.001, 1.0, 100.0), 150.0);
+        assert_eq!(step_within(150.0, -0.001, 1.0, 100.0), 150.0 - 0.001);
+    }
+
+    #[test]
+    fn a_parameter_set_replaces_what_the_sticks_made_of_it_and_only_that() {
+        let params = Geometry {
+            distance_m: 10.0,
+            height_m: 10.0,
+            angle_rad: 0.0,
+        };
+        let flown = Geometry {
+            distance_m: 14.0,
+            height_m: 12.0,
+            angle_rad: 0.5,
+        };
+        let mut seen = params;
+        assert_eq!(refreshed(flown, &mut seen, &params), flown);
+        let now = Geometry {
+            height_m: 8.0,
+            ..params
+        };
+        assert_eq!(refreshed(flown, &mut seen, &now), Geometry { height_m: 8.0, ..flown });
+        assert_eq!(seen, now);
     }
 
     #[test]

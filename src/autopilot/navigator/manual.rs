@@ -227,8 +227,9 @@ impl Navigator {
     }
 
     /// The sticks as PX4's flight tasks read them: the latest while fresh
-    /// ([`Navigator::manual_fresh`]), centred once `loss_s` [s] have passed
-    /// without any (PX4 zeroes the sticks when their signal is lost).
+    /// ([`Navigator::manual_fresh`]: within `loss_s` [s] on the simulated
+    /// clock, until the loss timer runs out on the wall clock), else centred
+    /// (PX4 zeroes the sticks when their signal is lost).
     pub(in crate::autopilot) fn fresh_sticks(&self, now: f64, loss_s: f64, clock: ClientClock) -> ManualControl {
         if self.manual_fresh(now, loss_s, clock) {
             self.sticks()
@@ -246,9 +247,12 @@ impl Navigator {
     }
 
     /// When the sticks the loss timer waits after arrived [s]: in a manual
-    /// mode, with sticks not yet declared lost.
+    /// mode or in Follow target (whose sticks move what it follows from),
+    /// with sticks not yet declared lost.
     pub(in crate::autopilot) fn manual_loss_timer_start(&self) -> Option<f64> {
-        self.manual_mode()?;
+        if !matches!(self.nav, Nav::Manual(_) | Nav::Follow(_)) {
+            return None;
+        }
         self.manual.filter(|_| !self.manual_lost).map(|(_, t)| t)
     }
 

@@ -9,6 +9,7 @@ Run with the mavsdk<4 venv (which also holds pymavlink, for the two-client
 test): `python -m pytest tests/clients/test_mavsdk3.py`.
 """
 
+import contextlib
 import os
 import subprocess
 import sys
@@ -38,6 +39,26 @@ def script_env(vehicle):
         PYTHONWARNINGS="ignore::FutureWarning",
     )
     return env
+
+
+@contextlib.contextmanager
+def running_script(name, vehicle):
+    """A script of mavsdk_examples/ running beside the test (its output on
+    `.stdout`), killed on the way out if it has not ended."""
+    script = subprocess.Popen(
+        [sys.executable, str(SCRIPTS / name)],
+        cwd=SCRIPTS,
+        env=script_env(vehicle),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    try:
+        yield script
+    finally:
+        if script.poll() is None:
+            script.kill()
+            script.wait(5)
 
 
 def run_script(name, vehicle, timeout=150):
@@ -88,15 +109,7 @@ def test_gcs_and_mavsdk_at_once_and_a_reconnecting_gcs():
     with Vehicle(speed=SPEED) as v:
         gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{v.gcs_port}", source_system=255)
         assert gcs.wait_heartbeat(timeout=5) is not None
-        script = subprocess.Popen(
-            [sys.executable, str(SCRIPTS / "takeoff_and_land.py")],
-            cwd=SCRIPTS,
-            env=script_env(v),
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-            text=True,
-        )
-        try:
+        with running_script("takeoff_and_land.py", v) as script:
             # while MAVSDK flies, the GCS sees the flight
             in_air = gcs.recv_match(
                 type="EXTENDED_SYS_STATE", condition="EXTENDED_SYS_STATE.landed_state==2", blocking=True, timeout=40
@@ -120,10 +133,6 @@ def test_gcs_and_mavsdk_at_once_and_a_reconnecting_gcs():
             out, _ = script.communicate(timeout=120)
             print(out[-2000:])
             assert script.returncode == 0, out
-        finally:
-            if script.poll() is None:
-                script.kill()
-                script.wait(5)
 
 
 def test_a_status_text_mavsdk_sends_reaches_the_gcs():
@@ -137,15 +146,7 @@ def test_a_status_text_mavsdk_sends_reaches_the_gcs():
     with Vehicle(speed=SPEED) as v:
         gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{v.gcs_port}", source_system=255)
         assert gcs.wait_heartbeat(timeout=5) is not None
-        script = subprocess.Popen(
-            [sys.executable, str(SCRIPTS / "status_text.py")],
-            cwd=SCRIPTS,
-            env=script_env(v),
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-            text=True,
-        )
-        try:
+        with running_script("status_text.py", v) as script:
             texts = []
             deadline = time.monotonic() + 30
             while time.monotonic() < deadline and not any(t == "Hello world!" for t, _ in texts):
@@ -161,7 +162,3 @@ def test_a_status_text_mavsdk_sends_reaches_the_gcs():
             # MAVSDK's system (1, as the example sets it) and its component,
             # not the autopilot's: forwarded as sent, not announced anew
             assert sent[0][0] == 1 and sent[0][1] != 1, sent
-        finally:
-            if script.poll() is None:
-                script.kill()
-                script.wait(5)

@@ -272,6 +272,27 @@ fn hold_sticks(ap: &mut Sitl, seconds: f64, target: Vector2<f64>, sticks: Manual
     }
 }
 
+/// Sticks held at `pitch`, `roll`, `throttle` (yaw centred).
+fn sticks(pitch: f64, roll: f64, throttle: f64) -> ManualControl {
+    ManualControl {
+        pitch,
+        roll,
+        throttle,
+        yaw: 0.0,
+    }
+}
+
+/// Switch to AUTO.FOLLOW_TARGET with a still target at `target` and follow
+/// it for 25 s, the sticks centred, until the vehicle has settled.
+fn follow_still_target(ap: &mut Sitl, target: Vector2<f64>) {
+    hold_sticks(ap, 0.2, target, ManualControl::CENTRED);
+    assert_eq!(
+        ap.command(AutopilotCommand::SetMode(FlightMode::FollowTarget)),
+        CommandOutcome::Accepted
+    );
+    hold_sticks(ap, 25.0, target, ManualControl::CENTRED);
+}
+
 /// GIVEN a quad following a still target from 10 m in front, 10 m high
 /// (PX4's "Follow target - RC Adjustment" case: `FLW_TGT_FA` 0), the
 /// sticks centred
@@ -290,53 +311,40 @@ fn the_sticks_move_the_follow_height_distance_and_angle() {
         ("FLW_TGT_FA", real(0.0)),
     ]);
     let target = ap.telemetry().position_ned.xy();
-    let centred = ManualControl::CENTRED;
-    let stick = |pitch, roll, throttle| ManualControl {
-        pitch,
-        roll,
-        throttle,
-        yaw: 0.0,
-    };
-    hold_sticks(&mut ap, 0.2, target, centred);
-    assert_eq!(
-        ap.command(AutopilotCommand::SetMode(FlightMode::FollowTarget)),
-        CommandOutcome::Accepted
-    );
-    hold_sticks(&mut ap, 25.0, target, centred);
+    follow_still_target(&mut ap, target);
     // (height above home, distance from the target, bearing from it clockwise from north)
     let at = |ap: &mut Sitl| {
         let t = ap.telemetry();
         let d = t.position_ned.xy() - target;
         (height(&t), d.norm(), d.y.atan2(d.x))
     };
+    // `held` for 3 s, then centred sticks for 8 s, until the vehicle settles
+    let after = |ap: &mut Sitl, held: ManualControl| {
+        hold_sticks(ap, 3.0, target, held);
+        hold_sticks(ap, 8.0, target, ManualControl::CENTRED);
+        at(ap)
+    };
     let (h0, d0, a0) = at(&mut ap);
     assert!(
         (h0 - 10.0).abs() < 0.3 && (d0 - 10.0).abs() < 0.5 && a0.abs() < 0.1,
         "{h0} m high, {d0} m away, at {a0} rad"
     );
-    let settle = 8.0;
 
-    hold_sticks(&mut ap, 3.0, target, stick(0.0, 0.0, 1.0));
-    hold_sticks(&mut ap, settle, target, centred);
-    let (h1, d1, a1) = at(&mut ap);
+    let (h1, d1, a1) = after(&mut ap, sticks(0.0, 0.0, 1.0));
     assert!(h1 - h0 > 2.25 && h1 - h0 < 4.5 + 0.1, "climbed {} m", h1 - h0);
     assert!(
         (d1 - d0).abs() < 0.3 && wrap_pi(a1 - a0).abs() < 0.05,
         "throttle moved more than the height"
     );
 
-    hold_sticks(&mut ap, 3.0, target, stick(1.0, 0.0, 0.0));
-    hold_sticks(&mut ap, settle, target, centred);
-    let (h2, d2, a2) = at(&mut ap);
+    let (h2, d2, a2) = after(&mut ap, sticks(1.0, 0.0, 0.0));
     assert!(d2 - d1 > 3.0 && d2 - d1 < 6.0 + 0.1, "moved out {} m", d2 - d1);
     assert!(
         (h2 - h1).abs() < 0.3 && wrap_pi(a2 - a1).abs() < 0.05,
         "pitch moved more than the distance"
     );
 
-    hold_sticks(&mut ap, 3.0, target, stick(0.0, 1.0, 0.0));
-    hold_sticks(&mut ap, settle, target, centred);
-    let (h3, d3, a3) = at(&mut ap);
+    let (h3, d3, a3) = after(&mut ap, sticks(0.0, 1.0, 0.0));
     let most = 5.0 / d2 * 3.0;
     let turned = wrap_pi(a3 - a2);
     assert!(
@@ -349,7 +357,7 @@ fn the_sticks_move_the_follow_height_distance_and_angle() {
     );
 
     // centred sticks hold what the sticks made
-    hold_sticks(&mut ap, 10.0, target, centred);
+    hold_sticks(&mut ap, 10.0, target, ManualControl::CENTRED);
     let (h4, d4, a4) = at(&mut ap);
     assert!((h4 - h3).abs() < 0.1 && (d4 - d3).abs() < 0.1 && wrap_pi(a4 - a3).abs() < 0.01);
     assert_eq!(ap.mode(), FlightMode::FollowTarget);
@@ -363,19 +371,10 @@ fn the_sticks_move_the_follow_height_distance_and_angle() {
 fn sticks_that_stop_coming_stop_moving_the_geometry() {
     let mut ap = airborne(&[("FLW_TGT_DST", real(10.0)), ("FLW_TGT_HT", real(10.0))]);
     let target = ap.telemetry().position_ned.xy() + Vector2::new(10.0, 0.0);
-    hold_sticks(&mut ap, 0.2, target, ManualControl::CENTRED);
-    assert_eq!(
-        ap.command(AutopilotCommand::SetMode(FlightMode::FollowTarget)),
-        CommandOutcome::Accepted
-    );
-    hold_sticks(&mut ap, 25.0, target, ManualControl::CENTRED);
+    follow_still_target(&mut ap, target);
     let h0 = height(&ap.telemetry());
-    let full = ManualControl {
-        throttle: 1.0,
-        ..ManualControl::CENTRED
-    };
     assert_eq!(
-        ap.command(AutopilotCommand::ManualControl(full)),
+        ap.command(AutopilotCommand::ManualControl(sticks(0.0, 0.0, 1.0))),
         CommandOutcome::Accepted
     );
     let now = ap.time_s();
@@ -397,24 +396,13 @@ fn on_the_wall_clock_the_runtimes_stick_loss_stops_the_sticks_in_follow() {
     let mut ap = airborne(&[("FLW_TGT_DST", real(10.0)), ("FLW_TGT_HT", real(10.0))]);
     ap.pilot_mut().set_client_clock(ClientClock::Wall);
     let target = ap.telemetry().position_ned.xy() + Vector2::new(10.0, 0.0);
-    hold_sticks(&mut ap, 0.2, target, ManualControl::CENTRED);
+    follow_still_target(&mut ap, target);
     assert_eq!(
-        ap.command(AutopilotCommand::SetMode(FlightMode::FollowTarget)),
-        CommandOutcome::Accepted
-    );
-    let now = ap.time_s();
-    chase(&mut ap, 25.0, now, target, Vector2::zeros(), true);
-    let full = ManualControl {
-        throttle: 1.0,
-        ..ManualControl::CENTRED
-    };
-    assert_eq!(
-        ap.command(AutopilotCommand::ManualControl(full)),
+        ap.command(AutopilotCommand::ManualControl(sticks(0.0, 0.0, 1.0))),
         CommandOutcome::Accepted
     );
     let sent = ap.time_s();
-    let now = ap.time_s();
-    chase(&mut ap, 3.0, now, target, Vector2::zeros(), true);
+    chase(&mut ap, 3.0, sent, target, Vector2::zeros(), true);
     let timer = ap
         .pilot()
         .client_timers()

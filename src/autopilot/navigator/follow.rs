@@ -221,10 +221,14 @@ fn step_within(x: f64, dx: f64, lo: f64, hi: f64) -> f64 {
     }
 }
 
-/// One step `dt` [s] of the sticks' adjustments of `g` (module doc): `p`
-/// the vehicle [m], `x` the filtered target [m], NED; `theta` the orbit
-/// angle setpoint [rad] and `setpoint_z` the height setpoint [m] of the
-/// step before. A centred stick changes nothing.
+/// One step `dt` [s] of the sticks' adjustments of `g` (module doc), each
+/// stick `s = expo(deadzone(stick))`:
+/// `h += 1.5 s_throttle dt` while `|z_sp - z| < 1.5 * 0.5`,
+/// `d += 2 s_pitch dt` while `| |p - x|_xy - d | < 2 * 0.5`,
+/// `a += min(1.5, v_max / d) s_roll dt` while `|wrap(atan2(p - x) - theta)| < 1.5 * 0.5`.
+/// `p` the vehicle [m], `x` the filtered target [m], NED; `theta` the orbit
+/// angle setpoint [rad] and `setpoint_z` (`z_sp`) the height setpoint [m]
+/// of the step before. A centred stick changes nothing.
 fn adjust(
     mut g: Geometry,
     sticks: &ManualControl,

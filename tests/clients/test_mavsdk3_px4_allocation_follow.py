@@ -592,18 +592,20 @@ class FollowTargetSimulator:
     def position_ground_truth_ned(self):
         return list(self.position)
 
-    def position_global_ground_truth(self):
-        # the altitude as PX4's tester gives it (home's plus the NED down
-        # offset, its sign as there); the cases follow at a constant height
-        # above home, which does not read it
-        n, e, d = self.position
+    def global_of(self, ned):
+        """Latitude, longitude and altitude of `ned` around the stored home,
+        the altitude as PX4's tester gives it (home's plus the NED down
+        offset, its sign as there); the cases follow at a constant height
+        above home, which does not read it."""
+        n, e, d = ned
         lat, lon = CoordinateTransformation(self.home.latitude_deg, self.home.longitude_deg).global_from_local(n, e)
         return lat, lon, d + self.home.absolute_altitude_m
 
+    def position_global_ground_truth(self):
+        return self.global_of(self.position)
+
     def position_global_noisy(self):
-        n, e, d = self.noisy(self.position, 1.0)
-        lat, lon = CoordinateTransformation(self.home.latitude_deg, self.home.longitude_deg).global_from_local(n, e)
-        return lat, lon, d + self.home.absolute_altitude_m
+        return self.global_of(self.noisy(self.position, 1.0))
 
     def velocity_ned_noisy(self):
         return self.noisy(self.velocity, self.VEL_NOISE_STD)
